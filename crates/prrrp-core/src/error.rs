@@ -1,0 +1,155 @@
+//! The crate-wide error type.
+
+use std::fmt;
+
+/// Everything that can go wrong in prrrp, with a message that says what to fix.
+///
+/// Every fallible public function returns `Result<_, PrrrpError>`; no public function
+/// panics on bad input.
+#[derive(Debug, Clone, PartialEq)]
+#[non_exhaustive]
+pub enum PrrrpError {
+    /// A physical or configuration value is out of its valid range (non-positive mass,
+    /// negative inertia, NaN, a non-positive step size, …).
+    InvalidParameter {
+        /// Name of the offending field, e.g. `"m[2]"` or `"dt"`.
+        field: String,
+        /// The rejected value.
+        value: f64,
+        /// What the value must satisfy.
+        reason: &'static str,
+    },
+    /// A matrix that must be symmetric positive definite is not (e.g. the mass matrix for
+    /// a non-physical λ, or an innovation covariance).
+    NotPositiveDefinite {
+        /// Which matrix failed.
+        what: &'static str,
+    },
+    /// An input contains NaN or infinity.
+    NonFinite {
+        /// Which input, e.g. `"q"`, `"tau[3]"`.
+        what: String,
+        /// Sample index (row) of the first bad value, when the input is a series.
+        row: Option<usize>,
+    },
+    /// Array or series lengths do not match.
+    ShapeMismatch {
+        /// Which input.
+        what: String,
+        /// Expected shape or length.
+        expected: String,
+        /// Actual shape or length.
+        got: String,
+    },
+    /// Not enough samples to identify the requested number of parameters.
+    TooFewSamples {
+        /// Minimum number of samples.
+        needed: usize,
+        /// Number supplied.
+        got: usize,
+    },
+    /// The observation matrix does not determine every parameter.
+    RankDeficient {
+        /// Numerical rank found.
+        rank: usize,
+        /// Number of parameters.
+        params: usize,
+        /// Condition number σmax/σmin of the observation matrix (may be infinite).
+        cond: f64,
+        /// Unit vectors in parameter space (length `params`) spanning the unidentifiable
+        /// directions, from the right singular vectors of the smallest singular values.
+        directions: Vec<Vec<f64>>,
+    },
+    /// An iterative estimator or integrator blew up.
+    Diverged {
+        /// Which algorithm.
+        what: &'static str,
+        /// Sample or iteration at which divergence was detected.
+        at: usize,
+        /// What to change.
+        hint: &'static str,
+    },
+    /// A constrained problem (e.g. excitation under joint limits) has no feasible answer.
+    Infeasible {
+        /// What could not be met.
+        what: String,
+    },
+    /// Time stamps are not strictly increasing.
+    NonIncreasingTime {
+        /// First row whose time is not larger than the previous one.
+        row: usize,
+    },
+}
+
+impl fmt::Display for PrrrpError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Self::InvalidParameter {
+                field,
+                value,
+                reason,
+            } => {
+                write!(f, "invalid value {value} for `{field}`: {reason}")
+            }
+            Self::NotPositiveDefinite { what } => write!(
+                f,
+                "{what} is not positive definite; check that the parameters are physical \
+                 (positive masses and inertias)"
+            ),
+            Self::NonFinite { what, row } => match row {
+                Some(r) => write!(f, "`{what}` has a NaN or infinite value at row {r}"),
+                None => write!(f, "`{what}` has a NaN or infinite value"),
+            },
+            Self::ShapeMismatch {
+                what,
+                expected,
+                got,
+            } => {
+                write!(f, "`{what}` has shape {got}, expected {expected}")
+            }
+            Self::TooFewSamples { needed, got } => write!(
+                f,
+                "too few samples: got {got}, need at least {needed}; record a longer trajectory"
+            ),
+            Self::RankDeficient {
+                rank,
+                params,
+                cond,
+                directions,
+            } => {
+                write!(
+                    f,
+                    "the observation matrix has rank {rank} < {params} (cond = {cond:.3e}): \
+                     the data do not excite every parameter; use a richer excitation trajectory. \
+                     Unidentifiable directions:"
+                )?;
+                for d in directions {
+                    write!(f, " [")?;
+                    for (i, x) in d.iter().enumerate() {
+                        if i > 0 {
+                            write!(f, ", ")?;
+                        }
+                        write!(f, "{x:.3}")?;
+                    }
+                    write!(f, "]")?;
+                }
+                Ok(())
+            }
+            Self::Diverged { what, at, hint } => {
+                write!(f, "{what} diverged at sample/iteration {at}: {hint}")
+            }
+            Self::Infeasible { what } => write!(f, "infeasible: {what}"),
+            Self::NonIncreasingTime { row } => {
+                write!(
+                    f,
+                    "time stamps must be strictly increasing; row {row} is not"
+                )
+            }
+        }
+    }
+}
+
+impl std::error::Error for PrrrpError {}
+
+/// Shorthand for `Result<T, PrrrpError>`.
+pub type Result<T> = std::result::Result<T, PrrrpError>;

@@ -1,0 +1,64 @@
+//! # prrrp-core
+//!
+//! Dynamic model and parameter identification of the 5-DOF PRRRP redundant manipulator of
+//! Urrea & Pascal, "Parameter identification methods for real redundant manipulators",
+//! J. Appl. Res. Technol. 15 (2017) 320–331.
+//!
+//! The crate gives the closed-form Lagrange–Euler model of the arm **as a function of its
+//! 8 grouped base parameters λ**: mass matrix, Coriolis/centrifugal vector, gravity,
+//! inverse and forward dynamics, the 5×8 regressor Φ with τ = Φ·λ, the stacked observation
+//! matrix W and its condition number, and the analytic derivatives an extended Kalman
+//! filter needs. Every per-sample function works on stack-allocated nalgebra types and
+//! never touches the heap; batch linear algebra uses faer.
+//!
+//! ## Conventions
+//! - q = [d1, θ2, θ3, θ4, d5] in m, rad, rad, rad, m; τ = [F1, τ2, τ3, τ4, F5] in N, N·m,
+//!   N·m, N·m, N.
+//! - World z points up; gravity acts along −z with magnitude `gravity` (9.81 m/s² by
+//!   default). Joint 1 lifts the arm along +z, joints 2–4 rotate about vertical axes,
+//!   joint 5 moves the tool along −z (DH α4 = 180°), so G5 = −m5·g and M15 = −m5.
+//! - Inertias of links 2–4 are about their centres of mass.
+//!
+//! ## Example
+//! ```
+//! use prrrp_core::{Robot, Vec5};
+//!
+//! let robot = Robot::paper();
+//! let lambda = robot.base_parameters();
+//! let model = robot.model();
+//! let q = Vec5::new(0.1, 0.3, -0.5, 1.2, 0.02);
+//! let qd = Vec5::new(0.2, -1.0, 0.5, 2.0, -0.1);
+//! let qdd = Vec5::new(1.0, 3.0, -2.0, 0.5, 0.3);
+//!
+//! // Inverse dynamics equals the regressor times the base parameters.
+//! let tau = model.inverse_dynamics(&q, &qd, &qdd, &lambda);
+//! let phi = model.regressor(&q, &qd, &qdd);
+//! assert!((phi * lambda - tau).norm() < 1e-12);
+//!
+//! // Forward dynamics inverts it.
+//! let qdd_back = model.forward_dynamics(&q, &qd, &tau, &lambda)?;
+//! assert!((qdd_back - qdd).norm() < 1e-9);
+//! # Ok::<(), prrrp_core::PrrrpError>(())
+//! ```
+#![warn(missing_docs)]
+
+mod derivatives;
+mod dynamics;
+mod error;
+mod model;
+mod regressor;
+mod robot;
+mod terms;
+mod types;
+
+pub use derivatives::InverseDerivatives;
+pub use dynamics::{MassCholesky, PrrrpModel};
+pub use error::{PrrrpError, Result};
+pub use model::{ForwardDerivatives, LinearDynamics};
+pub use regressor::{condition_number, observation_matrix, singular_values};
+pub use robot::{DhRow, JointKind, Robot, STANDARD_GRAVITY};
+pub use types::{Lambda, Mat5, Regressor, Vec5, NDOF, NPARAM};
+
+/// Re-exported so that users name the same nalgebra and faer versions as the crate.
+pub use faer;
+pub use nalgebra;
