@@ -62,3 +62,8 @@ pub use types::{Lambda, Mat5, Regressor, Vec5, NDOF, NPARAM};
 /// Re-exported so that users name the same nalgebra and faer versions as the crate.
 pub use faer;
 pub use nalgebra;
+
+/// The README's Rust example is compiled and run as a doctest.
+#[cfg(doctest)]
+#[doc = include_str!("../../../README.md")]
+pub struct ReadmeDoctests;

@@ -93,7 +93,8 @@ pub fn observation_matrix<const N: usize, const P: usize, M: LinearDynamics<N, P
 
 /// Condition number σmax/σmin of a matrix with at least as many rows as columns
 /// (eq. 38), from its singular values (faer SVD). Returns `f64::INFINITY` for a
-/// rank-deficient matrix.
+/// numerically rank-deficient matrix: σmin ≤ σmax·max(rows, cols)·ε, the rank tolerance
+/// of LAPACK and numpy's `matrix_rank`, below which σmin is round-off.
 ///
 /// # Errors
 /// [`PrrrpError::ShapeMismatch`] if W has fewer rows than columns or no columns;
@@ -101,7 +102,8 @@ pub fn observation_matrix<const N: usize, const P: usize, M: LinearDynamics<N, P
 pub fn condition_number(w: &Mat<f64>) -> Result<f64> {
     let s = singular_values(w)?;
     let (max, min) = (s[0], s[s.len() - 1]);
-    Ok(if min > 0.0 { max / min } else { f64::INFINITY })
+    let tol = max * w.nrows().max(w.ncols()) as f64 * f64::EPSILON;
+    Ok(if min > tol { max / min } else { f64::INFINITY })
 }
 
 /// Singular values of W in decreasing order.
