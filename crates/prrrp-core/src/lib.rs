@@ -45,6 +45,7 @@
 mod derivatives;
 mod dynamics;
 mod error;
+mod metrics;
 mod model;
 mod regressor;
 mod robot;
@@ -54,6 +55,9 @@ mod types;
 pub use derivatives::InverseDerivatives;
 pub use dynamics::{MassCholesky, PrrrpModel};
 pub use error::{PrrrpError, Result};
+pub use metrics::{
+    agreement_index, error_indices, relative_errors_percent, rms, rsd, ErrorIndices,
+};
 pub use model::{ForwardDerivatives, LinearDynamics};
 pub use regressor::{condition_number, observation_matrix, singular_values};
 pub use robot::{DhRow, JointKind, Robot, STANDARD_GRAVITY};

@@ -1,0 +1,211 @@
+//! Error indices between an observed and a predicted series (paper eqs. 45–47), and the
+//! relative errors the field reports next to them.
+//!
+//! With o the observed series, p the predicted one, n samples and o_m the mean of o:
+//! ```text
+//! RMS = √( Σ (oᵢ − pᵢ)² / n )                                  (eq. 45, units of o)
+//! RSD = √( Σ (oᵢ − pᵢ)² / Σ oᵢ² )                              (eq. 46, dimensionless)
+//! AI  = 1 − Σ (oᵢ − pᵢ)² / Σ (|pᵢ − o_m| + |oᵢ − o_m|)²        (eq. 47, Willmott's index)
+//! ```
+//! The paper's extracted text lost the radical signs; we take the root forms, so that RMS
+//! is in the units of the series (m, rad, N, N·m) and RSD is a relative error (0 = exact).
+//! Identical series give RMS = RSD = 0 and AI = 1.
+//!
+//! **Zero denominators** (documented values, never NaN):
+//! - AI: the denominator vanishes only when o is constant and p equals that constant,
+//!   i.e. when the two series agree exactly: AI = 1.
+//! - RSD: the denominator vanishes when o ≡ 0. If p ≡ 0 too, RSD = 0; otherwise the
+//!   relative error is undefined and [`PrrrpError::InvalidParameter`] is returned
+//!   (compare RMS instead).
+
+use crate::error::{PrrrpError, Result};
+
+/// The three indices of eqs. 45–47 for one series.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ErrorIndices {
+    /// Residual mean square (root form), in the units of the series.
+    pub rms: f64,
+    /// Residual standard deviation relative to the observed series, dimensionless.
+    pub rsd: f64,
+    /// Willmott's agreement index in [0, 1]; 1 is a perfect match.
+    pub ai: f64,
+}
+
+fn check(observed: &[f64], predicted: &[f64]) -> Result<()> {
+    if observed.len() != predicted.len() {
+        return Err(PrrrpError::ShapeMismatch {
+            what: "predicted".into(),
+            expected: format!("{} samples (as observed)", observed.len()),
+            got: format!("{} samples", predicted.len()),
+        });
+    }
+    if observed.is_empty() {
+        return Err(PrrrpError::TooFewSamples { needed: 1, got: 0 });
+    }
+    for (name, s) in [("observed", observed), ("predicted", predicted)] {
+        if let Some(row) = s.iter().position(|x| !x.is_finite()) {
+            return Err(PrrrpError::NonFinite {
+                what: name.into(),
+                row: Some(row),
+            });
+        }
+    }
+    Ok(())
+}
+
+fn sse(observed: &[f64], predicted: &[f64]) -> f64 {
+    observed
+        .iter()
+        .zip(predicted)
+        .map(|(o, p)| (o - p) * (o - p))
+        .sum()
+}
+
+/// Residual mean square (eq. 45, root form): √(Σ(oᵢ − pᵢ)²/n), in the units of the series.
+///
+/// # Errors
+/// Lengths differ, empty series, or NaN/∞ values.
+pub fn rms(observed: &[f64], predicted: &[f64]) -> Result<f64> {
+    check(observed, predicted)?;
+    Ok((sse(observed, predicted) / observed.len() as f64).sqrt())
+}
+
+/// Residual standard deviation (eq. 46, root form): √(Σ(oᵢ − pᵢ)²/Σoᵢ²).
+///
+/// # Errors
+/// As [`rms`], and [`PrrrpError::InvalidParameter`] when o ≡ 0 but p is not (see the
+/// module docs).
+pub fn rsd(observed: &[f64], predicted: &[f64]) -> Result<f64> {
+    check(observed, predicted)?;
+    let num = sse(observed, predicted);
+    let den: f64 = observed.iter().map(|o| o * o).sum();
+    if den == 0.0 {
+        return if num == 0.0 {
+            Ok(0.0)
+        } else {
+            Err(PrrrpError::InvalidParameter {
+                field: "observed".into(),
+                value: 0.0,
+                reason: "the observed series is identically zero, so its relative residual \
+                         (RSD) is undefined; compare RMS instead",
+            })
+        };
+    }
+    Ok((num / den).sqrt())
+}
+
+/// Willmott's agreement index (eq. 47): 1 − Σ(oᵢ − pᵢ)² / Σ(|pᵢ − o_m| + |oᵢ − o_m|)².
+///
+/// # Errors
+/// As [`rms`]. A zero denominator means the series agree exactly and gives 1.
+pub fn agreement_index(observed: &[f64], predicted: &[f64]) -> Result<f64> {
+    check(observed, predicted)?;
+    let mean = observed.iter().sum::<f64>() / observed.len() as f64;
+    let num = sse(observed, predicted);
+    let den: f64 = observed
+        .iter()
+        .zip(predicted)
+        .map(|(o, p)| {
+            let d = (p - mean).abs() + (o - mean).abs();
+            d * d
+        })
+        .sum();
+    // den ≥ num always (|o − p| ≤ |o − o_m| + |p − o_m|), so den = 0 implies num = 0.
+    Ok(if den == 0.0 { 1.0 } else { 1.0 - num / den })
+}
+
+/// All three indices of one series.
+///
+/// # Errors
+/// As [`rms`], [`rsd`] and [`agreement_index`].
+pub fn error_indices(observed: &[f64], predicted: &[f64]) -> Result<ErrorIndices> {
+    Ok(ErrorIndices {
+        rms: rms(observed, predicted)?,
+        rsd: rsd(observed, predicted)?,
+        ai: agreement_index(observed, predicted)?,
+    })
+}
+
+/// Relative error |estimate − truth| / |truth| of each parameter, in percent.
+///
+/// A true value of exactly zero gives the absolute error instead (documented so the
+/// result is never NaN or infinite).
+pub fn relative_errors_percent(estimate: &[f64], truth: &[f64]) -> Vec<f64> {
+    estimate
+        .iter()
+        .zip(truth)
+        .map(|(e, t)| {
+            if *t == 0.0 {
+                (e - t).abs() * 100.0
+            } else {
+                100.0 * (e - t).abs() / t.abs()
+            }
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn hand_computed_values() {
+        // o = [1, 2, 3, 4], p = [1.5, 2, 2, 4]: residuals [-0.5, 0, 1, 0], SSE = 1.25.
+        let o = [1.0, 2.0, 3.0, 4.0];
+        let p = [1.5, 2.0, 2.0, 4.0];
+        assert!((rms(&o, &p).unwrap() - (1.25f64 / 4.0).sqrt()).abs() < 1e-15);
+        // Σo² = 30
+        assert!((rsd(&o, &p).unwrap() - (1.25f64 / 30.0).sqrt()).abs() < 1e-15);
+        // o_m = 2.5; |p − o_m| = [1, .5, .5, 1.5]; |o − o_m| = [1.5, .5, .5, 1.5];
+        // sums [2.5, 1, 1, 3] squared: 6.25 + 1 + 1 + 9 = 17.25
+        assert!((agreement_index(&o, &p).unwrap() - (1.0 - 1.25 / 17.25)).abs() < 1e-15);
+    }
+
+    #[test]
+    fn identical_series_limits() {
+        let o = [0.3, -1.0, 2.0, 5.0];
+        let e = error_indices(&o, &o).unwrap();
+        assert_eq!((e.rms, e.rsd, e.ai), (0.0, 0.0, 1.0));
+    }
+
+    #[test]
+    fn constant_and_zero_series() {
+        let c = [2.0; 5];
+        assert_eq!(agreement_index(&c, &c).unwrap(), 1.0);
+        // A constant observation predicted wrongly: AI well defined (= 0 here, since
+        // every |p − o_m| = |o − p| and o − o_m = 0).
+        assert_eq!(agreement_index(&c, &[3.0; 5]).unwrap(), 0.0);
+        let z = [0.0; 5];
+        assert_eq!(rsd(&z, &z).unwrap(), 0.0);
+        assert!(matches!(
+            rsd(&z, &[1.0; 5]),
+            Err(PrrrpError::InvalidParameter { .. })
+        ));
+    }
+
+    #[test]
+    fn bad_input() {
+        assert!(matches!(
+            rms(&[1.0], &[1.0, 2.0]),
+            Err(PrrrpError::ShapeMismatch { .. })
+        ));
+        assert!(matches!(
+            rms(&[], &[]),
+            Err(PrrrpError::TooFewSamples { .. })
+        ));
+        assert!(matches!(
+            agreement_index(&[1.0, f64::NAN], &[1.0, 2.0]),
+            Err(PrrrpError::NonFinite { row: Some(1), .. })
+        ));
+    }
+
+    #[test]
+    fn relative_errors() {
+        let r = relative_errors_percent(&[1.1, 0.5, 0.01], &[1.0, -0.5, 0.0]);
+        assert!(
+            (r[0] - 10.0).abs() < 1e-12
+                && (r[1] - 200.0).abs() < 1e-12
+                && (r[2] - 1.0).abs() < 1e-12
+        );
+    }
+}
