@@ -3,7 +3,10 @@
 
 use prrrp_core::{Dataset, PrrrpError, Vec5};
 
-fn columns(n: usize) -> (Vec<f64>, Vec<Vec5>, Vec<Vec5>, Vec<Vec5>, Vec<Vec5>) {
+/// (t, q, qd, qdd, tau).
+type Columns = (Vec<f64>, Vec<Vec5>, Vec<Vec5>, Vec<Vec5>, Vec<Vec5>);
+
+fn columns(n: usize) -> Columns {
     let t: Vec<f64> = (0..n).map(|k| 0.02 * k as f64).collect();
     let col = |s: f64| -> Vec<Vec5> {
         (0..n)

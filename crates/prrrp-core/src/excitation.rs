@@ -8,7 +8,7 @@
 //! have free position, velocity and acceleration. The prismatic joints 1 and 5 follow the
 //! paper's sinusoids q = c − A·cos(ωt) with a whole number of periods over the horizon
 //! (so q̇ = 0 at both ends; a pure sinusoid cannot also have q̈ = 0 there) and a free
-//! amplitude A. That is 3·(2 + 3·(K − 2)) + 2 decision variables (35 for K = 5).
+//! amplitude A. That is 3·(2 + 3·(K − 2)) + 2 decision variables (44 for K = 6).
 //!
 //! # Limits
 //! Every candidate is made feasible by construction: each revolute joint's shape is
@@ -60,10 +60,10 @@ pub struct ExcitationConfig {
     /// Whole periods of the sinusoids of joints 1 and 5 over the horizon (default [2, 3];
     /// different counts keep d̈1 and d̈5 from being proportional).
     pub prismatic_periods: [u32; 2],
-    /// Maximum number of cost evaluations over all restarts (default 3000).
+    /// Maximum number of cost evaluations over all restarts (default 6000).
     pub max_evaluations: usize,
     /// Maximum number of Nelder–Mead runs, each restarted from the best point so far
-    /// (default 4).
+    /// (default 6).
     pub restarts: usize,
     /// Initial simplex edge in the normalised decision space (default 0.5; knot
     /// positions lie in about [−1, 1] before scaling).
@@ -84,8 +84,8 @@ impl Default for ExcitationConfig {
             dt: 0.02,
             limits: JointLimits::default(),
             prismatic_periods: [2, 3],
-            max_evaluations: 3000,
-            restarts: 4,
+            max_evaluations: 6000,
+            restarts: 6,
             simplex_step: 0.5,
             margin: 0.01,
             seed: 0,
@@ -138,6 +138,11 @@ const SCAN_SEARCH: usize = 2;
 const SCAN_FINAL: usize = 20;
 const SCAN_VERIFY: usize = 50;
 
+/// Knots per revolute joint used by default (5 segments of 2 s over the default 10 s
+/// horizon): in the measurements of the project notes it reaches cond(W) ≈ 4.5 in about
+/// 2 s, where K = 5 stops near 5.5 and K = 4 near 7.
+pub const DEFAULT_EXCITATION_KNOTS: usize = 6;
+
 /// Number of decision variables for K knots.
 pub const fn excitation_variables(k: usize) -> usize {
     3 * (2 + 3 * (k - 2)) + 2
@@ -146,14 +151,17 @@ pub const fn excitation_variables(k: usize) -> usize {
 /// Finds the excitation trajectory with the smallest cond(W) (eqs. 37–38) within the
 /// joint limits, rest to rest; see the module docs for the method.
 ///
-/// `K` is the number of knots of each revolute joint's piecewise quintic (≥ 2; K = 2 is
-/// the paper's single quintic per joint). `progress` is called every
+/// `K` is the number of knots of each revolute joint's piecewise quintic (≥ 3; use
+/// [`DEFAULT_EXCITATION_KNOTS`]). K = 2, the paper's single rest-to-rest quintic per
+/// joint, is refused: scaled to the limits its shape is fixed (only the direction of each
+/// move is free), so there is nothing to optimise — its cond(W) is about 150 for the
+/// default limits. `progress` is called every
 /// [`ExcitationConfig::progress_every`] evaluations and once at the end.
 ///
 /// ```no_run
-/// use prrrp_core::{optimise_excitation, ExcitationConfig, Robot};
+/// use prrrp_core::{optimise_excitation, ExcitationConfig, Robot, DEFAULT_EXCITATION_KNOTS};
 /// let model = Robot::paper().model();
-/// let res = optimise_excitation::<5>(&model, &ExcitationConfig::default(), |p| {
+/// let res = optimise_excitation::<DEFAULT_EXCITATION_KNOTS>(&model, &ExcitationConfig::default(), |p| {
 ///     eprintln!("{}/{}: cond = {:.1}", p.evaluations, p.max_evaluations, p.best_cond);
 /// })?;
 /// assert!(res.cond_final < res.cond_initial);
@@ -162,7 +170,7 @@ pub const fn excitation_variables(k: usize) -> usize {
 ///
 /// # Errors
 /// - [`PrrrpError::InvalidParameter`] for a non-positive or non-finite duration, dt,
-///   margin outside [0, 0.5), zero periods, K < 2, or a duration shorter than 8 samples;
+///   margin outside [0, 0.5), zero periods, K < 3, or a duration shorter than 8 samples;
 /// - [`PrrrpError::Infeasible`] if a joint's limits leave it no room to move, if no
 ///   candidate with finite cond(W) is found, or if the result violates a limit on the
 ///   verification grid.
@@ -300,8 +308,13 @@ impl<const K: usize> Shaper<K> {
             value,
             reason,
         };
-        if K < 2 {
-            return Err(bad("K", K as f64, "at least 2 knots are needed"));
+        if K < 3 {
+            return Err(bad(
+                "K",
+                K as f64,
+                "at least 3 knots are needed: a single rest-to-rest quintic scaled to the \
+                 limits has no free shape",
+            ));
         }
         if !(c.duration.is_finite() && c.duration > 0.0) {
             return Err(bad("duration", c.duration, "must be finite and > 0 s"));

@@ -63,7 +63,7 @@ pub use dynamics::{MassCholesky, PrrrpModel};
 pub use error::{PrrrpError, Result};
 pub use excitation::{
     excitation_variables, optimise_excitation, ExcitationConfig, ExcitationProgress,
-    ExcitationResult,
+    ExcitationResult, DEFAULT_EXCITATION_KNOTS,
 };
 pub use limits::{limit_usage, JointLimits, LimitUsage};
 pub use model::{ForwardDerivatives, LinearDynamics};
