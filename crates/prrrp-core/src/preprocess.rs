@@ -151,10 +151,14 @@ pub struct PreprocessConfig {
     /// Filter the torques with the same filter (default true), so that τ and the
     /// filtered q̈ see the same delay-free attenuation, as the field does.
     pub filter_torque: bool,
-    /// Samples dropped at each end after differentiation (default 10 = 0.2 s at 50 Hz,
-    /// about the filter's settling time 1/fc; at least 1 is always dropped since the
-    /// central differences need a neighbour on each side).
-    pub trim: usize,
+    /// Samples dropped at each end after filtering and differentiation. `None` (default)
+    /// drops ⌈3·fs/fc⌉ samples (3 cutoff periods: 30 samples = 0.6 s at 50 Hz and 5 Hz),
+    /// by which the edge transient has decayed: the point reflection used to pad the
+    /// signal flips the sign of q̈ there, and the filter spreads that jump over a few
+    /// cutoff periods (its slowest pole decays as exp(−2π·fc·sin(π/(2·order))·t)). At
+    /// least 1 sample is always dropped since the central differences need a neighbour
+    /// on each side.
+    pub trim: Option<usize>,
     /// Keep every `decimate`-th sample after filtering (default 1 = keep all). The
     /// cutoff must stay below the new Nyquist frequency.
     pub decimate: usize,
@@ -166,7 +170,7 @@ impl Default for PreprocessConfig {
             cutoff_hz: 5.0,
             order: 4,
             filter_torque: true,
-            trim: 10,
+            trim: None,
             decimate: 1,
         }
     }
@@ -241,12 +245,8 @@ pub fn preprocess(
         }
     }
     let n = t.len();
-    let min_raw = 2 * config.trim.max(1) + 1;
-    if n < min_raw.max(3) {
-        return Err(PrrrpError::TooFewSamples {
-            needed: min_raw.max(3),
-            got: n,
-        });
+    if n < 3 {
+        return Err(PrrrpError::TooFewSamples { needed: 3, got: n });
     }
     if let Some(k) = t.windows(2).position(|w| w[1] <= w[0]) {
         return Err(PrrrpError::NonIncreasingTime { row: k + 1 });
@@ -285,8 +285,17 @@ pub fn preprocess(
         tau.to_vec()
     };
     let (qd, qdd) = central_differences(&qf, dt);
+    let trim = config
+        .trim
+        .unwrap_or_else(|| (3.0 * fs / config.cutoff_hz).ceil() as usize)
+        .max(1);
+    if n < 2 * trim + Dataset::MIN_SAMPLES {
+        return Err(PrrrpError::TooFewSamples {
+            needed: 2 * trim + Dataset::MIN_SAMPLES,
+            got: n,
+        });
+    }
     // Derivative k belongs to sample k + 1; keep samples trim..n−trim.
-    let trim = config.trim.max(1);
     let keep = (trim..n - trim).step_by(config.decimate);
     let mut out = (Vec::new(), Vec::new(), Vec::new(), Vec::new(), Vec::new());
     for k in keep {
