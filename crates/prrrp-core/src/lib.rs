@@ -42,25 +42,48 @@
 //! ```
 #![warn(missing_docs)]
 
+mod dataset;
 mod derivatives;
 mod dynamics;
 mod error;
 mod metrics;
+mod excitation;
+mod limits;
 mod model;
+mod preprocess;
 mod regressor;
 mod robot;
+mod simulation;
 mod terms;
+mod trajectory;
 mod types;
 
+pub use dataset::{Dataset, DatasetParts};
 pub use derivatives::InverseDerivatives;
 pub use dynamics::{MassCholesky, PrrrpModel};
 pub use error::{PrrrpError, Result};
 pub use metrics::{
     agreement_index, error_indices, relative_errors_percent, rms, rsd, ErrorIndices,
 };
+pub use excitation::{
+    excitation_variables, optimise_excitation, ExcitationConfig, ExcitationProgress,
+    ExcitationResult, DEFAULT_EXCITATION_KNOTS,
+};
+pub use limits::{limit_usage, JointLimits, LimitUsage};
 pub use model::{ForwardDerivatives, LinearDynamics};
+pub use preprocess::{
+    central_differences, preprocess, ButterworthLowPass, PreprocessConfig, MAX_BUTTERWORTH_ORDER,
+};
 pub use regressor::{condition_number, observation_matrix, singular_values};
 pub use robot::{DhRow, JointKind, Robot, STANDARD_GRAVITY};
+pub use simulation::{
+    rk4_step, simulate_closed_loop, simulate_open_loop, ComputedTorque, SensorNoise,
+    SimulationConfig, SimulationRecord,
+};
+pub use trajectory::{
+    sample_trajectory, ExcitationTrajectory, FourierSeries, JointTrajectory, PiecewiseQuintic,
+    Quintic, SampledTrajectory, ScalarTrajectory, Sinusoid, TrajectoryPoint,
+};
 pub use types::{Lambda, Mat5, Regressor, Vec5, NDOF, NPARAM};
 
 /// Re-exported so that users name the same nalgebra and faer versions as the crate.
