@@ -45,6 +45,7 @@
 mod derivatives;
 mod dynamics;
 mod error;
+mod estimators;
 mod model;
 mod regressor;
 mod robot;
@@ -54,6 +55,12 @@ mod types;
 pub use derivatives::InverseDerivatives;
 pub use dynamics::{MassCholesky, PrrrpModel};
 pub use error::{PrrrpError, Result};
+pub use estimators::{
+    least_squares, weighted_least_squares, Adaline, AdalineConfig, AdalineRule, Dataset,
+    Discretisation, Ekf, EkfConfig, EkfMeasurement, Estimator, Hopfield, HopfieldConfig,
+    JointNoise, LeastSquaresConfig, LeastSquaresReport, PrrrpEkf, Rls, RlsConfig, Sample,
+    TrainingReport, PRRRP_EKF_STATES,
+};
 pub use model::{ForwardDerivatives, LinearDynamics};
 pub use regressor::{condition_number, observation_matrix, singular_values};
 pub use robot::{DhRow, JointKind, Robot, STANDARD_GRAVITY};
