@@ -158,23 +158,23 @@ pub fn add_noise(d: &Data, noise: Noise, seed: u64) -> (Data, Vec5) {
 }
 
 /// A closed-loop run of the true robot tracking the excitation under computed-torque
-/// control: every `DT` the controller computes τ = ID(q, q̇, q̈_ref + Kp·e + Kd·ė; λ) from
+/// control: every `dt` the controller computes τ = ID(q, q̇, q̈_ref + Kp·e + Kd·ė; λ) from
 /// the measured state (e = q_ref − q, 5 rad/s bandwidth, critically damped) and holds it;
 /// the plant integrates the forward dynamics by RK4 with `substeps` steps per sample.
 /// Returns the sampled q, q̇ (true, noise-free), the held τ, and q̈ = 0 placeholders (the
 /// Kalman filter ignores q̈).
-pub fn closed_loop(n: usize, seed: u64, substeps: usize) -> Data {
+pub fn closed_loop(n: usize, seed: u64, substeps: usize, dt: f64) -> Data {
     let (model, lambda) = paper();
     let traj = Fourier::new(seed);
     let (wn, zeta) = (5.0, 1.0);
     let (mut q, mut qd, _) = traj.eval(0.0);
-    let h = DT / substeps as f64;
+    let h = dt / substeps as f64;
     let f = |q: &Vec5, qd: &Vec5, tau: &Vec5| -> (Vec5, Vec5) {
         (*qd, model.forward_dynamics(q, qd, tau, &lambda).unwrap())
     };
     let mut d = Data::default();
     for k in 0..n {
-        let (qr, qdr, qddr) = traj.eval(k as f64 * DT);
+        let (qr, qdr, qddr) = traj.eval(k as f64 * dt);
         let a = qddr + wn * wn * (qr - q) + 2.0 * zeta * wn * (qdr - qd);
         let tau = model.inverse_dynamics(&q, &qd, &a, &lambda);
         d.q.push(q);
