@@ -210,6 +210,13 @@ impl Dataset {
         self.t[self.t.len() - 1] - self.t[0]
     }
 
+    /// A borrowed view of the samples, the input of every estimator
+    /// ([`crate::Estimator::run`], [`crate::least_squares`]).
+    pub fn samples(&self) -> crate::Samples<'_, NDOF> {
+        crate::Samples::new(self.q(), self.qd(), self.qdd(), self.tau())
+            .expect("a Dataset's columns have equal lengths by construction")
+    }
+
     /// The samples in `range` (indices) as a new validated data set, e.g. to split
     /// estimation and validation parts.
     ///

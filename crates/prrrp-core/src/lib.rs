@@ -46,9 +46,10 @@ mod dataset;
 mod derivatives;
 mod dynamics;
 mod error;
-mod metrics;
+mod estimators;
 mod excitation;
 mod limits;
+mod metrics;
 mod model;
 mod preprocess;
 mod regressor;
@@ -62,14 +63,20 @@ pub use dataset::{Dataset, DatasetParts};
 pub use derivatives::InverseDerivatives;
 pub use dynamics::{MassCholesky, PrrrpModel};
 pub use error::{PrrrpError, Result};
-pub use metrics::{
-    agreement_index, error_indices, relative_errors_percent, rms, rsd, ErrorIndices,
+pub use estimators::{
+    least_squares, weighted_least_squares, Adaline, AdalineConfig, AdalineRule, Discretisation,
+    Ekf, EkfConfig, EkfMeasurement, Estimator, Hopfield, HopfieldConfig, JointNoise,
+    LeastSquaresConfig, LeastSquaresReport, PrrrpEkf, Rls, RlsConfig, Sample, Samples,
+    TrainingReport, PRRRP_EKF_STATES,
 };
 pub use excitation::{
     excitation_variables, optimise_excitation, ExcitationConfig, ExcitationProgress,
     ExcitationResult, DEFAULT_EXCITATION_KNOTS,
 };
 pub use limits::{limit_usage, JointLimits, LimitUsage};
+pub use metrics::{
+    agreement_index, error_indices, relative_errors_percent, rms, rsd, ErrorIndices,
+};
 pub use model::{ForwardDerivatives, LinearDynamics};
 pub use preprocess::{
     central_differences, preprocess, ButterworthLowPass, PreprocessConfig, MAX_BUTTERWORTH_ORDER,

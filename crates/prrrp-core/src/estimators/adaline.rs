@@ -1,0 +1,201 @@
+//! Adaline neural networks (eqs. 5–11, 40, Fig. 4) trained by the delta rule, or by its
+//! normalised form (normalised LMS), which needs no learning rate tuned to the robot.
+//!
+//! Each joint equation τ_i = Φ_i·λ is one linear neuron (eq. 5 with θ = 0): its inputs
+//! are the entries of row i of the regressor, its weights are λ, its desired output is
+//! τ_i. Rows whose regressor entries touch disjoint sets of parameters are independent
+//! networks. For the PRRRP arm these are exactly the two networks of eq. 40 / Fig. 4:
+//! network 1 (outputs F1 and F5, weights λ1, λ8) and network 2 (outputs τ2, τ3, τ4,
+//! weights λ2..λ7): a row's update only changes the weights its inputs touch, because
+//! the delta rule moves weight j in proportion to input j (eq. 11), which is zero for
+//! every parameter outside its network.
+
+use nalgebra::SVector;
+
+use super::estimator::{with_row, Estimator, TrainingReport};
+use super::rls::check_lambda0;
+use super::samples::{Sample, Samples};
+use crate::error::{PrrrpError, Result};
+use crate::model::LinearDynamics;
+
+/// Weight update rule of [`Adaline`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum AdalineRule {
+    /// The delta rule of eq. 11: Δλ = γ·δ·x with δ = τ_i − x·λ. Stable only for
+    /// γ·‖x‖² < 2, so γ depends on the robot's scale.
+    Delta,
+    /// Normalised LMS: Δλ = μ·δ·x/(ε + ‖x‖²), stable for any robot when 0 < μ < 2. With
+    /// μ = 1 each update makes the current equation exact (the Kaczmarz projection).
+    #[default]
+    Normalised,
+}
+
+/// Settings of [`Adaline`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct AdalineConfig {
+    /// Update rule (default [`AdalineRule::Normalised`]).
+    pub rule: AdalineRule,
+    /// Learning rate γ of the delta rule (units of 1/x², i.e. λ per (τ·x); default
+    /// `5e-3`, sized for the PRRRP arm, whose force rows have ‖x‖² ≈ 2g² ≈ 190, so that
+    /// γ·‖x‖² ≈ 1 < 2). Ignored by the normalised rule.
+    pub learning_rate: f64,
+    /// Step size μ of the normalised rule (dimensionless, in (0, 2), default `1.0`).
+    /// Smaller values average noise better and converge more slowly.
+    pub step_size: f64,
+    /// Regulariser ε added to ‖x‖² by the normalised rule (units of x², default `1e-9`),
+    /// so that an all-zero input row does nothing instead of dividing by zero.
+    pub epsilon: f64,
+    /// Divergence threshold (dimensionless, default `1e6`): the step fails with
+    /// [`PrrrpError::Diverged`] when an equation error exceeds this many times the largest
+    /// |τ_i| seen so far, or a weight becomes non-finite.
+    pub divergence_ratio: f64,
+}
+
+impl Default for AdalineConfig {
+    fn default() -> Self {
+        Self {
+            rule: AdalineRule::Normalised,
+            learning_rate: 5e-3,
+            step_size: 1.0,
+            epsilon: 1e-9,
+            divergence_ratio: 1e6,
+        }
+    }
+}
+
+/// Adaline networks whose weights are the parameters λ.
+#[derive(Debug, Clone)]
+pub struct Adaline<M, const N: usize, const P: usize> {
+    model: M,
+    config: AdalineConfig,
+    lambda0: SVector<f64, P>,
+    lambda: SVector<f64, P>,
+    tau_scale: f64,
+    sse: f64,
+    equations: usize,
+    samples: usize,
+}
+
+impl<M: LinearDynamics<N, P>, const N: usize, const P: usize> Adaline<M, N, P> {
+    /// Networks with initial weights λ₀ (zeros are fine: Adaline needs no prior).
+    ///
+    /// # Errors
+    /// [`PrrrpError::InvalidParameter`] for a non-positive learning rate, a step size
+    /// outside (0, 2), a negative ε, a divergence ratio ≤ 1 or a non-finite λ₀.
+    pub fn new(model: M, lambda0: SVector<f64, P>, config: AdalineConfig) -> Result<Self> {
+        let bad = |field: &str, value: f64, reason: &'static str| {
+            Err(PrrrpError::InvalidParameter {
+                field: field.into(),
+                value,
+                reason,
+            })
+        };
+        let c = &config;
+        if !(c.learning_rate.is_finite() && c.learning_rate > 0.0) {
+            return bad("learning_rate", c.learning_rate, "must be finite and > 0");
+        }
+        if !(c.step_size > 0.0 && c.step_size < 2.0) {
+            return bad("step_size", c.step_size, "must be in (0, 2) for stability");
+        }
+        if !(c.epsilon.is_finite() && c.epsilon >= 0.0) {
+            return bad("epsilon", c.epsilon, "must be finite and >= 0");
+        }
+        if !(c.divergence_ratio > 1.0) {
+            return bad("divergence_ratio", c.divergence_ratio, "must be > 1");
+        }
+        check_lambda0(&lambda0)?;
+        Ok(Self {
+            model,
+            config,
+            lambda0,
+            lambda: lambda0,
+            tau_scale: 0.0,
+            sse: 0.0,
+            equations: 0,
+            samples: 0,
+        })
+    }
+
+    /// Trains for `epochs` passes over `data` (continuing from the current weights) and
+    /// reports the a-priori RMS equation error of each epoch.
+    ///
+    /// # Errors
+    /// As [`Estimator::step`], with the sample index in [`PrrrpError::NonFinite`].
+    pub fn train(&mut self, data: &Samples<'_, N>, epochs: usize) -> Result<TrainingReport> {
+        let mut rms_error = Vec::with_capacity(epochs);
+        for _ in 0..epochs {
+            self.sse = 0.0;
+            self.equations = 0;
+            for (k, s) in data.iter().enumerate() {
+                self.step(s).map_err(|e| with_row(e, k))?;
+            }
+            rms_error.push((self.sse / self.equations.max(1) as f64).sqrt());
+        }
+        Ok(TrainingReport { rms_error })
+    }
+
+    /// Number of samples consumed since construction or the last reset.
+    pub fn samples(&self) -> usize {
+        self.samples
+    }
+}
+
+impl<M: LinearDynamics<N, P>, const N: usize, const P: usize> Estimator<N, P> for Adaline<M, N, P> {
+    /// Presents the N equations of the sample one after the other (pattern by pattern).
+    ///
+    /// # Errors
+    /// [`PrrrpError::NonFinite`] for NaN/∞ in the sample; [`PrrrpError::Diverged`] when an
+    /// error grows past the divergence threshold (delta rule: lower the learning rate, or
+    /// use the normalised rule).
+    fn step(&mut self, sample: Sample<'_, N>) -> Result<&SVector<f64, P>> {
+        sample.check_finite()?;
+        let phi = self.model.regressor(sample.q, sample.qd, sample.qdd);
+        let c = self.config;
+        for i in 0..N {
+            let x = phi.row(i).transpose();
+            let tau = sample.tau[i];
+            self.tau_scale = self.tau_scale.max(tau.abs());
+            let delta = tau - x.dot(&self.lambda);
+            self.sse += delta * delta;
+            let gain = match c.rule {
+                AdalineRule::Delta => c.learning_rate,
+                AdalineRule::Normalised => c.step_size / (c.epsilon + x.norm_squared()),
+            };
+            if gain.is_finite() {
+                self.lambda.axpy(gain * delta, &x, 1.0);
+            }
+            if !(delta.abs() <= c.divergence_ratio * self.tau_scale
+                || delta.abs() <= f64::MIN_POSITIVE)
+            {
+                return Err(PrrrpError::Diverged {
+                    what: "Adaline",
+                    at: self.samples,
+                    hint: "the equation error grows: lower the learning rate \
+                           (the delta rule needs γ·‖Φ_i‖² < 2) or use the normalised rule",
+                });
+            }
+        }
+        self.equations += N;
+        if !self.lambda.iter().all(|x| x.is_finite()) {
+            return Err(PrrrpError::Diverged {
+                what: "Adaline",
+                at: self.samples,
+                hint: "a weight became non-finite: lower the learning rate",
+            });
+        }
+        self.samples += 1;
+        Ok(&self.lambda)
+    }
+
+    fn estimate(&self) -> &SVector<f64, P> {
+        &self.lambda
+    }
+
+    fn reset(&mut self) {
+        self.lambda = self.lambda0;
+        self.tau_scale = 0.0;
+        self.sse = 0.0;
+        self.equations = 0;
+        self.samples = 0;
+    }
+}

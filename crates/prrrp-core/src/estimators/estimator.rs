@@ -1,0 +1,55 @@
+//! The common shape of the online estimators.
+
+use nalgebra::SVector;
+
+use super::samples::{Sample, Samples};
+use crate::error::{PrrrpError, Result};
+
+/// An online estimator of the P parameters of an N-joint model.
+///
+/// Implemented by [`super::Rls`], [`super::Adaline`], [`super::Hopfield`] and
+/// [`super::Ekf`]. `step` never allocates (proven by `tests/alloc_estimators.rs`).
+pub trait Estimator<const N: usize, const P: usize> {
+    /// Consumes one sample and returns the updated estimate λ̂.
+    ///
+    /// # Errors
+    /// A typed [`PrrrpError`] for bad input (NaN, out-of-range values) or numerical failure
+    /// (divergence, a covariance that is no longer positive definite); see each
+    /// implementation. After an error the estimator should be [`reset`](Self::reset).
+    fn step(&mut self, sample: Sample<'_, N>) -> Result<&SVector<f64, P>>;
+
+    /// The current estimate λ̂.
+    fn estimate(&self) -> &SVector<f64, P>;
+
+    /// Returns to the state right after construction (initial λ̂, covariances, counters).
+    fn reset(&mut self);
+
+    /// Runs [`step`](Self::step) over every sample of `data` in order and returns the final
+    /// estimate. Does not reset first, so successive calls continue (e.g. epochs).
+    ///
+    /// # Errors
+    /// The first error of `step`; a [`PrrrpError::NonFinite`] names the sample index.
+    fn run(&mut self, data: &Samples<'_, N>) -> Result<SVector<f64, P>> {
+        for (k, sample) in data.iter().enumerate() {
+            self.step(sample).map_err(|e| with_row(e, k))?;
+        }
+        Ok(*self.estimate())
+    }
+}
+
+/// Adds the sample index to an error raised by a `step`.
+pub(crate) fn with_row(e: PrrrpError, k: usize) -> PrrrpError {
+    match e {
+        PrrrpError::NonFinite { what, row: None } => PrrrpError::NonFinite { what, row: Some(k) },
+        other => other,
+    }
+}
+
+/// Progress of a multi-epoch training run ([`super::Adaline::train`],
+/// [`super::Hopfield::train`]).
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct TrainingReport {
+    /// A-priori RMS equation error τ_i − Φ_i·λ̂ of each epoch, in the units of τ (mixed N
+    /// and N·m for PRRRP), computed with the weights before each update.
+    pub rms_error: Vec<f64>,
+}

@@ -1,0 +1,123 @@
+//! Every estimator's `step` allocates nothing after construction and a warm-up step
+//! (a counting global allocator; the count is per thread, so parallel tests do not
+//! interfere).
+
+mod est_support;
+
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::cell::Cell;
+
+use est_support::{closed_loop, excitation, paper, DT};
+use prrrp_core::{
+    Adaline, AdalineConfig, AdalineRule, Discretisation, EkfConfig, EkfMeasurement, Estimator,
+    Hopfield, HopfieldConfig, Lambda, PrrrpEkf, Rls, RlsConfig,
+};
+
+struct Counting;
+
+thread_local! {
+    static ALLOCATIONS: Cell<usize> = const { Cell::new(0) };
+}
+
+unsafe impl GlobalAlloc for Counting {
+    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
+        ALLOCATIONS.with(|c| c.set(c.get() + 1));
+        // SAFETY: forwarded unchanged to the system allocator.
+        unsafe { System.alloc(layout) }
+    }
+    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
+        // SAFETY: `ptr` came from `System.alloc` with this layout.
+        unsafe { System.dealloc(ptr, layout) }
+    }
+    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
+        ALLOCATIONS.with(|c| c.set(c.get() + 1));
+        // SAFETY: forwarded unchanged to the system allocator.
+        unsafe { System.realloc(ptr, layout, new_size) }
+    }
+}
+
+#[global_allocator]
+static GLOBAL: Counting = Counting;
+
+fn allocations() -> usize {
+    ALLOCATIONS.with(|c| c.get())
+}
+
+/// Steps `est` over samples 1.. of `data` after a warm-up on sample 0 and returns the
+/// number of allocations during the measured steps.
+fn count<E: Estimator<5, 8>>(est: &mut E, data: &est_support::Data) -> usize {
+    let ds = data.dataset();
+    est.step(ds.sample(0)).unwrap();
+    let before = allocations();
+    for k in 1..ds.len() {
+        est.step(ds.sample(k)).unwrap();
+    }
+    allocations() - before
+}
+
+#[test]
+fn the_counter_sees_allocations() {
+    let before = allocations();
+    let v = std::hint::black_box(vec![1.0f64; 8]);
+    assert!(allocations() > before);
+    drop(v);
+}
+
+#[test]
+fn inverse_model_estimators_do_not_allocate() {
+    let (model, _) = paper();
+    let data = excitation(300, 1);
+    let mut rls = Rls::new(model, Lambda::zeros(), RlsConfig::default()).unwrap();
+    assert_eq!(count(&mut rls, &data), 0, "RLS");
+    let forgetting = RlsConfig {
+        forgetting: 0.98,
+        ..Default::default()
+    };
+    let mut rls = Rls::new(model, Lambda::zeros(), forgetting).unwrap();
+    assert_eq!(count(&mut rls, &data), 0, "RLS with forgetting");
+    for rule in [AdalineRule::Normalised, AdalineRule::Delta] {
+        let cfg = AdalineConfig {
+            rule,
+            ..Default::default()
+        };
+        let mut ad = Adaline::new(model, Lambda::zeros(), cfg).unwrap();
+        assert_eq!(count(&mut ad, &data), 0, "Adaline {rule:?}");
+    }
+    // Default gains (one sub-step) and high gains (several sub-steps per sample).
+    for beta in [100.0, 5.0] {
+        let cfg = HopfieldConfig {
+            beta,
+            ..Default::default()
+        };
+        let mut hn = Hopfield::new(model, Lambda::zeros(), cfg).unwrap();
+        assert_eq!(count(&mut hn, &data), 0, "Hopfield β = {beta}");
+    }
+}
+
+#[test]
+fn ekf_does_not_allocate() {
+    let (model, lambda) = paper();
+    let mut data = closed_loop(300, 1, 5, DT);
+    // Some missing measurements exercise the skipped-update path too.
+    for k in (10..300).step_by(13) {
+        data.q[k][1] = f64::NAN;
+    }
+    for measurement in [
+        EkfMeasurement::Positions,
+        EkfMeasurement::PositionsVelocities,
+    ] {
+        for discretisation in [Discretisation::Euler, Discretisation::SecondOrder] {
+            let cfg = EkfConfig {
+                measurement,
+                discretisation,
+                ..Default::default()
+            };
+            let mut ekf = PrrrpEkf::new(model, lambda * 1.2, cfg).unwrap();
+            assert_eq!(
+                count(&mut ekf, &data),
+                0,
+                "EKF {measurement:?} {discretisation:?}"
+            );
+        }
+    }
+}
