@@ -234,13 +234,7 @@ fn least_squares_on_preprocessed_noisy_data_recovers_lambda() {
         );
     }
 
-    let d = preprocess(
-        &sim.t,
-        &sim.q_measured,
-        &sim.tau_measured,
-        &PreprocessConfig::default(),
-    )
-    .unwrap();
+    let d = sim.measured_dataset(&PreprocessConfig::default()).unwrap();
     let est = ls(d.q(), d.qd(), d.qdd(), d.tau());
     for i in 0..8 {
         let rel = (est[i] - lambda[i]).abs() / lambda[i];

@@ -9,6 +9,7 @@ use rand_distr::{Distribution, Normal};
 use crate::dataset::Dataset;
 use crate::dynamics::PrrrpModel;
 use crate::error::{PrrrpError, Result};
+use crate::preprocess::{preprocess, PreprocessConfig};
 use crate::trajectory::{JointTrajectory, TrajectoryPoint};
 use crate::types::{Lambda, Vec5, NDOF};
 
@@ -183,7 +184,7 @@ pub fn rk4_step(
 
 /// What a simulation recorded at each output sample t_k = k·dt.
 ///
-/// The true signals are consistent: `tau[k]` = inverse dynamics(q[k], qd[k], qdd[k]) with
+/// The true signals are consistent: `tau[k]` = inverse dynamics(`q[k]`, `qd[k]`, `qdd[k]`) with
 /// the robot's λ. The measured ones carry the configured sensor noise.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct SimulationRecord {
@@ -233,6 +234,15 @@ impl SimulationRecord {
             self.qdd.clone(),
             self.tau.clone(),
         )
+    }
+
+    /// The measured signals (noisy q and τ) turned into a [`Dataset`] by [`preprocess`]:
+    /// what an estimator sees on a real robot.
+    ///
+    /// # Errors
+    /// As [`preprocess`].
+    pub fn measured_dataset(&self, config: &PreprocessConfig) -> Result<Dataset> {
+        preprocess(&self.t, &self.q_measured, &self.tau_measured, config)
     }
 
     fn with_capacity(n: usize, closed_loop: bool) -> Self {
