@@ -193,10 +193,12 @@ fn noise_gain_matches_the_frequency_domain_prediction() {
 }
 
 /// End to end: optimised excitation → closed-loop simulation with the default sensor
-/// noise → preprocessing → least squares (faer QR). Noise-free data recover λ to rounding;
-/// noisy preprocessed data to within 2 % per parameter (measured 0.7 % at worst over
-/// seeds 0–2; the LS standard deviations at these noise levels are ≈ 0.1–0.3 %, and the
-/// rest is the bias of filtering q and τ before a nonlinear map).
+/// noise → preprocessing → least squares (faer QR). Noise-free data recover λ to rounding
+/// (the recorded τ, q̈ are exactly consistent). Noisy preprocessed data: measured worst
+/// relative error 0.69 % for noise seed 0 (this test) and 0.92 % over seeds 0–4, where
+/// the q̈ noise left after filtering (≈ 0.05 rad/s² RMS against ≈ 3 rad/s² of signal,
+/// see `noise_gain_matches_the_frequency_domain_prediction`) dominates; the bound is 2 %.
+/// The q̈ relative RMS error per joint measured 1.3–3.3 % over seeds 0–4; bound 6 %.
 #[test]
 fn least_squares_on_preprocessed_noisy_data_recovers_lambda() {
     let robot = Robot::paper();
@@ -234,16 +236,11 @@ fn least_squares_on_preprocessed_noisy_data_recovers_lambda() {
         );
     }
 
-    let d = preprocess(
-        &sim.t,
-        &sim.q_measured,
-        &sim.tau_measured,
-        &PreprocessConfig::default(),
-    )
-    .unwrap();
+    let d = sim.measured_dataset(&PreprocessConfig::default()).unwrap();
     let est = ls(d.q(), d.qd(), d.qdd(), d.tau());
     for i in 0..8 {
         let rel = (est[i] - lambda[i]).abs() / lambda[i];
+        eprintln!("REL {i} {:.3}", rel * 100.0);
         assert!(
             rel < 0.02,
             "λ{}: {} vs {} ({:.2} %)",
@@ -253,7 +250,7 @@ fn least_squares_on_preprocessed_noisy_data_recovers_lambda() {
             100.0 * rel
         );
     }
-    // How close q̈ is: relative RMS error per joint, measured 1.3–2.9 %.
+    // How close q̈ is: relative RMS error per joint.
     let off = ((d.t()[0] - sim.t[0]) / sim.t[1]).round() as usize;
     for j in 0..5 {
         let (mut e, mut s) = (0.0, 0.0);

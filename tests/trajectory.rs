@@ -63,6 +63,14 @@ proptest! {
     ) {
         let times = [0.0, gaps[0], gaps[0] + gaps[1], gaps[0] + gaps[1] + gaps[2]];
         let p = PiecewiseQuintic::new(times, q, qd, qdd).unwrap();
+        let (kt, kq, kqd, kqdd) = p.knots();
+        prop_assert_eq!(kt, times);
+        let rebuilt = PiecewiseQuintic::new(kt, kq, kqd, kqdd).unwrap();
+        for k in 0..=12 {
+            let t = times[3] * k as f64 / 12.0;
+            let (a, b) = (p.eval(t), rebuilt.eval(t));
+            prop_assert!((a.0 - b.0).abs() < 1e-9 && (a.1 - b.1).abs() < 1e-8 && (a.2 - b.2).abs() < 1e-7);
+        }
         for k in 0..4 {
             let (a, b, c) = p.eval(times[k]);
             prop_assert!((a - q[k]).abs() < 1e-9 && (b - qd[k]).abs() < 1e-8 && (c - qdd[k]).abs() < 1e-7);

@@ -205,7 +205,7 @@ impl Dataset {
         &self.tau
     }
 
-    /// Time span t[N−1] − t[0], s.
+    /// Time span `t[N−1] − t[0]`, s.
     pub fn duration(&self) -> f64 {
         self.t[self.t.len() - 1] - self.t[0]
     }

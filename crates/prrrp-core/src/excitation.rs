@@ -208,16 +208,16 @@ pub fn optimise_excitation<const K: usize>(
         }),
     };
     for run in 0..config.restarts.max(1) {
-        let (start, remaining) = {
+        let start = {
             let mut s = problem.state.borrow_mut();
+            // Nelder–Mead evaluates its whole initial simplex before the first iteration
+            // and cannot be interrupted there.
+            if s.budget.saturating_sub(s.evaluations) < n + 2 {
+                break;
+            }
             s.run = run;
-            (s.best_x.clone(), s.budget.saturating_sub(s.evaluations))
+            s.best_x.clone()
         };
-        // Nelder–Mead evaluates its whole initial simplex before the first iteration and
-        // cannot be interrupted there.
-        if remaining < n + 2 {
-            break;
-        }
         let simplex: Vec<Params> = std::iter::once(Params(start.clone()))
             .chain((0..n).map(|i| {
                 let mut v = start.clone();

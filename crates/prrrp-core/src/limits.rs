@@ -18,9 +18,9 @@ use crate::types::{Vec5, NDOF};
 ///
 /// Why: the lift travel is about half the 0.524 m column; ±143° is the usual range of a
 /// SCARA-type elbow (cables and the stacked links stop a full turn); 3 rad/s and
-/// 10 rad/s² are modest for a small arm and need peak torques of about 4 N·m at joint 2
-/// (M22 ≤ 0.43 kg·m² for the paper's masses); the 0.1 m tool stroke fits inside the
-/// 0.14 m last link.
+/// 10 rad/s² are modest for a small arm (M22 ≤ 0.43 kg·m² for the paper's masses) and
+/// lead to peak torques of 2–3 N·m at joint 2 on optimised excitations; the 0.1 m tool
+/// stroke fits inside the 0.14 m last link.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct JointLimits {
     /// Lower position limits (m, rad).

@@ -9,6 +9,7 @@ use rand_distr::{Distribution, Normal};
 use crate::dataset::Dataset;
 use crate::dynamics::PrrrpModel;
 use crate::error::{PrrrpError, Result};
+use crate::preprocess::{preprocess, PreprocessConfig};
 use crate::trajectory::{JointTrajectory, TrajectoryPoint};
 use crate::types::{Lambda, Vec5, NDOF};
 
@@ -20,10 +21,11 @@ use crate::types::{Lambda, Vec5, NDOF};
 ///   encoder read in quadrature (16384 counts/rev) has a step of 3.8e-4 rad, i.e. a
 ///   quantisation noise of 3.8e-4/√12 ≈ 1.1e-4 rad; a linear axis with a 1 µm-class
 ///   scale or a 5 mm-lead screw with such an encoder reads to about 1e-5 m.
-/// - generalised forces: 0.5 N for F1, 0.04 N·m for τ2, 0.02 N·m for τ3, 0.005 N·m for
-///   τ4 and 0.05 N for F5, about 1 % of each joint's peak on the default excitation
-///   (F1 ≈ 47 N holding the arm up, τ2 ≈ 4 N·m, τ3 ≈ 2 N·m, τ4 ≈ 0.4 N·m, F5 ≈ 5 N):
-///   the usual accuracy of torques estimated from motor currents.
+/// - generalised forces: 0.5 N for F1, 0.03 N·m for τ2, 0.015 N·m for τ3, 0.007 N·m for
+///   τ4 and 0.05 N for F5, about 1 % of each joint's peak on the default optimised
+///   excitation (measured over seeds 0–2: F1 ≈ 47.8 N, mostly holding the arm up;
+///   τ2 2.1–3.2 N·m; τ3 1.3–1.5 N·m; τ4 0.5–0.9 N·m; F5 ≈ 5.1 N): the usual accuracy of
+///   torques estimated from motor currents.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SensorNoise {
     /// Position noise std (m, rad).
@@ -36,7 +38,7 @@ impl Default for SensorNoise {
     fn default() -> Self {
         Self {
             q_std: Vec5::new(1e-5, 1e-4, 1e-4, 1e-4, 1e-5),
-            tau_std: Vec5::new(0.5, 0.04, 0.02, 0.005, 0.05),
+            tau_std: Vec5::new(0.5, 0.03, 0.015, 0.007, 0.05),
         }
     }
 }
@@ -183,7 +185,7 @@ pub fn rk4_step(
 
 /// What a simulation recorded at each output sample t_k = k·dt.
 ///
-/// The true signals are consistent: `tau[k]` = inverse dynamics(q[k], qd[k], qdd[k]) with
+/// The true signals are consistent: `tau[k]` = inverse dynamics(`q[k]`, `qd[k]`, `qdd[k]`) with
 /// the robot's λ. The measured ones carry the configured sensor noise.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct SimulationRecord {
@@ -233,6 +235,15 @@ impl SimulationRecord {
             self.qdd.clone(),
             self.tau.clone(),
         )
+    }
+
+    /// The measured signals (noisy q and τ) turned into a [`Dataset`] by [`preprocess`]:
+    /// what an estimator sees on a real robot.
+    ///
+    /// # Errors
+    /// As [`preprocess`].
+    pub fn measured_dataset(&self, config: &PreprocessConfig) -> Result<Dataset> {
+        preprocess(&self.t, &self.q_measured, &self.tau_measured, config)
     }
 
     fn with_capacity(n: usize, closed_loop: bool) -> Self {

@@ -212,6 +212,16 @@ impl<const K: usize> PiecewiseQuintic<K> {
         self.times[K - 1] - self.times[0]
     }
 
+    /// The knots (times, q, q̇, q̈) this curve was built from, e.g. to save or rebuild it
+    /// with [`PiecewiseQuintic::new`].
+    pub fn knots(&self) -> ([f64; K], [f64; K], [f64; K], [f64; K]) {
+        let (mut q, mut qd, mut qdd) = ([0.0; K], [0.0; K], [0.0; K]);
+        for k in 0..K {
+            (q[k], qd[k], qdd[k]) = self.eval(self.times[k]);
+        }
+        (self.times, q, qd, qdd)
+    }
+
     /// The polynomial of segment `k` (0 ≤ k ≤ K−2), or `None` if out of range.
     pub fn segment(&self, k: usize) -> Option<Quintic> {
         (k + 1 < K).then(|| Quintic {
