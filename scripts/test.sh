@@ -1,0 +1,31 @@
+#!/usr/bin/env bash
+# The project's one test command: Rust tests (cargo) and Python tests (pytest).
+#
+#   bash scripts/test.sh
+#
+# Creates the virtual environment .venv on first use (override with PRRRP_VENV), installs the
+# package with its test extras (`pip install .[test]`: maturin builds the extension as the
+# build backend), then runs `cargo test --workspace` and pytest. Idempotent: a second run
+# reuses the venv and cargo's incremental build. Needs only Rust and Python >= 3.11.
+set -euo pipefail
+
+root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+cd "$root"
+
+python="${PYTHON:-python3}"
+venv="${PRRRP_VENV:-$root/.venv}"
+
+if [[ ! -x "$venv/bin/python" ]]; then
+    echo "== creating virtual environment $venv"
+    "$python" -m venv "$venv"
+    "$venv/bin/python" -m pip install --quiet --upgrade pip
+fi
+
+echo "== pip install .[test] (builds the Rust extension)"
+"$venv/bin/python" -m pip install --quiet --disable-pip-version-check ".[test]"
+
+echo "== cargo test --workspace"
+cargo test --workspace
+
+echo "== pytest"
+"$venv/bin/python" -m pytest python/tests
