@@ -4,8 +4,9 @@
 #   bash scripts/test.sh
 #
 # Creates the virtual environment .venv on first use (override with PRRRP_VENV), installs the
-# package with its test extras (`pip install .[test]`: maturin builds the extension as the
-# build backend), then runs `cargo test --workspace` and pytest. Idempotent: a second run
+# package with its test extras and ruff (`pip install .[dev]`, dev = test + ruff: maturin
+# builds the extension as the build backend), then runs `cargo test --workspace`, pytest and
+# the Python lint (ruff). Idempotent: a second run
 # reuses the venv and cargo's incremental build. Needs only Rust and Python >= 3.11.
 set -euo pipefail
 
@@ -21,11 +22,15 @@ if [[ ! -x "$venv/bin/python" ]]; then
     "$venv/bin/python" -m pip install --quiet --upgrade pip
 fi
 
-echo "== pip install .[test] (builds the Rust extension)"
-"$venv/bin/python" -m pip install --quiet --disable-pip-version-check ".[test]"
+echo "== pip install .[dev] (builds the Rust extension)"
+"$venv/bin/python" -m pip install --quiet --disable-pip-version-check ".[dev]"
 
 echo "== cargo test --workspace"
 cargo test --workspace
+
+echo "== ruff"
+"$venv/bin/ruff" check python
+"$venv/bin/ruff" format --check python
 
 echo "== pytest"
 "$venv/bin/python" -m pytest python/tests

@@ -6,6 +6,7 @@ from __future__ import annotations
 import copy
 import pickle
 import threading
+import time
 
 import numpy as np
 import pytest
@@ -260,6 +261,32 @@ def test_derivatives_unpack_and_match_finite_differences(robot, states):
         np.testing.assert_allclose(dl[:, j], fd, rtol=1e-5, atol=1e-6)
     batch = robot.forward_derivatives(states[0], states[1], robot.inverse_dynamics(*states))
     assert batch.dqdd_dlambda.shape == (len(states[0]), 5, 8)
+
+
+def test_batch_releases_the_gil(robot, rng):
+    """While one thread is inside a long batch call, another thread keeps running Python
+    code. With the GIL held, the observer could run only before the call or after it."""
+    from conftest import random_states
+
+    q, qd, qdd = random_states(rng, 1_000_000)
+    state = {"start": None, "end": None}
+
+    def work():
+        state["start"] = time.perf_counter()
+        robot.inverse_dynamics(q, qd, qdd)
+        state["end"] = time.perf_counter()
+
+    seen = []
+    worker = threading.Thread(target=work)
+    worker.start()
+    while worker.is_alive():
+        seen.append(time.perf_counter())
+    worker.join()
+    start, end = state["start"], state["end"]
+    inside = [t for t in seen if start < t < end]
+    assert inside, "the observer thread never ran during the batch call"
+    # Progress throughout the call, not just a burst at its start.
+    assert inside[-1] - inside[0] > 0.5 * (end - start)
 
 
 def test_threads_share_a_robot(robot, rng):
