@@ -1,0 +1,300 @@
+//! numpy ⇄ nalgebra at the boundary: one sample `(D,)` or a batch `(N, D)` in, arrays of the
+//! matching shape out, with the per-sample loop run in Rust with the GIL released.
+//!
+//! Inputs are copied into fixed-size vectors while the GIL is held. The copy costs one pass
+//! over memory, and it is what makes releasing the GIL sound: another Python thread may
+//! write into the caller's array while the loop runs, but never into our copy. It also
+//! handles any dtype convertible to float64 and any strides.
+
+use nalgebra::{SMatrix, SVector};
+use numpy::{AllowTypeChange, PyArray1, PyArrayLikeDyn, PyArrayMethods, PyUntypedArrayMethods};
+use prrrp_core::PrrrpError;
+use pyo3::prelude::*;
+use pyo3::types::PyFloat;
+
+use crate::errors::{shape_error, to_pyerr, Exc};
+
+/// One sample or a batch of samples of a D-vector, from a numpy array-like argument.
+pub(crate) struct Samples<const D: usize> {
+    name: &'static str,
+    data: Vec<SVector<f64, D>>,
+    batch: bool,
+}
+
+impl<const D: usize> Samples<D> {
+    /// A single sample that broadcasts against any batch.
+    pub(crate) fn single(name: &'static str, v: SVector<f64, D>) -> Self {
+        Self {
+            name,
+            data: vec![v],
+            batch: false,
+        }
+    }
+
+    /// Reads argument `name`: anything numpy converts to float64 with shape `(D,)` or
+    /// `(N, D)`, every value finite.
+    pub(crate) fn extract(obj: &Bound<'_, PyAny>, name: &'static str) -> PyResult<Self> {
+        let py = obj.py();
+        let arr = match obj.extract::<PyArrayLikeDyn<'_, f64, AllowTypeChange>>() {
+            Ok(a) => a,
+            Err(e) => {
+                let err = Exc::InvalidInput.new_err(
+                    py,
+                    format!(
+                        "`{name}` must be convertible to a float64 array of shape ({D},) or \
+                         (N, {D}): {e}"
+                    ),
+                    &[],
+                );
+                err.set_cause(py, Some(e));
+                return Err(err);
+            }
+        };
+        let shape = arr.shape();
+        let (batch, n) = match *shape {
+            [d] if d == D => (false, 1),
+            [n, d] if d == D => (true, n),
+            _ => {
+                return Err(shape_error(
+                    py,
+                    name,
+                    format!("({D},) or (N, {D})"),
+                    fmt_shape(shape),
+                ))
+            }
+        };
+        let mut data: Vec<SVector<f64, D>> = Vec::with_capacity(n);
+        // `as_slice` also accepts Fortran order, whose flat order is not the rows'.
+        match arr.as_slice() {
+            Ok(flat) if arr.is_c_contiguous() => {
+                data.extend(flat.chunks_exact(D).map(SVector::from_column_slice))
+            }
+            // Strided or Fortran order: ndarray iterates in logical (row-major) order.
+            _ => {
+                let view = arr.as_array();
+                let mut it = view.iter().copied();
+                for _ in 0..n {
+                    data.push(SVector::from_iterator(it.by_ref().take(D)));
+                }
+            }
+        }
+        if let Some(k) = data.iter().position(|v| !v.iter().all(|x| x.is_finite())) {
+            return Err(to_pyerr(
+                py,
+                &PrrrpError::NonFinite {
+                    what: name.into(),
+                    row: batch.then_some(k),
+                },
+            ));
+        }
+        Ok(Self { name, data, batch })
+    }
+
+    /// Like [`Samples::extract`], or `default` (a single sample) when `obj` is `None`.
+    pub(crate) fn extract_or(
+        obj: Option<&Bound<'_, PyAny>>,
+        name: &'static str,
+        default: SVector<f64, D>,
+    ) -> PyResult<Self> {
+        match obj {
+            Some(o) => Self::extract(o, name),
+            None => Ok(Self::single(name, default)),
+        }
+    }
+
+    /// Sample `k` of the batch (the single sample broadcasts).
+    #[inline(always)]
+    pub(crate) fn at(&self, k: usize) -> &SVector<f64, D> {
+        if self.batch {
+            &self.data[k]
+        } else {
+            &self.data[0]
+        }
+    }
+
+    fn arg(&self) -> Arg<'_> {
+        Arg {
+            name: self.name,
+            dim: D,
+            len: self.batch.then_some(self.data.len()),
+        }
+    }
+}
+
+/// What [`batch_len`] needs to know about an argument.
+pub(crate) struct Arg<'a> {
+    name: &'a str,
+    dim: usize,
+    len: Option<usize>,
+}
+
+/// Something that is one argument of a batched call.
+pub(crate) trait AsArg {
+    fn as_arg(&self) -> Arg<'_>;
+}
+
+impl<const D: usize> AsArg for Samples<D> {
+    fn as_arg(&self) -> Arg<'_> {
+        self.arg()
+    }
+}
+
+/// The common batch length N of the arguments, `None` if every one is a single sample.
+/// Single samples broadcast; two batches must have the same N.
+pub(crate) fn batch_len(py: Python<'_>, args: &[&dyn AsArg]) -> PyResult<Option<usize>> {
+    let mut first: Option<(usize, &str)> = None;
+    for a in args {
+        let a = a.as_arg();
+        if let Some(n) = a.len {
+            match first {
+                None => first = Some((n, a.name)),
+                Some((n0, name0)) if n0 != n => {
+                    return Err(shape_error(
+                        py,
+                        a.name,
+                        format!(
+                            "({}, {}) or ({},) ({n0} samples, as `{name0}`)",
+                            n0, a.dim, a.dim
+                        ),
+                        format!("({n}, {})", a.dim),
+                    ))
+                }
+                Some(_) => {}
+            }
+        }
+    }
+    Ok(first.map(|(n, _)| n))
+}
+
+pub(crate) fn fmt_shape(shape: &[usize]) -> String {
+    match shape {
+        [d] => format!("({d},)"),
+        _ => {
+            let parts: Vec<String> = shape.iter().map(|d| d.to_string()).collect();
+            format!("({})", parts.join(", "))
+        }
+    }
+}
+
+/// Copies `m` into `out` in row-major (numpy) order; nalgebra stores column-major.
+#[inline(always)]
+pub(crate) fn write_row_major<const R: usize, const C: usize>(
+    m: &SMatrix<f64, R, C>,
+    out: &mut [f64],
+) {
+    for (i, row) in out.chunks_exact_mut(C).take(R).enumerate() {
+        for (j, o) in row.iter_mut().enumerate() {
+            *o = m[(i, j)];
+        }
+    }
+}
+
+/// Runs `f(k, outputs)` for every sample k and returns K arrays: output i has shape
+/// `shapes[i]` for a single sample and `(N, *shapes[i])` for a batch of N. A 0-d single
+/// output is returned as a Python float.
+///
+/// For a batch the loop runs with the GIL released. The first failing sample stops it;
+/// its error is raised with a note and attribute `sample` giving k.
+pub(crate) fn map_samples<'py, const K: usize, F>(
+    py: Python<'py>,
+    n: Option<usize>,
+    shapes: [&[usize]; K],
+    f: F,
+) -> PyResult<[Bound<'py, PyAny>; K]>
+where
+    F: Fn(usize, [&mut [f64]; K]) -> Result<(), PrrrpError> + Sync,
+{
+    let inner: [usize; K] = shapes.map(|s| s.iter().product());
+    let count = n.unwrap_or(1);
+    let mut bufs: [Vec<f64>; K] = inner.map(|i| vec![0.0; i * count]);
+    let run = |bufs: &mut [Vec<f64>; K]| -> Result<(), (usize, PrrrpError)> {
+        for k in 0..count {
+            let mut i = 0;
+            let outs = bufs.each_mut().map(|b| {
+                let s = inner[i];
+                i += 1;
+                &mut b[k * s..(k + 1) * s]
+            });
+            f(k, outs).map_err(|e| (k, e))?;
+        }
+        Ok(())
+    };
+    let result = match n {
+        None => run(&mut bufs),
+        Some(_) => py.detach(|| run(&mut bufs)),
+    };
+    if let Err((k, e)) = result {
+        let err = to_pyerr(py, &e);
+        if n.is_some() {
+            err.value(py).setattr("sample", k)?;
+            err.add_note(py, format!("at sample {k} (index along the leading axis)"))?;
+        }
+        return Err(err);
+    }
+    let mut i = 0;
+    let outs = bufs.map(|b| {
+        let shape = shapes[i];
+        i += 1;
+        (b, shape)
+    });
+    let mut result = Vec::with_capacity(K);
+    for (b, shape) in outs {
+        result.push(to_array(py, b, n, shape)?);
+    }
+    result
+        .try_into()
+        .map_err(|_| Exc::Base.new_err(py, "internal: output count".into(), &[]))
+}
+
+/// A flat row-major buffer as a numpy array of shape `(N, *shape)` or `shape`, without a
+/// copy; a 0-d single value as a Python float.
+pub(crate) fn to_array<'py>(
+    py: Python<'py>,
+    buf: Vec<f64>,
+    n: Option<usize>,
+    shape: &[usize],
+) -> PyResult<Bound<'py, PyAny>> {
+    if n.is_none() && shape.is_empty() {
+        return Ok(PyFloat::new(py, buf.first().copied().unwrap_or(f64::NAN)).into_any());
+    }
+    let full: Vec<usize> = n.into_iter().chain(shape.iter().copied()).collect();
+    let arr = PyArray1::from_vec(py, buf);
+    if full.len() == 1 {
+        return Ok(arr.into_any());
+    }
+    Ok(arr.reshape(full)?.into_any())
+}
+
+/// Reads a fixed-length parameter vector (e.g. the five link masses): anything numpy
+/// converts to float64 with shape `(D,)`. Values are not checked here; the core's
+/// validation names the offending entry.
+pub(crate) fn fixed_vector<const D: usize>(
+    obj: &Bound<'_, PyAny>,
+    name: &'static str,
+) -> PyResult<[f64; D]> {
+    let py = obj.py();
+    let arr = obj
+        .extract::<PyArrayLikeDyn<'_, f64, AllowTypeChange>>()
+        .map_err(|e| {
+            let err = Exc::InvalidInput.new_err(
+                py,
+                format!("`{name}` must be convertible to a float64 array of shape ({D},): {e}"),
+                &[],
+            );
+            err.set_cause(py, Some(e));
+            err
+        })?;
+    if arr.shape() != [D] {
+        return Err(shape_error(
+            py,
+            name,
+            format!("({D},)"),
+            fmt_shape(arr.shape()),
+        ));
+    }
+    let mut out = [0.0; D];
+    for (o, x) in out.iter_mut().zip(arr.as_array().iter()) {
+        *o = *x;
+    }
+    Ok(out)
+}

@@ -1,0 +1,33 @@
+//! Python bindings of prrrp: the private native module `prrrp._prrrp`, re-exported by the
+//! pure-Python package `prrrp` (python/prrrp/__init__.py).
+//!
+//! The crate is thin: it converts numpy arrays to the core's fixed-size types and back,
+//! loops over batches with the GIL released, and maps errors to Python exceptions. Every
+//! computation is a call into `prrrp-core`. One file per concept:
+//! - `errors`: the exception hierarchy and the one conversion trait `ToPyResult`;
+//! - `arrays`: numpy ⇄ nalgebra, shape checks, the batched loop;
+//! - `robot`: `Robot` and its dynamics;
+//! - `regressor`: `regressor`, `observation_matrix`, `singular_values`, `condition_number`;
+//! - `derivatives`: the derivative result classes.
+
+mod arrays;
+mod derivatives;
+mod errors;
+mod regressor;
+mod robot;
+
+use pyo3::prelude::*;
+
+/// The native part of prrrp; import `prrrp` instead.
+#[pymodule]
+fn _prrrp(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add("__version__", env!("CARGO_PKG_VERSION"))?;
+    m.add("NDOF", prrrp_core::NDOF)?;
+    m.add("NPARAM", prrrp_core::NPARAM)?;
+    m.add("STANDARD_GRAVITY", prrrp_core::STANDARD_GRAVITY)?;
+    errors::register(m)?;
+    robot::register(m)?;
+    derivatives::register(m)?;
+    regressor::register(m)?;
+    Ok(())
+}

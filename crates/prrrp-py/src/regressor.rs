@@ -1,0 +1,141 @@
+//! The regressor Φ(q, q̇, q̈) (τ = Φ·λ), the stacked observation matrix W and its
+//! singular values / condition number: `prrrp.regressor`, `prrrp.observation_matrix`,
+//! `prrrp.singular_values`, `prrrp.condition_number`.
+
+use faer::Mat;
+use numpy::{AllowTypeChange, PyArray1, PyArrayLike2, PyUntypedArrayMethods};
+use prrrp_core::{PrrrpError, PrrrpModel, Vec5, NDOF, NPARAM, STANDARD_GRAVITY};
+use pyo3::prelude::*;
+
+use crate::arrays::{batch_len, map_samples, to_array, write_row_major, Samples};
+use crate::errors::{to_pyerr, Exc, ToPyResult};
+
+/// A model with gravity `g` (m/s², along −z), checked like `Robot`'s.
+fn model(py: Python<'_>, g: f64) -> PyResult<PrrrpModel> {
+    if !(g.is_finite() && g >= 0.0) {
+        return Err(to_pyerr(
+            py,
+            &PrrrpError::InvalidParameter {
+                field: "gravity".into(),
+                value: g,
+                reason: "must be finite and >= 0 m/s²",
+            },
+        ));
+    }
+    Ok(PrrrpModel::new(g))
+}
+
+pub(crate) fn regressor_at<'py>(
+    py: Python<'py>,
+    model: PrrrpModel,
+    q: &Bound<'py, PyAny>,
+    qd: &Bound<'py, PyAny>,
+    qdd: &Bound<'py, PyAny>,
+) -> PyResult<Bound<'py, PyAny>> {
+    let (q, qd, qdd) = (
+        Samples::<NDOF>::extract(q, "q")?,
+        Samples::<NDOF>::extract(qd, "qd")?,
+        Samples::<NDOF>::extract(qdd, "qdd")?,
+    );
+    let n = batch_len(py, &[&q, &qd, &qdd])?;
+    let [phi] = map_samples(py, n, [&[NDOF, NPARAM]], |k, [out]| {
+        write_row_major(&model.regressor(q.at(k), qd.at(k), qdd.at(k)), out);
+        Ok(())
+    })?;
+    Ok(phi)
+}
+
+/// Regressor Φ(q, q̇, q̈) with τ = Φ·λ: shape (5, 8) for one sample, (N, 5, 8) for a batch.
+/// `gravity` in m/s² (default 9.81).
+#[pyfunction]
+#[pyo3(signature = (q, qd, qdd, *, gravity=STANDARD_GRAVITY))]
+fn regressor<'py>(
+    py: Python<'py>,
+    q: &Bound<'py, PyAny>,
+    qd: &Bound<'py, PyAny>,
+    qdd: &Bound<'py, PyAny>,
+    gravity: f64,
+) -> PyResult<Bound<'py, PyAny>> {
+    regressor_at(py, model(py, gravity)?, q, qd, qdd)
+}
+
+/// Observation matrix W (eq. 35): the regressors of N samples stacked, shape (5·N, 8);
+/// rows 5k..5k+5 hold Φ(q_k, q̇_k, q̈_k). `gravity` in m/s² (default 9.81).
+#[pyfunction]
+#[pyo3(signature = (q, qd, qdd, *, gravity=STANDARD_GRAVITY))]
+fn observation_matrix<'py>(
+    py: Python<'py>,
+    q: &Bound<'py, PyAny>,
+    qd: &Bound<'py, PyAny>,
+    qdd: &Bound<'py, PyAny>,
+    gravity: f64,
+) -> PyResult<Bound<'py, PyAny>> {
+    let model = model(py, gravity)?;
+    let (q, qd, qdd) = (
+        Samples::<NDOF>::extract(q, "q")?,
+        Samples::<NDOF>::extract(qd, "qd")?,
+        Samples::<NDOF>::extract(qdd, "qdd")?,
+    );
+    let n = batch_len(py, &[&q, &qd, &qdd])?.unwrap_or(1);
+    // Single samples broadcast: materialise them so the core sees equal lengths.
+    let full = |s: &Samples<NDOF>| -> Vec<Vec5> { (0..n).map(|k| *s.at(k)).collect() };
+    let (q, qd, qdd) = (full(&q), full(&qd), full(&qdd));
+    let flat = py
+        .detach(|| {
+            prrrp_core::observation_matrix(&model, &q, &qd, &qdd).map(|w| {
+                let mut flat = Vec::with_capacity(w.nrows() * w.ncols());
+                for i in 0..w.nrows() {
+                    flat.extend((0..w.ncols()).map(|j| w[(i, j)]));
+                }
+                flat
+            })
+        })
+        .to_py(py)?;
+    to_array(py, flat, Some(NDOF * n), &[NPARAM])
+}
+
+/// Reads a 2-D matrix argument into faer.
+fn matrix(w: &Bound<'_, PyAny>, name: &str) -> PyResult<Mat<f64>> {
+    let py = w.py();
+    let arr = w
+        .extract::<PyArrayLike2<'_, f64, AllowTypeChange>>()
+        .map_err(|e| {
+            let err = Exc::InvalidInput.new_err(
+                py,
+                format!("`{name}` must be convertible to a 2-D float64 array (rows, cols): {e}"),
+                &[],
+            );
+            err.set_cause(py, Some(e));
+            err
+        })?;
+    let v = arr.as_array();
+    Ok(Mat::from_fn(arr.shape()[0], arr.shape()[1], |i, j| {
+        v[[i, j]]
+    }))
+}
+
+/// Singular values of W in decreasing order, shape (cols,). W needs at least as many rows
+/// as columns.
+#[pyfunction]
+fn singular_values<'py>(
+    py: Python<'py>,
+    w: &Bound<'py, PyAny>,
+) -> PyResult<Bound<'py, PyArray1<f64>>> {
+    let w = matrix(w, "w")?;
+    let s = py.detach(|| prrrp_core::singular_values(&w)).to_py(py)?;
+    Ok(PyArray1::from_vec(py, s))
+}
+
+/// Condition number σmax/σmin of W (eq. 38); `inf` if W is rank deficient.
+#[pyfunction]
+fn condition_number(py: Python<'_>, w: &Bound<'_, PyAny>) -> PyResult<f64> {
+    let w = matrix(w, "w")?;
+    py.detach(|| prrrp_core::condition_number(&w)).to_py(py)
+}
+
+pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_function(wrap_pyfunction!(regressor, m)?)?;
+    m.add_function(wrap_pyfunction!(observation_matrix, m)?)?;
+    m.add_function(wrap_pyfunction!(singular_values, m)?)?;
+    m.add_function(wrap_pyfunction!(condition_number, m)?)
+}

@@ -1,0 +1,69 @@
+"""prrrp: dynamic model and parameter identification of the 5-DOF PRRRP redundant manipulator
+of Urrea & Pascal, "Parameter identification methods for real redundant manipulators",
+J. Appl. Res. Technol. 15 (2017) 320-331.
+
+Conventions (SI units): q = [d1, θ2, θ3, θ4, d5] in m, rad, rad, rad, m; generalised forces
+τ = [F1, τ2, τ3, τ4, F5] in N, N·m, N·m, N·m, N. World z points up and gravity acts along -z
+(9.81 m/s² by default). The model is linear in 8 grouped base parameters λ: τ = Φ(q, q̇, q̈)·λ.
+
+Every function takes numpy arrays (anything convertible to float64) for one sample, shape
+(5,), or a batch with a leading axis N, shape (N, 5), and returns float64 arrays of the
+matching shape. Batches are computed in Rust with the GIL released.
+
+>>> import numpy as np, prrrp
+>>> robot = prrrp.Robot.paper()
+>>> q, qd, qdd = np.zeros(5), np.ones(5), np.ones(5)
+>>> tau = robot.inverse_dynamics(q, qd, qdd)
+>>> bool(np.allclose(prrrp.regressor(q, qd, qdd) @ robot.base_parameters(), tau))
+True
+"""
+
+from prrrp._prrrp import (
+    NDOF,
+    NPARAM,
+    STANDARD_GRAVITY,
+    DivergedError,
+    ForwardDerivatives,
+    InfeasibleError,
+    InvalidInputError,
+    InvalidParameterError,
+    InverseDerivatives,
+    NonFiniteError,
+    NonIncreasingTimeError,
+    NotPositiveDefiniteError,
+    PrrrpError,
+    RankDeficientError,
+    Robot,
+    ShapeMismatchError,
+    TooFewSamplesError,
+    __version__,
+    condition_number,
+    observation_matrix,
+    regressor,
+    singular_values,
+)
+
+__all__ = [
+    "NDOF",
+    "NPARAM",
+    "STANDARD_GRAVITY",
+    "DivergedError",
+    "ForwardDerivatives",
+    "InfeasibleError",
+    "InvalidInputError",
+    "InvalidParameterError",
+    "InverseDerivatives",
+    "NonFiniteError",
+    "NonIncreasingTimeError",
+    "NotPositiveDefiniteError",
+    "PrrrpError",
+    "RankDeficientError",
+    "Robot",
+    "ShapeMismatchError",
+    "TooFewSamplesError",
+    "__version__",
+    "condition_number",
+    "observation_matrix",
+    "regressor",
+    "singular_values",
+]

@@ -1,0 +1,168 @@
+"""Errors: every bad input raises a prrrp exception that names the argument and says what
+to fix; input faults are also ValueErrors; no Rust panic reaches Python."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import prrrp
+
+
+def test_hierarchy():
+    assert issubclass(prrrp.PrrrpError, Exception)
+    assert issubclass(prrrp.InvalidInputError, prrrp.PrrrpError)
+    assert issubclass(prrrp.InvalidInputError, ValueError)
+    for exc in [
+        prrrp.InvalidParameterError,
+        prrrp.NonFiniteError,
+        prrrp.ShapeMismatchError,
+        prrrp.TooFewSamplesError,
+        prrrp.NonIncreasingTimeError,
+        prrrp.RankDeficientError,
+        prrrp.NotPositiveDefiniteError,
+        prrrp.InfeasibleError,
+    ]:
+        assert issubclass(exc, prrrp.InvalidInputError), exc
+        assert exc.__module__ == "prrrp"
+        assert exc.__doc__
+    assert issubclass(prrrp.DivergedError, prrrp.PrrrpError)
+    assert issubclass(prrrp.DivergedError, ArithmeticError)
+    assert not issubclass(prrrp.DivergedError, ValueError)
+
+
+@pytest.mark.parametrize(
+    "bad",
+    [
+        np.zeros(4),
+        np.zeros(6),
+        np.zeros((3, 4)),
+        np.zeros((2, 3, 5)),
+        np.zeros(()),
+        np.zeros((5, 1)),
+    ],
+    ids=lambda a: str(a.shape),
+)
+def test_wrong_shape_names_argument_and_expected_shape(robot, bad):
+    ok = np.zeros(5)
+    with pytest.raises(prrrp.ShapeMismatchError, match=r"`qd`.*expected \(5,\) or \(N, 5\)") as e:
+        robot.inverse_dynamics(ok, bad, ok)
+    assert isinstance(e.value, ValueError)
+    assert e.value.what == "qd"
+    assert e.value.got == (
+        "(" + ", ".join(map(str, bad.shape)) + ("," if bad.ndim == 1 else "") + ")"
+    )
+
+
+def test_wrong_lambda_shape(robot):
+    with pytest.raises(prrrp.ShapeMismatchError, match=r"`lam`.*\(8,\) or \(N, 8\)"):
+        robot.mass_matrix(np.zeros(5), lam=np.ones(5))
+
+
+def test_batch_lengths_must_agree(robot):
+    with pytest.raises(prrrp.ShapeMismatchError, match=r"`qdd`.*\(3, 5\).*as `q`") as e:
+        robot.inverse_dynamics(np.zeros((3, 5)), np.zeros(5), np.zeros((4, 5)))
+    assert e.value.got == "(4, 5)"
+    with pytest.raises(prrrp.ShapeMismatchError, match="`lam`"):
+        robot.inverse_dynamics(np.zeros((3, 5)), np.zeros(5), np.zeros(5), lam=np.ones((2, 8)))
+
+
+@pytest.mark.parametrize("value", [np.nan, np.inf, -np.inf])
+def test_non_finite_single(robot, value):
+    q = np.zeros(5)
+    q[2] = value
+    with pytest.raises(prrrp.NonFiniteError, match="`q`") as e:
+        robot.mass_matrix(q)
+    assert e.value.what == "q"
+    assert e.value.row is None
+    assert isinstance(e.value, ValueError)
+
+
+def test_non_finite_batch_names_row(robot):
+    tau = np.zeros((10, 5))
+    tau[7, 4] = np.nan
+    with pytest.raises(prrrp.NonFiniteError, match=r"`tau`.*row 7") as e:
+        robot.forward_dynamics(np.zeros((10, 5)), np.zeros((10, 5)), tau)
+    assert e.value.row == 7
+
+
+def test_non_finite_lambda(robot):
+    lam = robot.base_parameters()
+    lam[0] = np.nan
+    with pytest.raises(prrrp.NonFiniteError, match="`lam`"):
+        robot.inverse_dynamics(np.zeros(5), np.zeros(5), np.zeros(5), lam=lam)
+
+
+@pytest.mark.parametrize("bad", ["abc", [1, 2, "x", 4, 5], {"a": 1}, None, [[1, 2], [3]]])
+def test_not_an_array(robot, bad):
+    with pytest.raises(prrrp.InvalidInputError, match="`qd`"):
+        robot.inverse_dynamics(np.zeros(5), bad, np.zeros(5))
+
+
+def test_not_positive_definite(robot):
+    lam = -robot.base_parameters()
+    with pytest.raises(prrrp.NotPositiveDefiniteError, match="positive definite") as e:
+        robot.forward_dynamics(np.zeros(5), np.zeros(5), np.zeros(5), lam=lam)
+    assert isinstance(e.value, ValueError)
+    assert not hasattr(e.value, "sample")
+
+
+def test_batch_error_reports_sample(robot):
+    lam = np.tile(robot.base_parameters(), (6, 1))
+    lam[4] *= -1.0
+    with pytest.raises(prrrp.NotPositiveDefiniteError) as e:
+        robot.forward_derivatives(np.zeros((6, 5)), np.zeros((6, 5)), np.zeros((6, 5)), lam=lam)
+    assert e.value.sample == 4
+    assert any("sample 4" in n for n in e.value.__notes__)
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "field"),
+    [
+        ({"mass": [1, 1, -1, 1, 1]}, "mass[2] (m3)"),
+        ({"mass": [1, 1, 1, 1, 0]}, "mass[4] (m5)"),
+        ({"length": [0.5, 0.2, np.nan, 0.2, 0.1]}, "length[2] (l3)"),
+        ({"com": [0.0, -0.01, 0.0]}, "com[1] (lc3)"),
+        ({"inertia_zz": [0.0, 0.0, -1e-3]}, "inertia_zz[2] (I4zz)"),
+        ({"gravity": -9.81}, "gravity"),
+        ({"gravity": np.inf}, "gravity"),
+    ],
+)
+def test_robot_validation(kwargs, field):
+    with pytest.raises(prrrp.InvalidParameterError) as e:
+        prrrp.Robot(**kwargs)
+    assert e.value.field == field
+    assert isinstance(e.value, ValueError)
+    assert field in str(e.value)
+
+
+def test_robot_parameter_shapes():
+    with pytest.raises(prrrp.ShapeMismatchError, match=r"`mass`.*\(5,\)"):
+        prrrp.Robot(mass=[1, 2, 3])
+    with pytest.raises(prrrp.ShapeMismatchError, match=r"`com`.*\(3,\)"):
+        prrrp.Robot(com=np.zeros((1, 3)))
+    with pytest.raises(prrrp.InvalidInputError, match="`inertia_zz`"):
+        prrrp.Robot(inertia_zz="heavy")
+
+
+def test_module_function_errors():
+    z = np.zeros(5)
+    with pytest.raises(prrrp.InvalidParameterError, match="gravity"):
+        prrrp.regressor(z, z, z, gravity=np.nan)
+    with pytest.raises(prrrp.ShapeMismatchError, match="`q`"):
+        prrrp.observation_matrix(np.zeros((3, 4)), z, z)
+    with pytest.raises(prrrp.ShapeMismatchError, match="at least as many rows"):
+        prrrp.singular_values(np.ones((3, 8)))
+    with pytest.raises(prrrp.NonFiniteError):
+        prrrp.condition_number(np.full((10, 8), np.nan))
+    with pytest.raises(prrrp.InvalidInputError):
+        prrrp.condition_number(np.ones(8))
+
+
+def test_extreme_values_do_not_panic(robot):
+    """Huge but finite inputs overflow to inf in the outputs; they must not crash."""
+    big = np.full(5, 1e308)
+    out = robot.inverse_dynamics(big, big, big)
+    assert out.shape == (5,)
+    with pytest.raises(prrrp.PrrrpError):
+        robot.forward_dynamics(big, big, big, lam=np.full(8, 1e308))
