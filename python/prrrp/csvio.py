@@ -90,8 +90,7 @@ def read_measurements(path: str | os.PathLike[str]) -> dict[str, np.ndarray]:
         for name in group:
             if present and name not in seen:
                 raise InputError(
-                    f"{path}: missing column '{name}' (give all of {group[0]}..{group[-1]}"
-                    " or none)"
+                    f"{path}: missing column '{name}' (give all of {group[0]}..{group[-1]} or none)"
                 )
 
     values: list[list[float]] = []

@@ -119,8 +119,13 @@ def validation(results: dict[str, Any], path: str | os.PathLike[str]) -> None:
         ax.plot(t, np.asarray(val["q_ref"])[:, j], ":", color="gray", lw=1.0, label="reference")
         ax.plot(t, np.asarray(val["q_true"])[:, j], color="black", lw=2.0, label="true robot")
         for m in val["methods"]:
-            ax.plot(t, np.asarray(m["q"])[:, j], "--", lw=1.0, label=paper.METHOD_LABELS.get(
-                m["method"], m["method"]))
+            ax.plot(
+                t,
+                np.asarray(m["q"])[:, j],
+                "--",
+                lw=1.0,
+                label=paper.METHOD_LABELS.get(m["method"], m["method"]),
+            )
         ax.set_ylabel(_joint_label(j))
         ax.grid(alpha=0.3)
     axes[0].legend(loc="upper right", fontsize=8, ncol=3)
@@ -137,10 +142,7 @@ def sensitivity(results: dict[str, Any], path: str | os.PathLike[str]) -> None:
     fig, axes = plt.subplots(4, 2, figsize=(10, 11), sharex=True)
     for i, ax in enumerate(axes.flat):
         rms = np.array(
-            [
-                [np.nan if x is None else x for x in (row or [None] * 5)]
-                for row in sens["rms"][i]
-            ],
+            [[np.nan if x is None else x for x in (row or [None] * 5)] for row in sens["rms"][i]],
             dtype=float,
         )
         for j in range(rms.shape[1]):
@@ -169,7 +171,9 @@ def lambda_bars(results: dict[str, Any], path: str | os.PathLike[str]) -> None:
     for k, e in enumerate(estimates):
         offset = (k - (n - 1) / 2) * width
         ratio = np.asarray(e["lambda"], dtype=float) / truth
-        bars = ax.bar(x + offset, ratio, width, label=paper.METHOD_LABELS.get(e["method"], e["method"]))
+        bars = ax.bar(
+            x + offset, ratio, width, label=paper.METHOD_LABELS.get(e["method"], e["method"])
+        )
         published = paper.TABLE4.get(e["method"])
         if published:
             ax.plot(

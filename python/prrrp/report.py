@@ -30,7 +30,7 @@ def _g(x: Any) -> str:
 def _table(header: Sequence[str], rows: Iterable[Sequence[str]]) -> list[str]:
     out = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
     out.extend("| " + " | ".join(row) + " |" for row in rows)
-    return out + [""]
+    return [*out, ""]
 
 
 def _label(method: str) -> str:
@@ -82,7 +82,11 @@ def relative_errors(results: dict[str, Any]) -> list[str]:
         ours = e.get("relative_error_percent") or [
             _rel(x, t) for x, t in zip(e["lambda"], truth, strict=True)
         ]
-        pub = max(abs(_rel(p, t)) for p, t in zip(published, truth, strict=True)) if published else None
+        pub = (
+            max(abs(_rel(p, t)) for p, t in zip(published, truth, strict=True))
+            if published
+            else None
+        )
         worst += [_f(pub, 2), _f(max(abs(x) for x in ours), 2)]
     rows.append(worst)
     return _table(header, rows)
@@ -123,7 +127,10 @@ def table5(results: dict[str, Any]) -> list[str]:
 def torque_prediction(results: dict[str, Any]) -> list[str]:
     """Torque-prediction error on the validation trajectory, per method and joint."""
     methods = results["validation"]["methods"]
-    header = ["method", *(f"{j} RMS ({u})" for j, u in zip(paper.JOINTS, paper.FORCE_UNITS, strict=True))]
+    header = [
+        "method",
+        *(f"{j} RMS ({u})" for j, u in zip(paper.JOINTS, paper.FORCE_UNITS, strict=True)),
+    ]
     rows = [[_label(m["method"]), *(_g(x) for x in m["torque_rms"])] for m in methods]
     lines = _table(header, rows)
     header = ["method", *(f"{j} %" for j in paper.JOINTS)]
