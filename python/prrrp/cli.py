@@ -126,6 +126,8 @@ def _dump_json(data: Any, path: Path) -> None:
 
 
 def _check_output_dir(path: Path) -> None:
+    if path.is_dir():
+        raise CliError(f"output {path} is a directory; give a file name")
     parent = path.parent if str(path.parent) else Path(".")
     if not parent.is_dir():
         raise CliError(f"output directory {parent} does not exist")
@@ -364,7 +366,7 @@ def cmd_identify(args: argparse.Namespace) -> int:
         print(f"\nvalidation on {args.validate}: torque-prediction RMS per joint")
         header = [
             "method",
-            *(f"{j} ({u})" for j, u in zip(paper.JOINTS, paper.FORCE_UNITS, strict=True)),
+            *(f"{j} ({u})" for j, u in zip(paper.FORCES, paper.FORCE_UNITS, strict=True)),
         ]
         rows = [
             [
@@ -394,6 +396,16 @@ def cmd_identify(args: argparse.Namespace) -> int:
 # ---------------------------------------------------------------------------------- parser
 
 
+def _seed(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from None
+    if not 0 <= value < 2**64:
+        raise argparse.ArgumentTypeError(f"must be between 0 and 2^64 - 1, got {value}")
+    return value
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="prrrp",
@@ -415,7 +427,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--out", default="prrrp-out", metavar="DIR", help="output directory (default: ./prrrp-out)"
     )
-    p.add_argument("--seed", type=int, default=0, help="random seed (default: 0)")
+    p.add_argument("--seed", type=_seed, default=0, help="random seed (default: 0)")
     p.set_defaults(func=cmd_reproduce)
 
     p = sub.add_parser(
@@ -427,7 +439,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--out", required=True, metavar="DATA.csv", help="CSV file to write")
     p.add_argument(
-        "--seed", type=int, default=0, help="seed of the excitation and noise (default: 0)"
+        "--seed", type=_seed, default=0, help="seed of the excitation and noise (default: 0)"
     )
     p.add_argument(
         "--noise",

@@ -56,6 +56,16 @@ def _lines(path: Path) -> Iterator[tuple[int, str]]:
 
 
 def read_measurements(path: str | os.PathLike[str]) -> dict[str, np.ndarray]:
+    """Reads a measurement CSV file (see :func:`_read`)."""
+    try:
+        return _read(Path(path))
+    except UnicodeDecodeError:
+        raise InputError(f"{path}: not a UTF-8 text (CSV) file") from None
+    except csv.Error as e:
+        raise InputError(f"{path}: not a readable CSV file ({e})") from None
+
+
+def _read(path: Path) -> dict[str, np.ndarray]:
     """Reads a measurement CSV file.
 
     Returns a dict with ``t`` (N,), ``q`` and ``tau`` (N, 5) and, when present in the file,
@@ -63,7 +73,6 @@ def read_measurements(path: str | os.PathLike[str]) -> dict[str, np.ndarray]:
     column) for a missing/misspelt column, a non-numeric or non-finite cell, non-increasing
     time or too few samples; OSError for an unreadable file.
     """
-    path = Path(path)
     rows = _lines(path)
     try:
         header_lineno, header_line = next(rows)
@@ -75,15 +84,20 @@ def read_measurements(path: str | os.PathLike[str]) -> dict[str, np.ndarray]:
         if name in seen:
             raise InputError(f"{path}: column '{name}' appears twice in the header")
         seen.add(name)
+    missing = [c for c in REQUIRED_COLUMNS if c not in seen]
+    for name in header:
         if name not in ALL_COLUMNS:
-            close = difflib.get_close_matches(name, ALL_COLUMNS, n=1)
+            # A close name among all columns; else the closest of those still missing (so
+            # that 'time' is matched with 't').
+            close = difflib.get_close_matches(name, ALL_COLUMNS, n=1) or (
+                difflib.get_close_matches(name, missing, n=1, cutoff=0.3)
+            )
             hint = f" (did you mean '{close[0]}'?)" if close else ""
             raise InputError(f"{path}: unknown column '{name}'{hint}; {_expected()}")
-    for name in REQUIRED_COLUMNS:
-        if name not in seen:
-            close = difflib.get_close_matches(name, [h for h in header if h], n=1)
-            hint = f" (found '{close[0]}')" if close else ""
-            raise InputError(f"{path}: missing column '{name}'{hint}; {_expected()}")
+    if missing:
+        names = ", ".join(f"'{c}'" for c in missing)
+        plural = "s" if len(missing) > 1 else ""
+        raise InputError(f"{path}: missing column{plural} {names}; {_expected()}")
     has_qd = any(c in seen for c in VELOCITY_COLUMNS)
     has_qdd = any(c in seen for c in ACCELERATION_COLUMNS)
     for group, present in ((VELOCITY_COLUMNS, has_qd), (ACCELERATION_COLUMNS, has_qdd)):

@@ -48,5 +48,6 @@ PARAMETER_UNITS: tuple[str, ...] = ("kg",) + ("kg·m²",) * 6 + ("kg",)
 
 #: Joint names and the units of their positions and generalised forces.
 JOINTS: tuple[str, ...] = ("d1", "θ2", "θ3", "θ4", "d5")
+FORCES: tuple[str, ...] = ("F1", "τ2", "τ3", "τ4", "F5")
 POSITION_UNITS: tuple[str, ...] = ("m", "rad", "rad", "rad", "m")
 FORCE_UNITS: tuple[str, ...] = ("N", "N·m", "N·m", "N·m", "N")

@@ -129,11 +129,11 @@ def torque_prediction(results: dict[str, Any]) -> list[str]:
     methods = results["validation"]["methods"]
     header = [
         "method",
-        *(f"{j} RMS ({u})" for j, u in zip(paper.JOINTS, paper.FORCE_UNITS, strict=True)),
+        *(f"{j} RMS ({u})" for j, u in zip(paper.FORCES, paper.FORCE_UNITS, strict=True)),
     ]
     rows = [[_label(m["method"]), *(_g(x) for x in m["torque_rms"])] for m in methods]
     lines = _table(header, rows)
-    header = ["method", *(f"{j} %" for j in paper.JOINTS)]
+    header = ["method", *(f"{j} %" for j in paper.FORCES)]
     rows = [
         [_label(m["method"]), *(_f(x, 2) for x in m["torque_relative_percent"])] for m in methods
     ]
