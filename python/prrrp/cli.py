@@ -139,6 +139,8 @@ def _check_output_dir(path: Path) -> None:
 def cmd_reproduce(args: argparse.Namespace) -> int:
     from prrrp import plots, report
 
+    if not hasattr(prrrp, "run_study"):
+        raise CliError("this build of prrrp has no run_study (reinstall the package)", EXIT_FAILED)
     out = Path(args.out)
     if out.exists() and not out.is_dir():
         raise CliError(f"--out {out} exists and is not a directory")

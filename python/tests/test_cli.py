@@ -261,6 +261,7 @@ def test_too_few_samples(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> 
     assert_one_line_error(err, "too few samples (5)")
 
 
+@pytest.mark.skipif(not hasattr(prrrp, "least_squares"), reason="no least_squares binding")
 def test_unexciting_data_is_rank_deficient_and_keeps_old_output(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -279,7 +280,10 @@ def test_unexciting_data_is_rank_deficient_and_keeps_old_output(
 
 
 needs_simulation = pytest.mark.skipif(
-    not all(hasattr(prrrp, f) for f in ("optimise_excitation", "simulate_closed_loop")),
+    not all(
+        hasattr(prrrp, f)
+        for f in ("optimise_excitation", "simulate_closed_loop", "preprocess", "least_squares")
+    ),
     reason="simulation bindings not available",
 )
 
