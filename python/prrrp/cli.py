@@ -78,8 +78,16 @@ class Progress:
         if stage != self._stage or self._bar is None:
             self.close()
             self._stage = stage
+            size = shutil.get_terminal_size()
             self._bar = tqdm(
-                total=max(int(total), 1), desc=f"{stage:<13}", file=sys.stderr, leave=False
+                total=max(int(total), 1),
+                desc=f"{stage:<13}",
+                file=sys.stderr,
+                leave=False,
+                # tqdm draws nothing on a terminal that reports a size of 0 × 0 (some
+                # pseudo-terminals do): fall back to 80 × 24 then.
+                ncols=size.columns or 80,
+                nrows=size.lines or 24,
             )
         if total and self._bar.total != total:
             self._bar.total = int(total)
