@@ -211,8 +211,8 @@ def render(results: dict[str, Any]) -> str:
         *table5(results),
         "### Torque prediction on the validation trajectory",
         "",
-        "RMS of τ(q, q̇, q̈; λ̂) − τ(q, q̇, q̈; λ_true) per joint, and the same relative to the "
-        "RMS of the true torque, %.",
+        "RMS error of the torques predicted with each estimate on the validation trajectory, "
+        "per joint (`torque_rms`), and relative, % (`torque_relative_percent`).",
         "",
         *torque_prediction(results),
         "## Table 6: sensitivity",
