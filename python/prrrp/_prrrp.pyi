@@ -5,8 +5,8 @@ qdd, tau) have shape (5,) for one sample or (N, 5) for a batch; λ (`lam`) has s
 (N, 8). Single samples broadcast against batches. Outputs get a leading N for a batch.
 """
 
-from collections.abc import Iterator
-from typing import Any, Final, Literal, TypedDict
+from collections.abc import Callable, Iterator, Mapping
+from typing import Any, Final, Literal, TypedDict, overload
 
 import numpy as np
 import numpy.typing as npt
@@ -206,3 +206,270 @@ def singular_values(w: _ArrayLike) -> _F64:
 
 def condition_number(w: _ArrayLike) -> float:
     """σmax/σmin of W (eq. 38); inf if rank deficient."""
+
+# --- trajectories -------------------------------------------------------------------------
+
+_Triple = tuple[_F64, _F64, _F64]
+
+class _JointLimits(TypedDict):
+    q_min: _F64
+    q_max: _F64
+    qd_max: _F64
+    qdd_max: _F64
+
+class _LimitUsage(TypedDict):
+    q: _F64
+    qd: _F64
+    qdd: _F64
+
+def joint_limits() -> _JointLimits:
+    """Default joint limits of the excitation search: (5,) arrays (m, rad, /s, /s²)."""
+
+class Excitation:
+    """An optimised excitation trajectory (paper §4.1) and the figures of its search."""
+
+    @property
+    def cond_initial(self) -> float: ...
+    @property
+    def cond_final(self) -> float: ...
+    @property
+    def evaluations(self) -> int: ...
+    @property
+    def limits_satisfied(self) -> bool: ...
+    @property
+    def samples(self) -> int: ...
+    @property
+    def duration(self) -> float: ...
+    @property
+    def dt(self) -> float: ...
+    @property
+    def limit_usage(self) -> _LimitUsage: ...
+    def eval(self, t: _ArrayLike) -> _Triple:
+        """(q, qd, qdd): (5,) each for a scalar t (s), (N, 5) each for t of shape (N,)."""
+    def sample(self, t: _ArrayLike) -> _Triple:
+        """Same as `eval`."""
+
+class SinusoidReference:
+    """q_i(t) = offset_i + amplitude_i·sin(omega_i·t + phase_i); each argument (5,)."""
+
+    def __init__(
+        self,
+        *,
+        offset: _ArrayLike,
+        amplitude: _ArrayLike,
+        omega: _ArrayLike,
+        phase: _ArrayLike | None = None,
+    ) -> None: ...
+    def eval(self, t: _ArrayLike) -> _Triple: ...
+    def sample(self, t: _ArrayLike) -> _Triple: ...
+
+def optimise_excitation(
+    *,
+    seed: int = 0,
+    duration: float = 10.0,
+    dt: float = 0.02,
+    max_evaluations: int = 6000,
+    restarts: int = 6,
+    margin: float = 0.01,
+    limits: Mapping[str, _ArrayLike] | None = None,
+    progress: Callable[[int, int, float], object] | None = None,
+    progress_every: int = 100,
+) -> Excitation:
+    """Minimises cond(W) within the joint limits. `progress(evaluations, max_evaluations,
+    best_cond)`; an exception it raises is re-raised when the search returns."""
+
+# --- simulation ---------------------------------------------------------------------------
+
+class _Record(TypedDict, total=False):
+    t: _F64
+    q_ref: _F64
+    qd_ref: _F64
+    qdd_ref: _F64
+    q: _F64
+    qd: _F64
+    qdd: _F64
+    tau: _F64
+    q_measured: _F64
+    tau_measured: _F64
+
+def simulate_closed_loop(
+    reference: Excitation | SinusoidReference,
+    duration: float,
+    *,
+    lam: _ArrayLike | None = None,
+    controller_lam: _ArrayLike | None = None,
+    dt: float = 0.02,
+    substeps: int = 20,
+    kp: _ArrayLike | None = None,
+    kd: _ArrayLike | None = None,
+    q_noise: _ArrayLike | None = None,
+    tau_noise: _ArrayLike | None = None,
+    seed: int = 0,
+) -> _Record:
+    """Computed-torque tracking of `reference`; arrays t (N,) and (N, 5) columns."""
+
+def simulate_open_loop(
+    q0: _ArrayLike,
+    qd0: _ArrayLike,
+    tau: _ArrayLike,
+    *,
+    lam: _ArrayLike | None = None,
+    dt: float = 0.02,
+    substeps: int = 20,
+    q_noise: _ArrayLike | None = None,
+    tau_noise: _ArrayLike | None = None,
+    seed: int = 0,
+) -> _Record:
+    """The robot under the torques tau (N, 5), zero-order hold; no *_ref keys."""
+
+# --- preprocessing ------------------------------------------------------------------------
+
+class _Dataset(TypedDict):
+    t: _F64
+    q: _F64
+    qd: _F64
+    qdd: _F64
+    tau: _F64
+
+def preprocess(
+    t: _ArrayLike,
+    q: _ArrayLike,
+    tau: _ArrayLike,
+    *,
+    cutoff_hz: float = 5.0,
+    order: int = 4,
+    filter_torque: bool = True,
+    trim: int | None = None,
+    decimate: int = 1,
+) -> _Dataset:
+    """Zero-phase low-pass, central differences, trimming, decimation."""
+
+# --- estimators ---------------------------------------------------------------------------
+
+class LeastSquaresResult:
+    lam: _F64
+    std: _F64
+    rsd_percent: _F64
+    cond: float
+    sigma2: float
+    singular_values: _F64
+    joint_variances: _F64
+    samples: int
+
+def least_squares(
+    q: _ArrayLike,
+    qd: _ArrayLike,
+    qdd: _ArrayLike,
+    tau: _ArrayLike,
+    *,
+    weighted: bool = False,
+    noise_variances: _ArrayLike | None = None,
+    rank_tolerance: float = 1e-10,
+) -> LeastSquaresResult:
+    """Least-squares λ (eq. 36) from (N, 5) columns."""
+
+class _OnlineEstimator:
+    @property
+    def estimate(self) -> _F64: ...
+    def step(self, q: _ArrayLike, qd: _ArrayLike, qdd: _ArrayLike, tau: _ArrayLike) -> _F64:
+        """One sample ((5,) each) → the updated λ̂ (8,)."""
+    @overload
+    def run(
+        self,
+        q: _ArrayLike,
+        qd: _ArrayLike,
+        qdd: _ArrayLike,
+        tau: _ArrayLike,
+        *,
+        history_every: None = None,
+    ) -> _F64: ...
+    @overload
+    def run(
+        self,
+        q: _ArrayLike,
+        qd: _ArrayLike,
+        qdd: _ArrayLike,
+        tau: _ArrayLike,
+        *,
+        history_every: int,
+    ) -> tuple[_F64, _F64]: ...
+    def reset(self) -> None: ...
+
+class Adaline(_OnlineEstimator):
+    def __init__(
+        self,
+        lam0: _ArrayLike | None = None,
+        *,
+        rule: Literal["normalised", "normalized", "delta"] = "normalised",
+        learning_rate: float = 5e-3,
+        step_size: float = 1.0,
+        epsilon: float = 1e-9,
+        divergence_ratio: float = 1e6,
+    ) -> None: ...
+    def train(
+        self, q: _ArrayLike, qd: _ArrayLike, qdd: _ArrayLike, tau: _ArrayLike, epochs: int
+    ) -> _F64:
+        """RMS equation error per epoch, (epochs,)."""
+
+class Hopfield(_OnlineEstimator):
+    def __init__(
+        self,
+        lam0: _ArrayLike | None = None,
+        *,
+        bound: float = 10.0,
+        beta: float = 100.0,
+        dt: float = 0.02,
+        stability_limit: float = 1.0,
+        max_substeps: int = 64,
+    ) -> None: ...
+    def train(
+        self, q: _ArrayLike, qd: _ArrayLike, qdd: _ArrayLike, tau: _ArrayLike, epochs: int
+    ) -> _F64: ...
+
+class Rls(_OnlineEstimator):
+    def __init__(
+        self,
+        lam0: _ArrayLike | None = None,
+        *,
+        forgetting: float = 1.0,
+        initial_covariance: float = 1e6,
+    ) -> None: ...
+
+class Ekf(_OnlineEstimator):
+    def __init__(
+        self,
+        lam0: _ArrayLike | None = None,
+        *,
+        measurement: Literal["positions", "positions_velocities"] = "positions",
+        discretisation: Literal["euler", "second_order"] = "euler",
+        dt: float = 0.02,
+        position_noise: float = 1e-3,
+        velocity_noise: float = 1e-2,
+        process_position_noise: float = 1e-6,
+        process_velocity_noise: float = 1e-3,
+        process_parameter_noise: float = 1e-5,
+        initial_position_std: float = 1e-3,
+        initial_velocity_std: float = 1.0,
+        initial_parameter_rel_std: float = 0.5,
+        initial_parameter_min_std: float = 1e-3,
+        init_from_first_measurement: bool = True,
+    ) -> None: ...
+    @property
+    def parameter_std(self) -> _F64: ...
+    @property
+    def skipped_updates(self) -> int: ...
+
+# --- metrics ------------------------------------------------------------------------------
+
+class _Indices(TypedDict):
+    rms: Any
+    rsd: Any
+    ai: Any
+
+def rms(observed: _ArrayLike, predicted: _ArrayLike) -> Any:
+    """float for (N,) inputs, (C,) array for (N, C)."""
+
+def rsd(observed: _ArrayLike, predicted: _ArrayLike) -> Any: ...
+def agreement_index(observed: _ArrayLike, predicted: _ArrayLike) -> Any: ...
+def error_indices(observed: _ArrayLike, predicted: _ArrayLike) -> _Indices: ...
+def relative_errors_percent(estimate: _ArrayLike, truth: _ArrayLike) -> _F64: ...

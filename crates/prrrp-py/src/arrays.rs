@@ -298,3 +298,91 @@ pub(crate) fn fixed_vector<const D: usize>(
     }
     Ok(out)
 }
+
+impl<const D: usize> Samples<D> {
+    /// The rows as a vector: a batch's N rows, or the one row of a single sample.
+    pub(crate) fn into_rows(self) -> Vec<SVector<f64, D>> {
+        self.data
+    }
+
+    /// Whether the argument had a leading batch axis.
+    pub(crate) fn is_batch(&self) -> bool {
+        self.batch
+    }
+}
+
+/// Rows of D-vectors as a numpy array of shape (N, D).
+pub(crate) fn rows_to_array<'py, const D: usize>(
+    py: Python<'py>,
+    rows: &[SVector<f64, D>],
+) -> PyResult<Bound<'py, PyAny>> {
+    let mut buf = Vec::with_capacity(rows.len() * D);
+    for r in rows {
+        buf.extend_from_slice(r.as_slice());
+    }
+    to_array(py, buf, Some(rows.len()), &[D])
+}
+
+/// Reads a 1-D float64 argument of any length (e.g. time stamps, shape (N,)).
+pub(crate) fn vector(obj: &Bound<'_, PyAny>, name: &'static str) -> PyResult<Vec<f64>> {
+    let (shape, data) = any_array(obj, name, "(N,)")?;
+    if shape.len() != 1 {
+        return Err(shape_error(obj.py(), name, "(N,)", fmt_shape(&shape)));
+    }
+    Ok(data)
+}
+
+/// Reads a float64 array of any shape: its shape and its values in row-major order.
+pub(crate) fn any_array(
+    obj: &Bound<'_, PyAny>,
+    name: &'static str,
+    expected: &str,
+) -> PyResult<(Vec<usize>, Vec<f64>)> {
+    let py = obj.py();
+    let arr = obj
+        .extract::<PyArrayLikeDyn<'_, f64, AllowTypeChange>>()
+        .map_err(|e| {
+            let err = Exc::InvalidInput.new_err(
+                py,
+                format!("`{name}` must be convertible to a float64 array of shape {expected}: {e}"),
+                &[],
+            );
+            err.set_cause(py, Some(e));
+            err
+        })?;
+    let shape = arr.shape().to_vec();
+    let data = arr.as_array().iter().copied().collect();
+    Ok((shape, data))
+}
+
+/// Reads an optional fixed-length vector (`None` → `default`).
+pub(crate) fn fixed_or<const D: usize>(
+    obj: Option<&Bound<'_, PyAny>>,
+    name: &'static str,
+    default: SVector<f64, D>,
+) -> PyResult<SVector<f64, D>> {
+    match obj {
+        Some(o) => Ok(SVector::from(fixed_vector::<D>(o, name)?)),
+        None => Ok(default),
+    }
+}
+
+impl<const D: usize> Samples<D> {
+    /// Reads a batch argument of shape (N, D) (a single sample is refused: the caller needs
+    /// a time series), NaN/inf → NonFiniteError with the row.
+    pub(crate) fn extract_rows(
+        obj: &Bound<'_, PyAny>,
+        name: &'static str,
+    ) -> PyResult<Vec<SVector<f64, D>>> {
+        let s = Self::extract(obj, name)?;
+        if !s.is_batch() {
+            return Err(shape_error(
+                obj.py(),
+                name,
+                format!("(N, {D})"),
+                format!("({D},)"),
+            ));
+        }
+        Ok(s.into_rows())
+    }
+}

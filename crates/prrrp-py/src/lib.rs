@@ -8,13 +8,23 @@
 //! - `arrays`: numpy ⇄ nalgebra, shape checks, the batched loop;
 //! - `robot`: `Robot` and its dynamics;
 //! - `regressor`: `regressor`, `observation_matrix`, `singular_values`, `condition_number`;
-//! - `derivatives`: the derivative result classes.
+//! - `derivatives`: the derivative result classes;
+//! - `trajectories`: the excitation optimisation and reference trajectories;
+//! - `simulation`: the closed- and open-loop simulators;
+//! - `preprocessing`: filtering and differentiation of measurements;
+//! - `estimators`: least squares and the online estimators;
+//! - `metrics`: the error indices.
 
 mod arrays;
 mod derivatives;
 mod errors;
+mod estimators;
+mod metrics;
+mod preprocessing;
 mod regressor;
 mod robot;
+mod simulation;
+mod trajectories;
 
 use pyo3::prelude::*;
 
@@ -29,5 +39,10 @@ fn _prrrp(m: &Bound<'_, PyModule>) -> PyResult<()> {
     robot::register(m)?;
     derivatives::register(m)?;
     regressor::register(m)?;
+    trajectories::register(m)?;
+    simulation::register(m)?;
+    preprocessing::register(m)?;
+    estimators::register(m)?;
+    metrics::register(m)?;
     Ok(())
 }

@@ -1,0 +1,304 @@
+//! Reference trajectories: the optimised excitation (`prrrp.optimise_excitation` →
+//! `prrrp.Excitation`), one sinusoid per joint (`prrrp.SinusoidReference`) and the joint
+//! limits (`prrrp.joint_limits`).
+
+use nalgebra::SVector;
+use prrrp_core::{
+    optimise_excitation as core_optimise, ExcitationConfig, ExcitationResult, JointLimits,
+    JointTrajectory, PrrrpError, Robot, Sinusoid, Vec5, DEFAULT_EXCITATION_KNOTS, NDOF,
+};
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+
+use crate::arrays::{any_array, fixed_or, fixed_vector, fmt_shape, rows_to_array, to_array};
+use crate::errors::{shape_error, to_pyerr, ToPyResult};
+
+type Result = ExcitationResult<DEFAULT_EXCITATION_KNOTS>;
+
+/// The joint limits as a dict of (5,) arrays `q_min`, `q_max` (m, rad), `qd_max` (m/s,
+/// rad/s), `qdd_max` (m/s², rad/s²).
+fn limits_dict<'py>(py: Python<'py>, l: &JointLimits) -> PyResult<Bound<'py, PyDict>> {
+    let d = PyDict::new(py);
+    for (k, v) in [
+        ("q_min", l.q_min),
+        ("q_max", l.q_max),
+        ("qd_max", l.qd_max),
+        ("qdd_max", l.qdd_max),
+    ] {
+        d.set_item(k, to_array(py, v.as_slice().to_vec(), None, &[NDOF])?)?;
+    }
+    Ok(d)
+}
+
+/// Reads a limits dict (missing keys → the defaults).
+fn limits_from(obj: Option<&Bound<'_, PyAny>>) -> PyResult<JointLimits> {
+    let mut l = JointLimits::default();
+    let Some(obj) = obj else { return Ok(l) };
+    let get = |key: &str| obj.get_item(key).ok();
+    l.q_min = fixed_or(get("q_min").as_ref(), "limits['q_min']", l.q_min)?;
+    l.q_max = fixed_or(get("q_max").as_ref(), "limits['q_max']", l.q_max)?;
+    l.qd_max = fixed_or(get("qd_max").as_ref(), "limits['qd_max']", l.qd_max)?;
+    l.qdd_max = fixed_or(get("qdd_max").as_ref(), "limits['qdd_max']", l.qdd_max)?;
+    l.validate().to_py(obj.py())?;
+    Ok(l)
+}
+
+/// The default joint limits of the excitation search (dict of (5,) arrays).
+#[pyfunction]
+fn joint_limits(py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
+    limits_dict(py, &JointLimits::default())
+}
+
+/// Evaluates a trajectory at a scalar t → three (5,) arrays, or at t of shape (N,) → three
+/// (N, 5) arrays.
+pub(crate) fn eval_at<'py, T: JointTrajectory + Sync>(
+    py: Python<'py>,
+    traj: &T,
+    t: &Bound<'py, PyAny>,
+) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>, Bound<'py, PyAny>)> {
+    let (shape, ts) = any_array(t, "t", "() or (N,)")?;
+    let batch = match shape.len() {
+        0 => false,
+        1 => true,
+        _ => return Err(shape_error(py, "t", "() or (N,)", fmt_shape(&shape))),
+    };
+    if let Some(k) = ts.iter().position(|x| !x.is_finite()) {
+        return Err(to_pyerr(
+            py,
+            &PrrrpError::NonFinite {
+                what: "t".into(),
+                row: batch.then_some(k),
+            },
+        ));
+    }
+    let (mut q, mut qd, mut qdd) = (Vec::new(), Vec::new(), Vec::new());
+    py.detach(|| {
+        for &tk in &ts {
+            let p = traj.eval(tk);
+            q.push(p.q);
+            qd.push(p.qd);
+            qdd.push(p.qdd);
+        }
+    });
+    if batch {
+        Ok((
+            rows_to_array(py, &q)?,
+            rows_to_array(py, &qd)?,
+            rows_to_array(py, &qdd)?,
+        ))
+    } else {
+        let one = |v: &[Vec5]| to_array(py, v[0].as_slice().to_vec(), None, &[NDOF]);
+        Ok((one(&q)?, one(&qd)?, one(&qdd)?))
+    }
+}
+
+/// An optimised excitation trajectory (paper §4.1) and the figures of its search. Call
+/// `eval(t)` (alias `sample(t)`) for (q, qd, qdd) at a scalar t (s) or t of shape (N,).
+#[pyclass(module = "prrrp", name = "Excitation", frozen)]
+pub(crate) struct Excitation {
+    pub(crate) inner: Result,
+    duration: f64,
+    dt: f64,
+}
+
+#[pymethods]
+impl Excitation {
+    /// cond(W) of the initial guess.
+    #[getter]
+    fn cond_initial(&self) -> f64 {
+        self.inner.cond_initial
+    }
+    /// cond(W) of the optimised trajectory.
+    #[getter]
+    fn cond_final(&self) -> f64 {
+        self.inner.cond_final
+    }
+    /// Cost evaluations spent.
+    #[getter]
+    fn evaluations(&self) -> usize {
+        self.inner.evaluations
+    }
+    /// Whether every limit holds on the verification grid.
+    #[getter]
+    fn limits_satisfied(&self) -> bool {
+        self.inner.limits_satisfied
+    }
+    /// Number of samples in W (duration/dt + 1).
+    #[getter]
+    fn samples(&self) -> usize {
+        self.inner.samples
+    }
+    /// Horizon, s.
+    #[getter]
+    fn duration(&self) -> f64 {
+        self.duration
+    }
+    /// Sampling period of W, s.
+    #[getter]
+    fn dt(&self) -> f64 {
+        self.dt
+    }
+    /// Fraction of each limit used: dict of (5,) arrays `q`, `qd`, `qdd`.
+    #[getter]
+    fn limit_usage<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let u = &self.inner.limit_usage;
+        let d = PyDict::new(py);
+        for (k, v) in [("q", u.q), ("qd", u.qd), ("qdd", u.qdd)] {
+            d.set_item(k, to_array(py, v.as_slice().to_vec(), None, &[NDOF])?)?;
+        }
+        Ok(d)
+    }
+    /// (q, qd, qdd) at time t (s): (5,) arrays for a scalar t, (N, 5) for t of shape (N,).
+    fn eval<'py>(
+        &self,
+        py: Python<'py>,
+        t: &Bound<'py, PyAny>,
+    ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>, Bound<'py, PyAny>)> {
+        eval_at(py, &self.inner.trajectory, t)
+    }
+    /// Same as `eval`.
+    fn sample<'py>(
+        &self,
+        py: Python<'py>,
+        t: &Bound<'py, PyAny>,
+    ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>, Bound<'py, PyAny>)> {
+        eval_at(py, &self.inner.trajectory, t)
+    }
+    fn __repr__(&self) -> String {
+        format!(
+            "<prrrp.Excitation duration={} s, dt={} s, cond {:.4} -> {:.4}, {} evaluations>",
+            self.duration,
+            self.dt,
+            self.inner.cond_initial,
+            self.inner.cond_final,
+            self.inner.evaluations
+        )
+    }
+}
+
+/// Optimises the excitation trajectory (paper §4.1): minimises cond(W) of the sampled
+/// observation matrix within the joint limits. `duration` and `dt` in s; `limits` a dict
+/// like `joint_limits()` (missing keys → defaults); `progress(evaluations,
+/// max_evaluations, best_cond)` is called every `progress_every` evaluations and at the
+/// end. An exception raised by `progress` stops further calls and is re-raised when the
+/// search returns.
+#[pyfunction]
+#[pyo3(signature = (*, seed=0, duration=10.0, dt=0.02, max_evaluations=6000, restarts=6,
+    margin=0.01, limits=None, progress=None, progress_every=100))]
+#[allow(clippy::too_many_arguments)]
+fn optimise_excitation(
+    py: Python<'_>,
+    seed: u64,
+    duration: f64,
+    dt: f64,
+    max_evaluations: usize,
+    restarts: usize,
+    margin: f64,
+    limits: Option<&Bound<'_, PyAny>>,
+    progress: Option<Py<PyAny>>,
+    progress_every: usize,
+) -> PyResult<Excitation> {
+    let config = ExcitationConfig {
+        duration,
+        dt,
+        limits: limits_from(limits)?,
+        max_evaluations,
+        restarts,
+        margin,
+        seed,
+        progress_every: progress_every.max(1),
+        ..ExcitationConfig::default()
+    };
+    let model = Robot::paper().model();
+    let mut callback_error: Option<PyErr> = None;
+    let result = py.detach(|| {
+        core_optimise::<DEFAULT_EXCITATION_KNOTS>(&model, &config, |p| {
+            let Some(cb) = progress.as_ref() else { return };
+            if callback_error.is_some() {
+                return;
+            }
+            Python::attach(|py| {
+                if let Err(e) = cb.call1(py, (p.evaluations, p.max_evaluations, p.best_cond)) {
+                    callback_error = Some(e);
+                }
+            });
+        })
+    });
+    if let Some(e) = callback_error {
+        return Err(e);
+    }
+    Ok(Excitation {
+        inner: result.to_py(py)?,
+        duration,
+        dt,
+    })
+}
+
+/// One sinusoid per joint: q_i(t) = offset_i + amplitude_i·sin(omega_i·t + phase_i), each a
+/// (5,) array (m or rad, rad/s, rad). A reference for `simulate_closed_loop`.
+#[pyclass(module = "prrrp", name = "SinusoidReference", frozen)]
+pub(crate) struct SinusoidReference {
+    pub(crate) inner: [Sinusoid; NDOF],
+}
+
+#[pymethods]
+impl SinusoidReference {
+    #[new]
+    #[pyo3(signature = (*, offset, amplitude, omega, phase=None))]
+    fn new(
+        offset: &Bound<'_, PyAny>,
+        amplitude: &Bound<'_, PyAny>,
+        omega: &Bound<'_, PyAny>,
+        phase: Option<&Bound<'_, PyAny>>,
+    ) -> PyResult<Self> {
+        let o = fixed_vector::<NDOF>(offset, "offset")?;
+        let a = fixed_vector::<NDOF>(amplitude, "amplitude")?;
+        let w = fixed_vector::<NDOF>(omega, "omega")?;
+        let p = fixed_or(phase, "phase", SVector::<f64, NDOF>::zeros())?;
+        let py = offset.py();
+        for (name, v) in [("offset", &o), ("amplitude", &a), ("omega", &w)] {
+            if let Some(j) = v.iter().position(|x| !x.is_finite()) {
+                return Err(to_pyerr(
+                    py,
+                    &PrrrpError::InvalidParameter {
+                        field: format!("{name}[{j}]"),
+                        value: v[j],
+                        reason: "must be finite",
+                    },
+                ));
+            }
+        }
+        Ok(Self {
+            inner: std::array::from_fn(|j| Sinusoid {
+                offset: o[j],
+                amplitude: a[j],
+                omega: w[j],
+                phase: p[j],
+            }),
+        })
+    }
+    /// (q, qd, qdd) at time t (s): (5,) arrays for a scalar t, (N, 5) for t of shape (N,).
+    fn eval<'py>(
+        &self,
+        py: Python<'py>,
+        t: &Bound<'py, PyAny>,
+    ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>, Bound<'py, PyAny>)> {
+        eval_at(py, &self.inner, t)
+    }
+    /// Same as `eval`.
+    fn sample<'py>(
+        &self,
+        py: Python<'py>,
+        t: &Bound<'py, PyAny>,
+    ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>, Bound<'py, PyAny>)> {
+        eval_at(py, &self.inner, t)
+    }
+}
+
+pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_class::<Excitation>()?;
+    m.add_class::<SinusoidReference>()?;
+    m.add_function(wrap_pyfunction!(optimise_excitation, m)?)?;
+    m.add_function(wrap_pyfunction!(joint_limits, m)?)?;
+    Ok(())
+}
