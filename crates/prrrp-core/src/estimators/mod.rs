@@ -18,6 +18,7 @@ mod samples;
 
 pub use adaline::{Adaline, AdalineConfig, AdalineRule};
 pub use ekf::{Discretisation, Ekf, EkfConfig, EkfMeasurement, PrrrpEkf, PRRRP_EKF_STATES};
+pub(crate) use estimator::with_row;
 pub use estimator::{Estimator, TrainingReport};
 pub use hopfield::{Hopfield, HopfieldConfig};
 pub use least_squares::{
