@@ -58,8 +58,8 @@ pub use error::{PrrrpError, Result};
 pub use estimators::{
     least_squares, weighted_least_squares, Adaline, AdalineConfig, AdalineRule, Dataset,
     Discretisation, Ekf, EkfConfig, EkfMeasurement, Estimator, Hopfield, HopfieldConfig,
-    JointNoise, LeastSquaresConfig, LeastSquaresReport, PrrrpEkf, Rls, RlsConfig, Sample,
-    TrainingReport, PRRRP_EKF_STATES,
+    JointNoise, LeastSquares, LeastSquaresConfig, LeastSquaresReport, PrrrpEkf, Rls, RlsConfig,
+    Sample, TrainingReport, PRRRP_EKF_STATES,
 };
 pub use model::{ForwardDerivatives, LinearDynamics};
 pub use regressor::{condition_number, observation_matrix, singular_values};

@@ -26,7 +26,7 @@ use super::estimator::Estimator;
 use super::rls::check_lambda0;
 use crate::dynamics::PrrrpModel;
 use crate::error::{PrrrpError, Result};
-use crate::model::LinearDynamics;
+use crate::model::{ForwardDerivatives, LinearDynamics};
 use crate::types::{NDOF, NPARAM};
 
 /// State dimension of the PRRRP filter: 5 positions, 5 velocities, 8 parameters.
@@ -142,6 +142,13 @@ pub struct Ekf<M, const N: usize, const P: usize, const S: usize> {
     samples: usize,
     skipped: usize,
     damped: usize,
+}
+
+/// The gain of one measurement update and what its Joseph covariance update needs.
+struct Gain<const N: usize, const S: usize> {
+    k: SMatrix<f64, S, N>,
+    pz: SMatrix<f64, S, N>,
+    sz: SMatrix<f64, N, N>,
 }
 
 /// How often a measurement update is retried with half the gain before the step fails.
@@ -324,16 +331,10 @@ impl<M: LinearDynamics<N, P>, const N: usize, const P: usize, const S: usize> Ek
         self.damped
     }
 
-    /// Measurement update with z = x[o..o+N] + noise of variances r, H a selection.
+    /// Gain of a measurement z = x[o..o+N] + noise of variances r (H a selection):
+    /// S_z = P_zz + R, K = P_·z·S_z⁻¹.
     #[inline(always)]
-    fn update(
-        &mut self,
-        o: usize,
-        z: &SVector<f64, N>,
-        r: &SVector<f64, N>,
-        gain: f64,
-    ) -> Result<()> {
-        // Innovation covariance S_z = P_zz + R and its Cholesky factor L.
+    fn gain(&self, o: usize, r: &SVector<f64, N>) -> Result<Gain<N, S>> {
         let mut sz = SMatrix::<f64, N, N>::zeros();
         for j in 0..N {
             for i in 0..N {
@@ -344,8 +345,7 @@ impl<M: LinearDynamics<N, P>, const N: usize, const P: usize, const S: usize> Ek
         let l = cholesky(&sz).ok_or(PrrrpError::NotPositiveDefinite {
             what: "EKF innovation covariance H·P·Hᵀ + R",
         })?;
-
-        // K = P_·z·S_z⁻¹ by two triangular solves acting on whole columns.
+        // Two triangular solves acting on whole (S-long) columns.
         let pz: SMatrix<f64, S, N> = self.p.fixed_columns::<N>(o).into_owned();
         let mut k = pz;
         for j in 0..N {
@@ -362,19 +362,19 @@ impl<M: LinearDynamics<N, P>, const N: usize, const P: usize, const S: usize> Ek
             }
             scale_col(&mut k, j, 1.0 / l[(j, j)]);
         }
+        Ok(Gain { k, pz, sz })
+    }
 
-        if gain != 1.0 {
-            k *= gain;
-        }
-        let innovation = z - self.x.fixed_rows::<N>(o);
-        self.x += k * innovation;
-
-        // D = P_·z − K·S_z (≈ 0 for the optimal gain), then P ← P − K·P_z· − D·Kᵀ on the
-        // upper triangle: the Joseph form, exact for any gain, also a damped one.
-        let mut d = pz;
+    /// Joseph-form covariance update for the gain α·K: with K' = α·K and
+    /// D = P_·z − K'·S_z (≈ 0 for α = 1), P ← P − K'·P_z· − D·K'ᵀ on the upper triangle,
+    /// then mirrored. Exact for any gain, so also for a damped one.
+    #[inline(always)]
+    fn update_covariance(&mut self, g: &Gain<N, S>, alpha: f64) {
+        let k = if alpha == 1.0 { g.k } else { g.k * alpha };
+        let mut d = g.pz;
         for j in 0..N {
             for m in 0..N {
-                let f = sz[(m, j)];
+                let f = g.sz[(m, j)];
                 let (dc, kc) = (d.column_mut(j), k.column(m));
                 for (a, b) in dc.into_iter().zip(kc.iter()) {
                     *a -= f * b;
@@ -383,7 +383,7 @@ impl<M: LinearDynamics<N, P>, const N: usize, const P: usize, const S: usize> Ek
         }
         let ks = k.as_slice();
         let ds = d.as_slice();
-        let pzs = pz.as_slice();
+        let pzs = g.pz.as_slice();
         let p = self.p.as_mut_slice();
         for j in 0..S {
             let col = &mut p[j * S..j * S + j + 1];
@@ -398,18 +398,35 @@ impl<M: LinearDynamics<N, P>, const N: usize, const P: usize, const S: usize> Ek
             }
         }
         mirror_upper(&mut self.p);
+    }
+
+    /// Full measurement update (state and covariance) with the gain α·K.
+    #[inline(always)]
+    fn update(
+        &mut self,
+        o: usize,
+        z: &SVector<f64, N>,
+        r: &SVector<f64, N>,
+        alpha: f64,
+    ) -> Result<()> {
+        let g = self.gain(o, r)?;
+        let innovation = z - self.x.fixed_rows::<N>(o);
+        self.x += (g.k * innovation) * alpha;
+        self.update_covariance(&g, alpha);
         Ok(())
     }
 
-    /// Time update with input τ: x ← f(x, τ), P ← F·P·Fᵀ + Q.
+    /// The model's forward dynamics and derivatives at a state.
     #[inline(always)]
-    fn predict(&mut self, tau: &SVector<f64, N>) -> Result<()> {
-        let h = self.config.dt;
-        let q: SVector<f64, N> = self.x.fixed_rows::<N>(0).into_owned();
-        let v: SVector<f64, N> = self.x.fixed_rows::<N>(N).into_owned();
-        let lam: SVector<f64, P> = self.x.fixed_rows::<P>(2 * N).into_owned();
-        let fd = self
-            .model
+    fn derivatives(
+        &self,
+        x: &SVector<f64, S>,
+        tau: &SVector<f64, N>,
+    ) -> Result<ForwardDerivatives<N, P>> {
+        let q: SVector<f64, N> = x.fixed_rows::<N>(0).into_owned();
+        let v: SVector<f64, N> = x.fixed_rows::<N>(N).into_owned();
+        let lam: SVector<f64, P> = x.fixed_rows::<P>(2 * N).into_owned();
+        self.model
             .forward_derivatives(&q, &v, tau, &lam)
             .map_err(|_| PrrrpError::Diverged {
                 what: "extended Kalman filter",
@@ -417,7 +434,16 @@ impl<M: LinearDynamics<N, P>, const N: usize, const P: usize, const S: usize> Ek
                 hint: "M(q, λ̂) is not positive definite: the parameter estimate left the \
                        physical region; start from a better λ0, lower the initial \
                        parameter uncertainty or raise the measurement noise",
-            })?;
+            })
+    }
+
+    /// Time update with the derivatives at the current state: x ← f(x, τ),
+    /// P ← F·P·Fᵀ + Q.
+    #[inline(always)]
+    fn predict(&mut self, fd: &ForwardDerivatives<N, P>) {
+        let h = self.config.dt;
+        let q: SVector<f64, N> = self.x.fixed_rows::<N>(0).into_owned();
+        let v: SVector<f64, N> = self.x.fixed_rows::<N>(N).into_owned();
 
         // A = ∂q̈/∂x (N×S), then G = P·Aᵀ (S×N), skipping zero entries of A.
         let mut a = SMatrix::<f64, N, S>::zeros();
@@ -510,7 +536,6 @@ impl<M: LinearDynamics<N, P>, const N: usize, const P: usize, const S: usize> Ek
             self.x[i] = q[i] + h * v[i] + hc * fd.qdd[i];
             self.x[N + i] = v[i] + h * fd.qdd[i];
         }
-        Ok(())
     }
 }
 
@@ -552,37 +577,69 @@ impl<M: LinearDynamics<N, P>, const N: usize, const P: usize, const S: usize> Es
         let qd_ok = with_vel && all_finite(sample.qd);
         self.skipped += usize::from(!q_ok) + usize::from(with_vel && !qd_ok);
         // A posterior λ̂ that makes M(q, λ̂) indefinite (an overshoot of a large early gain)
-        // is retried with the gain halved; the Joseph form keeps P exact for that gain.
-        let (x_prior, p_prior) = (self.x, self.p);
-        let mut gain = 1.0;
+        // is retried with the gain halved; the Joseph form keeps P exact for that gain. On
+        // final failure the filter is left at its prior.
+        let mut alpha = 1.0;
         let mut attempt = 0;
-        loop {
-            if q_ok {
+        let fd = if with_vel {
+            // Two sequential updates: keep the prior to retry both.
+            let (x_prior, p_prior) = (self.x, self.p);
+            loop {
+                if q_ok {
+                    let r = self.r_pos;
+                    self.update(0, sample.q, &r, alpha)?;
+                }
+                if qd_ok {
+                    let r = self.r_vel;
+                    self.update(N, sample.qd, &r, alpha)?;
+                }
+                match self.derivatives(&self.x, sample.tau) {
+                    Ok(fd) => break fd,
+                    Err(e) => {
+                        self.x = x_prior;
+                        self.p = p_prior;
+                        if attempt == MAX_GAIN_HALVINGS || !(q_ok || qd_ok) {
+                            return Err(e);
+                        }
+                    }
+                }
+                alpha *= 0.5;
+                attempt += 1;
+            }
+        } else {
+            // One update: try the candidate state before touching P.
+            let gain = if q_ok {
                 let r = self.r_pos;
-                self.update(0, sample.q, &r, gain)?;
-            }
-            if qd_ok {
-                let r = self.r_vel;
-                self.update(N, sample.qd, &r, gain)?;
-            }
-            self.lambda.copy_from(&self.x.fixed_rows::<P>(2 * N));
-            match self.predict(sample.tau) {
-                Ok(()) => break,
-                Err(e) if attempt == MAX_GAIN_HALVINGS || !(q_ok || qd_ok) => {
-                    self.x = x_prior;
-                    self.p = p_prior;
-                    self.lambda.copy_from(&self.x.fixed_rows::<P>(2 * N));
-                    return Err(e);
+                Some(self.gain(0, &r)?)
+            } else {
+                None
+            };
+            let step = match &gain {
+                Some(g) => g.k * (sample.q - self.x.fixed_rows::<N>(0)),
+                None => SVector::zeros(),
+            };
+            let fd = loop {
+                let candidate = self.x + step * alpha;
+                match self.derivatives(&candidate, sample.tau) {
+                    Ok(fd) => {
+                        self.x = candidate;
+                        break fd;
+                    }
+                    Err(e) if attempt == MAX_GAIN_HALVINGS || gain.is_none() => return Err(e),
+                    Err(_) => {
+                        alpha *= 0.5;
+                        attempt += 1;
+                    }
                 }
-                Err(_) => {
-                    self.x = x_prior;
-                    self.p = p_prior;
-                    gain *= 0.5;
-                    attempt += 1;
-                }
+            };
+            if let Some(g) = &gain {
+                self.update_covariance(g, alpha);
             }
-        }
+            fd
+        };
         self.damped += usize::from(attempt > 0);
+        self.lambda.copy_from(&self.x.fixed_rows::<P>(2 * N));
+        self.predict(&fd);
         if !(all_finite(&self.x) && self.p[(0, 0)].is_finite()) {
             return Err(PrrrpError::Diverged {
                 what: "extended Kalman filter",

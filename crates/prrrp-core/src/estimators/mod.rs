@@ -22,6 +22,7 @@ pub use ekf::{Discretisation, Ekf, EkfConfig, EkfMeasurement, PrrrpEkf, PRRRP_EK
 pub use estimator::{Estimator, TrainingReport};
 pub use hopfield::{Hopfield, HopfieldConfig};
 pub use least_squares::{
-    least_squares, weighted_least_squares, JointNoise, LeastSquaresConfig, LeastSquaresReport,
+    least_squares, weighted_least_squares, JointNoise, LeastSquares, LeastSquaresConfig,
+    LeastSquaresReport,
 };
 pub use rls::{Rls, RlsConfig};
