@@ -142,6 +142,8 @@ pub struct Ekf<M, const N: usize, const P: usize, const S: usize> {
     samples: usize,
     skipped: usize,
     damped: usize,
+    /// Whether the CPU runs the AVX2 copy of the step (detected once, at construction).
+    avx2: bool,
 }
 
 /// The gain of one measurement update and what its Joseph covariance update needs.
@@ -149,6 +151,28 @@ struct Gain<const N: usize, const S: usize> {
     k: SMatrix<f64, S, N>,
     pz: SMatrix<f64, S, N>,
     sz: SMatrix<f64, N, N>,
+}
+
+/// a·b + c, fused when the caller is compiled with FMA (then one rounding), plain
+/// otherwise (`mul_add` without hardware FMA is a slow library call).
+#[inline(always)]
+fn madd<const FMA: bool>(a: f64, b: f64, c: f64) -> f64 {
+    if FMA {
+        a.mul_add(b, c)
+    } else {
+        a * b + c
+    }
+}
+
+fn cpu_has_avx2_fma() -> bool {
+    #[cfg(target_arch = "x86_64")]
+    {
+        std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("fma")
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        false
+    }
 }
 
 /// How often a measurement update is retried with half the gain before the step fails.
@@ -236,6 +260,7 @@ impl<M: LinearDynamics<N, P>, const N: usize, const P: usize, const S: usize> Ek
             samples: 0,
             skipped: 0,
             damped: 0,
+            avx2: cpu_has_avx2_fma(),
         })
     }
 
@@ -331,6 +356,116 @@ impl<M: LinearDynamics<N, P>, const N: usize, const P: usize, const S: usize> Ek
         self.damped
     }
 
+    /// The body of [`Estimator::step`], inlined into a portable and an AVX2 copy.
+    #[inline(always)]
+    fn step_impl<const FMA: bool>(&mut self, sample: Sample<'_, N>) -> Result<()> {
+        if !all_finite(sample.tau) {
+            return Err(PrrrpError::NonFinite {
+                what: "tau".into(),
+                row: None,
+            });
+        }
+        let with_vel = self.config.measurement == EkfMeasurement::PositionsVelocities;
+        if !self.initialised {
+            if self.config.init_from_first_measurement {
+                if all_finite(sample.q) {
+                    self.x.fixed_rows_mut::<N>(0).copy_from(sample.q);
+                }
+                if with_vel && all_finite(sample.qd) {
+                    self.x.fixed_rows_mut::<N>(N).copy_from(sample.qd);
+                }
+            }
+            self.initialised = true;
+        }
+        let q_ok = all_finite(sample.q);
+        let qd_ok = with_vel && all_finite(sample.qd);
+        self.skipped += usize::from(!q_ok) + usize::from(with_vel && !qd_ok);
+        // A posterior λ̂ that makes M(q, λ̂) indefinite (an overshoot of a large early gain)
+        // is retried with the gain halved; the Joseph form keeps P exact for that gain. On
+        // final failure the filter is left at its prior.
+        let mut alpha = 1.0;
+        let mut attempt = 0;
+        let fd = if with_vel {
+            // Two sequential updates: keep the prior to retry both.
+            let (x_prior, p_prior) = (self.x, self.p);
+            loop {
+                if q_ok {
+                    let r = self.r_pos;
+                    self.update::<FMA>(0, sample.q, &r, alpha)?;
+                }
+                if qd_ok {
+                    let r = self.r_vel;
+                    self.update::<FMA>(N, sample.qd, &r, alpha)?;
+                }
+                match self.derivatives(&self.x, sample.tau) {
+                    Ok(fd) => break fd,
+                    Err(e) => {
+                        self.x = x_prior;
+                        self.p = p_prior;
+                        if attempt == MAX_GAIN_HALVINGS || !(q_ok || qd_ok) {
+                            return Err(e);
+                        }
+                    }
+                }
+                alpha *= 0.5;
+                attempt += 1;
+            }
+        } else {
+            // One update: try the candidate state before touching P.
+            let gain = if q_ok {
+                let r = self.r_pos;
+                Some(self.gain(0, &r)?)
+            } else {
+                None
+            };
+            let step = match &gain {
+                Some(g) => g.k * (sample.q - self.x.fixed_rows::<N>(0)),
+                None => SVector::zeros(),
+            };
+            let fd = loop {
+                let candidate = self.x + step * alpha;
+                match self.derivatives(&candidate, sample.tau) {
+                    Ok(fd) => {
+                        self.x = candidate;
+                        break fd;
+                    }
+                    Err(e) if attempt == MAX_GAIN_HALVINGS || gain.is_none() => return Err(e),
+                    Err(_) => {
+                        alpha *= 0.5;
+                        attempt += 1;
+                    }
+                }
+            };
+            if let Some(g) = &gain {
+                self.update_covariance::<FMA>(g, alpha);
+            }
+            fd
+        };
+        self.damped += usize::from(attempt > 0);
+        self.lambda.copy_from(&self.x.fixed_rows::<P>(2 * N));
+        self.predict::<FMA>(&fd);
+        if !(all_finite(&self.x) && self.p[(0, 0)].is_finite()) {
+            return Err(PrrrpError::Diverged {
+                what: "extended Kalman filter",
+                at: self.samples,
+                hint: "the state became non-finite: check the noise covariances and λ0",
+            });
+        }
+        self.samples += 1;
+        Ok(())
+    }
+
+    /// [`Self::step_impl`] compiled for AVX2 and FMA (wider vectors for the 18-long
+    /// columns, fused multiply-adds in the covariance products).
+    ///
+    /// # Safety
+    /// The CPU must support AVX2 and FMA.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma")]
+    unsafe fn step_avx2(&mut self, sample: Sample<'_, N>) -> Result<()> {
+        self.step_impl::<true>(sample)
+    }
+
     /// Gain of a measurement z = x[o..o+N] + noise of variances r (H a selection):
     /// S_z = P_zz + R, K = P_·z·S_z⁻¹.
     #[inline(always)]
@@ -369,15 +504,20 @@ impl<M: LinearDynamics<N, P>, const N: usize, const P: usize, const S: usize> Ek
     /// D = P_·z − K'·S_z (≈ 0 for α = 1), P ← P − K'·P_z· − D·K'ᵀ on the upper triangle,
     /// then mirrored. Exact for any gain, so also for a damped one.
     #[inline(always)]
-    fn update_covariance(&mut self, g: &Gain<N, S>, alpha: f64) {
+    fn update_covariance<const FMA: bool>(&mut self, g: &Gain<N, S>, alpha: f64) {
         let k = if alpha == 1.0 { g.k } else { g.k * alpha };
         let mut d = g.pz;
-        for j in 0..N {
-            for m in 0..N {
-                let f = g.sz[(m, j)];
-                let (dc, kc) = (d.column_mut(j), k.column(m));
-                for (a, b) in dc.into_iter().zip(kc.iter()) {
-                    *a -= f * b;
+        {
+            let ks = k.as_slice();
+            let dsm = d.as_mut_slice();
+            for j in 0..N {
+                let dc = &mut dsm[j * S..j * S + S];
+                for m in 0..N {
+                    let f = g.sz[(m, j)];
+                    let kc = &ks[m * S..m * S + S];
+                    for (a, &b) in dc.iter_mut().zip(kc) {
+                        *a = madd::<FMA>(-f, b, *a);
+                    }
                 }
             }
         }
@@ -393,7 +533,7 @@ impl<M: LinearDynamics<N, P>, const N: usize, const P: usize, const S: usize> Ek
                 let kc = &ks[m * S..m * S + j + 1];
                 let dc = &ds[m * S..m * S + j + 1];
                 for ((c, &kv), &dv) in col.iter_mut().zip(kc).zip(dc) {
-                    *c -= a * kv + b * dv;
+                    *c -= madd::<FMA>(a, kv, b * dv);
                 }
             }
         }
@@ -402,7 +542,7 @@ impl<M: LinearDynamics<N, P>, const N: usize, const P: usize, const S: usize> Ek
 
     /// Full measurement update (state and covariance) with the gain α·K.
     #[inline(always)]
-    fn update(
+    fn update<const FMA: bool>(
         &mut self,
         o: usize,
         z: &SVector<f64, N>,
@@ -412,7 +552,7 @@ impl<M: LinearDynamics<N, P>, const N: usize, const P: usize, const S: usize> Ek
         let g = self.gain(o, r)?;
         let innovation = z - self.x.fixed_rows::<N>(o);
         self.x += (g.k * innovation) * alpha;
-        self.update_covariance(&g, alpha);
+        self.update_covariance::<FMA>(&g, alpha);
         Ok(())
     }
 
@@ -440,7 +580,7 @@ impl<M: LinearDynamics<N, P>, const N: usize, const P: usize, const S: usize> Ek
     /// Time update with the derivatives at the current state: x ← f(x, τ),
     /// P ← F·P·Fᵀ + Q.
     #[inline(always)]
-    fn predict(&mut self, fd: &ForwardDerivatives<N, P>) {
+    fn predict<const FMA: bool>(&mut self, fd: &ForwardDerivatives<N, P>) {
         let h = self.config.dt;
         let q: SVector<f64, N> = self.x.fixed_rows::<N>(0).into_owned();
         let v: SVector<f64, N> = self.x.fixed_rows::<N>(N).into_owned();
@@ -461,7 +601,7 @@ impl<M: LinearDynamics<N, P>, const N: usize, const P: usize, const S: usize> Ek
                     if f != 0.0 {
                         let gc = &mut gs[i * S..i * S + S];
                         for (gv, &pv) in gc.iter_mut().zip(pc) {
-                            *gv += f * pv;
+                            *gv = madd::<FMA>(f, pv, *gv);
                         }
                     }
                 }
@@ -555,99 +695,13 @@ impl<M: LinearDynamics<N, P>, const N: usize, const P: usize, const S: usize> Es
     /// not positive definite even with the smallest gain (λ₀ itself not physical) — the
     /// filter is then left at its prior for this sample — or the state became non-finite.
     fn step(&mut self, sample: Sample<'_, N>) -> Result<&SVector<f64, P>> {
-        if !all_finite(sample.tau) {
-            return Err(PrrrpError::NonFinite {
-                what: "tau".into(),
-                row: None,
-            });
+        #[cfg(target_arch = "x86_64")]
+        if self.avx2 {
+            // SAFETY: `avx2` is set at construction only when the CPU reports AVX2 and FMA.
+            unsafe { self.step_avx2(sample)? };
+            return Ok(&self.lambda);
         }
-        let with_vel = self.config.measurement == EkfMeasurement::PositionsVelocities;
-        if !self.initialised {
-            if self.config.init_from_first_measurement {
-                if all_finite(sample.q) {
-                    self.x.fixed_rows_mut::<N>(0).copy_from(sample.q);
-                }
-                if with_vel && all_finite(sample.qd) {
-                    self.x.fixed_rows_mut::<N>(N).copy_from(sample.qd);
-                }
-            }
-            self.initialised = true;
-        }
-        let q_ok = all_finite(sample.q);
-        let qd_ok = with_vel && all_finite(sample.qd);
-        self.skipped += usize::from(!q_ok) + usize::from(with_vel && !qd_ok);
-        // A posterior λ̂ that makes M(q, λ̂) indefinite (an overshoot of a large early gain)
-        // is retried with the gain halved; the Joseph form keeps P exact for that gain. On
-        // final failure the filter is left at its prior.
-        let mut alpha = 1.0;
-        let mut attempt = 0;
-        let fd = if with_vel {
-            // Two sequential updates: keep the prior to retry both.
-            let (x_prior, p_prior) = (self.x, self.p);
-            loop {
-                if q_ok {
-                    let r = self.r_pos;
-                    self.update(0, sample.q, &r, alpha)?;
-                }
-                if qd_ok {
-                    let r = self.r_vel;
-                    self.update(N, sample.qd, &r, alpha)?;
-                }
-                match self.derivatives(&self.x, sample.tau) {
-                    Ok(fd) => break fd,
-                    Err(e) => {
-                        self.x = x_prior;
-                        self.p = p_prior;
-                        if attempt == MAX_GAIN_HALVINGS || !(q_ok || qd_ok) {
-                            return Err(e);
-                        }
-                    }
-                }
-                alpha *= 0.5;
-                attempt += 1;
-            }
-        } else {
-            // One update: try the candidate state before touching P.
-            let gain = if q_ok {
-                let r = self.r_pos;
-                Some(self.gain(0, &r)?)
-            } else {
-                None
-            };
-            let step = match &gain {
-                Some(g) => g.k * (sample.q - self.x.fixed_rows::<N>(0)),
-                None => SVector::zeros(),
-            };
-            let fd = loop {
-                let candidate = self.x + step * alpha;
-                match self.derivatives(&candidate, sample.tau) {
-                    Ok(fd) => {
-                        self.x = candidate;
-                        break fd;
-                    }
-                    Err(e) if attempt == MAX_GAIN_HALVINGS || gain.is_none() => return Err(e),
-                    Err(_) => {
-                        alpha *= 0.5;
-                        attempt += 1;
-                    }
-                }
-            };
-            if let Some(g) = &gain {
-                self.update_covariance(g, alpha);
-            }
-            fd
-        };
-        self.damped += usize::from(attempt > 0);
-        self.lambda.copy_from(&self.x.fixed_rows::<P>(2 * N));
-        self.predict(&fd);
-        if !(all_finite(&self.x) && self.p[(0, 0)].is_finite()) {
-            return Err(PrrrpError::Diverged {
-                what: "extended Kalman filter",
-                at: self.samples,
-                hint: "the state became non-finite: check the noise covariances and λ0",
-            });
-        }
-        self.samples += 1;
+        self.step_impl::<false>(sample)?;
         Ok(&self.lambda)
     }
 
@@ -733,7 +787,7 @@ fn axpy_col<const R: usize, const C: usize>(
 
 #[inline(always)]
 fn scale_col<const R: usize, const C: usize>(m: &mut SMatrix<f64, R, C>, j: usize, f: f64) {
-    for a in m.column_mut(j).iter_mut() {
+    for a in &mut m.as_mut_slice()[j * R..j * R + R] {
         *a *= f;
     }
 }
@@ -741,9 +795,10 @@ fn scale_col<const R: usize, const C: usize>(m: &mut SMatrix<f64, R, C>, j: usiz
 /// Copies the upper triangle onto the lower one.
 #[inline(always)]
 fn mirror_upper<const D: usize>(p: &mut SMatrix<f64, D, D>) {
+    let s = p.as_mut_slice();
     for j in 0..D {
         for i in j + 1..D {
-            p[(i, j)] = p[(j, i)];
+            s[j * D + i] = s[i * D + j];
         }
     }
 }
