@@ -22,7 +22,7 @@ fn noise_free_recovers_lambda_to_1e_6() {
     let rep = least_squares(&model, &data.dataset(), &LeastSquaresConfig::default()).unwrap();
     let (max, errs) = rel_errors(&rep.lambda, &lambda);
     eprintln!(
-        "LS noise-free rel errors {:.2e}, cond {:.1}",
+        "LS noise-free rel errors {}, cond {:.1}",
         line(&errs),
         rep.cond
     );

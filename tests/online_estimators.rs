@@ -52,8 +52,8 @@ fn rls_with_forgetting_tracks_a_parameter_change() {
     let mut changed = lambda;
     changed[7] *= 2.0;
     let mut tau = data.tau.clone();
-    for k in SAMPLES..2 * SAMPLES {
-        tau[k] = model.inverse_dynamics(&data.q[k], &data.qd[k], &data.qdd[k], &changed);
+    for (k, t) in tau.iter_mut().enumerate().skip(SAMPLES) {
+        *t = model.inverse_dynamics(&data.q[k], &data.qd[k], &data.qdd[k], &changed);
     }
     let ds = prrrp_core::Samples::new(&data.q, &data.qd, &data.qdd, &tau).unwrap();
     let cfg = RlsConfig {

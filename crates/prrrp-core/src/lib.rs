@@ -68,7 +68,7 @@ pub use dynamics::{MassCholesky, PrrrpModel};
 pub use error::{PrrrpError, Result};
 pub use estimators::{
     least_squares, weighted_least_squares, Adaline, AdalineConfig, AdalineRule, Discretisation,
-    Ekf, EkfConfig, EkfMeasurement, Estimator, Hopfield, HopfieldConfig, JointNoise,
+    Ekf, EkfConfig, EkfMeasurement, Estimator, Hopfield, HopfieldConfig, JointNoise, LeastSquares,
     LeastSquaresConfig, LeastSquaresReport, PrrrpEkf, Rls, RlsConfig, Sample, Samples,
     TrainingReport, PRRRP_EKF_STATES,
 };

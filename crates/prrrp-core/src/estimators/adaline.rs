@@ -100,7 +100,7 @@ impl<M: LinearDynamics<N, P>, const N: usize, const P: usize> Adaline<M, N, P> {
         if !(c.epsilon.is_finite() && c.epsilon >= 0.0) {
             return bad("epsilon", c.epsilon, "must be finite and >= 0");
         }
-        if !(c.divergence_ratio > 1.0) {
+        if c.divergence_ratio.is_nan() || c.divergence_ratio <= 1.0 {
             return bad("divergence_ratio", c.divergence_ratio, "must be > 1");
         }
         check_lambda0(&lambda0)?;

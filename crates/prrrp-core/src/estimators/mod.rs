@@ -22,7 +22,8 @@ pub(crate) use estimator::with_row;
 pub use estimator::{Estimator, TrainingReport};
 pub use hopfield::{Hopfield, HopfieldConfig};
 pub use least_squares::{
-    least_squares, weighted_least_squares, JointNoise, LeastSquaresConfig, LeastSquaresReport,
+    least_squares, weighted_least_squares, JointNoise, LeastSquares, LeastSquaresConfig,
+    LeastSquaresReport,
 };
 pub use rls::{Rls, RlsConfig};
 pub use samples::{Sample, Samples};
