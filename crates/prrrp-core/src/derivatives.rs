@@ -1,6 +1,6 @@
 //! Analytic derivatives of the PRRRP dynamics, for the extended Kalman filter.
 
-use crate::dynamics::PrrrpModel;
+use crate::dynamics::{mass_matrix_trig, MassCholesky, PrrrpModel};
 use crate::error::Result;
 use crate::model::{ForwardDerivatives, LinearDynamics};
 use crate::terms::{
@@ -30,11 +30,22 @@ impl PrrrpModel {
         qdd: &Vec5,
         lambda: &Lambda,
     ) -> InverseDerivatives {
-        let t = Trig::new(q);
+        self.inverse_derivatives_trig(&Trig::new(q), qd, qdd, lambda)
+    }
+
+    /// [`Self::inverse_derivatives`] with the trigonometry of q already evaluated.
+    #[inline(always)]
+    fn inverse_derivatives_trig(
+        &self,
+        t: &Trig,
+        qd: &Vec5,
+        qdd: &Vec5,
+        lambda: &Lambda,
+    ) -> InverseDerivatives {
         let a = accel_coeffs(qdd);
         let b = velocity_coeffs(qd);
         let db = velocity_coeffs_jacobian(qd);
-        let angles = coupling_angles(&t);
+        let angles = coupling_angles(t);
         let mut dq = Mat5::zeros();
         let mut dqd = Mat5::zeros();
         for (k, &(c, s)) in angles.iter().enumerate() {
@@ -73,10 +84,13 @@ impl PrrrpModel {
         tau: &Vec5,
         lambda: &Lambda,
     ) -> Result<ForwardDerivatives<NDOF, NPARAM>> {
-        let chol = self.mass_cholesky(q, lambda)?;
-        let qdd = chol.solve(&(tau - self.nonlinear_effects(q, qd, lambda)));
-        let id = self.inverse_derivatives(q, qd, &qdd, lambda);
-        let phi = self.regressor(q, qd, &qdd);
+        // One evaluation of the sines and cosines serves M, C·q̇, ∂τ and Φ.
+        let t = Trig::new(q);
+        let chol = MassCholesky::new(&mass_matrix_trig(&t, lambda))?;
+        let h = self.inverse_dynamics_trig(&t, qd, &Vec5::zeros(), lambda);
+        let qdd = chol.solve(&(tau - h));
+        let id = self.inverse_derivatives_trig(&t, qd, &qdd, lambda);
+        let phi = self.regressor_trig(&t, qd, &qdd);
         Ok(ForwardDerivatives {
             qdd,
             dqdd_dq: -chol.solve_matrix(&id.dtau_dq),

@@ -149,7 +149,19 @@ impl PrrrpModel {
     /// Inverse dynamics τ = M·q̈ + C·q̇ + G (N, N·m), without building Φ.
     #[inline]
     pub fn inverse_dynamics(&self, q: &Vec5, qd: &Vec5, qdd: &Vec5, lambda: &Lambda) -> Vec5 {
-        let t = Trig::new(q);
+        self.inverse_dynamics_trig(&Trig::new(q), qd, qdd, lambda)
+    }
+
+    /// [`Self::inverse_dynamics`] with the trigonometry of q already evaluated, so that
+    /// forward dynamics and its derivatives compute the sines and cosines once.
+    #[inline(always)]
+    pub(crate) fn inverse_dynamics_trig(
+        &self,
+        t: &Trig,
+        qd: &Vec5,
+        qdd: &Vec5,
+        lambda: &Lambda,
+    ) -> Vec5 {
         let g = self.gravity;
         let (a2, a3, a4) = (qdd[1], qdd[1] + qdd[2], qdd[1] + qdd[2] + qdd[3]);
         let e = qdd[0] - qdd[4] + g;
@@ -163,7 +175,7 @@ impl PrrrpModel {
         );
         let a = accel_coeffs(qdd);
         let b = velocity_coeffs(qd);
-        for (k, &(c, s)) in coupling_angles(&t).iter().enumerate() {
+        for (k, &(c, s)) in coupling_angles(t).iter().enumerate() {
             let l = lambda[COUPLING_PARAM[k]];
             for r in 0..3 {
                 tau[r + 1] += l * (a[k][r] * c + b[k][r] * s);
@@ -195,8 +207,10 @@ impl PrrrpModel {
         tau: &Vec5,
         lambda: &Lambda,
     ) -> Result<Vec5> {
-        let chol = self.mass_cholesky(q, lambda)?;
-        Ok(chol.solve(&(tau - self.nonlinear_effects(q, qd, lambda))))
+        let t = Trig::new(q);
+        let chol = MassCholesky::new(&mass_matrix_trig(&t, lambda))?;
+        let h = self.inverse_dynamics_trig(&t, qd, &Vec5::zeros(), lambda);
+        Ok(chol.solve(&(tau - h)))
     }
 
     /// Kinetic energy T = ½·q̇ᵀ·M(q, λ)·q̇ (J).

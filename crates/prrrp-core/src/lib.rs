@@ -54,10 +54,13 @@ mod model;
 mod preprocess;
 mod regressor;
 mod robot;
+mod sensitivity;
 mod simulation;
+mod study;
 mod terms;
 mod trajectory;
 mod types;
+mod validation;
 
 pub use dataset::{Dataset, DatasetParts};
 pub use derivatives::InverseDerivatives;
@@ -65,7 +68,7 @@ pub use dynamics::{MassCholesky, PrrrpModel};
 pub use error::{PrrrpError, Result};
 pub use estimators::{
     least_squares, weighted_least_squares, Adaline, AdalineConfig, AdalineRule, Discretisation,
-    Ekf, EkfConfig, EkfMeasurement, Estimator, Hopfield, HopfieldConfig, JointNoise,
+    Ekf, EkfConfig, EkfMeasurement, Estimator, Hopfield, HopfieldConfig, JointNoise, LeastSquares,
     LeastSquaresConfig, LeastSquaresReport, PrrrpEkf, Rls, RlsConfig, Sample, Samples,
     TrainingReport, PRRRP_EKF_STATES,
 };
@@ -83,15 +86,25 @@ pub use preprocess::{
 };
 pub use regressor::{condition_number, observation_matrix, singular_values};
 pub use robot::{DhRow, JointKind, Robot, STANDARD_GRAVITY};
+pub use sensitivity::{sensitivity, SensitivityConfig, SensitivityReport};
 pub use simulation::{
     rk4_step, simulate_closed_loop, simulate_open_loop, ComputedTorque, SensorNoise,
     SimulationConfig, SimulationRecord,
+};
+pub use study::{
+    run_study, EstimationData, ExcitationSummary, History, MethodEstimate, MethodValidationSummary,
+    SensitivitySummary, StudyConfig, StudyProgress, StudyResult, Timings, ValidationSummary,
+    METHODS,
 };
 pub use trajectory::{
     sample_trajectory, ExcitationTrajectory, FourierSeries, JointTrajectory, PiecewiseQuintic,
     Quintic, SampledTrajectory, ScalarTrajectory, Sinusoid, TrajectoryPoint,
 };
 pub use types::{Lambda, Mat5, Regressor, Vec5, NDOF, NPARAM};
+pub use validation::{
+    default_validation_reference, joint_indices, torque_prediction, validate, MethodValidation,
+    TorquePrediction, ValidationConfig, ValidationReport,
+};
 
 /// Re-exported so that users name the same nalgebra and faer versions as the crate.
 pub use faer;

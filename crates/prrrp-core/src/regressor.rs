@@ -32,7 +32,12 @@ impl PrrrpModel {
     /// ```
     #[inline]
     pub fn regressor(&self, q: &Vec5, qd: &Vec5, qdd: &Vec5) -> Regressor {
-        let t = Trig::new(q);
+        self.regressor_trig(&Trig::new(q), qd, qdd)
+    }
+
+    /// [`Self::regressor`] with the trigonometry of q already evaluated.
+    #[inline(always)]
+    pub(crate) fn regressor_trig(&self, t: &Trig, qd: &Vec5, qdd: &Vec5) -> Regressor {
         let g = self.gravity;
         let (a2, a3, a4) = (qdd[1], qdd[1] + qdd[2], qdd[1] + qdd[2] + qdd[3]);
         let e = qdd[0] - qdd[4] + g;
@@ -48,7 +53,7 @@ impl PrrrpModel {
         phi[(4, 7)] = -e;
         let a = accel_coeffs(qdd);
         let b = velocity_coeffs(qd);
-        for (k, &(c, s)) in coupling_angles(&t).iter().enumerate() {
+        for (k, &(c, s)) in coupling_angles(t).iter().enumerate() {
             let col = COUPLING_PARAM[k];
             for r in 0..3 {
                 phi[(r + 1, col)] = a[k][r] * c + b[k][r] * s;

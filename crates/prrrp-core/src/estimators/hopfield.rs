@@ -172,7 +172,7 @@ impl<M: LinearDynamics<N, P>, const N: usize, const P: usize> Estimator<N, P>
             1
         } else {
             let n = (bound / cfg.stability_limit).ceil();
-            if n.is_nan() || n > cfg.max_substeps as f64 {
+            if n.is_nan() || n > f64::from(cfg.max_substeps) {
                 return Err(PrrrpError::InvalidParameter {
                     field: "beta".into(),
                     value: cfg.beta,

@@ -2,11 +2,15 @@
 //! variances, solved by a rank-revealing QR factorisation (faer, column pivoting) — never
 //! through the normal equations WᵀW·λ = Wᵀτ, which square the condition number.
 
-use faer::linalg::solvers::SolveLstsqCore;
-use faer::{Conj, Mat};
+use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
+use faer::linalg::householder;
+use faer::linalg::qr::col_pivoting::factor::{
+    qr_in_place, qr_in_place_scratch, recommended_block_size,
+};
+use faer::{Conj, Mat, Par};
 use nalgebra::{SMatrix, SVector};
 
-use super::samples::{all_finite, Samples};
+use super::samples::Samples;
 use crate::error::{PrrrpError, Result};
 use crate::model::LinearDynamics;
 
@@ -67,12 +71,274 @@ pub struct LeastSquaresReport<const N: usize, const P: usize> {
     pub samples: usize,
 }
 
+/// Batch least-squares solver owning its buffers (W, τ, Householder factors, scratch):
+/// they are sized on first use and reused, so repeated solves of same-sized problems do
+/// not allocate or fault in fresh pages for W. [`least_squares`] and
+/// [`weighted_least_squares`] are one-shot wrappers.
+pub struct LeastSquares {
+    config: LeastSquaresConfig,
+    w: Mat<f64>,
+    y: Mat<f64>,
+    householder: Mat<f64>,
+    perm_fwd: Vec<usize>,
+    perm_bwd: Vec<usize>,
+    scratch: Option<((usize, usize), MemBuffer)>,
+}
+
+impl std::fmt::Debug for LeastSquares {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("LeastSquares")
+            .field("config", &self.config)
+            .field("rows", &self.w.nrows())
+            .finish_non_exhaustive()
+    }
+}
+
+impl LeastSquares {
+    /// A solver with empty buffers.
+    ///
+    /// # Errors
+    /// [`PrrrpError::InvalidParameter`] for a rank tolerance outside [0, 1).
+    pub fn new(config: LeastSquaresConfig) -> Result<Self> {
+        check_config(&config)?;
+        Ok(Self {
+            config,
+            w: Mat::new(),
+            y: Mat::new(),
+            householder: Mat::new(),
+            perm_fwd: Vec::new(),
+            perm_bwd: Vec::new(),
+            scratch: None,
+        })
+    }
+
+    /// Ordinary least squares; see [`least_squares`].
+    ///
+    /// # Errors
+    /// As [`least_squares`].
+    pub fn solve<const N: usize, const P: usize, M: LinearDynamics<N, P>>(
+        &mut self,
+        model: &M,
+        data: &Samples<'_, N>,
+    ) -> Result<LeastSquaresReport<N, P>> {
+        check_samples::<N, P>(data)?;
+        self.build(model, data, &SVector::<f64, N>::repeat(1.0))?;
+        let sol = self.factor_and_solve::<P>()?;
+        let joint_variances = joint_residual_variances::<N, P>(self.residual(), data.len());
+        Ok(sol.report(joint_variances, data.len()))
+    }
+
+    /// Weighted least squares; see [`weighted_least_squares`].
+    ///
+    /// # Errors
+    /// As [`weighted_least_squares`].
+    pub fn solve_weighted<const N: usize, const P: usize, M: LinearDynamics<N, P>>(
+        &mut self,
+        model: &M,
+        data: &Samples<'_, N>,
+        noise: JointNoise<N>,
+    ) -> Result<LeastSquaresReport<N, P>> {
+        let variances = match noise {
+            JointNoise::Variances(v) => {
+                for (j, &s) in v.iter().enumerate() {
+                    if !(s.is_finite() && s > 0.0) {
+                        return Err(PrrrpError::InvalidParameter {
+                            field: format!("joint noise variance[{j}]"),
+                            value: s,
+                            reason: "must be finite and > 0 (units of τ_j²)",
+                        });
+                    }
+                }
+                v
+            }
+            JointNoise::Estimated => {
+                let ols = self.solve(model, data)?;
+                let max = ols.joint_variances.max();
+                if max > 0.0 {
+                    ols.joint_variances.map(|s| s.max(1e-12 * max))
+                } else {
+                    // A perfect fit: every weighting gives the same answer.
+                    SVector::repeat(1.0)
+                }
+            }
+        };
+        check_samples::<N, P>(data)?;
+        let scale = variances.map(|s| 1.0 / s.sqrt());
+        self.build(model, data, &scale)?;
+        let sol = self.factor_and_solve::<P>()?;
+        Ok(sol.report(variances, data.len()))
+    }
+
+    /// Stacks the row-scaled regressors into W (column-major, N·n × P) and τ into y.
+    fn build<const N: usize, const P: usize, M: LinearDynamics<N, P>>(
+        &mut self,
+        model: &M,
+        data: &Samples<'_, N>,
+        row_scale: &SVector<f64, N>,
+    ) -> Result<()> {
+        let rows = N * data.len();
+        self.w.resize_with(rows, P, |_, _| 0.0);
+        self.y.resize_with(rows, 1, |_, _| 0.0);
+        let y = self.y.col_as_slice_mut(0);
+        for (k, s) in data.iter().enumerate() {
+            s.check_finite()
+                .map_err(|e| super::estimator::with_row(e, k))?;
+            for i in 0..N {
+                y[N * k + i] = s.tau[i] * row_scale[i];
+            }
+        }
+        for (k, s) in data.iter().enumerate() {
+            let phi: SMatrix<f64, N, P> = model.regressor(s.q, s.qd, s.qdd);
+            for j in 0..P {
+                let col = &mut self.w.col_as_slice_mut(j)[N * k..N * k + N];
+                for i in 0..N {
+                    col[i] = phi[(i, j)] * row_scale[i];
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// QR with column pivoting of W in place (W·Πᵀ = Q·R), z = Qᵀy, λ̂ = Πᵀ·R⁻¹·z, then
+    /// y ← ρ = Q·[0; z_P..] (the residual, without keeping W).
+    fn factor_and_solve<const P: usize>(&mut self) -> Result<Solution<P>> {
+        let rows = self.w.nrows();
+        let bs = recommended_block_size::<f64>(rows, P);
+        self.householder.resize_with(bs, P, |_, _| 0.0);
+        self.perm_fwd.resize(P, 0);
+        self.perm_bwd.resize(P, 0);
+        let needs_scratch = !matches!(&self.scratch, Some((shape, _)) if *shape == (rows, bs));
+        if needs_scratch {
+            let req = StackReq::any_of(&[
+                qr_in_place_scratch::<usize, f64>(rows, P, bs, Par::Seq, Default::default()),
+                householder::apply_block_householder_sequence_transpose_on_the_left_in_place_scratch::<f64>(rows, bs, 1),
+                householder::apply_block_householder_sequence_on_the_left_in_place_scratch::<f64>(rows, bs, 1),
+            ]);
+            self.scratch = Some(((rows, bs), MemBuffer::new(req)));
+        }
+        let Some((_, buf)) = self.scratch.as_mut() else {
+            unreachable!("scratch was just allocated");
+        };
+        let stack = MemStack::new(buf);
+        qr_in_place(
+            self.w.as_mut(),
+            self.householder.as_mut(),
+            &mut self.perm_fwd,
+            &mut self.perm_bwd,
+            Par::Seq,
+            stack,
+            Default::default(),
+        );
+        let r = SMatrix::<f64, P, P>::from_fn(|i, j| if i <= j { self.w[(i, j)] } else { 0.0 });
+        if !r.iter().all(|x| x.is_finite()) {
+            return Err(PrrrpError::NonFinite {
+                what: "QR factor of W".into(),
+                row: None,
+            });
+        }
+        // The Householder basis is the unit lower trapezoid of the factored W.
+        for j in 0..P {
+            for i in 0..j {
+                self.w[(i, j)] = 0.0;
+            }
+            self.w[(j, j)] = 1.0;
+        }
+        let fwd: [usize; P] = std::array::from_fn(|k| self.perm_fwd[k]);
+
+        // W and R share their singular values; W's right singular vectors are Πᵀ·V_R.
+        let r_mat = Mat::<f64>::from_fn(P, P, |i, j| r[(i, j)]);
+        let svd = r_mat.svd().map_err(|_| PrrrpError::NonFinite {
+            what: "SVD of the QR factor R (did not converge)".into(),
+            row: None,
+        })?;
+        let (sv, v) = (svd.S().column_vector(), svd.V());
+        let mut order: [usize; P] = std::array::from_fn(|i| i);
+        order.sort_by(|&a, &b| sv[b].total_cmp(&sv[a]));
+        let singular_values = SVector::<f64, P>::from_fn(|i, _| sv[order[i]]);
+        let smax = singular_values[0];
+        let rank = singular_values
+            .iter()
+            .filter(|&&s| s > self.config.rank_tolerance * smax && s > 0.0)
+            .count();
+        if rank < P {
+            let directions = order[rank..]
+                .iter()
+                .map(|&o| {
+                    let mut d = vec![0.0; P];
+                    for k in 0..P {
+                        d[fwd[k]] = v[(k, o)];
+                    }
+                    d
+                })
+                .collect();
+            let cond = if singular_values[P - 1] > 0.0 {
+                smax / singular_values[P - 1]
+            } else {
+                f64::INFINITY
+            };
+            return Err(PrrrpError::RankDeficient {
+                rank,
+                params: P,
+                cond,
+                directions,
+            });
+        }
+
+        let stack = MemStack::new(buf);
+        householder::apply_block_householder_sequence_transpose_on_the_left_in_place_with_conj(
+            self.w.as_ref(),
+            self.householder.as_ref(),
+            Conj::No,
+            self.y.as_mut(),
+            Par::Seq,
+            stack,
+        );
+        let y = self.y.col_as_slice_mut(0);
+        let z = SVector::<f64, P>::from_column_slice(&y[..P]);
+        let rss: f64 = y[P..].iter().map(|v| v * v).sum();
+        let sigma2 = rss / (rows - P) as f64;
+        // λ̂_fwd = R⁻¹·z; (WᵀW)⁻¹ = Πᵀ·R⁻¹·R⁻ᵀ·Π, so var(λ_fwd[k]) = σ²·‖row k of R⁻¹‖².
+        let r_inv = upper_triangular_inverse(&r);
+        let lp = r_inv * z;
+        let mut lambda = SVector::<f64, P>::zeros();
+        let mut std_dev = SVector::<f64, P>::zeros();
+        for k in 0..P {
+            lambda[fwd[k]] = lp[k];
+            let row_norm2: f64 = (k..P).map(|j| r_inv[(k, j)] * r_inv[(k, j)]).sum();
+            std_dev[fwd[k]] = (sigma2 * row_norm2).sqrt();
+        }
+
+        y[..P].fill(0.0);
+        let stack = MemStack::new(buf);
+        householder::apply_block_householder_sequence_on_the_left_in_place_with_conj(
+            self.w.as_ref(),
+            self.householder.as_ref(),
+            Conj::No,
+            self.y.as_mut(),
+            Par::Seq,
+            stack,
+        );
+        Ok(Solution {
+            lambda,
+            singular_values,
+            sigma2,
+            std_dev,
+        })
+    }
+
+    /// The residual ρ = y − W·λ̂ of the last solve (rows N·k + j belong to joint j).
+    fn residual(&self) -> &[f64] {
+        self.y.col_as_slice(0)
+    }
+}
+
 /// Ordinary least squares λ̂ = argmin ‖τ − W·λ‖² over a dataset (eqs. 35–36), with the
 /// statistics the field reports.
 ///
-/// Builds W ∈ R^{(N·n)×P} from the regressor of every sample and factorises it by QR with
-/// column pivoting (faer); the singular values come from an SVD of the P×P factor R,
-/// which has the same singular values as W.
+/// Builds W ∈ R^{(N·n)×P} from the regressor of every sample and factorises it in place
+/// by QR with column pivoting (faer); the singular values come from an SVD of the P×P
+/// factor R, which has the same singular values as W. Allocates W for this call: use
+/// [`LeastSquares`] to reuse the buffers across solves.
 ///
 /// # Errors
 /// - [`PrrrpError::TooFewSamples`] if N·n ≤ P (no residual degree of freedom left);
@@ -85,12 +351,7 @@ pub fn least_squares<const N: usize, const P: usize, M: LinearDynamics<N, P>>(
     data: &Samples<'_, N>,
     config: &LeastSquaresConfig,
 ) -> Result<LeastSquaresReport<N, P>> {
-    check_config(config)?;
-    check_samples::<N, P>(data)?;
-    let (w, y) = build_system(model, data, &SVector::<f64, N>::repeat(1.0))?;
-    let sol = solve::<P>(w, y, config.rank_tolerance)?;
-    let joint_variances = joint_residual_variances::<N, P>(&sol.residual, data.len());
-    Ok(sol.report(joint_variances, data.len()))
+    LeastSquares::new(*config)?.solve(model, data)
 }
 
 /// Weighted least squares: every equation of joint j is divided by σ_j, so that noisier
@@ -110,36 +371,7 @@ pub fn weighted_least_squares<const N: usize, const P: usize, M: LinearDynamics<
     noise: JointNoise<N>,
     config: &LeastSquaresConfig,
 ) -> Result<LeastSquaresReport<N, P>> {
-    check_config(config)?;
-    let variances = match noise {
-        JointNoise::Variances(v) => {
-            for (j, &s) in v.iter().enumerate() {
-                if !(s.is_finite() && s > 0.0) {
-                    return Err(PrrrpError::InvalidParameter {
-                        field: format!("joint noise variance[{j}]"),
-                        value: s,
-                        reason: "must be finite and > 0 (units of τ_j²)",
-                    });
-                }
-            }
-            v
-        }
-        JointNoise::Estimated => {
-            let ols = least_squares(model, data, config)?;
-            let max = ols.joint_variances.max();
-            if max > 0.0 {
-                ols.joint_variances.map(|s| s.max(1e-12 * max))
-            } else {
-                // A perfect fit: every weighting gives the same answer.
-                SVector::repeat(1.0)
-            }
-        }
-    };
-    check_samples::<N, P>(data)?;
-    let scale = variances.map(|s| 1.0 / s.sqrt());
-    let (w, y) = build_system(model, data, &scale)?;
-    let sol = solve::<P>(w, y, config.rank_tolerance)?;
-    Ok(sol.report(variances, data.len()))
+    LeastSquares::new(*config)?.solve_weighted(model, data, noise)
 }
 
 fn check_config(config: &LeastSquaresConfig) -> Result<()> {
@@ -166,41 +398,12 @@ fn check_samples<const N: usize, const P: usize>(data: &Samples<'_, N>) -> Resul
     Ok(())
 }
 
-/// Stacks the row-scaled regressors into W (column-major, N·n × P) and τ into y.
-fn build_system<const N: usize, const P: usize, M: LinearDynamics<N, P>>(
-    model: &M,
-    data: &Samples<'_, N>,
-    row_scale: &SVector<f64, N>,
-) -> Result<(Mat<f64>, Vec<f64>)> {
-    let n = data.len();
-    let rows = N * n;
-    let mut w = Mat::<f64>::zeros(rows, P);
-    let mut y = vec![0.0; rows];
-    for (k, s) in data.iter().enumerate() {
-        s.check_finite()
-            .map_err(|e| super::estimator::with_row(e, k))?;
-        let phi: SMatrix<f64, N, P> = model.regressor(s.q, s.qd, s.qdd);
-        for i in 0..N {
-            y[N * k + i] = s.tau[i] * row_scale[i];
-        }
-        for j in 0..P {
-            let col = &mut w.col_as_slice_mut(j)[N * k..N * k + N];
-            for i in 0..N {
-                col[i] = phi[(i, j)] * row_scale[i];
-            }
-        }
-    }
-    debug_assert!(all_finite(row_scale));
-    Ok((w, y))
-}
-
 /// The solved problem, before the per-joint statistics.
 struct Solution<const P: usize> {
     lambda: SVector<f64, P>,
     singular_values: SVector<f64, P>,
     sigma2: f64,
     std_dev: SVector<f64, P>,
-    residual: Vec<f64>,
 }
 
 impl<const P: usize> Solution<P> {
@@ -228,93 +431,6 @@ impl<const P: usize> Solution<P> {
             samples,
         }
     }
-}
-
-/// Solves min ‖y − W·λ‖ by QR with column pivoting: W·Πᵀ = Q·R.
-fn solve<const P: usize>(w: Mat<f64>, y: Vec<f64>, rank_tolerance: f64) -> Result<Solution<P>> {
-    let rows = w.nrows();
-    debug_assert_eq!(w.ncols(), P);
-    let qr = w.as_ref().col_piv_qr();
-    // fwd[k] = index in λ of the k-th pivoted column.
-    let (fwd, _) = qr.P().arrays();
-    let r_faer = qr.thin_R();
-    let r = SMatrix::<f64, P, P>::from_fn(|i, j| if i <= j { r_faer[(i, j)] } else { 0.0 });
-    if !r.iter().all(|x| x.is_finite()) {
-        return Err(PrrrpError::NonFinite {
-            what: "QR factor of W".into(),
-            row: None,
-        });
-    }
-
-    // W and R share their singular values; W's right singular vectors are Πᵀ·V_R.
-    let r_mat = Mat::<f64>::from_fn(P, P, |i, j| r[(i, j)]);
-    let svd = r_mat.svd().map_err(|_| PrrrpError::NonFinite {
-        what: "SVD of the QR factor R (did not converge)".into(),
-        row: None,
-    })?;
-    let (sv, v) = (svd.S().column_vector(), svd.V());
-    let mut order: [usize; P] = std::array::from_fn(|i| i);
-    order.sort_by(|&a, &b| sv[b].total_cmp(&sv[a]));
-    let singular_values = SVector::<f64, P>::from_fn(|i, _| sv[order[i]]);
-    let smax = singular_values[0];
-    let rank = singular_values
-        .iter()
-        .filter(|&&s| s > rank_tolerance * smax && s > 0.0)
-        .count();
-    if rank < P {
-        let directions = order[rank..]
-            .iter()
-            .map(|&o| {
-                let mut d = vec![0.0; P];
-                for k in 0..P {
-                    d[fwd[k]] = v[(k, o)];
-                }
-                d
-            })
-            .collect();
-        let cond = if singular_values[P - 1] > 0.0 {
-            smax / singular_values[P - 1]
-        } else {
-            f64::INFINITY
-        };
-        return Err(PrrrpError::RankDeficient {
-            rank,
-            params: P,
-            cond,
-            directions,
-        });
-    }
-
-    let mut rhs = Mat::<f64>::from_fn(rows, 1, |i, _| y[i]);
-    qr.solve_lstsq_in_place_with_conj(Conj::No, rhs.as_mut());
-    let lambda = SVector::<f64, P>::from_fn(|i, _| rhs[(i, 0)]);
-
-    // ρ = y − W·λ̂ from the factors: W·λ̂ = Q·R·Π·λ̂, computed directly from W instead, which
-    // is exact to rounding and cheap (one pass).
-    let mut residual = y;
-    for j in 0..P {
-        let col = w.col_as_slice(j);
-        let l = lambda[j];
-        for (r, &wij) in residual.iter_mut().zip(col) {
-            *r -= wij * l;
-        }
-    }
-    let sigma2 = residual.iter().map(|r| r * r).sum::<f64>() / (rows - P) as f64;
-
-    // (WᵀW)⁻¹ = Πᵀ·R⁻¹·R⁻ᵀ·Π: the variance of λ_fwd[k] is σ²·‖row k of R⁻¹‖².
-    let r_inv = upper_triangular_inverse(&r);
-    let mut std_dev = SVector::<f64, P>::zeros();
-    for k in 0..P {
-        let row_norm2: f64 = (k..P).map(|j| r_inv[(k, j)] * r_inv[(k, j)]).sum();
-        std_dev[fwd[k]] = (sigma2 * row_norm2).sqrt();
-    }
-    Ok(Solution {
-        lambda,
-        singular_values,
-        sigma2,
-        std_dev,
-        residual,
-    })
 }
 
 /// Inverse of a nonsingular upper-triangular matrix by back substitution.

@@ -18,10 +18,12 @@ mod samples;
 
 pub use adaline::{Adaline, AdalineConfig, AdalineRule};
 pub use ekf::{Discretisation, Ekf, EkfConfig, EkfMeasurement, PrrrpEkf, PRRRP_EKF_STATES};
+pub(crate) use estimator::with_row;
 pub use estimator::{Estimator, TrainingReport};
 pub use hopfield::{Hopfield, HopfieldConfig};
 pub use least_squares::{
-    least_squares, weighted_least_squares, JointNoise, LeastSquaresConfig, LeastSquaresReport,
+    least_squares, weighted_least_squares, JointNoise, LeastSquares, LeastSquaresConfig,
+    LeastSquaresReport,
 };
 pub use rls::{Rls, RlsConfig};
 pub use samples::{Sample, Samples};
