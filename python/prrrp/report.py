@@ -76,7 +76,7 @@ def relative_errors(results: dict[str, Any]) -> list[str]:
             ours_i = ours[i] if ours else _rel(e["lambda"][i], truth[i])
             row += [_f(_rel(published[i], truth[i]), 2) if published else "—", _f(ours_i, 2)]
         rows.append(row)
-    worst = ["max |·|"]
+    worst = ["max abs"]
     for e in estimates:
         published = paper.TABLE4.get(e["method"])
         ours = e.get("relative_error_percent") or [
