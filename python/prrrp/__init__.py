@@ -18,6 +18,10 @@ matching shape. Batches are computed in Rust with the GIL released.
 True
 """
 
+import json
+from collections.abc import Callable
+from typing import Any
+
 from prrrp._prrrp import (
     NDOF,
     NPARAM,
@@ -56,6 +60,7 @@ from prrrp._prrrp import (
     relative_errors_percent,
     rms,
     rsd,
+    run_study_json,
     simulate_closed_loop,
     simulate_open_loop,
     singular_values,
@@ -99,7 +104,17 @@ __all__ = [
     "relative_errors_percent",
     "rms",
     "rsd",
+    "run_study",
     "simulate_closed_loop",
     "simulate_open_loop",
     "singular_values",
 ]
+
+
+def run_study(
+    seed: int = 0, progress: Callable[[str, int, int], object] | None = None
+) -> dict[str, Any]:
+    """Runs the paper's whole study (excitation, simulation, the four estimators,
+    validation, sensitivity) on the paper robot and returns the parsed JSON result
+    (schema_version 1). `progress(stage, done, total)` is called from Rust."""
+    return json.loads(run_study_json(seed, progress))

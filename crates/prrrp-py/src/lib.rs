@@ -13,7 +13,8 @@
 //! - `simulation`: the closed- and open-loop simulators;
 //! - `preprocessing`: filtering and differentiation of measurements;
 //! - `estimators`: least squares and the online estimators;
-//! - `metrics`: the error indices.
+//! - `metrics`: the error indices;
+//! - `study`: the whole study as JSON.
 
 mod arrays;
 mod derivatives;
@@ -24,6 +25,7 @@ mod preprocessing;
 mod regressor;
 mod robot;
 mod simulation;
+mod study;
 mod trajectories;
 
 use pyo3::prelude::*;
@@ -44,5 +46,6 @@ fn _prrrp(m: &Bound<'_, PyModule>) -> PyResult<()> {
     preprocessing::register(m)?;
     estimators::register(m)?;
     metrics::register(m)?;
+    study::register(m)?;
     Ok(())
 }
