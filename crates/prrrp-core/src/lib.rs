@@ -42,6 +42,7 @@
 //! ```
 #![warn(missing_docs)]
 
+mod chain;
 mod derivatives;
 mod dynamics;
 mod error;
@@ -51,6 +52,11 @@ mod robot;
 mod terms;
 mod types;
 
+pub use chain::{
+    com_and_inertia, inertial_parameters, is_physically_consistent, transform_inertial_parameters,
+    BaseOptions, BaseParameters, ChainBaseModel, DhConvention, DynChain, FrictionModel,
+    SerialChain, FRICTION_PARAMETER_NAMES, INERTIAL_PARAMETER_NAMES, LINK_PARAMS,
+};
 pub use derivatives::InverseDerivatives;
 pub use dynamics::{MassCholesky, PrrrpModel};
 pub use error::{PrrrpError, Result};
