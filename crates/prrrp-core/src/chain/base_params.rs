@@ -260,14 +260,13 @@ pub(crate) fn analyse(view: &ChainView<'_>, opts: &BaseOptions) -> Result<BasePa
     if kept.len() != b {
         kept = perm[..b].to_vec();
     }
-    let mut independent: Vec<usize> = kept.iter().map(|&c| nonzero[c]).collect();
-    independent.sort_unstable();
-    let dep_cols: Vec<usize> = (0..m).filter(|c| !kept.contains(c)).collect();
+    // `nonzero` is increasing, so sorting positions sorts standard indices.
+    kept.sort_unstable();
+    let independent: Vec<usize> = kept.iter().map(|&c| nonzero[c]).collect();
+    let dep_cols: Vec<usize> = (0..m).filter(|c| kept.binary_search(c).is_err()).collect();
 
     // Ŵ_d = Ŵ_i·X̂ (exact up to round-off), then K_d = X̂ scaled back to SI.
-    let ws_i = Mat::from_fn(ws.nrows(), b, |i, r| {
-        ws[(i, position[independent[r]].unwrap_or(0))]
-    });
+    let ws_i = Mat::from_fn(ws.nrows(), b, |i, r| ws[(i, kept[r])]);
     let ws_d = Mat::from_fn(ws.nrows(), dep_cols.len(), |i, c| ws[(i, dep_cols[c])]);
     let x = if b > 0 && !dep_cols.is_empty() {
         ws_i.qr().solve_lstsq(&ws_d)

@@ -64,6 +64,71 @@ impl RegressorSink for FaerSink<'_> {
     }
 }
 
+/// The wrench of one link per unit of each of its 10 parameters, in its own frame:
+/// moment about the frame origin and force, for m, mx, my, mz (`n`, `f`); moment only for
+/// Ixx..Izz (`ni`).
+struct LinkColumns {
+    n: [Vector3<f64>; 4],
+    f: [Vector3<f64>; 4],
+    ni: [Vector3<f64>; 6],
+}
+
+impl LinkColumns {
+    #[inline(always)]
+    fn new(s: &LinkState) -> Self {
+        let (w, wd, a) = (s.w, s.wd, s.a);
+        // f = m·a + ω̇ × h + ω × (ω × h), n = I·ω̇ + ω × (I·ω) + h × a.
+        let k = wd.cross_matrix() + w.cross_matrix() * w.cross_matrix();
+        let f = [
+            a,
+            k.column(0).into(),
+            k.column(1).into(),
+            k.column(2).into(),
+        ];
+        let n = [
+            Vector3::zeros(),
+            Vector3::x().cross(&a),
+            Vector3::y().cross(&a),
+            Vector3::z().cross(&a),
+        ];
+        // L(v)·[Ixx, Ixy, Iyy, Ixz, Iyz, Izz] = I·v.
+        let l = |v: &Vector3<f64>| {
+            [
+                Vector3::new(v.x, 0.0, 0.0),
+                Vector3::new(v.y, v.x, 0.0),
+                Vector3::new(0.0, v.y, 0.0),
+                Vector3::new(v.z, 0.0, v.x),
+                Vector3::new(0.0, v.z, v.y),
+                Vector3::new(0.0, 0.0, v.z),
+            ]
+        };
+        let (lwd, lw) = (l(&wd), l(&w));
+        let ni = std::array::from_fn(|c| lwd[c] + w.cross(&lw[c]));
+        Self { n, f, ni }
+    }
+
+    /// Row `row` of link `link`'s block: S·A with S = (s_ang, s_lin) in the link frame.
+    #[inline(always)]
+    fn emit<S: RegressorSink>(
+        &self,
+        row: usize,
+        link: usize,
+        s_ang: &Vector3<f64>,
+        s_lin: &Vector3<f64>,
+        revolute: bool,
+        sink: &mut S,
+    ) {
+        for c in 0..4 {
+            sink.rigid(row, link, c, s_ang.dot(&self.n[c]) + s_lin.dot(&self.f[c]));
+        }
+        if revolute {
+            for (c, x) in self.ni.iter().enumerate() {
+                sink.rigid(row, link, 4 + c, s_ang.dot(x));
+            }
+        }
+    }
+}
+
 impl ChainView<'_> {
     /// Computes Y (and, if `friction`, the enabled friction columns) into `sink`.
     #[inline]
@@ -78,62 +143,21 @@ impl ChainView<'_> {
     ) {
         self.kinematics(q, qd, qdd, true, st);
         let n = self.dof();
+        // Joint j's motion subspace S_j, re-expressed frame by frame as i grows (kept in
+        // st[j].s_*): the entry of row j and link i is S_jᵀ·A_i in frame i, one motion
+        // transform per (i, j) instead of moving the ten columns of A_i down to every j.
         for i in 0..n {
-            let s = &st[i];
-            let (w, wd, a) = (s.w, s.wd, s.a);
-            // Columns m, mx, my, mz: moment `nc` about the frame origin and force `fc`.
-            let k = wd.cross_matrix() + w.cross_matrix() * w.cross_matrix();
-            let mut fc = [
-                a,
-                k.column(0).into(),
-                k.column(1).into(),
-                k.column(2).into(),
-            ];
-            let mut nc = [
-                Vector3::zeros(),
-                Vector3::x().cross(&a),
-                Vector3::y().cross(&a),
-                Vector3::z().cross(&a),
-            ];
-            // Columns Ixx..Izz produce a moment only: L(ω̇) + ω × L(ω), with
-            // L(v)·[Ixx, Ixy, Iyy, Ixz, Iyz, Izz] = I·v.
-            let l = |v: &Vector3<f64>| {
-                [
-                    Vector3::new(v.x, 0.0, 0.0),
-                    Vector3::new(v.y, v.x, 0.0),
-                    Vector3::new(0.0, v.y, 0.0),
-                    Vector3::new(v.z, 0.0, v.x),
-                    Vector3::new(0.0, v.z, v.y),
-                    Vector3::new(0.0, 0.0, v.z),
-                ]
-            };
-            let lwd = l(&wd);
-            let lw = l(&w);
-            let mut ni = [Vector3::zeros(); 6];
-            for c in 0..6 {
-                ni[c] = lwd[c] + w.cross(&lw[c]);
+            let (rt, p) = (st[i].r.transpose(), st[i].p);
+            for sj in st[..i].iter_mut() {
+                // From frame i−1 to frame i: ω' = Rᵀω, v' = Rᵀ(v + ω × p).
+                sj.s_lin = rt * (sj.s_lin + sj.s_ang.cross(&p));
+                sj.s_ang = rt * sj.s_ang;
             }
-            for j in (0..=i).rev() {
-                let g = &self.geom[j];
-                for c in 0..4 {
-                    sink.rigid(j, i, c, g.s_ang.dot(&nc[c]) + g.s_lin.dot(&fc[c]));
-                }
-                if g.revolute {
-                    for (c, x) in ni.iter().enumerate() {
-                        sink.rigid(j, i, 4 + c, g.s_ang.dot(x));
-                    }
-                }
-                if j > 0 {
-                    let (r, p) = (&st[j].r, &st[j].p);
-                    for c in 0..4 {
-                        let f = r * fc[c];
-                        nc[c] = r * nc[c] + p.cross(&f);
-                        fc[c] = f;
-                    }
-                    for x in ni.iter_mut() {
-                        *x = r * *x;
-                    }
-                }
+            st[i].s_ang = self.geom[i].s_ang;
+            st[i].s_lin = self.geom[i].s_lin;
+            let cols = LinkColumns::new(&st[i]);
+            for (j, sj) in st[..=i].iter().enumerate() {
+                cols.emit(j, i, &sj.s_ang, &sj.s_lin, self.geom[j].revolute, sink);
             }
         }
         if friction {

@@ -33,6 +33,10 @@ pub(crate) struct LinkState {
     pub(crate) wd: Vector3<f64>,
     /// Classical linear acceleration of the origin of frame i, gravity included (m/s²).
     pub(crate) a: Vector3<f64>,
+    /// Regressor scratch: the motion subspace of joint i re-expressed in a later frame.
+    pub(crate) s_ang: Vector3<f64>,
+    /// Linear part of `s_ang`'s motion vector.
+    pub(crate) s_lin: Vector3<f64>,
 }
 
 impl Default for LinkState {
@@ -43,6 +47,8 @@ impl Default for LinkState {
             w: Vector3::zeros(),
             wd: Vector3::zeros(),
             a: Vector3::zeros(),
+            s_ang: Vector3::zeros(),
+            s_lin: Vector3::zeros(),
         }
     }
 }
@@ -107,7 +113,11 @@ impl ChainView<'_> {
                     a_rigid + u * qdd[i] + 2.0 * w_pi.cross(&(u * qd[i])),
                 )
             };
-            *s = LinkState { r, p, w, wd, a };
+            s.r = r;
+            s.p = p;
+            s.w = w;
+            s.wd = wd;
+            s.a = a;
             w_p = w;
             wd_p = wd;
             a_p = a;
