@@ -42,6 +42,7 @@
 //! ```
 #![warn(missing_docs)]
 
+mod chain;
 mod dataset;
 mod derivatives;
 mod dynamics;
@@ -62,6 +63,11 @@ mod trajectory;
 mod types;
 mod validation;
 
+pub use chain::{
+    com_and_inertia, inertial_parameters, is_physically_consistent, transform_inertial_parameters,
+    BaseOptions, BaseParameters, ChainBaseModel, DhConvention, DynChain, FrictionModel,
+    SerialChain, FRICTION_PARAMETER_NAMES, INERTIAL_PARAMETER_NAMES, LINK_PARAMS,
+};
 pub use dataset::{Dataset, DatasetParts};
 pub use derivatives::InverseDerivatives;
 pub use dynamics::{MassCholesky, PrrrpModel};

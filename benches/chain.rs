@@ -1,0 +1,92 @@
+//! Per-sample cost of the generic chain: inverse dynamics (RNEA), regressor, mass matrix
+//! (CRBA) and forward dynamics, for the PRRRP arm as a chain (against its closed form)
+//! and for the 6R PUMA 560. Inputs are built outside the timed closures.
+
+use criterion::{criterion_group, criterion_main, Criterion};
+use prrrp_core::nalgebra::{SMatrix, SVector};
+use prrrp_core::{BaseOptions, LinearDynamics, Robot, SerialChain};
+use std::hint::black_box;
+use std::time::Duration;
+
+fn state<const N: usize>() -> [SVector<f64, N>; 3] {
+    let v = |s: f64| SVector::<f64, N>::from_fn(|i, _| (s * (i + 1) as f64).sin());
+    [v(0.7), v(1.3), v(2.1)]
+}
+
+fn prrrp(c: &mut Criterion) {
+    let chain = SerialChain::paper();
+    let robot = Robot::paper();
+    let (model, lambda) = (robot.model(), robot.base_parameters());
+    let base = chain
+        .base_parameters(&BaseOptions::default())
+        .expect("analysis");
+    let bm = chain.base_model::<9>(&base).expect("9");
+    let beta = bm.chain_base_values();
+    let [q, qd, qdd] = state::<5>();
+    let tau = chain.inverse_dynamics(&q, &qd, &qdd);
+    let mut g = c.benchmark_group("prrrp");
+    g.bench_function("chain_inverse_dynamics", |b| {
+        b.iter(|| chain.inverse_dynamics(black_box(&q), black_box(&qd), black_box(&qdd)))
+    });
+    g.bench_function("chain_regressor_5x50", |b| {
+        b.iter(|| -> SMatrix<f64, 5, 50> {
+            chain.regressor(black_box(&q), black_box(&qd), black_box(&qdd))
+        })
+    });
+    g.bench_function("chain_base_regressor_5x9", |b| {
+        b.iter(|| bm.regressor(black_box(&q), black_box(&qd), black_box(&qdd)))
+    });
+    g.bench_function("chain_mass_matrix", |b| {
+        b.iter(|| chain.mass_matrix(black_box(&q)))
+    });
+    g.bench_function("chain_forward_dynamics", |b| {
+        b.iter(|| chain.forward_dynamics(black_box(&q), black_box(&qd), black_box(&tau)))
+    });
+    g.bench_function("base_model_forward_dynamics", |b| {
+        b.iter(|| bm.forward_dynamics(black_box(&q), black_box(&qd), black_box(&tau), &beta))
+    });
+    g.bench_function("closed_form_inverse_dynamics", |b| {
+        b.iter(|| model.inverse_dynamics(black_box(&q), black_box(&qd), black_box(&qdd), &lambda))
+    });
+    g.bench_function("closed_form_regressor_5x8", |b| {
+        b.iter(|| model.regressor(black_box(&q), black_box(&qd), black_box(&qdd)))
+    });
+    g.finish();
+}
+
+fn puma(c: &mut Criterion) {
+    let chain = SerialChain::puma560();
+    let [q, qd, qdd] = state::<6>();
+    let tau = chain.inverse_dynamics(&q, &qd, &qdd);
+    let mut g = c.benchmark_group("puma560");
+    g.bench_function("inverse_dynamics", |b| {
+        b.iter(|| chain.inverse_dynamics(black_box(&q), black_box(&qd), black_box(&qdd)))
+    });
+    g.bench_function("regressor_6x60", |b| {
+        b.iter(|| -> SMatrix<f64, 6, 60> {
+            chain.regressor(black_box(&q), black_box(&qd), black_box(&qdd))
+        })
+    });
+    g.bench_function("mass_matrix", |b| {
+        b.iter(|| chain.mass_matrix(black_box(&q)))
+    });
+    g.bench_function("forward_dynamics", |b| {
+        b.iter(|| chain.forward_dynamics(black_box(&q), black_box(&qd), black_box(&tau)))
+    });
+    g.finish();
+    let mut g = c.benchmark_group("puma560_batch");
+    g.sample_size(10);
+    g.bench_function("base_parameters", |b| {
+        b.iter(|| chain.base_parameters(&BaseOptions::default()))
+    });
+    g.finish();
+}
+
+criterion_group! {
+    name = benches;
+    config = Criterion::default()
+        .warm_up_time(Duration::from_secs(1))
+        .measurement_time(Duration::from_secs(3));
+    targets = prrrp, puma
+}
+criterion_main!(benches);

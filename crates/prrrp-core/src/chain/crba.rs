@@ -1,0 +1,123 @@
+//! Mass matrix by the composite-rigid-body algorithm (Walker & Orin 1982) and its
+//! Cholesky factorisation, over slices (shared by both chain types).
+
+use nalgebra::Vector3;
+
+use super::inertia::{first_moment, inertia_times, transform_to_parent};
+use super::rnea::{ChainView, LinkState};
+use crate::error::{PrrrpError, Result};
+
+impl ChainView<'_> {
+    /// M(q) into the column-major n×n slice `m`, with inertial parameters `inertial`.
+    /// `st` and `composite` are scratch of length n.
+    #[inline]
+    pub(crate) fn mass_matrix_with(
+        &self,
+        inertial: &[[f64; 10]],
+        q: &[f64],
+        st: &mut [LinkState],
+        composite: &mut [[f64; 10]],
+        m: &mut [f64],
+    ) {
+        let n = self.dof();
+        self.placements(q, st);
+        composite[..n].copy_from_slice(&inertial[..n]);
+        for i in (1..n).rev() {
+            let mut moved = [0.0; 10];
+            transform_to_parent(&composite[i], &st[i].r, &st[i].p, &mut moved);
+            for (c, x) in composite[i - 1].iter_mut().zip(moved) {
+                *c += x;
+            }
+        }
+        for i in 0..n {
+            let g = &self.geom[i];
+            let ic = &composite[i];
+            let h = first_moment(ic);
+            // Spatial force I_c·S_i about the origin of frame i.
+            let mut nm = inertia_times(ic, &g.s_ang) + h.cross(&g.s_lin);
+            let mut f: Vector3<f64> = g.s_lin * ic[0] - h.cross(&g.s_ang);
+            m[i + n * i] = g.s_ang.dot(&nm) + g.s_lin.dot(&f);
+            for j in (0..i).rev() {
+                let c = &st[j + 1];
+                f = c.r * f;
+                nm = c.r * nm + c.p.cross(&f);
+                let gj = &self.geom[j];
+                let v = gj.s_ang.dot(&nm) + gj.s_lin.dot(&f);
+                m[j + n * i] = v;
+                m[i + n * j] = v;
+            }
+        }
+    }
+}
+
+/// In-place Cholesky M = L·Lᵀ of a column-major n×n symmetric matrix (lower triangle
+/// read and overwritten with L).
+///
+/// # Errors
+/// [`PrrrpError::NotPositiveDefinite`] if a pivot is not strictly positive and finite.
+#[inline]
+pub(crate) fn cholesky_in_place(a: &mut [f64], n: usize) -> Result<()> {
+    for j in 0..n {
+        let mut d = a[j + n * j];
+        for k in 0..j {
+            d -= a[j + n * k] * a[j + n * k];
+        }
+        if !(d > 0.0 && d.is_finite()) {
+            return Err(PrrrpError::NotPositiveDefinite {
+                what: "mass matrix M(q) of the chain",
+            });
+        }
+        let d = d.sqrt();
+        a[j + n * j] = d;
+        for i in j + 1..n {
+            let mut s = a[i + n * j];
+            for k in 0..j {
+                s -= a[i + n * k] * a[j + n * k];
+            }
+            a[i + n * j] = s / d;
+        }
+    }
+    Ok(())
+}
+
+/// Solves L·Lᵀ·x = b in place with the factor of [`cholesky_in_place`].
+#[inline]
+pub(crate) fn cholesky_solve(l: &[f64], n: usize, b: &mut [f64]) {
+    for i in 0..n {
+        let mut s = b[i];
+        for k in 0..i {
+            s -= l[i + n * k] * b[k];
+        }
+        b[i] = s / l[i + n * i];
+    }
+    for i in (0..n).rev() {
+        let mut s = b[i];
+        for k in i + 1..n {
+            s -= l[k + n * i] * b[k];
+        }
+        b[i] = s / l[i + n * i];
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn cholesky_solves_spd_system() {
+        let n = 3;
+        // Column-major SPD matrix.
+        let a0 = [4.0, 2.0, 0.4, 2.0, 5.0, 1.0, 0.4, 1.0, 3.0];
+        let mut l = a0;
+        cholesky_in_place(&mut l, n).unwrap();
+        let mut x = [1.0, -2.0, 0.5];
+        let b = x;
+        cholesky_solve(&l, n, &mut x);
+        for i in 0..n {
+            let ax: f64 = (0..n).map(|k| a0[i + n * k] * x[k]).sum();
+            assert!((ax - b[i]).abs() < 1e-14);
+        }
+        let mut bad = [1.0, 2.0, 2.0, 1.0];
+        assert!(cholesky_in_place(&mut bad, 2).is_err());
+    }
+}

@@ -1,0 +1,31 @@
+//! Any serial manipulator of revolute and prismatic joints, from a Denavit–Hartenberg
+//! table: recursive Newton–Euler inverse dynamics, composite-rigid-body mass matrix,
+//! forward dynamics, the standard regressor (10 inertial parameters per link, plus
+//! optional friction), numerical base parameters, and a base-parameter model the
+//! estimators accept (paper section 4.1, eqs. 32–34, for any chain).
+//!
+//! Start with [`SerialChain`] (size fixed at compile time, allocation-free) or
+//! [`DynChain`] (size known at run time). [`SerialChain::paper`] is the PRRRP arm of the
+//! paper as a chain; it reproduces the closed-form [`crate::PrrrpModel`].
+
+mod base_model;
+mod base_params;
+mod crba;
+mod dh;
+mod friction;
+mod inertia;
+mod paper;
+mod regressor;
+mod rnea;
+mod robots;
+mod serial_chain;
+
+pub use base_model::ChainBaseModel;
+pub use base_params::{BaseOptions, BaseParameters};
+pub use dh::DhConvention;
+pub use friction::{FrictionModel, FRICTION_PARAMETER_NAMES};
+pub use inertia::{
+    com_and_inertia, inertial_parameters, is_physically_consistent, transform_inertial_parameters,
+    INERTIAL_PARAMETER_NAMES, LINK_PARAMS,
+};
+pub use serial_chain::{DynChain, SerialChain};

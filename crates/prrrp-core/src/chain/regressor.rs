@@ -1,0 +1,175 @@
+//! The standard regressor Y(q, q̇, q̈) ∈ R^{n×10n} with τ = Y·π (Khalil & Dombre 2002,
+//! Atkeson, An & Hollerbach 1986), plus the friction columns.
+//!
+//! Link i's wrench about its frame origin is linear in its own 10 parameters,
+//! w_i = A(ωᵢ, ω̇ᵢ, aᵢ)·πᵢ (a 6×10 matrix); joint j ≤ i feels it through the chain of
+//! frame changes from i down to j. Y is block upper triangular: column block i is zero
+//! in the rows of joints after i.
+
+use nalgebra::Vector3;
+
+use super::rnea::{ChainView, LinkState};
+
+/// Receives the entries of a regressor as they are computed. Entries never reported are
+/// zero; the caller zeroes the storage first.
+pub(crate) trait RegressorSink {
+    /// Entry of joint row `row` for parameter `k` (0..10) of link `link`.
+    fn rigid(&mut self, row: usize, link: usize, k: usize, v: f64);
+    /// Friction entry of joint `joint` for term `kind` (0 viscous, 1 Coulomb, 2 offset);
+    /// reported only for enabled terms.
+    fn friction(&mut self, joint: usize, kind: usize, v: f64);
+}
+
+/// Sink into a column-major matrix slice with `ld` rows, writing rows `row0 + joint` and
+/// columns in the chain's parameter order (10 per link, then enabled friction terms).
+pub(crate) struct ColumnMajorSink<'a> {
+    pub(crate) data: &'a mut [f64],
+    pub(crate) ld: usize,
+    pub(crate) row0: usize,
+    pub(crate) n: usize,
+    pub(crate) per_joint: usize,
+    pub(crate) slots: [usize; 3],
+}
+
+impl RegressorSink for ColumnMajorSink<'_> {
+    #[inline(always)]
+    fn rigid(&mut self, row: usize, link: usize, k: usize, v: f64) {
+        self.data[self.row0 + row + self.ld * (10 * link + k)] = v;
+    }
+    #[inline(always)]
+    fn friction(&mut self, joint: usize, kind: usize, v: f64) {
+        let col = 10 * self.n + self.per_joint * joint + self.slots[kind];
+        self.data[self.row0 + joint + self.ld * col] = v;
+    }
+}
+
+/// Sink into a faer matrix (rows `row0 + joint`), used to stack samples.
+pub(crate) struct FaerSink<'a> {
+    pub(crate) mat: &'a mut faer::Mat<f64>,
+    pub(crate) row0: usize,
+    pub(crate) n: usize,
+    pub(crate) per_joint: usize,
+    pub(crate) slots: [usize; 3],
+}
+
+impl RegressorSink for FaerSink<'_> {
+    #[inline(always)]
+    fn rigid(&mut self, row: usize, link: usize, k: usize, v: f64) {
+        self.mat[(self.row0 + row, 10 * link + k)] = v;
+    }
+    #[inline(always)]
+    fn friction(&mut self, joint: usize, kind: usize, v: f64) {
+        let col = 10 * self.n + self.per_joint * joint + self.slots[kind];
+        self.mat[(self.row0 + joint, col)] = v;
+    }
+}
+
+/// The wrench of one link per unit of each of its 10 parameters, in its own frame:
+/// moment about the frame origin and force, for m, mx, my, mz (`n`, `f`); moment only for
+/// Ixx..Izz (`ni`).
+struct LinkColumns {
+    n: [Vector3<f64>; 4],
+    f: [Vector3<f64>; 4],
+    ni: [Vector3<f64>; 6],
+}
+
+impl LinkColumns {
+    #[inline(always)]
+    fn new(s: &LinkState) -> Self {
+        let (w, wd, a) = (s.w, s.wd, s.a);
+        // f = m·a + ω̇ × h + ω × (ω × h), n = I·ω̇ + ω × (I·ω) + h × a.
+        let k = wd.cross_matrix() + w.cross_matrix() * w.cross_matrix();
+        let f = [
+            a,
+            k.column(0).into(),
+            k.column(1).into(),
+            k.column(2).into(),
+        ];
+        let n = [
+            Vector3::zeros(),
+            Vector3::x().cross(&a),
+            Vector3::y().cross(&a),
+            Vector3::z().cross(&a),
+        ];
+        // L(v)·[Ixx, Ixy, Iyy, Ixz, Iyz, Izz] = I·v.
+        let l = |v: &Vector3<f64>| {
+            [
+                Vector3::new(v.x, 0.0, 0.0),
+                Vector3::new(v.y, v.x, 0.0),
+                Vector3::new(0.0, v.y, 0.0),
+                Vector3::new(v.z, 0.0, v.x),
+                Vector3::new(0.0, v.z, v.y),
+                Vector3::new(0.0, 0.0, v.z),
+            ]
+        };
+        let (lwd, lw) = (l(&wd), l(&w));
+        let ni = std::array::from_fn(|c| lwd[c] + w.cross(&lw[c]));
+        Self { n, f, ni }
+    }
+
+    /// Row `row` of link `link`'s block: S·A with S = (s_ang, s_lin) in the link frame.
+    #[inline(always)]
+    fn emit<S: RegressorSink>(
+        &self,
+        row: usize,
+        link: usize,
+        s_ang: &Vector3<f64>,
+        s_lin: &Vector3<f64>,
+        revolute: bool,
+        sink: &mut S,
+    ) {
+        for c in 0..4 {
+            sink.rigid(row, link, c, s_ang.dot(&self.n[c]) + s_lin.dot(&self.f[c]));
+        }
+        if revolute {
+            for (c, x) in self.ni.iter().enumerate() {
+                sink.rigid(row, link, 4 + c, s_ang.dot(x));
+            }
+        }
+    }
+}
+
+impl ChainView<'_> {
+    /// Computes Y (and, if `friction`, the enabled friction columns) into `sink`.
+    #[inline]
+    pub(crate) fn regressor_into<S: RegressorSink>(
+        &self,
+        q: &[f64],
+        qd: &[f64],
+        qdd: &[f64],
+        friction: bool,
+        st: &mut [LinkState],
+        sink: &mut S,
+    ) {
+        self.kinematics(q, qd, qdd, true, st);
+        let n = self.dof();
+        // Joint j's motion subspace S_j, re-expressed frame by frame as i grows (kept in
+        // st[j].s_*): the entry of row j and link i is S_jᵀ·A_i in frame i, one motion
+        // transform per (i, j) instead of moving the ten columns of A_i down to every j.
+        for i in 0..n {
+            let (rt, p) = (st[i].r.transpose(), st[i].p);
+            for sj in st[..i].iter_mut() {
+                // From frame i−1 to frame i: ω' = Rᵀω, v' = Rᵀ(v + ω × p).
+                sj.s_lin = rt * (sj.s_lin + sj.s_ang.cross(&p));
+                sj.s_ang = rt * sj.s_ang;
+            }
+            st[i].s_ang = self.geom[i].s_ang;
+            st[i].s_lin = self.geom[i].s_lin;
+            let cols = LinkColumns::new(&st[i]);
+            for (j, sj) in st[..=i].iter().enumerate() {
+                cols.emit(j, i, &sj.s_ang, &sj.s_lin, self.geom[j].revolute, sink);
+            }
+        }
+        if friction {
+            let en = self.friction.enabled();
+            for (j, &v) in qd.iter().enumerate().take(n) {
+                let feat = self.friction.features(v);
+                for kind in 0..3 {
+                    if en[kind] {
+                        sink.friction(j, kind, feat[kind]);
+                    }
+                }
+            }
+        }
+    }
+}

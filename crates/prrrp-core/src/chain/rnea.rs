@@ -1,0 +1,192 @@
+//! Recursive Newton–Euler inverse dynamics of a serial chain (Luh, Walker & Paul 1980),
+//! written once over slices so that the fixed-size and the run-time-size chains share it.
+//!
+//! Every quantity of link i is expressed in frame i; moments are about the origin of frame
+//! i. Gravity enters as an upward acceleration of the base (a₀ = −g).
+
+use nalgebra::{Matrix3, Vector3};
+
+use super::dh::JointGeom;
+use super::friction::FrictionModel;
+use super::inertia::{first_moment, inertia_times};
+
+/// A borrowed view of a chain: what every algorithm needs, whatever the storage.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct ChainView<'a> {
+    pub(crate) geom: &'a [JointGeom],
+    pub(crate) inertial: &'a [[f64; 10]],
+    pub(crate) friction_params: &'a [[f64; 3]],
+    pub(crate) friction: FrictionModel,
+    pub(crate) gravity: Vector3<f64>,
+}
+
+/// Per-link kinematic state of one sample, in frame i.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct LinkState {
+    /// ⁱ⁻¹Rᵢ.
+    pub(crate) r: Matrix3<f64>,
+    /// Origin of frame i in frame i−1 (m).
+    pub(crate) p: Vector3<f64>,
+    /// Angular velocity ωᵢ (rad/s).
+    pub(crate) w: Vector3<f64>,
+    /// Angular acceleration ω̇ᵢ (rad/s²).
+    pub(crate) wd: Vector3<f64>,
+    /// Classical linear acceleration of the origin of frame i, gravity included (m/s²).
+    pub(crate) a: Vector3<f64>,
+    /// Regressor scratch: the motion subspace of joint i re-expressed in a later frame.
+    pub(crate) s_ang: Vector3<f64>,
+    /// Linear part of `s_ang`'s motion vector.
+    pub(crate) s_lin: Vector3<f64>,
+}
+
+impl Default for LinkState {
+    fn default() -> Self {
+        Self {
+            r: Matrix3::identity(),
+            p: Vector3::zeros(),
+            w: Vector3::zeros(),
+            wd: Vector3::zeros(),
+            a: Vector3::zeros(),
+            s_ang: Vector3::zeros(),
+            s_lin: Vector3::zeros(),
+        }
+    }
+}
+
+impl ChainView<'_> {
+    #[inline(always)]
+    pub(crate) fn dof(&self) -> usize {
+        self.geom.len()
+    }
+
+    /// Link placements ⁱ⁻¹Tᵢ(q) only.
+    #[inline]
+    pub(crate) fn placements(&self, q: &[f64], st: &mut [LinkState]) {
+        for ((g, s), &qi) in self.geom.iter().zip(st.iter_mut()).zip(q) {
+            let (r, p) = g.transform(qi);
+            s.r = r;
+            s.p = p;
+        }
+    }
+
+    /// Forward pass: velocities and accelerations of every link. `gravity` false gives the
+    /// accelerations without the fictitious base acceleration.
+    #[inline]
+    pub(crate) fn kinematics(
+        &self,
+        q: &[f64],
+        qd: &[f64],
+        qdd: &[f64],
+        gravity: bool,
+        st: &mut [LinkState],
+    ) {
+        let mut w_p = Vector3::zeros();
+        let mut wd_p = Vector3::zeros();
+        let mut a_p = if gravity {
+            -self.gravity
+        } else {
+            Vector3::zeros()
+        };
+        for (i, (g, s)) in self.geom.iter().zip(st.iter_mut()).enumerate() {
+            let (r, p) = g.transform(q[i]);
+            let rt = r.transpose();
+            // Acceleration of the point of link i−1 that coincides with the origin of frame i.
+            let a_rigid = rt * (a_p + wd_p.cross(&p) + w_p.cross(&w_p.cross(&p)));
+            let w_pi = rt * w_p;
+            let wd_pi = rt * wd_p;
+            let u = g.axis;
+            let (w, wd, a) = if g.revolute {
+                let wr = u * qd[i];
+                let v_rel = wr.cross(&g.rho);
+                (
+                    w_pi + wr,
+                    wd_pi + u * qdd[i] + w_pi.cross(&wr),
+                    a_rigid
+                        + (u * qdd[i]).cross(&g.rho)
+                        + wr.cross(&v_rel)
+                        + 2.0 * w_pi.cross(&v_rel),
+                )
+            } else {
+                (
+                    w_pi,
+                    wd_pi,
+                    a_rigid + u * qdd[i] + 2.0 * w_pi.cross(&(u * qd[i])),
+                )
+            };
+            s.r = r;
+            s.p = p;
+            s.w = w;
+            s.wd = wd;
+            s.a = a;
+            w_p = w;
+            wd_p = wd;
+            a_p = a;
+        }
+    }
+
+    /// Inverse dynamics τ = M·q̈ + C·q̇ + G (+ friction if `friction`) with the inertial
+    /// parameters `inertial` (one 10-vector per link) and friction parameters `fric`.
+    #[allow(clippy::too_many_arguments)]
+    #[inline]
+    pub(crate) fn rnea_with(
+        &self,
+        inertial: &[[f64; 10]],
+        fric: &[[f64; 3]],
+        q: &[f64],
+        qd: &[f64],
+        qdd: &[f64],
+        gravity: bool,
+        st: &mut [LinkState],
+        tau: &mut [f64],
+    ) {
+        self.kinematics(q, qd, qdd, gravity, st);
+        let n = self.dof();
+        let mut f_c = Vector3::zeros();
+        let mut n_c = Vector3::zeros();
+        for i in (0..n).rev() {
+            let s = &st[i];
+            let pi = &inertial[i];
+            let h = first_moment(pi);
+            let mut f = s.a * pi[0] + s.wd.cross(&h) + s.w.cross(&s.w.cross(&h));
+            let mut nm =
+                inertia_times(pi, &s.wd) + s.w.cross(&inertia_times(pi, &s.w)) + h.cross(&s.a);
+            if i + 1 < n {
+                let c = &st[i + 1];
+                let fr = c.r * f_c;
+                f += fr;
+                nm += c.r * n_c + c.p.cross(&fr);
+            }
+            let g = &self.geom[i];
+            tau[i] = g.s_ang.dot(&nm) + g.s_lin.dot(&f);
+            f_c = f;
+            n_c = nm;
+        }
+        if self.friction.columns_per_joint() > 0 {
+            for i in 0..n {
+                tau[i] += self.friction.torque(qd[i], &fric[i]);
+            }
+        }
+    }
+
+    /// Inverse dynamics with the chain's own parameters, gravity and friction included.
+    #[inline]
+    pub(crate) fn rnea(
+        &self,
+        q: &[f64],
+        qd: &[f64],
+        qdd: &[f64],
+        st: &mut [LinkState],
+        tau: &mut [f64],
+    ) {
+        self.rnea_with(
+            self.inertial,
+            self.friction_params,
+            q,
+            qd,
+            qdd,
+            true,
+            st,
+            tau,
+        );
+    }
+}

@@ -1,0 +1,103 @@
+//! The per-sample methods of a fixed-size chain and of its base-parameter model allocate
+//! nothing (a counting global allocator; the count is per thread, so parallel tests do
+//! not interfere).
+
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::cell::Cell;
+
+use prrrp_core::nalgebra::{SMatrix, SVector};
+use prrrp_core::{BaseOptions, FrictionModel, LinearDynamics, SerialChain};
+
+struct Counting;
+
+thread_local! {
+    static ALLOCATIONS: Cell<usize> = const { Cell::new(0) };
+}
+
+unsafe impl GlobalAlloc for Counting {
+    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
+        ALLOCATIONS.with(|c| c.set(c.get() + 1));
+        // SAFETY: forwarded unchanged to the system allocator.
+        unsafe { System.alloc(layout) }
+    }
+    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
+        // SAFETY: `ptr` came from `System.alloc` with this layout.
+        unsafe { System.dealloc(ptr, layout) }
+    }
+    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
+        ALLOCATIONS.with(|c| c.set(c.get() + 1));
+        // SAFETY: forwarded unchanged to the system allocator.
+        unsafe { System.realloc(ptr, layout, new_size) }
+    }
+}
+
+#[global_allocator]
+static GLOBAL: Counting = Counting;
+
+fn allocations() -> usize {
+    ALLOCATIONS.with(|c| c.get())
+}
+
+/// Runs `f` once to warm up, then 20 times, and returns the allocations of the 20.
+fn count(mut f: impl FnMut(usize)) -> usize {
+    f(0);
+    let before = allocations();
+    for k in 1..=20 {
+        f(k);
+    }
+    allocations() - before
+}
+
+fn state<const N: usize>(k: usize) -> [SVector<f64, N>; 3] {
+    let v = |s: f64| SVector::<f64, N>::from_fn(|i, _| (s * (i + 1) as f64 + 0.1 * k as f64).sin());
+    [v(0.7), v(1.3), v(2.1)]
+}
+
+#[test]
+fn the_counter_sees_allocations() {
+    assert!(count(|k| drop(std::hint::black_box(vec![k; 4]))) >= 20);
+}
+
+#[test]
+fn fixed_size_chain_does_not_allocate() {
+    let chain = SerialChain::puma560()
+        .with_friction(FrictionModel::all(), [[0.5, 0.2, 0.01]; 6])
+        .expect("valid");
+    let mut out = vec![0.0; 6 * chain.num_params()];
+    let mut sink = 0.0;
+    let n = count(|k| {
+        let [q, qd, qdd] = state::<6>(k);
+        let tau = chain.inverse_dynamics(&q, &qd, &qdd);
+        let m = chain.mass_matrix(&q);
+        let y: SMatrix<f64, 6, 60> = chain.regressor(&q, &qd, &qdd);
+        let qdd2 = chain.forward_dynamics(&q, &qd, &tau).expect("PD");
+        let g = chain.gravity_torques(&q);
+        chain
+            .regressor_full_into(&q, &qd, &qdd, &mut out)
+            .expect("size");
+        sink += tau[0] + m[(1, 1)] + y[(0, 5)] + qdd2[2] + g[1] + out[7];
+    });
+    std::hint::black_box(sink);
+    assert_eq!(n, 0);
+}
+
+#[test]
+fn base_model_does_not_allocate() {
+    let chain = SerialChain::paper();
+    let base = chain
+        .base_parameters(&BaseOptions::default())
+        .expect("analysis");
+    let model = chain.base_model::<9>(&base).expect("9");
+    let beta = model.chain_base_values();
+    let mut sink = 0.0;
+    let n = count(|k| {
+        let [q, qd, qdd] = state::<5>(k);
+        let phi = model.regressor(&q, &qd, &qdd);
+        let tau = model.inverse_dynamics(&q, &qd, &qdd, &beta);
+        let fd = model.forward_dynamics(&q, &qd, &tau, &beta).expect("PD");
+        let d = model.forward_derivatives(&q, &qd, &tau, &beta).expect("PD");
+        sink += phi[(1, 2)] + fd[0] + d.dqdd_dq[(1, 1)];
+    });
+    std::hint::black_box(sink);
+    assert_eq!(n, 0);
+}
