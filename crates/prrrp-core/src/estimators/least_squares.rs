@@ -79,6 +79,8 @@ pub struct LeastSquares {
     config: LeastSquaresConfig,
     w: Mat<f64>,
     y: Mat<f64>,
+    block: Mat<f64>,
+    block_y: Mat<f64>,
     householder: Mat<f64>,
     perm_fwd: Vec<usize>,
     perm_bwd: Vec<usize>,
@@ -105,6 +107,8 @@ impl LeastSquares {
             config,
             w: Mat::new(),
             y: Mat::new(),
+            block: Mat::new(),
+            block_y: Mat::new(),
             householder: Mat::new(),
             perm_fwd: Vec::new(),
             perm_bwd: Vec::new(),
@@ -122,9 +126,10 @@ impl LeastSquares {
         data: &Samples<'_, N>,
     ) -> Result<LeastSquaresReport<N, P>> {
         check_samples::<N, P>(data)?;
-        self.build(model, data, &SVector::<f64, N>::repeat(1.0))?;
-        let sol = self.factor_and_solve::<P>()?;
-        let joint_variances = joint_residual_variances::<N, P>(self.residual(), data.len());
+        let masks = self.build(model, data, &SVector::<f64, N>::repeat(1.0))?;
+        let (sol, joint_ss) = self.factor_and_solve::<N, P>(data.len(), &masks)?;
+        // σ_j² = ‖ρ_j‖²/(n − P/N): the residual degrees of freedom shared equally.
+        let joint_variances = joint_ss / (data.len() as f64 - P as f64 / N as f64);
         Ok(sol.report(joint_variances, data.len()))
     }
 
@@ -164,19 +169,22 @@ impl LeastSquares {
         };
         check_samples::<N, P>(data)?;
         let scale = variances.map(|s| 1.0 / s.sqrt());
-        self.build(model, data, &scale)?;
-        let sol = self.factor_and_solve::<P>()?;
+        let masks = self.build(model, data, &scale)?;
+        let (sol, _) = self.factor_and_solve::<N, P>(data.len(), &masks)?;
         Ok(sol.report(variances, data.len()))
     }
 
-    /// Stacks the row-scaled regressors into W (column-major, N·n × P) and τ into y.
+    /// Stacks the row-scaled regressors into W (column-major, N·n × P) and τ into y, joint
+    /// by joint (row i·n + k is joint i of sample k), and returns for each joint the set
+    /// of parameters (bit mask) its equations ever involve.
     fn build<const N: usize, const P: usize, M: LinearDynamics<N, P>>(
         &mut self,
         model: &M,
         data: &Samples<'_, N>,
         row_scale: &SVector<f64, N>,
-    ) -> Result<()> {
-        let rows = N * data.len();
+    ) -> Result<[u64; N]> {
+        let n = data.len();
+        let rows = N * n;
         self.w.resize_with(rows, P, |_, _| 0.0);
         self.y.resize_with(rows, 1, |_, _| 0.0);
         let y = self.y.col_as_slice_mut(0);
@@ -184,93 +192,195 @@ impl LeastSquares {
             s.check_finite()
                 .map_err(|e| super::estimator::with_row(e, k))?;
             for i in 0..N {
-                y[N * k + i] = s.tau[i] * row_scale[i];
+                y[i * n + k] = s.tau[i] * row_scale[i];
             }
         }
+        let mut nonzero = SMatrix::<bool, N, P>::repeat(false);
         for (k, s) in data.iter().enumerate() {
             let phi: SMatrix<f64, N, P> = model.regressor(s.q, s.qd, s.qdd);
             for j in 0..P {
-                let col = &mut self.w.col_as_slice_mut(j)[N * k..N * k + N];
+                let col = self.w.col_as_slice_mut(j);
                 for i in 0..N {
-                    col[i] = phi[(i, j)] * row_scale[i];
+                    let v = phi[(i, j)] * row_scale[i];
+                    col[i * n + k] = v;
+                    nonzero[(i, j)] |= v != 0.0;
                 }
             }
         }
-        Ok(())
+        let mut masks = [0u64; N];
+        for (i, m) in masks.iter_mut().enumerate() {
+            for j in 0..P {
+                if nonzero[(i, j)] {
+                    // More than 64 parameters: one block (every bit set).
+                    *m |= if P <= 64 { 1 << j } else { u64::MAX };
+                }
+            }
+        }
+        Ok(masks)
     }
 
-    /// QR with column pivoting of W in place (W·Πᵀ = Q·R), z = Qᵀy, λ̂ = Πᵀ·R⁻¹·z, then
-    /// y ← ρ = Q·[0; z_P..] (the residual, without keeping W).
-    fn factor_and_solve<const P: usize>(&mut self) -> Result<Solution<P>> {
-        let rows = self.w.nrows();
-        let bs = recommended_block_size::<f64>(rows, P);
-        self.householder.resize_with(bs, P, |_, _| 0.0);
-        self.perm_fwd.resize(P, 0);
-        self.perm_bwd.resize(P, 0);
-        let needs_scratch = !matches!(&self.scratch, Some((shape, _)) if *shape == (rows, bs));
+    /// Least squares block by block. After permuting rows and columns, W is block diagonal:
+    /// each block couples the joints and parameters connected through non-zero entries
+    /// (for PRRRP {F1, F5}×{λ1, λ8} and {τ2, τ3, τ4}×{λ2..λ7}, the networks of eq. 40).
+    /// Each block is factorised by QR with column pivoting in place (B·Πᵀ = Q·R), with
+    /// z = Qᵀy, λ̂ = Πᵀ·R⁻¹·z and the residual Q·[0; z_p..]; the singular values of W are
+    /// those of the blocks' R factors together, (WᵀW)⁻¹ is block diagonal, and a parameter
+    /// in no block is an unidentifiable direction of its own. Returns the solution and the
+    /// residual sum of squares of each joint.
+    fn factor_and_solve<const N: usize, const P: usize>(
+        &mut self,
+        n: usize,
+        masks: &[u64; N],
+    ) -> Result<(Solution<P>, SVector<f64, N>)> {
+        let blocks = blocks::<N, P>(masks);
+        let whole = blocks.len() == 1 && blocks[0].0.len() == N && blocks[0].1.len() == P;
+        let total_rows = N * n;
+        let bs = recommended_block_size::<f64>(total_rows, P);
+        let needs_scratch =
+            !matches!(&self.scratch, Some((shape, _)) if *shape == (total_rows, bs));
         if needs_scratch {
             let req = StackReq::any_of(&[
-                qr_in_place_scratch::<usize, f64>(rows, P, bs, Par::Seq, Default::default()),
-                householder::apply_block_householder_sequence_transpose_on_the_left_in_place_scratch::<f64>(rows, bs, 1),
-                householder::apply_block_householder_sequence_on_the_left_in_place_scratch::<f64>(rows, bs, 1),
+                qr_in_place_scratch::<usize, f64>(total_rows, P, bs, Par::Seq, Default::default()),
+                householder::apply_block_householder_sequence_transpose_on_the_left_in_place_scratch::<f64>(total_rows, bs, 1),
+                householder::apply_block_householder_sequence_on_the_left_in_place_scratch::<f64>(total_rows, bs, 1),
             ]);
-            self.scratch = Some(((rows, bs), MemBuffer::new(req)));
+            self.scratch = Some(((total_rows, bs), MemBuffer::new(req)));
         }
-        let Some((_, buf)) = self.scratch.as_mut() else {
-            unreachable!("scratch was just allocated");
-        };
-        let stack = MemStack::new(buf);
-        qr_in_place(
-            self.w.as_mut(),
-            self.householder.as_mut(),
-            &mut self.perm_fwd,
-            &mut self.perm_bwd,
-            Par::Seq,
-            stack,
-            Default::default(),
-        );
-        let r = SMatrix::<f64, P, P>::from_fn(|i, j| if i <= j { self.w[(i, j)] } else { 0.0 });
-        if !r.iter().all(|x| x.is_finite()) {
-            return Err(PrrrpError::NonFinite {
-                what: "QR factor of W".into(),
-                row: None,
-            });
-        }
-        // The Householder basis is the unit lower trapezoid of the factored W.
-        for j in 0..P {
-            for i in 0..j {
-                self.w[(i, j)] = 0.0;
-            }
-            self.w[(j, j)] = 1.0;
-        }
-        let fwd: [usize; P] = std::array::from_fn(|k| self.perm_fwd[k]);
 
-        // W and R share their singular values; W's right singular vectors are Πᵀ·V_R.
-        let r_mat = Mat::<f64>::from_fn(P, P, |i, j| r[(i, j)]);
-        let svd = r_mat.svd().map_err(|_| PrrrpError::NonFinite {
-            what: "SVD of the QR factor R (did not converge)".into(),
-            row: None,
-        })?;
-        let (sv, v) = (svd.S().column_vector(), svd.V());
-        let mut order: [usize; P] = std::array::from_fn(|i| i);
-        order.sort_by(|&a, &b| sv[b].total_cmp(&sv[a]));
-        let singular_values = SVector::<f64, P>::from_fn(|i, _| sv[order[i]]);
+        let mut spectrum: Vec<(f64, Vec<f64>)> = Vec::with_capacity(P);
+        let mut lambda = SVector::<f64, P>::zeros();
+        let mut rinv_norm2 = SVector::<f64, P>::zeros();
+        let mut joint_ss = SVector::<f64, N>::zeros();
+        let mut covered = [false; P];
+        for (i, &m) in masks.iter().enumerate() {
+            if m == 0 {
+                // A joint whose equations involve no parameter: all of τ_i is residual.
+                let ys = &self.y.col_as_slice(0)[i * n..i * n + n];
+                joint_ss[i] = ys.iter().map(|v| v * v).sum();
+            }
+        }
+        for (joints, params) in &blocks {
+            let (rows, pc) = (joints.len() * n, params.len());
+            if !whole {
+                self.block.resize_with(rows, pc, |_, _| 0.0);
+                self.block_y.resize_with(rows, 1, |_, _| 0.0);
+                for (c, &j) in params.iter().enumerate() {
+                    let src = self.w.col_as_slice(j);
+                    let dst = self.block.col_as_slice_mut(c);
+                    for (a, &i) in joints.iter().enumerate() {
+                        dst[a * n..a * n + n].copy_from_slice(&src[i * n..i * n + n]);
+                    }
+                }
+                let src = self.y.col_as_slice(0);
+                let dst = self.block_y.col_as_slice_mut(0);
+                for (a, &i) in joints.iter().enumerate() {
+                    dst[a * n..a * n + n].copy_from_slice(&src[i * n..i * n + n]);
+                }
+            }
+            let (wm, ym) = if whole {
+                (&mut self.w, &mut self.y)
+            } else {
+                (&mut self.block, &mut self.block_y)
+            };
+            self.householder.resize_with(bs, pc, |_, _| 0.0);
+            self.perm_fwd.resize(pc, 0);
+            self.perm_bwd.resize(pc, 0);
+            let Some((_, buf)) = self.scratch.as_mut() else {
+                unreachable!("scratch was just allocated");
+            };
+            qr_in_place(
+                wm.as_mut(),
+                self.householder.as_mut(),
+                &mut self.perm_fwd,
+                &mut self.perm_bwd,
+                Par::Seq,
+                MemStack::new(buf),
+                Default::default(),
+            );
+            let r = Mat::<f64>::from_fn(pc, pc, |i, j| if i <= j { wm[(i, j)] } else { 0.0 });
+            if !(0..pc).all(|j| (0..pc).all(|i| r[(i, j)].is_finite())) {
+                return Err(PrrrpError::NonFinite {
+                    what: "QR factor of W".into(),
+                    row: None,
+                });
+            }
+            // The Householder basis is the unit lower trapezoid of the factored block.
+            for j in 0..pc {
+                for i in 0..j {
+                    wm[(i, j)] = 0.0;
+                }
+                wm[(j, j)] = 1.0;
+            }
+            // Parameter index of the k-th pivoted column.
+            let pidx = |k: usize| params[self.perm_fwd[k]];
+
+            // The block and R share their singular values; its right singular vectors are
+            // Πᵀ·V_R, embedded in parameter space.
+            let svd = r.svd().map_err(|_| PrrrpError::NonFinite {
+                what: "SVD of the QR factor R (did not converge)".into(),
+                row: None,
+            })?;
+            let (sv, v) = (svd.S().column_vector(), svd.V());
+            for o in 0..pc {
+                let mut d = vec![0.0; P];
+                for k in 0..pc {
+                    d[pidx(k)] = v[(k, o)];
+                }
+                spectrum.push((sv[o], d));
+            }
+
+            householder::apply_block_householder_sequence_transpose_on_the_left_in_place_with_conj(
+                wm.as_ref(),
+                self.householder.as_ref(),
+                Conj::No,
+                ym.as_mut(),
+                Par::Seq,
+                MemStack::new(buf),
+            );
+            let y = ym.col_as_slice_mut(0);
+            // λ̂ = R⁻¹·z; var(λ̂_pidx(k)) = σ²·‖row k of R⁻¹‖² ((WᵀW)⁻¹ = Πᵀ·R⁻¹·R⁻ᵀ·Π).
+            let r_inv = upper_triangular_inverse_dyn(&r);
+            for k in 0..pc {
+                let mut l = 0.0;
+                let mut norm2 = 0.0;
+                for j in k..pc {
+                    l += r_inv[(k, j)] * y[j];
+                    norm2 += r_inv[(k, j)] * r_inv[(k, j)];
+                }
+                lambda[pidx(k)] = l;
+                rinv_norm2[pidx(k)] = norm2;
+                covered[pidx(k)] = true;
+            }
+            y[..pc].fill(0.0);
+            householder::apply_block_householder_sequence_on_the_left_in_place_with_conj(
+                wm.as_ref(),
+                self.householder.as_ref(),
+                Conj::No,
+                ym.as_mut(),
+                Par::Seq,
+                MemStack::new(buf),
+            );
+            let rho = ym.col_as_slice(0);
+            for (a, &i) in joints.iter().enumerate() {
+                joint_ss[i] = rho[a * n..a * n + n].iter().map(|v| v * v).sum();
+            }
+        }
+        for (j, &c) in covered.iter().enumerate() {
+            if !c {
+                // A parameter no equation involves.
+                let mut d = vec![0.0; P];
+                d[j] = 1.0;
+                spectrum.push((0.0, d));
+            }
+        }
+        spectrum.sort_by(|a, b| b.0.total_cmp(&a.0));
+        let singular_values = SVector::<f64, P>::from_fn(|i, _| spectrum[i].0);
         let smax = singular_values[0];
         let rank = singular_values
             .iter()
             .filter(|&&s| s > self.config.rank_tolerance * smax && s > 0.0)
             .count();
         if rank < P {
-            let directions = order[rank..]
-                .iter()
-                .map(|&o| {
-                    let mut d = vec![0.0; P];
-                    for k in 0..P {
-                        d[fwd[k]] = v[(k, o)];
-                    }
-                    d
-                })
-                .collect();
             let cond = if singular_values[P - 1] > 0.0 {
                 smax / singular_values[P - 1]
             } else {
@@ -280,55 +390,21 @@ impl LeastSquares {
                 rank,
                 params: P,
                 cond,
-                directions,
+                directions: spectrum.drain(rank..).map(|(_, d)| d).collect(),
             });
         }
-
-        let stack = MemStack::new(buf);
-        householder::apply_block_householder_sequence_transpose_on_the_left_in_place_with_conj(
-            self.w.as_ref(),
-            self.householder.as_ref(),
-            Conj::No,
-            self.y.as_mut(),
-            Par::Seq,
-            stack,
-        );
-        let y = self.y.col_as_slice_mut(0);
-        let z = SVector::<f64, P>::from_column_slice(&y[..P]);
-        let rss: f64 = y[P..].iter().map(|v| v * v).sum();
-        let sigma2 = rss / (rows - P) as f64;
-        // λ̂_fwd = R⁻¹·z; (WᵀW)⁻¹ = Πᵀ·R⁻¹·R⁻ᵀ·Π, so var(λ_fwd[k]) = σ²·‖row k of R⁻¹‖².
-        let r_inv = upper_triangular_inverse(&r);
-        let lp = r_inv * z;
-        let mut lambda = SVector::<f64, P>::zeros();
-        let mut std_dev = SVector::<f64, P>::zeros();
-        for k in 0..P {
-            lambda[fwd[k]] = lp[k];
-            let row_norm2: f64 = (k..P).map(|j| r_inv[(k, j)] * r_inv[(k, j)]).sum();
-            std_dev[fwd[k]] = (sigma2 * row_norm2).sqrt();
-        }
-
-        y[..P].fill(0.0);
-        let stack = MemStack::new(buf);
-        householder::apply_block_householder_sequence_on_the_left_in_place_with_conj(
-            self.w.as_ref(),
-            self.householder.as_ref(),
-            Conj::No,
-            self.y.as_mut(),
-            Par::Seq,
-            stack,
-        );
-        Ok(Solution {
-            lambda,
-            singular_values,
-            sigma2,
-            std_dev,
-        })
-    }
-
-    /// The residual ρ = y − W·λ̂ of the last solve (rows N·k + j belong to joint j).
-    fn residual(&self) -> &[f64] {
-        self.y.col_as_slice(0)
+        let rss = joint_ss.sum();
+        let sigma2 = rss / (total_rows - P) as f64;
+        let std_dev = rinv_norm2.map(|v| (sigma2 * v).sqrt());
+        Ok((
+            Solution {
+                lambda,
+                singular_values,
+                sigma2,
+                std_dev,
+            },
+            joint_ss,
+        ))
     }
 }
 
@@ -434,9 +510,10 @@ impl<const P: usize> Solution<P> {
 }
 
 /// Inverse of a nonsingular upper-triangular matrix by back substitution.
-fn upper_triangular_inverse<const P: usize>(r: &SMatrix<f64, P, P>) -> SMatrix<f64, P, P> {
-    let mut inv = SMatrix::<f64, P, P>::zeros();
-    for j in 0..P {
+fn upper_triangular_inverse_dyn(r: &Mat<f64>) -> Mat<f64> {
+    let p = r.nrows();
+    let mut inv = Mat::<f64>::zeros(p, p);
+    for j in 0..p {
         // Column j of R⁻¹ solves R·x = e_j; x_i = 0 for i > j.
         inv[(j, j)] = 1.0 / r[(j, j)];
         for i in (0..j).rev() {
@@ -447,19 +524,55 @@ fn upper_triangular_inverse<const P: usize>(r: &SMatrix<f64, P, P>) -> SMatrix<f
     inv
 }
 
-/// σ_j² = ‖ρ_j‖²/(n − P/N) from the stacked residual (rows N·k + j belong to joint j).
-fn joint_residual_variances<const N: usize, const P: usize>(
-    residual: &[f64],
-    n: usize,
-) -> SVector<f64, N> {
-    let mut ss = SVector::<f64, N>::zeros();
-    for chunk in residual.chunks_exact(N) {
-        for j in 0..N {
-            ss[j] += chunk[j] * chunk[j];
+/// Groups joints and parameters into independent blocks: two parameters are in the same
+/// block when some joint's equations involve both. Returns (joints, parameters) of every
+/// block that has at least one parameter, in order of their first joint.
+fn blocks<const N: usize, const P: usize>(masks: &[u64; N]) -> Vec<(Vec<usize>, Vec<usize>)> {
+    let mut merged: Vec<u64> = Vec::new();
+    for &m in masks.iter().filter(|&&m| m != 0) {
+        let mut acc = m;
+        merged.retain(|&b| {
+            if b & acc != 0 {
+                acc |= b;
+                false
+            } else {
+                true
+            }
+        });
+        merged.push(acc);
+    }
+    // A later merge can connect earlier groups: repeat until stable.
+    loop {
+        let mut changed = false;
+        let mut out: Vec<u64> = Vec::new();
+        for &m in &merged {
+            if let Some(o) = out.iter_mut().find(|o| **o & m != 0) {
+                *o |= m;
+                changed = true;
+            } else {
+                out.push(m);
+            }
+        }
+        merged = out;
+        if !changed {
+            break;
         }
     }
-    let dof = n as f64 - P as f64 / N as f64;
-    ss / dof
+    let mut out: Vec<(Vec<usize>, Vec<usize>)> = merged
+        .iter()
+        .map(|&b| {
+            let joints = (0..N)
+                .filter(|&i| masks[i] != 0 && masks[i] & b != 0)
+                .collect();
+            let params = (0..P.min(64))
+                .filter(|&j| b & (1 << j) != 0)
+                .collect::<Vec<_>>();
+            let params = if P > 64 { (0..P).collect() } else { params };
+            (joints, params)
+        })
+        .collect();
+    out.sort_by_key(|(j, _): &(Vec<usize>, Vec<usize>)| j[0]);
+    out
 }
 
 #[cfg(test)]
@@ -469,7 +582,45 @@ mod tests {
     #[test]
     fn triangular_inverse() {
         let r = SMatrix::<f64, 3, 3>::new(2.0, 1.0, -1.0, 0.0, 3.0, 0.5, 0.0, 0.0, 4.0);
-        let inv = upper_triangular_inverse(&r);
+        let rf = Mat::<f64>::from_fn(3, 3, |i, j| r[(i, j)]);
+        let inv = upper_triangular_inverse_dyn(&rf);
+        let inv = SMatrix::<f64, 3, 3>::from_fn(|i, j| inv[(i, j)]);
         assert!((r * inv - SMatrix::<f64, 3, 3>::identity()).norm() < 1e-14);
+    }
+
+    #[test]
+    fn blocks_of_the_prrrp_pattern() {
+        // F1: λ1, λ8; τ2..τ4: λ2..λ7; F5: λ8.
+        let masks = [
+            0b1000_0001,
+            0b0111_1110,
+            0b0111_1100,
+            0b0111_0000,
+            0b1000_0000,
+        ];
+        let b = blocks::<5, 8>(&masks);
+        assert_eq!(
+            b,
+            vec![
+                (vec![0, 4], vec![0, 7]),
+                (vec![1, 2, 3], vec![1, 2, 3, 4, 5, 6])
+            ]
+        );
+        // A joint linking two groups merges them, whatever the order.
+        let masks = [0b0001, 0b0100, 0b0110, 0b1000];
+        let b = blocks::<4, 4>(&masks);
+        assert_eq!(
+            b,
+            vec![
+                (vec![0], vec![0]),
+                (vec![1, 2], vec![1, 2]),
+                (vec![3], vec![3])
+            ]
+        );
+        let masks = [0b0011, 0b1100, 0b0110];
+        assert_eq!(
+            blocks::<3, 4>(&masks),
+            vec![(vec![0, 1, 2], vec![0, 1, 2, 3])]
+        );
     }
 }
