@@ -78,7 +78,7 @@ pub struct BaseParameters {
     /// Standard parameters that do not affect any joint force (zero regressor column), a
     /// subset of `dependent`.
     pub unidentifiable: Vec<usize>,
-    /// K ∈ R^{b×p}: base parameters β = K·π, with K[r, independent[r]] = 1.
+    /// K ∈ R^{b×p}: base parameters β = K·π, with `K[(r, independent[r])] = 1`.
     pub map: Mat<f64>,
     /// Each base parameter as a readable linear combination, e.g. `"mx2 + 0.4318*m2"`.
     pub combinations: Vec<String>,
