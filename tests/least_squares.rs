@@ -382,7 +382,7 @@ fn fully_coupled_model_is_solved_as_one_block() {
         qdd.push(c);
         tau.push(t);
     }
-    let data = Dataset::new(&q, &qd, &qdd, &tau).unwrap();
+    let data = Samples::new(&q, &qd, &qdd, &tau).unwrap();
     let rep = least_squares(&Toy, &data, &LeastSquaresConfig::default()).unwrap();
     let explicit = wtw.try_inverse().unwrap() * wty;
     assert!(
