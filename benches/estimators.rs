@@ -27,7 +27,11 @@ fn bench_steps<E: Estimator<5, 8>>(
     let mut k = 0;
     c.bench_function(name, |b| {
         b.iter(|| {
-            k = (k + 1) % n;
+            // A compare instead of `%`: an integer division would cost ~10 ns per call.
+            k += 1;
+            if k == n {
+                k = 0;
+            }
             black_box(est.step(black_box(ds.sample(k))).unwrap()[0])
         })
     });

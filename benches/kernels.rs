@@ -15,12 +15,15 @@ struct State {
     tau: Vec5,
 }
 
+/// A power of two, so that cycling through the states costs a mask, not a division.
+const STATES: usize = 1024;
+
 fn states() -> Vec<State> {
     let robot = Robot::paper();
     let (model, lambda) = (robot.model(), robot.base_parameters());
     let mut rng = StdRng::seed_from_u64(42);
     let mut v = |s: f64| Vec5::from_fn(|_, _| s * (2.0 * rng.random::<f64>() - 1.0));
-    (0..1024)
+    (0..STATES)
         .map(|_| {
             let (q, qd, qdd) = (v(3.0), v(2.0), v(5.0));
             let tau = model.inverse_dynamics(&q, &qd, &qdd, &lambda);
@@ -33,32 +36,31 @@ fn kernels(c: &mut Criterion) {
     let robot = Robot::paper();
     let (model, lambda) = (robot.model(), robot.base_parameters());
     let s = states();
-    let n = s.len();
     let mut k = 0;
     c.bench_function("regressor", |b| {
         b.iter(|| {
-            k = (k + 1) % n;
+            k = (k + 1) % STATES;
             let x = &s[k];
             black_box(model.regressor(black_box(&x.q), &x.qd, &x.qdd))
         })
     });
     c.bench_function("inverse_dynamics", |b| {
         b.iter(|| {
-            k = (k + 1) % n;
+            k = (k + 1) % STATES;
             let x = &s[k];
             black_box(model.inverse_dynamics(black_box(&x.q), &x.qd, &x.qdd, &lambda))
         })
     });
     c.bench_function("forward_dynamics", |b| {
         b.iter(|| {
-            k = (k + 1) % n;
+            k = (k + 1) % STATES;
             let x = &s[k];
             black_box(model.forward_dynamics(black_box(&x.q), &x.qd, &x.tau, &lambda))
         })
     });
     c.bench_function("forward_derivatives", |b| {
         b.iter(|| {
-            k = (k + 1) % n;
+            k = (k + 1) % STATES;
             let x = &s[k];
             black_box(model.forward_derivatives(black_box(&x.q), &x.qd, &x.tau, &lambda))
         })

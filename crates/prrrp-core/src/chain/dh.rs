@@ -94,7 +94,8 @@ impl JointGeom {
         } else {
             (self.theta0, self.d0 + q)
         };
-        let (st, ct) = theta.sin_cos();
+        // One shared argument reduction (see `terms::Trig`).
+        let (st, ct) = libm::sincos(theta);
         let (ca, sa, a) = (self.ca, self.sa, self.a);
         if self.modified {
             // Rx(α)·Rz(θ), origin Rx(α)·(a, 0, d)… with Tx before Rz: (a, −sα·d, cα·d).
