@@ -164,10 +164,7 @@ def numerical_rank(w: np.ndarray) -> int:
 def pinocchio_stacked_regressor(model, q, qd, qdd) -> np.ndarray:
     data = model.createData()
     return np.vstack(
-        [
-            pin.computeJointTorqueRegressor(model, data, q[k], qd[k], qdd[k])
-            for k in range(len(q))
-        ]
+        [pin.computeJointTorqueRegressor(model, data, q[k], qd[k], qdd[k]) for k in range(len(q))]
     )
 
 
@@ -237,7 +234,9 @@ def test_friction_columns(states):
     close(chain.gravity_torques(q), rigid.gravity_torques(q), rtol=0)
     base = chain.base_parameters()
     assert base.count == 36 + 18
-    close(chain.base_regressor(q, qd, qdd) @ base.base_values(chain.parameters), y @ chain.parameters)
+    close(
+        chain.base_regressor(q, qd, qdd) @ base.base_values(chain.parameters), y @ chain.parameters
+    )
     # Smoothed Coulomb sign.
     smooth = prrrp.SerialChain(
         rigid.dh,
