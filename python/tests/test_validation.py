@@ -88,7 +88,8 @@ def test_torque_prediction_against_numpy(columns):
     t, q, qd, qdd, tau = columns
     robot = prrrp.Robot.paper()
     lam = robot.base_parameters() * np.linspace(0.9, 1.1, 8)
-    for data in [prrrp.Dataset(t, q, qd, qdd, tau), dict(t=t, q=q, qd=qd, qdd=qdd, tau=tau)]:
+    cols = {"t": t, "q": q, "qd": qd, "qdd": qdd, "tau": tau}
+    for data in [prrrp.Dataset(t, q, qd, qdd, tau), cols]:
         out = prrrp.torque_prediction(data, lam)
         predicted = robot.inverse_dynamics(q, qd, qdd, lam=lam)
         np.testing.assert_allclose(out["predicted"], predicted, rtol=1e-12, atol=1e-12)
@@ -96,13 +97,13 @@ def test_torque_prediction_against_numpy(columns):
         want = 100 * np.sqrt(np.sum((tau - predicted) ** 2, 0) / np.sum(tau**2, 0))
         np.testing.assert_allclose(out["relative_percent"], want, rtol=1e-12)
     # Gravity enters the prediction: at another g, F1 changes by λ1·Δg (λ8 cancels in F1+F5).
-    low = prrrp.torque_prediction(dict(t=t, q=q, qd=qd, qdd=qdd, tau=tau), lam, gravity=1.0)
+    low = prrrp.torque_prediction(cols, lam, gravity=1.0)
     shift = out["predicted"] - low["predicted"]
     np.testing.assert_allclose(shift[:, 0] + shift[:, 4], lam[0] * 8.81, rtol=1e-12)
     with pytest.raises(prrrp.NonFiniteError):
-        prrrp.torque_prediction(dict(t=t, q=q, qd=qd, qdd=qdd, tau=tau), lam * np.nan)
+        prrrp.torque_prediction(cols, lam * np.nan)
     with pytest.raises(prrrp.ShapeMismatchError, match="lam"):
-        prrrp.torque_prediction(dict(t=t, q=q, qd=qd, qdd=qdd, tau=tau), lam[:5])
+        prrrp.torque_prediction(cols, lam[:5])
 
 
 def test_validate_against_numpy():
@@ -140,12 +141,12 @@ def test_validate_against_numpy():
 
 # The core's default validation reference, written from its documentation: periods 5, 4,
 # 3.5, 3, 2.5 s, starting at rest (phase -π/2).
-REFERENCE = dict(
-    offset=[0.15, 0.2, -0.3, 0.1, 0.05],
-    amplitude=[0.1, 1.2, 1.1, 1.2, 0.03],
-    omega=2 * np.pi / np.array([5.0, 4.0, 3.5, 3.0, 2.5]),
-    phase=np.full(5, -np.pi / 2),
-)
+REFERENCE = {
+    "offset": [0.15, 0.2, -0.3, 0.1, 0.05],
+    "amplitude": [0.1, 1.2, 1.1, 1.2, 0.03],
+    "omega": 2 * np.pi / np.array([5.0, 4.0, 3.5, 3.0, 2.5]),
+    "phase": np.full(5, -np.pi / 2),
+}
 
 
 def test_sensitivity_non_physical_iff_mass_matrix_indefinite():
