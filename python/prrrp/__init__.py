@@ -27,6 +27,8 @@ from prrrp._prrrp import (
     NPARAM,
     STANDARD_GRAVITY,
     Adaline,
+    BaseParameters,
+    Dataset,
     DivergedError,
     Ekf,
     Excitation,
@@ -44,6 +46,7 @@ from prrrp._prrrp import (
     RankDeficientError,
     Rls,
     Robot,
+    SerialChain,
     ShapeMismatchError,
     SinusoidReference,
     TooFewSamplesError,
@@ -61,9 +64,12 @@ from prrrp._prrrp import (
     rms,
     rsd,
     run_study_json,
+    sensitivity,
     simulate_closed_loop,
     simulate_open_loop,
     singular_values,
+    torque_prediction,
+    validate,
 )
 
 __all__ = [
@@ -71,6 +77,8 @@ __all__ = [
     "NPARAM",
     "STANDARD_GRAVITY",
     "Adaline",
+    "BaseParameters",
+    "Dataset",
     "DivergedError",
     "Ekf",
     "Excitation",
@@ -88,6 +96,7 @@ __all__ = [
     "RankDeficientError",
     "Rls",
     "Robot",
+    "SerialChain",
     "ShapeMismatchError",
     "SinusoidReference",
     "TooFewSamplesError",
@@ -105,9 +114,12 @@ __all__ = [
     "rms",
     "rsd",
     "run_study",
+    "sensitivity",
     "simulate_closed_loop",
     "simulate_open_loop",
     "singular_values",
+    "torque_prediction",
+    "validate",
 ]
 
 

@@ -30,7 +30,8 @@ class InvalidInputError(PrrrpError, ValueError):
 
 class InvalidParameterError(InvalidInputError):
     field: str
-    value: float
+    value: float | str
+    """The offending number, or the text given for a non-numeric setting."""
     reason: str
 
 class NonFiniteError(InvalidInputError):
@@ -478,3 +479,283 @@ def relative_errors_percent(estimate: _ArrayLike, truth: _ArrayLike) -> _F64: ..
 
 def run_study_json(seed: int = 0, progress: Callable[[str, int, int], object] | None = None) -> str:
     """The whole study as JSON (schema_version 1); use `prrrp.run_study` for a dict."""
+
+# --- generic serial chains ------------------------------------------------------------
+
+class SerialChain:
+    """A serial arm of revolute and prismatic joints from a Denavit–Hartenberg table, with the
+    10 standard inertial parameters per link and optional joint friction. n joints; joint-space
+    arrays have shape (n,) or (N, n).
+
+    Arguments (SI units):
+    - dh: (n, 4) rows [a, alpha, d, theta] (m, rad, m, rad); theta and d are the constant
+      offsets to which a revolute/prismatic joint coordinate is added. With
+      convention='modified' (Craig), a and alpha of row i are a_{i-1} and alpha_{i-1}, as
+      Craig's tables list them.
+    - joint_types: 'RRP...' or a list of 'R'/'P' (or 'revolute'/'prismatic'), one per row;
+      anything else raises InvalidParameterError.
+    - convention: 'standard' (distal: joint i moves about z_{i-1}, frame i at the far end of
+      link i) or 'modified' (proximal: joint i moves about z_i, frame i at joint i).
+    - inertial: (n, 10), per link [m, m·x, m·y, m·z, Ixx, Ixy, Iyy, Ixz, Iyz, Izz]
+      (Pinocchio's order; kg, kg·m, kg·m²) with the centre of mass (x, y, z) in frame i and
+      the inertia tensor about the ORIGIN of frame i, in frame i's axes (I_O = I_C +
+      m·(|c|²·1 − c·cᵀ)). In standard DH frame i is at the distal end of link i, so a centre of
+      mass at lc from joint i along a link of length a lies at x = lc − a. Default zeros.
+    - gravity: (3,) in world (frame 0) coordinates, m/s²; default (0, 0, −9.81).
+    - friction: None, or terms among 'viscous', 'coulomb', 'offset' (list, or 'viscous+coulomb');
+      friction_params: (n, 3) per joint [fv, fc, fo] (N·s/m or N·m·s/rad; N or N·m); joint j
+      adds fv·q̇ + fc·sgn(q̇) + fo (enabled terms only), with sgn ≈ tanh(q̇/coulomb_smoothing)
+      when coulomb_smoothing > 0.
+
+    The standard parameter vector is [inertial of links 1..n, enabled friction terms of
+    joints 1..n] (`parameters`, `parameter_names`), P = `num_params` entries.
+    """
+
+    def __init__(
+        self,
+        dh: _ArrayLike,
+        joint_types: str | list[str],
+        *,
+        convention: Literal["standard", "modified"] = "standard",
+        inertial: _ArrayLike | None = None,
+        gravity: _ArrayLike | None = None,
+        friction: str | list[str] | None = None,
+        friction_params: _ArrayLike | None = None,
+        coulomb_smoothing: float = 0.0,
+    ) -> None: ...
+    @staticmethod
+    def paper() -> SerialChain:
+        """The paper's PRRRP arm (Tables 1–2, g = 9.81 m/s²) as a chain: same dynamics as
+        `Robot.paper()`, 50 standard parameters, 9 base parameters."""
+    @staticmethod
+    def puma560() -> SerialChain:
+        """The PUMA 560 (6R, standard DH), links only, from Corke & Armstrong-Hélouvry (ICRA
+        1994) as in Corke's `mdl_puma560`; gravity (0, 0, −9.81) m/s². 36 base parameters."""
+    @property
+    def dof(self) -> int: ...
+    @property
+    def num_params(self) -> int:
+        """P = 10·n + (enabled friction terms)·n."""
+    @property
+    def parameter_names(self) -> list[str]:
+        """['m1', 'mx1', 'my1', 'mz1', 'Ixx1', ..., 'Izz<n>', 'fv1', 'fc1', ...]."""
+    @property
+    def parameters(self) -> _F64:
+        """The standard parameter vector π, (P,)."""
+    @property
+    def dh(self) -> _F64:
+        """(n, 4) rows [a, alpha, d, theta]."""
+    @property
+    def joint_types(self) -> str:
+        """E.g. 'RRRRRR'."""
+    @property
+    def convention(self) -> Literal["standard", "modified"]: ...
+    @property
+    def inertial(self) -> _F64:
+        """(n, 10), see the class docs for the frame."""
+    @property
+    def gravity(self) -> _F64:
+        """(3,) m/s², world frame."""
+    @property
+    def friction(self) -> tuple[str, ...]:
+        """Enabled friction terms, e.g. ('viscous', 'coulomb')."""
+    @property
+    def friction_params(self) -> _F64:
+        """(n, 3) [fv, fc, fo] per joint."""
+    @property
+    def coulomb_smoothing(self) -> float: ...
+    def inverse_dynamics(self, q: _ArrayLike, qd: _ArrayLike, qdd: _ArrayLike) -> _F64:
+        """τ = M·q̈ + C·q̇ + G + τ_friction (N, N·m), (n,) or (N, n)."""
+    def nonlinear_effects(self, q: _ArrayLike, qd: _ArrayLike) -> _F64:
+        """C·q̇ + G + τ_friction (the torque at q̈ = 0), (n,) or (N, n)."""
+    def gravity_torques(self, q: _ArrayLike) -> _F64:
+        """G(q) (no friction), (n,) or (N, n)."""
+    def mass_matrix(self, q: _ArrayLike) -> _F64:
+        """M(q), (n, n) or (N, n, n)."""
+    def forward_dynamics(self, q: _ArrayLike, qd: _ArrayLike, tau: _ArrayLike) -> _F64:
+        """q̈ = M⁻¹(τ − C·q̇ − G − τ_friction), (n,) or (N, n). NotPositiveDefiniteError (with
+        `.sample` for a batch) where M(q) is singular."""
+    def regressor(self, q: _ArrayLike, qd: _ArrayLike, qdd: _ArrayLike) -> _F64:
+        """Full regressor Y with τ = Y @ parameters, (n, P) or (N, n, P); column 10·i + k is
+        parameter k of link i+1 (link-frame parameters), then the friction columns."""
+    def observation_matrix(self, q: _ArrayLike, qd: _ArrayLike, qdd: _ArrayLike) -> _F64:
+        """The regressors stacked, (N·n, P); rows n·k..n·k+n hold sample k."""
+    def base_parameters(
+        self, *, samples: int = 0, seed: int = 0x5EED_BA5E, rank_tolerance: float = 1e-8
+    ) -> BaseParameters:
+        """Numerical base parameters: QR with column pivoting of the regressor stacked over
+        `samples` random states (0 = automatic, ≥ 4·P rows and ≥ 20 states) drawn with
+        `seed`, columns scaled to unit norm, rank tolerance `rank_tolerance` in (0, 1).
+        Depends on the geometry, gravity direction and friction terms, not on the inertial
+        values. The default analysis is cached. TooFewSamplesError if samples·n < P."""
+    def base_regressor(
+        self,
+        q: _ArrayLike,
+        qd: _ArrayLike,
+        qdd: _ArrayLike,
+        *,
+        base: BaseParameters | None = None,
+    ) -> _F64:
+        """Y_b = Y[..., base.independent] with τ = Y_b @ base.base_values(parameters),
+        (n, b) or (N, n, b); `base` defaults to `base_parameters()`."""
+    def __getnewargs_ex__(self) -> tuple[tuple[Any, ...], dict[str, Any]]: ...
+
+class BaseParameters:
+    """Result of `SerialChain.base_parameters()`: base parameters β = map @ π (b of them)."""
+
+    @property
+    def count(self) -> int:
+        """b."""
+    @property
+    def num_params(self) -> int:
+        """P (standard parameters)."""
+    @property
+    def names(self) -> list[str]:
+        """Names of the P standard parameters."""
+    @property
+    def independent(self) -> npt.NDArray[np.int64]:
+        """Indices of the standard parameters kept as base parameters, (b,), increasing."""
+    @property
+    def independent_names(self) -> list[str]: ...
+    @property
+    def dependent(self) -> npt.NDArray[np.int64]:
+        """Indices regrouped into the independent ones or unidentifiable, (P − b,)."""
+    @property
+    def unidentifiable(self) -> npt.NDArray[np.int64]:
+        """Indices that affect no joint force (a subset of `dependent`)."""
+    @property
+    def map(self) -> _F64:
+        """K, (b, P): β = K @ π, identity on the independent columns."""
+    @property
+    def combinations(self) -> list[str]:
+        """Each β_r as a readable combination, e.g. '0.4318*m2 + mx2 + ...'."""
+    @property
+    def pivots(self) -> _F64:
+        """|R_kk| of the scaled pivoted QR (the rank gap)."""
+    @property
+    def rank_tolerance(self) -> float: ...
+    def base_values(self, parameters: _ArrayLike) -> _F64:
+        """β = K @ π for π of shape (P,) or (N, P): (b,) or (N, b)."""
+    def __len__(self) -> int: ...
+
+# --- data sets, validation, sensitivity --------------------------------------------------
+
+class Dataset:
+    """An identification data set of the PRRRP arm, checked on creation: t (N,) s strictly
+    increasing; q, qd, qdd, tau (N, 5) (m, rad; m/s, rad/s; m/s², rad/s²; N, N·m); N ≥ 8;
+    every value finite. Errors: ShapeMismatchError, NonFiniteError (with .row),
+    NonIncreasingTimeError (.row), TooFewSamplesError."""
+
+    MIN_SAMPLES: Final[int]
+    def __init__(
+        self, t: _ArrayLike, q: _ArrayLike, qd: _ArrayLike, qdd: _ArrayLike, tau: _ArrayLike
+    ) -> None: ...
+    @staticmethod
+    def from_dict(d: Mapping[str, _ArrayLike]) -> Dataset:
+        """From a mapping with keys t, q, qd, qdd, tau (e.g. `preprocess(...)`'s result)."""
+    @property
+    def t(self) -> _F64: ...
+    @property
+    def q(self) -> _F64: ...
+    @property
+    def qd(self) -> _F64: ...
+    @property
+    def qdd(self) -> _F64: ...
+    @property
+    def tau(self) -> _F64: ...
+    @property
+    def duration(self) -> float:
+        """t[-1] − t[0], s."""
+    def slice(self, start: int, stop: int) -> Dataset:
+        """Samples start..stop as a new data set (TooFewSamplesError below 8)."""
+    def __getitem__(self, key: slice) -> Dataset:
+        """Contiguous slices only (step 1)."""
+    def __len__(self) -> int: ...
+    def to_dict(self) -> _Dataset: ...
+
+class _TorquePrediction(TypedDict):
+    rms: _F64
+    """RMS of tau − predicted per joint, (5,) N, N·m."""
+    relative_percent: _F64
+    """100·‖tau − predicted‖/‖tau‖ per joint, (5,) %."""
+    predicted: _F64
+    """Φ(q, q̇, q̈)·λ̂, (N, 5)."""
+
+def torque_prediction(
+    data: Dataset | Mapping[str, _ArrayLike], lam: _ArrayLike, *, gravity: float = 9.81
+) -> _TorquePrediction:
+    """Predicts data's torques with Φ(q, q̇, q̈)·lam (8,) and compares them with data.tau."""
+
+class _ValidationIndices(TypedDict):
+    rms: _F64
+    rsd: _F64
+    ai: _F64
+
+class _MethodValidation(TypedDict):
+    method: str
+    lam: _F64
+    q: _F64
+    """Positions of the robot simulated with λ̂, (N, 5)."""
+    indices: _ValidationIndices
+    """RMS, RSD, AI of q against the true run's, each (5,) (paper Table 5)."""
+    torque: _TorquePrediction
+    """Φ·λ̂ on the true run's noise-free states against its measured torques."""
+    relative_error_percent: _F64 | None
+    """100·|λ̂ − λ|/|λ|, (8,); None with relative_errors=False."""
+
+class _Validation(TypedDict):
+    truth: _Record
+    methods: list[_MethodValidation]
+
+def validate(
+    estimates: Mapping[str, _ArrayLike] | list[tuple[str, _ArrayLike]],
+    *,
+    true_lam: _ArrayLike | None = None,
+    controller_lam: _ArrayLike | None = None,
+    relative_errors: bool = True,
+    reference: SinusoidReference | None = None,
+    duration: float = 10.0,
+    seed: int = 1,
+    dt: float = 0.02,
+    substeps: int = 20,
+    kp: _ArrayLike | None = None,
+    kd: _ArrayLike | None = None,
+    q_noise: _ArrayLike | None = None,
+    tau_noise: _ArrayLike | None = None,
+) -> _Validation:
+    """Validation of estimates λ̂ (paper §5.1): the true robot (true_lam, default Table 3)
+    and each λ̂ follow `reference` (default: one sinusoid per joint, periods 5, 4, 3.5, 3,
+    2.5 s) under the same computed-torque controller (controller_lam, default true_lam);
+    trajectories are compared by RMS/RSD/AI and torques predicted on the true run. The true
+    run has sensor noise (seed `seed`), the estimate runs none. Errors of the simulator
+    (NotPositiveDefiniteError for a non-physical λ̂, DivergedError)."""
+
+class _Sensitivity(TypedDict):
+    factors: _F64
+    """Scale factors applied to each λ_i, (K,), e.g. 0.5, 0.6, ..., 1.5."""
+    ranges: _F64
+    """(8, 2): [min, max] of each λ_i over the sweep (Table 6)."""
+    rms: _F64
+    """(8, K, 5): trajectory RMS of each joint against the nominal run when λ_i is scaled by
+    factors[k]; NaN where the varied λ is not physical."""
+    physical: npt.NDArray[np.bool_]
+    """(8, K): False where the varied λ is not physical — M(q, λ) not positive definite
+    somewhere along the motion, so no robot has it (core returns None there)."""
+
+def sensitivity(
+    *,
+    nominal: _ArrayLike | None = None,
+    range: float = 0.5,
+    points: int = 11,
+    threads: int = 0,
+    reference: SinusoidReference | None = None,
+    duration: float = 10.0,
+    dt: float = 0.02,
+    substeps: int = 20,
+    kp: _ArrayLike | None = None,
+    kd: _ArrayLike | None = None,
+) -> _Sensitivity:
+    """Sensitivity of the simulated robot to each λ_i (paper Table 6, Fig. 8): λ_i scaled by
+    `points` factors in [1 − range, 1 + range] (0 < range < 1), the others nominal (default
+    Table 3), each run tracking `reference` under the nominal controller without noise.
+    threads = 0 uses every core. Runs in Rust with the GIL released."""

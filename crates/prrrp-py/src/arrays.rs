@@ -204,10 +204,26 @@ pub(crate) fn map_samples<'py, const K: usize, F>(
 where
     F: Fn(usize, [&mut [f64]; K]) -> Result<(), PrrrpError> + Sync,
 {
+    map_samples_with(py, n, shapes, (), |_, k, outs| f(k, outs))
+}
+
+/// [`map_samples`] with a mutable per-call `state` (e.g. a workspace of scratch buffers
+/// made once per batch) passed to every call of `f`.
+pub(crate) fn map_samples_with<'py, const K: usize, S, F>(
+    py: Python<'py>,
+    n: Option<usize>,
+    shapes: [&[usize]; K],
+    mut state: S,
+    f: F,
+) -> PyResult<[Bound<'py, PyAny>; K]>
+where
+    S: Send,
+    F: Fn(&mut S, usize, [&mut [f64]; K]) -> Result<(), PrrrpError> + Sync,
+{
     let inner: [usize; K] = shapes.map(|s| s.iter().product());
     let count = n.unwrap_or(1);
     let mut bufs: [Vec<f64>; K] = inner.map(|i| vec![0.0; i * count]);
-    let run = |bufs: &mut [Vec<f64>; K]| -> Result<(), (usize, PrrrpError)> {
+    let mut run = |bufs: &mut [Vec<f64>; K]| -> Result<(), (usize, PrrrpError)> {
         for k in 0..count {
             let mut i = 0;
             let outs = bufs.each_mut().map(|b| {
@@ -215,7 +231,7 @@ where
                 i += 1;
                 &mut b[k * s..(k + 1) * s]
             });
-            f(k, outs).map_err(|e| (k, e))?;
+            f(&mut state, k, outs).map_err(|e| (k, e))?;
         }
         Ok(())
     };
@@ -384,5 +400,92 @@ impl<const D: usize> Samples<D> {
             ));
         }
         Ok(s.into_rows())
+    }
+}
+
+/// One sample `(D,)` or a batch `(N, D)` of a vector whose length D is known only at run
+/// time (e.g. the joints of a `SerialChain`); the run-time twin of [`Samples`].
+pub(crate) struct DynSamples {
+    name: &'static str,
+    dim: usize,
+    /// Row-major values, `dim` per sample.
+    data: Vec<f64>,
+    batch: bool,
+}
+
+impl DynSamples {
+    /// Reads argument `name`: anything numpy converts to float64 with shape `(dim,)` or
+    /// `(N, dim)`, every value finite.
+    pub(crate) fn extract(
+        obj: &Bound<'_, PyAny>,
+        name: &'static str,
+        dim: usize,
+    ) -> PyResult<Self> {
+        let py = obj.py();
+        let expected = format!("({dim},) or (N, {dim})");
+        let (shape, data) = any_array(obj, name, &expected)?;
+        let batch = match *shape {
+            [d] if d == dim => false,
+            [_, d] if d == dim => true,
+            _ => return Err(shape_error(py, name, expected, fmt_shape(&shape))),
+        };
+        if dim > 0 {
+            if let Some(k) = data
+                .chunks_exact(dim)
+                .position(|v| !v.iter().all(|x| x.is_finite()))
+            {
+                return Err(to_pyerr(
+                    py,
+                    &PrrrpError::NonFinite {
+                        what: name.into(),
+                        row: batch.then_some(k),
+                    },
+                ));
+            }
+        }
+        Ok(Self {
+            name,
+            dim,
+            data,
+            batch,
+        })
+    }
+
+    /// Sample `k` of the batch (the single sample broadcasts).
+    #[inline(always)]
+    pub(crate) fn at(&self, k: usize) -> &[f64] {
+        let k = if self.batch { k } else { 0 };
+        &self.data[k * self.dim..(k + 1) * self.dim]
+    }
+}
+
+impl AsArg for DynSamples {
+    fn as_arg(&self) -> Arg<'_> {
+        Arg {
+            name: self.name,
+            dim: self.dim,
+            len: self
+                .batch
+                .then(|| self.data.len().checked_div(self.dim).unwrap_or(0)),
+        }
+    }
+}
+
+/// Reads a 2-D float64 argument of shape `(rows, cols)`, returning its rows, row-major.
+/// `rows` None accepts any number of rows.
+pub(crate) fn matrix_rows(
+    obj: &Bound<'_, PyAny>,
+    name: &'static str,
+    rows: Option<usize>,
+    cols: usize,
+) -> PyResult<(usize, Vec<f64>)> {
+    let expected = match rows {
+        Some(r) => format!("({r}, {cols})"),
+        None => format!("(n, {cols})"),
+    };
+    let (shape, data) = any_array(obj, name, &expected)?;
+    match *shape {
+        [r, c] if c == cols && (rows.is_none() || rows == Some(r)) => Ok((r, data)),
+        _ => Err(shape_error(obj.py(), name, expected, fmt_shape(&shape))),
     }
 }

@@ -7,6 +7,9 @@
 //! - `errors`: the exception hierarchy and the one conversion trait `ToPyResult`;
 //! - `arrays`: numpy ⇄ nalgebra, shape checks, the batched loop;
 //! - `robot`: `Robot` and its dynamics;
+//! - `chain`: `SerialChain` (any DH arm) and `BaseParameters`;
+//! - `dataset`: `Dataset`, a validated identification data set;
+//! - `validation`: `validate`, `torque_prediction`, `sensitivity`;
 //! - `regressor`: `regressor`, `observation_matrix`, `singular_values`, `condition_number`;
 //! - `derivatives`: the derivative result classes;
 //! - `trajectories`: the excitation optimisation and reference trajectories;
@@ -17,6 +20,8 @@
 //! - `study`: the whole study as JSON.
 
 mod arrays;
+mod chain;
+mod dataset;
 mod derivatives;
 mod errors;
 mod estimators;
@@ -27,6 +32,7 @@ mod robot;
 mod simulation;
 mod study;
 mod trajectories;
+mod validation;
 
 use pyo3::prelude::*;
 
@@ -39,6 +45,9 @@ fn _prrrp(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("STANDARD_GRAVITY", prrrp_core::STANDARD_GRAVITY)?;
     errors::register(m)?;
     robot::register(m)?;
+    chain::register(m)?;
+    dataset::register(m)?;
+    validation::register(m)?;
     derivatives::register(m)?;
     regressor::register(m)?;
     trajectories::register(m)?;

@@ -11,7 +11,7 @@ use crate::arrays::{batch_len, map_samples, to_array, write_row_major, Samples};
 use crate::errors::{to_pyerr, Exc, ToPyResult};
 
 /// A model with gravity `g` (m/s², along −z), checked like `Robot`'s.
-fn model(py: Python<'_>, g: f64) -> PyResult<PrrrpModel> {
+pub(crate) fn model(py: Python<'_>, g: f64) -> PyResult<PrrrpModel> {
     if !(g.is_finite() && g >= 0.0) {
         return Err(to_pyerr(
             py,

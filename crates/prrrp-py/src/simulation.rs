@@ -13,7 +13,10 @@ use crate::arrays::{fixed_or, rows_to_array, to_array, Samples};
 use crate::errors::ToPyResult;
 use crate::trajectories::{Excitation, SinusoidReference};
 
-fn record_dict<'py>(py: Python<'py>, r: &SimulationRecord) -> PyResult<Bound<'py, PyDict>> {
+pub(crate) fn record_dict<'py>(
+    py: Python<'py>,
+    r: &SimulationRecord,
+) -> PyResult<Bound<'py, PyDict>> {
     let d = PyDict::new(py);
     d.set_item("t", to_array(py, r.t.clone(), Some(r.t.len()), &[])?)?;
     for (k, v) in [
@@ -41,7 +44,7 @@ fn lambda_or(obj: Option<&Bound<'_, PyAny>>, name: &'static str) -> PyResult<Lam
 }
 
 #[allow(clippy::too_many_arguments)]
-fn config(
+pub(crate) fn config(
     dt: f64,
     substeps: usize,
     kp: Option<&Bound<'_, PyAny>>,

@@ -19,6 +19,7 @@ mod regressor;
 mod rnea;
 mod robots;
 mod serial_chain;
+mod workspace;
 
 pub use base_model::ChainBaseModel;
 pub use base_params::{BaseOptions, BaseParameters};
@@ -29,3 +30,4 @@ pub use inertia::{
     INERTIAL_PARAMETER_NAMES, LINK_PARAMS,
 };
 pub use serial_chain::{DynChain, SerialChain};
+pub use workspace::DynWorkspace;

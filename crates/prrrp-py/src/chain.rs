@@ -1,0 +1,687 @@
+//! `prrrp.SerialChain` (any serial arm of revolute and prismatic joints from a DH table)
+//! and `prrrp.BaseParameters` (its numerical base-parameter analysis). The chain's size is
+//! known at run time, so arrays are read with `DynSamples` and every batch loop reuses one
+//! `DynWorkspace` with the GIL released.
+
+use std::sync::OnceLock;
+
+use numpy::PyArray1;
+use prrrp_core::{
+    BaseOptions, BaseParameters, DhConvention, DhRow, DynChain, FrictionModel, JointKind,
+    SerialChain,
+};
+use pyo3::prelude::*;
+use pyo3::types::{PyDict, PyList, PyString, PyTuple};
+
+use crate::arrays::{
+    batch_len, fixed_vector, map_samples, map_samples_with, matrix_rows, to_array, DynSamples,
+};
+use crate::errors::{shape_error, Exc, ToPyResult};
+
+type Out<'py> = PyResult<Bound<'py, PyAny>>;
+
+/// Default rank tolerance and seed of `BaseOptions`, for the Python signature.
+const DEFAULT_SEED: u64 = 0x5EED_BA5E;
+const DEFAULT_RANK_TOLERANCE: f64 = 1e-8;
+
+/// An `InvalidParameterError` for a non-numeric setting: `field` names it, `value` is
+/// what the caller gave (as text).
+fn invalid(py: Python<'_>, field: &str, value: &str, reason: &'static str) -> PyErr {
+    let attrs = || -> PyResult<Vec<(&str, Bound<'_, PyAny>)>> {
+        Ok(vec![
+            ("field", field.into_pyobject(py)?.into_any()),
+            ("value", value.into_pyobject(py)?.into_any()),
+            ("reason", reason.into_pyobject(py)?.into_any()),
+        ])
+    };
+    match attrs() {
+        Ok(a) => Exc::InvalidParameter.new_err(py, format!("`{field}` is {value}: {reason}"), &a),
+        Err(e) => e,
+    }
+}
+
+/// Joint kinds from "RRP" or ["R", "revolute", "P", ...] (case-insensitive).
+fn joint_kinds(obj: &Bound<'_, PyAny>) -> PyResult<Vec<JointKind>> {
+    let py = obj.py();
+    let items: Vec<String> = if let Ok(s) = obj.cast::<PyString>() {
+        s.to_str()?.chars().map(String::from).collect()
+    } else {
+        obj.try_iter()
+            .map_err(|_| {
+                invalid(
+                    py,
+                    "joint_types",
+                    "not a string or a list of strings",
+                    "must be a string such as 'RRP' or a list of 'R'/'P'",
+                )
+            })?
+            .map(|x| x.and_then(|x| x.extract::<String>()))
+            .collect::<PyResult<_>>()
+            .map_err(|_| {
+                invalid(
+                    py,
+                    "joint_types",
+                    "not a string or a list of strings",
+                    "must be a string such as 'RRP' or a list of 'R'/'P'",
+                )
+            })?
+    };
+    items
+        .iter()
+        .enumerate()
+        .map(|(i, t)| match t.to_ascii_lowercase().as_str() {
+            "r" | "revolute" => Ok(JointKind::Revolute),
+            "p" | "prismatic" => Ok(JointKind::Prismatic),
+            _ => Err(invalid(
+                py,
+                &format!("joint_types[{i}]"),
+                &format!("{t:?}"),
+                "unknown joint type: use 'R' (revolute) or 'P' (prismatic)",
+            )),
+        })
+        .collect()
+}
+
+fn convention_from(py: Python<'_>, s: &str) -> PyResult<DhConvention> {
+    match s.to_ascii_lowercase().as_str() {
+        "standard" => Ok(DhConvention::Standard),
+        "modified" => Ok(DhConvention::Modified),
+        _ => Err(invalid(
+            py,
+            "convention",
+            &format!("{s:?}"),
+            "must be 'standard' (distal DH) or 'modified' (proximal, Craig)",
+        )),
+    }
+}
+
+fn convention_name(c: DhConvention) -> &'static str {
+    match c {
+        DhConvention::Standard => "standard",
+        DhConvention::Modified => "modified",
+    }
+}
+
+/// Friction terms from None, "viscous+coulomb", or ["viscous", "coulomb", "offset"].
+fn friction_from(obj: Option<&Bound<'_, PyAny>>, smoothing: f64) -> PyResult<FrictionModel> {
+    let mut model = FrictionModel {
+        coulomb_smoothing: smoothing,
+        ..FrictionModel::default()
+    };
+    let Some(obj) = obj else {
+        return Ok(model);
+    };
+    let py = obj.py();
+    let reason = "must be None or terms among 'viscous', 'coulomb', 'offset' (a list, or one \
+                  string joined with '+')";
+    let terms: Vec<String> = if let Ok(s) = obj.cast::<PyString>() {
+        s.to_str()?
+            .split(['+', ','])
+            .map(|t| t.trim().to_string())
+            .filter(|t| !t.is_empty())
+            .collect()
+    } else {
+        obj.try_iter()
+            .map_err(|_| invalid(py, "friction", "not a string or a list of strings", reason))?
+            .map(|x| x.and_then(|x| x.extract::<String>()))
+            .collect::<PyResult<_>>()
+            .map_err(|_| invalid(py, "friction", "not a string or a list of strings", reason))?
+    };
+    for t in terms {
+        match t.to_ascii_lowercase().as_str() {
+            "viscous" => model.viscous = true,
+            "coulomb" => model.coulomb = true,
+            "offset" => model.offset = true,
+            _ => return Err(invalid(py, "friction", &format!("{t:?}"), reason)),
+        }
+    }
+    Ok(model)
+}
+
+fn friction_names(f: &FrictionModel) -> Vec<&'static str> {
+    [
+        (f.viscous, "viscous"),
+        (f.coulomb, "coulomb"),
+        (f.offset, "offset"),
+    ]
+    .into_iter()
+    .filter_map(|(on, name)| on.then_some(name))
+    .collect()
+}
+
+/// A serial manipulator of revolute and prismatic joints from a Denavit–Hartenberg table,
+/// with the 10 standard inertial parameters per link and optional joint friction.
+#[pyclass(module = "prrrp", name = "SerialChain", frozen)]
+pub(crate) struct PySerialChain {
+    inner: DynChain,
+    /// The default base-parameter analysis, computed on first use.
+    base: OnceLock<BaseParameters>,
+}
+
+impl PySerialChain {
+    fn wrap(inner: DynChain) -> Self {
+        Self {
+            inner,
+            base: OnceLock::new(),
+        }
+    }
+
+    fn joints(&self, obj: &Bound<'_, PyAny>, name: &'static str) -> PyResult<DynSamples> {
+        DynSamples::extract(obj, name, self.inner.dof())
+    }
+
+    fn default_base(&self, py: Python<'_>) -> PyResult<&BaseParameters> {
+        if let Some(b) = self.base.get() {
+            return Ok(b);
+        }
+        let b = py
+            .detach(|| self.inner.base_parameters(&BaseOptions::default()))
+            .to_py(py)?;
+        Ok(self.base.get_or_init(|| b))
+    }
+}
+
+#[pymethods]
+impl PySerialChain {
+    /// See the class documentation in `_prrrp.pyi`.
+    #[new]
+    #[pyo3(signature = (dh, joint_types, *, convention="standard", inertial=None, gravity=None,
+        friction=None, friction_params=None, coulomb_smoothing=0.0))]
+    #[allow(clippy::too_many_arguments)]
+    fn new(
+        py: Python<'_>,
+        dh: &Bound<'_, PyAny>,
+        joint_types: &Bound<'_, PyAny>,
+        convention: &str,
+        inertial: Option<&Bound<'_, PyAny>>,
+        gravity: Option<&Bound<'_, PyAny>>,
+        friction: Option<&Bound<'_, PyAny>>,
+        friction_params: Option<&Bound<'_, PyAny>>,
+        coulomb_smoothing: f64,
+    ) -> PyResult<Self> {
+        let (n, table) = matrix_rows(dh, "dh", None, 4)?;
+        let kinds = joint_kinds(joint_types)?;
+        if kinds.len() != n {
+            return Err(shape_error(
+                py,
+                "joint_types",
+                format!("({n},) (one type per DH row)"),
+                format!("({},)", kinds.len()),
+            ));
+        }
+        let conv = convention_from(py, convention)?;
+        let rows: Vec<DhRow> = table
+            .chunks_exact(4)
+            .zip(&kinds)
+            .map(|(r, &kind)| DhRow {
+                kind,
+                a: r[0],
+                alpha: r[1],
+                d: r[2],
+                theta: r[3],
+            })
+            .collect();
+        let mut chain = DynChain::new(rows, conv).to_py(py)?;
+        if let Some(obj) = inertial {
+            let (_, flat) = matrix_rows(obj, "inertial", Some(n), 10)?;
+            let links = flat
+                .chunks_exact(10)
+                .map(|c| <[f64; 10]>::try_from(c).unwrap_or([f64::NAN; 10]))
+                .collect();
+            chain = chain.with_inertial(links).to_py(py)?;
+        }
+        if let Some(obj) = gravity {
+            chain = chain
+                .with_gravity(fixed_vector::<3>(obj, "gravity")?)
+                .to_py(py)?;
+        }
+        let model = friction_from(friction, coulomb_smoothing)?;
+        let params = match friction_params {
+            Some(obj) => {
+                if model.columns_per_joint() == 0 {
+                    return Err(invalid(
+                        py,
+                        "friction_params",
+                        "given without friction terms",
+                        "pass friction=['viscous', ...] to say which terms the columns hold",
+                    ));
+                }
+                let (_, flat) = matrix_rows(obj, "friction_params", Some(n), 3)?;
+                flat.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect()
+            }
+            None => vec![[0.0; 3]; n],
+        };
+        chain = chain.with_friction(model, params).to_py(py)?;
+        Ok(Self::wrap(chain))
+    }
+
+    /// The paper's PRRRP arm (Tables 1–2, g = 9.81 m/s²) as a chain.
+    #[staticmethod]
+    fn paper() -> Self {
+        Self::wrap(SerialChain::paper().to_dyn())
+    }
+
+    /// The PUMA 560 (6R; Corke & Armstrong-Hélouvry 1994, links only) as a chain.
+    #[staticmethod]
+    fn puma560() -> Self {
+        Self::wrap(SerialChain::puma560().to_dyn())
+    }
+
+    /// Number of joints n.
+    #[getter]
+    fn dof(&self) -> usize {
+        self.inner.dof()
+    }
+
+    /// Number of standard parameters P = 10·n + (friction terms per joint)·n.
+    #[getter]
+    fn num_params(&self) -> usize {
+        self.inner.num_params()
+    }
+
+    /// Names of the standard parameters, e.g. ['m1', 'mx1', ..., 'Izz6', 'fv1', ...].
+    #[getter]
+    fn parameter_names(&self) -> Vec<String> {
+        self.inner.parameter_names()
+    }
+
+    /// The standard parameter vector π, shape (P,).
+    #[getter]
+    fn parameters<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
+        PyArray1::from_vec(py, self.inner.parameters())
+    }
+
+    /// The DH table, shape (n, 4), columns [a, alpha, d, theta] (m, rad).
+    #[getter]
+    fn dh<'py>(&self, py: Python<'py>) -> Out<'py> {
+        let flat: Vec<f64> = self
+            .inner
+            .dh()
+            .iter()
+            .flat_map(|r| [r.a, r.alpha, r.d, r.theta])
+            .collect();
+        to_array(py, flat, Some(self.inner.dof()), &[4])
+    }
+
+    /// Joint types as a string of 'R'/'P', e.g. 'RRRRRR'.
+    #[getter]
+    fn joint_types(&self) -> String {
+        self.inner
+            .dh()
+            .iter()
+            .map(|r| match r.kind {
+                JointKind::Revolute => 'R',
+                JointKind::Prismatic => 'P',
+            })
+            .collect()
+    }
+
+    /// 'standard' or 'modified'.
+    #[getter]
+    fn convention(&self) -> &'static str {
+        convention_name(self.inner.convention())
+    }
+
+    /// Inertial parameters, shape (n, 10), per link [m, mx, my, mz, Ixx, Ixy, Iyy, Ixz,
+    /// Iyz, Izz] about the link-frame origin.
+    #[getter]
+    fn inertial<'py>(&self, py: Python<'py>) -> Out<'py> {
+        let flat: Vec<f64> = self.inner.inertial().iter().flatten().copied().collect();
+        to_array(py, flat, Some(self.inner.dof()), &[10])
+    }
+
+    /// Gravity in world coordinates, m/s², shape (3,).
+    #[getter]
+    fn gravity<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
+        PyArray1::from_slice(py, &self.inner.gravity())
+    }
+
+    /// The enabled friction terms, a tuple among ('viscous', 'coulomb', 'offset').
+    #[getter]
+    fn friction<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyTuple>> {
+        PyTuple::new(py, friction_names(&self.inner.friction()))
+    }
+
+    /// Friction parameters, shape (n, 3), per joint [fv, fc, fo] (disabled terms kept).
+    #[getter]
+    fn friction_params<'py>(&self, py: Python<'py>) -> Out<'py> {
+        let flat: Vec<f64> = self
+            .inner
+            .friction_params()
+            .iter()
+            .flatten()
+            .copied()
+            .collect();
+        to_array(py, flat, Some(self.inner.dof()), &[3])
+    }
+
+    /// Velocity scale of the smoothed Coulomb sign (0 = exact sign).
+    #[getter]
+    fn coulomb_smoothing(&self) -> f64 {
+        self.inner.friction().coulomb_smoothing
+    }
+
+    /// Inverse dynamics τ = M·q̈ + C·q̇ + G + τ_friction (N, N·m): (n,) or (N, n).
+    fn inverse_dynamics<'py>(
+        &self,
+        py: Python<'py>,
+        q: &Bound<'py, PyAny>,
+        qd: &Bound<'py, PyAny>,
+        qdd: &Bound<'py, PyAny>,
+    ) -> Out<'py> {
+        let (q, qd, qdd) = (
+            self.joints(q, "q")?,
+            self.joints(qd, "qd")?,
+            self.joints(qdd, "qdd")?,
+        );
+        let n = batch_len(py, &[&q, &qd, &qdd])?;
+        let c = &self.inner;
+        let [tau] = map_samples_with(py, n, [&[c.dof()]], c.workspace(), |ws, k, [out]| {
+            c.inverse_dynamics_into(ws, q.at(k), qd.at(k), qdd.at(k), out)
+        })?;
+        Ok(tau)
+    }
+
+    /// Nonlinear effects C(q, q̇)·q̇ + G(q) + τ_friction(q̇) (N, N·m): (n,) or (N, n).
+    fn nonlinear_effects<'py>(
+        &self,
+        py: Python<'py>,
+        q: &Bound<'py, PyAny>,
+        qd: &Bound<'py, PyAny>,
+    ) -> Out<'py> {
+        let (q, qd) = (self.joints(q, "q")?, self.joints(qd, "qd")?);
+        let n = batch_len(py, &[&q, &qd])?;
+        let c = &self.inner;
+        let [h] = map_samples_with(py, n, [&[c.dof()]], c.workspace(), |ws, k, [out]| {
+            c.nonlinear_effects_into(ws, q.at(k), qd.at(k), out)
+        })?;
+        Ok(h)
+    }
+
+    /// Gravity torques G(q) (N, N·m; no friction): (n,) or (N, n).
+    fn gravity_torques<'py>(&self, py: Python<'py>, q: &Bound<'py, PyAny>) -> Out<'py> {
+        let q = self.joints(q, "q")?;
+        let n = batch_len(py, &[&q])?;
+        let c = &self.inner;
+        let [g] = map_samples_with(py, n, [&[c.dof()]], c.workspace(), |ws, k, [out]| {
+            c.gravity_torques_into(ws, q.at(k), out)
+        })?;
+        Ok(g)
+    }
+
+    /// Mass matrix M(q): (n, n) or (N, n, n).
+    fn mass_matrix<'py>(&self, py: Python<'py>, q: &Bound<'py, PyAny>) -> Out<'py> {
+        let q = self.joints(q, "q")?;
+        let n = batch_len(py, &[&q])?;
+        let c = &self.inner;
+        let d = c.dof();
+        let [m] = map_samples_with(py, n, [&[d, d]], c.workspace(), |ws, k, [out]| {
+            c.mass_matrix_into(ws, q.at(k), out)
+        })?;
+        Ok(m)
+    }
+
+    /// Forward dynamics q̈ = M⁻¹(τ − C·q̇ − G − τ_friction): (n,) or (N, n). Raises
+    /// NotPositiveDefiniteError (with `.sample` for a batch) where M(q) is singular.
+    fn forward_dynamics<'py>(
+        &self,
+        py: Python<'py>,
+        q: &Bound<'py, PyAny>,
+        qd: &Bound<'py, PyAny>,
+        tau: &Bound<'py, PyAny>,
+    ) -> Out<'py> {
+        let (q, qd, tau) = (
+            self.joints(q, "q")?,
+            self.joints(qd, "qd")?,
+            self.joints(tau, "tau")?,
+        );
+        let n = batch_len(py, &[&q, &qd, &tau])?;
+        let c = &self.inner;
+        let [qdd] = map_samples_with(py, n, [&[c.dof()]], c.workspace(), |ws, k, [out]| {
+            c.forward_dynamics_into(ws, q.at(k), qd.at(k), tau.at(k), out)
+        })?;
+        Ok(qdd)
+    }
+
+    /// Full regressor Y (friction columns included) with τ = Y·parameters: (n, P) or
+    /// (N, n, P).
+    fn regressor<'py>(
+        &self,
+        py: Python<'py>,
+        q: &Bound<'py, PyAny>,
+        qd: &Bound<'py, PyAny>,
+        qdd: &Bound<'py, PyAny>,
+    ) -> Out<'py> {
+        let (q, qd, qdd) = (
+            self.joints(q, "q")?,
+            self.joints(qd, "qd")?,
+            self.joints(qdd, "qdd")?,
+        );
+        let n = batch_len(py, &[&q, &qd, &qdd])?;
+        let c = &self.inner;
+        let shape = [c.dof(), c.num_params()];
+        let [y] = map_samples_with(py, n, [&shape], c.workspace(), |ws, k, [out]| {
+            c.regressor_row_major_into(ws, q.at(k), qd.at(k), qdd.at(k), out)
+        })?;
+        Ok(y)
+    }
+
+    /// Observation matrix W: the regressors of the samples stacked, shape (N·n, P); rows
+    /// n·k..n·k+n hold sample k.
+    fn observation_matrix<'py>(
+        &self,
+        py: Python<'py>,
+        q: &Bound<'py, PyAny>,
+        qd: &Bound<'py, PyAny>,
+        qdd: &Bound<'py, PyAny>,
+    ) -> Out<'py> {
+        let y = self.regressor(py, q, qd, qdd)?;
+        let p = self.inner.num_params();
+        y.call_method1("reshape", ((-1i64, p),))
+    }
+
+    /// Numerical base parameters (QR with column pivoting on the regressor stacked over
+    /// `samples` random states drawn with `seed`; `rank_tolerance` on unit-norm columns).
+    #[pyo3(signature = (*, samples=0, seed=DEFAULT_SEED, rank_tolerance=DEFAULT_RANK_TOLERANCE))]
+    fn base_parameters(
+        &self,
+        py: Python<'_>,
+        samples: usize,
+        seed: u64,
+        rank_tolerance: f64,
+    ) -> PyResult<PyBaseParameters> {
+        let opts = BaseOptions {
+            samples,
+            seed,
+            rank_tolerance,
+        };
+        if opts == BaseOptions::default() {
+            return Ok(PyBaseParameters {
+                inner: self.default_base(py)?.clone(),
+            });
+        }
+        let inner = py.detach(|| self.inner.base_parameters(&opts)).to_py(py)?;
+        Ok(PyBaseParameters { inner })
+    }
+
+    /// Base regressor Y_b (the independent columns of Y) with τ = Y_b·β: (n, b) or
+    /// (N, n, b). `base` defaults to `base_parameters()` with default options.
+    #[pyo3(signature = (q, qd, qdd, *, base=None))]
+    fn base_regressor<'py>(
+        &self,
+        py: Python<'py>,
+        q: &Bound<'py, PyAny>,
+        qd: &Bound<'py, PyAny>,
+        qdd: &Bound<'py, PyAny>,
+        base: Option<PyRef<'py, PyBaseParameters>>,
+    ) -> Out<'py> {
+        let (q, qd, qdd) = (
+            self.joints(q, "q")?,
+            self.joints(qd, "qd")?,
+            self.joints(qdd, "qdd")?,
+        );
+        let n = batch_len(py, &[&q, &qd, &qdd])?;
+        let b = match &base {
+            Some(b) => &b.inner,
+            None => self.default_base(py)?,
+        };
+        let c = &self.inner;
+        let shape = [c.dof(), b.count()];
+        let [y] = map_samples_with(py, n, [&shape], c.workspace(), |ws, k, [out]| {
+            c.base_regressor_row_major_into(ws, b, q.at(k), qd.at(k), qdd.at(k), out)
+        })?;
+        Ok(y)
+    }
+
+    fn __repr__(&self) -> String {
+        format!(
+            "SerialChain(dof={}, joint_types='{}', convention='{}', friction={:?}, num_params={})",
+            self.inner.dof(),
+            self.joint_types(),
+            self.convention(),
+            friction_names(&self.inner.friction()),
+            self.inner.num_params()
+        )
+    }
+
+    /// Pickle and copy support: the arguments that rebuild this chain.
+    fn __getnewargs_ex__<'py>(
+        &self,
+        py: Python<'py>,
+    ) -> PyResult<(Bound<'py, PyTuple>, Bound<'py, PyDict>)> {
+        let args = PyTuple::new(
+            py,
+            [
+                self.dh(py)?,
+                self.joint_types().into_pyobject(py)?.into_any(),
+            ],
+        )?;
+        let kw = PyDict::new(py);
+        kw.set_item("convention", self.convention())?;
+        kw.set_item("inertial", self.inertial(py)?)?;
+        kw.set_item("gravity", self.gravity(py))?;
+        let f = self.inner.friction();
+        if f.columns_per_joint() > 0 {
+            kw.set_item("friction", PyList::new(py, friction_names(&f))?)?;
+            kw.set_item("friction_params", self.friction_params(py)?)?;
+        }
+        kw.set_item("coulomb_smoothing", f.coulomb_smoothing)?;
+        Ok((args, kw))
+    }
+}
+
+/// The base parameters of a chain: β = map · parameters, τ = Y_b·β.
+#[pyclass(module = "prrrp", name = "BaseParameters", frozen)]
+pub(crate) struct PyBaseParameters {
+    inner: BaseParameters,
+}
+
+fn index_array<'py>(py: Python<'py>, v: &[usize]) -> Bound<'py, PyArray1<i64>> {
+    PyArray1::from_vec(py, v.iter().map(|&i| i as i64).collect())
+}
+
+#[pymethods]
+impl PyBaseParameters {
+    /// Number of base parameters b.
+    #[getter]
+    fn count(&self) -> usize {
+        self.inner.count()
+    }
+
+    /// Number of standard parameters P.
+    #[getter]
+    fn num_params(&self) -> usize {
+        self.inner.num_standard()
+    }
+
+    /// Names of the standard parameters (length P).
+    #[getter]
+    fn names(&self) -> Vec<String> {
+        self.inner.names.clone()
+    }
+
+    /// Indices of the standard parameters kept as base parameters, increasing, (b,).
+    #[getter]
+    fn independent<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<i64>> {
+        index_array(py, &self.inner.independent)
+    }
+
+    /// Names of the independent standard parameters (length b).
+    #[getter]
+    fn independent_names(&self) -> Vec<String> {
+        self.inner
+            .independent
+            .iter()
+            .map(|&j| self.inner.names[j].clone())
+            .collect()
+    }
+
+    /// Indices of the standard parameters regrouped or unidentifiable, (P − b,).
+    #[getter]
+    fn dependent<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<i64>> {
+        index_array(py, &self.inner.dependent)
+    }
+
+    /// Indices of the standard parameters that affect no joint force (a subset of
+    /// `dependent`).
+    #[getter]
+    fn unidentifiable<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<i64>> {
+        index_array(py, &self.inner.unidentifiable)
+    }
+
+    /// The standard → base map K, shape (b, P): β = K @ parameters.
+    #[getter]
+    fn map<'py>(&self, py: Python<'py>) -> Out<'py> {
+        let (b, p) = (self.inner.count(), self.inner.num_standard());
+        to_array(py, self.inner.map_row_major(), Some(b), &[p])
+    }
+
+    /// Each base parameter as a readable combination, e.g. 'Izz2 + 0.4318*mx2 + ...'.
+    #[getter]
+    fn combinations(&self) -> Vec<String> {
+        self.inner.combinations.clone()
+    }
+
+    /// Pivots |R_kk| of the scaled pivoted QR (the rank gap diagnostic).
+    #[getter]
+    fn pivots<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
+        PyArray1::from_slice(py, &self.inner.pivots)
+    }
+
+    /// The rank tolerance used.
+    #[getter]
+    fn rank_tolerance(&self) -> f64 {
+        self.inner.rank_tolerance
+    }
+
+    /// β = K·π for standard parameters π of shape (P,) or (N, P): (b,) or (N, b).
+    fn base_values<'py>(&self, py: Python<'py>, parameters: &Bound<'py, PyAny>) -> Out<'py> {
+        let pi = DynSamples::extract(parameters, "parameters", self.inner.num_standard())?;
+        let n = batch_len(py, &[&pi])?;
+        let b = &self.inner;
+        let [beta] = map_samples(py, n, [&[b.count()]], |k, [out]| {
+            out.copy_from_slice(&b.base_values(pi.at(k))?);
+            Ok(())
+        })?;
+        Ok(beta)
+    }
+
+    fn __len__(&self) -> usize {
+        self.inner.count()
+    }
+
+    fn __repr__(&self) -> String {
+        format!(
+            "BaseParameters(count={}, num_params={}, independent={:?})",
+            self.inner.count(),
+            self.inner.num_standard(),
+            self.independent_names()
+        )
+    }
+}
+
+pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_class::<PySerialChain>()?;
+    m.add_class::<PyBaseParameters>()?;
+    Ok(())
+}
