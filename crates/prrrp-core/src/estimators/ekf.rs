@@ -15,8 +15,9 @@
 //! skipped. Because H is a selection, the innovation covariance is a sub-block of P plus
 //! R, and the Joseph update (I−KH)P(I−KH)ᵀ + KRKᵀ expands exactly to P − K·P_z· − D·Kᵀ
 //! with D = P_·z − K·S_z (zero for the optimal gain, so the form stays first-order
-//! insensitive to errors in K). Only the upper triangle is computed and then mirrored, so
-//! P stays exactly symmetric. A velocity measurement is processed as a second sequential
+//! insensitive to errors in K). K = P_·z·S_z⁻¹ with S_z⁻¹ from the Cholesky factor. The
+//! prediction's upper triangle is mirrored at the end of every step, so the stored P is
+//! exactly symmetric. A velocity measurement is processed as a second sequential
 //! update, which equals the joint update for uncorrelated position and velocity noise.
 
 use nalgebra::{SMatrix, SVector};
@@ -414,7 +415,7 @@ impl<M: LinearDynamics<N, P>, const N: usize, const P: usize, const S: usize> Ek
             // One update: try the candidate state before touching P.
             let gain = if q_ok {
                 let r = self.r_pos;
-                Some(self.gain(0, &r)?)
+                Some(self.gain::<FMA>(0, &r)?)
             } else {
                 None
             };
@@ -469,7 +470,7 @@ impl<M: LinearDynamics<N, P>, const N: usize, const P: usize, const S: usize> Ek
     /// Gain of a measurement z = x[o..o+N] + noise of variances r (H a selection):
     /// S_z = P_zz + R, K = P_·z·S_z⁻¹.
     #[inline(always)]
-    fn gain(&self, o: usize, r: &SVector<f64, N>) -> Result<Gain<N, S>> {
+    fn gain<const FMA: bool>(&self, o: usize, r: &SVector<f64, N>) -> Result<Gain<N, S>> {
         let mut sz = SMatrix::<f64, N, N>::zeros();
         for j in 0..N {
             for i in 0..N {
@@ -480,32 +481,42 @@ impl<M: LinearDynamics<N, P>, const N: usize, const P: usize, const S: usize> Ek
         let l = cholesky(&sz).ok_or(PrrrpError::NotPositiveDefinite {
             what: "EKF innovation covariance H·P·Hᵀ + R",
         })?;
-        // Two triangular solves acting on whole (S-long) columns.
+        // S_z⁻¹ = L⁻ᵀ·L⁻¹ from the Cholesky factor (N×N, cheap), then K = P_·z·S_z⁻¹ as
+        // N independent column sums over whole S-long columns: the two triangular solves
+        // on K would chain every column to the previous one.
+        let linv = lower_triangular_inverse(&l);
+        let sinv = linv.transpose() * linv;
         let pz: SMatrix<f64, S, N> = self.p.fixed_columns::<N>(o).into_owned();
-        let mut k = pz;
-        for j in 0..N {
-            for m in 0..j {
-                let f = l[(j, m)];
-                axpy_col(&mut k, j, m, -f);
+        let mut k = SMatrix::<f64, S, N>::zeros();
+        {
+            let ps = pz.as_slice();
+            let ks = k.as_mut_slice();
+            for m in 0..N {
+                let pc = &ps[m * S..m * S + S];
+                for j in 0..N {
+                    let f = sinv[(m, j)];
+                    for (kv, &pv) in ks[j * S..j * S + S].iter_mut().zip(pc) {
+                        *kv = madd::<FMA>(f, pv, *kv);
+                    }
+                }
             }
-            scale_col(&mut k, j, 1.0 / l[(j, j)]);
-        }
-        for j in (0..N).rev() {
-            for m in j + 1..N {
-                let f = l[(m, j)];
-                axpy_col(&mut k, j, m, -f);
-            }
-            scale_col(&mut k, j, 1.0 / l[(j, j)]);
         }
         Ok(Gain { k, pz, sz })
     }
 
     /// Joseph-form covariance update for the gain α·K: with K' = α·K and
-    /// D = P_·z − K'·S_z (≈ 0 for α = 1), P ← P − K'·P_z· − D·K'ᵀ on the upper triangle,
-    /// then mirrored. Exact for any gain, so also for a damped one.
+    /// D = P_·z − K'·S_z (≈ 0 for α = 1), P ← P − K'·P_z· − D·K'ᵀ. Exact for any gain, so
+    /// also for a damped one.
     #[inline(always)]
     fn update_covariance<const FMA: bool>(&mut self, g: &Gain<N, S>, alpha: f64) {
-        let k = if alpha == 1.0 { g.k } else { g.k * alpha };
+        // Borrowed when undamped: K is S×N, and copying it is not free at this size.
+        let damped_k;
+        let k = if alpha == 1.0 {
+            &g.k
+        } else {
+            damped_k = g.k * alpha;
+            &damped_k
+        };
         let mut d = g.pz;
         {
             let ks = k.as_slice();
@@ -525,19 +536,25 @@ impl<M: LinearDynamics<N, P>, const N: usize, const P: usize, const S: usize> Ek
         let ds = d.as_slice();
         let pzs = g.pz.as_slice();
         let p = self.p.as_mut_slice();
+        // Whole columns of the compile-time length S: fully unrolled and vectorised, which
+        // is faster than the triangle's ragged loops although it does twice the flops.
         for j in 0..S {
-            let col = &mut p[j * S..j * S + j + 1];
+            let mut acc = [0.0f64; S];
             for m in 0..N {
                 let a = pzs[m * S + j];
                 let b = ks[m * S + j];
-                let kc = &ks[m * S..m * S + j + 1];
-                let dc = &ds[m * S..m * S + j + 1];
-                for ((c, &kv), &dv) in col.iter_mut().zip(kc).zip(dc) {
-                    *c -= madd::<FMA>(a, kv, b * dv);
+                let kc = &ks[m * S..m * S + S];
+                let dc = &ds[m * S..m * S + S];
+                for r in 0..S {
+                    acc[r] = madd::<FMA>(a, kc[r], madd::<FMA>(b, dc[r], acc[r]));
                 }
             }
+            for (c, v) in p[j * S..j * S + S].iter_mut().zip(acc) {
+                *c -= v;
+            }
         }
-        mirror_upper(&mut self.p);
+        // The two triangles now differ by rounding; the prediction that always follows
+        // mirrors its upper triangle, so the stored P is exactly symmetric.
     }
 
     /// Full measurement update (state and covariance) with the gain α·K.
@@ -549,7 +566,7 @@ impl<M: LinearDynamics<N, P>, const N: usize, const P: usize, const S: usize> Ek
         r: &SVector<f64, N>,
         alpha: f64,
     ) -> Result<()> {
-        let g = self.gain(o, r)?;
+        let g = self.gain::<FMA>(o, r)?;
         let innovation = z - self.x.fixed_rows::<N>(o);
         self.x += (g.k * innovation) * alpha;
         self.update_covariance::<FMA>(&g, alpha);
@@ -607,15 +624,19 @@ impl<M: LinearDynamics<N, P>, const N: usize, const P: usize, const S: usize> Ek
                 }
             }
         }
-        // A·P·Aᵀ = A·G (N×N), symmetric.
+        // A·P·Aᵀ = A·G (N×N). Column kk of A outer, so that the N column sums advance
+        // side by side instead of one dependent chain at a time; zero columns of A (joints
+        // the dynamics do not depend on) are skipped.
         let mut apa = SMatrix::<f64, N, N>::zeros();
-        for j in 0..N {
-            for kk in 0..S {
+        for kk in 0..S {
+            let ac = a.column(kk);
+            if ac.iter().all(|&v| v == 0.0) {
+                continue;
+            }
+            for j in 0..N {
                 let gv = g[(kk, j)];
-                if gv != 0.0 {
-                    for i in 0..N {
-                        apa[(i, j)] += a[(i, kk)] * gv;
-                    }
+                for i in 0..N {
+                    apa[(i, j)] = madd::<FMA>(ac[i], gv, apa[(i, j)]);
                 }
             }
         }
@@ -764,32 +785,21 @@ fn cholesky<const D: usize>(a: &SMatrix<f64, D, D>) -> Option<SMatrix<f64, D, D>
     Some(l)
 }
 
-/// Column `dst` += f · column `src` of a tall matrix.
+/// Inverse of a lower-triangular matrix with a positive diagonal, by forward substitution.
 #[inline(always)]
-fn axpy_col<const R: usize, const C: usize>(
-    m: &mut SMatrix<f64, R, C>,
-    dst: usize,
-    src: usize,
-    f: f64,
-) {
-    let s = m.as_mut_slice();
-    let (d, sr) = if dst > src {
-        let (lo, hi) = s.split_at_mut(dst * R);
-        (&mut hi[..R], &lo[src * R..src * R + R])
-    } else {
-        let (lo, hi) = s.split_at_mut(src * R);
-        (&mut lo[dst * R..dst * R + R], &hi[..R])
-    };
-    for (a, &b) in d.iter_mut().zip(sr) {
-        *a += f * b;
+fn lower_triangular_inverse<const D: usize>(l: &SMatrix<f64, D, D>) -> SMatrix<f64, D, D> {
+    let mut inv = SMatrix::<f64, D, D>::zeros();
+    for j in 0..D {
+        inv[(j, j)] = 1.0 / l[(j, j)];
+        for i in j + 1..D {
+            let mut s = 0.0;
+            for k in j..i {
+                s += l[(i, k)] * inv[(k, j)];
+            }
+            inv[(i, j)] = -s / l[(i, i)];
+        }
     }
-}
-
-#[inline(always)]
-fn scale_col<const R: usize, const C: usize>(m: &mut SMatrix<f64, R, C>, j: usize, f: f64) {
-    for a in &mut m.as_mut_slice()[j * R..j * R + R] {
-        *a *= f;
-    }
+    inv
 }
 
 /// Copies the upper triangle onto the lower one.
