@@ -459,6 +459,20 @@ class Ekf(_OnlineEstimator):
     def parameter_std(self) -> _F64: ...
     @property
     def skipped_updates(self) -> int: ...
+    @property
+    def damped_updates(self) -> int: ...
+    @property
+    def state(self) -> _F64:
+        """x = [q, qd, lam] predicted for the next sample, (18,)."""
+    @property
+    def covariance(self) -> _F64:
+        """State covariance P, (18, 18)."""
+    def set_initial_covariance(self, p0: _ArrayLike) -> None:
+        """P0, (18, 18), symmetric positive definite."""
+    def set_process_noise(self, variances: _ArrayLike) -> None:
+        """Q = diag(variances), (18,), per step, each >= 0."""
+    def set_measurement_noise(self, positions: _ArrayLike, velocities: _ArrayLike) -> None:
+        """R = diag(positions (5,), velocities (5,)), variances, each > 0."""
 
 # --- metrics ------------------------------------------------------------------------------
 

@@ -154,6 +154,56 @@ def test_ekf_from_positions(data):
         prrrp.Ekf(measurement="torques")
 
 
+def test_ekf_covariances_are_settable(data):
+    q, qd, qdd, tau = cols(data)
+    lam0 = 0.9 * TRUTH
+    ekf = prrrp.Ekf(lam0)
+    # Documented defaults: P0 = diag(1e-3², 1.0², (0.5·|λ0|)²), x0 = [0, 0, λ0].
+    want = np.concatenate([np.full(5, 1e-6), np.full(5, 1.0), (0.5 * lam0) ** 2])
+    np.testing.assert_allclose(ekf.covariance, np.diag(want), rtol=1e-15)
+    np.testing.assert_array_equal(ekf.state, np.concatenate([np.zeros(10), lam0]))
+
+    p0 = np.diag(want * 0.25)
+    p0[10, 11] = p0[11, 10] = 0.1 * np.sqrt(p0[10, 10] * p0[11, 11])
+    ekf.set_initial_covariance(p0)
+    np.testing.assert_array_equal(ekf.covariance, p0)
+
+    # A measurement noise of 1e12 makes the update negligible: λ is constant in the model,
+    # so one step leaves λ̂ at λ0 and adds exactly Q_λ to P_λλ.
+    ekf.set_measurement_noise(np.full(5, 1e12), np.full(5, 1e12))
+    qv = np.concatenate([np.full(10, 1e-9), np.full(8, 1e-4) * lam0**2])
+    ekf.set_process_noise(qv)
+    before = ekf.covariance[10:, 10:].copy()
+    lam = ekf.step(q[0], qd[0], qdd[0], tau[0])
+    np.testing.assert_allclose(lam, lam0, rtol=1e-9)
+    np.testing.assert_allclose(ekf.covariance[10:, 10:], before + np.diag(qv[10:]), rtol=1e-9)
+    cov = ekf.covariance
+    np.testing.assert_array_equal(cov, cov.T)
+
+    # A precise position sensor instead pulls the position state onto the measurement.
+    sharp = prrrp.Ekf(lam0, init_from_first_measurement=False)
+    sharp.set_measurement_noise(np.full(5, 1e-12), np.full(5, 1.0))
+    sharp.step(q[0], qd[0], qdd[0], tau[0])
+    # q_post = z·P/(P + R) from q_prior = 0 with P = 1e-6 and R = 1e-12; P0 is diagonal,
+    # so q̇ stays 0 and the prediction keeps q_post.
+    np.testing.assert_allclose(sharp.state[:5], q[0], rtol=2e-6)
+
+    with pytest.raises(prrrp.ShapeMismatchError, match="p0"):
+        ekf.set_initial_covariance(np.eye(17))
+    asym = np.eye(18)
+    asym[0, 1] = 0.5
+    with pytest.raises(prrrp.InvalidParameterError, match="symmetric"):
+        ekf.set_initial_covariance(asym)
+    with pytest.raises(prrrp.NotPositiveDefiniteError):
+        ekf.set_initial_covariance(-np.eye(18))
+    with pytest.raises(prrrp.InvalidParameterError):
+        ekf.set_process_noise(-np.ones(18))
+    with pytest.raises(prrrp.InvalidParameterError):
+        ekf.set_measurement_noise(np.zeros(5), np.ones(5))
+    with pytest.raises(prrrp.ShapeMismatchError, match="velocities"):
+        ekf.set_measurement_noise(np.ones(5), np.ones(4))
+
+
 def test_estimator_errors(data):
     q, qd, qdd, tau = cols(data)
     rls = prrrp.Rls()

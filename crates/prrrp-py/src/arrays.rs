@@ -315,6 +315,36 @@ pub(crate) fn fixed_vector<const D: usize>(
     Ok(out)
 }
 
+/// Reads a fixed-size matrix (e.g. an 18×18 covariance): anything numpy converts to
+/// float64 with shape `(R, C)`.
+pub(crate) fn fixed_matrix<const R: usize, const C: usize>(
+    obj: &Bound<'_, PyAny>,
+    name: &'static str,
+) -> PyResult<SMatrix<f64, R, C>> {
+    let py = obj.py();
+    let arr = obj
+        .extract::<PyArrayLikeDyn<'_, f64, AllowTypeChange>>()
+        .map_err(|e| {
+            let err = Exc::InvalidInput.new_err(
+                py,
+                format!("`{name}` must be convertible to a float64 array of shape ({R}, {C}): {e}"),
+                &[],
+            );
+            err.set_cause(py, Some(e));
+            err
+        })?;
+    if arr.shape() != [R, C] {
+        return Err(shape_error(
+            py,
+            name,
+            format!("({R}, {C})"),
+            fmt_shape(arr.shape()),
+        ));
+    }
+    let a = arr.as_array();
+    Ok(SMatrix::from_fn(|i, j| a[[i, j]]))
+}
+
 impl<const D: usize> Samples<D> {
     /// The rows as a vector: a batch's N rows, or the one row of a single sample.
     pub(crate) fn into_rows(self) -> Vec<SVector<f64, D>> {

@@ -3,6 +3,7 @@
 //! qdd, tau)`, `estimate`, `reset()` and the batch `run(...)` (plus `train(..., epochs)`
 //! for Adaline and Hopfield), looping in Rust with the GIL released.
 
+use prrrp_core::nalgebra::SVector;
 use prrrp_core::{
     least_squares as core_ls, weighted_least_squares as core_wls, Adaline as CoreAdaline,
     AdalineConfig, AdalineRule, Discretisation, Ekf as CoreEkf, EkfConfig, EkfMeasurement,
@@ -12,7 +13,9 @@ use prrrp_core::{
 };
 use pyo3::prelude::*;
 
-use crate::arrays::{fixed_or, rows_to_array, to_array, Samples};
+use crate::arrays::{
+    fixed_matrix, fixed_or, fixed_vector, rows_to_array, to_array, write_row_major, Samples,
+};
 use crate::errors::{to_pyerr, ToPyResult};
 
 type Model = PrrrpModel;
@@ -546,6 +549,54 @@ estimator_pymethods!(Ekf {
     #[getter]
     fn skipped_updates(&self) -> usize {
         self.inner.skipped_updates()
+    }
+    /// Samples whose update was damped (gain halved) to keep M(q, λ̂) positive definite.
+    #[getter]
+    fn damped_updates(&self) -> usize {
+        self.inner.damped_updates()
+    }
+    /// The state x = [q (5), q̇ (5), λ (8)] predicted for the next sample, (18,).
+    #[getter]
+    fn state<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        to_array(py, self.inner.state().as_slice().to_vec(), None, &[PRRRP_EKF_STATES])
+    }
+    /// The state covariance P, (18, 18), in the squares of the state's SI units.
+    #[getter]
+    fn covariance<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        let mut buf = vec![0.0; PRRRP_EKF_STATES * PRRRP_EKF_STATES];
+        write_row_major(self.inner.covariance(), &mut buf);
+        to_array(py, buf, None, &[PRRRP_EKF_STATES, PRRRP_EKF_STATES])
+    }
+    /// Replaces the initial covariance P₀ (18, 18): symmetric positive definite, squares
+    /// of the state units. Also the current P when no sample has been consumed yet.
+    fn set_initial_covariance(&mut self, py: Python<'_>, p0: &Bound<'_, PyAny>) -> PyResult<()> {
+        let p0 = fixed_matrix::<PRRRP_EKF_STATES, PRRRP_EKF_STATES>(p0, "p0")?;
+        self.inner.set_initial_covariance(&p0).to_py(py)
+    }
+    /// Replaces the process noise Q = diag(variances), (18,), per step, squares of the
+    /// state units; each ≥ 0.
+    fn set_process_noise(&mut self, py: Python<'_>, variances: &Bound<'_, PyAny>) -> PyResult<()> {
+        let v = fixed_vector::<PRRRP_EKF_STATES>(variances, "variances")?;
+        self.inner
+            .set_process_noise(&SVector::from_column_slice(&v))
+            .to_py(py)
+    }
+    /// Replaces the measurement noise R = diag(positions (5,), velocities (5,)), variances
+    /// in m², rad², (m/s)², (rad/s)²; each > 0.
+    fn set_measurement_noise(
+        &mut self,
+        py: Python<'_>,
+        positions: &Bound<'_, PyAny>,
+        velocities: &Bound<'_, PyAny>,
+    ) -> PyResult<()> {
+        let p = fixed_vector::<NDOF>(positions, "positions")?;
+        let v = fixed_vector::<NDOF>(velocities, "velocities")?;
+        self.inner
+            .set_measurement_noise(
+                &SVector::from_column_slice(&p),
+                &SVector::from_column_slice(&v),
+            )
+            .to_py(py)
     }
 });
 
