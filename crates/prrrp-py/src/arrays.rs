@@ -281,6 +281,31 @@ pub(crate) fn to_array<'py>(
     Ok(arr.reshape(full)?.into_any())
 }
 
+/// Any float64-convertible array of exactly the shape `shape`, or an error naming `name`.
+fn exact_array<'py>(
+    obj: &Bound<'py, PyAny>,
+    name: &'static str,
+    shape: &[usize],
+) -> PyResult<PyArrayLikeDyn<'py, f64, AllowTypeChange>> {
+    let py = obj.py();
+    let want = fmt_shape(shape);
+    let arr = obj
+        .extract::<PyArrayLikeDyn<'_, f64, AllowTypeChange>>()
+        .map_err(|e| {
+            let err = Exc::InvalidInput.new_err(
+                py,
+                format!("`{name}` must be convertible to a float64 array of shape {want}: {e}"),
+                &[],
+            );
+            err.set_cause(py, Some(e));
+            err
+        })?;
+    if arr.shape() != shape {
+        return Err(shape_error(py, name, want, fmt_shape(arr.shape())));
+    }
+    Ok(arr)
+}
+
 /// Reads a fixed-length parameter vector (e.g. the five link masses): anything numpy
 /// converts to float64 with shape `(D,)`. Values are not checked here; the core's
 /// validation names the offending entry.
@@ -288,26 +313,7 @@ pub(crate) fn fixed_vector<const D: usize>(
     obj: &Bound<'_, PyAny>,
     name: &'static str,
 ) -> PyResult<[f64; D]> {
-    let py = obj.py();
-    let arr = obj
-        .extract::<PyArrayLikeDyn<'_, f64, AllowTypeChange>>()
-        .map_err(|e| {
-            let err = Exc::InvalidInput.new_err(
-                py,
-                format!("`{name}` must be convertible to a float64 array of shape ({D},): {e}"),
-                &[],
-            );
-            err.set_cause(py, Some(e));
-            err
-        })?;
-    if arr.shape() != [D] {
-        return Err(shape_error(
-            py,
-            name,
-            format!("({D},)"),
-            fmt_shape(arr.shape()),
-        ));
-    }
+    let arr = exact_array(obj, name, &[D])?;
     let mut out = [0.0; D];
     for (o, x) in out.iter_mut().zip(arr.as_array().iter()) {
         *o = *x;
@@ -321,26 +327,7 @@ pub(crate) fn fixed_matrix<const R: usize, const C: usize>(
     obj: &Bound<'_, PyAny>,
     name: &'static str,
 ) -> PyResult<SMatrix<f64, R, C>> {
-    let py = obj.py();
-    let arr = obj
-        .extract::<PyArrayLikeDyn<'_, f64, AllowTypeChange>>()
-        .map_err(|e| {
-            let err = Exc::InvalidInput.new_err(
-                py,
-                format!("`{name}` must be convertible to a float64 array of shape ({R}, {C}): {e}"),
-                &[],
-            );
-            err.set_cause(py, Some(e));
-            err
-        })?;
-    if arr.shape() != [R, C] {
-        return Err(shape_error(
-            py,
-            name,
-            format!("({R}, {C})"),
-            fmt_shape(arr.shape()),
-        ));
-    }
+    let arr = exact_array(obj, name, &[R, C])?;
     let a = arr.as_array();
     Ok(SMatrix::from_fn(|i, j| a[[i, j]]))
 }
