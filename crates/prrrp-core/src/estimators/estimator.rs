@@ -53,3 +53,28 @@ pub struct TrainingReport {
     /// and N·m for PRRRP), computed with the weights before each update.
     pub rms_error: Vec<f64>,
 }
+
+/// The epoch loop shared by [`super::Adaline::train`] and [`super::Hopfield::train`]:
+/// `totals` gives the estimator's running sum of squared a-priori equation errors and its
+/// equation count, which are cleared before each epoch and read after it.
+pub(crate) fn train_epochs<E, const N: usize, const P: usize>(
+    est: &mut E,
+    data: &Samples<'_, N>,
+    epochs: usize,
+    totals: fn(&mut E) -> (&mut f64, &mut usize),
+) -> Result<TrainingReport>
+where
+    E: Estimator<N, P>,
+{
+    let mut rms_error = Vec::with_capacity(epochs);
+    for _ in 0..epochs {
+        let (sse, equations) = totals(est);
+        (*sse, *equations) = (0.0, 0);
+        for (k, s) in data.iter().enumerate() {
+            est.step(s).map_err(|e| with_row(e, k))?;
+        }
+        let (sse, equations) = totals(est);
+        rms_error.push((*sse / (*equations).max(1) as f64).sqrt());
+    }
+    Ok(TrainingReport { rms_error })
+}

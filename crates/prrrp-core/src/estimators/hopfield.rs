@@ -15,7 +15,7 @@
 
 use nalgebra::SVector;
 
-use super::estimator::{with_row, Estimator, TrainingReport};
+use super::estimator::{train_epochs, Estimator, TrainingReport};
 use super::samples::{Sample, Samples};
 use crate::error::{PrrrpError, Result};
 use crate::model::LinearDynamics;
@@ -131,16 +131,7 @@ impl<M: LinearDynamics<N, P>, const N: usize, const P: usize> Hopfield<M, N, P> 
     /// # Errors
     /// As [`Estimator::step`], with the sample index in [`PrrrpError::NonFinite`].
     pub fn train(&mut self, data: &Samples<'_, N>, epochs: usize) -> Result<TrainingReport> {
-        let mut rms_error = Vec::with_capacity(epochs);
-        for _ in 0..epochs {
-            self.sse = 0.0;
-            self.equations = 0;
-            for (k, s) in data.iter().enumerate() {
-                self.step(s).map_err(|e| with_row(e, k))?;
-            }
-            rms_error.push((self.sse / self.equations.max(1) as f64).sqrt());
-        }
-        Ok(TrainingReport { rms_error })
+        train_epochs(self, data, epochs, |e| (&mut e.sse, &mut e.equations))
     }
 
     /// Number of samples consumed since construction or the last reset.
