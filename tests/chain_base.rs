@@ -93,7 +93,7 @@ fn prrrp_has_nine_base_parameters_spanning_the_papers() {
         println!("PRRRP base parameter: {c}");
     }
     assert_eq!(base.count(), 9);
-    let l = chain.dh().map(|r| r.a);
+    let l = chain.dh().expect("a DH chain").map(|r| r.a);
     let idx = |link: usize, k: usize| 10 * (link - 1) + k;
     let (m, mx, my, izz) = (0, 1, 2, 9);
     let functional = |terms: &[(f64, usize)]| {

@@ -170,7 +170,7 @@ fn close(a: &[f64], b: &[f64], tol: f64) -> Result<(), String> {
 /// is standard frame i−1 moved by joint i, so row i takes (α, a) of standard row i−1, and
 /// each link's parameters move by the constant transform Tx(aᵢ)·Rx(αᵢ).
 fn to_modified<const N: usize>(c: &SerialChain<N>) -> SerialChain<N> {
-    let std = c.dh();
+    let std = c.dh().expect("a DH chain");
     let dh: [DhRow; N] = std::array::from_fn(|i| DhRow {
         kind: std[i].kind,
         theta: std[i].theta,
@@ -267,8 +267,8 @@ fn check_against_reference<const N: usize, const P: usize>(
     [q, qd, qdd]: &[SVector<f64, N>; 3],
 ) -> Result<(), String> {
     let r = Reference::new(
-        chain.dh(),
-        chain.convention(),
+        chain.dh().expect("a DH chain"),
+        chain.convention().expect("a DH chain"),
         chain.inertial(),
         chain.gravity(),
     );

@@ -164,7 +164,7 @@ fn wrong_sizes_are_typed_errors() {
         Err(PrrrpError::ShapeMismatch { .. })
     ));
     // Massless links: M is singular.
-    let massless = DynChain::new(chain.dh().to_vec(), chain.convention()).unwrap();
+    let massless = DynChain::from_joints(chain.joints().to_vec()).unwrap();
     let mut mws = massless.workspace();
     assert!(matches!(
         massless.forward_dynamics_into(&mut mws, &z, &z, &z, &mut out),

@@ -10,6 +10,7 @@ use prrrp_core::{
     BaseOptions, BaseParameters, DhConvention, DhRow, DynChain, FrictionModel, JointKind,
     SerialChain,
 };
+use pyo3::exceptions::PyTypeError;
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList, PyString, PyTuple};
 
@@ -291,35 +292,34 @@ impl PySerialChain {
         PyArray1::from_vec(py, self.inner.parameters())
     }
 
-    /// The DH table, shape (n, 4), columns [a, alpha, d, theta] (m, rad).
+    /// The DH table, shape (n, 4), columns [a, alpha, d, theta] (m, rad); None for a
+    /// chain not built from a DH table (e.g. from a URDF).
     #[getter]
-    fn dh<'py>(&self, py: Python<'py>) -> Out<'py> {
-        let flat: Vec<f64> = self
-            .inner
-            .dh()
+    fn dh<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyAny>>> {
+        let Some(table) = self.inner.dh() else {
+            return Ok(None);
+        };
+        let flat: Vec<f64> = table
             .iter()
             .flat_map(|r| [r.a, r.alpha, r.d, r.theta])
             .collect();
-        to_array(py, flat, Some(self.inner.dof()), &[4])
+        to_array(py, flat, Some(self.inner.dof()), &[4]).map(Some)
     }
 
     /// Joint types as a string of 'R'/'P', e.g. 'RRRRRR'.
     #[getter]
     fn joint_types(&self) -> String {
         self.inner
-            .dh()
+            .joints()
             .iter()
-            .map(|r| match r.kind {
-                JointKind::Revolute => 'R',
-                JointKind::Prismatic => 'P',
-            })
+            .map(|j| if j.kind.is_rotational() { 'R' } else { 'P' })
             .collect()
     }
 
-    /// 'standard' or 'modified'.
+    /// 'standard' or 'modified'; None for a chain not built from a DH table.
     #[getter]
-    fn convention(&self) -> &'static str {
-        convention_name(self.inner.convention())
+    fn convention(&self) -> Option<&'static str> {
+        self.inner.convention().map(convention_name)
     }
 
     /// Inertial parameters, shape (n, 10), per link [m, mx, my, mz, Ixx, Ixy, Iyy, Ixz,
@@ -538,7 +538,7 @@ impl PySerialChain {
             "SerialChain(dof={}, joint_types='{}', convention='{}', friction={:?}, num_params={})",
             self.inner.dof(),
             self.joint_types(),
-            self.convention(),
+            self.convention().unwrap_or("none"),
             friction_names(&self.inner.friction()),
             self.inner.num_params()
         )
@@ -552,7 +552,9 @@ impl PySerialChain {
         let args = PyTuple::new(
             py,
             [
-                self.dh(py)?,
+                self.dh(py)?.ok_or_else(|| {
+                    PyTypeError::new_err("only chains built from a DH table can be pickled")
+                })?,
                 self.joint_types().into_pyobject(py)?.into_any(),
             ],
         )?;

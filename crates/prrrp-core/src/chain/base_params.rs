@@ -23,8 +23,8 @@
 use faer::linalg::solvers::SolveLstsq;
 use faer::Mat;
 
-use super::dh::JointGeom;
 use super::friction::FrictionModel;
+use super::joint::JointGeom;
 use super::rnea::{ChainView, LinkState};
 use super::serial_chain::{parameter_names, stack_regressor, DynChain, SerialChain};
 use crate::error::{PrrrpError, Result};

@@ -14,6 +14,8 @@ mod crba;
 mod dh;
 mod friction;
 mod inertia;
+mod joint;
+mod meta;
 mod paper;
 mod regressor;
 mod rnea;
@@ -29,5 +31,7 @@ pub use inertia::{
     com_and_inertia, inertial_parameters, is_physically_consistent, transform_inertial_parameters,
     INERTIAL_PARAMETER_NAMES, LINK_PARAMS,
 };
+pub use joint::{Joint, JointType, AXIS_UNIT_TOLERANCE};
+pub use meta::{ChainMeta, JointInfo, JointLimit};
 pub use serial_chain::{DynChain, SerialChain};
 pub use workspace::DynWorkspace;

@@ -6,9 +6,9 @@
 
 use nalgebra::{Matrix3, Vector3};
 
-use super::dh::JointGeom;
 use super::friction::FrictionModel;
 use super::inertia::{first_moment, inertia_times};
+use super::joint::JointGeom;
 
 /// A borrowed view of a chain: what every algorithm needs, whatever the storage.
 #[derive(Debug, Clone, Copy)]

@@ -5,9 +5,11 @@ use faer::Mat;
 use nalgebra::{DMatrix, SMatrix, SVector, Vector3};
 
 use super::crba::{cholesky_in_place, cholesky_solve};
-use super::dh::{DhConvention, JointGeom};
+use super::dh::DhConvention;
 use super::friction::{FrictionModel, FRICTION_PARAMETER_NAMES};
 use super::inertia::INERTIAL_PARAMETER_NAMES;
+use super::joint::{Joint, JointGeom};
+use super::meta::{ChainMeta, JointInfo};
 use super::regressor::{ColumnMajorSink, FaerSink};
 use super::rnea::{ChainView, LinkState};
 use crate::error::{PrrrpError, Result};
@@ -17,8 +19,10 @@ use crate::robot::{DhRow, STANDARD_GRAVITY};
 /// works on the stack and never allocates.
 ///
 /// # Model
-/// - Geometry: one [`DhRow`] per joint, read in the chosen [`DhConvention`] (standard by
-///   default). Frame 0 is the world frame; link i carries frame i.
+/// - Geometry: one [`Joint`] per joint — a placement, an axis and the link frame — built
+///   from a DH table ([`SerialChain::new`], either [`DhConvention`]) or given directly
+///   ([`SerialChain::from_joints`], e.g. from a URDF). Frame 0 is the world (base) frame;
+///   link i carries frame i.
 /// - Inertial parameters: for each link the 10-vector
 ///   πᵢ = [m, m·x, m·y, m·z, Ixx, Ixy, Iyy, Ixz, Iyz, Izz] (kg, kg·m, kg·m²) — Pinocchio's
 ///   order — with the centre of mass (x, y, z) in frame i and the inertia tensor **about
@@ -58,8 +62,8 @@ use crate::robot::{DhRow, STANDARD_GRAVITY};
 /// ```
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SerialChain<const N: usize> {
-    dh: [DhRow; N],
-    convention: DhConvention,
+    joints: [Joint; N],
+    dh: Option<([DhRow; N], DhConvention)>,
     geom: [JointGeom; N],
     inertial: [[f64; 10]; N],
     friction: FrictionModel,
@@ -69,16 +73,19 @@ pub struct SerialChain<const N: usize> {
 
 /// A serial manipulator whose number of joints is known only at run time (e.g. read from
 /// a file or a Python call). Same model and conventions as [`SerialChain`]; joint-space
-/// inputs are slices of length n, and each call allocates O(n) scratch.
+/// inputs are slices of length n, and each call allocates O(n) scratch (the `*_into`
+/// methods with a [`super::DynWorkspace`] do not). It also carries the names and limits of
+/// its robot file ([`DynChain::meta`]).
 #[derive(Debug, Clone, PartialEq)]
 pub struct DynChain {
-    dh: Vec<DhRow>,
-    convention: DhConvention,
+    joints: Vec<Joint>,
+    dh: Option<(Vec<DhRow>, DhConvention)>,
     geom: Vec<JointGeom>,
     inertial: Vec<[f64; 10]>,
     friction: FrictionModel,
     friction_params: Vec<[f64; 3]>,
     gravity: Vector3<f64>,
+    meta: ChainMeta,
 }
 
 fn invalid(field: String, value: f64, reason: &'static str) -> PrrrpError {
@@ -87,6 +94,20 @@ fn invalid(field: String, value: f64, reason: &'static str) -> PrrrpError {
         value,
         reason,
     }
+}
+
+fn validate_joints(joints: &[Joint]) -> Result<()> {
+    if joints.is_empty() {
+        return Err(PrrrpError::ShapeMismatch {
+            what: "joints".into(),
+            expected: "at least one joint".into(),
+            got: "0 joints".into(),
+        });
+    }
+    for (i, j) in joints.iter().enumerate() {
+        j.validate(&format!("joint {}", i + 1))?;
+    }
+    Ok(())
 }
 
 fn validate_dh(dh: &[DhRow]) -> Result<()> {
@@ -267,10 +288,23 @@ impl<const N: usize> SerialChain<N> {
     /// non-finite DH constant.
     pub fn new(dh: [DhRow; N], convention: DhConvention) -> Result<Self> {
         validate_dh(&dh)?;
+        let mut c = Self::from_joints(dh.map(|r| Joint::from_dh(&r, convention)))?;
+        c.dh = Some((dh, convention));
+        Ok(c)
+    }
+
+    /// A chain of general joints (see [`Joint`]), massless links, no friction and gravity
+    /// (0, 0, −9.81) m/s².
+    ///
+    /// # Errors
+    /// [`PrrrpError::ShapeMismatch`] if N = 0, [`PrrrpError::InvalidParameter`] for a
+    /// non-finite placement or an axis that is not a unit vector.
+    pub fn from_joints(joints: [Joint; N]) -> Result<Self> {
+        validate_joints(&joints)?;
         Ok(Self {
-            dh,
-            convention,
-            geom: dh.map(|r| JointGeom::new(&r, convention)),
+            joints,
+            dh: None,
+            geom: joints.map(|j| JointGeom::new(&j)),
             inertial: [[0.0; 10]; N],
             friction: FrictionModel::default(),
             friction_params: [[0.0; 3]; N],
@@ -284,10 +318,11 @@ impl<const N: usize> SerialChain<N> {
         inertial: [[f64; 10]; N],
         gravity: [f64; 3],
     ) -> Self {
+        let joints = dh.map(|r| Joint::from_dh(&r, convention));
         Self {
-            dh,
-            convention,
-            geom: dh.map(|r| JointGeom::new(&r, convention)),
+            joints,
+            dh: Some((dh, convention)),
+            geom: joints.map(|j| JointGeom::new(&j)),
             inertial,
             friction: FrictionModel::default(),
             friction_params: [[0.0; 3]; N],
@@ -326,13 +361,17 @@ impl<const N: usize> SerialChain<N> {
         Ok(self)
     }
 
-    /// The DH table.
-    pub fn dh(&self) -> &[DhRow; N] {
-        &self.dh
+    /// The joints (placements, axes, link frames).
+    pub fn joints(&self) -> &[Joint; N] {
+        &self.joints
     }
-    /// The DH convention.
-    pub fn convention(&self) -> DhConvention {
-        self.convention
+    /// The DH table, when the chain was built from one.
+    pub fn dh(&self) -> Option<&[DhRow; N]> {
+        self.dh.as_ref().map(|(t, _)| t)
+    }
+    /// The DH convention, when the chain was built from a DH table.
+    pub fn convention(&self) -> Option<DhConvention> {
+        self.dh.as_ref().map(|(_, c)| *c)
     }
     /// Inertial parameters of each link.
     pub fn inertial(&self) -> &[[f64; 10]; N] {
@@ -568,13 +607,14 @@ impl<const N: usize> SerialChain<N> {
     /// The same chain with a run-time size.
     pub fn to_dyn(&self) -> DynChain {
         DynChain {
-            dh: self.dh.to_vec(),
-            convention: self.convention,
+            joints: self.joints.to_vec(),
+            dh: self.dh.map(|(t, c)| (t.to_vec(), c)),
             geom: self.geom.to_vec(),
             inertial: self.inertial.to_vec(),
             friction: self.friction,
             friction_params: self.friction_params.to_vec(),
             gravity: self.gravity,
+            meta: ChainMeta::numbered(N),
         }
     }
 }
@@ -588,16 +628,56 @@ impl DynChain {
     /// for a non-finite DH constant.
     pub fn new(dh: Vec<DhRow>, convention: DhConvention) -> Result<Self> {
         validate_dh(&dh)?;
-        let n = dh.len();
+        let mut c = Self::from_joints(dh.iter().map(|r| Joint::from_dh(r, convention)).collect())?;
+        c.dh = Some((dh, convention));
+        Ok(c)
+    }
+
+    /// A chain of general joints (see [`Joint`]), massless links, no friction, gravity
+    /// (0, 0, −9.81) m/s² and numbered names ([`ChainMeta::numbered`]).
+    ///
+    /// # Errors
+    /// [`PrrrpError::ShapeMismatch`] for no joints, [`PrrrpError::InvalidParameter`] for a
+    /// non-finite placement or an axis that is not a unit vector.
+    pub fn from_joints(joints: Vec<Joint>) -> Result<Self> {
+        validate_joints(&joints)?;
+        let n = joints.len();
         Ok(Self {
-            geom: dh.iter().map(|r| JointGeom::new(r, convention)).collect(),
-            dh,
-            convention,
+            geom: joints.iter().map(JointGeom::new).collect(),
+            joints,
+            dh: None,
             inertial: vec![[0.0; 10]; n],
             friction: FrictionModel::default(),
             friction_params: vec![[0.0; 3]; n],
             gravity: Vector3::new(0.0, 0.0, -STANDARD_GRAVITY),
+            meta: ChainMeta::numbered(n),
         })
+    }
+
+    /// Sets the names and limits (one [`JointInfo`] and one link name per joint).
+    ///
+    /// # Errors
+    /// [`PrrrpError::ShapeMismatch`] if `meta` does not name every joint and link.
+    pub fn with_meta(mut self, meta: ChainMeta) -> Result<Self> {
+        check_len("meta.joints", meta.joints.len(), self.dof())?;
+        check_len("meta.links", meta.links.len(), self.dof())?;
+        self.meta = meta;
+        Ok(self)
+    }
+
+    /// Names and limits of the chain and its joints.
+    pub fn meta(&self) -> &ChainMeta {
+        &self.meta
+    }
+
+    /// Joint names, base to tip.
+    pub fn joint_names(&self) -> Vec<&str> {
+        self.meta.joints.iter().map(|j| j.name.as_str()).collect()
+    }
+
+    /// Each joint's name, limits and file figures.
+    pub fn joint_info(&self) -> &[JointInfo] {
+        &self.meta.joints
     }
 
     /// Sets the inertial parameters of every link (one 10-vector per joint).
@@ -640,7 +720,11 @@ impl DynChain {
     /// [`PrrrpError::ShapeMismatch`] if the chain does not have N joints.
     pub fn to_fixed<const N: usize>(&self) -> Result<SerialChain<N>> {
         check_len("chain joints", self.dof(), N)?;
-        let mut c = SerialChain::<N>::new(std::array::from_fn(|i| self.dh[i]), self.convention)?;
+        let mut c = SerialChain::<N>::from_joints(std::array::from_fn(|i| self.joints[i]))?;
+        c.dh = self
+            .dh
+            .as_ref()
+            .map(|(t, conv)| (std::array::from_fn(|i| t[i]), *conv));
         c.inertial = std::array::from_fn(|i| self.inertial[i]);
         c.friction = self.friction;
         c.friction_params = std::array::from_fn(|i| self.friction_params[i]);
@@ -648,13 +732,17 @@ impl DynChain {
         Ok(c)
     }
 
-    /// The DH table.
-    pub fn dh(&self) -> &[DhRow] {
-        &self.dh
+    /// The joints (placements, axes, link frames).
+    pub fn joints(&self) -> &[Joint] {
+        &self.joints
     }
-    /// The DH convention.
-    pub fn convention(&self) -> DhConvention {
-        self.convention
+    /// The DH table, when the chain was built from one.
+    pub fn dh(&self) -> Option<&[DhRow]> {
+        self.dh.as_ref().map(|(t, _)| t.as_slice())
+    }
+    /// The DH convention, when the chain was built from a DH table.
+    pub fn convention(&self) -> Option<DhConvention> {
+        self.dh.as_ref().map(|(_, c)| *c)
     }
     /// Inertial parameters of each link.
     pub fn inertial(&self) -> &[[f64; 10]] {
@@ -674,7 +762,7 @@ impl DynChain {
     }
     /// Number of joints n.
     pub fn dof(&self) -> usize {
-        self.dh.len()
+        self.joints.len()
     }
     /// Number of standard parameters: 10·n inertial plus the enabled friction terms.
     pub fn num_params(&self) -> usize {
