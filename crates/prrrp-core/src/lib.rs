@@ -68,7 +68,7 @@ pub use chain::{
     com_and_inertia, inertial_parameters, is_physically_consistent, transform_inertial_parameters,
     BaseOptions, BaseParameters, ChainBaseModel, ChainMeta, DhConvention, DynChain, DynWorkspace,
     FrictionModel, Joint, JointInfo, JointLimit, JointType, SerialChain, AXIS_UNIT_TOLERANCE,
-    FRICTION_PARAMETER_NAMES, INERTIAL_PARAMETER_NAMES, LINK_PARAMS,
+    FRICTION_PARAMETER_NAMES, INERTIAL_PARAMETER_NAMES, LINK_PARAMS, PHYSICAL_TOLERANCE,
 };
 pub use dataset::{Dataset, DatasetParts};
 pub use derivatives::InverseDerivatives;

@@ -33,5 +33,5 @@ pub use inertia::{
 };
 pub use joint::{Joint, JointType, AXIS_UNIT_TOLERANCE};
 pub use meta::{ChainMeta, JointInfo, JointLimit};
-pub use serial_chain::{DynChain, SerialChain};
+pub use serial_chain::{DynChain, SerialChain, PHYSICAL_TOLERANCE};
 pub use workspace::DynWorkspace;

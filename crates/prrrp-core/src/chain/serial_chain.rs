@@ -152,13 +152,6 @@ fn validate_inertial(p: &[[f64; 10]]) -> Result<()> {
                 ));
             }
         }
-        if link[0] < 0.0 {
-            return Err(invalid(
-                format!("inertial[{i}][0] (m{})", i + 1),
-                link[0],
-                "a link mass must be >= 0 kg",
-            ));
-        }
     }
     Ok(())
 }
@@ -201,6 +194,23 @@ fn validate_friction(model: &FrictionModel, p: &[[f64; 3]]) -> Result<()> {
         }
     }
     Ok(())
+}
+
+/// Relative tolerance of the chains' physical-consistency check: the accepted negative
+/// eigenvalue of a link's pseudo-inertia, as a fraction of the link's largest parameter
+/// magnitude (absorbs the round-off of files that list a thin rod's zero moment).
+pub const PHYSICAL_TOLERANCE: f64 = 1e-9;
+
+fn non_physical_links(inertial: &[[f64; 10]]) -> Vec<usize> {
+    inertial
+        .iter()
+        .enumerate()
+        .filter(|(_, p)| {
+            let scale = p.iter().fold(0.0f64, |a, &b| a.max(b.abs()));
+            !super::is_physically_consistent(p, PHYSICAL_TOLERANCE * scale)
+        })
+        .map(|(i, _)| i)
+        .collect()
 }
 
 pub(crate) fn parameter_names(n: usize, friction: &FrictionModel) -> Vec<String> {
@@ -333,7 +343,10 @@ impl<const N: usize> SerialChain<N> {
     /// Sets the inertial parameters of every link (see the type docs for the frame).
     ///
     /// # Errors
-    /// [`PrrrpError::InvalidParameter`] for a non-finite entry or a negative mass.
+    /// [`PrrrpError::InvalidParameter`] for a non-finite entry. Parameters no rigid body
+    /// has (a negative mass, an inertia breaking the triangle inequality) are accepted, as
+    /// a robot file's inertials are only a prior: see
+    /// [`SerialChain::non_physical_links`].
     pub fn with_inertial(mut self, inertial: [[f64; 10]; N]) -> Result<Self> {
         validate_inertial(&inertial)?;
         self.inertial = inertial;
@@ -404,6 +417,20 @@ impl<const N: usize> SerialChain<N> {
     /// The standard parameter vector π (inertial, then enabled friction terms).
     pub fn parameters(&self) -> Vec<f64> {
         parameter_vector(&self.inertial, &self.friction, &self.friction_params)
+    }
+
+    /// Indices (0-based) of the links whose inertial parameters no rigid body has: a
+    /// pseudo-inertia that is not positive semidefinite (see
+    /// [`super::is_physically_consistent`]; tolerance [`PHYSICAL_TOLERANCE`] relative to
+    /// the link's largest parameter).
+    pub fn non_physical_links(&self) -> Vec<usize> {
+        non_physical_links(&self.inertial)
+    }
+
+    /// True when every link's inertial parameters describe a rigid body
+    /// ([`Self::non_physical_links`] is empty).
+    pub fn is_physically_consistent(&self) -> bool {
+        self.non_physical_links().is_empty()
     }
 
     /// The 10·N inertial parameters as one vector, matching [`SerialChain::regressor`].
@@ -684,7 +711,8 @@ impl DynChain {
     ///
     /// # Errors
     /// [`PrrrpError::ShapeMismatch`] for a wrong count, [`PrrrpError::InvalidParameter`]
-    /// for a non-finite entry or a negative mass.
+    /// for a non-finite entry. Non-physical parameters are accepted: see
+    /// [`DynChain::non_physical_links`].
     pub fn with_inertial(mut self, inertial: Vec<[f64; 10]>) -> Result<Self> {
         check_len("inertial", inertial.len(), self.dof())?;
         validate_inertial(&inertial)?;
@@ -775,6 +803,20 @@ impl DynChain {
     /// The standard parameter vector π (inertial, then enabled friction terms).
     pub fn parameters(&self) -> Vec<f64> {
         parameter_vector(&self.inertial, &self.friction, &self.friction_params)
+    }
+
+    /// Indices (0-based) of the links whose inertial parameters no rigid body has: a
+    /// pseudo-inertia that is not positive semidefinite (see
+    /// [`super::is_physically_consistent`]; tolerance [`PHYSICAL_TOLERANCE`] relative to
+    /// the link's largest parameter).
+    pub fn non_physical_links(&self) -> Vec<usize> {
+        non_physical_links(&self.inertial)
+    }
+
+    /// True when every link's inertial parameters describe a rigid body
+    /// ([`Self::non_physical_links`] is empty).
+    pub fn is_physically_consistent(&self) -> bool {
+        self.non_physical_links().is_empty()
     }
 
     pub(crate) fn view(&self) -> ChainView<'_> {
