@@ -8,6 +8,8 @@ qdd, tau) have shape (5,) for one sample or (N, 5) for a batch; λ (`lam`) has s
 from collections.abc import Callable, Iterator, Mapping
 from typing import Any, Final, Literal, TypedDict, overload
 
+import os
+
 import numpy as np
 import numpy.typing as npt
 
@@ -61,6 +63,13 @@ class NotPositiveDefiniteError(InvalidInputError):
 
 class InfeasibleError(InvalidInputError):
     what: str
+
+class RobotFileError(InvalidInputError):
+    """A robot file (URDF, TOML) cannot be read or describes no usable chain."""
+
+    file: str
+    element: str
+    message: str
 
 class DivergedError(PrrrpError, ArithmeticError):
     what: str
@@ -497,9 +506,10 @@ def run_study_json(seed: int = 0, progress: Callable[[str, int, int], object] | 
 # --- generic serial chains ------------------------------------------------------------
 
 class SerialChain:
-    """A serial arm of revolute and prismatic joints from a Denavit–Hartenberg table, with the
-    10 standard inertial parameters per link and optional joint friction. n joints; joint-space
-    arrays have shape (n,) or (N, n).
+    """A serial arm of revolute and prismatic joints, with the 10 standard inertial parameters
+    per link and optional joint friction. n joints; joint-space arrays have shape (n,) or
+    (N, n). Built from a Denavit–Hartenberg table (this constructor), a URDF (`from_urdf`) or a
+    robot file (`from_file`: .urdf or .toml).
 
     Arguments (SI units):
     - dh: (n, 4) rows [a, alpha, d, theta] (m, rad, m, rad); theta and d are the constant
@@ -538,6 +548,87 @@ class SerialChain:
         coulomb_smoothing: float = 0.0,
     ) -> None: ...
     @staticmethod
+    def from_urdf(
+        source: str | os.PathLike[str],
+        *,
+        base: str | None = None,
+        tip: str | None = None,
+        gravity: _ArrayLike | None = None,
+        friction: str | list[str] | None = None,
+        coulomb_smoothing: float = 0.0,
+    ) -> SerialChain:
+        """A chain from a URDF: `source` is its path or its XML text (a string with '<').
+
+        The chain is the path of movable joints (revolute, continuous, prismatic) from the link
+        `base` (default: the root link) to the link `tip` (default: the end of the movable
+        joints when they form a single path; otherwise RobotFileError lists the candidate
+        tips). Bodies on fixed joints are merged into the chain link they hang from; movable
+        joints off the path (a gripper's fingers) are held at zero and merged the same way
+        (`locked_joints`), so the dynamics equal Pinocchio's reduced model with those joints
+        locked at zero. Link frames are the URDF joint frames; each link's `<inertial>`
+        becomes its 10 standard parameters about the joint-frame origin. `<limit>` and
+        `<dynamics>` are kept (`limits`). `gravity` (3,) m/s² in the base link's frame,
+        default (0, 0, −9.81); `friction`/`coulomb_smoothing` as in the constructor.
+        Non-physical inertials load (see `non_physical_links`). Malformed files, missing
+        links, zero or non-unit axes, floating/planar/mimic joints on the path:
+        RobotFileError or InvalidParameterError naming the file and element."""
+    @staticmethod
+    def from_file(
+        path: str | os.PathLike[str],
+        *,
+        base: str | None = None,
+        tip: str | None = None,
+        gravity: _ArrayLike | None = None,
+        friction: str | list[str] | None = None,
+        coulomb_smoothing: float = 0.0,
+    ) -> SerialChain:
+        """A chain from a `.urdf` (see `from_urdf`) or a `.toml` robot file:
+
+        ```toml
+        name = "panda"
+        convention = "modified"            # or "standard"
+        gravity = [0.0, 0.0, -9.80665]     # optional, default [0, 0, -9.81]
+        [[joint]]                          # one per joint, base to tip
+        type = "revolute"                  # or "prismatic"
+        a = 0.0
+        alpha = 0.0
+        d = 0.333
+        theta = 0.0
+        # optional: name, lower, upper, velocity, acceleration, effort (SI);
+        # inertial = [m, mx, my, mz, Ixx, Ixy, Iyy, Ixz, Iyz, Izz]; friction = [fv, fc, fo]
+        ```
+
+        Unknown keys are an error naming them; a `friction` row enables viscous, Coulomb and
+        offset terms (overridden by the `friction` argument)."""
+    def to_urdf(self, parameters: _ArrayLike | None = None) -> str:
+        """A URDF of this chain with the standard parameters `parameters` (P,) (default:
+        `parameters`): kinematics as loaded, each link's inertial about its centre of mass.
+        Loading it back gives the same dynamics (to round-off). Chains whose link frames sit
+        off the joint axes (standard DH) are written in joint frames, inertials moved
+        accordingly."""
+    @property
+    def name(self) -> str:
+        """The robot's name from its file ('robot' otherwise)."""
+    @property
+    def joint_names(self) -> list[str]:
+        """Joint names, base to tip ('joint1', ... for DH tables)."""
+    @property
+    def link_names(self) -> list[str]:
+        """The base link, then the link each joint moves (n + 1 names)."""
+    @property
+    def locked_joints(self) -> list[str]:
+        """Movable joints of the source file held at zero and merged into the links."""
+    @property
+    def limits(self) -> dict[str, _F64]:
+        """'lower', 'upper' (rad or m), 'velocity', 'acceleration', 'effort' (SI), each (n,);
+        NaN where the file gives none."""
+    @property
+    def non_physical_links(self) -> list[str]:
+        """Links whose inertials no rigid body has (pseudo-inertia not positive semidefinite:
+        a negative mass, an inertia breaking the triangle inequality)."""
+    def is_physically_consistent(self) -> bool:
+        """True when `non_physical_links` is empty."""
+    @staticmethod
     def paper() -> SerialChain:
         """The paper's PRRRP arm (Tables 1–2, g = 9.81 m/s²) as a chain: same dynamics as
         `Robot.paper()`, 50 standard parameters, 9 base parameters."""
@@ -557,13 +648,14 @@ class SerialChain:
     def parameters(self) -> _F64:
         """The standard parameter vector π, (P,)."""
     @property
-    def dh(self) -> _F64:
-        """(n, 4) rows [a, alpha, d, theta]."""
+    def dh(self) -> _F64 | None:
+        """(n, 4) rows [a, alpha, d, theta]; None for a chain not built from a DH table."""
     @property
     def joint_types(self) -> str:
         """E.g. 'RRRRRR'."""
     @property
-    def convention(self) -> Literal["standard", "modified"]: ...
+    def convention(self) -> Literal["standard", "modified"] | None:
+        """The DH convention; None for a chain not built from a DH table."""
     @property
     def inertial(self) -> _F64:
         """(n, 10), see the class docs for the frame."""
@@ -612,7 +704,13 @@ class SerialChain:
     ) -> _F64:
         """Y_b = Y[..., base.independent] with τ = Y_b @ base.base_values(parameters),
         (n, b) or (N, n, b); `base` defaults to `base_parameters()`."""
-    def __getnewargs_ex__(self) -> tuple[tuple[Any, ...], dict[str, Any]]: ...
+    def to_json(self) -> str:
+        """The complete description as JSON (schema version 1; `from_json` rebuilds it
+        exactly). Pickling uses it, so chains from files pickle too."""
+    @staticmethod
+    def from_json(text: str) -> SerialChain:
+        """A chain from the JSON of `to_json`."""
+    def __reduce__(self) -> tuple[Any, ...]: ...
 
 class BaseParameters:
     """Result of `SerialChain.base_parameters()`: base parameters β = map @ π (b of them)."""

@@ -66,8 +66,9 @@ mod validation;
 
 pub use chain::{
     com_and_inertia, inertial_parameters, is_physically_consistent, transform_inertial_parameters,
-    BaseOptions, BaseParameters, ChainBaseModel, ChainMeta, DhConvention, DynChain, DynWorkspace,
-    FrictionModel, Joint, JointInfo, JointLimit, JointType, SerialChain, AXIS_UNIT_TOLERANCE,
+    BaseOptions, BaseParameters, ChainBaseModel, ChainDescription, ChainMeta, DhConvention,
+    DhDescription, DynChain, DynWorkspace, FrictionModel, Joint, JointDescription, JointInfo,
+    JointLimit, JointType, PoseDescription, SerialChain, AXIS_UNIT_TOLERANCE, CHAIN_SCHEMA_VERSION,
     FRICTION_PARAMETER_NAMES, INERTIAL_PARAMETER_NAMES, LINK_PARAMS, PHYSICAL_TOLERANCE,
 };
 pub use dataset::{Dataset, DatasetParts};

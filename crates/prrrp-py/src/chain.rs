@@ -8,7 +8,7 @@ use std::sync::OnceLock;
 use numpy::PyArray1;
 use prrrp_core::{
     BaseOptions, BaseParameters, DhConvention, DhRow, DynChain, FrictionModel, JointKind,
-    SerialChain,
+    SerialChain, UrdfOptions,
 };
 use pyo3::exceptions::PyTypeError;
 use pyo3::prelude::*;
@@ -116,11 +116,13 @@ fn friction_from(obj: Option<&Bound<'_, PyAny>>, smoothing: f64) -> PyResult<Fri
     let reason = "must be None or terms among 'viscous', 'coulomb', 'offset' (a list, or one \
                   string joined with '+')";
     let terms: Vec<String> = if let Ok(s) = obj.cast::<PyString>() {
-        s.to_str()?
-            .split(['+', ','])
-            .map(|t| t.trim().to_string())
-            .filter(|t| !t.is_empty())
-            .collect()
+        let s = s.to_str()?;
+        if s.trim().is_empty() {
+            Vec::new()
+        } else {
+            // An empty term ('viscous+') is a typo, not "no more terms".
+            s.split(['+', ',']).map(|t| t.trim().to_string()).collect()
+        }
     } else {
         obj.try_iter()
             .map_err(|_| invalid(py, "friction", "not a string or a list of strings", reason))?
@@ -169,6 +171,28 @@ impl PySerialChain {
 
     fn joints(&self, obj: &Bound<'_, PyAny>, name: &'static str) -> PyResult<DynSamples> {
         DynSamples::extract(obj, name, self.inner.dof())
+    }
+
+    /// Applies the Python-side friction choice to a chain read from a file: the file's own
+    /// friction (a TOML `friction` row) stays unless `friction` is given.
+    fn finish_loaded(
+        py: Python<'_>,
+        chain: DynChain,
+        friction: Option<&Bound<'_, PyAny>>,
+        smoothing: f64,
+    ) -> PyResult<Self> {
+        let chain = if friction.is_some() || smoothing != 0.0 {
+            let mut model = friction_from(friction, smoothing)?;
+            if friction.is_none() {
+                let f = chain.friction();
+                (model.viscous, model.coulomb, model.offset) = (f.viscous, f.coulomb, f.offset);
+            }
+            let params = chain.friction_params().to_vec();
+            chain.with_friction(model, params).to_py(py)?
+        } else {
+            chain
+        };
+        Ok(Self::wrap(chain))
     }
 
     fn default_base(&self, py: Python<'_>) -> PyResult<&BaseParameters> {
@@ -254,6 +278,141 @@ impl PySerialChain {
         };
         chain = chain.with_friction(model, params).to_py(py)?;
         Ok(Self::wrap(chain))
+    }
+
+    /// A chain from a URDF file or string: the movable joints from `base` to `tip`, with
+    /// fixed bodies and off-path joints (held at zero) merged into the links.
+    #[staticmethod]
+    #[pyo3(signature = (source, *, base=None, tip=None, gravity=None, friction=None,
+        coulomb_smoothing=0.0))]
+    fn from_urdf(
+        py: Python<'_>,
+        source: &Bound<'_, PyAny>,
+        base: Option<String>,
+        tip: Option<String>,
+        gravity: Option<&Bound<'_, PyAny>>,
+        friction: Option<&Bound<'_, PyAny>>,
+        coulomb_smoothing: f64,
+    ) -> PyResult<Self> {
+        let opts = urdf_options(base, tip, gravity)?;
+        let chain = match source_text(source)? {
+            Source::Text(xml) => py.detach(|| DynChain::from_urdf_str(&xml, &opts)),
+            Source::Path(path) => py.detach(|| DynChain::from_urdf_file(&path, &opts)),
+        }
+        .to_py(py)?;
+        Self::finish_loaded(py, chain, friction, coulomb_smoothing)
+    }
+
+    /// A chain from a robot file: `.urdf` (see `from_urdf`) or `.toml` (a DH table).
+    #[staticmethod]
+    #[pyo3(signature = (path, *, base=None, tip=None, gravity=None, friction=None,
+        coulomb_smoothing=0.0))]
+    fn from_file(
+        py: Python<'_>,
+        path: std::path::PathBuf,
+        base: Option<String>,
+        tip: Option<String>,
+        gravity: Option<&Bound<'_, PyAny>>,
+        friction: Option<&Bound<'_, PyAny>>,
+        coulomb_smoothing: f64,
+    ) -> PyResult<Self> {
+        let opts = urdf_options(base, tip, gravity)?;
+        let mut chain = py.detach(|| DynChain::from_file(&path, &opts)).to_py(py)?;
+        if let Some(g) = opts.gravity {
+            chain = chain.with_gravity(g).to_py(py)?;
+        }
+        Self::finish_loaded(py, chain, friction, coulomb_smoothing)
+    }
+
+    /// A URDF of this chain with the given standard parameters (default: its own).
+    #[pyo3(signature = (parameters=None))]
+    fn to_urdf(&self, py: Python<'_>, parameters: Option<&Bound<'_, PyAny>>) -> PyResult<String> {
+        let params = match parameters {
+            Some(obj) => {
+                let v = crate::arrays::vector(obj, "parameters")?;
+                let want = self.inner.num_params();
+                if v.len() != want {
+                    return Err(shape_error(
+                        py,
+                        "parameters",
+                        format!("({want},)"),
+                        format!("({},)", v.len()),
+                    ));
+                }
+                Some(v)
+            }
+            None => None,
+        };
+        self.inner.to_urdf(params.as_deref()).to_py(py)
+    }
+
+    /// The robot's name (from its file; 'robot' otherwise).
+    #[getter]
+    fn name(&self) -> String {
+        self.inner.meta().name.clone()
+    }
+
+    /// Joint names, base to tip.
+    #[getter]
+    fn joint_names(&self) -> Vec<String> {
+        self.inner
+            .meta()
+            .joints
+            .iter()
+            .map(|j| j.name.clone())
+            .collect()
+    }
+
+    /// Names of the fixed base link and of the link each joint moves.
+    #[getter]
+    fn link_names(&self) -> Vec<String> {
+        let m = self.inner.meta();
+        std::iter::once(m.base_link.clone())
+            .chain(m.links.iter().cloned())
+            .collect()
+    }
+
+    /// Movable joints of the source file held at zero and merged into the links.
+    #[getter]
+    fn locked_joints(&self) -> Vec<String> {
+        self.inner.meta().locked_joints.clone()
+    }
+
+    /// Joint limits from the robot file: a dict of arrays of shape (n,) 'lower', 'upper'
+    /// (rad or m), 'velocity', 'acceleration', 'effort' (SI); NaN where the file gives none.
+    #[getter]
+    fn limits<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let joints = &self.inner.meta().joints;
+        let d = PyDict::new(py);
+        let fields: [(&str, fn(&prrrp_core::JointLimit) -> f64); 5] = [
+            ("lower", |l| l.lower),
+            ("upper", |l| l.upper),
+            ("velocity", |l| l.velocity),
+            ("acceleration", |l| l.acceleration),
+            ("effort", |l| l.effort),
+        ];
+        for (name, get) in fields {
+            let v: Vec<f64> = joints.iter().map(|j| get(&j.limit)).collect();
+            d.set_item(name, PyArray1::from_vec(py, v))?;
+        }
+        Ok(d)
+    }
+
+    /// Names of the links whose inertial parameters no rigid body has (a pseudo-inertia
+    /// that is not positive semidefinite: negative mass, triangle inequality broken).
+    #[getter]
+    fn non_physical_links(&self) -> Vec<String> {
+        let m = self.inner.meta();
+        self.inner
+            .non_physical_links()
+            .into_iter()
+            .map(|i| m.links[i].clone())
+            .collect()
+    }
+
+    /// True when every link's inertial parameters describe a rigid body.
+    fn is_physically_consistent(&self) -> bool {
+        self.inner.is_physically_consistent()
     }
 
     /// The paper's PRRRP arm (Tables 1–2, g = 9.81 m/s²) as a chain.
@@ -544,32 +703,66 @@ impl PySerialChain {
         )
     }
 
-    /// Pickle and copy support: the arguments that rebuild this chain.
-    fn __getnewargs_ex__<'py>(
-        &self,
-        py: Python<'py>,
-    ) -> PyResult<(Bound<'py, PyTuple>, Bound<'py, PyDict>)> {
-        let args = PyTuple::new(
-            py,
-            [
-                self.dh(py)?.ok_or_else(|| {
-                    PyTypeError::new_err("only chains built from a DH table can be pickled")
-                })?,
-                self.joint_types().into_pyobject(py)?.into_any(),
-            ],
-        )?;
-        let kw = PyDict::new(py);
-        kw.set_item("convention", self.convention())?;
-        kw.set_item("inertial", self.inertial(py)?)?;
-        kw.set_item("gravity", self.gravity(py))?;
-        let f = self.inner.friction();
-        if f.columns_per_joint() > 0 {
-            kw.set_item("friction", PyList::new(py, friction_names(&f))?)?;
-            kw.set_item("friction_params", self.friction_params(py)?)?;
-        }
-        kw.set_item("coulomb_smoothing", f.coulomb_smoothing)?;
-        Ok((args, kw))
+    /// The chain's complete description as JSON (joints, inertials, friction, gravity,
+    /// names, limits; schema version 1): `SerialChain.from_json` rebuilds it exactly.
+    fn to_json(&self, py: Python<'_>) -> PyResult<String> {
+        self.inner.to_json().to_py(py)
     }
+
+    /// A chain from the JSON of `to_json`.
+    #[staticmethod]
+    fn from_json(py: Python<'_>, text: &str) -> PyResult<Self> {
+        let chain = py.detach(|| DynChain::from_json(text)).to_py(py)?;
+        Ok(Self::wrap(chain))
+    }
+
+    /// Pickle and copy support, for any chain (DH or URDF): rebuilt from its JSON.
+    fn __reduce__<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyTuple>> {
+        let rebuild = py.get_type::<PySerialChain>().getattr("from_json")?;
+        let args = PyTuple::new(py, [self.to_json(py)?])?;
+        PyTuple::new(py, [rebuild, args.into_any()])
+    }
+}
+
+enum Source {
+    Text(String),
+    Path(std::path::PathBuf),
+}
+
+/// A URDF given as XML text (it contains '<') or as a path (str or os.PathLike).
+fn source_text(obj: &Bound<'_, PyAny>) -> PyResult<Source> {
+    if let Ok(s) = obj.cast::<PyString>() {
+        let s = s.to_str()?;
+        return Ok(if s.contains('<') {
+            Source::Text(s.to_owned())
+        } else {
+            Source::Path(s.into())
+        });
+    }
+    obj.extract::<std::path::PathBuf>()
+        .map(Source::Path)
+        .map_err(|_| {
+            invalid(
+                obj.py(),
+                "source",
+                "neither a string nor a path",
+                "give the URDF's path or its XML text",
+            )
+        })
+}
+
+fn urdf_options(
+    base: Option<String>,
+    tip: Option<String>,
+    gravity: Option<&Bound<'_, PyAny>>,
+) -> PyResult<UrdfOptions> {
+    Ok(UrdfOptions {
+        base,
+        tip,
+        gravity: gravity
+            .map(|g| fixed_vector::<3>(g, "gravity"))
+            .transpose()?,
+    })
 }
 
 /// The base parameters of a chain: β = map · parameters, τ = Y_b·β.

@@ -11,7 +11,8 @@
 //! │   ├── NonIncreasingTimeError                     .row
 //! │   ├── RankDeficientError                         .rank .params .cond .directions
 //! │   ├── NotPositiveDefiniteError                   .what
-//! │   └── InfeasibleError                            .what
+//! │   ├── InfeasibleError                            .what
+//! │   └── RobotFileError                             .file .element .message
 //! └── DivergedError(PrrrpError, ArithmeticError)    .what .at .hint
 //! ```
 //! A non-physical λ is what makes the mass matrix indefinite, so like numpy's
@@ -40,10 +41,11 @@ pub(crate) enum Exc {
     RankDeficient,
     NotPositiveDefinite,
     Infeasible,
+    RobotFile,
     Diverged,
 }
 
-const ALL: [Exc; 11] = [
+const ALL: [Exc; 12] = [
     Exc::Base,
     Exc::InvalidInput,
     Exc::InvalidParameter,
@@ -54,10 +56,11 @@ const ALL: [Exc; 11] = [
     Exc::RankDeficient,
     Exc::NotPositiveDefinite,
     Exc::Infeasible,
+    Exc::RobotFile,
     Exc::Diverged,
 ];
 
-static TYPES: [PyOnceLock<Py<PyType>>; 11] = [const { PyOnceLock::new() }; 11];
+static TYPES: [PyOnceLock<Py<PyType>>; 12] = [const { PyOnceLock::new() }; 12];
 
 impl Exc {
     fn name(self) -> &'static str {
@@ -72,6 +75,7 @@ impl Exc {
             Exc::RankDeficient => "RankDeficientError",
             Exc::NotPositiveDefinite => "NotPositiveDefiniteError",
             Exc::Infeasible => "InfeasibleError",
+            Exc::RobotFile => "RobotFileError",
             Exc::Diverged => "DivergedError",
         }
     }
@@ -104,6 +108,10 @@ impl Exc {
                  λ). Attribute: what."
             }
             Exc::Infeasible => "A constrained problem has no feasible answer. Attribute: what.",
+            Exc::RobotFile => {
+                "A robot file (URDF, TOML) cannot be read or describes no usable chain. \
+                 Attributes: file, element (the element or key at fault), message."
+            }
             Exc::Diverged => {
                 "An iterative estimator or integrator blew up. Also an ArithmeticError. \
                  Attributes: what, at, hint."
@@ -253,6 +261,19 @@ pub(crate) fn to_pyerr(py: Python<'_>, err: &PrrrpError) -> PyErr {
         PrrrpError::NonIncreasingTime { row } => {
             Exc::NonIncreasingTime.new_err(py, msg, &attrs!("row" => *row))
         }
+        PrrrpError::RobotFile {
+            file,
+            element,
+            message,
+        } => Exc::RobotFile.new_err(
+            py,
+            msg,
+            &attrs!(
+                "file" => file.as_str(),
+                "element" => element.as_str(),
+                "message" => message.as_str(),
+            ),
+        ),
         // A variant added to the core later still maps to the base class.
         _ => Exc::Base.new_err(py, msg, &[]),
     }

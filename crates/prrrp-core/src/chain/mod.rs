@@ -11,6 +11,7 @@
 mod base_model;
 mod base_params;
 mod crba;
+mod description;
 mod dh;
 mod friction;
 mod inertia;
@@ -25,6 +26,9 @@ mod workspace;
 
 pub use base_model::ChainBaseModel;
 pub use base_params::{BaseOptions, BaseParameters};
+pub use description::{
+    ChainDescription, DhDescription, JointDescription, PoseDescription, CHAIN_SCHEMA_VERSION,
+};
 pub use dh::DhConvention;
 pub use friction::{FrictionModel, FRICTION_PARAMETER_NAMES};
 pub use inertia::{
