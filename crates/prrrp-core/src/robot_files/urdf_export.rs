@@ -32,8 +32,23 @@ fn attr(s: &str) -> String {
     out
 }
 
+/// Fixed-axis roll, pitch, yaw of a rotation, R = Rz(y)·Ry(p)·Rx(r), accurate also near
+/// pitch = ±π/2 (common in URDFs), where `asin`-based formulas lose half the digits: the
+/// yaw is taken out first and roll and pitch come from entries of order 1 of the rest, so
+/// that the three angles reproduce R to round-off whatever the yaw's own error.
+fn rpy(rot: &Matrix3<f64>) -> (f64, f64, f64) {
+    let yaw = rot[(1, 0)].atan2(rot[(0, 0)]);
+    let (s, c) = yaw.sin_cos();
+    let unyaw = Matrix3::new(c, s, 0.0, -s, c, 0.0, 0.0, 0.0, 1.0);
+    // Ry(p)·Rx(r) = [[cp, sp·sr, sp·cr], [0, cr, −sr], [−sp, cp·sr, cp·cr]]
+    let m = unyaw * rot;
+    let pitch = (-m[(2, 0)]).atan2(m[(0, 0)]);
+    let roll = (-m[(1, 2)]).atan2(m[(1, 1)]);
+    (roll, pitch, yaw)
+}
+
 fn origin(iso: &Isometry3<f64>) -> String {
-    let (r, p, y) = iso.rotation.euler_angles();
+    let (r, p, y) = rpy(&iso.rotation.to_rotation_matrix().into_inner());
     format!(
         "<origin xyz=\"{}\" rpy=\"{} {} {}\"/>",
         vec3(&iso.translation.vector),
