@@ -79,6 +79,16 @@ pub enum PrrrpError {
         /// First row whose time is not larger than the previous one.
         row: usize,
     },
+    /// A robot file (URDF or TOML) cannot be read or does not describe a valid chain.
+    RobotFile {
+        /// The file's path, or `<string>` when the text was given directly.
+        file: String,
+        /// The offending element or key, e.g. `joint[panda_joint3]/axis` (URDF) or
+        /// `joint[3].inertial` (TOML); `file` for problems with the whole file.
+        element: String,
+        /// What is wrong and what to fix.
+        message: String,
+    },
 }
 
 impl fmt::Display for PrrrpError {
@@ -145,6 +155,11 @@ impl fmt::Display for PrrrpError {
                     "time stamps must be strictly increasing; row {row} is not"
                 )
             }
+            Self::RobotFile {
+                file,
+                element,
+                message,
+            } => write!(f, "robot file {file}, `{element}`: {message}"),
         }
     }
 }

@@ -55,6 +55,7 @@ mod model;
 mod preprocess;
 mod regressor;
 mod robot;
+mod robot_files;
 mod scaled;
 mod sensitivity;
 mod simulation;
@@ -95,6 +96,7 @@ pub use preprocess::{
 };
 pub use regressor::{condition_number, observation_matrix, singular_values};
 pub use robot::{DhRow, JointKind, Robot, STANDARD_GRAVITY};
+pub use robot_files::UrdfOptions;
 pub use scaled::ScaledModel;
 pub use sensitivity::{sensitivity, SensitivityConfig, SensitivityReport};
 pub use simulation::{
