@@ -1,10 +1,13 @@
 //! Per-sample cost of the generic chain: inverse dynamics (RNEA), regressor, mass matrix
 //! (CRBA) and forward dynamics, for the PRRRP arm as a chain (against its closed form)
-//! and for the 6R PUMA 560. Inputs are built outside the timed closures.
+//! for the 6R PUMA 560, and for the URDF robots of `example-robot-data` (Panda, UR5,
+//! Kinova Gen2) when that package is installed (the test venv has it; set
+//! `PRRRP_ROBOTS_DIR` to its `robots` folder elsewhere). Inputs are built outside the timed
+//! closures.
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use prrrp_core::nalgebra::{SMatrix, SVector};
-use prrrp_core::{BaseOptions, LinearDynamics, Robot, SerialChain};
+use prrrp_core::{BaseOptions, DynChain, LinearDynamics, Robot, SerialChain, UrdfOptions};
 use std::hint::black_box;
 use std::time::Duration;
 
@@ -82,11 +85,83 @@ fn puma(c: &mut Criterion) {
     g.finish();
 }
 
+/// The `robots` folder of `example-robot-data`, if installed.
+fn robots_dir() -> Option<std::path::PathBuf> {
+    let dir = std::env::var_os("PRRRP_ROBOTS_DIR")
+        .map(std::path::PathBuf::from)
+        .unwrap_or_else(|| {
+            std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join(
+                ".venv/lib/python3.11/site-packages/cmeel.prefix/share/example-robot-data/robots",
+            )
+        });
+    dir.is_dir().then_some(dir)
+}
+
+fn urdf_group<const N: usize, const P: usize>(c: &mut Criterion, name: &str, chain: &DynChain) {
+    let fixed = chain.to_fixed::<N>().expect("joint count");
+    let [q, qd, qdd] = state::<N>();
+    let mut ws = chain.workspace();
+    let mut tau = vec![0.0; N];
+    let mut y = vec![0.0; N * chain.num_params()];
+    let mut g = c.benchmark_group(name);
+    g.bench_function("inverse_dynamics", |b| {
+        b.iter(|| fixed.inverse_dynamics(black_box(&q), black_box(&qd), black_box(&qdd)))
+    });
+    g.bench_function("regressor", |b| {
+        b.iter(|| -> SMatrix<f64, N, P> {
+            fixed.regressor(black_box(&q), black_box(&qd), black_box(&qdd))
+        })
+    });
+    g.bench_function("dyn_inverse_dynamics_into", |b| {
+        b.iter(|| {
+            chain.inverse_dynamics_into(
+                &mut ws,
+                black_box(q.as_slice()),
+                black_box(qd.as_slice()),
+                black_box(qdd.as_slice()),
+                &mut tau,
+            )
+        })
+    });
+    g.bench_function("dyn_regressor_into", |b| {
+        b.iter(|| {
+            chain.regressor_row_major_into(
+                &mut ws,
+                black_box(q.as_slice()),
+                black_box(qd.as_slice()),
+                black_box(qdd.as_slice()),
+                &mut y,
+            )
+        })
+    });
+    g.finish();
+}
+
+fn urdf_robots(c: &mut Criterion) {
+    let Some(dir) = robots_dir() else {
+        eprintln!("example-robot-data not found: URDF benchmarks skipped");
+        return;
+    };
+    let load = |rel: &str, tip: Option<&str>| {
+        let opts = UrdfOptions {
+            tip: tip.map(String::from),
+            ..UrdfOptions::default()
+        };
+        DynChain::from_urdf_file(dir.join(rel), &opts).expect("example-robot-data URDF")
+    };
+    let panda = load("panda_description/urdf/panda.urdf", Some("panda_link8"));
+    urdf_group::<7, 70>(c, "urdf_panda", &panda);
+    let ur5 = load("ur_description/urdf/ur5_robot.urdf", None);
+    urdf_group::<6, 60>(c, "urdf_ur5", &ur5);
+    let kinova = load("kinova_description/robots/kinova.urdf", None);
+    urdf_group::<6, 60>(c, "urdf_kinova", &kinova);
+}
+
 criterion_group! {
     name = benches;
     config = Criterion::default()
         .warm_up_time(Duration::from_secs(1))
         .measurement_time(Duration::from_secs(3));
-    targets = prrrp, puma
+    targets = prrrp, puma, urdf_robots
 }
 criterion_main!(benches);

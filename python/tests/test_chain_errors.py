@@ -79,8 +79,10 @@ def test_bad_inertial_gravity_friction():
         prrrp.SerialChain([ROW, ROW], "RR", inertial=np.zeros((2, 9)))
     neg = np.zeros((2, 10))
     neg[1, 0] = -1.0
-    with pytest.raises(prrrp.InvalidParameterError, match="m2"):
-        prrrp.SerialChain([ROW, ROW], "RR", inertial=neg)
+    # A file's inertials are only a prior: non-physical ones load and are reported.
+    assert prrrp.SerialChain([ROW, ROW], "RR", inertial=neg).non_physical_links == ["link2"]
+    with pytest.raises(prrrp.InvalidParameterError, match="inertial"):
+        prrrp.SerialChain([ROW, ROW], "RR", inertial=np.full((2, 10), np.nan))
     with pytest.raises(prrrp.InvalidParameterError, match="gravity"):
         prrrp.SerialChain([ROW], "R", gravity=[0.0, np.inf, 0.0])
     with pytest.raises(prrrp.ShapeMismatchError, match="gravity"):

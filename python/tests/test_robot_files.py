@@ -137,7 +137,12 @@ def stacked_pin_regressor_rank(model, n, samples, seed):
             for k in range(samples)
         ]
     )
-    s = np.linalg.svd(w / np.maximum(np.linalg.norm(w, axis=0), 1e-300), compute_uv=False)
+    # Columns that vanish in exact arithmetic (e.g. m·x of a link on a vertical axis) carry
+    # round-off of ~1e-11 relative; scaled to unit norm they would count as rank. Drop
+    # them, scale the others to unit norm, and count the singular values above 1e-8.
+    norms = np.linalg.norm(w, axis=0)
+    keep = norms > 1e-9 * norms.max()
+    s = np.linalg.svd(w[:, keep] / norms[keep], compute_uv=False)
     return int((s > 1e-8 * s[0]).sum())
 
 

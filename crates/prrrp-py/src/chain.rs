@@ -10,9 +10,8 @@ use prrrp_core::{
     BaseOptions, BaseParameters, DhConvention, DhRow, DynChain, FrictionModel, JointKind,
     SerialChain, UrdfOptions,
 };
-use pyo3::exceptions::PyTypeError;
 use pyo3::prelude::*;
-use pyo3::types::{PyDict, PyList, PyString, PyTuple};
+use pyo3::types::{PyDict, PyString, PyTuple};
 
 use crate::arrays::{
     batch_len, fixed_vector, map_samples, map_samples_with, matrix_rows, to_array, DynSamples,
