@@ -315,6 +315,31 @@ pub(super) fn chain_from_toml(text: &str, file: &str) -> Result<DynChain> {
             meta.links[i] = l.clone();
         }
     }
+    // Unique names keep the chain writable as URDF, where names identify links and joints.
+    let mut seen = std::collections::HashSet::new();
+    seen.insert(meta.base_link.as_str());
+    for (i, l) in meta.links.iter().enumerate() {
+        if !seen.insert(l.as_str()) {
+            return Err(ctx.err(
+                format!("joint[{i}].link"),
+                format!(
+                    "link name `{l}` is used twice (or is the base link); names must be unique"
+                ),
+            ));
+        }
+    }
+    let mut seen = std::collections::HashSet::new();
+    for (i, s) in specs.iter().enumerate() {
+        if !seen.insert(s.info.name.as_str()) {
+            return Err(ctx.err(
+                format!("joint[{i}].name"),
+                format!(
+                    "joint name `{}` is used twice; names must be unique",
+                    s.info.name
+                ),
+            ));
+        }
+    }
     let rows: Vec<DhRow> = specs.iter().map(|s| s.row).collect();
     let inertial: Vec<[f64; 10]> = specs
         .iter()
