@@ -721,6 +721,17 @@ fn toml_panda_equals_dh_chain() {
     );
     assert!(l.acceleration.is_nan());
     assert_eq!(chain.friction(), FrictionModel::default());
+    // Modified DH through URDF: the same dynamics and names.
+    let xml = chain.to_urdf(None).unwrap();
+    let back = DynChain::from_urdf_str(&xml, &UrdfOptions::default()).unwrap();
+    assert_eq!(back.gravity(), [0.0, 0.0, -9.81], "URDF carries no gravity");
+    let opts = UrdfOptions {
+        gravity: Some(chain.gravity()),
+        ..UrdfOptions::default()
+    };
+    let back = DynChain::from_urdf_str(&xml, &opts).unwrap();
+    assert_same_dynamics(&chain, &back, 1e-12, "TOML panda via URDF");
+    assert_eq!(back.meta().links, meta.links);
 }
 
 #[test]
@@ -795,6 +806,17 @@ fn toml_errors_name_the_key() {
     assert_error_names(DynChain::from_toml_str(&bad), &["joint[0].inertial[0]"]);
     let bad = good.replacen("lower = -2.8973", "lower = 3", 1);
     assert_error_names(DynChain::from_toml_str(&bad), &["joint[0].lower"]);
+    // Repeated names.
+    let bad = good.replacen("link = \"panda_link2\"", "link = \"panda_link1\"", 1);
+    assert_error_names(
+        DynChain::from_toml_str(&bad),
+        &["joint[1].link", "panda_link1"],
+    );
+    let bad = good.replacen("name = \"panda_joint3\"", "name = \"panda_joint1\"", 1);
+    assert_error_names(
+        DynChain::from_toml_str(&bad),
+        &["joint[2].name", "panda_joint1"],
+    );
     // Syntax errors.
     assert_error_names(
         DynChain::from_toml_str("name = \"x\"\n[[joint]\n"),

@@ -131,8 +131,9 @@ impl DynChain {
     /// [`PrrrpError::RobotFile`] naming `<string>` and the element: malformed XML, a link
     /// or joint name that does not exist or repeats, a tip not below the base, several
     /// candidate tips, a floating, planar or mimic joint on the path, a floating or planar
-    /// joint carrying mass off it, an axis that is not a unit vector, a non-finite number,
-    /// or a negative merged mass (which [`DynChain`] does not accept yet).
+    /// joint below a moving link off it, an axis that is not a unit vector, a non-finite
+    /// number, or a negative merged mass (which [`DynChain`] does not accept yet);
+    /// [`PrrrpError::InvalidParameter`] for a non-finite `opts.gravity`.
     pub fn from_urdf_str(xml: &str, opts: &UrdfOptions) -> Result<DynChain> {
         urdf::chain_from_urdf(xml, STRING_SOURCE, opts)
     }
@@ -191,7 +192,8 @@ impl DynChain {
     /// # Errors
     /// [`PrrrpError::RobotFile`] naming `<string>` and the key path (e.g.
     /// `joint[3].inertial`, 0-based): a TOML syntax error, an unknown key, a missing key, a
-    /// value of the wrong type, length or sign, or a non-finite number.
+    /// value of the wrong type, length or sign, a non-finite number, or a repeated link or
+    /// joint name.
     pub fn from_toml_str(text: &str) -> Result<DynChain> {
         toml_file::chain_from_toml(text, STRING_SOURCE)
     }

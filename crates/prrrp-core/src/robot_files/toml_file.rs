@@ -57,7 +57,7 @@ impl Ctx<'_> {
             other => {
                 return Err(self.err(
                     key,
-                    format!("expected a number, found a {}", other.type_str()),
+                    format!("expected a number, found type `{}`", other.type_str()),
                 ))
             }
         };
@@ -80,15 +80,22 @@ impl Ctx<'_> {
     }
 
     fn string<'v>(&self, v: &'v Value, key: &str) -> Result<&'v str> {
-        v.as_str()
-            .ok_or_else(|| self.err(key, format!("expected a string, found a {}", v.type_str())))
+        v.as_str().ok_or_else(|| {
+            self.err(
+                key,
+                format!("expected a string, found type `{}`", v.type_str()),
+            )
+        })
     }
 
     fn array<const N: usize>(&self, v: &Value, key: &str) -> Result<[f64; N]> {
         let Some(items) = v.as_array() else {
             return Err(self.err(
                 key,
-                format!("expected an array of {N} numbers, found a {}", v.type_str()),
+                format!(
+                    "expected an array of {N} numbers, found type `{}`",
+                    v.type_str()
+                ),
             ));
         };
         if items.len() != N {
@@ -280,7 +287,10 @@ pub(super) fn chain_from_toml(text: &str, file: &str) -> Result<DynChain> {
         Some(other) => {
             return Err(ctx.err(
                 "joint",
-                format!("expected [[joint]] tables, found a {}", other.type_str()),
+                format!(
+                    "expected [[joint]] tables, found type `{}`",
+                    other.type_str()
+                ),
             ))
         }
     };
@@ -289,7 +299,7 @@ pub(super) fn chain_from_toml(text: &str, file: &str) -> Result<DynChain> {
         let Some(t) = v.as_table() else {
             return Err(ctx.err(
                 format!("joint[{i}]"),
-                format!("expected a [[joint]] table, found a {}", v.type_str()),
+                format!("expected a [[joint]] table, found type `{}`", v.type_str()),
             ));
         };
         specs.push(joint_spec(&ctx, t, i)?);
@@ -303,6 +313,31 @@ pub(super) fn chain_from_toml(text: &str, file: &str) -> Result<DynChain> {
     for (i, s) in specs.iter().enumerate() {
         if let Some(l) = &s.link {
             meta.links[i] = l.clone();
+        }
+    }
+    // Unique names keep the chain writable as URDF, where names identify links and joints.
+    let mut seen = std::collections::HashSet::new();
+    seen.insert(meta.base_link.as_str());
+    for (i, l) in meta.links.iter().enumerate() {
+        if !seen.insert(l.as_str()) {
+            return Err(ctx.err(
+                format!("joint[{i}].link"),
+                format!(
+                    "link name `{l}` is used twice (or is the base link); names must be unique"
+                ),
+            ));
+        }
+    }
+    let mut seen = std::collections::HashSet::new();
+    for (i, s) in specs.iter().enumerate() {
+        if !seen.insert(s.info.name.as_str()) {
+            return Err(ctx.err(
+                format!("joint[{i}].name"),
+                format!(
+                    "joint name `{}` is used twice; names must be unique",
+                    s.info.name
+                ),
+            ));
         }
     }
     let rows: Vec<DhRow> = specs.iter().map(|s| s.row).collect();

@@ -7,8 +7,10 @@ use nalgebra::{Isometry3, Matrix3, Vector3};
 use crate::chain::{transform_inertial_parameters, DynChain, JointType, LINK_PARAMS};
 use crate::error::{PrrrpError, Result};
 
-/// Shortest text that reads back to the same `f64` (Rust's `Debug` is round-trip exact).
+/// Shortest text that reads back to the same `f64` (Rust's `Debug` is round-trip exact);
+/// −0 is written as 0, which no reader treats differently.
 fn num(x: f64) -> String {
+    let x = if x == 0.0 { 0.0 } else { x };
     format!("{x:?}")
 }
 
