@@ -132,7 +132,8 @@ impl DynChain {
     /// or joint name that does not exist or repeats, a tip not below the base, several
     /// candidate tips, a floating, planar or mimic joint on the path, a floating or planar
     /// joint below a moving link off it, an axis that is not a unit vector, a non-finite
-    /// number, or a negative merged mass (which [`DynChain`] does not accept yet);
+    /// number. Non-physical inertials (a negative mass, a broken triangle inequality)
+    /// load: see [`DynChain::non_physical_links`];
     /// [`PrrrpError::InvalidParameter`] for a non-finite `opts.gravity`.
     pub fn from_urdf_str(xml: &str, opts: &UrdfOptions) -> Result<DynChain> {
         urdf::chain_from_urdf(xml, STRING_SOURCE, opts)

@@ -204,14 +204,6 @@ fn joint_spec(ctx: &Ctx<'_>, t: &Table, i: usize) -> Result<JointSpec> {
         .get("inertial")
         .map(|v| ctx.array::<10>(v, &format!("{path}inertial")))
         .transpose()?;
-    if let Some(p) = &inertial {
-        if p[0] < 0.0 {
-            return Err(ctx.err(
-                format!("{path}inertial[0]"),
-                format!("the mass {} kg is negative; give m >= 0", p[0]),
-            ));
-        }
-    }
     let friction = t
         .get("friction")
         .map(|v| ctx.array::<3>(v, &format!("{path}friction")))

@@ -34,6 +34,12 @@ fn is_movable(t: &UrdfJointType) -> bool {
     )
 }
 
+/// Any joint that is not fixed. The default tip follows these, so that a floating or planar
+/// joint at the end of the only path is reported by name rather than as "no joint".
+fn is_articulated(t: &UrdfJointType) -> bool {
+    !matches!(t, UrdfJointType::Fixed)
+}
+
 fn type_name(t: &UrdfJointType) -> &'static str {
     match t {
         UrdfJointType::Revolute => "revolute",
@@ -199,13 +205,13 @@ impl<'r> Tree<'r> {
         let mut movable_below = vec![false; self.parent_joint.len()];
         for &l in order.iter().rev() {
             movable_below[l] = self.child_joints[l].iter().any(|&j| {
-                is_movable(&self.joint(j).joint_type) || movable_below[self.joint_child[j]]
+                is_articulated(&self.joint(j).joint_type) || movable_below[self.joint_child[j]]
             });
         }
         let tips: Vec<usize> = order
             .iter()
             .flat_map(|&l| self.child_joints[l].iter().copied())
-            .filter(|&j| is_movable(&self.joint(j).joint_type))
+            .filter(|&j| is_articulated(&self.joint(j).joint_type))
             .map(|j| self.joint_child[j])
             .filter(|&c| !movable_below[c])
             .collect();
@@ -545,19 +551,6 @@ pub(super) fn chain_from_urdf(xml: &str, file: &str, opts: &UrdfOptions) -> Resu
 
     let joints: Vec<Joint> = joints.into_iter().flatten().collect();
     let infos: Vec<JointInfo> = infos.into_iter().flatten().collect();
-    for (k, p) in inertial.iter().enumerate() {
-        if p[0] < 0.0 {
-            return Err(file_error(
-                file,
-                link_el(&links[k], "inertial/mass"),
-                format!(
-                    "the merged mass of this chain link is negative ({} kg); DynChain does \
-                     not accept negative masses",
-                    p[0]
-                ),
-            ));
-        }
-    }
     let meta = ChainMeta {
         name: robot.name.clone(),
         base_link: tree.link_name(base).to_string(),
