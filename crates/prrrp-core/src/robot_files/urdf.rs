@@ -27,13 +27,6 @@ struct Tree<'r> {
     joint_child: Vec<usize>,
 }
 
-fn is_movable(t: &UrdfJointType) -> bool {
-    matches!(
-        t,
-        UrdfJointType::Revolute | UrdfJointType::Continuous | UrdfJointType::Prismatic
-    )
-}
-
 /// Any joint that is not fixed. The default tip follows these, so that a floating or planar
 /// joint at the end of the only path is reported by name rather than as "no joint".
 fn is_articulated(t: &UrdfJointType) -> bool {
