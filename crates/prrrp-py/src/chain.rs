@@ -383,17 +383,14 @@ impl PySerialChain {
     fn limits<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         let joints = &self.inner.meta().joints;
         let d = PyDict::new(py);
-        let fields: [(&str, fn(&prrrp_core::JointLimit) -> f64); 5] = [
-            ("lower", |l| l.lower),
-            ("upper", |l| l.upper),
-            ("velocity", |l| l.velocity),
-            ("acceleration", |l| l.acceleration),
-            ("effort", |l| l.effort),
-        ];
-        for (name, get) in fields {
-            let v: Vec<f64> = joints.iter().map(|j| get(&j.limit)).collect();
-            d.set_item(name, PyArray1::from_vec(py, v))?;
-        }
+        let column = |get: &dyn Fn(&prrrp_core::JointLimit) -> f64| {
+            PyArray1::from_vec(py, joints.iter().map(|j| get(&j.limit)).collect())
+        };
+        d.set_item("lower", column(&|l| l.lower))?;
+        d.set_item("upper", column(&|l| l.upper))?;
+        d.set_item("velocity", column(&|l| l.velocity))?;
+        d.set_item("acceleration", column(&|l| l.acceleration))?;
+        d.set_item("effort", column(&|l| l.effort))?;
         Ok(d)
     }
 
