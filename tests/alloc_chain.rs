@@ -6,7 +6,7 @@ use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
 
 use prrrp_core::nalgebra::{SMatrix, SVector};
-use prrrp_core::{BaseOptions, FrictionModel, LinearDynamics, SerialChain};
+use prrrp_core::{BaseOptions, DynChain, FrictionModel, LinearDynamics, SerialChain, UrdfOptions};
 
 struct Counting;
 
@@ -97,6 +97,48 @@ fn base_model_does_not_allocate() {
         let fd = model.forward_dynamics(&q, &qd, &tau, &beta).expect("PD");
         let d = model.forward_derivatives(&q, &qd, &tau, &beta).expect("PD");
         sink += phi[(1, 2)] + fd[0] + d.dqdd_dq[(1, 1)];
+    });
+    std::hint::black_box(sink);
+    assert_eq!(n, 0);
+}
+
+/// A chain loaded from a URDF (tilted axes, a prismatic joint, merged fixed bodies and
+/// locked fingers): the fixed-size methods and the run-time `*_into` methods with a
+/// workspace allocate nothing either.
+#[test]
+fn urdf_chain_does_not_allocate() {
+    let xml = include_str!("../crates/prrrp-core/tests/data/three_joint.urdf");
+    let opts = UrdfOptions {
+        tip: Some("link3".into()),
+        ..UrdfOptions::default()
+    };
+    let chain = DynChain::from_urdf_str(xml, &opts)
+        .expect("fixture loads")
+        .with_friction(FrictionModel::all(), vec![[0.5, 0.2, 0.01]; 3])
+        .expect("valid");
+    let fixed = chain.to_fixed::<3>().expect("3 joints");
+    let mut ws = chain.workspace();
+    let (mut tau, mut back) = ([0.0; 3], [0.0; 3]);
+    let mut m = [0.0; 9];
+    let mut y = vec![0.0; 3 * chain.num_params()];
+    let mut sink = 0.0;
+    let n = count(|k| {
+        let [q, qd, qdd] = state::<3>(k);
+        let t = fixed.inverse_dynamics(&q, &qd, &qdd);
+        let yf: SMatrix<f64, 3, 30> = fixed.regressor(&q, &qd, &qdd);
+        let fd = fixed.forward_dynamics(&q, &qd, &t).expect("PD");
+        let (q, qd, qdd) = (q.as_slice(), qd.as_slice(), qdd.as_slice());
+        chain
+            .inverse_dynamics_into(&mut ws, q, qd, qdd, &mut tau)
+            .expect("sizes");
+        chain.mass_matrix_into(&mut ws, q, &mut m).expect("sizes");
+        chain
+            .forward_dynamics_into(&mut ws, q, qd, &tau, &mut back)
+            .expect("PD");
+        chain
+            .regressor_row_major_into(&mut ws, q, qd, qdd, &mut y)
+            .expect("sizes");
+        sink += t[0] + yf[(0, 3)] + fd[1] + tau[2] + m[4] + back[0] + y[5];
     });
     std::hint::black_box(sink);
     assert_eq!(n, 0);
