@@ -96,7 +96,7 @@ pub use preprocess::{
 };
 pub use regressor::{condition_number, observation_matrix, singular_values};
 pub use robot::{DhRow, JointKind, Robot, STANDARD_GRAVITY};
-pub use robot_files::UrdfOptions;
+pub use robot_files::{UrdfOptions, MAX_ROBOT_FILE_BYTES};
 pub use scaled::ScaledModel;
 pub use sensitivity::{sensitivity, SensitivityConfig, SensitivityReport};
 pub use simulation::{

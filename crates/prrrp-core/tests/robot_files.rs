@@ -1047,3 +1047,11 @@ fn export_is_accurate_near_pitch_half_pi() {
     }
     assert_same_dynamics(&chain, &back, 1e-13, "gimbal round trip");
 }
+
+/// An endless or huge file is refused after a bounded read, not read into memory whole.
+#[cfg(unix)]
+#[test]
+fn endless_file_is_refused() {
+    let e = DynChain::from_urdf_file("/dev/zero", &UrdfOptions::default()).unwrap_err();
+    assert!(e.to_string().contains("larger than"), "{e}");
+}

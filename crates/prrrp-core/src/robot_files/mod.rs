@@ -55,10 +55,30 @@ pub(crate) fn file_error(
 }
 
 /// Reads a whole text file, with the path in every error.
+/// Largest robot file read, bytes (64 MiB). Real descriptions are kilobytes (the Panda's
+/// URDF is 15 kB); the bound keeps `/dev/zero` or a mistaken log file from exhausting
+/// memory before the parser can complain.
+pub const MAX_ROBOT_FILE_BYTES: u64 = 64 << 20;
+
 fn read_text(path: &Path) -> Result<(String, String)> {
+    use std::io::Read;
     let file = path.display().to_string();
-    match std::fs::read_to_string(path) {
-        Ok(text) => Ok((file, text)),
+    let read = std::fs::File::open(path).and_then(|f| {
+        let mut text = String::new();
+        // One byte past the bound tells a file that is too large from one that fits.
+        let n = f.take(MAX_ROBOT_FILE_BYTES + 1).read_to_string(&mut text)?;
+        Ok((n, text))
+    });
+    match read {
+        Ok((n, _)) if n as u64 > MAX_ROBOT_FILE_BYTES => Err(file_error(
+            &file,
+            "file",
+            format!(
+                "the file is larger than {MAX_ROBOT_FILE_BYTES} bytes; a robot description \
+                 is a few kilobytes: check the path"
+            ),
+        )),
+        Ok((_, text)) => Ok((file, text)),
         Err(e) => Err(file_error(
             &file,
             "file",
