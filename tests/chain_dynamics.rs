@@ -454,8 +454,12 @@ fn bad_input_is_a_typed_error() {
         Err(PrrrpError::ShapeMismatch { .. })
     ));
     let c = SerialChain::new([row, row], DhConvention::Standard).unwrap();
+    // Non-physical inertials load (a file's are only a prior) and are reported; NaN does
+    // not load.
     let mut neg = [[0.0; 10]; 2];
     neg[1][0] = -1.0;
+    assert_eq!(c.with_inertial(neg).unwrap().non_physical_links(), vec![1]);
+    neg[0][3] = f64::NAN;
     assert!(matches!(
         c.with_inertial(neg),
         Err(PrrrpError::InvalidParameter { .. })

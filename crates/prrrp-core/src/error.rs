@@ -74,6 +74,12 @@ pub enum PrrrpError {
         /// What could not be met.
         what: String,
     },
+    /// A long computation stopped because [`crate::request_stop`] was called (Ctrl-C in
+    /// Python); nothing partial is returned.
+    Interrupted {
+        /// Which computation.
+        what: &'static str,
+    },
     /// Time stamps are not strictly increasing.
     NonIncreasingTime {
         /// First row whose time is not larger than the previous one.
@@ -149,6 +155,7 @@ impl fmt::Display for PrrrpError {
                 write!(f, "{what} diverged at sample/iteration {at}: {hint}")
             }
             Self::Infeasible { what } => write!(f, "infeasible: {what}"),
+            Self::Interrupted { what } => write!(f, "{what} interrupted"),
             Self::NonIncreasingTime { row } => {
                 write!(
                     f,

@@ -208,6 +208,7 @@ pub fn optimise_excitation<const K: usize>(
         }),
     };
     for run in 0..config.restarts.max(1) {
+        crate::interrupt::check("excitation optimisation")?;
         let start = {
             let mut s = problem.state.borrow_mut();
             // Nelder–Mead evaluates its whole initial simplex before the first iteration
@@ -239,6 +240,7 @@ pub fn optimise_excitation<const K: usize>(
             .configure(|st| st.max_iters(u64::MAX))
             .run();
     }
+    crate::interrupt::check("excitation optimisation")?;
     let SearchState {
         evaluations,
         best_x,
@@ -343,7 +345,12 @@ impl<const K: usize> Shaper<K> {
         }
         c.limits.validate()?;
         // A tiny tolerance so that e.g. 10 s / 0.02 s gives 501 samples despite rounding.
-        let samples = (c.duration / c.dt + 1e-9).floor() as usize + 1;
+        let samples = crate::interrupt::check_count(
+            "duration (in samples of dt)",
+            (c.duration / c.dt + 1e-9).floor() + 1.0,
+            "asks for more than MAX_SAMPLES (1e7) samples per evaluation: shorten the \
+             duration or raise dt",
+        )?;
         if samples < NPARAM {
             return Err(bad(
                 "duration",
@@ -494,6 +501,10 @@ impl<const K: usize> CostFunction for &Problem<'_, '_, K> {
         let mut s = self.state.borrow_mut();
         if s.evaluations >= s.budget {
             return Err(ArgminError::msg("evaluation budget spent"));
+        }
+        // An error stops the executor; the caller then sees the interruption.
+        if crate::interrupt::stop_requested() {
+            return Err(ArgminError::msg("interrupted"));
         }
         s.evaluations += 1;
         let c = match self.shaper.build(&x.0, SCAN_SEARCH) {

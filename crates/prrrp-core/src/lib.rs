@@ -49,6 +49,7 @@ mod dynamics;
 mod error;
 mod estimators;
 mod excitation;
+mod interrupt;
 mod limits;
 mod metrics;
 mod model;
@@ -70,7 +71,8 @@ pub use chain::{
     BaseOptions, BaseParameters, ChainBaseModel, ChainDescription, ChainMeta, DhConvention,
     DhDescription, DynChain, DynWorkspace, FrictionModel, Joint, JointDescription, JointInfo,
     JointLimit, JointType, PoseDescription, SerialChain, AXIS_UNIT_TOLERANCE, CHAIN_SCHEMA_VERSION,
-    FRICTION_PARAMETER_NAMES, INERTIAL_PARAMETER_NAMES, LINK_PARAMS, PHYSICAL_TOLERANCE,
+    FRICTION_PARAMETER_NAMES, INERTIAL_PARAMETER_NAMES, LINK_PARAMS, MAX_MATRIX_ENTRIES,
+    PHYSICAL_TOLERANCE,
 };
 pub use dataset::{Dataset, DatasetParts};
 pub use derivatives::InverseDerivatives;
@@ -86,6 +88,7 @@ pub use excitation::{
     excitation_variables, optimise_excitation, ExcitationConfig, ExcitationProgress,
     ExcitationResult, DEFAULT_EXCITATION_KNOTS,
 };
+pub use interrupt::{check_count, clear_stop, request_stop, stop_requested, MAX_SAMPLES};
 pub use limits::{limit_usage, JointLimits, LimitUsage};
 pub use metrics::{
     agreement_index, error_indices, relative_errors_percent, rms, rsd, ErrorIndices,
@@ -101,7 +104,7 @@ pub use scaled::ScaledModel;
 pub use sensitivity::{sensitivity, SensitivityConfig, SensitivityReport};
 pub use simulation::{
     rk4_step, simulate_closed_loop, simulate_open_loop, ComputedTorque, SensorNoise,
-    SimulationConfig, SimulationRecord,
+    SimulationConfig, SimulationRecord, MAX_INTEGRATION_STEPS,
 };
 pub use study::{
     run_study, EstimationData, ExcitationSummary, History, MethodEstimate, MethodValidationSummary,

@@ -78,6 +78,11 @@ pub fn sensitivity(
             reason: "need at least 2 points per parameter",
         });
     }
+    crate::interrupt::check_count(
+        "points",
+        config.points as f64 * NPARAM as f64,
+        "points × 8 parameters exceeds MAX_SAMPLES (1e7) runs: use fewer points",
+    )?;
     let v = &config.validation;
     let sim = SimulationConfig {
         noise: SensorNoise::none(),
@@ -149,6 +154,9 @@ pub fn sensitivity(
             .map(|h| h.join().unwrap_or_default())
             .collect()
     });
+    // Workers drain the remaining jobs quickly once interrupted; report that, not the
+    // first job's error.
+    crate::interrupt::check("sensitivity")?;
     let mut rms_table = vec![vec![None; config.points]; NPARAM];
     let mut seen = 0;
     for (idx, r) in results.into_iter().flatten() {

@@ -333,6 +333,23 @@ fn check_state(name: &str, v: &Vec5) -> Result<()> {
     }
 }
 
+/// Largest number of RK4 steps (samples × substeps) of one simulation: 2·10⁸, about a
+/// minute of computing; more is refused rather than left to run for hours.
+pub const MAX_INTEGRATION_STEPS: f64 = 2e8;
+
+fn check_steps(samples: usize, substeps: usize) -> Result<()> {
+    let steps = samples as f64 * substeps as f64;
+    if steps > MAX_INTEGRATION_STEPS {
+        return Err(PrrrpError::InvalidParameter {
+            field: "substeps".into(),
+            value: substeps as f64,
+            reason: "samples × substeps exceeds MAX_INTEGRATION_STEPS (2e8 RK4 steps): \
+                     lower substeps or shorten the run",
+        });
+    }
+    Ok(())
+}
+
 fn diverged(at: usize) -> PrrrpError {
     PrrrpError::Diverged {
         what: "simulation",
@@ -372,7 +389,12 @@ pub fn simulate_closed_loop<T: JointTrajectory + ?Sized>(
             reason: "must be finite and >= 0 s",
         });
     }
-    let n = (duration / config.dt + 1e-9).floor() as usize + 1;
+    let n = crate::interrupt::check_count(
+        "duration (in samples of dt)",
+        (duration / config.dt + 1e-9).floor() + 1.0,
+        "asks for more than MAX_SAMPLES (1e7) samples: shorten the duration or raise dt",
+    )?;
+    check_steps(n, config.substeps)?;
     let ctrl = ComputedTorque {
         model: *model,
         lambda: *controller_lambda,
@@ -387,6 +409,7 @@ pub fn simulate_closed_loop<T: JointTrajectory + ?Sized>(
     let mut noise = Noise::new(&config.noise, config.seed)?;
     let mut rec = SimulationRecord::with_capacity(n, true);
     for k in 0..n {
+        crate::interrupt::check("simulation")?;
         let t = config.dt * k as f64;
         let r = reference.eval(t);
         let tau = ctrl.torque(&r, &q, &qd);
@@ -446,11 +469,13 @@ pub fn simulate_open_loop(
             row: Some(row),
         });
     }
+    check_steps(tau.len(), config.substeps)?;
     let h = config.dt / config.substeps as f64;
     let (mut q, mut qd) = (*q0, *qd0);
     let mut noise = Noise::new(&config.noise, config.seed)?;
     let mut rec = SimulationRecord::with_capacity(tau.len(), false);
     for (k, tk) in tau.iter().enumerate() {
+        crate::interrupt::check("simulation")?;
         let qdd = model.forward_dynamics(&q, &qd, tk, lambda)?;
         let (qm, tm) = noise.sample(&q, tk);
         rec.t.push(config.dt * k as f64);

@@ -17,6 +17,7 @@ use crate::arrays::{
     batch_len, fixed_vector, map_samples, map_samples_with, matrix_rows, to_array, DynSamples,
 };
 use crate::errors::{shape_error, Exc, ToPyResult};
+use crate::interrupt::interruptible;
 
 type Out<'py> = PyResult<Bound<'py, PyAny>>;
 
@@ -655,7 +656,7 @@ impl PySerialChain {
                 inner: self.default_base(py)?.clone(),
             });
         }
-        let inner = py.detach(|| self.inner.base_parameters(&opts)).to_py(py)?;
+        let inner = interruptible(py, || self.inner.base_parameters(&opts))?.to_py(py)?;
         Ok(PyBaseParameters { inner })
     }
 

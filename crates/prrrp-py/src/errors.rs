@@ -23,7 +23,9 @@
 //! with Python's `type(name, bases, dict)` once and cached.
 
 use prrrp_core::PrrrpError;
-use pyo3::exceptions::{PyArithmeticError, PyException, PyRuntimeError, PyValueError};
+use pyo3::exceptions::{
+    PyArithmeticError, PyException, PyKeyboardInterrupt, PyRuntimeError, PyValueError,
+};
 use pyo3::prelude::*;
 use pyo3::sync::PyOnceLock;
 use pyo3::types::{PyDict, PyTuple, PyType};
@@ -274,6 +276,8 @@ pub(crate) fn to_pyerr(py: Python<'_>, err: &PrrrpError) -> PyErr {
                 "message" => message.as_str(),
             ),
         ),
+        // Raised when a Ctrl-C reached another thread's computation first: the same stop.
+        PrrrpError::Interrupted { .. } => PyKeyboardInterrupt::new_err(msg),
         // A variant added to the core later still maps to the base class.
         _ => Exc::Base.new_err(py, msg, &[]),
     }

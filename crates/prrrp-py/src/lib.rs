@@ -25,6 +25,7 @@ mod dataset;
 mod derivatives;
 mod errors;
 mod estimators;
+mod interrupt;
 mod metrics;
 mod preprocessing;
 mod regressor;

@@ -11,6 +11,7 @@ use pyo3::types::PyDict;
 
 use crate::arrays::{fixed_or, rows_to_array, to_array, Samples};
 use crate::errors::ToPyResult;
+use crate::interrupt::interruptible;
 use crate::trajectories::{Excitation, SinusoidReference};
 
 pub(crate) fn record_dict<'py>(
@@ -100,10 +101,14 @@ fn simulate_closed_loop<'py>(
     let model = Robot::paper().model();
     let rec = if let Ok(e) = reference.extract::<PyRef<'_, Excitation>>() {
         let traj = e.inner.trajectory;
-        py.detach(|| core_closed(&model, &lam, &ctrl, &traj, duration, &cfg))
+        interruptible(py, || {
+            core_closed(&model, &lam, &ctrl, &traj, duration, &cfg)
+        })?
     } else if let Ok(s) = reference.extract::<PyRef<'_, SinusoidReference>>() {
         let traj = s.inner;
-        py.detach(|| core_closed(&model, &lam, &ctrl, &traj, duration, &cfg))
+        interruptible(py, || {
+            core_closed(&model, &lam, &ctrl, &traj, duration, &cfg)
+        })?
     } else {
         return Err(PyTypeError::new_err(format!(
             "`reference` must be a prrrp.Excitation or prrrp.SinusoidReference, got {}",
@@ -148,7 +153,7 @@ fn simulate_open_loop<'py>(
         seed,
     )?;
     let model = Robot::paper().model();
-    let rec = py.detach(|| core_open(&model, &lam, &q0, &qd0, &tau, &cfg));
+    let rec = interruptible(py, || core_open(&model, &lam, &q0, &qd0, &tau, &cfg))?;
     record_dict(py, &rec.to_py(py)?)
 }
 

@@ -7,6 +7,7 @@ use prrrp_core::{run_study, Robot, StudyConfig};
 use pyo3::prelude::*;
 
 use crate::errors::ToPyResult;
+use crate::interrupt::interruptible;
 
 /// Runs the study with `seed` on the paper robot and returns its JSON (schema_version 1).
 /// `progress(stage, done, total)` is called from Rust (possibly from worker threads, with
@@ -34,7 +35,9 @@ fn run_study_json(py: Python<'_>, seed: u64, progress: Option<Py<PyAny>>) -> PyR
             }
         });
     };
-    let result = py.detach(|| run_study(&robot, &config, &report).and_then(|r| r.to_json()));
+    let result = interruptible(py, || {
+        run_study(&robot, &config, &report).and_then(|r| r.to_json())
+    })?;
     let err = match callback_error.into_inner() {
         Ok(e) => e,
         Err(p) => p.into_inner(),

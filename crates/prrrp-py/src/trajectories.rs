@@ -12,6 +12,7 @@ use pyo3::types::PyDict;
 
 use crate::arrays::{any_array, fixed_or, fixed_vector, fmt_shape, rows_to_array, to_array};
 use crate::errors::{shape_error, to_pyerr, ToPyResult};
+use crate::interrupt::interruptible;
 
 type Result = ExcitationResult<DEFAULT_EXCITATION_KNOTS>;
 
@@ -211,7 +212,7 @@ fn optimise_excitation(
     };
     let model = Robot::paper().model();
     let mut callback_error: Option<PyErr> = None;
-    let result = py.detach(|| {
+    let result = interruptible(py, || {
         core_optimise::<DEFAULT_EXCITATION_KNOTS>(&model, &config, |p| {
             let Some(cb) = progress.as_ref() else { return };
             if callback_error.is_some() {
@@ -223,7 +224,7 @@ fn optimise_excitation(
                 }
             });
         })
-    });
+    })?;
     if let Some(e) = callback_error {
         return Err(e);
     }

@@ -15,6 +15,7 @@ use numpy::PyArrayMethods;
 use crate::arrays::{fixed_or, fixed_vector, rows_to_array, to_array};
 use crate::dataset::dataset_from;
 use crate::errors::{to_pyerr, ToPyResult};
+use crate::interrupt::interruptible;
 use crate::simulation::{config as sim_config, record_dict};
 use crate::trajectories::SinusoidReference;
 
@@ -123,9 +124,10 @@ fn validate<'py>(
     let cfg = validation_config(reference, duration, seed, sim);
     let model = Robot::paper().model();
     let known = relative_errors.then_some(truth);
-    let report = py
-        .detach(|| core_validate(&model, &truth, &ctrl, &estimates, known.as_ref(), &cfg))
-        .to_py(py)?;
+    let report = interruptible(py, || {
+        core_validate(&model, &truth, &ctrl, &estimates, known.as_ref(), &cfg)
+    })?
+    .to_py(py)?;
     let methods = PyList::empty(py);
     for m in &report.methods {
         let d = PyDict::new(py);
@@ -199,9 +201,8 @@ fn sensitivity<'py>(
         threads,
     };
     let model = Robot::paper().model();
-    let r = py
-        .detach(|| core_sensitivity(&model, &nominal, &cfg, &|_, _| {}))
-        .to_py(py)?;
+    let r =
+        interruptible(py, || core_sensitivity(&model, &nominal, &cfg, &|_, _| {}))?.to_py(py)?;
     let k = r.factors.len();
     let mut rms = Vec::with_capacity(NPARAM * k * NDOF);
     let mut physical = Vec::with_capacity(NPARAM * k);

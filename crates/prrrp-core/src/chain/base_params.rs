@@ -179,6 +179,10 @@ impl SplitMix64 {
     }
 }
 
+/// Largest stacked regressor the base-parameter analysis builds, in doubles (2.5·10⁸,
+/// 2 GB).
+pub const MAX_MATRIX_ENTRIES: f64 = 2.5e8;
+
 pub(crate) fn analyse(view: &ChainView<'_>, opts: &BaseOptions) -> Result<BaseParameters> {
     let tol = opts.rank_tolerance;
     if !(tol.is_finite() && tol > 0.0 && tol < 1.0) {
@@ -195,6 +199,17 @@ pub(crate) fn analyse(view: &ChainView<'_>, opts: &BaseOptions) -> Result<BasePa
     } else {
         opts.samples
     };
+    // W is (n·samples) × p doubles: refuse what would not fit comfortably in memory.
+    let entries = n as f64 * samples as f64 * p as f64;
+    if entries > MAX_MATRIX_ENTRIES || samples > crate::interrupt::MAX_SAMPLES {
+        return Err(PrrrpError::InvalidParameter {
+            field: "BaseOptions::samples".into(),
+            value: samples as f64,
+            reason: "the stacked regressor would exceed MAX_MATRIX_ENTRIES (2.5e8 doubles, \
+                     2 GB) or MAX_SAMPLES: use fewer samples (0 = automatic, 4 rows per \
+                     parameter)",
+        });
+    }
     if n * samples < p {
         return Err(PrrrpError::TooFewSamples {
             needed: p.div_ceil(n),

@@ -25,7 +25,7 @@ mod serial_chain;
 mod workspace;
 
 pub use base_model::ChainBaseModel;
-pub use base_params::{BaseOptions, BaseParameters};
+pub use base_params::{BaseOptions, BaseParameters, MAX_MATRIX_ENTRIES};
 pub use description::{
     ChainDescription, DhDescription, JointDescription, PoseDescription, CHAIN_SCHEMA_VERSION,
 };

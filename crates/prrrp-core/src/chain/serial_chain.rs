@@ -268,6 +268,7 @@ pub(crate) fn stack_regressor<'s>(
     let p = n * (10 + per_joint);
     let mut w = Mat::<f64>::zeros(n * samples, p);
     for k in 0..samples {
+        crate::interrupt::check("regressor stacking")?;
         let (q, qd, qdd) = get(k);
         for (name, v) in [("q", q), ("qd", qd), ("qdd", qdd)] {
             if !v.iter().all(|x| x.is_finite()) {

@@ -1,0 +1,77 @@
+"""Ctrl-C stops long computations with KeyboardInterrupt (run in a child process, which
+gets a real SIGINT), and absurd sizes are refused before anything is allocated."""
+
+import signal
+import subprocess
+import sys
+import textwrap
+import time
+
+import numpy as np
+import pytest
+
+import prrrp
+
+LONG_CALLS = {
+    "sensitivity": "prrrp.sensitivity(points=400)",
+    "simulation": "prrrp.simulate_closed_loop(s, 20000.0, substeps=100)",
+    "excitation": "prrrp.optimise_excitation(max_evaluations=10**6, restarts=50)",
+}
+
+
+@pytest.mark.parametrize("call", sorted(LONG_CALLS))
+def test_ctrl_c_stops_a_long_call(call):
+    script = textwrap.dedent(
+        f"""
+        import sys, time
+        import numpy as np
+        import prrrp
+        s = prrrp.SinusoidReference(
+            offset=np.zeros(5), amplitude=np.full(5, 0.1), omega=np.ones(5))
+        print("started", flush=True)
+        t = time.monotonic()
+        try:
+            {LONG_CALLS[call]}
+        except KeyboardInterrupt:
+            print(f"interrupted after {{time.monotonic() - t:.2f}} s", flush=True)
+            sys.exit(130)
+        print("finished", flush=True)
+        """
+    )
+    child = subprocess.Popen(
+        [sys.executable, "-c", script], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
+    )
+    try:
+        assert child.stdout.readline().strip() == "started"
+        time.sleep(1.0)
+        child.send_signal(signal.SIGINT)
+        out, err = child.communicate(timeout=20)
+    finally:
+        child.kill()
+    assert child.returncode == 130, (out, err)
+    assert "interrupted" in out
+
+
+S = prrrp.SinusoidReference(offset=np.zeros(5), amplitude=np.full(5, 0.1), omega=np.ones(5))
+
+
+@pytest.mark.parametrize(
+    "call",
+    [
+        lambda: prrrp.simulate_closed_loop(S, 1e9),
+        lambda: prrrp.simulate_closed_loop(S, 1.8e17),
+        lambda: prrrp.simulate_closed_loop(S, 0.1, substeps=2**63),
+        lambda: prrrp.simulate_open_loop(np.zeros(5), np.zeros(5), np.zeros((10, 5)), substeps=2**63),
+        lambda: prrrp.validate({"ls": prrrp.Robot.paper().base_parameters()}, duration=1e9),
+        lambda: prrrp.sensitivity(duration=1e9, points=2),
+        lambda: prrrp.sensitivity(points=2**63),
+        lambda: prrrp.SerialChain.paper().base_parameters(samples=10**12),
+        lambda: prrrp.SerialChain.paper().base_parameters(samples=2**63),
+        lambda: prrrp.optimise_excitation(duration=1e9, max_evaluations=5, restarts=0),
+    ],
+)
+def test_absurd_sizes_are_refused_before_allocating(call):
+    t = time.monotonic()
+    with pytest.raises(prrrp.InvalidInputError, match="MAX_"):
+        call()
+    assert time.monotonic() - t < 1.0
