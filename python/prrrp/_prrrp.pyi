@@ -5,10 +5,9 @@ qdd, tau) have shape (5,) for one sample or (N, 5) for a batch; λ (`lam`) has s
 (N, 8). Single samples broadcast against batches. Outputs get a leading N for a batch.
 """
 
+import os
 from collections.abc import Callable, Iterator, Mapping
 from typing import Any, Final, Literal, TypedDict, overload
-
-import os
 
 import numpy as np
 import numpy.typing as npt

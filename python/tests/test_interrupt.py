@@ -61,7 +61,9 @@ S = prrrp.SinusoidReference(offset=np.zeros(5), amplitude=np.full(5, 0.1), omega
         lambda: prrrp.simulate_closed_loop(S, 1e9),
         lambda: prrrp.simulate_closed_loop(S, 1.8e17),
         lambda: prrrp.simulate_closed_loop(S, 0.1, substeps=2**63),
-        lambda: prrrp.simulate_open_loop(np.zeros(5), np.zeros(5), np.zeros((10, 5)), substeps=2**63),
+        lambda: prrrp.simulate_open_loop(
+            np.zeros(5), np.zeros(5), np.zeros((10, 5)), substeps=2**63
+        ),
         lambda: prrrp.validate({"ls": prrrp.Robot.paper().base_parameters()}, duration=1e9),
         lambda: prrrp.sensitivity(duration=1e9, points=2),
         lambda: prrrp.sensitivity(points=2**63),

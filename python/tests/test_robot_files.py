@@ -174,7 +174,8 @@ def test_limits_come_from_the_file():
     assert np.isnan(limits["acceleration"]).all()
     # Kinova's continuous joints have no position limits.
     kinova = load_prrrp("kinova")
-    assert np.isnan(kinova.limits["lower"][0]) and np.isnan(kinova.limits["upper"][0])
+    assert np.isnan(kinova.limits["lower"][0])
+    assert np.isnan(kinova.limits["upper"][0])
 
 
 def test_panda_without_tip_lists_the_candidate_tips():
