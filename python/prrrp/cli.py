@@ -18,12 +18,12 @@ interrupted. Errors are one line on stderr, never a traceback.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import math
-import os
 import shutil
+import signal
 import sys
-import tempfile
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
@@ -145,31 +145,25 @@ def _check_output_dir(path: Path) -> None:
 
 
 def cmd_reproduce(args: argparse.Namespace) -> int:
-    from prrrp import plots, report
+    from prrrp import outdir, plots, report
 
     if not hasattr(prrrp, "run_study"):
         raise CliError("this build of prrrp has no run_study (reinstall the package)", EXIT_FAILED)
     out = Path(args.out)
-    if out.exists() and not out.is_dir():
-        raise CliError(f"--out {out} exists and is not a directory")
-    out.mkdir(parents=True, exist_ok=True)
     progress = Progress()
-    # Everything is written into a temporary directory inside DIR and moved into place
-    # only once all of it succeeded: a failed run leaves earlier results untouched.
-    tmp = Path(tempfile.mkdtemp(prefix=".prrrp-reproduce-", dir=out))
-    try:
+
+    # The folder is built aside and swapped in whole (outdir.write_dir): a failed or
+    # interrupted run leaves the previous results exactly as they were.
+    def build(tmp: Path) -> tuple[dict[str, Any], list[Path]]:
         try:
             results = prrrp.run_study(seed=args.seed, progress=progress)
         finally:
             progress.close()
         _dump_json(results, tmp / "results.json")
         (tmp / "report.md").write_text(report.render(results), encoding="utf-8")
-        figures = plots.write_all(results, tmp)
-        names = ["results.json", "report.md", *(f.name for f in figures)]
-        for name in names:
-            os.replace(tmp / name, out / name)
-    finally:
-        shutil.rmtree(tmp, ignore_errors=True)
+        return results, plots.write_all(results, tmp)
+
+    results, figures = outdir.write_dir(out, build)
     total = (results.get("timings_s") or {}).get("total")
     took = f" ({total:.1f} s)" if isinstance(total, int | float) else ""
     print(f"results in {out}/report.md, {out}/results.json and {len(figures)} figures{took}")
@@ -431,8 +425,9 @@ def build_parser() -> argparse.ArgumentParser:
         help="run the paper's whole study: tables, figures, results.json",
         description="Runs the paper's study (excitation optimisation, closed-loop simulation, "
         "least squares, Adaline, Hopfield, EKF, validation, sensitivity) and writes "
-        "results.json, report.md and PNG figures into DIR. Files already in DIR are replaced "
-        "only when the whole run succeeds.",
+        "results.json, report.md and PNG figures into DIR. DIR is built aside and swapped "
+        "in whole when the run succeeds; a failed or interrupted run leaves it as it was. "
+        "An existing DIR must be empty or an earlier prrrp output.",
     )
     p.add_argument(
         "--out", default="prrrp-out", metavar="DIR", help="output directory (default: ./prrrp-out)"
@@ -498,9 +493,17 @@ def _oserror_message(e: OSError) -> str:
     return f"{what}: {reason}" if what else reason
 
 
+def _on_sigterm(signum: int, _frame: Any) -> None:
+    # An exception, unlike the default action, unwinds: temporary output is removed and
+    # running computations stop (the bindings poll for signals).
+    raise SystemExit(128 + signum)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Runs the command line; returns the exit code (argparse exits itself on usage errors)."""
     args = build_parser().parse_args(argv)
+    with contextlib.suppress(ValueError):  # not the main thread: keep the default
+        signal.signal(signal.SIGTERM, _on_sigterm)
     try:
         return int(args.func(args))
     except CliError as e:

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 import prrrp
-from prrrp import cli, csvio, paper, plots, report
+from prrrp import cli, csvio, outdir, paper, plots, report
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 SCHEMA_KEYS = {
@@ -339,4 +339,5 @@ def test_reproduce_writes_the_report_and_figures(reproduced: Path) -> None:
         assert title in text
     for name in plots.FIGURES:
         assert (reproduced / name).read_bytes()[:8] == PNG_MAGIC, name
-    assert not [p for p in reproduced.iterdir() if p.name.startswith(".")]
+    assert [p.name for p in reproduced.iterdir() if p.name.startswith(".")] == [outdir.MARKER]
+    assert not [p for p in reproduced.parent.iterdir() if ".prrrp-" in p.name]
