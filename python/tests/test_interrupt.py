@@ -77,3 +77,11 @@ def test_absurd_sizes_are_refused_before_allocating(call):
     with pytest.raises(prrrp.InvalidInputError, match="MAX_"):
         call()
     assert time.monotonic() - t < 1.0
+
+
+def test_simulation_does_not_run_past_the_excitation():
+    exc = prrrp.optimise_excitation(max_evaluations=400, restarts=0)
+    end = exc.duration
+    prrrp.simulate_closed_loop(exc, end)  # the whole excitation is fine
+    with pytest.raises(prrrp.InvalidParameterError, match="reference ends at"):
+        prrrp.simulate_closed_loop(exc, end + 2.0)

@@ -395,6 +395,18 @@ pub fn simulate_closed_loop<T: JointTrajectory + ?Sized>(
         "asks for more than MAX_SAMPLES (1e7) samples: shorten the duration or raise dt",
     )?;
     check_steps(n, config.substeps)?;
+    if let Some(end) = reference.end_time() {
+        // Half a sample of slack absorbs the rounding of duration/dt.
+        if duration > end + 0.5 * config.dt {
+            return Err(PrrrpError::InvalidParameter {
+                field: format!("duration (the reference ends at {end} s)"),
+                value: duration,
+                reason: "longer than the reference trajectory, which ends at its own \
+                         duration (an excitation is defined on [0, duration] only): \
+                         simulate at most that long or design a longer excitation",
+            });
+        }
+    }
     let ctrl = ComputedTorque {
         model: *model,
         lambda: *controller_lambda,

@@ -29,6 +29,13 @@ pub trait ScalarTrajectory {
 pub trait JointTrajectory {
     /// Positions, velocities and accelerations at time `t`, s. Must not allocate.
     fn eval(&self, t: f64) -> TrajectoryPoint;
+
+    /// The last time at which the trajectory is defined, s; `None` (the default) when it
+    /// is defined for every t ≥ 0 (e.g. sinusoids). Simulations refuse to run past it
+    /// rather than extrapolate a polynomial.
+    fn end_time(&self) -> Option<f64> {
+        None
+    }
 }
 
 /// Five independent one-joint trajectories of the same kind, joint i driven by entry i.
@@ -346,6 +353,10 @@ impl<const K: usize> JointTrajectory for ExcitationTrajectory<K> {
             (p.q[i + 1], p.qd[i + 1], p.qdd[i + 1]) = r.eval(t);
         }
         p
+    }
+
+    fn end_time(&self) -> Option<f64> {
+        Some(self.duration())
     }
 }
 
