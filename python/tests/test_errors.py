@@ -160,9 +160,21 @@ def test_module_function_errors():
 
 
 def test_extreme_values_do_not_panic(robot):
-    """Huge but finite inputs overflow to inf in the outputs; they must not crash."""
+    """Huge but finite inputs overflow; that is a typed error, never a crash or a silent
+    inf/NaN in the output."""
     big = np.full(5, 1e308)
-    out = robot.inverse_dynamics(big, big, big)
-    assert out.shape == (5,)
+    with pytest.raises(prrrp.NonFiniteError, match="overflowed"):
+        robot.inverse_dynamics(big, big, big)
+    with pytest.raises(prrrp.NonFiniteError, match="overflowed") as e:
+        robot.inverse_dynamics(np.zeros((2, 5)), np.zeros((2, 5)), np.vstack([np.zeros(5), big]))
+    assert e.value.sample == 1
     with pytest.raises(prrrp.PrrrpError):
         robot.forward_dynamics(big, big, big, lam=np.full(8, 1e308))
+    with pytest.raises(prrrp.NonFiniteError):
+        robot.forward_dynamics(np.zeros(5), np.zeros(5), big)
+    with pytest.raises(prrrp.NonFiniteError):
+        prrrp.relative_errors_percent([np.nan, 1.0], [1.0, 1.0])
+    with pytest.raises(prrrp.InvalidParameterError, match="phase"):
+        prrrp.SinusoidReference(
+            offset=np.zeros(5), amplitude=np.ones(5), omega=np.ones(5), phase=[np.nan] * 5
+        )

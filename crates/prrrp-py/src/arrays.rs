@@ -232,6 +232,19 @@ where
                 &mut b[k * s..(k + 1) * s]
             });
             f(&mut state, k, outs).map_err(|e| (k, e))?;
+            // Inputs are finite (checked on extraction), so a NaN or ∞ here is an overflow
+            // (e.g. torques of 1e308): an error, never a silent value.
+            for (b, &s) in bufs.iter().zip(&inner) {
+                if !b[k * s..(k + 1) * s].iter().all(|x| x.is_finite()) {
+                    return Err((
+                        k,
+                        PrrrpError::NonFinite {
+                            what: "result (it overflowed: are the inputs in SI units?)".into(),
+                            row: n.map(|_| k),
+                        },
+                    ));
+                }
+            }
         }
         Ok(())
     };

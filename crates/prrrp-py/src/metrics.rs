@@ -134,8 +134,30 @@ fn relative_errors<'py>(
             format!("({},)", t.len()),
         ));
     }
+    for (name, v) in [("estimate", &e), ("truth", &t)] {
+        if let Some(row) = v.iter().position(|x| !x.is_finite()) {
+            return Err(crate::errors::to_pyerr(
+                py,
+                &prrrp_core::PrrrpError::NonFinite {
+                    what: name.into(),
+                    row: Some(row),
+                },
+            ));
+        }
+    }
     let n = e.len();
-    to_array(py, relative_errors_percent(&e, &t), None, &[n])
+    let r = relative_errors_percent(&e, &t);
+    // Finite inputs can still overflow (|e − t| of ±1e308).
+    if let Some(row) = r.iter().position(|x| !x.is_finite()) {
+        return Err(crate::errors::to_pyerr(
+            py,
+            &prrrp_core::PrrrpError::NonFinite {
+                what: "relative error (it overflowed)".into(),
+                row: Some(row),
+            },
+        ));
+    }
+    to_array(py, r, None, &[n])
 }
 
 pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {

@@ -255,9 +255,14 @@ impl SinusoidReference {
         let o = fixed_vector::<NDOF>(offset, "offset")?;
         let a = fixed_vector::<NDOF>(amplitude, "amplitude")?;
         let w = fixed_vector::<NDOF>(omega, "omega")?;
-        let p = fixed_or(phase, "phase", SVector::<f64, NDOF>::zeros())?;
+        let p: [f64; NDOF] = fixed_or(phase, "phase", SVector::<f64, NDOF>::zeros())?.into();
         let py = offset.py();
-        for (name, v) in [("offset", &o), ("amplitude", &a), ("omega", &w)] {
+        for (name, v) in [
+            ("offset", &o),
+            ("amplitude", &a),
+            ("omega", &w),
+            ("phase", &p),
+        ] {
             if let Some(j) = v.iter().position(|x| !x.is_finite()) {
                 return Err(to_pyerr(
                     py,
