@@ -519,3 +519,40 @@ pub(crate) fn matrix_rows(
         _ => Err(shape_error(obj.py(), name, expected, fmt_shape(&shape))),
     }
 }
+
+/// A non-negative integer argument (a seed, a count). Out of range (negative, too large)
+/// is an `InvalidParameterError` — a `ValueError`, like every bad value — instead of
+/// Python's `OverflowError`; pyo3 adds a note naming the argument.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct UInt<T>(pub T);
+
+macro_rules! uint_extract {
+    ($t:ty, $bound:literal) => {
+        impl<'a, 'py> FromPyObject<'a, 'py> for UInt<$t> {
+            type Error = PyErr;
+            fn extract(obj: pyo3::Borrowed<'a, 'py, PyAny>) -> PyResult<Self> {
+                let py = obj.py();
+                match obj.extract::<$t>() {
+                    Ok(v) => Ok(UInt(v)),
+                    Err(e) if e.is_instance_of::<pyo3::exceptions::PyOverflowError>(py) => {
+                        let text = obj.repr().map(|r| r.to_string()).unwrap_or_default();
+                        let reason = concat!("must be an integer in [0, ", $bound, ")");
+                        let attrs = [
+                            ("field", "integer argument".into_pyobject(py)?.into_any()),
+                            ("value", text.as_str().into_pyobject(py)?.into_any()),
+                            ("reason", reason.into_pyobject(py)?.into_any()),
+                        ];
+                        Err(Exc::InvalidParameter.new_err(
+                            py,
+                            format!("integer argument {text} is out of range: {reason}"),
+                            &attrs,
+                        ))
+                    }
+                    Err(e) => Err(e),
+                }
+            }
+        }
+    };
+}
+uint_extract!(u64, "2**64");
+uint_extract!(usize, "2**64");

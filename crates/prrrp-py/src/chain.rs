@@ -14,7 +14,7 @@ use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyString, PyTuple};
 
 use crate::arrays::{
-    batch_len, fixed_vector, map_samples, map_samples_with, matrix_rows, to_array, DynSamples,
+    batch_len, fixed_vector, map_samples, map_samples_with, matrix_rows, to_array, DynSamples, UInt,
 };
 use crate::errors::{shape_error, Exc, ToPyResult};
 use crate::interrupt::interruptible;
@@ -638,14 +638,16 @@ impl PySerialChain {
 
     /// Numerical base parameters (QR with column pivoting on the regressor stacked over
     /// `samples` random states drawn with `seed`; `rank_tolerance` on unit-norm columns).
-    #[pyo3(signature = (*, samples=0, seed=DEFAULT_SEED, rank_tolerance=DEFAULT_RANK_TOLERANCE))]
+    #[pyo3(signature = (*, samples=UInt(0), seed=UInt(DEFAULT_SEED), rank_tolerance=DEFAULT_RANK_TOLERANCE))]
     fn base_parameters(
         &self,
         py: Python<'_>,
-        samples: usize,
-        seed: u64,
+        samples: UInt<usize>,
+        seed: UInt<u64>,
         rank_tolerance: f64,
     ) -> PyResult<PyBaseParameters> {
+        let samples = samples.0;
+        let seed = seed.0;
         let opts = BaseOptions {
             samples,
             seed,

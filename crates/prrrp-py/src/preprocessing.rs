@@ -4,7 +4,7 @@ use prrrp_core::{preprocess as core_preprocess, Dataset, PreprocessConfig, NDOF}
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
-use crate::arrays::{rows_to_array, to_array, vector, Samples};
+use crate::arrays::{rows_to_array, to_array, vector, Samples, UInt};
 use crate::errors::ToPyResult;
 
 pub(crate) fn dataset_dict<'py>(py: Python<'py>, d: &Dataset) -> PyResult<Bound<'py, PyDict>> {
@@ -26,7 +26,7 @@ pub(crate) fn dataset_dict<'py>(py: Python<'py>, d: &Dataset) -> PyResult<Bound<
 /// `NonIncreasingTimeError`); too little data left → `TooFewSamplesError`.
 #[pyfunction]
 #[pyo3(signature = (t, q, tau, *, cutoff_hz=5.0, order=4, filter_torque=true, trim=None,
-    decimate=1))]
+    decimate=UInt(1)))]
 #[allow(clippy::too_many_arguments)]
 fn preprocess<'py>(
     py: Python<'py>,
@@ -36,9 +36,11 @@ fn preprocess<'py>(
     cutoff_hz: f64,
     order: usize,
     filter_torque: bool,
-    trim: Option<usize>,
-    decimate: usize,
+    trim: Option<UInt<usize>>,
+    decimate: UInt<usize>,
 ) -> PyResult<Bound<'py, PyDict>> {
+    let trim = trim.map(|v| v.0);
+    let decimate = decimate.0;
     let t = vector(t, "t")?;
     let q = Samples::<NDOF>::extract_rows(q, "q")?;
     let tau = Samples::<NDOF>::extract_rows(tau, "tau")?;

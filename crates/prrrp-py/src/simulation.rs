@@ -9,7 +9,7 @@ use pyo3::exceptions::PyTypeError;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
-use crate::arrays::{fixed_or, rows_to_array, to_array, Samples};
+use crate::arrays::{fixed_or, rows_to_array, to_array, Samples, UInt};
 use crate::errors::ToPyResult;
 use crate::interrupt::interruptible;
 use crate::trajectories::{Excitation, SinusoidReference};
@@ -79,7 +79,7 @@ pub(crate) fn config(
 /// `tau`, `q_measured`, `tau_measured` (N, 5).
 #[pyfunction]
 #[pyo3(signature = (reference, duration, *, lam=None, controller_lam=None, dt=0.02,
-    substeps=20, kp=None, kd=None, q_noise=None, tau_noise=None, seed=0))]
+    substeps=UInt(20), kp=None, kd=None, q_noise=None, tau_noise=None, seed=UInt(0)))]
 #[allow(clippy::too_many_arguments)]
 fn simulate_closed_loop<'py>(
     py: Python<'py>,
@@ -88,13 +88,15 @@ fn simulate_closed_loop<'py>(
     lam: Option<&Bound<'py, PyAny>>,
     controller_lam: Option<&Bound<'py, PyAny>>,
     dt: f64,
-    substeps: usize,
+    substeps: UInt<usize>,
     kp: Option<&Bound<'py, PyAny>>,
     kd: Option<&Bound<'py, PyAny>>,
     q_noise: Option<&Bound<'py, PyAny>>,
     tau_noise: Option<&Bound<'py, PyAny>>,
-    seed: u64,
+    seed: UInt<u64>,
 ) -> PyResult<Bound<'py, PyDict>> {
+    let substeps = substeps.0;
+    let seed = seed.0;
     let lam = lambda_or(lam, "lam")?;
     let ctrl = fixed_or::<NPARAM>(controller_lam, "controller_lam", lam)?;
     let cfg = config(dt, substeps, kp, kd, q_noise, tau_noise, seed)?;
@@ -123,8 +125,8 @@ fn simulate_closed_loop<'py>(
 /// Returns a dict of arrays `t`, `q`, `qd`, `qdd`, `tau`, `q_measured`, `tau_measured`
 /// (noise-free unless `q_noise`/`tau_noise` are given).
 #[pyfunction]
-#[pyo3(signature = (q0, qd0, tau, *, lam=None, dt=0.02, substeps=20, q_noise=None,
-    tau_noise=None, seed=0))]
+#[pyo3(signature = (q0, qd0, tau, *, lam=None, dt=0.02, substeps=UInt(20), q_noise=None,
+    tau_noise=None, seed=UInt(0)))]
 #[allow(clippy::too_many_arguments)]
 fn simulate_open_loop<'py>(
     py: Python<'py>,
@@ -133,11 +135,13 @@ fn simulate_open_loop<'py>(
     tau: &Bound<'py, PyAny>,
     lam: Option<&Bound<'py, PyAny>>,
     dt: f64,
-    substeps: usize,
+    substeps: UInt<usize>,
     q_noise: Option<&Bound<'py, PyAny>>,
     tau_noise: Option<&Bound<'py, PyAny>>,
-    seed: u64,
+    seed: UInt<u64>,
 ) -> PyResult<Bound<'py, PyDict>> {
+    let substeps = substeps.0;
+    let seed = seed.0;
     let lam = lambda_or(lam, "lam")?;
     let q0: Vec5 = fixed_or(Some(q0), "q0", Vec5::zeros())?;
     let qd0: Vec5 = fixed_or(Some(qd0), "qd0", Vec5::zeros())?;

@@ -6,6 +6,7 @@ use std::sync::Mutex;
 use prrrp_core::{run_study, Robot, StudyConfig};
 use pyo3::prelude::*;
 
+use crate::arrays::UInt;
 use crate::errors::ToPyResult;
 use crate::interrupt::interruptible;
 
@@ -13,8 +14,13 @@ use crate::interrupt::interruptible;
 /// `progress(stage, done, total)` is called from Rust (possibly from worker threads, with
 /// the GIL re-acquired); its first exception is re-raised when the study returns.
 #[pyfunction]
-#[pyo3(signature = (seed=0, progress=None))]
-fn run_study_json(py: Python<'_>, seed: u64, progress: Option<Py<PyAny>>) -> PyResult<String> {
+#[pyo3(signature = (seed=UInt(0), progress=None))]
+fn run_study_json(
+    py: Python<'_>,
+    seed: UInt<u64>,
+    progress: Option<Py<PyAny>>,
+) -> PyResult<String> {
+    let seed = seed.0;
     let config = StudyConfig {
         seed,
         ..StudyConfig::default()

@@ -10,7 +10,7 @@ use prrrp_core::{
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
-use crate::arrays::{any_array, fixed_or, fixed_vector, fmt_shape, rows_to_array, to_array};
+use crate::arrays::{any_array, fixed_or, fixed_vector, fmt_shape, rows_to_array, to_array, UInt};
 use crate::errors::{shape_error, to_pyerr, ToPyResult};
 use crate::interrupt::interruptible;
 
@@ -184,21 +184,25 @@ impl Excitation {
 /// end. An exception raised by `progress` stops further calls and is re-raised when the
 /// search returns.
 #[pyfunction]
-#[pyo3(signature = (*, seed=0, duration=10.0, dt=0.02, max_evaluations=6000, restarts=6,
-    margin=0.01, limits=None, progress=None, progress_every=100))]
+#[pyo3(signature = (*, seed=UInt(0), duration=10.0, dt=0.02, max_evaluations=UInt(6000), restarts=UInt(6),
+    margin=0.01, limits=None, progress=None, progress_every=UInt(100)))]
 #[allow(clippy::too_many_arguments)]
 fn optimise_excitation(
     py: Python<'_>,
-    seed: u64,
+    seed: UInt<u64>,
     duration: f64,
     dt: f64,
-    max_evaluations: usize,
-    restarts: usize,
+    max_evaluations: UInt<usize>,
+    restarts: UInt<usize>,
     margin: f64,
     limits: Option<&Bound<'_, PyAny>>,
     progress: Option<Py<PyAny>>,
-    progress_every: usize,
+    progress_every: UInt<usize>,
 ) -> PyResult<Excitation> {
+    let seed = seed.0;
+    let max_evaluations = max_evaluations.0;
+    let restarts = restarts.0;
+    let progress_every = progress_every.0;
     let config = ExcitationConfig {
         duration,
         dt,

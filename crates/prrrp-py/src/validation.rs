@@ -12,7 +12,7 @@ use pyo3::types::{PyDict, PyList};
 
 use numpy::PyArrayMethods;
 
-use crate::arrays::{fixed_or, fixed_vector, rows_to_array, to_array};
+use crate::arrays::{fixed_or, fixed_vector, rows_to_array, to_array, UInt};
 use crate::dataset::dataset_from;
 use crate::errors::{to_pyerr, ToPyResult};
 use crate::interrupt::interruptible;
@@ -98,7 +98,7 @@ fn validation_config(
 /// `_prrrp.pyi` for arguments and the result's keys).
 #[pyfunction]
 #[pyo3(signature = (estimates, *, true_lam=None, controller_lam=None, relative_errors=true,
-    reference=None, duration=10.0, seed=1, dt=0.02, substeps=20, kp=None, kd=None,
+    reference=None, duration=10.0, seed=UInt(1), dt=0.02, substeps=UInt(20), kp=None, kd=None,
     q_noise=None, tau_noise=None))]
 #[allow(clippy::too_many_arguments)]
 fn validate<'py>(
@@ -109,14 +109,16 @@ fn validate<'py>(
     relative_errors: bool,
     reference: Option<PyRef<'py, SinusoidReference>>,
     duration: f64,
-    seed: u64,
+    seed: UInt<u64>,
     dt: f64,
-    substeps: usize,
+    substeps: UInt<usize>,
     kp: Option<&Bound<'py, PyAny>>,
     kd: Option<&Bound<'py, PyAny>>,
     q_noise: Option<&Bound<'py, PyAny>>,
     tau_noise: Option<&Bound<'py, PyAny>>,
 ) -> PyResult<Bound<'py, PyDict>> {
+    let seed = seed.0;
+    let substeps = substeps.0;
     let estimates = estimates_from(estimates)?;
     let truth = fixed_or::<NPARAM>(true_lam, "true_lam", paper_lambda())?;
     let ctrl = fixed_or::<NPARAM>(controller_lam, "controller_lam", truth)?;
@@ -174,22 +176,25 @@ fn torque_prediction<'py>(
 /// The sensitivity sweep of the paper robot around `nominal` (default Table 3 λ); see
 /// `_prrrp.pyi`. Non-physical variations are NaN in `rms` and False in `physical`.
 #[pyfunction]
-#[pyo3(signature = (*, nominal=None, range=0.5, points=11, threads=0, reference=None,
-    duration=10.0, dt=0.02, substeps=20, kp=None, kd=None))]
+#[pyo3(signature = (*, nominal=None, range=0.5, points=UInt(11), threads=UInt(0), reference=None,
+    duration=10.0, dt=0.02, substeps=UInt(20), kp=None, kd=None))]
 #[allow(clippy::too_many_arguments)]
 fn sensitivity<'py>(
     py: Python<'py>,
     nominal: Option<&Bound<'py, PyAny>>,
     range: f64,
-    points: usize,
-    threads: usize,
+    points: UInt<usize>,
+    threads: UInt<usize>,
     reference: Option<PyRef<'py, SinusoidReference>>,
     duration: f64,
     dt: f64,
-    substeps: usize,
+    substeps: UInt<usize>,
     kp: Option<&Bound<'py, PyAny>>,
     kd: Option<&Bound<'py, PyAny>>,
 ) -> PyResult<Bound<'py, PyDict>> {
+    let points = points.0;
+    let threads = threads.0;
+    let substeps = substeps.0;
     let nominal = fixed_or::<NPARAM>(nominal, "nominal", paper_lambda())?;
     // Sensor noise is not used by the sweep.
     let sim = sim_config(dt, substeps, kp, kd, None, None, 0)?;

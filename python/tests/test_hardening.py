@@ -1,5 +1,6 @@
-"""Ctrl-C stops long computations with KeyboardInterrupt (run in a child process, which
-gets a real SIGINT), and absurd sizes are refused before anything is allocated."""
+"""Hardening: Ctrl-C stops long computations with KeyboardInterrupt (run in a child process,
+which gets a real SIGINT); absurd sizes are refused before anything is allocated; integer
+arguments out of range are ValueErrors; simulations do not run past their reference."""
 
 import signal
 import subprocess
@@ -85,3 +86,21 @@ def test_simulation_does_not_run_past_the_excitation():
     prrrp.simulate_closed_loop(exc, end)  # the whole excitation is fine
     with pytest.raises(prrrp.InvalidParameterError, match="reference ends at"):
         prrrp.simulate_closed_loop(exc, end + 2.0)
+
+
+@pytest.mark.parametrize(
+    "call",
+    [
+        lambda: prrrp.simulate_closed_loop(S, 1.0, seed=-1),
+        lambda: prrrp.simulate_closed_loop(S, 1.0, substeps=-3),
+        lambda: prrrp.simulate_closed_loop(S, 1.0, seed=2**70),
+        lambda: prrrp.SerialChain.paper().base_parameters(samples=-1),
+        lambda: prrrp.optimise_excitation(seed=-5),
+        lambda: prrrp.sensitivity(points=-2),
+        lambda: prrrp.run_study(seed=-1),
+    ],
+)
+def test_out_of_range_integers_are_value_errors(call):
+    with pytest.raises(prrrp.InvalidParameterError, match="out of range") as e:
+        call()
+    assert isinstance(e.value, ValueError)
