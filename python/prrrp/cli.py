@@ -26,7 +26,7 @@ import signal
 import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import Any
+from typing import Any, NoReturn
 
 import numpy as np
 
@@ -410,8 +410,22 @@ def _seed(text: str) -> int:
     return value
 
 
+class _Parser(argparse.ArgumentParser):
+    """Usage errors in one line on stderr (argparse prints the whole usage first)."""
+
+    def error(self, message: str) -> NoReturn:
+        _error(f"{message} (see `{self.prog} --help`)")
+        raise SystemExit(EXIT_USAGE)
+
+
+def _nonempty_path(text: str) -> str:
+    if not text.strip():
+        raise argparse.ArgumentTypeError("an empty path")
+    return text
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="prrrp",
         description="Dynamic parameter identification of the PRRRP robot (Urrea & Pascal 2017).",
         epilog="Run `prrrp reproduce` for the paper's whole study; `prrrp COMMAND --help` "
@@ -430,7 +444,11 @@ def build_parser() -> argparse.ArgumentParser:
         "An existing DIR must be empty or an earlier prrrp output.",
     )
     p.add_argument(
-        "--out", default="prrrp-out", metavar="DIR", help="output directory (default: ./prrrp-out)"
+        "--out",
+        default="prrrp-out",
+        type=_nonempty_path,
+        metavar="DIR",
+        help="output directory (default: ./prrrp-out)",
     )
     p.add_argument("--seed", type=_seed, default=0, help="random seed (default: 0)")
     p.set_defaults(func=cmd_reproduce)
@@ -442,7 +460,9 @@ def build_parser() -> argparse.ArgumentParser:
         "under PD control with sensor noise, and writes the measured t, q1..q5, tau1..tau5 as "
         "CSV (SI units: s, m/rad, N/N·m) for `prrrp identify`.",
     )
-    p.add_argument("--out", required=True, metavar="DATA.csv", help="CSV file to write")
+    p.add_argument(
+        "--out", required=True, type=_nonempty_path, metavar="DATA.csv", help="CSV file to write"
+    )
     p.add_argument(
         "--seed", type=_seed, default=0, help="seed of the excitation and noise (default: 0)"
     )
@@ -480,7 +500,9 @@ def build_parser() -> argparse.ArgumentParser:
         "(default: ls)",
     )
     p.add_argument("--validate", metavar="VAL.csv", help="validation measurement file")
-    p.add_argument("--out", metavar="RESULTS.json", help="write the estimates as JSON")
+    p.add_argument(
+        "--out", type=_nonempty_path, metavar="RESULTS.json", help="write the estimates as JSON"
+    )
     p.set_defaults(func=cmd_identify)
     return parser
 

@@ -48,8 +48,21 @@ def _expected() -> str:
     return "expected t, q1..q5, tau1..tau5 and optionally qd1..qd5, qdd1..qdd5"
 
 
+#: Largest measurement file read, bytes (2 GiB: ~10 million rows of 11 columns). Checked
+#: before reading, so that /dev/zero or a mistaken binary cannot exhaust memory.
+MAX_FILE_BYTES = 2 << 30
+
+
 def _lines(path: Path) -> Iterator[tuple[int, str]]:
-    with path.open(newline="", encoding="utf-8") as f:
+    if not path.exists():
+        raise InputError(f"{path}: no such file or directory")
+    if not path.is_file():
+        raise InputError(f"{path}: not a regular file")
+    size = path.stat().st_size
+    if size > MAX_FILE_BYTES:
+        raise InputError(f"{path}: {size} bytes is more than the {MAX_FILE_BYTES} bytes accepted")
+    # utf-8-sig: spreadsheet programs often start a CSV with a byte-order mark.
+    with path.open(newline="", encoding="utf-8-sig") as f:
         for lineno, line in enumerate(f, start=1):
             if line.strip() and not line.lstrip().startswith("#"):
                 yield lineno, line
@@ -100,6 +113,12 @@ def _read(path: Path) -> dict[str, np.ndarray]:
         raise InputError(f"{path}: missing column{plural} {names}; {_expected()}")
     has_qd = any(c in seen for c in VELOCITY_COLUMNS)
     has_qdd = any(c in seen for c in ACCELERATION_COLUMNS)
+    if has_qd != has_qdd:
+        given, absent = ("qd", "qdd") if has_qd else ("qdd", "qd")
+        raise InputError(
+            f"{path}: {given}1..{given}5 given without {absent}1..{absent}5; give both (used "
+            "as they are) or neither (derived from q by the preprocessing)"
+        )
     for group, present in ((VELOCITY_COLUMNS, has_qd), (ACCELERATION_COLUMNS, has_qdd)):
         for name in group:
             if present and name not in seen:

@@ -170,7 +170,24 @@ def test_unknown_method_is_a_usage_error(capsys: pytest.CaptureFixture[str]) -> 
     with pytest.raises(SystemExit) as exc:
         cli.main(["identify", "x.csv", "--method", "lsq"])
     assert exc.value.code == cli.EXIT_USAGE
-    assert "invalid choice" in capsys.readouterr().err
+    assert_one_line_error(capsys.readouterr().err, "invalid choice", "--help")
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["identify", "x.csv", "--out", ""],
+        ["simulate", "--out", " "],
+        ["reproduce", "--out", ""],
+        ["identify"],
+        ["identify", "x.csv", "--nope"],
+    ],
+)
+def test_usage_errors_are_one_line(argv: list[str], capsys: pytest.CaptureFixture[str]) -> None:
+    with pytest.raises(SystemExit) as exc:
+        cli.main(argv)
+    assert exc.value.code == cli.EXIT_USAGE
+    assert_one_line_error(capsys.readouterr().err)
 
 
 # ------------------------------------------------------------------------------ bad input
@@ -199,6 +216,28 @@ def test_missing_file(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> Non
     code, _, err = run(["identify", str(tmp_path / "nope.csv")], capsys)
     assert code == cli.EXIT_USAGE
     assert_one_line_error(err, "nope.csv", "no such file")
+
+
+def test_endless_file_is_refused_at_once(capsys: pytest.CaptureFixture[str]) -> None:
+    code, _, err = run(["identify", "/dev/zero"], capsys)
+    assert code == cli.EXIT_USAGE
+    assert_one_line_error(err, "not a regular file")
+
+
+def test_byte_order_mark_is_accepted(tmp_path: Path) -> None:
+    header, table = measurement_rows()
+    path = write_csv(tmp_path / "bom.csv", header, table)
+    path.write_bytes(b"\xef\xbb\xbf" + path.read_bytes())
+    data = csvio.read_measurements(path)
+    np.testing.assert_array_equal(data["t"], table[:, 0])
+
+
+def test_velocities_without_accelerations_are_an_error(tmp_path: Path) -> None:
+    header, table = measurement_rows()
+    keep = [i for i, h in enumerate(header) if not h.startswith("qdd")]
+    path = write_csv(tmp_path / "qd.csv", [header[i] for i in keep], table[:, keep])
+    with pytest.raises(csvio.InputError, match=r"qd1\.\.qd5 given without qdd1\.\.qdd5"):
+        csvio.read_measurements(path)
 
 
 def test_missing_column_is_named_with_the_expected_list(
