@@ -104,3 +104,22 @@ def test_out_of_range_integers_are_value_errors(call):
     with pytest.raises(prrrp.InvalidParameterError, match="out of range") as e:
         call()
     assert isinstance(e.value, ValueError)
+
+
+@pytest.mark.parametrize(
+    "q", [np.zeros(5) + 1j, [1j, 0, 0, 0, 0], np.zeros((3, 5), dtype=np.complex64)]
+)
+def test_complex_input_is_refused(q):
+    robot = prrrp.Robot.paper()
+    zeros = np.zeros(np.shape(q), dtype=float)
+    with pytest.raises(prrrp.InvalidInputError, match="complex"):
+        robot.inverse_dynamics(q, zeros, zeros)
+
+
+@pytest.mark.parametrize("key", [slice(0, 10, 0), slice(2.5, 30), slice(0, 10, 2)])
+def test_bad_dataset_slices_are_typed(key):
+    t = 0.02 * np.arange(50)
+    z = np.zeros((50, 5))
+    data = prrrp.Dataset(t, z, z, z, z)
+    with pytest.raises(prrrp.InvalidParameterError):
+        data[key]

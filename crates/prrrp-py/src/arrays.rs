@@ -35,6 +35,7 @@ impl<const D: usize> Samples<D> {
     /// `(N, D)`, every value finite.
     pub(crate) fn extract(obj: &Bound<'_, PyAny>, name: &'static str) -> PyResult<Self> {
         let py = obj.py();
+        reject_complex(obj, name)?;
         let arr = match obj.extract::<PyArrayLikeDyn<'_, f64, AllowTypeChange>>() {
             Ok(a) => a,
             Err(e) => {
@@ -302,6 +303,7 @@ fn exact_array<'py>(
 ) -> PyResult<PyArrayLikeDyn<'py, f64, AllowTypeChange>> {
     let py = obj.py();
     let want = fmt_shape(shape);
+    reject_complex(obj, name)?;
     let arr = obj
         .extract::<PyArrayLikeDyn<'_, f64, AllowTypeChange>>()
         .map_err(|e| {
@@ -385,6 +387,7 @@ pub(crate) fn any_array(
     expected: &str,
 ) -> PyResult<(Vec<usize>, Vec<f64>)> {
     let py = obj.py();
+    reject_complex(obj, name)?;
     let arr = obj
         .extract::<PyArrayLikeDyn<'_, f64, AllowTypeChange>>()
         .map_err(|e| {
@@ -518,6 +521,32 @@ pub(crate) fn matrix_rows(
         [r, c] if c == cols && (rows.is_none() || rows == Some(r)) => Ok((r, data)),
         _ => Err(shape_error(obj.py(), name, expected, fmt_shape(&shape))),
     }
+}
+
+/// Complex input would be cast to float64 with its imaginary part silently dropped
+/// (numpy only warns): refuse it instead. Arrays and numpy scalars are told by their
+/// dtype; anything else (lists, Python complex numbers) by `numpy.iscomplexobj`.
+pub(crate) fn reject_complex(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<()> {
+    let py = obj.py();
+    let complex = match obj.getattr(pyo3::intern!(py, "dtype")) {
+        Ok(dt) => dt
+            .getattr(pyo3::intern!(py, "kind"))
+            .and_then(|k| k.extract::<String>())
+            .is_ok_and(|k| k == "c"),
+        Err(_) => py
+            .import(pyo3::intern!(py, "numpy"))
+            .and_then(|np| np.call_method1(pyo3::intern!(py, "iscomplexobj"), (obj,)))
+            .and_then(|r| r.extract::<bool>())
+            .unwrap_or(false),
+    };
+    if complex {
+        return Err(Exc::InvalidInput.new_err(
+            py,
+            format!("`{name}` is complex; give real numbers (float64)"),
+            &[],
+        ));
+    }
+    Ok(())
 }
 
 /// A non-negative integer argument (a seed, a count). Out of range (negative, too large)

@@ -123,7 +123,20 @@ impl PyDataset {
             )
         })?;
         let len = self.inner.len() as isize;
-        let ind = slice.indices(len)?;
+        // Python raises ValueError (step 0) or TypeError (non-integer bounds) here: make
+        // both the package's typed error.
+        let ind = slice.indices(len).map_err(|e| {
+            let err = to_pyerr(
+                py,
+                &PrrrpError::InvalidParameter {
+                    field: "Dataset slice".into(),
+                    value: f64::NAN,
+                    reason: "needs integer bounds and step 1, e.g. data[10:200]",
+                },
+            );
+            err.set_cause(py, Some(e));
+            err
+        })?;
         if ind.step != 1 {
             return Err(to_pyerr(
                 py,

@@ -97,6 +97,7 @@ fn observation_matrix<'py>(
 /// Reads a 2-D matrix argument into faer.
 fn matrix(w: &Bound<'_, PyAny>, name: &str) -> PyResult<Mat<f64>> {
     let py = w.py();
+    crate::arrays::reject_complex(w, name)?;
     let arr = w
         .extract::<PyArrayLike2<'_, f64, AllowTypeChange>>()
         .map_err(|e| {
