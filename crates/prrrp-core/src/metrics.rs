@@ -53,11 +53,30 @@ fn check(observed: &[f64], predicted: &[f64]) -> Result<()> {
     Ok(())
 }
 
-fn sse(observed: &[f64], predicted: &[f64]) -> f64 {
+/// The largest magnitude in both series (1 for all zeros). Sums are formed of the values
+/// divided by it, so that squares of finite values near 1e308 (or below 1e-154) neither
+/// overflow nor underflow; only a result that itself exceeds f64 is an error.
+fn scale(observed: &[f64], predicted: &[f64]) -> f64 {
+    let s = observed
+        .iter()
+        .chain(predicted)
+        .fold(0.0f64, |m, x| m.max(x.abs()));
+    if s > 0.0 {
+        s
+    } else {
+        1.0
+    }
+}
+
+/// Σ((oᵢ − pᵢ)/s)².
+fn sse(observed: &[f64], predicted: &[f64], s: f64) -> f64 {
     observed
         .iter()
         .zip(predicted)
-        .map(|(o, p)| (o - p) * (o - p))
+        .map(|(o, p)| {
+            let d = o / s - p / s;
+            d * d
+        })
         .sum()
 }
 
@@ -67,7 +86,15 @@ fn sse(observed: &[f64], predicted: &[f64]) -> f64 {
 /// Lengths differ, empty series, or NaN/∞ values.
 pub fn rms(observed: &[f64], predicted: &[f64]) -> Result<f64> {
     check(observed, predicted)?;
-    Ok((sse(observed, predicted) / observed.len() as f64).sqrt())
+    let s = scale(observed, predicted);
+    let r = s * (sse(observed, predicted, s) / observed.len() as f64).sqrt();
+    if !r.is_finite() {
+        return Err(PrrrpError::NonFinite {
+            what: "rms (the residuals exceed the f64 range)".into(),
+            row: None,
+        });
+    }
+    Ok(r)
 }
 
 /// Residual standard deviation (eq. 46, root form): √(Σ(oᵢ − pᵢ)²/Σoᵢ²).
@@ -77,8 +104,9 @@ pub fn rms(observed: &[f64], predicted: &[f64]) -> Result<f64> {
 /// module docs).
 pub fn rsd(observed: &[f64], predicted: &[f64]) -> Result<f64> {
     check(observed, predicted)?;
-    let num = sse(observed, predicted);
-    let den: f64 = observed.iter().map(|o| o * o).sum();
+    let s = scale(observed, predicted);
+    let num = sse(observed, predicted, s);
+    let den: f64 = observed.iter().map(|o| (o / s) * (o / s)).sum();
     if den == 0.0 {
         return if num == 0.0 {
             Ok(0.0)
@@ -100,13 +128,14 @@ pub fn rsd(observed: &[f64], predicted: &[f64]) -> Result<f64> {
 /// As [`rms`]. A zero denominator means the series agree exactly and gives 1.
 pub fn agreement_index(observed: &[f64], predicted: &[f64]) -> Result<f64> {
     check(observed, predicted)?;
-    let mean = observed.iter().sum::<f64>() / observed.len() as f64;
-    let num = sse(observed, predicted);
+    let s = scale(observed, predicted);
+    let mean = observed.iter().map(|o| o / s).sum::<f64>() / observed.len() as f64;
+    let num = sse(observed, predicted, s);
     let den: f64 = observed
         .iter()
         .zip(predicted)
         .map(|(o, p)| {
-            let d = (p - mean).abs() + (o - mean).abs();
+            let d = (p / s - mean).abs() + (o / s - mean).abs();
             d * d
         })
         .sum();
@@ -207,5 +236,32 @@ mod tests {
                 && (r[1] - 200.0).abs() < 1e-12
                 && (r[2] - 1.0).abs() < 1e-12
         );
+    }
+}
+
+#[cfg(test)]
+mod extreme {
+    use super::*;
+
+    /// Values near the ends of the f64 range give the exact indices (the indices are
+    /// homogeneous of degree 1 and 0 in the data), not ∞ or NaN.
+    #[test]
+    fn scale_does_not_matter() {
+        let o = [1.0, -2.0, 3.0, 0.5];
+        let p = [1.5, -2.0, 2.0, 0.25];
+        for k in [1e-300, 1e-160, 1.0, 1e150, 1e300] {
+            let (os, ps): (Vec<f64>, Vec<f64>) =
+                o.iter().zip(&p).map(|(a, b)| (a * k, b * k)).unzip();
+            let rel = |a: f64, b: f64| (a - b).abs() / b.abs().max(1e-300);
+            assert!(rel(rms(&os, &ps).unwrap(), k * rms(&o, &p).unwrap()) < 1e-14);
+            assert!(rel(rsd(&os, &ps).unwrap(), rsd(&o, &p).unwrap()) < 1e-14);
+            assert!(
+                rel(
+                    agreement_index(&os, &ps).unwrap(),
+                    agreement_index(&o, &p).unwrap()
+                ) < 1e-14
+            );
+        }
+        assert!(rms(&[f64::MAX, -f64::MAX], &[-f64::MAX, f64::MAX]).is_err());
     }
 }

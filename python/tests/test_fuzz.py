@@ -1,0 +1,216 @@
+"""Property-based fuzzing of the public Python API and the CLI's CSV reader.
+
+The contract under random shapes, dtypes, extreme values and sizes: every call either
+returns a finite result or raises a `prrrp.PrrrpError` (the CSV reader: its `InputError`).
+Never a panic (`pyo3.PanicException` is not an `Exception`, so it would escape the
+`except` below and fail the test), an abort (kills the run), a hang (hypothesis' deadline
+does not apply to hangs; the sizes drawn here are bounded so that a correct call is fast)
+or a silent NaN/inf.
+
+Profiles: `ci` (default; derandomised, bounded, about a minute) and `nightly`
+(`HYPOTHESIS_PROFILE=nightly`: random seeds, 40× more examples).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+
+import numpy as np
+import pytest
+
+import prrrp
+
+hypothesis = pytest.importorskip("hypothesis")
+from hypothesis import HealthCheck, given, settings  # noqa: E402
+from hypothesis import strategies as st  # noqa: E402
+from hypothesis.extra import numpy as hnp  # noqa: E402
+
+from prrrp import csvio  # noqa: E402
+
+settings.register_profile(
+    "ci",
+    max_examples=40,
+    derandomize=True,
+    deadline=None,
+    suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large],
+)
+settings.register_profile(
+    "nightly",
+    max_examples=1600,
+    deadline=None,
+    suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large],
+)
+settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "ci"))
+
+EXTREME = st.sampled_from(
+    [0.0, -0.0, 1.0, -1.0, 1e-300, 5e-324, 1e150, -1e150, 1e308, -1e308, math.nan, math.inf]
+)
+FLOATS = st.one_of(st.floats(allow_nan=True, allow_infinity=True), EXTREME)
+DTYPES = st.sampled_from([np.float64, np.float32, np.int64, np.int8, np.bool_, np.complex128])
+
+
+@st.composite
+def arrays(draw, near: tuple[int, ...] | None = None):
+    """An array of a random dtype and a shape that is often right (`near`) and often not."""
+    if near is not None and draw(st.booleans()):
+        shape = near
+    else:
+        shape = draw(hnp.array_shapes(min_dims=0, max_dims=3, min_side=0, max_side=7))
+    dtype = draw(DTYPES)
+    if dtype is np.bool_:
+        elements = st.booleans()
+    elif np.issubdtype(dtype, np.integer):
+        info = np.iinfo(dtype)
+        elements = st.integers(int(info.min), int(info.max))
+    elif dtype is np.complex128:
+        elements = st.complex_numbers(allow_nan=True, allow_infinity=True)
+    else:
+        elements = FLOATS if dtype is np.float64 else st.floats(width=32)
+    a = draw(hnp.arrays(dtype, shape, elements=elements))
+    kind = draw(st.sampled_from(["array", "list", "fortran", "strided"]))
+    if kind == "list":
+        return a.tolist()
+    if kind == "fortran":
+        return np.asfortranarray(a)
+    if kind == "strided" and a.ndim >= 1 and a.shape[0] > 1:
+        return a[::2]
+    return a
+
+
+ARGS = st.one_of(arrays(near=(5,)), arrays(near=(4, 5)), FLOATS, st.none(), st.text(max_size=3))
+
+
+def finite(x) -> bool:
+    """True when every number in a result (array, scalar, dict, tuple, object) is finite."""
+    if isinstance(x, dict):
+        return all(finite(v) for v in x.values())
+    if isinstance(x, list | tuple):
+        return all(finite(v) for v in x)
+    if isinstance(x, np.ndarray):
+        return x.dtype.kind not in "fc" or bool(np.isfinite(x).all())
+    if isinstance(x, float | np.floating):
+        return math.isfinite(x)
+    return True
+
+
+def holds_contract(call) -> None:
+    try:
+        result = call()
+    except prrrp.PrrrpError:
+        return
+    except TypeError as e:
+        # pyo3 raises TypeError only for a non-numeric Python object where a number (or
+        # None) is required, e.g. a str passed as a float setting.
+        assert "argument" in str(e) or "float" in str(e) or "int" in str(e), e
+        return
+    assert finite(result), result
+
+
+ROBOT = prrrp.Robot.paper()
+PUMA = prrrp.SerialChain.puma560()
+
+
+@given(q=ARGS, qd=ARGS, qdd=ARGS, lam=st.one_of(st.none(), arrays(near=(8,))))
+def test_robot_dynamics(q, qd, qdd, lam):
+    holds_contract(lambda: ROBOT.inverse_dynamics(q, qd, qdd, lam=lam))
+    holds_contract(lambda: ROBOT.forward_dynamics(q, qd, qdd, lam=lam))
+    holds_contract(lambda: ROBOT.mass_matrix(q, lam=lam))
+    holds_contract(lambda: ROBOT.regressor(q, qd, qdd))
+    holds_contract(lambda: ROBOT.forward_derivatives(q, qd, qdd, lam=lam))
+
+
+@given(q=arrays(near=(6,)), qd=arrays(near=(3, 6)), qdd=arrays(near=(6,)))
+def test_chain_dynamics(q, qd, qdd):
+    holds_contract(lambda: PUMA.inverse_dynamics(q, qd, qdd))
+    holds_contract(lambda: PUMA.forward_dynamics(q, qd, qdd))
+    holds_contract(lambda: PUMA.regressor(q, qd, qdd))
+    holds_contract(lambda: PUMA.mass_matrix(q))
+
+
+@given(a=ARGS, b=ARGS)
+def test_metrics(a, b):
+    for f in (prrrp.rms, prrrp.rsd, prrrp.agreement_index, prrrp.error_indices):
+        holds_contract(lambda f=f: f(a, b))
+    holds_contract(lambda: prrrp.relative_errors_percent(a, b))
+
+
+@given(
+    dh=arrays(near=(2, 4)),
+    types=st.one_of(st.sampled_from(["RR", "RP", "R", "", "RX"]), st.text(max_size=3)),
+    inertial=st.one_of(st.none(), arrays(near=(2, 10))),
+    gravity=st.one_of(st.none(), arrays(near=(3,))),
+    friction=st.one_of(st.none(), st.sampled_from(["viscous", "viscous+", "coulomb+offset", ""])),
+)
+def test_chain_constructor(dh, types, inertial, gravity, friction):
+    holds_contract(
+        lambda: prrrp.SerialChain(
+            dh, types, inertial=inertial, gravity=gravity, friction=friction
+        ).inverse_dynamics(np.zeros(2), np.zeros(2), np.zeros(2))
+    )
+
+
+@given(
+    q=arrays(near=(60, 5)),
+    noise=st.floats(allow_nan=True, allow_infinity=True),
+    n=st.integers(0, 80),
+)
+def test_least_squares_and_preprocess(q, noise, n):
+    t = 0.02 * np.arange(n)
+    rng = np.random.default_rng(0)
+    tau = rng.normal(size=(n, 5)) * (noise if math.isfinite(noise) else 1.0)
+    holds_contract(lambda: prrrp.least_squares(q, q, q, q))
+    holds_contract(lambda: prrrp.preprocess(t, rng.normal(size=(n, 5)), tau))
+
+
+@given(text=st.text(max_size=400))
+def test_urdf_text(text):
+    holds_contract(lambda: prrrp.SerialChain.from_urdf("<" + text))
+
+
+URDF_PIECES = st.sampled_from(
+    [
+        '<robot name="r">',
+        "</robot>",
+        '<link name="a"/>',
+        '<link name="b"><inertial><mass value="1"/>'
+        '<inertia ixx="1" ixy="0" ixz="0" iyy="1" iyz="0" izz="1"/></inertial></link>',
+        '<joint name="j" type="revolute"><parent link="a"/><child link="b"/>'
+        '<axis xyz="0 0 1"/></joint>',
+        '<joint name="k" type="prismatic"><parent link="b"/><child link="a"/></joint>',
+        '<joint name="f" type="floating"><parent link="a"/><child link="c"/></joint>',
+        '<axis xyz="0 0 0"/>',
+        '<origin xyz="1e308 0 0" rpy="nan 0 0"/>',
+    ]
+)
+
+
+@given(pieces=st.lists(URDF_PIECES, max_size=8))
+def test_urdf_structures(pieces):
+    holds_contract(lambda: prrrp.SerialChain.from_urdf("".join(pieces)))
+
+
+@given(body=st.binary(max_size=600))
+@settings(suppress_health_check=[HealthCheck.function_scoped_fixture])
+def test_csv_reader(tmp_path_factory, body):
+    path = tmp_path_factory.mktemp("csv") / "data.csv"
+    header = ",".join(csvio.REQUIRED_COLUMNS).encode()
+    path.write_bytes(header + b"\n" + body)
+    try:
+        data = csvio.read_measurements(path)
+    except csvio.InputError:
+        return
+    assert all(np.isfinite(v).all() for v in data.values())
+
+
+@given(rows=st.lists(st.lists(FLOATS, min_size=11, max_size=11), max_size=40))
+@settings(suppress_health_check=[HealthCheck.function_scoped_fixture])
+def test_csv_reader_numbers(tmp_path_factory, rows):
+    path = tmp_path_factory.mktemp("csv") / "data.csv"
+    lines = [",".join(csvio.REQUIRED_COLUMNS)] + [",".join(repr(x) for x in r) for r in rows]
+    path.write_text("\n".join(lines) + "\n")
+    try:
+        data = csvio.read_measurements(path)
+    except csvio.InputError:
+        return
+    assert all(np.isfinite(v).all() for v in data.values())
