@@ -102,9 +102,11 @@ def holds_contract(call) -> None:
     except TypeError as e:
         # pyo3 raises TypeError only for a non-numeric Python object where a number (or
         # None) is required, e.g. a str passed as a float setting.
-        assert "argument" in str(e) or "float" in str(e) or "int" in str(e), e
+        message = str(e)
+    else:
+        assert finite(result), result
         return
-    assert finite(result), result
+    assert "argument" in message or "float" in message or "int" in message, message
 
 
 ROBOT = prrrp.Robot.paper()
