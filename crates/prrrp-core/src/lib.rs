@@ -49,6 +49,7 @@ mod dynamics;
 mod error;
 mod estimators;
 mod excitation;
+mod identification;
 mod interrupt;
 mod limits;
 mod metrics;
@@ -88,6 +89,7 @@ pub use excitation::{
     excitation_variables, optimise_excitation, ExcitationConfig, ExcitationProgress,
     ExcitationResult, DEFAULT_EXCITATION_KNOTS,
 };
+pub use identification::{BaseDescription, IdentifiedModel, Predictor, MODEL_SCHEMA_VERSION};
 pub use interrupt::{check_count, clear_stop, request_stop, stop_requested, MAX_SAMPLES};
 pub use limits::{limit_usage, JointLimits, LimitUsage};
 pub use metrics::{

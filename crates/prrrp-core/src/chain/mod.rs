@@ -37,5 +37,6 @@ pub use inertia::{
 };
 pub use joint::{Joint, JointType, AXIS_UNIT_TOLERANCE};
 pub use meta::{ChainMeta, JointInfo, JointLimit};
+pub(crate) use serial_chain::flat_samples;
 pub use serial_chain::{DynChain, SerialChain, PHYSICAL_TOLERANCE};
 pub use workspace::DynWorkspace;

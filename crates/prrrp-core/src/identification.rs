@@ -1,0 +1,331 @@
+//! The result of an identification, for any robot: an [`IdentifiedModel`] holds the robot
+//! description, the base-parameter analysis, the estimate β̂ with its uncertainty, the fit
+//! statistics and how the data were prepared. It predicts joint torques on its own and
+//! round-trips through JSON (schema version [`MODEL_SCHEMA_VERSION`], documented in
+//! `docs/model-schema.md`), so a saved model needs neither the robot file nor the data.
+
+use serde::{Deserialize, Serialize};
+
+use crate::chain::{BaseParameters, ChainDescription, DynChain, DynWorkspace};
+use crate::error::{PrrrpError, Result};
+
+/// Version of the [`IdentifiedModel`] JSON layout; bumped on any incompatible change.
+pub const MODEL_SCHEMA_VERSION: u32 = 1;
+
+/// The base-parameter analysis a model was identified in: which standard parameters are
+/// the base columns and how the others fold into them.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct BaseDescription {
+    /// Indices of the standard parameters kept as base columns (τ = Y[:, independent]·β).
+    pub independent: Vec<usize>,
+    /// Names of the standard parameters, e.g. `m1, mx1, …, fv1, …`.
+    pub standard_names: Vec<String>,
+    /// Each base parameter as a readable combination of standard ones.
+    pub combinations: Vec<String>,
+    /// β = map·π, row-major (count × standard parameters).
+    pub map: Vec<f64>,
+    /// Rank tolerance of the analysis.
+    pub rank_tolerance: f64,
+}
+
+impl From<&BaseParameters> for BaseDescription {
+    fn from(b: &BaseParameters) -> Self {
+        Self {
+            independent: b.independent.clone(),
+            standard_names: b.names.clone(),
+            combinations: b.combinations.clone(),
+            map: b.map_row_major(),
+            rank_tolerance: b.rank_tolerance,
+        }
+    }
+}
+
+/// An identified dynamic model (see the module docs). Units: β in the SI units of its
+/// combination (kg, kg·m, kg·m², N·m·s/rad, N·m); torques in N·m or N.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct IdentifiedModel {
+    /// [`MODEL_SCHEMA_VERSION`] of the writer.
+    pub schema_version: u32,
+    /// The robot: joints, the inertials it was loaded with (a prior), friction model.
+    pub robot: ChainDescription,
+    /// The base-parameter analysis.
+    pub base: BaseDescription,
+    /// The estimate β̂, one value per base parameter.
+    pub beta: Vec<f64>,
+    /// Standard deviation of each β̂ where the method gives one.
+    pub sigma: Option<Vec<f64>>,
+    /// 100·σ/|β̂| (%), where σ is given; `None` in an entry whose β̂ is exactly 0 (the
+    /// relative deviation is undefined there).
+    pub rsd_percent: Option<Vec<Option<f64>>>,
+    /// Covariance of β̂ (row-major b × b) where the method gives one (the EKF).
+    pub covariance: Option<Vec<f64>>,
+    /// Condition number of the base observation matrix W_b, where computed.
+    pub cond: Option<f64>,
+    /// RMS of the torque residual per joint on the identification data (N·m or N).
+    pub residual_rms: Vec<f64>,
+    /// The method: `"ls"`, `"wls"`, `"rls"`, `"adaline"`, `"hopfield"`, `"ekf"`, ….
+    pub method: String,
+    /// The method's settings, as given (free-form JSON object).
+    pub settings: serde_json::Value,
+    /// What the preprocessing did (free-form JSON object: rows dropped, rate, cut-off …).
+    pub preprocessing: serde_json::Value,
+}
+
+impl IdentifiedModel {
+    /// A model from its parts, checked for consistency.
+    ///
+    /// # Errors
+    /// [`PrrrpError::ShapeMismatch`] when β, σ, the covariance, the residuals or the base
+    /// analysis do not fit the robot; [`PrrrpError::NonFinite`] for a NaN/∞ in β or σ.
+    #[allow(clippy::too_many_arguments)]
+    pub fn new(
+        chain: &DynChain,
+        base: &BaseParameters,
+        beta: Vec<f64>,
+        sigma: Option<Vec<f64>>,
+        covariance: Option<Vec<f64>>,
+        cond: Option<f64>,
+        residual_rms: Vec<f64>,
+        method: &str,
+        settings: serde_json::Value,
+        preprocessing: serde_json::Value,
+    ) -> Result<Self> {
+        let rsd_percent = sigma.as_ref().map(|s| {
+            s.iter()
+                .zip(&beta)
+                .map(|(s, b)| (*b != 0.0).then(|| 100.0 * s / b.abs()))
+                .collect()
+        });
+        let model = Self {
+            schema_version: MODEL_SCHEMA_VERSION,
+            robot: chain.description(),
+            base: BaseDescription::from(base),
+            beta,
+            sigma,
+            rsd_percent,
+            covariance,
+            cond,
+            residual_rms,
+            method: method.into(),
+            settings,
+            preprocessing,
+        };
+        model.validate()?;
+        Ok(model)
+    }
+
+    fn validate(&self) -> Result<()> {
+        if self.schema_version != MODEL_SCHEMA_VERSION {
+            return Err(PrrrpError::InvalidParameter {
+                field: "schema_version".into(),
+                value: self.schema_version as f64,
+                reason: "unknown model version (this prrrp reads version 1)",
+            });
+        }
+        let n = self.robot.joints.len();
+        let b = self.base.independent.len();
+        let p = self.base.standard_names.len();
+        let shape = |what: &str, want: usize, got: usize| -> Result<()> {
+            if want == got {
+                Ok(())
+            } else {
+                Err(PrrrpError::ShapeMismatch {
+                    what: what.into(),
+                    expected: format!("{want} values"),
+                    got: format!("{got} values"),
+                })
+            }
+        };
+        shape("beta (one per base parameter)", b, self.beta.len())?;
+        shape("base.combinations", b, self.base.combinations.len())?;
+        shape("base.map (base × standard)", b * p, self.base.map.len())?;
+        shape("residual_rms (one per joint)", n, self.residual_rms.len())?;
+        if let Some(s) = &self.sigma {
+            shape("sigma (one per base parameter)", b, s.len())?;
+            if let Some(row) = s.iter().position(|x| !(x.is_finite() && *x >= 0.0)) {
+                return Err(PrrrpError::NonFinite {
+                    what: "sigma (must be finite and >= 0)".into(),
+                    row: Some(row),
+                });
+            }
+        }
+        if let Some(c) = &self.covariance {
+            shape("covariance (base × base)", b * b, c.len())?;
+            if let Some(row) = c.iter().position(|x| !x.is_finite()) {
+                return Err(PrrrpError::NonFinite {
+                    what: "covariance".into(),
+                    row: Some(row),
+                });
+            }
+        }
+        if let Some(c) = self.cond {
+            if !(c.is_finite() && c >= 1.0) {
+                return Err(PrrrpError::InvalidParameter {
+                    field: "cond".into(),
+                    value: c,
+                    reason: "a condition number is finite and >= 1 (rank-deficient data \
+                             give no model)",
+                });
+            }
+        }
+        if let Some(&j) = self.base.independent.iter().find(|&&j| j >= p) {
+            return Err(PrrrpError::ShapeMismatch {
+                what: "base.independent".into(),
+                expected: format!("indices below {p} (standard parameters)"),
+                got: format!("index {j}"),
+            });
+        }
+        for (name, v) in [("beta", &self.beta), ("residual_rms", &self.residual_rms)] {
+            if let Some(row) = v.iter().position(|x| !x.is_finite()) {
+                return Err(PrrrpError::NonFinite {
+                    what: name.into(),
+                    row: Some(row),
+                });
+            }
+        }
+        Ok(())
+    }
+
+    /// The robot as a chain (with the inertials it was loaded with).
+    ///
+    /// # Errors
+    /// As [`DynChain::from_description`].
+    pub fn chain(&self) -> Result<DynChain> {
+        DynChain::from_description(&self.robot)
+    }
+
+    /// A predictor: the chain and a workspace, built once for many [`Predictor::predict_into`]
+    /// calls.
+    ///
+    /// # Errors
+    /// As [`IdentifiedModel::chain`], and [`PrrrpError::ShapeMismatch`] if the robot's
+    /// parameter count does not match the base analysis.
+    pub fn predictor(&self) -> Result<Predictor<'_>> {
+        let chain = self.chain()?;
+        if chain.num_params() != self.base.standard_names.len() {
+            return Err(PrrrpError::ShapeMismatch {
+                what: "base.standard_names".into(),
+                expected: format!("{} (the robot's standard parameters)", chain.num_params()),
+                got: format!("{}", self.base.standard_names.len()),
+            });
+        }
+        let ws = chain.workspace();
+        let y = vec![0.0; chain.dof() * chain.num_params()];
+        Ok(Predictor {
+            model: self,
+            chain,
+            ws,
+            y,
+        })
+    }
+
+    /// Joint torques τ = Y_b(q, q̇, q̈)·β̂ for many samples: flat row-major (samples × n)
+    /// inputs and output.
+    ///
+    /// # Errors
+    /// [`PrrrpError::ShapeMismatch`] for lengths that are not multiples of n or differ,
+    /// [`PrrrpError::NonFinite`] naming the first bad sample.
+    pub fn predict(&self, q: &[f64], qd: &[f64], qdd: &[f64]) -> Result<Vec<f64>> {
+        let mut p = self.predictor()?;
+        let n = p.chain.dof();
+        let samples = crate::chain::flat_samples(n, q, qd, qdd)?;
+        let mut tau = vec![0.0; n * samples];
+        for k in 0..samples {
+            let r = n * k..n * k + n;
+            p.predict_into(&q[r.clone()], &qd[r.clone()], &qdd[r.clone()], &mut tau[r])
+                .map_err(|e| match e {
+                    PrrrpError::NonFinite { what, .. } => {
+                        PrrrpError::NonFinite { what, row: Some(k) }
+                    }
+                    other => other,
+                })?;
+        }
+        Ok(tau)
+    }
+
+    /// The model as JSON (see the module docs).
+    ///
+    /// # Errors
+    /// [`PrrrpError::NonFinite`] if a value is not finite (JSON has no NaN).
+    pub fn to_json(&self) -> Result<String> {
+        serde_json::to_string_pretty(self).map_err(|_| PrrrpError::NonFinite {
+            what: "identified model (JSON has no NaN or infinity)".into(),
+            row: None,
+        })
+    }
+
+    /// A model from the JSON of [`IdentifiedModel::to_json`], checked.
+    ///
+    /// # Errors
+    /// [`PrrrpError::InvalidParameter`] naming the JSON problem, and the errors of
+    /// [`IdentifiedModel::new`].
+    pub fn from_json(text: &str) -> Result<Self> {
+        let m: Self = serde_json::from_str(text).map_err(|e| PrrrpError::InvalidParameter {
+            field: format!("model JSON (line {}, column {})", e.line(), e.column()),
+            value: f64::NAN,
+            reason: "not a prrrp model file; write it with IdentifiedModel::to_json",
+        })?;
+        m.validate()?;
+        m.chain()?;
+        Ok(m)
+    }
+}
+
+/// Torque prediction of an [`IdentifiedModel`] with preallocated buffers
+/// ([`IdentifiedModel::predictor`]); `predict_into` allocates nothing.
+#[derive(Debug, Clone)]
+pub struct Predictor<'m> {
+    model: &'m IdentifiedModel,
+    chain: DynChain,
+    ws: DynWorkspace,
+    y: Vec<f64>,
+}
+
+impl Predictor<'_> {
+    /// The robot as a chain.
+    pub fn chain(&self) -> &DynChain {
+        &self.chain
+    }
+
+    /// τ = Y_b·β̂ of one sample into `tau` (n entries).
+    ///
+    /// # Errors
+    /// [`PrrrpError::ShapeMismatch`] for slices that do not have n entries,
+    /// [`PrrrpError::NonFinite`] for NaN/∞ inputs.
+    pub fn predict_into(
+        &mut self,
+        q: &[f64],
+        qd: &[f64],
+        qdd: &[f64],
+        tau: &mut [f64],
+    ) -> Result<()> {
+        for (name, v) in [("q", q), ("qd", qd), ("qdd", qdd)] {
+            if !v.iter().all(|x| x.is_finite()) {
+                return Err(PrrrpError::NonFinite {
+                    what: name.into(),
+                    row: None,
+                });
+            }
+        }
+        self.chain
+            .regressor_row_major_into(&mut self.ws, q, qd, qdd, &mut self.y)?;
+        let (n, p) = (self.chain.dof(), self.chain.num_params());
+        if tau.len() != n {
+            return Err(PrrrpError::ShapeMismatch {
+                what: "tau".into(),
+                expected: format!("{n} entries (one per joint)"),
+                got: format!("{} entries", tau.len()),
+            });
+        }
+        let base = &self.model.base.independent;
+        for (i, t) in tau.iter_mut().enumerate() {
+            let row = &self.y[i * p..(i + 1) * p];
+            *t = base
+                .iter()
+                .zip(&self.model.beta)
+                .map(|(&j, b)| row[j] * b)
+                .sum();
+        }
+        Ok(())
+    }
+}
