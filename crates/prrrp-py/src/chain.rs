@@ -162,7 +162,12 @@ pub(crate) struct PySerialChain {
 }
 
 impl PySerialChain {
-    fn wrap(inner: DynChain) -> Self {
+    /// The chain.
+    pub(crate) fn chain(&self) -> &DynChain {
+        &self.inner
+    }
+
+    pub(crate) fn wrap(inner: DynChain) -> Self {
         Self {
             inner,
             base: OnceLock::new(),
@@ -195,7 +200,7 @@ impl PySerialChain {
         Ok(Self::wrap(chain))
     }
 
-    fn default_base(&self, py: Python<'_>) -> PyResult<&BaseParameters> {
+    pub(crate) fn default_base(&self, py: Python<'_>) -> PyResult<&BaseParameters> {
         if let Some(b) = self.base.get() {
             return Ok(b);
         }
@@ -767,7 +772,7 @@ fn urdf_options(
 /// The base parameters of a chain: β = map · parameters, τ = Y_b·β.
 #[pyclass(module = "prrrp", name = "BaseParameters", frozen)]
 pub(crate) struct PyBaseParameters {
-    inner: BaseParameters,
+    pub(crate) inner: BaseParameters,
 }
 
 fn index_array<'py>(py: Python<'py>, v: &[usize]) -> Bound<'py, PyArray1<i64>> {

@@ -25,6 +25,7 @@ mod dataset;
 mod derivatives;
 mod errors;
 mod estimators;
+mod identification;
 mod interrupt;
 mod metrics;
 mod preprocessing;
@@ -47,6 +48,7 @@ fn _prrrp(m: &Bound<'_, PyModule>) -> PyResult<()> {
     errors::register(m)?;
     robot::register(m)?;
     chain::register(m)?;
+    identification::register(m)?;
     dataset::register(m)?;
     validation::register(m)?;
     derivatives::register(m)?;
