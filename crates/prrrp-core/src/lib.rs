@@ -43,6 +43,7 @@
 #![warn(missing_docs)]
 
 mod chain;
+mod data;
 mod dataset;
 mod derivatives;
 mod dynamics;
@@ -69,6 +70,10 @@ pub use chain::{
     BaseOptions, BaseParameters, ChainBaseModel, ChainMeta, DhConvention, DynChain, DynWorkspace,
     FrictionModel, Joint, JointInfo, JointLimit, JointType, SerialChain, AXIS_UNIT_TOLERANCE,
     FRICTION_PARAMETER_NAMES, INERTIAL_PARAMETER_NAMES, LINK_PARAMS, PHYSICAL_TOLERANCE,
+};
+pub use data::{
+    preprocess_log, DynDataset, DynDatasetParts, LogConfig, LogReport, DEFAULT_LOG_CUTOFF_HZ,
+    LOG_MAX_UPSAMPLING, LOG_UNIFORM_TOLERANCE,
 };
 pub use dataset::{Dataset, DatasetParts};
 pub use derivatives::InverseDerivatives;
