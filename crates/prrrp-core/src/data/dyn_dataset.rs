@@ -357,7 +357,9 @@ pub(crate) fn check_flat_len(name: &str, len: usize, n: usize, rows: usize) -> R
     if rows.checked_mul(n) != Some(len) {
         return Err(PrrrpError::ShapeMismatch {
             what: name.into(),
-            expected: format!("{n}·{rows} values (row-major, {n} joints per sample, {rows} samples as t)"),
+            expected: format!(
+                "{n}·{rows} values (row-major, {n} joints per sample, {rows} samples as t)"
+            ),
             got: format!("{len} values"),
         });
     }

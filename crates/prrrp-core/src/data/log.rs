@@ -151,15 +151,16 @@ fn invalid(field: &str, value: f64, reason: &'static str) -> PrrrpError {
 ///
 /// ```
 /// use prrrp_core::{preprocess_log, LogConfig};
-/// // Two joints at a jittery 1 kHz, the 4th row logged twice.
+/// // Two joints logged for 3 s with jittery steps of 0.8 and 1.4 ms, the 4th row twice.
 /// let n = 2;
-/// let mut t: Vec<f64> = (0..3000).map(|k| 1e-3 * k as f64 + 2e-4 * ((k * 7) % 3) as f64).collect();
+/// let mut t: Vec<f64> = (0..3000).map(|k| 1e-3 * k as f64 + 2e-4 * ((2 * k) % 3) as f64).collect();
 /// t.insert(4, t[3]);
 /// let q: Vec<f64> = t.iter().flat_map(|&t| [(2.0 * t).sin(), t * t]).collect();
 /// let tau = vec![0.5; q.len()];
 /// let (data, report) = preprocess_log(&t, &q, &tau, None, n, &LogConfig::default())?;
 /// assert_eq!(report.repeated_rows, 1);
-/// assert!((report.rate_hz - 1000.0).abs() < 1.0);
+/// // Resampled at the median rate, 1/0.8 ms, and filtered at 10 Hz.
+/// assert!(report.resampled && (report.rate_hz - 1250.0).abs() < 1e-6);
 /// let k = data.len() / 2;
 /// assert!((data.qdd_row(k)[1] - 2.0).abs() < 1e-3);
 /// # Ok::<(), prrrp_core::PrrrpError>(())
@@ -231,7 +232,10 @@ pub fn preprocess_log(
     }
     let len = kept.len();
     if len < 3 {
-        return Err(PrrrpError::TooFewSamples { needed: 3, got: len });
+        return Err(PrrrpError::TooFewSamples {
+            needed: 3,
+            got: len,
+        });
     }
 
     // 2. Steps: median rate, largest gap, uniformity.
@@ -281,7 +285,7 @@ pub fn preprocess_log(
                     (f_out * factor, factor)
                 }
             };
-            if !(factor <= len as f64) {
+            if factor > len as f64 {
                 return Err(invalid(
                     "decimate_to_hz",
                     f_out,
@@ -291,7 +295,7 @@ pub fn preprocess_log(
             (rate, factor as usize)
         }
     };
-    if !(rate <= LOG_MAX_UPSAMPLING * median_rate) {
+    if rate.is_nan() || rate > LOG_MAX_UPSAMPLING * median_rate {
         return Err(invalid(
             "rate_hz",
             rate,
@@ -318,12 +322,15 @@ pub fn preprocess_log(
 
     // The grid: the kept rows themselves, or t0 + i/rate interpolated.
     let (grid_t, src, dt) = if passthrough {
-        let src: Vec<Source> = kept.iter().map(|&k| Source { a: k, b: k, w: 0.0 }).collect();
+        let src: Vec<Source> = kept
+            .iter()
+            .map(|&k| Source { a: k, b: k, w: 0.0 })
+            .collect();
         let grid_t: Vec<f64> = kept.iter().map(|&k| t[k]).collect();
         (grid_t, src, mean_step)
     } else {
         let m = ((t_last - t0) * rate).floor() + 1.0;
-        if !(m <= LOG_MAX_UPSAMPLING * len as f64) {
+        if m.is_nan() || m > LOG_MAX_UPSAMPLING * len as f64 {
             return Err(invalid(
                 "rate_hz",
                 rate,
@@ -403,9 +410,11 @@ pub fn preprocess_log(
 fn check_config(c: &LogConfig) -> Result<()> {
     let positive = |name: &str, v: Option<f64>| -> Result<()> {
         match v {
-            Some(x) if !(x.is_finite() && x > 0.0) => {
-                Err(invalid(name, x, "must be finite and > 0 (or None for the default)"))
-            }
+            Some(x) if !(x.is_finite() && x > 0.0) => Err(invalid(
+                name,
+                x,
+                "must be finite and > 0 (or None for the default)",
+            )),
             _ => Ok(()),
         }
     };
@@ -413,8 +422,12 @@ fn check_config(c: &LogConfig) -> Result<()> {
     positive("cutoff_hz", c.cutoff_hz)?;
     positive("decimate_to_hz", c.decimate_to_hz)?;
     if let Some(g) = c.max_gap_s {
-        if !(g > 0.0) {
-            return Err(invalid("max_gap_s", g, "must be > 0 s (f64::INFINITY accepts any gap)"));
+        if g.is_nan() || g <= 0.0 {
+            return Err(invalid(
+                "max_gap_s",
+                g,
+                "must be > 0 s (f64::INFINITY accepts any gap)",
+            ));
         }
     }
     if let Some(s) = c.trim_s {
