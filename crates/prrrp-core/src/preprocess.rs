@@ -204,6 +204,9 @@ pub fn central_differences(x: &[Vec5], dt: f64) -> (Vec<Vec5>, Vec<Vec5>) {
 /// with q, q̇, q̈, τ: zero-phase low-pass filtering of q (and τ), central differences,
 /// edge trimming and decimation (see [`PreprocessConfig`]).
 ///
+/// This is [`crate::preprocess_log`]'s filtering core with n = 5 on the samples as they
+/// are; for logs with jitter, repeated rows or another number of joints use that.
+///
 /// ```
 /// use prrrp_core::{preprocess, PreprocessConfig, Vec5};
 /// let dt = 0.02;

@@ -20,7 +20,7 @@ pub const DEFAULT_LOG_CUTOFF_HZ: f64 = 10.0;
 pub const LOG_MAX_UPSAMPLING: f64 = 100.0;
 
 /// Relative tolerance on the time steps under which a log counts as already uniform and
-/// is used without interpolation (1e-6, the tolerance [`crate::preprocess`] accepts).
+/// is used without interpolation (1e-6, the tolerance [`crate::preprocess()`] accepts).
 pub const LOG_UNIFORM_TOLERANCE: f64 = 1e-6;
 
 /// Settings of [`preprocess_log`]. Every field has a documented default.

@@ -1,6 +1,6 @@
 //! Identification data for robots with a run-time number of joints: the validated
 //! [`DynDataset`] and [`preprocess_log`], which turns a real, irregular log into one.
-//! The PRRRP's fixed-size [`crate::preprocess`] runs on the same filtering core.
+//! The PRRRP's fixed-size [`crate::preprocess()`] runs on the same filtering core.
 
 mod dyn_dataset;
 mod log;

@@ -1,4 +1,4 @@
-//! The one filtering and differentiation core behind [`crate::preprocess`] (5 joints,
+//! The one filtering and differentiation core behind [`crate::preprocess()`] (5 joints,
 //! uniform samples) and [`crate::preprocess_log`] (n joints, resampled real logs).
 
 use crate::data::dyn_dataset::DynDataset;
