@@ -643,3 +643,87 @@ fn bad_logs_are_typed_errors() {
     let (_, rep) = run(&t, &log.q, N, &c).unwrap();
     assert_eq!(rep.largest_gap_row, hole);
 }
+
+/// No input makes `preprocess_log` panic: random small logs with repeated, backwards,
+/// extreme and non-finite time stamps and values, any joint count, and extreme settings
+/// all return `Ok` or a typed error.
+#[test]
+fn no_input_panics() {
+    let mut rng = ChaCha8Rng::seed_from_u64(99);
+    let times = [
+        0.0,
+        0.0,
+        0.0,
+        1e-320,
+        1e-9,
+        1e-3,
+        1.0,
+        1e300,
+        -1e308,
+        1e308,
+        f64::NAN,
+    ];
+    // None (the default) half of the time, so that many logs reach the filter.
+    let settings = [
+        None,
+        None,
+        None,
+        None,
+        None,
+        Some(1e-300),
+        Some(1e-3),
+        Some(1.0),
+        Some(1e3),
+        Some(1e300),
+    ];
+    for case in 0..3000 {
+        let n = [1, 2, 3, 13][case % 4];
+        let rows = [0, 1, 2, 3, 5, 40, 2000, 2000, 2000, 2000][rng.random_range(0..10)];
+        let mut now = times[rng.random_range(0..times.len() - 1)];
+        let mut t: Vec<f64> = (0..rows)
+            .map(|_| {
+                let x = now;
+                now += rng.random_range(0.7e-3..1.3e-3);
+                x
+            })
+            .collect();
+        let mut q: Vec<f64> = (0..rows * n).map(|_| rng.random_range(-1.0..1.0)).collect();
+        // At most one defect per log, so that many logs get through to the filter.
+        if rows > 1 {
+            let k = rng.random_range(1..rows);
+            match rng.random_range(0..6) {
+                0 => t[k] = t[k - 1],
+                1 => t[k] = t[k - 1] - 1e-3,
+                2 => t[k] = times[rng.random_range(0..times.len())],
+                3 => q[k * n] = f64::INFINITY,
+                _ => {}
+            }
+        }
+        let qd = q.clone();
+        let pick = |rng: &mut ChaCha8Rng| settings[rng.random_range(0..settings.len())];
+        let cfg = LogConfig {
+            rate_hz: pick(&mut rng),
+            cutoff_hz: pick(&mut rng),
+            order: [2, 4, 8][rng.random_range(0..3)],
+            trim_s: [None, Some(0.0), Some(1e300)][rng.random_range(0..3)],
+            decimate_to_hz: pick(&mut rng),
+            max_gap_s: [None, Some(f64::INFINITY)][rng.random_range(0..2)],
+            min_samples: rng.random_range(0..20),
+            ..LogConfig::default()
+        };
+        let with_qd = rng.random_range(0..2) == 0;
+        let _ = preprocess_log(&t, &q, &q, with_qd.then_some(&qd[..]), n, &cfg);
+    }
+    // A joint count whose product with the rows overflows.
+    assert!(matches!(
+        preprocess_log(
+            &[0.0, 1.0],
+            &[0.0],
+            &[0.0],
+            None,
+            usize::MAX,
+            &LogConfig::default()
+        ),
+        Err(PrrrpError::ShapeMismatch { .. })
+    ));
+}
