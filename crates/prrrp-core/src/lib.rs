@@ -43,6 +43,7 @@
 #![warn(missing_docs)]
 
 mod chain;
+mod data;
 mod dataset;
 mod derivatives;
 mod dynamics;
@@ -74,6 +75,10 @@ pub use chain::{
     JointLimit, JointType, PoseDescription, SerialChain, AXIS_UNIT_TOLERANCE, CHAIN_SCHEMA_VERSION,
     FRICTION_PARAMETER_NAMES, INERTIAL_PARAMETER_NAMES, LINK_PARAMS, MAX_MATRIX_ENTRIES,
     PHYSICAL_TOLERANCE,
+};
+pub use data::{
+    preprocess_log, DynDataset, DynDatasetParts, LogConfig, LogReport, DEFAULT_LOG_CUTOFF_HZ,
+    LOG_MAX_UPSAMPLING, LOG_UNIFORM_TOLERANCE,
 };
 pub use dataset::{Dataset, DatasetParts};
 pub use derivatives::InverseDerivatives;

@@ -2,6 +2,7 @@
 //! Butterworth low-pass filtering (forward and backward) of positions and torques,
 //! velocities and accelerations by central differences, edge trimming and decimation.
 
+use crate::data::pipeline::{filter_and_differentiate, FilterSettings, Grid, Signals, Source};
 use crate::dataset::Dataset;
 use crate::error::{PrrrpError, Result};
 use crate::types::{Vec5, NDOF};
@@ -113,20 +114,30 @@ impl ButterworthLowPass {
     /// end by its point reflection (2·x₀ − x_k), each pass started in the steady state of
     /// its first value, as scipy's `filtfilt` does. Returns a signal of the same length.
     pub fn filtfilt(&self, x: &[f64]) -> Vec<f64> {
+        let mut out = vec![0.0; x.len()];
+        self.filtfilt_into(x, &mut Vec::new(), &mut out);
+        out
+    }
+
+    /// [`Self::filtfilt`] into `out` (as long as `x`), with `ext` as reusable scratch for
+    /// the padded signal so that filtering many columns allocates once.
+    pub(crate) fn filtfilt_into(&self, x: &[f64], ext: &mut Vec<f64>, out: &mut [f64]) {
         let n = x.len();
         if n < 2 {
-            return x.to_vec();
+            out.copy_from_slice(x);
+            return;
         }
         let pad = self.pad_len(n);
-        let mut ext = Vec::with_capacity(n + 2 * pad);
+        ext.clear();
+        ext.reserve(n + 2 * pad);
         ext.extend((1..=pad).rev().map(|k| 2.0 * x[0] - x[k]));
         ext.extend_from_slice(x);
         ext.extend((1..=pad).map(|k| 2.0 * x[n - 1] - x[n - 1 - k]));
-        self.pass(&mut ext);
+        self.pass(ext);
         ext.reverse();
-        self.pass(&mut ext);
+        self.pass(ext);
         ext.reverse();
-        ext[pad..pad + n].to_vec()
+        out.copy_from_slice(&ext[pad..pad + n]);
     }
 
     fn pass(&self, x: &mut [f64]) {
@@ -192,6 +203,9 @@ pub fn central_differences(x: &[Vec5], dt: f64) -> (Vec<Vec5>, Vec<Vec5>) {
 /// Turns measured positions and torques at a uniform sampling rate into a [`Dataset`]
 /// with q, q̇, q̈, τ: zero-phase low-pass filtering of q (and τ), central differences,
 /// edge trimming and decimation (see [`PreprocessConfig`]).
+///
+/// This is [`crate::preprocess_log`]'s filtering core with n = 5 on the samples as they
+/// are; for logs with jitter, repeated rows or another number of joints use that.
 ///
 /// ```
 /// use prrrp_core::{preprocess, PreprocessConfig, Vec5};
@@ -262,62 +276,26 @@ pub fn preprocess(
             reason: "sampling must be uniform (jitter <= 1e-6·dt); resample the data first",
         });
     }
-    if config.decimate == 0 {
-        return Err(PrrrpError::InvalidParameter {
-            field: "decimate".into(),
-            value: 0.0,
-            reason: "must be at least 1",
-        });
-    }
-    let fs = 1.0 / dt;
-    let filter = ButterworthLowPass::new(config.order, config.cutoff_hz, fs)?;
-    if config.cutoff_hz >= 0.5 * fs / config.decimate as f64 {
-        return Err(PrrrpError::InvalidParameter {
-            field: "cutoff_hz".into(),
-            value: config.cutoff_hz,
-            reason: "must be below the Nyquist frequency after decimation, fs/(2·decimate)",
-        });
-    }
-    let qf = filter_columns(&filter, q);
-    let tauf = if config.filter_torque {
-        filter_columns(&filter, tau)
-    } else {
-        tau.to_vec()
+    // The shared n-joint core (also behind `preprocess_log`), on the samples as they are:
+    // the grid is the input's own rows, so nothing is interpolated.
+    let flat = |c: &[Vec5]| -> Vec<f64> { c.iter().flat_map(|v| v.iter().copied()).collect() };
+    let (q_flat, tau_flat) = (flat(q), flat(tau));
+    let src: Vec<Source> = (0..n).map(|k| Source { a: k, b: k, w: 0.0 }).collect();
+    let grid = Grid { t, src: &src, dt };
+    let signals = Signals {
+        n: NDOF,
+        q: &q_flat,
+        qd: None,
+        tau: &tau_flat,
     };
-    let (qd, qdd) = central_differences(&qf, dt);
-    let trim = config
-        .trim
-        .unwrap_or_else(|| (3.0 * fs / config.cutoff_hz).ceil() as usize)
-        .max(1);
-    if n < 2 * trim + Dataset::MIN_SAMPLES {
-        return Err(PrrrpError::TooFewSamples {
-            needed: 2 * trim + Dataset::MIN_SAMPLES,
-            got: n,
-        });
-    }
-    // Derivative k belongs to sample k + 1; keep samples trim..n−trim.
-    let keep = (trim..n - trim).step_by(config.decimate);
-    let mut out = (Vec::new(), Vec::new(), Vec::new(), Vec::new(), Vec::new());
-    for k in keep {
-        out.0.push(t[k]);
-        out.1.push(qf[k]);
-        out.2.push(qd[k - 1]);
-        out.3.push(qdd[k - 1]);
-        out.4.push(tauf[k]);
-    }
-    Dataset::new(out.0, out.1, out.2, out.3, out.4)
-}
-
-fn filter_columns(filter: &ButterworthLowPass, x: &[Vec5]) -> Vec<Vec5> {
-    let mut out = vec![Vec5::zeros(); x.len()];
-    let mut col = vec![0.0; x.len()];
-    for j in 0..NDOF {
-        for (c, v) in col.iter_mut().zip(x) {
-            *c = v[j];
-        }
-        for (o, f) in out.iter_mut().zip(filter.filtfilt(&col)) {
-            o[j] = f;
-        }
-    }
-    out
+    let settings = FilterSettings {
+        cutoff_hz: config.cutoff_hz,
+        order: config.order,
+        filter_torque: config.filter_torque,
+        trim: config.trim,
+        decimate: config.decimate,
+        min_samples: Dataset::MIN_SAMPLES,
+    };
+    let (data, _) = filter_and_differentiate(&grid, &signals, &settings)?;
+    Dataset::try_from(data)
 }
