@@ -711,6 +711,70 @@ class SerialChain:
         """A chain from the JSON of `to_json`."""
     def __reduce__(self) -> tuple[Any, ...]: ...
 
+class IdentifiedModel:
+    """An identification result for any robot (schema: docs/model-schema.md): the robot
+    description, the base-parameter analysis, β̂ with σ and %σ where the method gives them
+    (the EKF gives its covariance), cond(W_b), the RMS torque residual per joint, the
+    method, its settings and the preprocessing used. It predicts joint torques on its own
+    and saves to / loads from JSON, so a saved model needs neither the robot file nor the
+    data."""
+
+    @staticmethod
+    def from_json(text: str) -> IdentifiedModel: ...
+    @staticmethod
+    def load(path: str | os.PathLike[str]) -> IdentifiedModel:
+        """A model from a file written by `save`."""
+    def to_json(self) -> str: ...
+    def save(self, path: str | os.PathLike[str]) -> None:
+        """Writes the model as JSON, atomically (a temporary file moved into place)."""
+    def predict(self, q: _ArrayLike, qd: _ArrayLike, qdd: _ArrayLike) -> _F64:
+        """Joint torques τ = Y_b(q, q̇, q̈)·β̂ (N·m or N), (n,) or (N, n)."""
+    @property
+    def robot(self) -> SerialChain:
+        """The robot, with the inertials it was loaded with (a prior)."""
+    @property
+    def method(self) -> str: ...
+    @property
+    def beta(self) -> _F64:
+        """β̂, (b,), SI units of each combination."""
+    @property
+    def sigma(self) -> _F64 | None: ...
+    @property
+    def rsd_percent(self) -> _F64 | None:
+        """100·σ/|β̂| (%), NaN where β̂ = 0."""
+    @property
+    def covariance(self) -> _F64 | None:
+        """(b, b), where the method gives it (the EKF)."""
+    @property
+    def cond(self) -> float | None: ...
+    @property
+    def residual_rms(self) -> _F64:
+        """(n,), N·m or N, on the identification data."""
+    @property
+    def base_names(self) -> list[str]: ...
+    @property
+    def combinations(self) -> list[str]: ...
+    @property
+    def settings(self) -> dict[str, Any]: ...
+    @property
+    def preprocessing(self) -> dict[str, Any]: ...
+    def __reduce__(self) -> tuple[Any, ...]: ...
+
+def identified_model_from_parts(
+    robot: SerialChain,
+    beta: _ArrayLike,
+    *,
+    sigma: _ArrayLike | None = None,
+    covariance: _ArrayLike | None = None,
+    cond: float | None = None,
+    residual_rms: _ArrayLike | None = None,
+    method: str = "manual",
+    settings: dict[str, Any] | None = None,
+    preprocessing: dict[str, Any] | None = None,
+    base: BaseParameters | None = None,
+) -> IdentifiedModel:
+    """An IdentifiedModel from its parts (β̂ in `base`, default `robot.base_parameters()`)."""
+
 class BaseParameters:
     """Result of `SerialChain.base_parameters()`: base parameters β = map @ π (b of them)."""
 
