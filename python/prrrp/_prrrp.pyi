@@ -816,10 +816,11 @@ class BaseParameters:
 # --- data sets, validation, sensitivity --------------------------------------------------
 
 class Dataset:
-    """An identification data set of the PRRRP arm, checked on creation: t (N,) s strictly
-    increasing; q, qd, qdd, tau (N, 5) (m, rad; m/s, rad/s; m/s², rad/s²; N, N·m); N ≥ 8;
-    every value finite. Errors: ShapeMismatchError, NonFiniteError (with .row),
-    NonIncreasingTimeError (.row), TooFewSamplesError."""
+    """An identification data set of any robot, checked on creation: t (N,) s strictly
+    increasing; q, qd, qdd, tau (N, n) (m, rad; m/s, rad/s; m/s², rad/s²; N, N·m), n joints
+    from q's shape; N ≥ 8; every value finite. Errors: ShapeMismatchError, NonFiniteError
+    (with .row), NonIncreasingTimeError (.row), TooFewSamplesError. Functions of the paper's
+    arm (`torque_prediction`, ...) take 5-joint data sets."""
 
     MIN_SAMPLES: Final[int]
     def __init__(
@@ -839,6 +840,9 @@ class Dataset:
     @property
     def tau(self) -> _F64: ...
     @property
+    def dof(self) -> int:
+        """Number of joints n."""
+    @property
     def duration(self) -> float:
         """t[-1] − t[0], s."""
     def slice(self, start: int, stop: int) -> Dataset:
@@ -847,6 +851,53 @@ class Dataset:
         """Contiguous slices only (step 1)."""
     def __len__(self) -> int: ...
     def to_dict(self) -> _Dataset: ...
+
+class _LogReport(TypedDict):
+    rows_in: int
+    repeated_rows: int
+    """Rows whose time stamp repeats the previous one (dropped; the first is kept)."""
+    conflicting_repeats: int
+    """Of those, rows whose values differ from the kept one."""
+    median_rate_hz: float
+    rate_hz: float
+    """Rate of the uniform grid the log was resampled onto."""
+    resampled: bool
+    largest_gap_s: float
+    largest_gap_row: int
+    cutoff_hz: float
+    order: int
+    trim_samples: int
+    trim_s: float
+    decimation: int
+    output_rate_hz: float
+    measured_velocity: bool
+    rows_out: int
+
+def preprocess_log(
+    t: _ArrayLike,
+    q: _ArrayLike,
+    tau: _ArrayLike,
+    *,
+    qd: _ArrayLike | None = None,
+    rate_hz: float | None = None,
+    cutoff_hz: float | None = None,
+    order: int = 4,
+    filter_torque: bool = True,
+    trim_s: float | None = None,
+    decimate_to_hz: float | None = None,
+    max_gap_s: float | None = None,
+) -> tuple[Dataset, _LogReport]:
+    """A Dataset of n joints from a real log: t (N,) s, q and tau (N, n), optional measured
+    velocities qd (N, n). Rows repeating the previous time stamp are dropped (counted); time
+    running backwards is NonIncreasingTimeError naming the row; the log is resampled
+    linearly onto a uniform grid at `rate_hz` (default: its median rate; a whole multiple of
+    `decimate_to_hz` when that is set); zero-phase Butterworth low-pass of order `order` at
+    `cutoff_hz` (default min(10 Hz, output rate/10)) on q, measured qd and (if
+    `filter_torque`) tau; q̇ differentiated from q unless measured, q̈ from q̇; `trim_s`
+    seconds dropped at each end (default 3 cut-off periods); then decimation to
+    `decimate_to_hz`. A gap longer than `max_gap_s` (default half a cut-off period;
+    `math.inf` accepts any) is an InvalidParameterError naming its row. Returns the data set
+    and a report of what was done."""
 
 class _TorquePrediction(TypedDict):
     rms: _F64

@@ -1,21 +1,35 @@
-//! `prrrp.Dataset`: a validated identification data set of the PRRRP arm (time stamps
-//! and per-sample q, q̇, q̈, τ), wrapping the core's `Dataset`.
+//! `prrrp.Dataset`: a validated identification data set of any robot (time stamps and
+//! per-sample q, q̇, q̈, τ of n joints), wrapping the core's `DynDataset`; and
+//! `prrrp.preprocess_log`, which makes one from a real log.
 
-use prrrp_core::{Dataset, PrrrpError, NDOF};
+use prrrp_core::{preprocess_log, Dataset, DynDataset, LogConfig, PrrrpError};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PySlice};
 
-use crate::arrays::{rows_to_array, to_array, vector, Samples};
+use crate::arrays::{any_array, to_array, vector, UInt};
 use crate::errors::{to_pyerr, ToPyResult};
-use crate::preprocessing::dataset_dict;
 
 type Out<'py> = PyResult<Bound<'py, PyAny>>;
 
-/// Time stamps t (N,) s and q, qd, qdd, tau (N, 5), checked on creation: equal lengths,
+/// Time stamps t (N,) s and q, qd, qdd, tau (N, n), checked on creation: equal lengths,
 /// N ≥ 8, every value finite, t strictly increasing.
 #[pyclass(module = "prrrp", name = "Dataset", frozen)]
 pub(crate) struct PyDataset {
-    pub(crate) inner: Dataset,
+    pub(crate) inner: DynDataset,
+}
+
+/// (rows, n) and the row-major values of a 2-D array argument.
+fn table(obj: &Bound<'_, PyAny>, name: &'static str) -> PyResult<(usize, usize, Vec<f64>)> {
+    let (shape, data) = any_array(obj, name, "(N, n)")?;
+    match *shape {
+        [rows, n] => Ok((rows, n, data)),
+        _ => Err(crate::errors::shape_error(
+            obj.py(),
+            name,
+            "(N, n)",
+            crate::arrays::fmt_shape(&shape),
+        )),
+    }
 }
 
 #[pymethods]
@@ -34,14 +48,12 @@ impl PyDataset {
         tau: &Bound<'_, PyAny>,
     ) -> PyResult<Self> {
         let t = vector(t, "t")?;
-        let inner = Dataset::new(
-            t,
-            Samples::<NDOF>::extract_rows(q, "q")?,
-            Samples::<NDOF>::extract_rows(qd, "qd")?,
-            Samples::<NDOF>::extract_rows(qdd, "qdd")?,
-            Samples::<NDOF>::extract_rows(tau, "tau")?,
-        )
-        .to_py(py)?;
+        let (_, n, q) = table(q, "q")?;
+        let (.., qd) = table(qd, "qd")?;
+        let (.., qdd) = table(qdd, "qdd")?;
+        let (.., tau) = table(tau, "tau")?;
+        let inner = DynDataset::with_min_samples(n, Dataset::MIN_SAMPLES, t, q, qd, qdd, tau)
+            .to_py(py)?;
         Ok(Self { inner })
     }
 
@@ -76,25 +88,30 @@ impl PyDataset {
     fn t<'py>(&self, py: Python<'py>) -> Out<'py> {
         to_array(py, self.inner.t().to_vec(), Some(self.inner.len()), &[])
     }
-    /// Joint positions [d1, θ2, θ3, θ4, d5] (m, rad), (N, 5).
+    /// Joint positions (m, rad), (N, n).
     #[getter]
     fn q<'py>(&self, py: Python<'py>) -> Out<'py> {
-        rows_to_array(py, self.inner.q())
+        self.column(py, self.inner.q())
     }
-    /// Joint velocities (m/s, rad/s), (N, 5).
+    /// Joint velocities (m/s, rad/s), (N, n).
     #[getter]
     fn qd<'py>(&self, py: Python<'py>) -> Out<'py> {
-        rows_to_array(py, self.inner.qd())
+        self.column(py, self.inner.qd())
     }
-    /// Joint accelerations (m/s², rad/s²), (N, 5).
+    /// Joint accelerations (m/s², rad/s²), (N, n).
     #[getter]
     fn qdd<'py>(&self, py: Python<'py>) -> Out<'py> {
-        rows_to_array(py, self.inner.qdd())
+        self.column(py, self.inner.qdd())
     }
-    /// Generalised forces [F1, τ2, τ3, τ4, F5] (N, N·m), (N, 5).
+    /// Generalised forces (N, N·m), (N, n).
     #[getter]
     fn tau<'py>(&self, py: Python<'py>) -> Out<'py> {
-        rows_to_array(py, self.inner.tau())
+        self.column(py, self.inner.tau())
+    }
+    /// Number of joints n.
+    #[getter]
+    fn dof(&self) -> usize {
+        self.inner.dof()
     }
     /// Time span t[-1] − t[0], s.
     #[getter]
@@ -157,27 +174,102 @@ impl PyDataset {
 
     /// The columns as a dict of arrays t, q, qd, qdd, tau.
     fn to_dict<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
-        dataset_dict(py, &self.inner)
+        let out = PyDict::new(py);
+        out.set_item("t", self.t(py)?)?;
+        out.set_item("q", self.q(py)?)?;
+        out.set_item("qd", self.qd(py)?)?;
+        out.set_item("qdd", self.qdd(py)?)?;
+        out.set_item("tau", self.tau(py)?)?;
+        Ok(out)
     }
 
     fn __repr__(&self) -> String {
         format!(
-            "Dataset(samples={}, t=[{}, {}] s)",
+            "Dataset(samples={}, joints={}, t=[{}, {}] s)",
             self.inner.len(),
+            self.inner.dof(),
             self.inner.t()[0],
             self.inner.t()[self.inner.len() - 1]
         )
     }
 }
 
-/// A core data set from a `prrrp.Dataset` or a mapping with keys t, q, qd, qdd, tau.
-pub(crate) fn dataset_from(obj: &Bound<'_, PyAny>) -> PyResult<Dataset> {
-    if let Ok(d) = obj.cast::<PyDataset>() {
-        return Ok(d.get().inner.clone());
+impl PyDataset {
+    fn column<'py>(&self, py: Python<'py>, flat: &[f64]) -> Out<'py> {
+        to_array(py, flat.to_vec(), Some(self.inner.len()), &[self.inner.dof()])
     }
-    Ok(PyDataset::from_dict(obj.py(), obj)?.inner)
+}
+
+/// A 5-joint core data set (the paper's arm) from a `prrrp.Dataset` or a mapping with keys
+/// t, q, qd, qdd, tau.
+pub(crate) fn dataset_from(obj: &Bound<'_, PyAny>) -> PyResult<Dataset> {
+    let py = obj.py();
+    let dyn_data = if let Ok(d) = obj.cast::<PyDataset>() {
+        d.get().inner.clone()
+    } else {
+        PyDataset::from_dict(py, obj)?.inner
+    };
+    Dataset::try_from(dyn_data).to_py(py)
+}
+
+/// Makes a `Dataset` of n joints from a real log; see `_prrrp.pyi`.
+#[pyfunction(name = "preprocess_log")]
+#[pyo3(signature = (t, q, tau, *, qd=None, rate_hz=None, cutoff_hz=None, order=UInt(4),
+    filter_torque=true, trim_s=None, decimate_to_hz=None, max_gap_s=None))]
+#[allow(clippy::too_many_arguments)]
+fn preprocess_log_py<'py>(
+    py: Python<'py>,
+    t: &Bound<'py, PyAny>,
+    q: &Bound<'py, PyAny>,
+    tau: &Bound<'py, PyAny>,
+    qd: Option<&Bound<'py, PyAny>>,
+    rate_hz: Option<f64>,
+    cutoff_hz: Option<f64>,
+    order: UInt<usize>,
+    filter_torque: bool,
+    trim_s: Option<f64>,
+    decimate_to_hz: Option<f64>,
+    max_gap_s: Option<f64>,
+) -> PyResult<(PyDataset, Bound<'py, PyDict>)> {
+    let t = vector(t, "t")?;
+    let (_, n, q) = table(q, "q")?;
+    let (.., tau) = table(tau, "tau")?;
+    let qd = qd.map(|v| table(v, "qd").map(|x| x.2)).transpose()?;
+    let config = LogConfig {
+        rate_hz,
+        cutoff_hz,
+        order: order.0,
+        filter_torque,
+        trim_s,
+        decimate_to_hz,
+        max_gap_s,
+        min_samples: Dataset::MIN_SAMPLES,
+    };
+    let (inner, r) = crate::interrupt::interruptible(py, || {
+        preprocess_log(&t, &q, &tau, qd.as_deref(), n, &config)
+    })?
+    .to_py(py)?;
+    let report = PyDict::new(py);
+    report.set_item("rows_in", r.rows_in)?;
+    report.set_item("repeated_rows", r.repeated_rows)?;
+    report.set_item("conflicting_repeats", r.conflicting_repeats)?;
+    report.set_item("median_rate_hz", r.median_rate_hz)?;
+    report.set_item("rate_hz", r.rate_hz)?;
+    report.set_item("resampled", r.resampled)?;
+    report.set_item("largest_gap_s", r.largest_gap_s)?;
+    report.set_item("largest_gap_row", r.largest_gap_row)?;
+    report.set_item("cutoff_hz", r.cutoff_hz)?;
+    report.set_item("order", r.order)?;
+    report.set_item("trim_samples", r.trim_samples)?;
+    report.set_item("trim_s", r.trim_s)?;
+    report.set_item("decimation", r.decimation)?;
+    report.set_item("output_rate_hz", r.output_rate_hz)?;
+    report.set_item("measured_velocity", r.measured_velocity)?;
+    report.set_item("rows_out", r.rows_out)?;
+    Ok((PyDataset { inner }, report))
 }
 
 pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
-    m.add_class::<PyDataset>()
+    m.add_class::<PyDataset>()?;
+    m.add_function(wrap_pyfunction!(preprocess_log_py, m)?)
 }
