@@ -15,7 +15,7 @@ use std::hint::black_box;
 
 /// Times `step` over the samples of `data` in turn (1000 samples = two periods of the
 /// excitation, so wrapping around is continuous).
-fn bench_steps<E: Estimator<5, 8>>(
+fn bench_steps<E: Estimator<prrrp_core::nalgebra::U5, prrrp_core::nalgebra::U8>>(
     c: &mut Criterion,
     name: &str,
     est: &mut E,

@@ -45,7 +45,10 @@ fn allocations() -> usize {
 
 /// Steps `est` over samples 1.. of `data` after a warm-up on sample 0 and returns the
 /// number of allocations during the measured steps.
-fn count<E: Estimator<5, 8>>(est: &mut E, data: &est_support::Data) -> usize {
+fn count<E: Estimator<prrrp_core::nalgebra::U5, prrrp_core::nalgebra::U8>>(
+    est: &mut E,
+    data: &est_support::Data,
+) -> usize {
     let ds = data.dataset();
     est.step(ds.sample(0)).unwrap();
     let before = allocations();

@@ -66,18 +66,21 @@ mod validation;
 
 pub use chain::{
     com_and_inertia, inertial_parameters, is_physically_consistent, transform_inertial_parameters,
-    BaseOptions, BaseParameters, ChainBaseModel, ChainMeta, DhConvention, DynChain, DynWorkspace,
-    FrictionModel, Joint, JointInfo, JointLimit, JointType, SerialChain, AXIS_UNIT_TOLERANCE,
-    FRICTION_PARAMETER_NAMES, INERTIAL_PARAMETER_NAMES, LINK_PARAMS, PHYSICAL_TOLERANCE,
+    BaseOptions, BaseParameters, ChainBaseModel, ChainMeta, DhConvention, DynBaseWorkspace,
+    DynChain, DynChainBaseModel, DynWorkspace, FrictionModel, Joint, JointInfo, JointLimit,
+    JointType, SerialChain, AXIS_UNIT_TOLERANCE, FRICTION_PARAMETER_NAMES,
+    INERTIAL_PARAMETER_NAMES, LINK_PARAMS, PHYSICAL_TOLERANCE,
 };
 pub use dataset::{Dataset, DatasetParts};
 pub use derivatives::InverseDerivatives;
 pub use dynamics::{MassCholesky, PrrrpModel};
 pub use error::{PrrrpError, Result};
 pub use estimators::{
-    least_squares, weighted_least_squares, Adaline, AdalineConfig, AdalineRule, Discretisation,
-    Ekf, EkfConfig, EkfMeasurement, Estimator, Hopfield, HopfieldConfig, JointNoise, LeastSquares,
-    LeastSquaresConfig, LeastSquaresReport, PrrrpEkf, Rls, RlsConfig, Sample, Samples,
+    least_squares, weighted_least_squares, Adaline, AdalineConfig, AdalineOf, AdalineRule,
+    Discretisation, DynAdaline, DynHopfield, DynJointNoise, DynLeastSquaresReport, DynRls,
+    DynSample, DynSamples, Ekf, EkfConfig, EkfMeasurement, Estimator, Hopfield, HopfieldConfig,
+    HopfieldOf, JointNoise, JointNoiseOf, LeastSquares, LeastSquaresConfig, LeastSquaresReport,
+    LeastSquaresReportOf, PrrrpEkf, Rls, RlsConfig, RlsOf, Sample, SampleOf, Samples, SamplesOf,
     TrainingReport, PRRRP_EKF_STATES,
 };
 pub use excitation::{
@@ -88,7 +91,7 @@ pub use limits::{limit_usage, JointLimits, LimitUsage};
 pub use metrics::{
     agreement_index, error_indices, relative_errors_percent, rms, rsd, ErrorIndices,
 };
-pub use model::{ForwardDerivatives, LinearDynamics};
+pub use model::{ForwardDerivatives, ForwardDerivativesOf, LinearDynamics, LinearModel};
 pub use preprocess::{
     central_differences, preprocess, ButterworthLowPass, PreprocessConfig, MAX_BUTTERWORTH_ORDER,
 };

@@ -12,6 +12,7 @@ mod base_model;
 mod base_params;
 mod crba;
 mod dh;
+mod dyn_base_model;
 mod friction;
 mod inertia;
 mod joint;
@@ -26,6 +27,7 @@ mod workspace;
 pub use base_model::ChainBaseModel;
 pub use base_params::{BaseOptions, BaseParameters};
 pub use dh::DhConvention;
+pub use dyn_base_model::{DynBaseWorkspace, DynChainBaseModel};
 pub use friction::{FrictionModel, FRICTION_PARAMETER_NAMES};
 pub use inertia::{
     com_and_inertia, inertial_parameters, is_physically_consistent, transform_inertial_parameters,

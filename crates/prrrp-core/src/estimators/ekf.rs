@@ -20,7 +20,7 @@
 //! exactly symmetric. A velocity measurement is processed as a second sequential
 //! update, which equals the joint update for uncorrelated position and velocity noise.
 
-use nalgebra::{SMatrix, SVector};
+use nalgebra::{Const, SMatrix, SVector};
 
 use super::estimator::Estimator;
 use super::rls::check_lambda0;
@@ -226,7 +226,7 @@ impl<M: LinearDynamics<N, P>, const N: usize, const P: usize, const S: usize> Ek
                 });
             }
         }
-        check_lambda0(&lambda0)?;
+        check_lambda0(&lambda0, N, P)?;
 
         let mut x0 = SVector::<f64, S>::zeros();
         x0.fixed_rows_mut::<P>(2 * N).copy_from(&lambda0);
@@ -700,8 +700,8 @@ impl<M: LinearDynamics<N, P>, const N: usize, const P: usize, const S: usize> Ek
     }
 }
 
-impl<M: LinearDynamics<N, P>, const N: usize, const P: usize, const S: usize> Estimator<N, P>
-    for Ekf<M, N, P, S>
+impl<M: LinearDynamics<N, P>, const N: usize, const P: usize, const S: usize>
+    Estimator<Const<N>, Const<P>> for Ekf<M, N, P, S>
 {
     /// One sample k: update with the measurement (q, and q̇ if configured), then predict
     /// to k+1 with τ_k held over the period. The returned λ̂ is the posterior at k (the
