@@ -77,11 +77,11 @@ pub use dynamics::{MassCholesky, PrrrpModel};
 pub use error::{PrrrpError, Result};
 pub use estimators::{
     least_squares, weighted_least_squares, Adaline, AdalineConfig, AdalineOf, AdalineRule,
-    Discretisation, DynAdaline, DynHopfield, DynJointNoise, DynLeastSquaresReport, DynRls,
-    DynSample, DynSamples, Ekf, EkfConfig, EkfMeasurement, Estimator, Hopfield, HopfieldConfig,
-    HopfieldOf, JointNoise, JointNoiseOf, LeastSquares, LeastSquaresConfig, LeastSquaresReport,
-    LeastSquaresReportOf, PrrrpEkf, Rls, RlsConfig, RlsOf, Sample, SampleOf, Samples, SamplesOf,
-    TrainingReport, PRRRP_EKF_STATES,
+    Discretisation, DynAdaline, DynEkf, DynHopfield, DynJointNoise, DynLeastSquaresReport, DynRls,
+    DynSample, DynSamples, Ekf, EkfAllocator, EkfConfig, EkfMeasurement, EkfOf, Estimator,
+    Hopfield, HopfieldConfig, HopfieldOf, JointNoise, JointNoiseOf, LeastSquares,
+    LeastSquaresConfig, LeastSquaresReport, LeastSquaresReportOf, PrrrpEkf, Rls, RlsConfig, RlsOf,
+    Sample, SampleOf, Samples, SamplesOf, TrainingReport, PRRRP_EKF_STATES,
 };
 pub use excitation::{
     excitation_variables, optimise_excitation, ExcitationConfig, ExcitationProgress,

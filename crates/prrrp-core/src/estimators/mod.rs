@@ -20,7 +20,10 @@ mod rls;
 mod samples;
 
 pub use adaline::{Adaline, AdalineConfig, AdalineOf, AdalineRule, DynAdaline};
-pub use ekf::{Discretisation, Ekf, EkfConfig, EkfMeasurement, PrrrpEkf, PRRRP_EKF_STATES};
+pub use ekf::{
+    Discretisation, DynEkf, Ekf, EkfAllocator, EkfConfig, EkfMeasurement, EkfOf, PrrrpEkf,
+    PRRRP_EKF_STATES,
+};
 pub(crate) use estimator::with_row;
 pub use estimator::{Estimator, TrainingReport};
 pub use hopfield::{DynHopfield, Hopfield, HopfieldConfig, HopfieldOf};
