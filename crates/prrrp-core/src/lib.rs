@@ -97,7 +97,7 @@ pub use preprocess::{
 };
 pub use regressor::{condition_number, observation_matrix, singular_values};
 pub use robot::{DhRow, JointKind, Robot, STANDARD_GRAVITY};
-pub use scaled::ScaledModel;
+pub use scaled::{DynScaledModel, DynScaledWorkspace, ScaledModel};
 pub use sensitivity::{sensitivity, SensitivityConfig, SensitivityReport};
 pub use simulation::{
     rk4_step, simulate_closed_loop, simulate_open_loop, ComputedTorque, SensorNoise,
