@@ -143,6 +143,27 @@ where
         out: &mut OMatrix<f64, N, P>,
     ) -> Result<()>;
 
+    /// Calls `f` with the regressor Φ(q, q̇, q̈) and returns its result. The default
+    /// writes Φ into `buf` ([`LinearModel::regressor_into`]); compile-time models hand `f`
+    /// a stack value instead, which the optimiser keeps in registers (the estimators' hot
+    /// loops read Φ several times per sample).
+    ///
+    /// # Errors
+    /// As [`LinearModel::regressor_into`].
+    #[inline(always)]
+    fn with_regressor<R>(
+        &self,
+        ws: &mut Self::Workspace,
+        q: &OVector<f64, N>,
+        qd: &OVector<f64, N>,
+        qdd: &OVector<f64, N>,
+        buf: &mut OMatrix<f64, N, P>,
+        f: impl FnOnce(&OMatrix<f64, N, P>) -> R,
+    ) -> Result<R> {
+        self.regressor_into(ws, q, qd, qdd, buf)?;
+        Ok(f(buf))
+    }
+
     /// Inverse dynamics τ = M(q, λ)·q̈ + C(q, q̇, λ)·q̇ + G(q, λ) (+ friction) into `out`.
     ///
     /// # Errors
@@ -214,6 +235,20 @@ where
     ) -> Result<()> {
         *out = self.regressor(q, qd, qdd);
         Ok(())
+    }
+
+    #[inline(always)]
+    fn with_regressor<R>(
+        &self,
+        _: &mut (),
+        q: &SVector<f64, N>,
+        qd: &SVector<f64, N>,
+        qdd: &SVector<f64, N>,
+        _: &mut SMatrix<f64, N, P>,
+        f: impl FnOnce(&SMatrix<f64, N, P>) -> R,
+    ) -> Result<R> {
+        let phi = self.regressor(q, qd, qdd);
+        Ok(f(&phi))
     }
 
     #[inline(always)]

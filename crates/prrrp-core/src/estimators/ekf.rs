@@ -212,8 +212,6 @@ where
     linv: OMatrix<f64, N, N>,
     sinv: OMatrix<f64, N, N>,
     apa: OMatrix<f64, N, N>,
-    a: OMatrix<f64, N, S>,
-    acc: OVector<f64, S>,
     step: OVector<f64, S>,
     candidate: OVector<f64, S>,
     x_prior: OVector<f64, S>,
@@ -241,8 +239,6 @@ where
             linv: OMatrix::zeros_generic(n, n),
             sinv: OMatrix::zeros_generic(n, n),
             apa: OMatrix::zeros_generic(n, n),
-            a: OMatrix::zeros_generic(n, s),
-            acc: OVector::zeros_generic(s, U1),
             step: OVector::zeros_generic(s, U1),
             candidate: OVector::zeros_generic(s, U1),
             x_prior: OVector::zeros_generic(s, U1),
@@ -657,17 +653,7 @@ where
         let ps = self.p.as_slice();
         b.pz.as_mut_slice().copy_from_slice(&ps[o * s..(o + n) * s]);
         b.k.fill(0.0);
-        let pzs = b.pz.as_slice();
-        let ks = b.k.as_mut_slice();
-        for m in 0..n {
-            let pc = &pzs[m * s..m * s + s];
-            for j in 0..n {
-                let f = b.sinv[(m, j)];
-                for (kv, &pv) in ks[j * s..j * s + s].iter_mut().zip(pc) {
-                    *kv = madd::<FMA>(f, pv, *kv);
-                }
-            }
-        }
+        gain_columns::<FMA>(b.pz.as_slice(), b.sinv.as_slice(), b.k.as_mut_slice(), n, s);
         Ok(())
     }
 
@@ -684,42 +670,15 @@ where
         }
         let k = if alpha == 1.0 { &b.k } else { &b.damped_k };
         b.d.copy_from(&b.pz);
-        {
-            let ks = k.as_slice();
-            let dsm = b.d.as_mut_slice();
-            for j in 0..n {
-                let dc = &mut dsm[j * s..j * s + s];
-                for m in 0..n {
-                    let f = b.sz[(m, j)];
-                    let kc = &ks[m * s..m * s + s];
-                    for (a, &bv) in dc.iter_mut().zip(kc) {
-                        *a = madd::<FMA>(-f, bv, *a);
-                    }
-                }
-            }
-        }
-        let ks = k.as_slice();
-        let ds = b.d.as_slice();
-        let pzs = b.pz.as_slice();
-        let acc = b.acc.as_mut_slice();
-        let p = self.p.as_mut_slice();
-        // Whole columns: at compile-time sizes fully unrolled and vectorised, which is
-        // faster than the triangle's ragged loops although it does twice the flops.
-        for j in 0..s {
-            acc.fill(0.0);
-            for m in 0..n {
-                let a = pzs[m * s + j];
-                let bv = ks[m * s + j];
-                let kc = &ks[m * s..m * s + s];
-                let dc = &ds[m * s..m * s + s];
-                for ((ac, &kv), &dv) in acc.iter_mut().zip(kc).zip(dc) {
-                    *ac = madd::<FMA>(a, kv, madd::<FMA>(bv, dv, *ac));
-                }
-            }
-            for (c, &v) in p[j * s..j * s + s].iter_mut().zip(acc.iter()) {
-                *c -= v;
-            }
-        }
+        minus_k_sz::<FMA>(k.as_slice(), b.sz.as_slice(), b.d.as_mut_slice(), n, s);
+        joseph_columns::<FMA>(
+            k.as_slice(),
+            b.d.as_slice(),
+            b.pz.as_slice(),
+            self.p.as_mut_slice(),
+            n,
+            s,
+        );
         // The two triangles now differ by rounding; the prediction that always follows
         // mirrors its upper triangle, so the stored P is exactly symmetric.
     }
@@ -777,46 +736,17 @@ where
         let b = &mut self.buf;
         let fd = &b.fd;
 
-        // A = ∂q̈/∂x (N×S), then G = P·Aᵀ (S×N), skipping zero entries of A.
-        {
-            let a = b.a.as_mut_slice();
-            a[..n * n].copy_from_slice(fd.dqdd_dq.as_slice());
-            a[n * n..2 * n * n].copy_from_slice(fd.dqdd_dqd.as_slice());
-            a[2 * n * n..].copy_from_slice(fd.dqdd_dlambda.as_slice());
-        }
+        // A = ∂q̈/∂x = [∂q̈/∂q, ∂q̈/∂q̇, ∂q̈/∂λ] (N×S), read in place from the three
+        // blocks; then G = P·Aᵀ (S×N), skipping zero entries of A.
+        let (dq, dqd, dl) = (
+            fd.dqdd_dq.as_slice(),
+            fd.dqdd_dqd.as_slice(),
+            fd.dqdd_dlambda.as_slice(),
+        );
         b.g.fill(0.0);
-        {
-            let ps = self.p.as_slice();
-            let gs = b.g.as_mut_slice();
-            for kk in 0..s {
-                let pc = &ps[kk * s..kk * s + s];
-                for i in 0..n {
-                    let f = b.a[(i, kk)];
-                    if f != 0.0 {
-                        let gc = &mut gs[i * s..i * s + s];
-                        for (gv, &pv) in gc.iter_mut().zip(pc) {
-                            *gv = madd::<FMA>(f, pv, *gv);
-                        }
-                    }
-                }
-            }
-        }
-        // A·P·Aᵀ = A·G (N×N). Column kk of A outer, so that the N column sums advance
-        // side by side instead of one dependent chain at a time; zero columns of A (joints
-        // the dynamics do not depend on) are skipped.
+        p_times_at::<FMA>(self.p.as_slice(), dq, dqd, dl, b.g.as_mut_slice(), n, s);
         b.apa.fill(0.0);
-        for kk in 0..s {
-            let ac = b.a.column(kk);
-            if ac.iter().all(|&v| v == 0.0) {
-                continue;
-            }
-            for j in 0..n {
-                let gv = b.g[(kk, j)];
-                for i in 0..n {
-                    b.apa[(i, j)] = madd::<FMA>(ac[i], gv, b.apa[(i, j)]);
-                }
-            }
-        }
+        a_times_g::<FMA>(dq, dqd, dl, b.g.as_slice(), b.apa.as_mut_slice(), n, s);
 
         // F = I + E with E_q = [c·h·A_q, h·I + c·h·A_v, c·h·A_λ], E_v = h·A, E_λ = 0
         // (c = h/2 for the second-order position update, 0 for Euler), so
@@ -944,6 +874,163 @@ fn check_variances(what: &str, v: &[f64], zero_ok: bool) -> Result<()> {
         }
     }
     Ok(())
+}
+
+/// K = P_·z·S_z⁻¹ as N independent column sums over whole S-long columns (slices as
+/// parameters: the optimiser then knows that K does not alias P_·z).
+#[inline(always)]
+fn gain_columns<const FMA: bool>(pzs: &[f64], sinv: &[f64], ks: &mut [f64], n: usize, s: usize) {
+    for m in 0..n {
+        let pc = &pzs[m * s..m * s + s];
+        for j in 0..n {
+            let f = sinv[j * n + m];
+            for (kv, &pv) in ks[j * s..j * s + s].iter_mut().zip(pc) {
+                *kv = madd::<FMA>(f, pv, *kv);
+            }
+        }
+    }
+}
+
+/// G += P·Aᵀ (S×N) with A = [∂q̈/∂q, ∂q̈/∂q̇, ∂q̈/∂λ] given as its three column-major
+/// blocks, skipping zero entries of A (most of −M⁻¹Φ for PRRRP).
+#[inline(always)]
+fn p_times_at<const FMA: bool>(
+    ps: &[f64],
+    dq: &[f64],
+    dqd: &[f64],
+    dl: &[f64],
+    gs: &mut [f64],
+    n: usize,
+    s: usize,
+) {
+    for kk in 0..s {
+        let acol = if kk < n {
+            &dq[kk * n..kk * n + n]
+        } else if kk < 2 * n {
+            &dqd[(kk - n) * n..(kk - n) * n + n]
+        } else {
+            &dl[(kk - 2 * n) * n..(kk - 2 * n) * n + n]
+        };
+        let pc = &ps[kk * s..kk * s + s];
+        for (i, &f) in acol.iter().enumerate() {
+            if f != 0.0 {
+                let gc = &mut gs[i * s..i * s + s];
+                for (gv, &pv) in gc.iter_mut().zip(pc) {
+                    *gv = madd::<FMA>(f, pv, *gv);
+                }
+            }
+        }
+    }
+}
+
+/// D −= K'·S_z (D = P_·z on entry), column by column.
+#[inline(always)]
+fn minus_k_sz<const FMA: bool>(ks: &[f64], sz: &[f64], dsm: &mut [f64], n: usize, s: usize) {
+    for j in 0..n {
+        let dc = &mut dsm[j * s..j * s + s];
+        for m in 0..n {
+            let f = sz[j * n + m];
+            let kc = &ks[m * s..m * s + s];
+            for (a, &bv) in dc.iter_mut().zip(kc) {
+                *a = madd::<FMA>(-f, bv, *a);
+            }
+        }
+    }
+}
+
+/// A·P·Aᵀ = A·G (N×N) into `apa`. Column kk of A outer, so that the N column sums advance
+/// side by side instead of one dependent chain at a time; zero columns of A (joints the
+/// dynamics do not depend on) are skipped.
+#[inline(always)]
+fn a_times_g<const FMA: bool>(
+    dq: &[f64],
+    dqd: &[f64],
+    dl: &[f64],
+    gs: &[f64],
+    apa: &mut [f64],
+    n: usize,
+    s: usize,
+) {
+    for kk in 0..s {
+        let ac = if kk < n {
+            &dq[kk * n..kk * n + n]
+        } else if kk < 2 * n {
+            &dqd[(kk - n) * n..(kk - n) * n + n]
+        } else {
+            &dl[(kk - 2 * n) * n..(kk - 2 * n) * n + n]
+        };
+        if ac.iter().all(|&v| v == 0.0) {
+            continue;
+        }
+        for j in 0..n {
+            let gv = gs[j * s + kk];
+            let col = &mut apa[j * n..j * n + n];
+            for (x, &a) in col.iter_mut().zip(ac) {
+                *x = madd::<FMA>(a, gv, *x);
+            }
+        }
+    }
+}
+
+/// Rows per stack accumulator of [`joseph_columns`]: a whole column at the PRRRP's S = 18
+/// (kept in registers), a few blocks at run-time sizes.
+const ACC_ROWS: usize = 32;
+
+/// The Joseph update P ← P − K'·P_z· − D·K'ᵀ column by column: column j of P loses
+/// Σ_m (P_·z)_jm·K'_·m + K'_jm·D_·m. Whole columns (in blocks of [`ACC_ROWS`] rows summed in a stack array, so
+/// that the accumulator stays in registers and cannot alias P): at compile-time sizes
+/// fully unrolled and vectorised, which is faster than the triangle's ragged loops
+/// although it does twice the flops.
+#[inline(always)]
+fn joseph_columns<const FMA: bool>(
+    ks: &[f64],
+    ds: &[f64],
+    pzs: &[f64],
+    p: &mut [f64],
+    n: usize,
+    s: usize,
+) {
+    if s <= ACC_ROWS {
+        // One block per column (every compile-time size up to 32 states, PRRRP's 18):
+        // the trip count is the constant S, so the column is fully unrolled.
+        for j in 0..s {
+            let mut acc = [0.0f64; ACC_ROWS];
+            for m in 0..n {
+                let a = pzs[m * s + j];
+                let bv = ks[m * s + j];
+                let kc = &ks[m * s..m * s + s];
+                let dc = &ds[m * s..m * s + s];
+                for r in 0..s {
+                    acc[r] = madd::<FMA>(a, kc[r], madd::<FMA>(bv, dc[r], acc[r]));
+                }
+            }
+            for (c, &v) in p[j * s..j * s + s].iter_mut().zip(acc.iter()) {
+                *c -= v;
+            }
+        }
+        return;
+    }
+    for j in 0..s {
+        let mut r0 = 0;
+        while r0 < s {
+            let len = (s - r0).min(ACC_ROWS);
+            let mut acc = [0.0f64; ACC_ROWS];
+            let acc = &mut acc[..len];
+            for m in 0..n {
+                let a = pzs[m * s + j];
+                let bv = ks[m * s + j];
+                let kc = &ks[m * s + r0..m * s + r0 + len];
+                let dc = &ds[m * s + r0..m * s + r0 + len];
+                for ((ac, &kv), &dv) in acc.iter_mut().zip(kc).zip(dc) {
+                    *ac = madd::<FMA>(a, kv, madd::<FMA>(bv, dv, *ac));
+                }
+            }
+            for (c, &v) in p[j * s + r0..j * s + r0 + len].iter_mut().zip(acc.iter()) {
+                *c -= v;
+            }
+            r0 += len;
+        }
+    }
 }
 
 /// Lower Cholesky factor of a small SPD n×n matrix (column-major slices) into `l`;

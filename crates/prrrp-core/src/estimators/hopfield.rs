@@ -190,41 +190,68 @@ where
     fn step(&mut self, sample: SampleOf<'_, N>) -> Result<&OVector<f64, P>> {
         let n_joints = self.phi.nrows();
         sample.check(n_joints)?;
-        self.model
-            .regressor_into(&mut self.ws, sample.q, sample.qd, sample.qdd, &mut self.phi)?;
-        let phi = &self.phi;
-        let bound = self.gain_dt * phi.norm_squared();
-        let cfg = &self.config;
-        let n = if bound <= cfg.stability_limit {
-            1
-        } else {
-            let n = (bound / cfg.stability_limit).ceil();
-            if n.is_nan() || n > f64::from(cfg.max_substeps) {
-                return Err(PrrrpError::InvalidParameter {
-                    field: "beta".into(),
-                    value: cfg.beta,
-                    reason: "this sample needs more than max_substeps Euler sub-steps for a \
-                             stable integration: raise beta (slower learning) or max_substeps",
-                });
+        let Self {
+            model,
+            ws,
+            config: cfg,
+            lambda,
+            phi: buf,
+            r,
+            g,
+            gain_dt,
+            inner,
+            sse,
+            ..
+        } = self;
+        let n = model.with_regressor(ws, sample.q, sample.qd, sample.qdd, buf, |phi| {
+            let bound = *gain_dt * phi.norm_squared();
+            let n = if bound <= cfg.stability_limit {
+                1
+            } else {
+                let n = (bound / cfg.stability_limit).ceil();
+                if n.is_nan() || n > f64::from(cfg.max_substeps) {
+                    return Err(PrrrpError::InvalidParameter {
+                        field: "beta".into(),
+                        value: cfg.beta,
+                        reason: "this sample needs more than max_substeps Euler sub-steps for \
+                                 a stable integration: raise beta (slower learning) or \
+                                 max_substeps",
+                    });
+                }
+                n as u32
+            };
+            let k = cfg.dt / f64::from(n) / (cfg.bound * cfg.beta);
+            let c2 = cfg.bound * cfg.bound;
+            let inner = *inner;
+            let (ps, tau) = (phi.as_slice(), sample.tau.as_slice());
+            // At compile-time sizes r and g are stack temporaries, which the optimiser
+            // keeps in registers (the buffers of `self` may alias λ for all it knows); at
+            // run-time sizes the preallocated buffers.
+            let (mut r_local, mut g_local);
+            let (r, g) = if N::try_to_usize().is_some() && P::try_to_usize().is_some() {
+                r_local = OVector::<f64, N>::zeros_generic(phi.shape_generic().0, U1);
+                g_local = OVector::<f64, P>::zeros_generic(phi.shape_generic().1, U1);
+                (r_local.as_mut_slice(), g_local.as_mut_slice())
+            } else {
+                (r.as_mut_slice(), g.as_mut_slice())
+            };
+            let lambda = lambda.as_mut_slice();
+            for s in 0..n {
+                let e2 = residual(ps, tau, lambda, r);
+                if s == 0 {
+                    *sse += e2;
+                }
+                // g = Φᵀ·r, column by column (contiguous).
+                for (gj, col) in g.iter_mut().zip(ps.chunks_exact(n_joints)) {
+                    *gj = col.iter().zip(r.iter()).map(|(a, b)| a * b).sum();
+                }
+                for (l, &gi) in lambda.iter_mut().zip(g.iter()) {
+                    let next = *l + k * (c2 - *l * *l) * gi;
+                    *l = next.clamp(-inner, inner);
+                }
             }
-            n as u32
-        };
-        let k = cfg.dt / f64::from(n) / (cfg.bound * cfg.beta);
-        let c2 = cfg.bound * cfg.bound;
-        let inner = self.inner;
-        let (r, g) = (&mut self.r, &mut self.g);
-        for s in 0..n {
-            r.copy_from(sample.tau);
-            r.gemv(-1.0, phi, &self.lambda, 1.0);
-            if s == 0 {
-                self.sse += r.norm_squared();
-            }
-            g.gemv_tr(1.0, phi, r, 0.0);
-            for (l, &gi) in self.lambda.iter_mut().zip(g.iter()) {
-                let next = *l + k * (c2 - *l * *l) * gi;
-                *l = next.clamp(-inner, inner);
-            }
-        }
+            Ok(n)
+        })??;
         self.equations += n_joints;
         self.substeps += u64::from(n);
         self.samples += 1;
@@ -242,4 +269,16 @@ where
         self.samples = 0;
         self.substeps = 0;
     }
+}
+
+/// r = τ − Φ·λ (Φ column-major, one contiguous column per parameter); returns ‖r‖².
+#[inline(always)]
+fn residual(phi: &[f64], tau: &[f64], lambda: &[f64], r: &mut [f64]) -> f64 {
+    r.copy_from_slice(tau);
+    for (col, &l) in phi.chunks_exact(r.len()).zip(lambda) {
+        for (ri, &p) in r.iter_mut().zip(col) {
+            *ri -= p * l;
+        }
+    }
+    r.iter().map(|v| v * v).sum()
 }

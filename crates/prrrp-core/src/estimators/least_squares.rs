@@ -272,42 +272,43 @@ impl LeastSquares {
         let (nd, pd) = model.dims();
         let (nj, np) = (nd.value(), pd.value());
         let n = data.len();
-        // Every size and value is checked before W (N·n × P) is allocated.
-        for (k, s) in data.iter().enumerate() {
-            s.check(nj).map_err(|e| super::estimator::with_row(e, k))?;
+        // Samples::new made every vector as long as q[0]: one length check covers them.
+        if let Some(first) = data.iter().next() {
+            first.check_len(nj)?;
         }
         let rows = nj * n;
-        self.w.resize_with(rows, np, |_, _| 0.0);
         self.y.resize_with(rows, 1, |_, _| 0.0);
         let y = self.y.col_as_slice_mut(0);
         for (k, s) in data.iter().enumerate() {
+            s.check_finite()
+                .map_err(|e| super::estimator::with_row(e, k))?;
             for i in 0..nj {
                 y[i * n + k] = s.tau[i] * row_scale[i];
             }
         }
+        self.w.resize_with(rows, np, |_, _| 0.0);
         let mut ws = model.workspace();
         let mut phi = OMatrix::<f64, N, P>::zeros_generic(nd, pd);
-        let mut nonzero = vec![false; nj * np];
+        // An N-vector, so that the joint loop has the model's (compile-time) length.
+        let mut masks = OVector::<u64, N>::zeros_generic(nd, U1);
+        let w = &mut self.w;
         for (k, s) in data.iter().enumerate() {
-            model.regressor_into(&mut ws, s.q, s.qd, s.qdd, &mut phi)?;
-            for j in 0..np {
-                let col = self.w.col_as_slice_mut(j);
-                for i in 0..nj {
-                    let v = phi[(i, j)] * row_scale[i];
-                    col[i * n + k] = v;
-                    nonzero[j * nj + i] |= v != 0.0;
-                }
-            }
-        }
-        let mut masks = vec![0u64; nj];
-        for (i, m) in masks.iter_mut().enumerate() {
-            for j in 0..np {
-                if nonzero[j * nj + i] {
+            model.with_regressor(&mut ws, s.q, s.qd, s.qdd, &mut phi, |phi| {
+                for j in 0..np {
                     // More than 64 parameters: one block (every bit set).
-                    *m |= if np <= 64 { 1 << j } else { u64::MAX };
+                    let bit = if np <= 64 { 1u64 << j } else { u64::MAX };
+                    let col = &mut w.col_as_slice_mut(j)[k..];
+                    for i in 0..nj {
+                        let v = phi[(i, j)] * row_scale[i];
+                        col[i * n] = v;
+                        if v != 0.0 {
+                            masks[i] |= bit;
+                        }
+                    }
                 }
-            }
+            })?;
         }
+        let masks = masks.as_slice().to_vec();
         Ok(masks)
     }
 
