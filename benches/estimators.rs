@@ -1,21 +1,30 @@
 //! Per-sample steps of the online estimators and batch least squares over 5000 samples
 //! (building W included). Data: the seeded excitation and closed-loop records of the
 //! tests; estimators warmed up before timing; setup outside the timed closure.
+//!
+//! `chain7_*`: the same estimators at run-time sizes on a Panda-like 7R chain with
+//! viscous, Coulomb and offset friction (`DynChain::new`, 64 base parameters, EKF state of
+//! 78), exact records of a Fourier excitation.
 
+#[path = "../tests/dyn_support/mod.rs"]
+mod dyn_support;
 #[path = "../tests/est_support/mod.rs"]
 mod est_support;
 
 use criterion::{criterion_group, criterion_main, Criterion};
+use dyn_support::{exact_record, panda_like, DynFourier, DynRecord};
 use est_support::{closed_loop, excitation, paper, DT};
+use prrrp_core::nalgebra::{DVector, Dyn};
 use prrrp_core::{
-    least_squares, Adaline, AdalineConfig, AdalineRule, EkfConfig, Estimator, Hopfield,
-    HopfieldConfig, Lambda, LeastSquares, LeastSquaresConfig, PrrrpEkf, Rls, RlsConfig,
+    least_squares, Adaline, AdalineConfig, AdalineRule, BaseOptions, Discretisation, DynAdaline,
+    DynEkf, DynHopfield, DynScaledModel, EkfConfig, Estimator, Hopfield, HopfieldConfig, Lambda,
+    LeastSquares, LeastSquaresConfig, PrrrpEkf, Rls, RlsConfig,
 };
 use std::hint::black_box;
 
 /// Times `step` over the samples of `data` in turn (1000 samples = two periods of the
 /// excitation, so wrapping around is continuous).
-fn bench_steps<E: Estimator<5, 8>>(
+fn bench_steps<E: Estimator<prrrp_core::nalgebra::U5, prrrp_core::nalgebra::U8>>(
     c: &mut Criterion,
     name: &str,
     est: &mut E,
@@ -72,5 +81,68 @@ fn estimators(c: &mut Criterion) {
     });
 }
 
-criterion_group!(benches, estimators);
+/// As [`bench_steps`], at run-time sizes.
+fn bench_dyn_steps<E: Estimator<Dyn, Dyn>>(
+    c: &mut Criterion,
+    name: &str,
+    est: &mut E,
+    data: &DynRecord,
+) {
+    let ds = data.samples();
+    est.run(&ds).unwrap();
+    let n = ds.len();
+    let mut k = 0;
+    c.bench_function(name, |b| {
+        b.iter(|| {
+            k += 1;
+            if k == n {
+                k = 0;
+            }
+            black_box(est.step(black_box(ds.sample(k))).unwrap()[0])
+        })
+    });
+}
+
+fn chain7(c: &mut Criterion) {
+    let chain = panda_like();
+    let base = chain.base_parameters(&BaseOptions::default()).unwrap();
+    let model = chain.base_model(&base).unwrap();
+    let beta = model.chain_base_values().clone();
+    let b = model.count();
+    // 1000 samples at 10 ms: one period of the excitation, so wrapping around is smooth.
+    let data = exact_record(&chain, &DynFourier::seeded(5, 7, 0.5), 1000, 0.01);
+
+    let cfg = EkfConfig {
+        dt: 0.01,
+        discretisation: Discretisation::SecondOrder,
+        initial_parameter_rel_std: 0.05,
+        initial_parameter_min_std: 1e-6,
+        ..Default::default()
+    };
+    let mut ekf = DynEkf::new(model.clone(), &beta * 1.02, cfg).unwrap();
+    bench_dyn_steps(c, "chain7_ekf_step", &mut ekf, &data);
+
+    // Adaline and Hopfield on the column-equilibrated model, as they are meant to be used
+    // (see ScaledModel); Hopfield sized as in chain_estimators.rs (c·dt·N·B).
+    let scaled = DynScaledModel::equilibrated(model.clone(), &data.samples()).unwrap();
+    let bound = 100.0;
+    let hcfg = HopfieldConfig {
+        bound,
+        beta: bound * 0.01 * (7 * b) as f64,
+        dt: 0.01,
+        ..Default::default()
+    };
+    let mut hn = DynHopfield::new(scaled.clone(), DVector::zeros(b), hcfg).unwrap();
+    bench_dyn_steps(c, "chain7_hopfield_step", &mut hn, &data);
+    let mut ad = DynAdaline::new(scaled, DVector::zeros(b), AdalineConfig::default()).unwrap();
+    bench_dyn_steps(c, "chain7_adaline_step", &mut ad, &data);
+
+    let big = exact_record(&chain, &DynFourier::seeded(11, 7, 1.0), 2000, 0.01);
+    let mut solver = LeastSquares::new(LeastSquaresConfig::default()).unwrap();
+    c.bench_function("chain7_least_squares_2000", |bch| {
+        bch.iter(|| black_box(solver.solve(&model, black_box(&big.samples())).unwrap()))
+    });
+}
+
+criterion_group!(benches, estimators, chain7);
 criterion_main!(benches);

@@ -71,10 +71,10 @@ mod validation;
 pub use chain::{
     com_and_inertia, inertial_parameters, is_physically_consistent, transform_inertial_parameters,
     BaseOptions, BaseParameters, ChainBaseModel, ChainDescription, ChainMeta, DhConvention,
-    DhDescription, DynChain, DynWorkspace, FrictionModel, Joint, JointDescription, JointInfo,
-    JointLimit, JointType, PoseDescription, SerialChain, AXIS_UNIT_TOLERANCE, CHAIN_SCHEMA_VERSION,
-    FRICTION_PARAMETER_NAMES, INERTIAL_PARAMETER_NAMES, LINK_PARAMS, MAX_MATRIX_ENTRIES,
-    PHYSICAL_TOLERANCE,
+    DhDescription, DynBaseWorkspace, DynChain, DynChainBaseModel, DynWorkspace, FrictionModel,
+    Joint, JointDescription, JointInfo, JointLimit, JointType, PoseDescription, SerialChain,
+    AXIS_UNIT_TOLERANCE, CHAIN_SCHEMA_VERSION, FRICTION_PARAMETER_NAMES, INERTIAL_PARAMETER_NAMES,
+    LINK_PARAMS, MAX_MATRIX_ENTRIES, PHYSICAL_TOLERANCE,
 };
 pub use data::{
     preprocess_log, DynDataset, DynDatasetParts, LogConfig, LogReport, DEFAULT_LOG_CUTOFF_HZ,
@@ -85,10 +85,12 @@ pub use derivatives::InverseDerivatives;
 pub use dynamics::{MassCholesky, PrrrpModel};
 pub use error::{PrrrpError, Result};
 pub use estimators::{
-    least_squares, weighted_least_squares, Adaline, AdalineConfig, AdalineRule, Discretisation,
-    Ekf, EkfConfig, EkfMeasurement, Estimator, Hopfield, HopfieldConfig, JointNoise, LeastSquares,
-    LeastSquaresConfig, LeastSquaresReport, PrrrpEkf, Rls, RlsConfig, Sample, Samples,
-    TrainingReport, PRRRP_EKF_STATES,
+    least_squares, weighted_least_squares, Adaline, AdalineConfig, AdalineOf, AdalineRule,
+    Discretisation, DynAdaline, DynEkf, DynHopfield, DynJointNoise, DynLeastSquaresReport, DynRls,
+    DynSample, DynSamples, Ekf, EkfAllocator, EkfConfig, EkfMeasurement, EkfOf, Estimator,
+    Hopfield, HopfieldConfig, HopfieldOf, JointNoise, JointNoiseOf, LeastSquares,
+    LeastSquaresConfig, LeastSquaresReport, LeastSquaresReportOf, PrrrpEkf, Rls, RlsConfig, RlsOf,
+    Sample, SampleOf, Samples, SamplesOf, TrainingReport, PRRRP_EKF_STATES,
 };
 pub use excitation::{
     excitation_variables, optimise_excitation, ExcitationConfig, ExcitationProgress,
@@ -100,14 +102,14 @@ pub use limits::{limit_usage, JointLimits, LimitUsage};
 pub use metrics::{
     agreement_index, error_indices, relative_errors_percent, rms, rsd, ErrorIndices,
 };
-pub use model::{ForwardDerivatives, LinearDynamics};
+pub use model::{ForwardDerivatives, ForwardDerivativesOf, LinearDynamics, LinearModel};
 pub use preprocess::{
     central_differences, preprocess, ButterworthLowPass, PreprocessConfig, MAX_BUTTERWORTH_ORDER,
 };
 pub use regressor::{condition_number, observation_matrix, singular_values};
 pub use robot::{DhRow, JointKind, Robot, STANDARD_GRAVITY};
 pub use robot_files::{UrdfOptions, MAX_ROBOT_FILE_BYTES};
-pub use scaled::ScaledModel;
+pub use scaled::{DynScaledModel, DynScaledWorkspace, ScaledModel};
 pub use sensitivity::{sensitivity, SensitivityConfig, SensitivityReport};
 pub use simulation::{
     rk4_step, simulate_closed_loop, simulate_open_loop, ComputedTorque, SensorNoise,

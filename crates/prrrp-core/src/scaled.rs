@@ -12,11 +12,11 @@
 //! [`ScaledModel::to_model`] maps their γ̂ back to λ̂ = D·γ̂. Least squares is invariant
 //! under the scaling (up to round-off).
 
-use nalgebra::{SMatrix, SVector};
+use nalgebra::{DMatrix, DVector, Dim, Dyn, SMatrix, SVector};
 
 use crate::error::{PrrrpError, Result};
-use crate::estimators::Samples;
-use crate::model::{ForwardDerivatives, LinearDynamics};
+use crate::estimators::{DynSamples, Samples};
+use crate::model::{ForwardDerivatives, ForwardDerivativesOf, LinearDynamics, LinearModel};
 
 /// A [`LinearDynamics`] model whose parameters are γ = D⁻¹·λ for the parameters λ of an
 /// inner model, with D = diag(`scale`) positive: Φ_γ = Φ·D, and every method at γ equals
@@ -260,5 +260,199 @@ mod tests {
 
     fn scale_ones() -> SVector<f64, 8> {
         SVector::repeat(1.0)
+    }
+}
+
+/// [`ScaledModel`] for a run-time-size model (e.g. [`crate::DynChainBaseModel`]): the
+/// parameters are γ = D⁻¹·λ of the inner model's λ, D = diag(`scale`) positive, so that
+/// Φ_γ = Φ·D and every method at γ equals the inner model's at λ = D·γ. Use it, as
+/// [`ScaledModel`], to equilibrate the columns for Adaline and the Hopfield network.
+#[derive(Debug, Clone, PartialEq)]
+pub struct DynScaledModel<M> {
+    inner: M,
+    scale: DVector<f64>,
+}
+
+/// Workspace of [`DynScaledModel`]: the inner model's, and λ = D·γ.
+#[derive(Debug, Clone)]
+pub struct DynScaledWorkspace<W> {
+    inner: W,
+    lambda: DVector<f64>,
+}
+
+impl<M: LinearModel<Dyn, Dyn>> DynScaledModel<M> {
+    /// The inner model with parameters λ = diag(`scale`)·γ.
+    ///
+    /// # Errors
+    /// [`PrrrpError::ShapeMismatch`] if `scale` does not have one entry per parameter of
+    /// the inner model; [`PrrrpError::InvalidParameter`] if an entry is not finite and > 0.
+    pub fn new(inner: M, scale: DVector<f64>) -> Result<Self> {
+        let p = inner.dims().1.value();
+        if scale.len() != p {
+            return Err(PrrrpError::ShapeMismatch {
+                what: "scale".into(),
+                expected: format!("{p} entries (one per model parameter)"),
+                got: format!("{} entries", scale.len()),
+            });
+        }
+        if let Some((j, &s)) = scale
+            .iter()
+            .enumerate()
+            .find(|(_, &s)| !(s.is_finite() && s > 0.0))
+        {
+            return Err(PrrrpError::InvalidParameter {
+                field: format!("scale[{j}]"),
+                value: s,
+                reason: "must be finite and > 0",
+            });
+        }
+        Ok(Self { inner, scale })
+    }
+
+    /// Column equilibration on `data`, as [`ScaledModel::equilibrated`]: D_j = 1/RMS of
+    /// column j of the stacked regressor, so that γ_j is the RMS joint force (units of τ)
+    /// that parameter j explains along `data`.
+    ///
+    /// # Errors
+    /// [`PrrrpError::TooFewSamples`] for empty data; [`PrrrpError::ShapeMismatch`] or
+    /// [`PrrrpError::NonFinite`] naming the first sample of the wrong size or with a NaN/∞;
+    /// [`PrrrpError::InvalidParameter`] (field `regressor column j`) if column j is zero
+    /// along the whole of `data` (that parameter is not excited).
+    pub fn equilibrated(inner: M, data: &DynSamples<'_>) -> Result<Self> {
+        if data.is_empty() {
+            return Err(PrrrpError::TooFewSamples { needed: 1, got: 0 });
+        }
+        let (n, p) = inner.dims();
+        let mut ws = inner.workspace();
+        let mut phi = DMatrix::zeros(n.value(), p.value());
+        let mut ss = DVector::<f64>::zeros(p.value());
+        for (k, s) in data.iter().enumerate() {
+            s.check(n.value())
+                .map_err(|e| crate::estimators::with_row(e, k))?;
+            inner.regressor_into(&mut ws, s.q, s.qd, s.qdd, &mut phi)?;
+            for (j, col) in phi.column_iter().enumerate() {
+                ss[j] += col.norm_squared();
+            }
+        }
+        let rows = (n.value() * data.len()) as f64;
+        if let Some(j) = ss.iter().position(|&v| v <= 0.0) {
+            return Err(PrrrpError::InvalidParameter {
+                field: format!("regressor column {j}"),
+                value: 0.0,
+                reason: "is zero along the whole of the data: that parameter is not excited",
+            });
+        }
+        let scale = ss.map(|v| (rows / v).sqrt());
+        Self::new(inner, scale)
+    }
+
+    /// The scale D (units of λ per unit of γ).
+    pub fn scale(&self) -> &DVector<f64> {
+        &self.scale
+    }
+
+    /// The inner model.
+    pub fn inner(&self) -> &M {
+        &self.inner
+    }
+
+    /// λ = D·γ: the inner model's parameters for scaled parameters γ.
+    pub fn to_model(&self, gamma: &DVector<f64>) -> DVector<f64> {
+        gamma.component_mul(&self.scale)
+    }
+
+    /// γ = D⁻¹·λ: the scaled parameters of the inner model's λ.
+    pub fn from_model(&self, lambda: &DVector<f64>) -> DVector<f64> {
+        lambda.component_div(&self.scale)
+    }
+
+    fn load(&self, ws: &mut DynScaledWorkspace<M::Workspace>, gamma: &DVector<f64>) -> Result<()> {
+        if gamma.len() != self.scale.len() {
+            return Err(PrrrpError::ShapeMismatch {
+                what: "lambda (scaled parameters)".into(),
+                expected: format!("{} entries", self.scale.len()),
+                got: format!("{} entries", gamma.len()),
+            });
+        }
+        ws.lambda.copy_from(gamma);
+        ws.lambda.component_mul_assign(&self.scale);
+        Ok(())
+    }
+}
+
+impl<M: LinearModel<Dyn, Dyn>> LinearModel<Dyn, Dyn> for DynScaledModel<M> {
+    type Workspace = DynScaledWorkspace<M::Workspace>;
+
+    fn dims(&self) -> (Dyn, Dyn) {
+        self.inner.dims()
+    }
+
+    fn workspace(&self) -> Self::Workspace {
+        DynScaledWorkspace {
+            inner: self.inner.workspace(),
+            lambda: DVector::zeros(self.scale.len()),
+        }
+    }
+
+    fn regressor_into(
+        &self,
+        ws: &mut Self::Workspace,
+        q: &DVector<f64>,
+        qd: &DVector<f64>,
+        qdd: &DVector<f64>,
+        out: &mut DMatrix<f64>,
+    ) -> Result<()> {
+        self.inner.regressor_into(&mut ws.inner, q, qd, qdd, out)?;
+        for (mut col, &s) in out.column_iter_mut().zip(self.scale.iter()) {
+            col *= s;
+        }
+        Ok(())
+    }
+
+    fn inverse_dynamics_into(
+        &self,
+        ws: &mut Self::Workspace,
+        q: &DVector<f64>,
+        qd: &DVector<f64>,
+        qdd: &DVector<f64>,
+        lambda: &DVector<f64>,
+        out: &mut DVector<f64>,
+    ) -> Result<()> {
+        self.load(ws, lambda)?;
+        self.inner
+            .inverse_dynamics_into(&mut ws.inner, q, qd, qdd, &ws.lambda, out)
+    }
+
+    fn forward_dynamics_into(
+        &self,
+        ws: &mut Self::Workspace,
+        q: &DVector<f64>,
+        qd: &DVector<f64>,
+        tau: &DVector<f64>,
+        lambda: &DVector<f64>,
+        out: &mut DVector<f64>,
+    ) -> Result<()> {
+        self.load(ws, lambda)?;
+        self.inner
+            .forward_dynamics_into(&mut ws.inner, q, qd, tau, &ws.lambda, out)
+    }
+
+    /// ∂q̈/∂γ = ∂q̈/∂λ·D; the other derivatives are the inner model's at λ = D·γ.
+    fn forward_derivatives_into(
+        &self,
+        ws: &mut Self::Workspace,
+        q: &DVector<f64>,
+        qd: &DVector<f64>,
+        tau: &DVector<f64>,
+        lambda: &DVector<f64>,
+        out: &mut ForwardDerivativesOf<Dyn, Dyn>,
+    ) -> Result<()> {
+        self.load(ws, lambda)?;
+        self.inner
+            .forward_derivatives_into(&mut ws.inner, q, qd, tau, &ws.lambda, out)?;
+        for (mut col, &s) in out.dqdd_dlambda.column_iter_mut().zip(self.scale.iter()) {
+            col *= s;
+        }
+        Ok(())
     }
 }

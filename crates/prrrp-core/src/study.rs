@@ -562,7 +562,7 @@ fn run_adaline(
 
 /// Runs an online estimator over `passes` passes of `data`, keeping about `points`
 /// snapshots of λ̂ against estimation time (sample index × dt).
-fn run_online<E: Estimator<NDOF, NPARAM>>(
+fn run_online<E: Estimator<nalgebra::Const<NDOF>, nalgebra::Const<NPARAM>>>(
     est: &mut E,
     data: &Samples<'_, NDOF>,
     passes: usize,

@@ -52,8 +52,8 @@ impl PyDataset {
         let (.., qd) = table(qd, "qd")?;
         let (.., qdd) = table(qdd, "qdd")?;
         let (.., tau) = table(tau, "tau")?;
-        let inner = DynDataset::with_min_samples(n, Dataset::MIN_SAMPLES, t, q, qd, qdd, tau)
-            .to_py(py)?;
+        let inner =
+            DynDataset::with_min_samples(n, Dataset::MIN_SAMPLES, t, q, qd, qdd, tau).to_py(py)?;
         Ok(Self { inner })
     }
 
@@ -196,7 +196,12 @@ impl PyDataset {
 
 impl PyDataset {
     fn column<'py>(&self, py: Python<'py>, flat: &[f64]) -> Out<'py> {
-        to_array(py, flat.to_vec(), Some(self.inner.len()), &[self.inner.dof()])
+        to_array(
+            py,
+            flat.to_vec(),
+            Some(self.inner.len()),
+            &[self.inner.dof()],
+        )
     }
 }
 

@@ -163,7 +163,7 @@ fn least_squares(
 }
 
 /// One `step` of any estimator on a single sample ((5,) arrays).
-fn step_one<'py, E: Estimator<NDOF, NPARAM>>(
+fn step_one<'py, E: Estimator<nalgebra::Const<NDOF>, nalgebra::Const<NPARAM>>>(
     py: Python<'py>,
     est: &mut E,
     q: &Bound<'py, PyAny>,
@@ -187,7 +187,7 @@ fn step_one<'py, E: Estimator<NDOF, NPARAM>>(
 /// `run` of any estimator: steps over every sample with the GIL released. Returns λ̂ (8,),
 /// or `(λ̂, history)` with history (M, 8) = λ̂ after every `history_every` samples.
 #[allow(clippy::too_many_arguments)]
-fn run_batch<'py, E: Estimator<NDOF, NPARAM> + Send>(
+fn run_batch<'py, E: Estimator<nalgebra::Const<NDOF>, nalgebra::Const<NPARAM>> + Send>(
     py: Python<'py>,
     est: &mut E,
     q: &Bound<'py, PyAny>,

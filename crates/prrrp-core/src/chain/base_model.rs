@@ -12,11 +12,11 @@ use super::serial_chain::SerialChain;
 use crate::error::{PrrrpError, Result};
 use crate::model::{ForwardDerivatives, LinearDynamics};
 
-const NONE: usize = usize::MAX;
+pub(super) const NONE: usize = usize::MAX;
 
 /// Where a base parameter lives in the standard layout.
 #[derive(Debug, Clone, Copy, PartialEq)]
-enum Slot {
+pub(super) enum Slot {
     /// Inertial parameter k of link i.
     Rigid(usize, usize),
     /// Friction term `kind` (0 viscous, 1 Coulomb, 2 offset) of joint j.
@@ -85,22 +85,16 @@ impl<const N: usize> SerialChain<N> {
                 got: format!("{B}"),
             });
         }
-        let per_joint = self.friction().columns_per_joint();
-        let fslots = self.friction().slots();
         let mut rigid_map = [[NONE; 10]; N];
         let mut friction_map = [[NONE; 3]; N];
         let mut slots = [Slot::Rigid(0, 0); B];
         for (c, &idx) in base.independent.iter().enumerate() {
-            if idx < 10 * N {
-                rigid_map[idx / 10][idx % 10] = c;
-                slots[c] = Slot::Rigid(idx / 10, idx % 10);
-            } else {
-                let off = idx - 10 * N;
-                let (j, s) = (off / per_joint, off % per_joint);
-                let kind = fslots.iter().position(|&x| x == s).unwrap_or(0);
-                friction_map[j][kind] = c;
-                slots[c] = Slot::Friction(j, kind);
+            let slot = slot_of(idx, N, &self.friction());
+            match slot {
+                Slot::Rigid(i, k) => rigid_map[i][k] = c,
+                Slot::Friction(j, kind) => friction_map[j][kind] = c,
             }
+            slots[c] = slot;
         }
         let beta = SVector::from_vec(base.base_values(&self.parameters())?);
         Ok(ChainBaseModel {
@@ -317,9 +311,22 @@ impl<const N: usize, const B: usize> LinearDynamics<N, B> for ChainBaseModel<N, 
     }
 }
 
+/// Where standard parameter `idx` of a chain with `n` joints and friction model `f` lives.
+pub(super) fn slot_of(idx: usize, n: usize, f: &FrictionModel) -> Slot {
+    if idx < 10 * n {
+        Slot::Rigid(idx / 10, idx % 10)
+    } else {
+        let per_joint = f.columns_per_joint().max(1);
+        let off = idx - 10 * n;
+        let (j, s) = (off / per_joint, off % per_joint);
+        let kind = f.slots().iter().position(|&x| x == s).unwrap_or(0);
+        Slot::Friction(j, kind)
+    }
+}
+
 /// ∂τ_friction/∂q̇ of one joint.
 #[inline(always)]
-fn friction_slope(f: &FrictionModel, qd: f64, p: &[f64; 3]) -> f64 {
+pub(super) fn friction_slope(f: &FrictionModel, qd: f64, p: &[f64; 3]) -> f64 {
     let mut s = 0.0;
     if f.viscous {
         s += p[0];

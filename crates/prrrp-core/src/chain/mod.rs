@@ -13,6 +13,7 @@ mod base_params;
 mod crba;
 mod description;
 mod dh;
+mod dyn_base_model;
 mod friction;
 mod inertia;
 mod joint;
@@ -30,6 +31,7 @@ pub use description::{
     ChainDescription, DhDescription, JointDescription, PoseDescription, CHAIN_SCHEMA_VERSION,
 };
 pub use dh::DhConvention;
+pub use dyn_base_model::{DynBaseWorkspace, DynChainBaseModel};
 pub use friction::{FrictionModel, FRICTION_PARAMETER_NAMES};
 pub use inertia::{
     com_and_inertia, inertial_parameters, is_physically_consistent, transform_inertial_parameters,

@@ -10,13 +10,19 @@
 //! the delta rule moves weight j in proportion to input j (eq. 11), which is zero for
 //! every parameter outside its network.
 
-use nalgebra::SVector;
+use nalgebra::allocator::Allocator;
+use nalgebra::{Const, DefaultAllocator, Dim, Dyn, OMatrix, OVector};
 
 use super::estimator::{train_epochs, Estimator, TrainingReport};
 use super::rls::check_lambda0;
-use super::samples::{Sample, Samples};
+use super::samples::{SampleOf, SamplesOf};
 use crate::error::{PrrrpError, Result};
-use crate::model::LinearDynamics;
+use crate::model::LinearModel;
+
+/// Adaline for a compile-time-size model (e.g. the PRRRP arm).
+pub type Adaline<M, const N: usize, const P: usize> = AdalineOf<M, Const<N>, Const<P>>;
+/// Adaline for a run-time-size model (e.g. [`crate::DynChainBaseModel`]).
+pub type DynAdaline<M> = AdalineOf<M, Dyn, Dyn>;
 
 /// Weight update rule of [`Adaline`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -63,26 +69,38 @@ impl Default for AdalineConfig {
     }
 }
 
-/// Adaline networks whose weights are the parameters λ.
+/// Adaline networks whose weights are the parameters λ. One implementation for both size
+/// worlds (see [`Adaline`], [`DynAdaline`]); all buffers are sized at construction.
 #[derive(Debug, Clone)]
-pub struct Adaline<M, const N: usize, const P: usize> {
+pub struct AdalineOf<M, N: Dim, P: Dim>
+where
+    M: LinearModel<N, P>,
+    DefaultAllocator: Allocator<N> + Allocator<P> + Allocator<N, N> + Allocator<N, P>,
+{
     model: M,
+    ws: M::Workspace,
     config: AdalineConfig,
-    lambda0: SVector<f64, P>,
-    lambda: SVector<f64, P>,
+    lambda0: OVector<f64, P>,
+    lambda: OVector<f64, P>,
+    phi: OMatrix<f64, N, P>,
     tau_scale: f64,
     sse: f64,
     equations: usize,
     samples: usize,
 }
 
-impl<M: LinearDynamics<N, P>, const N: usize, const P: usize> Adaline<M, N, P> {
+impl<M, N: Dim, P: Dim> AdalineOf<M, N, P>
+where
+    M: LinearModel<N, P>,
+    DefaultAllocator: Allocator<N> + Allocator<P> + Allocator<N, N> + Allocator<N, P>,
+{
     /// Networks with initial weights λ₀ (zeros are fine: Adaline needs no prior).
     ///
     /// # Errors
     /// [`PrrrpError::InvalidParameter`] for a non-positive learning rate, a step size
-    /// outside (0, 2), a negative ε, a divergence ratio ≤ 1 or a non-finite λ₀.
-    pub fn new(model: M, lambda0: SVector<f64, P>, config: AdalineConfig) -> Result<Self> {
+    /// outside (0, 2), a negative ε, a divergence ratio ≤ 1 or a non-finite λ₀;
+    /// [`PrrrpError::ShapeMismatch`] if λ₀ does not have one entry per model parameter.
+    pub fn new(model: M, lambda0: OVector<f64, P>, config: AdalineConfig) -> Result<Self> {
         let bad = |field: &str, value: f64, reason: &'static str| {
             Err(PrrrpError::InvalidParameter {
                 field: field.into(),
@@ -103,12 +121,15 @@ impl<M: LinearDynamics<N, P>, const N: usize, const P: usize> Adaline<M, N, P> {
         if c.divergence_ratio.is_nan() || c.divergence_ratio <= 1.0 {
             return bad("divergence_ratio", c.divergence_ratio, "must be > 1");
         }
-        check_lambda0(&lambda0)?;
+        let (n, p) = model.dims();
+        check_lambda0(&lambda0, n.value(), p.value())?;
         Ok(Self {
+            ws: model.workspace(),
             model,
             config,
+            lambda: lambda0.clone(),
             lambda0,
-            lambda: lambda0,
+            phi: OMatrix::zeros_generic(n, p),
             tau_scale: 0.0,
             sse: 0.0,
             equations: 0,
@@ -121,7 +142,7 @@ impl<M: LinearDynamics<N, P>, const N: usize, const P: usize> Adaline<M, N, P> {
     ///
     /// # Errors
     /// As [`Estimator::step`], with the sample index in [`PrrrpError::NonFinite`].
-    pub fn train(&mut self, data: &Samples<'_, N>, epochs: usize) -> Result<TrainingReport> {
+    pub fn train(&mut self, data: &SamplesOf<'_, N>, epochs: usize) -> Result<TrainingReport> {
         train_epochs(self, data, epochs, |e| (&mut e.sse, &mut e.equations))
     }
 
@@ -131,29 +152,45 @@ impl<M: LinearDynamics<N, P>, const N: usize, const P: usize> Adaline<M, N, P> {
     }
 }
 
-impl<M: LinearDynamics<N, P>, const N: usize, const P: usize> Estimator<N, P> for Adaline<M, N, P> {
+impl<M, N: Dim, P: Dim> Estimator<N, P> for AdalineOf<M, N, P>
+where
+    M: LinearModel<N, P>,
+    DefaultAllocator: Allocator<N> + Allocator<P> + Allocator<N, N> + Allocator<N, P>,
+{
     /// Presents the N equations of the sample one after the other (pattern by pattern).
     ///
     /// # Errors
-    /// [`PrrrpError::NonFinite`] for NaN/∞ in the sample; [`PrrrpError::Diverged`] when an
+    /// [`PrrrpError::ShapeMismatch`] for a sample whose vectors do not have one entry per
+    /// joint; [`PrrrpError::NonFinite`] for NaN/∞ in the sample; [`PrrrpError::Diverged`] when an
     /// error grows past the divergence threshold (delta rule: lower the learning rate, or
     /// use the normalised rule).
-    fn step(&mut self, sample: Sample<'_, N>) -> Result<&SVector<f64, P>> {
-        sample.check_finite()?;
-        let phi = self.model.regressor(sample.q, sample.qd, sample.qdd);
+    fn step(&mut self, sample: SampleOf<'_, N>) -> Result<&OVector<f64, P>> {
+        let (n, np) = self.phi.shape();
+        sample.check(n)?;
+        self.model
+            .regressor_into(&mut self.ws, sample.q, sample.qd, sample.qdd, &mut self.phi)?;
         let c = self.config;
-        for i in 0..N {
-            let x = phi.row(i).transpose();
+        let phi = &self.phi;
+        for i in 0..n {
             let tau = sample.tau[i];
             self.tau_scale = self.tau_scale.max(tau.abs());
-            let delta = tau - x.dot(&self.lambda);
+            let (mut pred, mut norm2) = (0.0, 0.0);
+            for j in 0..np {
+                let x = phi[(i, j)];
+                pred += x * self.lambda[j];
+                norm2 += x * x;
+            }
+            let delta = tau - pred;
             self.sse += delta * delta;
             let gain = match c.rule {
                 AdalineRule::Delta => c.learning_rate,
-                AdalineRule::Normalised => c.step_size / (c.epsilon + x.norm_squared()),
+                AdalineRule::Normalised => c.step_size / (c.epsilon + norm2),
             };
             if gain.is_finite() {
-                self.lambda.axpy(gain * delta, &x, 1.0);
+                let g = gain * delta;
+                for j in 0..np {
+                    self.lambda[j] += g * phi[(i, j)];
+                }
             }
             if !(delta.abs() <= c.divergence_ratio * self.tau_scale
                 || delta.abs() <= f64::MIN_POSITIVE)
@@ -166,7 +203,7 @@ impl<M: LinearDynamics<N, P>, const N: usize, const P: usize> Estimator<N, P> fo
                 });
             }
         }
-        self.equations += N;
+        self.equations += n;
         if !self.lambda.iter().all(|x| x.is_finite()) {
             return Err(PrrrpError::Diverged {
                 what: "Adaline",
@@ -178,12 +215,12 @@ impl<M: LinearDynamics<N, P>, const N: usize, const P: usize> Estimator<N, P> fo
         Ok(&self.lambda)
     }
 
-    fn estimate(&self) -> &SVector<f64, P> {
+    fn estimate(&self) -> &OVector<f64, P> {
         &self.lambda
     }
 
     fn reset(&mut self) {
-        self.lambda = self.lambda0;
+        self.lambda.copy_from(&self.lambda0);
         self.tau_scale = 0.0;
         self.sse = 0.0;
         self.equations = 0;

@@ -5,7 +5,7 @@
 //! ```text
 //! q⁺ = q + h·q̇,   q̇⁺ = q̇ + h·q̈(q, q̇, τ, λ),   λ⁺ = λ
 //! ```
-//! with analytic Jacobians from [`LinearDynamics::forward_derivatives`]
+//! with the Jacobians of [`LinearModel::forward_derivatives_into`] (analytic for PRRRP)
 //! (A = [∂q̈/∂q, ∂q̈/∂q̇, ∂q̈/∂λ = −M⁻¹Φ]). The measurement is the joint positions, or
 //! positions and velocities; H selects entries of x.
 //!
@@ -20,14 +20,15 @@
 //! exactly symmetric. A velocity measurement is processed as a second sequential
 //! update, which equals the joint update for uncorrelated position and velocity noise.
 
-use nalgebra::{SMatrix, SVector};
+use nalgebra::allocator::Allocator;
+use nalgebra::{Const, DefaultAllocator, Dim, Dyn, OMatrix, OVector, U1};
 
 use super::estimator::Estimator;
 use super::rls::check_lambda0;
-use super::samples::{all_finite, Sample};
+use super::samples::{all_finite, SampleOf};
 use crate::dynamics::PrrrpModel;
 use crate::error::{PrrrpError, Result};
-use crate::model::{ForwardDerivatives, LinearDynamics};
+use crate::model::{ForwardDerivativesOf, LinearModel};
 use crate::types::{NDOF, NPARAM};
 
 /// State dimension of the PRRRP filter: 5 positions, 5 velocities, 8 parameters.
@@ -126,32 +127,124 @@ impl Default for EkfConfig {
     }
 }
 
-/// Extended Kalman filter with S = 2N + P states (checked at compile time).
+/// The extended Kalman filter for a compile-time-size model with S = 2N + P states (S is
+/// checked against N and P by [`EkfOf::new`]).
+pub type Ekf<M, const N: usize, const P: usize, const S: usize> =
+    EkfOf<M, Const<N>, Const<P>, Const<S>>;
+
+/// The extended Kalman filter for a run-time-size model (e.g.
+/// [`crate::DynChainBaseModel`]); the state dimension 2N + P follows from the model.
+pub type DynEkf<M> = EkfOf<M, Dyn, Dyn, Dyn>;
+
+/// Extended Kalman filter with S = 2N + P states, for N joints and P parameters given as
+/// nalgebra dimensions (`Const` for [`Ekf`], `Dyn` for [`DynEkf`]): one implementation for
+/// both, every buffer sized at construction, `step` allocation-free.
 #[derive(Debug, Clone)]
-pub struct Ekf<M, const N: usize, const P: usize, const S: usize> {
+pub struct EkfOf<M, N: Dim, P: Dim, S: Dim>
+where
+    M: LinearModel<N, P>,
+    DefaultAllocator: EkfAllocator<N, P, S>,
+{
     model: M,
+    ws: M::Workspace,
     config: EkfConfig,
-    x: SVector<f64, S>,
-    p: SMatrix<f64, S, S>,
-    lambda: SVector<f64, P>,
-    x0: SVector<f64, S>,
-    p0: SMatrix<f64, S, S>,
-    q_diag: SVector<f64, S>,
-    r_pos: SVector<f64, N>,
-    r_vel: SVector<f64, N>,
+    x: OVector<f64, S>,
+    p: OMatrix<f64, S, S>,
+    lambda: OVector<f64, P>,
+    x0: OVector<f64, S>,
+    p0: OMatrix<f64, S, S>,
+    q_diag: OVector<f64, S>,
+    r_pos: OVector<f64, N>,
+    r_vel: OVector<f64, N>,
     initialised: bool,
     samples: usize,
     skipped: usize,
     damped: usize,
     /// Whether the CPU runs the AVX2 copy of the step (detected once, at construction).
     avx2: bool,
+    buf: Buffers<N, P, S>,
 }
 
-/// The gain of one measurement update and what its Joseph covariance update needs.
-struct Gain<const N: usize, const S: usize> {
-    k: SMatrix<f64, S, N>,
-    pz: SMatrix<f64, S, N>,
-    sz: SMatrix<f64, N, N>,
+/// The allocator bounds of [`EkfOf`] in one name (nalgebra needs one per matrix shape).
+pub trait EkfAllocator<N: Dim, P: Dim, S: Dim>:
+    Allocator<N>
+    + Allocator<P>
+    + Allocator<S>
+    + Allocator<N, N>
+    + Allocator<N, P>
+    + Allocator<N, S>
+    + Allocator<S, N>
+    + Allocator<S, S>
+{
+}
+
+impl<N: Dim, P: Dim, S: Dim, T> EkfAllocator<N, P, S> for T where
+    T: Allocator<N>
+        + Allocator<P>
+        + Allocator<S>
+        + Allocator<N, N>
+        + Allocator<N, P>
+        + Allocator<N, S>
+        + Allocator<S, N>
+        + Allocator<S, S>
+{
+}
+
+/// Per-step scratch, sized once: the gain of one measurement update (K, P_·z, S_z) and
+/// what the covariance updates need.
+#[derive(Debug, Clone)]
+struct Buffers<N: Dim, P: Dim, S: Dim>
+where
+    DefaultAllocator: EkfAllocator<N, P, S>,
+{
+    fd: ForwardDerivativesOf<N, P>,
+    q: OVector<f64, N>,
+    v: OVector<f64, N>,
+    lam: OVector<f64, P>,
+    innovation: OVector<f64, N>,
+    k: OMatrix<f64, S, N>,
+    damped_k: OMatrix<f64, S, N>,
+    pz: OMatrix<f64, S, N>,
+    d: OMatrix<f64, S, N>,
+    g: OMatrix<f64, S, N>,
+    sz: OMatrix<f64, N, N>,
+    chol: OMatrix<f64, N, N>,
+    linv: OMatrix<f64, N, N>,
+    sinv: OMatrix<f64, N, N>,
+    apa: OMatrix<f64, N, N>,
+    step: OVector<f64, S>,
+    candidate: OVector<f64, S>,
+    x_prior: OVector<f64, S>,
+    p_prior: OMatrix<f64, S, S>,
+}
+
+impl<N: Dim, P: Dim, S: Dim> Buffers<N, P, S>
+where
+    DefaultAllocator: EkfAllocator<N, P, S>,
+{
+    fn new(n: N, p: P, s: S) -> Self {
+        Self {
+            fd: ForwardDerivativesOf::zeros(n, p),
+            q: OVector::zeros_generic(n, U1),
+            v: OVector::zeros_generic(n, U1),
+            lam: OVector::zeros_generic(p, U1),
+            innovation: OVector::zeros_generic(n, U1),
+            k: OMatrix::zeros_generic(s, n),
+            damped_k: OMatrix::zeros_generic(s, n),
+            pz: OMatrix::zeros_generic(s, n),
+            d: OMatrix::zeros_generic(s, n),
+            g: OMatrix::zeros_generic(s, n),
+            sz: OMatrix::zeros_generic(n, n),
+            chol: OMatrix::zeros_generic(n, n),
+            linv: OMatrix::zeros_generic(n, n),
+            sinv: OMatrix::zeros_generic(n, n),
+            apa: OMatrix::zeros_generic(n, n),
+            step: OVector::zeros_generic(s, U1),
+            candidate: OVector::zeros_generic(s, U1),
+            x_prior: OVector::zeros_generic(s, U1),
+            p_prior: OMatrix::zeros_generic(s, s),
+        }
+    }
 }
 
 /// a·b + c, fused when the caller is compiled with FMA (then one rounding), plain
@@ -179,9 +272,19 @@ fn cpu_has_avx2_fma() -> bool {
 /// How often a measurement update is retried with half the gain before the step fails.
 const MAX_GAIN_HALVINGS: u32 = 10;
 
-impl<M: LinearDynamics<N, P>, const N: usize, const P: usize, const S: usize> Ekf<M, N, P, S> {
-    const STATE_CHECK: () = assert!(S == 2 * N + P, "Ekf needs S = 2N + P states");
+fn size_error(what: &str, want: String, got: String) -> PrrrpError {
+    PrrrpError::ShapeMismatch {
+        what: what.into(),
+        expected: want,
+        got,
+    }
+}
 
+impl<M, N: Dim, P: Dim, S: Dim> EkfOf<M, N, P, S>
+where
+    M: LinearModel<N, P>,
+    DefaultAllocator: EkfAllocator<N, P, S>,
+{
     /// A filter starting from λ₀ with the covariances of `config`.
     ///
     /// λ₀ must make M(q, λ₀) positive definite (e.g. a CAD estimate or a least-squares
@@ -189,10 +292,10 @@ impl<M: LinearDynamics<N, P>, const N: usize, const P: usize, const S: usize> Ek
     ///
     /// # Errors
     /// [`PrrrpError::InvalidParameter`] for a non-positive or non-finite dt, noise or
-    /// initial standard deviation (process noises may be 0), or a non-finite λ₀.
-    pub fn new(model: M, lambda0: SVector<f64, P>, config: EkfConfig) -> Result<Self> {
-        #[allow(clippy::let_unit_value)]
-        let () = Self::STATE_CHECK;
+    /// initial standard deviation (process noises may be 0), or a non-finite λ₀;
+    /// [`PrrrpError::ShapeMismatch`] if λ₀ does not have one entry per model parameter or
+    /// a compile-time S is not 2N + P.
+    pub fn new(model: M, lambda0: OVector<f64, P>, config: EkfConfig) -> Result<Self> {
         let c = &config;
         let positive = [
             ("dt", c.dt),
@@ -226,52 +329,87 @@ impl<M: LinearDynamics<N, P>, const N: usize, const P: usize, const S: usize> Ek
                 });
             }
         }
-        check_lambda0(&lambda0)?;
-
-        let mut x0 = SVector::<f64, S>::zeros();
-        x0.fixed_rows_mut::<P>(2 * N).copy_from(&lambda0);
-        let mut p0_diag = SVector::<f64, S>::zeros();
-        let mut q_diag = SVector::<f64, S>::zeros();
-        for i in 0..N {
-            p0_diag[i] = c.initial_position_std.powi(2);
-            p0_diag[N + i] = c.initial_velocity_std.powi(2);
-            q_diag[i] = c.process_position_noise.powi(2);
-            q_diag[N + i] = c.process_velocity_noise.powi(2);
+        let (nd, pd) = model.dims();
+        let (n, np) = (nd.value(), pd.value());
+        check_lambda0(&lambda0, n, np)?;
+        let states = 2 * n + np;
+        if let Some(s) = S::try_to_usize() {
+            if s != states {
+                return Err(size_error(
+                    "EKF state dimension S",
+                    format!("2N + P = {states}"),
+                    format!("{s}"),
+                ));
+            }
         }
-        for i in 0..P {
+        let sd = S::from_usize(states);
+
+        let mut x0 = OVector::<f64, S>::zeros_generic(sd, U1);
+        x0.as_mut_slice()[2 * n..].copy_from_slice(lambda0.as_slice());
+        let mut p0_diag = OVector::<f64, S>::zeros_generic(sd, U1);
+        let mut q_diag = OVector::<f64, S>::zeros_generic(sd, U1);
+        for i in 0..n {
+            p0_diag[i] = c.initial_position_std.powi(2);
+            p0_diag[n + i] = c.initial_velocity_std.powi(2);
+            q_diag[i] = c.process_position_noise.powi(2);
+            q_diag[n + i] = c.process_velocity_noise.powi(2);
+        }
+        for i in 0..np {
             let l = lambda0[i].abs();
-            p0_diag[2 * N + i] = (c.initial_parameter_rel_std * l)
+            p0_diag[2 * n + i] = (c.initial_parameter_rel_std * l)
                 .max(c.initial_parameter_min_std)
                 .powi(2);
-            q_diag[2 * N + i] = (c.process_parameter_noise * l).powi(2);
+            q_diag[2 * n + i] = (c.process_parameter_noise * l).powi(2);
         }
-        let p0 = SMatrix::from_diagonal(&p0_diag);
+        let p0 = OMatrix::from_diagonal(&p0_diag);
         Ok(Self {
+            ws: model.workspace(),
             model,
             config,
-            x: x0,
-            p: p0,
+            x: x0.clone(),
+            p: p0.clone(),
             lambda: lambda0,
             x0,
             p0,
             q_diag,
-            r_pos: SVector::repeat(c.position_noise.powi(2)),
-            r_vel: SVector::repeat(c.velocity_noise.powi(2)),
+            r_pos: OVector::repeat_generic(nd, U1, c.position_noise.powi(2)),
+            r_vel: OVector::repeat_generic(nd, U1, c.velocity_noise.powi(2)),
             initialised: false,
             samples: 0,
             skipped: 0,
             damped: 0,
             avx2: cpu_has_avx2_fma(),
+            buf: Buffers::new(nd, pd, sd),
         })
+    }
+
+    #[inline(always)]
+    fn n(&self) -> usize {
+        self.r_pos.nrows()
+    }
+
+    fn check_state_shape(&self, what: &str, rows: usize, cols: usize) -> Result<()> {
+        let s = self.x.nrows();
+        let want_cols = if cols == 1 { 1 } else { s };
+        if rows != s || cols != want_cols {
+            return Err(size_error(
+                what,
+                format!("{s}×{want_cols} (S = 2N + P states)"),
+                format!("{rows}×{cols}"),
+            ));
+        }
+        Ok(())
     }
 
     /// Replaces the initial covariance P₀ (and the current one, when no sample has been
     /// consumed since construction or reset). Units: the squares of the state's.
     ///
     /// # Errors
-    /// [`PrrrpError::NonFinite`] for NaN/∞, [`PrrrpError::InvalidParameter`] if P₀ is not
-    /// symmetric, [`PrrrpError::NotPositiveDefinite`] if it is not positive definite.
-    pub fn set_initial_covariance(&mut self, p0: &SMatrix<f64, S, S>) -> Result<()> {
+    /// [`PrrrpError::ShapeMismatch`] if P₀ is not S×S, [`PrrrpError::NonFinite`] for
+    /// NaN/∞, [`PrrrpError::InvalidParameter`] if P₀ is not symmetric,
+    /// [`PrrrpError::NotPositiveDefinite`] if it is not positive definite.
+    pub fn set_initial_covariance(&mut self, p0: &OMatrix<f64, S, S>) -> Result<()> {
+        self.check_state_shape("initial covariance", p0.nrows(), p0.ncols().max(2))?;
         if !p0.iter().all(|v| v.is_finite()) {
             return Err(PrrrpError::NonFinite {
                 what: "initial covariance".into(),
@@ -286,14 +424,14 @@ impl<M: LinearDynamics<N, P>, const N: usize, const P: usize, const S: usize> Ek
                 reason: "must be symmetric",
             });
         }
-        if p0.cholesky().is_none() {
+        if p0.clone().cholesky().is_none() {
             return Err(PrrrpError::NotPositiveDefinite {
                 what: "initial covariance P0",
             });
         }
-        self.p0 = *p0;
+        self.p0.copy_from(p0);
         if self.samples == 0 {
-            self.p = *p0;
+            self.p.copy_from(p0);
         }
         Ok(())
     }
@@ -302,10 +440,12 @@ impl<M: LinearDynamics<N, P>, const N: usize, const P: usize, const S: usize> Ek
     /// step).
     ///
     /// # Errors
+    /// [`PrrrpError::ShapeMismatch`] if `variances` does not have S entries,
     /// [`PrrrpError::InvalidParameter`] for a negative or non-finite variance.
-    pub fn set_process_noise(&mut self, variances: &SVector<f64, S>) -> Result<()> {
-        check_variances("process noise", variances, true)?;
-        self.q_diag = *variances;
+    pub fn set_process_noise(&mut self, variances: &OVector<f64, S>) -> Result<()> {
+        self.check_state_shape("process noise", variances.nrows(), 1)?;
+        check_variances("process noise", variances.as_slice(), true)?;
+        self.q_diag.copy_from(variances);
         Ok(())
     }
 
@@ -313,32 +453,48 @@ impl<M: LinearDynamics<N, P>, const N: usize, const P: usize, const S: usize> Ek
     /// of m, rad, m/s, rad/s).
     ///
     /// # Errors
+    /// [`PrrrpError::ShapeMismatch`] if a vector does not have N entries,
     /// [`PrrrpError::InvalidParameter`] for a non-positive or non-finite variance.
     pub fn set_measurement_noise(
         &mut self,
-        positions: &SVector<f64, N>,
-        velocities: &SVector<f64, N>,
+        positions: &OVector<f64, N>,
+        velocities: &OVector<f64, N>,
     ) -> Result<()> {
-        check_variances("position noise", positions, false)?;
-        check_variances("velocity noise", velocities, false)?;
-        self.r_pos = *positions;
-        self.r_vel = *velocities;
+        let n = self.n();
+        for (what, v) in [
+            ("position noise", positions),
+            ("velocity noise", velocities),
+        ] {
+            if v.nrows() != n {
+                return Err(size_error(
+                    what,
+                    format!("{n} entries (one per joint)"),
+                    format!("{} entries", v.nrows()),
+                ));
+            }
+        }
+        check_variances("position noise", positions.as_slice(), false)?;
+        check_variances("velocity noise", velocities.as_slice(), false)?;
+        self.r_pos.copy_from(positions);
+        self.r_vel.copy_from(velocities);
         Ok(())
     }
 
     /// The state x = [q, q̇, λ] predicted for the next sample.
-    pub fn state(&self) -> &SVector<f64, S> {
+    pub fn state(&self) -> &OVector<f64, S> {
         &self.x
     }
 
     /// The state covariance P (squares of the state units).
-    pub fn covariance(&self) -> &SMatrix<f64, S, S> {
+    pub fn covariance(&self) -> &OMatrix<f64, S, S> {
         &self.p
     }
 
     /// Standard deviation of each λ̂_i from the diagonal of P (units of λ).
-    pub fn parameter_std(&self) -> SVector<f64, P> {
-        SVector::from_fn(|i, _| self.p[(2 * N + i, 2 * N + i)].max(0.0).sqrt())
+    pub fn parameter_std(&self) -> OVector<f64, P> {
+        let o = 2 * self.n();
+        let (_, pd) = self.model.dims();
+        OVector::from_fn_generic(pd, U1, |i, _| self.p[(o + i, o + i)].max(0.0).sqrt())
     }
 
     /// Number of samples consumed since construction or the last reset.
@@ -359,7 +515,9 @@ impl<M: LinearDynamics<N, P>, const N: usize, const P: usize, const S: usize> Ek
 
     /// The body of [`Estimator::step`], inlined into a portable and an AVX2 copy.
     #[inline(always)]
-    fn step_impl<const FMA: bool>(&mut self, sample: Sample<'_, N>) -> Result<()> {
+    fn step_impl<const FMA: bool>(&mut self, sample: SampleOf<'_, N>) -> Result<()> {
+        let n = self.n();
+        sample.check_len(n)?;
         if !all_finite(sample.tau) {
             return Err(PrrrpError::NonFinite {
                 what: "tau".into(),
@@ -370,10 +528,10 @@ impl<M: LinearDynamics<N, P>, const N: usize, const P: usize, const S: usize> Ek
         if !self.initialised {
             if self.config.init_from_first_measurement {
                 if all_finite(sample.q) {
-                    self.x.fixed_rows_mut::<N>(0).copy_from(sample.q);
+                    self.x.as_mut_slice()[..n].copy_from_slice(sample.q.as_slice());
                 }
                 if with_vel && all_finite(sample.qd) {
-                    self.x.fixed_rows_mut::<N>(N).copy_from(sample.qd);
+                    self.x.as_mut_slice()[n..2 * n].copy_from_slice(sample.qd.as_slice());
                 }
             }
             self.initialised = true;
@@ -386,23 +544,22 @@ impl<M: LinearDynamics<N, P>, const N: usize, const P: usize, const S: usize> Ek
         // final failure the filter is left at its prior.
         let mut alpha = 1.0;
         let mut attempt = 0;
-        let fd = if with_vel {
+        if with_vel {
             // Two sequential updates: keep the prior to retry both.
-            let (x_prior, p_prior) = (self.x, self.p);
+            self.buf.x_prior.copy_from(&self.x);
+            self.buf.p_prior.copy_from(&self.p);
             loop {
                 if q_ok {
-                    let r = self.r_pos;
-                    self.update::<FMA>(0, sample.q, &r, alpha)?;
+                    self.update::<FMA>(0, sample.q, false, alpha)?;
                 }
                 if qd_ok {
-                    let r = self.r_vel;
-                    self.update::<FMA>(N, sample.qd, &r, alpha)?;
+                    self.update::<FMA>(n, sample.qd, true, alpha)?;
                 }
-                match self.derivatives(&self.x, sample.tau) {
-                    Ok(fd) => break fd,
+                match self.derivatives(false, sample.tau) {
+                    Ok(()) => break,
                     Err(e) => {
-                        self.x = x_prior;
-                        self.p = p_prior;
+                        self.x.copy_from(&self.buf.x_prior);
+                        self.p.copy_from(&self.buf.p_prior);
                         if attempt == MAX_GAIN_HALVINGS || !(q_ok || qd_ok) {
                             return Err(e);
                         }
@@ -413,38 +570,41 @@ impl<M: LinearDynamics<N, P>, const N: usize, const P: usize, const S: usize> Ek
             }
         } else {
             // One update: try the candidate state before touching P.
-            let gain = if q_ok {
-                let r = self.r_pos;
-                Some(self.gain::<FMA>(0, &r)?)
+            if q_ok {
+                self.gain::<FMA>(0, false)?;
+                let b = &mut self.buf;
+                for i in 0..n {
+                    b.innovation[i] = sample.q[i] - self.x[i];
+                }
+                b.step.gemv(1.0, &b.k, &b.innovation, 0.0);
             } else {
-                None
-            };
-            let step = match &gain {
-                Some(g) => g.k * (sample.q - self.x.fixed_rows::<N>(0)),
-                None => SVector::zeros(),
-            };
-            let fd = loop {
-                let candidate = self.x + step * alpha;
-                match self.derivatives(&candidate, sample.tau) {
-                    Ok(fd) => {
-                        self.x = candidate;
-                        break fd;
+                self.buf.step.fill(0.0);
+            }
+            loop {
+                let b = &mut self.buf;
+                b.candidate.copy_from(&self.x);
+                b.candidate.axpy(alpha, &b.step, 1.0);
+                match self.derivatives(true, sample.tau) {
+                    Ok(()) => {
+                        self.x.copy_from(&self.buf.candidate);
+                        break;
                     }
-                    Err(e) if attempt == MAX_GAIN_HALVINGS || gain.is_none() => return Err(e),
+                    Err(e) if attempt == MAX_GAIN_HALVINGS || !q_ok => return Err(e),
                     Err(_) => {
                         alpha *= 0.5;
                         attempt += 1;
                     }
                 }
-            };
-            if let Some(g) = &gain {
-                self.update_covariance::<FMA>(g, alpha);
             }
-            fd
-        };
+            if q_ok {
+                self.update_covariance::<FMA>(alpha);
+            }
+        }
         self.damped += usize::from(attempt > 0);
-        self.lambda.copy_from(&self.x.fixed_rows::<P>(2 * N));
-        self.predict::<FMA>(&fd);
+        self.lambda
+            .as_mut_slice()
+            .copy_from_slice(&self.x.as_slice()[2 * n..]);
+        self.predict::<FMA>();
         if !(all_finite(&self.x) && self.p[(0, 0)].is_finite()) {
             return Err(PrrrpError::Diverged {
                 what: "extended Kalman filter",
@@ -456,103 +616,69 @@ impl<M: LinearDynamics<N, P>, const N: usize, const P: usize, const S: usize> Ek
         Ok(())
     }
 
-    /// [`Self::step_impl`] compiled for AVX2 and FMA (wider vectors for the 18-long
+    /// [`Self::step_impl`] compiled for AVX2 and FMA (wider vectors for the state-long
     /// columns, fused multiply-adds in the covariance products).
     ///
     /// # Safety
     /// The CPU must support AVX2 and FMA.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,fma")]
-    unsafe fn step_avx2(&mut self, sample: Sample<'_, N>) -> Result<()> {
+    unsafe fn step_avx2(&mut self, sample: SampleOf<'_, N>) -> Result<()> {
         self.step_impl::<true>(sample)
     }
 
-    /// Gain of a measurement z = x[o..o+N] + noise of variances r (H a selection):
-    /// S_z = P_zz + R, K = P_·z·S_z⁻¹.
+    /// Gain of a measurement z = x[o..o+N] + noise of variances R (H a selection), into
+    /// the buffers: S_z = P_zz + R, K = P_·z·S_z⁻¹.
     #[inline(always)]
-    fn gain<const FMA: bool>(&self, o: usize, r: &SVector<f64, N>) -> Result<Gain<N, S>> {
-        let mut sz = SMatrix::<f64, N, N>::zeros();
-        for j in 0..N {
-            for i in 0..N {
-                sz[(i, j)] = self.p[(o + i, o + j)];
+    fn gain<const FMA: bool>(&mut self, o: usize, velocity: bool) -> Result<()> {
+        let (n, s) = (self.n(), self.x.nrows());
+        let r = if velocity { &self.r_vel } else { &self.r_pos };
+        let b = &mut self.buf;
+        for j in 0..n {
+            for i in 0..n {
+                b.sz[(i, j)] = self.p[(o + i, o + j)];
             }
-            sz[(j, j)] += r[j];
+            b.sz[(j, j)] += r[j];
         }
-        let l = cholesky(&sz).ok_or(PrrrpError::NotPositiveDefinite {
-            what: "EKF innovation covariance H·P·Hᵀ + R",
-        })?;
+        if !cholesky(b.sz.as_slice(), n, b.chol.as_mut_slice()) {
+            return Err(PrrrpError::NotPositiveDefinite {
+                what: "EKF innovation covariance H·P·Hᵀ + R",
+            });
+        }
         // S_z⁻¹ = L⁻ᵀ·L⁻¹ from the Cholesky factor (N×N, cheap), then K = P_·z·S_z⁻¹ as
         // N independent column sums over whole S-long columns: the two triangular solves
         // on K would chain every column to the previous one.
-        let linv = lower_triangular_inverse(&l);
-        let sinv = linv.transpose() * linv;
-        let pz: SMatrix<f64, S, N> = self.p.fixed_columns::<N>(o).into_owned();
-        let mut k = SMatrix::<f64, S, N>::zeros();
-        {
-            let ps = pz.as_slice();
-            let ks = k.as_mut_slice();
-            for m in 0..N {
-                let pc = &ps[m * S..m * S + S];
-                for j in 0..N {
-                    let f = sinv[(m, j)];
-                    for (kv, &pv) in ks[j * S..j * S + S].iter_mut().zip(pc) {
-                        *kv = madd::<FMA>(f, pv, *kv);
-                    }
-                }
-            }
-        }
-        Ok(Gain { k, pz, sz })
+        lower_triangular_inverse(b.chol.as_slice(), n, b.linv.as_mut_slice());
+        b.linv.tr_mul_to(&b.linv, &mut b.sinv);
+        let ps = self.p.as_slice();
+        b.pz.as_mut_slice().copy_from_slice(&ps[o * s..(o + n) * s]);
+        b.k.fill(0.0);
+        gain_columns::<FMA>(b.pz.as_slice(), b.sinv.as_slice(), b.k.as_mut_slice(), n, s);
+        Ok(())
     }
 
-    /// Joseph-form covariance update for the gain α·K: with K' = α·K and
+    /// Joseph-form covariance update for the gain α·K of the buffers: with K' = α·K and
     /// D = P_·z − K'·S_z (≈ 0 for α = 1), P ← P − K'·P_z· − D·K'ᵀ. Exact for any gain, so
     /// also for a damped one.
     #[inline(always)]
-    fn update_covariance<const FMA: bool>(&mut self, g: &Gain<N, S>, alpha: f64) {
-        // Borrowed when undamped: K is S×N, and copying it is not free at this size.
-        let damped_k;
-        let k = if alpha == 1.0 {
-            &g.k
-        } else {
-            damped_k = g.k * alpha;
-            &damped_k
-        };
-        let mut d = g.pz;
-        {
-            let ks = k.as_slice();
-            let dsm = d.as_mut_slice();
-            for j in 0..N {
-                let dc = &mut dsm[j * S..j * S + S];
-                for m in 0..N {
-                    let f = g.sz[(m, j)];
-                    let kc = &ks[m * S..m * S + S];
-                    for (a, &b) in dc.iter_mut().zip(kc) {
-                        *a = madd::<FMA>(-f, b, *a);
-                    }
-                }
-            }
+    fn update_covariance<const FMA: bool>(&mut self, alpha: f64) {
+        let (n, s) = (self.n(), self.x.nrows());
+        let b = &mut self.buf;
+        if alpha != 1.0 {
+            b.damped_k.copy_from(&b.k);
+            b.damped_k *= alpha;
         }
-        let ks = k.as_slice();
-        let ds = d.as_slice();
-        let pzs = g.pz.as_slice();
-        let p = self.p.as_mut_slice();
-        // Whole columns of the compile-time length S: fully unrolled and vectorised, which
-        // is faster than the triangle's ragged loops although it does twice the flops.
-        for j in 0..S {
-            let mut acc = [0.0f64; S];
-            for m in 0..N {
-                let a = pzs[m * S + j];
-                let b = ks[m * S + j];
-                let kc = &ks[m * S..m * S + S];
-                let dc = &ds[m * S..m * S + S];
-                for r in 0..S {
-                    acc[r] = madd::<FMA>(a, kc[r], madd::<FMA>(b, dc[r], acc[r]));
-                }
-            }
-            for (c, v) in p[j * S..j * S + S].iter_mut().zip(acc) {
-                *c -= v;
-            }
-        }
+        let k = if alpha == 1.0 { &b.k } else { &b.damped_k };
+        b.d.copy_from(&b.pz);
+        minus_k_sz::<FMA>(k.as_slice(), b.sz.as_slice(), b.d.as_mut_slice(), n, s);
+        joseph_columns::<FMA>(
+            k.as_slice(),
+            b.d.as_slice(),
+            b.pz.as_slice(),
+            self.p.as_mut_slice(),
+            n,
+            s,
+        );
         // The two triangles now differ by rounding; the prediction that always follows
         // mirrors its upper triangle, so the stored P is exactly symmetric.
     }
@@ -562,84 +688,65 @@ impl<M: LinearDynamics<N, P>, const N: usize, const P: usize, const S: usize> Ek
     fn update<const FMA: bool>(
         &mut self,
         o: usize,
-        z: &SVector<f64, N>,
-        r: &SVector<f64, N>,
+        z: &OVector<f64, N>,
+        velocity: bool,
         alpha: f64,
     ) -> Result<()> {
-        let g = self.gain::<FMA>(o, r)?;
-        let innovation = z - self.x.fixed_rows::<N>(o);
-        self.x += (g.k * innovation) * alpha;
-        self.update_covariance::<FMA>(&g, alpha);
+        self.gain::<FMA>(o, velocity)?;
+        let n = self.n();
+        let b = &mut self.buf;
+        for i in 0..n {
+            b.innovation[i] = z[i] - self.x[o + i];
+        }
+        self.x.gemv(alpha, &b.k, &b.innovation, 1.0);
+        self.update_covariance::<FMA>(alpha);
         Ok(())
     }
 
-    /// The model's forward dynamics and derivatives at a state.
+    /// The model's forward dynamics and derivatives at the state (the candidate buffer
+    /// if `candidate`, else x), into the buffers.
     #[inline(always)]
-    fn derivatives(
-        &self,
-        x: &SVector<f64, S>,
-        tau: &SVector<f64, N>,
-    ) -> Result<ForwardDerivatives<N, P>> {
-        let q: SVector<f64, N> = x.fixed_rows::<N>(0).into_owned();
-        let v: SVector<f64, N> = x.fixed_rows::<N>(N).into_owned();
-        let lam: SVector<f64, P> = x.fixed_rows::<P>(2 * N).into_owned();
+    fn derivatives(&mut self, candidate: bool, tau: &OVector<f64, N>) -> Result<()> {
+        let n = self.n();
+        let b = &mut self.buf;
+        let x = if candidate { &b.candidate } else { &self.x };
+        let xs = x.as_slice();
+        b.q.as_mut_slice().copy_from_slice(&xs[..n]);
+        b.v.as_mut_slice().copy_from_slice(&xs[n..2 * n]);
+        b.lam.as_mut_slice().copy_from_slice(&xs[2 * n..]);
         self.model
-            .forward_derivatives(&q, &v, tau, &lam)
-            .map_err(|_| PrrrpError::Diverged {
-                what: "extended Kalman filter",
-                at: self.samples,
-                hint: "M(q, λ̂) is not positive definite: the parameter estimate left the \
-                       physical region; start from a better λ0, lower the initial \
-                       parameter uncertainty or raise the measurement noise",
+            .forward_derivatives_into(&mut self.ws, &b.q, &b.v, tau, &b.lam, &mut b.fd)
+            .map_err(|e| match e {
+                PrrrpError::NotPositiveDefinite { .. } => PrrrpError::Diverged {
+                    what: "extended Kalman filter",
+                    at: self.samples,
+                    hint: "M(q, λ̂) is not positive definite: the parameter estimate left the \
+                           physical region; start from a better λ0, lower the initial \
+                           parameter uncertainty or raise the measurement noise",
+                },
+                other => other,
             })
     }
 
-    /// Time update with the derivatives at the current state: x ← f(x, τ),
-    /// P ← F·P·Fᵀ + Q.
+    /// Time update with the derivatives in the buffers: x ← f(x, τ), P ← F·P·Fᵀ + Q.
     #[inline(always)]
-    fn predict<const FMA: bool>(&mut self, fd: &ForwardDerivatives<N, P>) {
+    fn predict<const FMA: bool>(&mut self) {
         let h = self.config.dt;
-        let q: SVector<f64, N> = self.x.fixed_rows::<N>(0).into_owned();
-        let v: SVector<f64, N> = self.x.fixed_rows::<N>(N).into_owned();
+        let (n, s) = (self.n(), self.x.nrows());
+        let b = &mut self.buf;
+        let fd = &b.fd;
 
-        // A = ∂q̈/∂x (N×S), then G = P·Aᵀ (S×N), skipping zero entries of A.
-        let mut a = SMatrix::<f64, N, S>::zeros();
-        a.fixed_columns_mut::<N>(0).copy_from(&fd.dqdd_dq);
-        a.fixed_columns_mut::<N>(N).copy_from(&fd.dqdd_dqd);
-        a.fixed_columns_mut::<P>(2 * N).copy_from(&fd.dqdd_dlambda);
-        let mut g = SMatrix::<f64, S, N>::zeros();
-        {
-            let ps = self.p.as_slice();
-            let gs = g.as_mut_slice();
-            for kk in 0..S {
-                let pc = &ps[kk * S..kk * S + S];
-                for i in 0..N {
-                    let f = a[(i, kk)];
-                    if f != 0.0 {
-                        let gc = &mut gs[i * S..i * S + S];
-                        for (gv, &pv) in gc.iter_mut().zip(pc) {
-                            *gv = madd::<FMA>(f, pv, *gv);
-                        }
-                    }
-                }
-            }
-        }
-        // A·P·Aᵀ = A·G (N×N). Column kk of A outer, so that the N column sums advance
-        // side by side instead of one dependent chain at a time; zero columns of A (joints
-        // the dynamics do not depend on) are skipped.
-        let mut apa = SMatrix::<f64, N, N>::zeros();
-        for kk in 0..S {
-            let ac = a.column(kk);
-            if ac.iter().all(|&v| v == 0.0) {
-                continue;
-            }
-            for j in 0..N {
-                let gv = g[(kk, j)];
-                for i in 0..N {
-                    apa[(i, j)] = madd::<FMA>(ac[i], gv, apa[(i, j)]);
-                }
-            }
-        }
+        // A = ∂q̈/∂x = [∂q̈/∂q, ∂q̈/∂q̇, ∂q̈/∂λ] (N×S), read in place from the three
+        // blocks; then G = P·Aᵀ (S×N), skipping zero entries of A.
+        let (dq, dqd, dl) = (
+            fd.dqdd_dq.as_slice(),
+            fd.dqdd_dqd.as_slice(),
+            fd.dqdd_dlambda.as_slice(),
+        );
+        b.g.fill(0.0);
+        p_times_at::<FMA>(self.p.as_slice(), dq, dqd, dl, b.g.as_mut_slice(), n, s);
+        b.apa.fill(0.0);
+        a_times_g::<FMA>(dq, dqd, dl, b.g.as_slice(), b.apa.as_mut_slice(), n, s);
 
         // F = I + E with E_q = [c·h·A_q, h·I + c·h·A_v, c·h·A_λ], E_v = h·A, E_λ = 0
         // (c = h/2 for the second-order position update, 0 for Euler), so
@@ -652,70 +759,77 @@ impl<M: LinearDynamics<N, P>, const N: usize, const P: usize, const S: usize> Ek
         };
         let h2 = h * h;
         let (hc, h2c, h2c2) = (h * c, h2 * c, h2 * c * c);
-        let gs = g.as_slice();
+        let gs = b.g.as_slice();
+        let apa = &b.apa;
         let p = self.p.as_mut_slice();
-        let at = |i: usize, j: usize| j * S + i;
-        for j in 0..N {
+        let at = |i: usize, j: usize| j * s + i;
+        for j in 0..n {
             for i in 0..=j {
-                p[at(i, j)] += h * (p[at(N + i, j)] + p[at(i, N + j)])
-                    + h2 * p[at(N + i, N + j)]
-                    + hc * (gs[j * S + i] + gs[i * S + j])
-                    + h2c * (gs[j * S + N + i] + gs[i * S + N + j])
+                p[at(i, j)] += h * (p[at(n + i, j)] + p[at(i, n + j)])
+                    + h2 * p[at(n + i, n + j)]
+                    + hc * (gs[j * s + i] + gs[i * s + j])
+                    + h2c * (gs[j * s + n + i] + gs[i * s + n + j])
                     + h2c2 * apa[(i, j)];
             }
         }
-        for j in 2 * N..S {
-            for i in 0..N {
-                p[at(i, j)] += h * p[at(N + i, j)] + hc * gs[i * S + j];
+        for j in 2 * n..s {
+            for i in 0..n {
+                p[at(i, j)] += h * p[at(n + i, j)] + hc * gs[i * s + j];
             }
         }
-        for j in 0..N {
-            for i in 0..N {
-                p[at(i, N + j)] += h * (p[at(N + i, N + j)] + gs[j * S + i])
-                    + hc * gs[i * S + N + j]
-                    + h2 * gs[j * S + N + i]
+        for j in 0..n {
+            for i in 0..n {
+                p[at(i, n + j)] += h * (p[at(n + i, n + j)] + gs[j * s + i])
+                    + hc * gs[i * s + n + j]
+                    + h2 * gs[j * s + n + i]
                     + h2c * apa[(i, j)];
             }
         }
-        for j in 0..N {
+        for j in 0..n {
             for i in 0..=j {
-                p[at(N + i, N + j)] +=
-                    h * (gs[i * S + N + j] + gs[j * S + N + i]) + h2 * apa[(i, j)];
+                p[at(n + i, n + j)] +=
+                    h * (gs[i * s + n + j] + gs[j * s + n + i]) + h2 * apa[(i, j)];
             }
         }
-        for j in 2 * N..S {
-            for i in 0..N {
-                p[at(N + i, j)] += h * gs[i * S + j];
+        for j in 2 * n..s {
+            for i in 0..n {
+                p[at(n + i, j)] += h * gs[i * s + j];
             }
         }
-        for i in 0..S {
+        for i in 0..s {
             p[at(i, i)] += self.q_diag[i];
         }
-        mirror_upper(&mut self.p);
+        mirror_upper(p, s);
 
-        for i in 0..N {
-            self.x[i] = q[i] + h * v[i] + hc * fd.qdd[i];
-            self.x[N + i] = v[i] + h * fd.qdd[i];
+        let qdd = &fd.qdd;
+        for i in 0..n {
+            let (qi, vi) = (self.x[i], self.x[n + i]);
+            self.x[i] = qi + h * vi + hc * qdd[i];
+            self.x[n + i] = vi + h * qdd[i];
         }
     }
 }
 
-impl<M: LinearDynamics<N, P>, const N: usize, const P: usize, const S: usize> Estimator<N, P>
-    for Ekf<M, N, P, S>
+impl<M, N: Dim, P: Dim, S: Dim> Estimator<N, P> for EkfOf<M, N, P, S>
+where
+    M: LinearModel<N, P>,
+    DefaultAllocator: EkfAllocator<N, P, S>,
 {
     /// One sample k: update with the measurement (q, and q̇ if configured), then predict
     /// to k+1 with τ_k held over the period. The returned λ̂ is the posterior at k (the
     /// prediction does not change λ). A NaN or ∞ in a measurement skips that update (see
-    /// [`Ekf::skipped_updates`]); q̈ is ignored. If the posterior λ̂ makes M(q, λ̂)
+    /// [`EkfOf::skipped_updates`]); q̈ is ignored. If the posterior λ̂ makes M(q, λ̂)
     /// indefinite, the update is repeated with the gain halved, up to 10 times (see
-    /// [`Ekf::damped_updates`]).
+    /// [`EkfOf::damped_updates`]).
     ///
     /// # Errors
-    /// [`PrrrpError::NonFinite`] for NaN/∞ in τ; [`PrrrpError::NotPositiveDefinite`] if the
-    /// innovation covariance cannot be factorised; [`PrrrpError::Diverged`] if M(q, λ̂) is
-    /// not positive definite even with the smallest gain (λ₀ itself not physical) — the
-    /// filter is then left at its prior for this sample — or the state became non-finite.
-    fn step(&mut self, sample: Sample<'_, N>) -> Result<&SVector<f64, P>> {
+    /// [`PrrrpError::ShapeMismatch`] for a sample whose vectors do not have one entry per
+    /// joint; [`PrrrpError::NonFinite`] for NaN/∞ in τ; [`PrrrpError::NotPositiveDefinite`]
+    /// if the innovation covariance cannot be factorised; [`PrrrpError::Diverged`] if
+    /// M(q, λ̂) is not positive definite even with the smallest gain (λ₀ itself not
+    /// physical) — the filter is then left at its prior for this sample — or the state
+    /// became non-finite.
+    fn step(&mut self, sample: SampleOf<'_, N>) -> Result<&OVector<f64, P>> {
         #[cfg(target_arch = "x86_64")]
         if self.avx2 {
             // SAFETY: `avx2` is set at construction only when the CPU reports AVX2 and FMA.
@@ -726,14 +840,17 @@ impl<M: LinearDynamics<N, P>, const N: usize, const P: usize, const S: usize> Es
         Ok(&self.lambda)
     }
 
-    fn estimate(&self) -> &SVector<f64, P> {
+    fn estimate(&self) -> &OVector<f64, P> {
         &self.lambda
     }
 
     fn reset(&mut self) {
-        self.x = self.x0;
-        self.p = self.p0;
-        self.lambda = self.x0.fixed_rows::<P>(2 * N).into_owned();
+        let n = self.n();
+        self.x.copy_from(&self.x0);
+        self.p.copy_from(&self.p0);
+        self.lambda
+            .as_mut_slice()
+            .copy_from_slice(&self.x0.as_slice()[2 * n..]);
         self.initialised = false;
         self.samples = 0;
         self.skipped = 0;
@@ -741,7 +858,7 @@ impl<M: LinearDynamics<N, P>, const N: usize, const P: usize, const S: usize> Es
     }
 }
 
-fn check_variances<const D: usize>(what: &str, v: &SVector<f64, D>, zero_ok: bool) -> Result<()> {
+fn check_variances(what: &str, v: &[f64], zero_ok: bool) -> Result<()> {
     for (i, &x) in v.iter().enumerate() {
         let ok = x.is_finite() && (x > 0.0 || (zero_ok && x == 0.0));
         if !ok {
@@ -759,56 +876,213 @@ fn check_variances<const D: usize>(what: &str, v: &SVector<f64, D>, zero_ok: boo
     Ok(())
 }
 
-/// Lower Cholesky factor of a small SPD matrix, `None` if a pivot is not positive.
+/// K = P_·z·S_z⁻¹ as N independent column sums over whole S-long columns (slices as
+/// parameters: the optimiser then knows that K does not alias P_·z).
 #[inline(always)]
-fn cholesky<const D: usize>(a: &SMatrix<f64, D, D>) -> Option<SMatrix<f64, D, D>> {
-    let mut l = SMatrix::<f64, D, D>::zeros();
-    for j in 0..D {
-        let mut d = a[(j, j)];
+fn gain_columns<const FMA: bool>(pzs: &[f64], sinv: &[f64], ks: &mut [f64], n: usize, s: usize) {
+    for m in 0..n {
+        let pc = &pzs[m * s..m * s + s];
+        for j in 0..n {
+            let f = sinv[j * n + m];
+            for (kv, &pv) in ks[j * s..j * s + s].iter_mut().zip(pc) {
+                *kv = madd::<FMA>(f, pv, *kv);
+            }
+        }
+    }
+}
+
+/// G += P·Aᵀ (S×N) with A = [∂q̈/∂q, ∂q̈/∂q̇, ∂q̈/∂λ] given as its three column-major
+/// blocks, skipping zero entries of A (most of −M⁻¹Φ for PRRRP).
+#[inline(always)]
+fn p_times_at<const FMA: bool>(
+    ps: &[f64],
+    dq: &[f64],
+    dqd: &[f64],
+    dl: &[f64],
+    gs: &mut [f64],
+    n: usize,
+    s: usize,
+) {
+    for kk in 0..s {
+        let acol = if kk < n {
+            &dq[kk * n..kk * n + n]
+        } else if kk < 2 * n {
+            &dqd[(kk - n) * n..(kk - n) * n + n]
+        } else {
+            &dl[(kk - 2 * n) * n..(kk - 2 * n) * n + n]
+        };
+        let pc = &ps[kk * s..kk * s + s];
+        for (i, &f) in acol.iter().enumerate() {
+            if f != 0.0 {
+                let gc = &mut gs[i * s..i * s + s];
+                for (gv, &pv) in gc.iter_mut().zip(pc) {
+                    *gv = madd::<FMA>(f, pv, *gv);
+                }
+            }
+        }
+    }
+}
+
+/// D −= K'·S_z (D = P_·z on entry), column by column.
+#[inline(always)]
+fn minus_k_sz<const FMA: bool>(ks: &[f64], sz: &[f64], dsm: &mut [f64], n: usize, s: usize) {
+    for j in 0..n {
+        let dc = &mut dsm[j * s..j * s + s];
+        for m in 0..n {
+            let f = sz[j * n + m];
+            let kc = &ks[m * s..m * s + s];
+            for (a, &bv) in dc.iter_mut().zip(kc) {
+                *a = madd::<FMA>(-f, bv, *a);
+            }
+        }
+    }
+}
+
+/// A·P·Aᵀ = A·G (N×N) into `apa`. Column kk of A outer, so that the N column sums advance
+/// side by side instead of one dependent chain at a time; zero columns of A (joints the
+/// dynamics do not depend on) are skipped.
+#[inline(always)]
+fn a_times_g<const FMA: bool>(
+    dq: &[f64],
+    dqd: &[f64],
+    dl: &[f64],
+    gs: &[f64],
+    apa: &mut [f64],
+    n: usize,
+    s: usize,
+) {
+    for kk in 0..s {
+        let ac = if kk < n {
+            &dq[kk * n..kk * n + n]
+        } else if kk < 2 * n {
+            &dqd[(kk - n) * n..(kk - n) * n + n]
+        } else {
+            &dl[(kk - 2 * n) * n..(kk - 2 * n) * n + n]
+        };
+        if ac.iter().all(|&v| v == 0.0) {
+            continue;
+        }
+        for j in 0..n {
+            let gv = gs[j * s + kk];
+            let col = &mut apa[j * n..j * n + n];
+            for (x, &a) in col.iter_mut().zip(ac) {
+                *x = madd::<FMA>(a, gv, *x);
+            }
+        }
+    }
+}
+
+/// Rows per stack accumulator of [`joseph_columns`]: a whole column at the PRRRP's S = 18
+/// (kept in registers), a few blocks at run-time sizes.
+const ACC_ROWS: usize = 32;
+
+/// The Joseph update P ← P − K'·P_z· − D·K'ᵀ column by column: column j of P loses
+/// Σ_m (P_·z)_jm·K'_·m + K'_jm·D_·m. Whole columns (in blocks of [`ACC_ROWS`] rows summed in a stack array, so
+/// that the accumulator stays in registers and cannot alias P): at compile-time sizes
+/// fully unrolled and vectorised, which is faster than the triangle's ragged loops
+/// although it does twice the flops.
+#[inline(always)]
+fn joseph_columns<const FMA: bool>(
+    ks: &[f64],
+    ds: &[f64],
+    pzs: &[f64],
+    p: &mut [f64],
+    n: usize,
+    s: usize,
+) {
+    if s <= ACC_ROWS {
+        // One block per column (every compile-time size up to 32 states, PRRRP's 18):
+        // the trip count is the constant S, so the column is fully unrolled.
+        for j in 0..s {
+            let mut acc = [0.0f64; ACC_ROWS];
+            for m in 0..n {
+                let a = pzs[m * s + j];
+                let bv = ks[m * s + j];
+                let kc = &ks[m * s..m * s + s];
+                let dc = &ds[m * s..m * s + s];
+                for r in 0..s {
+                    acc[r] = madd::<FMA>(a, kc[r], madd::<FMA>(bv, dc[r], acc[r]));
+                }
+            }
+            for (c, &v) in p[j * s..j * s + s].iter_mut().zip(acc.iter()) {
+                *c -= v;
+            }
+        }
+        return;
+    }
+    for j in 0..s {
+        let mut r0 = 0;
+        while r0 < s {
+            let len = (s - r0).min(ACC_ROWS);
+            let mut acc = [0.0f64; ACC_ROWS];
+            let acc = &mut acc[..len];
+            for m in 0..n {
+                let a = pzs[m * s + j];
+                let bv = ks[m * s + j];
+                let kc = &ks[m * s + r0..m * s + r0 + len];
+                let dc = &ds[m * s + r0..m * s + r0 + len];
+                for ((ac, &kv), &dv) in acc.iter_mut().zip(kc).zip(dc) {
+                    *ac = madd::<FMA>(a, kv, madd::<FMA>(bv, dv, *ac));
+                }
+            }
+            for (c, &v) in p[j * s + r0..j * s + r0 + len].iter_mut().zip(acc.iter()) {
+                *c -= v;
+            }
+            r0 += len;
+        }
+    }
+}
+
+/// Lower Cholesky factor of a small SPD n×n matrix (column-major slices) into `l`;
+/// `false` if a pivot is not positive.
+#[inline(always)]
+fn cholesky(a: &[f64], n: usize, l: &mut [f64]) -> bool {
+    l.fill(0.0);
+    for j in 0..n {
+        let mut d = a[j * n + j];
         for k in 0..j {
-            d -= l[(j, k)] * l[(j, k)];
+            d -= l[k * n + j] * l[k * n + j];
         }
         if !(d > 0.0 && d.is_finite()) {
-            return None;
+            return false;
         }
         let djj = d.sqrt();
-        l[(j, j)] = djj;
+        l[j * n + j] = djj;
         let inv = 1.0 / djj;
-        for i in j + 1..D {
-            let mut s = a[(i, j)];
+        for i in j + 1..n {
+            let mut s = a[j * n + i];
             for k in 0..j {
-                s -= l[(i, k)] * l[(j, k)];
+                s -= l[k * n + i] * l[k * n + j];
             }
-            l[(i, j)] = s * inv;
+            l[j * n + i] = s * inv;
         }
     }
-    Some(l)
+    true
 }
 
-/// Inverse of a lower-triangular matrix with a positive diagonal, by forward substitution.
+/// Inverse of a lower-triangular n×n matrix with a positive diagonal (column-major
+/// slices), by forward substitution.
 #[inline(always)]
-fn lower_triangular_inverse<const D: usize>(l: &SMatrix<f64, D, D>) -> SMatrix<f64, D, D> {
-    let mut inv = SMatrix::<f64, D, D>::zeros();
-    for j in 0..D {
-        inv[(j, j)] = 1.0 / l[(j, j)];
-        for i in j + 1..D {
+fn lower_triangular_inverse(l: &[f64], n: usize, inv: &mut [f64]) {
+    inv.fill(0.0);
+    for j in 0..n {
+        inv[j * n + j] = 1.0 / l[j * n + j];
+        for i in j + 1..n {
             let mut s = 0.0;
             for k in j..i {
-                s += l[(i, k)] * inv[(k, j)];
+                s += l[k * n + i] * inv[j * n + k];
             }
-            inv[(i, j)] = -s / l[(i, i)];
+            inv[j * n + i] = -s / l[i * n + i];
         }
     }
-    inv
 }
 
-/// Copies the upper triangle onto the lower one.
+/// Copies the upper triangle of the column-major d×d `p` onto the lower one.
 #[inline(always)]
-fn mirror_upper<const D: usize>(p: &mut SMatrix<f64, D, D>) {
-    let s = p.as_mut_slice();
-    for j in 0..D {
-        for i in j + 1..D {
-            s[j * D + i] = s[i * D + j];
+fn mirror_upper(p: &mut [f64], d: usize) {
+    for j in 0..d {
+        for i in j + 1..d {
+            p[j * d + i] = p[i * d + j];
         }
     }
 }
@@ -816,6 +1090,7 @@ fn mirror_upper<const D: usize>(p: &mut SMatrix<f64, D, D>) {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::estimators::Sample;
     use crate::Robot;
 
     /// The AVX2/FMA copy of the step and the portable one compute the same filter (up to

@@ -1,25 +1,31 @@
 //! The common shape of the online estimators.
 
-use nalgebra::SVector;
+use nalgebra::allocator::Allocator;
+use nalgebra::{DefaultAllocator, Dim, OVector};
 
-use super::samples::{Sample, Samples};
+use super::samples::{SampleOf, SamplesOf};
 use crate::error::{PrrrpError, Result};
 
 /// An online estimator of the P parameters of an N-joint model.
 ///
-/// Implemented by [`super::Rls`], [`super::Adaline`], [`super::Hopfield`] and
-/// [`super::Ekf`]. `step` never allocates (proven by `tests/alloc_estimators.rs`).
-pub trait Estimator<const N: usize, const P: usize> {
+/// N and P are nalgebra dimensions: `Const<5>, Const<8>` (alias `U5, U8`) for the PRRRP
+/// arm, [`nalgebra::Dyn`] for models sized at run time. Implemented by
+/// [`super::RlsOf`], [`super::AdalineOf`], [`super::HopfieldOf`] and [`super::EkfOf`] for
+/// both. `step` never allocates (proven by `tests/alloc_estimators.rs`).
+pub trait Estimator<N: Dim, P: Dim>
+where
+    DefaultAllocator: Allocator<N> + Allocator<P>,
+{
     /// Consumes one sample and returns the updated estimate λ̂.
     ///
     /// # Errors
     /// A typed [`PrrrpError`] for bad input (NaN, out-of-range values) or numerical failure
     /// (divergence, a covariance that is no longer positive definite); see each
     /// implementation. After an error the estimator should be [`reset`](Self::reset).
-    fn step(&mut self, sample: Sample<'_, N>) -> Result<&SVector<f64, P>>;
+    fn step(&mut self, sample: SampleOf<'_, N>) -> Result<&OVector<f64, P>>;
 
     /// The current estimate λ̂.
-    fn estimate(&self) -> &SVector<f64, P>;
+    fn estimate(&self) -> &OVector<f64, P>;
 
     /// Returns to the state right after construction (initial λ̂, covariances, counters).
     fn reset(&mut self);
@@ -29,11 +35,11 @@ pub trait Estimator<const N: usize, const P: usize> {
     ///
     /// # Errors
     /// The first error of `step`; a [`PrrrpError::NonFinite`] names the sample index.
-    fn run(&mut self, data: &Samples<'_, N>) -> Result<SVector<f64, P>> {
+    fn run(&mut self, data: &SamplesOf<'_, N>) -> Result<OVector<f64, P>> {
         for (k, sample) in data.iter().enumerate() {
             self.step(sample).map_err(|e| with_row(e, k))?;
         }
-        Ok(*self.estimate())
+        Ok(self.estimate().clone())
     }
 }
 
@@ -57,14 +63,15 @@ pub struct TrainingReport {
 /// The epoch loop shared by [`super::Adaline::train`] and [`super::Hopfield::train`]:
 /// `totals` gives the estimator's running sum of squared a-priori equation errors and its
 /// equation count, which are cleared before each epoch and read after it.
-pub(crate) fn train_epochs<E, const N: usize, const P: usize>(
+pub(crate) fn train_epochs<E, N: Dim, P: Dim>(
     est: &mut E,
-    data: &Samples<'_, N>,
+    data: &SamplesOf<'_, N>,
     epochs: usize,
     totals: fn(&mut E) -> (&mut f64, &mut usize),
 ) -> Result<TrainingReport>
 where
     E: Estimator<N, P>,
+    DefaultAllocator: Allocator<N> + Allocator<P>,
 {
     let mut rms_error = Vec::with_capacity(epochs);
     for _ in 0..epochs {

@@ -13,12 +13,19 @@
 //! ‖Φ‖_F² (a trace, 40 multiply-adds for a 5×8 Φ), and the sample is split into as many
 //! sub-steps as that bound requires.
 
-use nalgebra::SVector;
+use nalgebra::allocator::Allocator;
+use nalgebra::{Const, DefaultAllocator, Dim, Dyn, OMatrix, OVector, U1};
 
 use super::estimator::{train_epochs, Estimator, TrainingReport};
-use super::samples::{Sample, Samples};
+use super::rls::check_lambda0;
+use super::samples::{SampleOf, SamplesOf};
 use crate::error::{PrrrpError, Result};
-use crate::model::LinearDynamics;
+use crate::model::LinearModel;
+
+/// Hopfield network for a compile-time-size model (e.g. the PRRRP arm).
+pub type Hopfield<M, const N: usize, const P: usize> = HopfieldOf<M, Const<N>, Const<P>>;
+/// Hopfield network for a run-time-size model (e.g. [`crate::DynChainBaseModel`]).
+pub type DynHopfield<M> = HopfieldOf<M, Dyn, Dyn>;
 
 /// Settings of [`Hopfield`].
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -54,13 +61,25 @@ impl Default for HopfieldConfig {
     }
 }
 
-/// Hopfield-network estimator (Abe formulation, eq. 19).
+/// Hopfield-network estimator (Abe formulation, eq. 19). One implementation for both
+/// size worlds (see [`Hopfield`], [`DynHopfield`]); all buffers are sized at
+/// construction.
 #[derive(Debug, Clone)]
-pub struct Hopfield<M, const N: usize, const P: usize> {
+pub struct HopfieldOf<M, N: Dim, P: Dim>
+where
+    M: LinearModel<N, P>,
+    DefaultAllocator: Allocator<N> + Allocator<P> + Allocator<N, N> + Allocator<N, P>,
+{
     model: M,
+    ws: M::Workspace,
     config: HopfieldConfig,
-    lambda0: SVector<f64, P>,
-    lambda: SVector<f64, P>,
+    lambda0: OVector<f64, P>,
+    lambda: OVector<f64, P>,
+    phi: OMatrix<f64, N, P>,
+    /// Residual τ − Φ·λ̂ of the current sub-step.
+    r: OVector<f64, N>,
+    /// Φᵀ·r.
+    g: OVector<f64, P>,
     /// Largest |λ̂_i| allowed: c shrunk by a relative 1e-9, so that D_c never reaches 0 and
     /// a clamped parameter can still move back.
     inner: f64,
@@ -72,13 +91,18 @@ pub struct Hopfield<M, const N: usize, const P: usize> {
     substeps: u64,
 }
 
-impl<M: LinearDynamics<N, P>, const N: usize, const P: usize> Hopfield<M, N, P> {
+impl<M, N: Dim, P: Dim> HopfieldOf<M, N, P>
+where
+    M: LinearModel<N, P>,
+    DefaultAllocator: Allocator<N> + Allocator<P> + Allocator<N, N> + Allocator<N, P>,
+{
     /// A network whose state starts at λ₀ (zeros are fine: no prior is needed).
     ///
     /// # Errors
     /// [`PrrrpError::InvalidParameter`] for a non-positive or non-finite c, β or dt, a
-    /// stability limit outside (0, 2), zero sub-steps, or a λ₀ outside (−c, c).
-    pub fn new(model: M, lambda0: SVector<f64, P>, config: HopfieldConfig) -> Result<Self> {
+    /// stability limit outside (0, 2), zero sub-steps, or a λ₀ outside (−c, c);
+    /// [`PrrrpError::ShapeMismatch`] if λ₀ does not have one entry per model parameter.
+    pub fn new(model: M, lambda0: OVector<f64, P>, config: HopfieldConfig) -> Result<Self> {
         let bad = |field: String, value: f64, reason: &'static str| {
             Err(PrrrpError::InvalidParameter {
                 field,
@@ -102,6 +126,8 @@ impl<M: LinearDynamics<N, P>, const N: usize, const P: usize> Hopfield<M, N, P> 
         if c.max_substeps == 0 {
             return bad("max_substeps".into(), 0.0, "must be at least 1");
         }
+        let (n, p) = model.dims();
+        check_lambda0(&lambda0, n.value(), p.value())?;
         for (i, &l) in lambda0.iter().enumerate() {
             if !(l.is_finite() && l.abs() < c.bound) {
                 return bad(
@@ -112,10 +138,14 @@ impl<M: LinearDynamics<N, P>, const N: usize, const P: usize> Hopfield<M, N, P> 
             }
         }
         Ok(Self {
+            ws: model.workspace(),
             model,
             config,
+            lambda: lambda0.clone(),
             lambda0,
-            lambda: lambda0,
+            phi: OMatrix::zeros_generic(n, p),
+            r: OVector::zeros_generic(n, U1),
+            g: OVector::zeros_generic(p, U1),
             inner: c.bound * (1.0 - 1e-9),
             gain_dt: c.bound / c.beta * c.dt,
             sse: 0.0,
@@ -130,7 +160,7 @@ impl<M: LinearDynamics<N, P>, const N: usize, const P: usize> Hopfield<M, N, P> 
     ///
     /// # Errors
     /// As [`Estimator::step`], with the sample index in [`PrrrpError::NonFinite`].
-    pub fn train(&mut self, data: &Samples<'_, N>, epochs: usize) -> Result<TrainingReport> {
+    pub fn train(&mut self, data: &SamplesOf<'_, N>, epochs: usize) -> Result<TrainingReport> {
         train_epochs(self, data, epochs, |e| (&mut e.sse, &mut e.equations))
     }
 
@@ -145,64 +175,110 @@ impl<M: LinearDynamics<N, P>, const N: usize, const P: usize> Hopfield<M, N, P> 
     }
 }
 
-impl<M: LinearDynamics<N, P>, const N: usize, const P: usize> Estimator<N, P>
-    for Hopfield<M, N, P>
+impl<M, N: Dim, P: Dim> Estimator<N, P> for HopfieldOf<M, N, P>
+where
+    M: LinearModel<N, P>,
+    DefaultAllocator: Allocator<N> + Allocator<P> + Allocator<N, N> + Allocator<N, P>,
 {
     /// Integrates eq. 19 over one sample period with Φ and τ held.
     ///
     /// # Errors
-    /// [`PrrrpError::NonFinite`] for NaN/∞ in the sample; [`PrrrpError::InvalidParameter`]
+    /// [`PrrrpError::ShapeMismatch`] for a sample whose vectors do not have one entry per
+    /// joint; [`PrrrpError::NonFinite`] for NaN/∞ in the sample; [`PrrrpError::InvalidParameter`]
     /// (field `beta`) if the sample needs more than `max_substeps` sub-steps for a stable
     /// integration.
-    fn step(&mut self, sample: Sample<'_, N>) -> Result<&SVector<f64, P>> {
-        sample.check_finite()?;
-        let phi = self.model.regressor(sample.q, sample.qd, sample.qdd);
-        let bound = self.gain_dt * phi.norm_squared();
-        let cfg = &self.config;
-        let n = if bound <= cfg.stability_limit {
-            1
-        } else {
-            let n = (bound / cfg.stability_limit).ceil();
-            if n.is_nan() || n > f64::from(cfg.max_substeps) {
-                return Err(PrrrpError::InvalidParameter {
-                    field: "beta".into(),
-                    value: cfg.beta,
-                    reason: "this sample needs more than max_substeps Euler sub-steps for a \
-                             stable integration: raise beta (slower learning) or max_substeps",
-                });
+    fn step(&mut self, sample: SampleOf<'_, N>) -> Result<&OVector<f64, P>> {
+        let n_joints = self.phi.nrows();
+        sample.check(n_joints)?;
+        let Self {
+            model,
+            ws,
+            config: cfg,
+            lambda,
+            phi: buf,
+            r,
+            g,
+            gain_dt,
+            inner,
+            sse,
+            ..
+        } = self;
+        let n = model.with_regressor(ws, sample.q, sample.qd, sample.qdd, buf, |phi| {
+            let bound = *gain_dt * phi.norm_squared();
+            let n = if bound <= cfg.stability_limit {
+                1
+            } else {
+                let n = (bound / cfg.stability_limit).ceil();
+                if n.is_nan() || n > f64::from(cfg.max_substeps) {
+                    return Err(PrrrpError::InvalidParameter {
+                        field: "beta".into(),
+                        value: cfg.beta,
+                        reason: "this sample needs more than max_substeps Euler sub-steps for \
+                                 a stable integration: raise beta (slower learning) or \
+                                 max_substeps",
+                    });
+                }
+                n as u32
+            };
+            let k = cfg.dt / f64::from(n) / (cfg.bound * cfg.beta);
+            let c2 = cfg.bound * cfg.bound;
+            let inner = *inner;
+            let (ps, tau) = (phi.as_slice(), sample.tau.as_slice());
+            // At compile-time sizes r and g are stack temporaries, which the optimiser
+            // keeps in registers (the buffers of `self` may alias λ for all it knows); at
+            // run-time sizes the preallocated buffers.
+            let (mut r_local, mut g_local);
+            let (r, g) = if N::try_to_usize().is_some() && P::try_to_usize().is_some() {
+                r_local = OVector::<f64, N>::zeros_generic(phi.shape_generic().0, U1);
+                g_local = OVector::<f64, P>::zeros_generic(phi.shape_generic().1, U1);
+                (r_local.as_mut_slice(), g_local.as_mut_slice())
+            } else {
+                (r.as_mut_slice(), g.as_mut_slice())
+            };
+            let lambda = lambda.as_mut_slice();
+            for s in 0..n {
+                let e2 = residual(ps, tau, lambda, r);
+                if s == 0 {
+                    *sse += e2;
+                }
+                // g = Φᵀ·r, column by column (contiguous).
+                for (gj, col) in g.iter_mut().zip(ps.chunks_exact(n_joints)) {
+                    *gj = col.iter().zip(r.iter()).map(|(a, b)| a * b).sum();
+                }
+                for (l, &gi) in lambda.iter_mut().zip(g.iter()) {
+                    let next = *l + k * (c2 - *l * *l) * gi;
+                    *l = next.clamp(-inner, inner);
+                }
             }
-            n as u32
-        };
-        let k = cfg.dt / f64::from(n) / (cfg.bound * cfg.beta);
-        let c2 = cfg.bound * cfg.bound;
-        let inner = self.inner;
-        for s in 0..n {
-            let r = sample.tau - phi * self.lambda;
-            if s == 0 {
-                self.sse += r.norm_squared();
-            }
-            let g = phi.tr_mul(&r);
-            for i in 0..P {
-                let l = self.lambda[i];
-                let next = l + k * (c2 - l * l) * g[i];
-                self.lambda[i] = next.clamp(-inner, inner);
-            }
-        }
-        self.equations += N;
+            Ok(n)
+        })??;
+        self.equations += n_joints;
         self.substeps += u64::from(n);
         self.samples += 1;
         Ok(&self.lambda)
     }
 
-    fn estimate(&self) -> &SVector<f64, P> {
+    fn estimate(&self) -> &OVector<f64, P> {
         &self.lambda
     }
 
     fn reset(&mut self) {
-        self.lambda = self.lambda0;
+        self.lambda.copy_from(&self.lambda0);
         self.sse = 0.0;
         self.equations = 0;
         self.samples = 0;
         self.substeps = 0;
     }
+}
+
+/// r = τ − Φ·λ (Φ column-major, one contiguous column per parameter); returns ‖r‖².
+#[inline(always)]
+fn residual(phi: &[f64], tau: &[f64], lambda: &[f64], r: &mut [f64]) -> f64 {
+    r.copy_from_slice(tau);
+    for (col, &l) in phi.chunks_exact(r.len()).zip(lambda) {
+        for (ri, &p) in r.iter_mut().zip(col) {
+            *ri -= p * l;
+        }
+    }
+    r.iter().map(|v| v * v).sum()
 }

@@ -8,13 +8,24 @@ use faer::linalg::qr::col_pivoting::factor::{
     qr_in_place, qr_in_place_scratch, recommended_block_size,
 };
 use faer::{Conj, Mat, Par};
-use nalgebra::{SMatrix, SVector};
+use nalgebra::allocator::Allocator;
+use nalgebra::{Const, DefaultAllocator, Dim, Dyn, OMatrix, OVector, U1};
 
-use super::samples::Samples;
+use super::samples::SamplesOf;
 use crate::error::{PrrrpError, Result};
-use crate::model::LinearDynamics;
+use crate::model::LinearModel;
 
-/// Passes of variance re-estimation for [`JointNoise::Estimated`] (the fixed point is
+/// Per-joint noise of a compile-time-size model.
+pub type JointNoise<const N: usize> = JointNoiseOf<Const<N>>;
+/// Per-joint noise of a run-time-size model.
+pub type DynJointNoise = JointNoiseOf<Dyn>;
+/// Least-squares result of a compile-time-size model.
+pub type LeastSquaresReport<const N: usize, const P: usize> =
+    LeastSquaresReportOf<Const<N>, Const<P>>;
+/// Least-squares result of a run-time-size model.
+pub type DynLeastSquaresReport = LeastSquaresReportOf<Dyn, Dyn>;
+
+/// Passes of variance re-estimation for [`JointNoiseOf::Estimated`] (the fixed point is
 /// usually reached, to 0.1 %, in two to five).
 const MAX_VARIANCE_PASSES: usize = 20;
 
@@ -36,9 +47,13 @@ impl Default for LeastSquaresConfig {
     }
 }
 
-/// Noise variances of the N joint equations for [`weighted_least_squares`].
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub enum JointNoise<const N: usize> {
+/// Noise variances of the N joint equations for [`weighted_least_squares`] (N is
+/// `Const<N>`, [`JointNoise`], or [`Dyn`], [`DynJointNoise`]).
+#[derive(Debug, Clone, PartialEq)]
+pub enum JointNoiseOf<N: Dim>
+where
+    DefaultAllocator: Allocator<N>,
+{
     /// Variances estimated from the data, as the field does it: an ordinary least-squares
     /// pass gives σ_j² of each joint from its residuals (see
     /// [`LeastSquaresReport::joint_variances`]); then each σ_j² is re-estimated from the
@@ -49,34 +64,54 @@ pub enum JointNoise<const N: usize> {
     Estimated,
     /// Known variances σ_j² of each joint's generalised force (N² or N²·m², per joint);
     /// every entry must be finite and > 0. Only their ratios change λ̂.
-    Variances(SVector<f64, N>),
+    Variances(OVector<f64, N>),
 }
 
-/// Result of a least-squares identification.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct LeastSquaresReport<const N: usize, const P: usize> {
+impl<N: Dim> Copy for JointNoiseOf<N>
+where
+    DefaultAllocator: Allocator<N>,
+    OVector<f64, N>: Copy,
+{
+}
+
+/// Result of a least-squares identification (N joints and P parameters as nalgebra
+/// dimensions: [`LeastSquaresReport`] at compile-time sizes, [`DynLeastSquaresReport`] at
+/// run-time sizes).
+#[derive(Debug, Clone, PartialEq)]
+pub struct LeastSquaresReportOf<N: Dim, P: Dim>
+where
+    DefaultAllocator: Allocator<N> + Allocator<P>,
+{
     /// Estimated parameters λ̂ (units of the model's parameters; kg, kg·m² for PRRRP).
-    pub lambda: SVector<f64, P>,
+    pub lambda: OVector<f64, P>,
     /// Condition number σmax/σmin of the matrix that was factorised (W for ordinary least
     /// squares, the row-weighted W for weighted least squares).
     pub cond: f64,
     /// Singular values of that matrix, largest first.
-    pub singular_values: SVector<f64, P>,
+    pub singular_values: OVector<f64, P>,
     /// Residual variance σ² = ‖ρ‖²/(rows − P) of the solved problem (N², N²·m² for ordinary
     /// least squares; dimensionless — ≈ 1 when the variances are right — for weighted).
     pub sigma2: f64,
     /// Standard deviation σ_i of each parameter: the square root of the diagonal of
     /// σ²·(WᵀW)⁻¹, with (WᵀW)⁻¹ = P·R⁻¹·R⁻ᵀ·Pᵀ from the QR factor (never formed from WᵀW).
-    pub std_dev: SVector<f64, P>,
+    pub std_dev: OVector<f64, P>,
     /// Relative standard deviation %σ_i = 100·σ_i/|λ̂_i| (percent; infinite for λ̂_i = 0).
-    pub rel_std_dev: SVector<f64, P>,
+    pub rel_std_dev: OVector<f64, P>,
     /// Per-joint noise variances σ_j² (units of τ_j²). Ordinary least squares: estimated
     /// from the residuals of joint j as ‖ρ_j‖²/(n − P/N), the residual degrees of freedom
     /// shared equally among the joints. Weighted least squares: the variances used as
     /// weights.
-    pub joint_variances: SVector<f64, N>,
+    pub joint_variances: OVector<f64, N>,
     /// Number of samples n (the stacked problem has N·n rows).
     pub samples: usize,
+}
+
+impl<N: Dim, P: Dim> Copy for LeastSquaresReportOf<N, P>
+where
+    DefaultAllocator: Allocator<N> + Allocator<P>,
+    OVector<f64, N>: Copy,
+    OVector<f64, P>: Copy,
+{
 }
 
 /// Batch least-squares solver owning its buffers (W, τ, Householder factors, scratch):
@@ -128,16 +163,22 @@ impl LeastSquares {
     ///
     /// # Errors
     /// As [`least_squares`].
-    pub fn solve<const N: usize, const P: usize, M: LinearDynamics<N, P>>(
+    pub fn solve<N: Dim, P: Dim, M: LinearModel<N, P>>(
         &mut self,
         model: &M,
-        data: &Samples<'_, N>,
-    ) -> Result<LeastSquaresReport<N, P>> {
-        check_samples::<N, P>(data)?;
-        let masks = self.build(model, data, &SVector::<f64, N>::repeat(1.0))?;
-        let (sol, joint_ss) = self.factor_and_solve::<N, P>(data.len(), &masks)?;
+        data: &SamplesOf<'_, N>,
+    ) -> Result<LeastSquaresReportOf<N, P>>
+    where
+        DefaultAllocator: Allocator<N> + Allocator<P> + Allocator<N, N> + Allocator<N, P>,
+    {
+        let (nd, pd) = model.dims();
+        check_samples(nd.value(), pd.value(), data)?;
+        let ones = OVector::<f64, N>::repeat_generic(nd, U1, 1.0);
+        let masks = self.build(model, data, &ones)?;
+        let (sol, joint_ss) = self.factor_and_solve(nd, pd, data.len(), &masks)?;
         // σ_j² = ‖ρ_j‖²/(n − P/N): the residual degrees of freedom shared equally.
-        let joint_variances = joint_ss / (data.len() as f64 - P as f64 / N as f64);
+        let joint_variances =
+            joint_ss / (data.len() as f64 - pd.value() as f64 / nd.value() as f64);
         Ok(sol.report(joint_variances, data.len()))
     }
 
@@ -145,14 +186,25 @@ impl LeastSquares {
     ///
     /// # Errors
     /// As [`weighted_least_squares`].
-    pub fn solve_weighted<const N: usize, const P: usize, M: LinearDynamics<N, P>>(
+    pub fn solve_weighted<N: Dim, P: Dim, M: LinearModel<N, P>>(
         &mut self,
         model: &M,
-        data: &Samples<'_, N>,
-        noise: JointNoise<N>,
-    ) -> Result<LeastSquaresReport<N, P>> {
+        data: &SamplesOf<'_, N>,
+        noise: JointNoiseOf<N>,
+    ) -> Result<LeastSquaresReportOf<N, P>>
+    where
+        DefaultAllocator: Allocator<N> + Allocator<P> + Allocator<N, N> + Allocator<N, P>,
+    {
+        let (nd, pd) = model.dims();
         let variances = match noise {
-            JointNoise::Variances(v) => {
+            JointNoiseOf::Variances(v) => {
+                if v.nrows() != nd.value() {
+                    return Err(PrrrpError::ShapeMismatch {
+                        what: "joint noise variances".into(),
+                        expected: format!("{} entries (one per joint)", nd.value()),
+                        got: format!("{} entries", v.nrows()),
+                    });
+                }
                 for (j, &s) in v.iter().enumerate() {
                     if !(s.is_finite() && s > 0.0) {
                         return Err(PrrrpError::InvalidParameter {
@@ -164,9 +216,9 @@ impl LeastSquares {
                 }
                 v
             }
-            JointNoise::Estimated => {
+            JointNoiseOf::Estimated => {
                 let ols = self.solve(model, data)?;
-                let floor = |v: SVector<f64, N>| {
+                let floor = |v: OVector<f64, N>| {
                     let max = v.max();
                     v.map(|s| s.max(1e-12 * max))
                 };
@@ -177,11 +229,11 @@ impl LeastSquares {
                     // decades apart their variances come out orders of magnitude too large.
                     // Re-estimating each σ_j² from the residuals of the weighted fit removes
                     // it; the fixed point is reached in a few passes.
-                    let dof = data.len() as f64 - P as f64 / N as f64;
+                    let dof = data.len() as f64 - pd.value() as f64 / nd.value() as f64;
                     for _ in 0..MAX_VARIANCE_PASSES {
                         let scale = var.map(|s| 1.0 / s.sqrt());
                         let masks = self.build(model, data, &scale)?;
-                        let (_, weighted_ss) = self.factor_and_solve::<N, P>(data.len(), &masks)?;
+                        let (_, weighted_ss) = self.factor_and_solve(nd, pd, data.len(), &masks)?;
                         // The weighted residuals are ρ_j/σ_j.
                         let next = floor(var.component_mul(&weighted_ss) / dof);
                         let change =
@@ -194,59 +246,69 @@ impl LeastSquares {
                     var
                 } else {
                     // A perfect fit: every weighting gives the same answer.
-                    SVector::repeat(1.0)
+                    OVector::repeat_generic(nd, U1, 1.0)
                 }
             }
         };
-        check_samples::<N, P>(data)?;
+        check_samples(nd.value(), pd.value(), data)?;
         let scale = variances.map(|s| 1.0 / s.sqrt());
         let masks = self.build(model, data, &scale)?;
-        let (sol, _) = self.factor_and_solve::<N, P>(data.len(), &masks)?;
+        let (sol, _) = self.factor_and_solve(nd, pd, data.len(), &masks)?;
         Ok(sol.report(variances, data.len()))
     }
 
     /// Stacks the row-scaled regressors into W (column-major, N·n × P) and τ into y, joint
     /// by joint (row i·n + k is joint i of sample k), and returns for each joint the set
     /// of parameters (bit mask) its equations ever involve.
-    fn build<const N: usize, const P: usize, M: LinearDynamics<N, P>>(
+    fn build<N: Dim, P: Dim, M: LinearModel<N, P>>(
         &mut self,
         model: &M,
-        data: &Samples<'_, N>,
-        row_scale: &SVector<f64, N>,
-    ) -> Result<[u64; N]> {
+        data: &SamplesOf<'_, N>,
+        row_scale: &OVector<f64, N>,
+    ) -> Result<Vec<u64>>
+    where
+        DefaultAllocator: Allocator<N> + Allocator<P> + Allocator<N, N> + Allocator<N, P>,
+    {
+        let (nd, pd) = model.dims();
+        let (nj, np) = (nd.value(), pd.value());
         let n = data.len();
-        let rows = N * n;
-        self.w.resize_with(rows, P, |_, _| 0.0);
+        // Samples::new made every vector as long as q[0]: one length check covers them.
+        if let Some(first) = data.iter().next() {
+            first.check_len(nj)?;
+        }
+        let rows = nj * n;
         self.y.resize_with(rows, 1, |_, _| 0.0);
         let y = self.y.col_as_slice_mut(0);
         for (k, s) in data.iter().enumerate() {
             s.check_finite()
                 .map_err(|e| super::estimator::with_row(e, k))?;
-            for i in 0..N {
+            for i in 0..nj {
                 y[i * n + k] = s.tau[i] * row_scale[i];
             }
         }
-        let mut nonzero = SMatrix::<bool, N, P>::repeat(false);
+        self.w.resize_with(rows, np, |_, _| 0.0);
+        let mut ws = model.workspace();
+        let mut phi = OMatrix::<f64, N, P>::zeros_generic(nd, pd);
+        // An N-vector, so that the joint loop has the model's (compile-time) length.
+        let mut masks = OVector::<u64, N>::zeros_generic(nd, U1);
+        let w = &mut self.w;
         for (k, s) in data.iter().enumerate() {
-            let phi: SMatrix<f64, N, P> = model.regressor(s.q, s.qd, s.qdd);
-            for j in 0..P {
-                let col = self.w.col_as_slice_mut(j);
-                for i in 0..N {
-                    let v = phi[(i, j)] * row_scale[i];
-                    col[i * n + k] = v;
-                    nonzero[(i, j)] |= v != 0.0;
-                }
-            }
-        }
-        let mut masks = [0u64; N];
-        for (i, m) in masks.iter_mut().enumerate() {
-            for j in 0..P {
-                if nonzero[(i, j)] {
+            model.with_regressor(&mut ws, s.q, s.qd, s.qdd, &mut phi, |phi| {
+                for j in 0..np {
                     // More than 64 parameters: one block (every bit set).
-                    *m |= if P <= 64 { 1 << j } else { u64::MAX };
+                    let bit = if np <= 64 { 1u64 << j } else { u64::MAX };
+                    let col = &mut w.col_as_slice_mut(j)[k..];
+                    for i in 0..nj {
+                        let v = phi[(i, j)] * row_scale[i];
+                        col[i * n] = v;
+                        if v != 0.0 {
+                            masks[i] |= bit;
+                        }
+                    }
                 }
-            }
+            })?;
         }
+        let masks = masks.as_slice().to_vec();
         Ok(masks)
     }
 
@@ -258,12 +320,19 @@ impl LeastSquares {
     /// those of the blocks' R factors together, (WᵀW)⁻¹ is block diagonal, and a parameter
     /// in no block is an unidentifiable direction of its own. Returns the solution and the
     /// residual sum of squares of each joint.
-    fn factor_and_solve<const N: usize, const P: usize>(
+    fn factor_and_solve<N: Dim, P: Dim>(
         &mut self,
+        nd: N,
+        pd: P,
         n: usize,
-        masks: &[u64; N],
-    ) -> Result<(Solution<P>, SVector<f64, N>)> {
-        let blocks = blocks::<N, P>(masks);
+        masks: &[u64],
+    ) -> Result<(Solution<P>, OVector<f64, N>)>
+    where
+        DefaultAllocator: Allocator<N> + Allocator<P>,
+    {
+        #[allow(non_snake_case)]
+        let (N, P) = (nd.value(), pd.value());
+        let blocks = blocks(masks, P);
         let whole = blocks.len() == 1 && blocks[0].0.len() == N && blocks[0].1.len() == P;
         let total_rows = N * n;
         let bs = recommended_block_size::<f64>(total_rows, P);
@@ -279,10 +348,10 @@ impl LeastSquares {
         }
 
         let mut spectrum: Vec<(f64, Vec<f64>)> = Vec::with_capacity(P);
-        let mut lambda = SVector::<f64, P>::zeros();
-        let mut rinv_norm2 = SVector::<f64, P>::zeros();
-        let mut joint_ss = SVector::<f64, N>::zeros();
-        let mut covered = [false; P];
+        let mut lambda = OVector::<f64, P>::zeros_generic(pd, U1);
+        let mut rinv_norm2 = OVector::<f64, P>::zeros_generic(pd, U1);
+        let mut joint_ss = OVector::<f64, N>::zeros_generic(nd, U1);
+        let mut covered = vec![false; P];
         for (i, &m) in masks.iter().enumerate() {
             if m == 0 {
                 // A joint whose equations involve no parameter: all of τ_i is residual.
@@ -405,7 +474,7 @@ impl LeastSquares {
             }
         }
         spectrum.sort_by(|a, b| b.0.total_cmp(&a.0));
-        let singular_values = SVector::<f64, P>::from_fn(|i, _| spectrum[i].0);
+        let singular_values = OVector::<f64, P>::from_fn_generic(pd, U1, |i, _| spectrum[i].0);
         let smax = singular_values[0];
         let rank = singular_values
             .iter()
@@ -453,31 +522,37 @@ impl LeastSquares {
 /// - [`PrrrpError::RankDeficient`] with the unidentifiable parameter directions when W does
 ///   not determine every parameter (a trajectory that does not excite them);
 /// - [`PrrrpError::InvalidParameter`] for a rank tolerance outside [0, 1).
-pub fn least_squares<const N: usize, const P: usize, M: LinearDynamics<N, P>>(
+pub fn least_squares<N: Dim, P: Dim, M: LinearModel<N, P>>(
     model: &M,
-    data: &Samples<'_, N>,
+    data: &SamplesOf<'_, N>,
     config: &LeastSquaresConfig,
-) -> Result<LeastSquaresReport<N, P>> {
+) -> Result<LeastSquaresReportOf<N, P>>
+where
+    DefaultAllocator: Allocator<N> + Allocator<P> + Allocator<N, N> + Allocator<N, P>,
+{
     LeastSquares::new(*config)?.solve(model, data)
 }
 
 /// Weighted least squares: every equation of joint j is divided by σ_j, so that noisier
 /// joints count less (the field's standard for joints with different sensors or units).
 ///
-/// With [`JointNoise::Estimated`] the variances come from an ordinary least-squares pass,
-/// refined from the weighted residuals (see [`JointNoise::Estimated`]; floored at 1e-12 of
+/// With [`JointNoiseOf::Estimated`] the variances come from an ordinary least-squares pass,
+/// refined from the weighted residuals (see [`JointNoiseOf::Estimated`]; floored at 1e-12 of
 /// the largest, so that a noise-free joint cannot get an infinite weight). The reported σ_i use σ²·(W_wᵀW_w)⁻¹, with σ² the weighted residual
 /// variance, so they stay right when the variances are known only up to a common factor.
 ///
 /// # Errors
 /// As [`least_squares`], and [`PrrrpError::InvalidParameter`] for a given variance that is
 /// not finite and > 0.
-pub fn weighted_least_squares<const N: usize, const P: usize, M: LinearDynamics<N, P>>(
+pub fn weighted_least_squares<N: Dim, P: Dim, M: LinearModel<N, P>>(
     model: &M,
-    data: &Samples<'_, N>,
-    noise: JointNoise<N>,
+    data: &SamplesOf<'_, N>,
+    noise: JointNoiseOf<N>,
     config: &LeastSquaresConfig,
-) -> Result<LeastSquaresReport<N, P>> {
+) -> Result<LeastSquaresReportOf<N, P>>
+where
+    DefaultAllocator: Allocator<N> + Allocator<P> + Allocator<N, N> + Allocator<N, P>,
+{
     LeastSquares::new(*config)?.solve_weighted(model, data, noise)
 }
 
@@ -493,10 +568,20 @@ fn check_config(config: &LeastSquaresConfig) -> Result<()> {
     Ok(())
 }
 
-fn check_samples<const N: usize, const P: usize>(data: &Samples<'_, N>) -> Result<()> {
+fn check_samples<N: Dim>(nj: usize, np: usize, data: &SamplesOf<'_, N>) -> Result<()>
+where
+    DefaultAllocator: Allocator<N>,
+{
+    if nj == 0 || np == 0 {
+        return Err(PrrrpError::ShapeMismatch {
+            what: "model".into(),
+            expected: "at least one joint and one parameter".into(),
+            got: format!("{nj} joints, {np} parameters"),
+        });
+    }
     // At least one residual degree of freedom, so that σ² is defined.
-    let needed = (P + 1).div_ceil(N.max(1));
-    if data.len() < needed || N == 0 {
+    let needed = (np + 1).div_ceil(nj);
+    if data.len() < needed {
         return Err(PrrrpError::TooFewSamples {
             needed,
             got: data.len(),
@@ -506,34 +591,45 @@ fn check_samples<const N: usize, const P: usize>(data: &Samples<'_, N>) -> Resul
 }
 
 /// The solved problem, before the per-joint statistics.
-struct Solution<const P: usize> {
-    lambda: SVector<f64, P>,
-    singular_values: SVector<f64, P>,
+struct Solution<P: Dim>
+where
+    DefaultAllocator: Allocator<P>,
+{
+    lambda: OVector<f64, P>,
+    singular_values: OVector<f64, P>,
     sigma2: f64,
-    std_dev: SVector<f64, P>,
+    std_dev: OVector<f64, P>,
 }
 
-impl<const P: usize> Solution<P> {
-    fn report<const N: usize>(
-        &self,
-        joint_variances: SVector<f64, N>,
+impl<P: Dim> Solution<P>
+where
+    DefaultAllocator: Allocator<P>,
+{
+    fn report<N: Dim>(
+        self,
+        joint_variances: OVector<f64, N>,
         samples: usize,
-    ) -> LeastSquaresReport<N, P> {
+    ) -> LeastSquaresReportOf<N, P>
+    where
+        DefaultAllocator: Allocator<N>,
+    {
         let s = &self.singular_values;
-        let cond = if s[P - 1] > 0.0 {
-            s[0] / s[P - 1]
+        let last = s.nrows() - 1;
+        let cond = if s[last] > 0.0 {
+            s[0] / s[last]
         } else {
             f64::INFINITY
         };
-        LeastSquaresReport {
+        let rel_std_dev = self
+            .std_dev
+            .zip_map(&self.lambda, |sd, l| 100.0 * sd / l.abs());
+        LeastSquaresReportOf {
             lambda: self.lambda,
             cond,
             singular_values: self.singular_values,
             sigma2: self.sigma2,
             std_dev: self.std_dev,
-            rel_std_dev: self
-                .std_dev
-                .zip_map(&self.lambda, |sd, l| 100.0 * sd / l.abs()),
+            rel_std_dev,
             joint_variances,
             samples,
         }
@@ -558,7 +654,9 @@ fn upper_triangular_inverse_dyn(r: &Mat<f64>) -> Mat<f64> {
 /// Groups joints and parameters into independent blocks: two parameters are in the same
 /// block when some joint's equations involve both. Returns (joints, parameters) of every
 /// block that has at least one parameter, in order of their first joint.
-fn blocks<const N: usize, const P: usize>(masks: &[u64; N]) -> Vec<(Vec<usize>, Vec<usize>)> {
+fn blocks(masks: &[u64], p: usize) -> Vec<(Vec<usize>, Vec<usize>)> {
+    #[allow(non_snake_case)]
+    let (N, P) = (masks.len(), p);
     let mut merged: Vec<u64> = Vec::new();
     for &m in masks.iter().filter(|&&m| m != 0) {
         let mut acc = m;
@@ -609,6 +707,7 @@ fn blocks<const N: usize, const P: usize>(masks: &[u64; N]) -> Vec<(Vec<usize>, 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use nalgebra::SMatrix;
 
     #[test]
     fn triangular_inverse() {
@@ -629,7 +728,7 @@ mod tests {
             0b0111_0000,
             0b1000_0000,
         ];
-        let b = blocks::<5, 8>(&masks);
+        let b = blocks(&masks, 8);
         assert_eq!(
             b,
             vec![
@@ -639,7 +738,7 @@ mod tests {
         );
         // A joint linking two groups merges them, whatever the order.
         let masks = [0b0001, 0b0100, 0b0110, 0b1000];
-        let b = blocks::<4, 4>(&masks);
+        let b = blocks(&masks, 4);
         assert_eq!(
             b,
             vec![
@@ -649,9 +748,6 @@ mod tests {
             ]
         );
         let masks = [0b0011, 0b1100, 0b0110];
-        assert_eq!(
-            blocks::<3, 4>(&masks),
-            vec![(vec![0, 1, 2], vec![0, 1, 2, 3])]
-        );
+        assert_eq!(blocks(&masks, 4), vec![(vec![0, 1, 2], vec![0, 1, 2, 3])]);
     }
 }

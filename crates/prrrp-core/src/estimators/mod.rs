@@ -6,7 +6,10 @@
 //! preallocated fixed-size state without touching the heap, [`Estimator::estimate`]
 //! borrows the current λ̂, [`Estimator::reset`] returns to the initial state and
 //! [`Estimator::run`] loops `step` over a [`Samples`]. All of them are generic over the
-//! model through [`crate::LinearDynamics`]`<N, P>` (N joints, P parameters).
+//! model through [`crate::LinearModel`]`<N, P>` (N joints, P parameters, nalgebra
+//! dimensions): one implementation serves compile-time sizes (`Const<N>`, aliases
+//! [`Rls`], [`Adaline`], [`Hopfield`], [`Samples`], …) and run-time sizes (`Dyn`,
+//! aliases [`DynRls`], [`DynAdaline`], [`DynHopfield`], [`DynSamples`], …).
 
 mod adaline;
 mod ekf;
@@ -16,14 +19,17 @@ mod least_squares;
 mod rls;
 mod samples;
 
-pub use adaline::{Adaline, AdalineConfig, AdalineRule};
-pub use ekf::{Discretisation, Ekf, EkfConfig, EkfMeasurement, PrrrpEkf, PRRRP_EKF_STATES};
+pub use adaline::{Adaline, AdalineConfig, AdalineOf, AdalineRule, DynAdaline};
+pub use ekf::{
+    Discretisation, DynEkf, Ekf, EkfAllocator, EkfConfig, EkfMeasurement, EkfOf, PrrrpEkf,
+    PRRRP_EKF_STATES,
+};
 pub(crate) use estimator::with_row;
 pub use estimator::{Estimator, TrainingReport};
-pub use hopfield::{Hopfield, HopfieldConfig};
+pub use hopfield::{DynHopfield, Hopfield, HopfieldConfig, HopfieldOf};
 pub use least_squares::{
-    least_squares, weighted_least_squares, JointNoise, LeastSquares, LeastSquaresConfig,
-    LeastSquaresReport,
+    least_squares, weighted_least_squares, DynJointNoise, DynLeastSquaresReport, JointNoise,
+    JointNoiseOf, LeastSquares, LeastSquaresConfig, LeastSquaresReport, LeastSquaresReportOf,
 };
-pub use rls::{Rls, RlsConfig};
-pub use samples::{Sample, Samples};
+pub use rls::{DynRls, Rls, RlsConfig, RlsOf};
+pub use samples::{DynSample, DynSamples, Sample, SampleOf, Samples, SamplesOf};

@@ -1,12 +1,18 @@
 //! Recursive least squares: the online form of eqs. 2–4, with an optional forgetting
 //! factor.
 
-use nalgebra::{SMatrix, SVector};
+use nalgebra::allocator::Allocator;
+use nalgebra::{Const, DefaultAllocator, Dim, Dyn, OMatrix, OVector};
 
 use super::estimator::Estimator;
-use super::samples::Sample;
+use super::samples::SampleOf;
 use crate::error::{PrrrpError, Result};
-use crate::model::LinearDynamics;
+use crate::model::LinearModel;
+
+/// Recursive least squares for a compile-time-size model (e.g. the PRRRP arm).
+pub type Rls<M, const N: usize, const P: usize> = RlsOf<M, Const<N>, Const<P>>;
+/// Recursive least squares for a run-time-size model (e.g. [`crate::DynChainBaseModel`]).
+pub type DynRls<M> = RlsOf<M, Dyn, Dyn>;
 
 /// Settings of [`Rls`].
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -36,23 +42,39 @@ impl Default for RlsConfig {
 /// Each of the N joint equations of a sample is one scalar update (exactly equivalent to
 /// the vector update with unit noise covariance, and free of any matrix inversion); the
 /// forgetting factor is applied once per sample. Cost per sample ≈ N·(2P² + 4P) flops.
+/// One implementation for both size worlds (see [`Rls`], [`DynRls`]); all buffers are
+/// sized at construction.
 #[derive(Debug, Clone)]
-pub struct Rls<M, const N: usize, const P: usize> {
+pub struct RlsOf<M, N: Dim, P: Dim>
+where
+    M: LinearModel<N, P>,
+    DefaultAllocator:
+        Allocator<N> + Allocator<P> + Allocator<N, N> + Allocator<N, P> + Allocator<P, P>,
+{
     model: M,
+    ws: M::Workspace,
     config: RlsConfig,
-    lambda0: SVector<f64, P>,
-    lambda: SVector<f64, P>,
-    cov: SMatrix<f64, P, P>,
+    lambda0: OVector<f64, P>,
+    lambda: OVector<f64, P>,
+    cov: OMatrix<f64, P, P>,
+    phi: OMatrix<f64, N, P>,
+    p_phi: OVector<f64, P>,
     samples: usize,
 }
 
-impl<M: LinearDynamics<N, P>, const N: usize, const P: usize> Rls<M, N, P> {
+impl<M, N: Dim, P: Dim> RlsOf<M, N, P>
+where
+    M: LinearModel<N, P>,
+    DefaultAllocator:
+        Allocator<N> + Allocator<P> + Allocator<N, N> + Allocator<N, P> + Allocator<P, P>,
+{
     /// A filter starting from λ₀ with covariance `config.initial_covariance`·I.
     ///
     /// # Errors
     /// [`PrrrpError::InvalidParameter`] for a forgetting factor outside (0, 1], a
-    /// non-positive initial covariance, or a non-finite λ₀.
-    pub fn new(model: M, lambda0: SVector<f64, P>, config: RlsConfig) -> Result<Self> {
+    /// non-positive initial covariance, or a non-finite λ₀; [`PrrrpError::ShapeMismatch`]
+    /// if λ₀ does not have one entry per model parameter.
+    pub fn new(model: M, lambda0: OVector<f64, P>, config: RlsConfig) -> Result<Self> {
         let nu = config.forgetting;
         if !(nu > 0.0 && nu <= 1.0) {
             return Err(PrrrpError::InvalidParameter {
@@ -69,20 +91,24 @@ impl<M: LinearDynamics<N, P>, const N: usize, const P: usize> Rls<M, N, P> {
                 reason: "must be finite and > 0",
             });
         }
-        check_lambda0(&lambda0)?;
+        let (n, p) = model.dims();
+        check_lambda0(&lambda0, n.value(), p.value())?;
         Ok(Self {
+            ws: model.workspace(),
             model,
             config,
+            lambda: lambda0.clone(),
             lambda0,
-            lambda: lambda0,
-            cov: SMatrix::identity() * d,
+            cov: OMatrix::identity_generic(p, p) * d,
+            phi: OMatrix::zeros_generic(n, p),
+            p_phi: OVector::zeros_generic(p, nalgebra::U1),
             samples: 0,
         })
     }
 
     /// The covariance P (units of λ² per unit of τ²); σ²·P approximates the covariance of
     /// λ̂ when the equation noise has variance σ².
-    pub fn covariance(&self) -> &SMatrix<f64, P, P> {
+    pub fn covariance(&self) -> &OMatrix<f64, P, P> {
         &self.cov
     }
 
@@ -91,42 +117,63 @@ impl<M: LinearDynamics<N, P>, const N: usize, const P: usize> Rls<M, N, P> {
         self.samples
     }
 
+    /// The scalar update with row `row` of the stored regressor.
     #[inline(always)]
-    fn update_row(&mut self, phi: &SVector<f64, P>, tau: f64) -> bool {
-        let p_phi = self.cov * phi;
-        let den = 1.0 + phi.dot(&p_phi);
+    fn update_row(&mut self, row: usize, tau: f64) -> bool {
+        let np = self.lambda.nrows();
+        let (phi, cov, p_phi) = (&self.phi, &mut self.cov, &mut self.p_phi);
+        // p = P·φ over the non-zero entries of φ only (regressor rows are sparse).
+        p_phi.fill(0.0);
+        for j in 0..np {
+            let f = phi[(row, j)];
+            if f != 0.0 {
+                p_phi.axpy(f, &cov.column(j), 1.0);
+            }
+        }
+        let (mut den, mut pred) = (1.0, 0.0);
+        for j in 0..np {
+            den += phi[(row, j)] * p_phi[j];
+            pred += phi[(row, j)] * self.lambda[j];
+        }
         if !(den > 0.0 && den.is_finite()) {
             return false;
         }
-        let e = tau - phi.dot(&self.lambda);
+        let e = tau - pred;
         let inv = 1.0 / den;
-        self.lambda.axpy(e * inv, &p_phi, 1.0);
+        self.lambda.axpy(e * inv, p_phi, 1.0);
         // P ← P − p·pᵀ/den on one triangle, mirrored, so that P stays exactly symmetric.
-        for j in 0..P {
+        for j in 0..np {
             let pj = p_phi[j] * inv;
             for i in 0..=j {
-                let v = self.cov[(i, j)] - p_phi[i] * pj;
-                self.cov[(i, j)] = v;
-                self.cov[(j, i)] = v;
+                let v = cov[(i, j)] - p_phi[i] * pj;
+                cov[(i, j)] = v;
+                cov[(j, i)] = v;
             }
         }
         true
     }
 }
 
-impl<M: LinearDynamics<N, P>, const N: usize, const P: usize> Estimator<N, P> for Rls<M, N, P> {
+impl<M, N: Dim, P: Dim> Estimator<N, P> for RlsOf<M, N, P>
+where
+    M: LinearModel<N, P>,
+    DefaultAllocator:
+        Allocator<N> + Allocator<P> + Allocator<N, N> + Allocator<N, P> + Allocator<P, P>,
+{
     /// One sample: N scalar updates, then P ← P/ν.
     ///
     /// # Errors
-    /// [`PrrrpError::NonFinite`] for NaN/∞ in the sample; [`PrrrpError::Diverged`] if the
+    /// [`PrrrpError::ShapeMismatch`] for a sample whose vectors do not have one entry per
+    /// joint; [`PrrrpError::NonFinite`] for NaN/∞ in the sample; [`PrrrpError::Diverged`] if the
     /// covariance lost positive definiteness or the estimate became non-finite (with
     /// ν < 1 and poor excitation P grows without bound: raise ν or excite more).
-    fn step(&mut self, sample: Sample<'_, N>) -> Result<&SVector<f64, P>> {
-        sample.check_finite()?;
-        let phi = self.model.regressor(sample.q, sample.qd, sample.qdd);
-        for i in 0..N {
-            let row = phi.row(i).transpose();
-            if !self.update_row(&row, sample.tau[i]) {
+    fn step(&mut self, sample: SampleOf<'_, N>) -> Result<&OVector<f64, P>> {
+        let n = self.phi.nrows();
+        sample.check(n)?;
+        self.model
+            .regressor_into(&mut self.ws, sample.q, sample.qd, sample.qdd, &mut self.phi)?;
+        for i in 0..n {
+            if !self.update_row(i, sample.tau[i]) {
                 return Err(diverged(self.samples));
             }
         }
@@ -140,13 +187,14 @@ impl<M: LinearDynamics<N, P>, const N: usize, const P: usize> Estimator<N, P> fo
         Ok(&self.lambda)
     }
 
-    fn estimate(&self) -> &SVector<f64, P> {
+    fn estimate(&self) -> &OVector<f64, P> {
         &self.lambda
     }
 
     fn reset(&mut self) {
-        self.lambda = self.lambda0;
-        self.cov = SMatrix::identity() * self.config.initial_covariance;
+        self.lambda.copy_from(&self.lambda0);
+        self.cov.fill_with_identity();
+        self.cov *= self.config.initial_covariance;
         self.samples = 0;
     }
 }
@@ -160,7 +208,25 @@ fn diverged(at: usize) -> PrrrpError {
     }
 }
 
-pub(crate) fn check_lambda0<const P: usize>(lambda0: &SVector<f64, P>) -> Result<()> {
+/// Checks the model's sizes and λ₀ (length, then values) before any buffer is allocated.
+pub(crate) fn check_lambda0<P: Dim>(lambda0: &OVector<f64, P>, n: usize, p: usize) -> Result<()>
+where
+    DefaultAllocator: Allocator<P>,
+{
+    if n == 0 || p == 0 {
+        return Err(PrrrpError::ShapeMismatch {
+            what: "model".into(),
+            expected: "at least one joint and one parameter".into(),
+            got: format!("{n} joints, {p} parameters"),
+        });
+    }
+    if lambda0.nrows() != p {
+        return Err(PrrrpError::ShapeMismatch {
+            what: "lambda0".into(),
+            expected: format!("{p} entries (one per model parameter)"),
+            got: format!("{} entries", lambda0.nrows()),
+        });
+    }
     if let Some((i, &v)) = lambda0.iter().enumerate().find(|(_, v)| !v.is_finite()) {
         return Err(PrrrpError::InvalidParameter {
             field: format!("lambda0[{i}]"),

@@ -1,8 +1,19 @@
 //! One sample and a borrowed series of samples, the inputs of every estimator.
 
-use nalgebra::SVector;
+use nalgebra::allocator::Allocator;
+use nalgebra::{Const, DefaultAllocator, Dim, Dyn, OVector};
 
 use crate::error::{PrrrpError, Result};
+
+/// One sample of a model whose joint count is fixed at compile time (the PRRRP path).
+pub type Sample<'a, const N: usize> = SampleOf<'a, Const<N>>;
+/// One sample of a model whose joint count is known only at run time (e.g. a
+/// [`crate::DynChain`]); each vector must have the model's n entries.
+pub type DynSample<'a> = SampleOf<'a, Dyn>;
+/// A series of samples of a compile-time-size model.
+pub type Samples<'a, const N: usize> = SamplesOf<'a, Const<N>>;
+/// A series of samples of a run-time-size model (all vectors of one length).
+pub type DynSamples<'a> = SamplesOf<'a, Dyn>;
 
 /// One sample of joint data, borrowed from the caller.
 ///
@@ -10,25 +21,33 @@ use crate::error::{PrrrpError, Result};
 /// m/s and rad/s, q̈ in m/s² and rad/s², τ in N and N·m. Estimators that work on the
 /// inverse model (least squares, Adaline, Hopfield) use all four; the extended Kalman
 /// filter uses q (and q̇) as measurements and τ as its input, and ignores q̈.
+///
+/// N is a nalgebra dimension: `Const<N>` ([`Sample`]) or [`Dyn`] ([`DynSample`]).
 #[derive(Debug, Clone, Copy)]
-pub struct Sample<'a, const N: usize> {
+pub struct SampleOf<'a, N: Dim>
+where
+    DefaultAllocator: Allocator<N>,
+{
     /// Joint positions.
-    pub q: &'a SVector<f64, N>,
+    pub q: &'a OVector<f64, N>,
     /// Joint velocities.
-    pub qd: &'a SVector<f64, N>,
+    pub qd: &'a OVector<f64, N>,
     /// Joint accelerations.
-    pub qdd: &'a SVector<f64, N>,
+    pub qdd: &'a OVector<f64, N>,
     /// Generalised joint forces.
-    pub tau: &'a SVector<f64, N>,
+    pub tau: &'a OVector<f64, N>,
 }
 
-impl<'a, const N: usize> Sample<'a, N> {
+impl<'a, N: Dim> SampleOf<'a, N>
+where
+    DefaultAllocator: Allocator<N>,
+{
     /// A sample from its four parts.
     pub fn new(
-        q: &'a SVector<f64, N>,
-        qd: &'a SVector<f64, N>,
-        qdd: &'a SVector<f64, N>,
-        tau: &'a SVector<f64, N>,
+        q: &'a OVector<f64, N>,
+        qd: &'a OVector<f64, N>,
+        qdd: &'a OVector<f64, N>,
+        tau: &'a OVector<f64, N>,
     ) -> Self {
         Self { q, qd, qdd, tau }
     }
@@ -59,10 +78,45 @@ impl<'a, const N: usize> Sample<'a, N> {
             row: None,
         })
     }
+
+    /// The [`PrrrpError::ShapeMismatch`] naming the first part that does not have `n`
+    /// entries (always `Ok` at compile-time sizes).
+    #[inline(always)]
+    pub(crate) fn check_len(&self, n: usize) -> Result<()> {
+        for (name, v) in [
+            ("q", self.q),
+            ("qd", self.qd),
+            ("qdd", self.qdd),
+            ("tau", self.tau),
+        ] {
+            if v.nrows() != n {
+                return Err(len_mismatch(name, n, v.nrows()));
+            }
+        }
+        Ok(())
+    }
+
+    /// Sizes, then finiteness: what the inverse-model estimators check per sample.
+    #[inline(always)]
+    pub(crate) fn check(&self, n: usize) -> Result<()> {
+        self.check_len(n)?;
+        self.check_finite()
+    }
+}
+
+pub(crate) fn len_mismatch(what: &str, want: usize, got: usize) -> PrrrpError {
+    PrrrpError::ShapeMismatch {
+        what: what.into(),
+        expected: format!("{want} entries (one per joint of the model)"),
+        got: format!("{got} entries"),
+    }
 }
 
 #[inline(always)]
-pub(crate) fn all_finite<const N: usize>(v: &SVector<f64, N>) -> bool {
+pub(crate) fn all_finite<N: Dim>(v: &OVector<f64, N>) -> bool
+where
+    DefaultAllocator: Allocator<N>,
+{
     v.iter().all(|x| x.is_finite())
 }
 
@@ -70,24 +124,32 @@ pub(crate) fn all_finite<const N: usize>(v: &SVector<f64, N>) -> bool {
 ///
 /// Built with [`Samples::new`], which checks the lengths once; the values are checked
 /// where they are used (each estimator's `step`, or the batch least-squares solver).
+/// N is `Const<N>` ([`Samples`]) or [`Dyn`] ([`DynSamples`]).
 #[derive(Debug, Clone, Copy)]
-pub struct Samples<'a, const N: usize> {
-    q: &'a [SVector<f64, N>],
-    qd: &'a [SVector<f64, N>],
-    qdd: &'a [SVector<f64, N>],
-    tau: &'a [SVector<f64, N>],
+pub struct SamplesOf<'a, N: Dim>
+where
+    DefaultAllocator: Allocator<N>,
+{
+    q: &'a [OVector<f64, N>],
+    qd: &'a [OVector<f64, N>],
+    qdd: &'a [OVector<f64, N>],
+    tau: &'a [OVector<f64, N>],
 }
 
-impl<'a, const N: usize> Samples<'a, N> {
+impl<'a, N: Dim> SamplesOf<'a, N>
+where
+    DefaultAllocator: Allocator<N>,
+{
     /// Wraps four slices of equal length.
     ///
     /// # Errors
-    /// [`PrrrpError::ShapeMismatch`] naming the first slice whose length differs from q's.
+    /// [`PrrrpError::ShapeMismatch`] naming the first slice whose length differs from q's,
+    /// or (run-time sizes) the first vector whose length differs from `q[0]`'s.
     pub fn new(
-        q: &'a [SVector<f64, N>],
-        qd: &'a [SVector<f64, N>],
-        qdd: &'a [SVector<f64, N>],
-        tau: &'a [SVector<f64, N>],
+        q: &'a [OVector<f64, N>],
+        qd: &'a [OVector<f64, N>],
+        qdd: &'a [OVector<f64, N>],
+        tau: &'a [OVector<f64, N>],
     ) -> Result<Self> {
         for (name, len) in [("qd", qd.len()), ("qdd", qdd.len()), ("tau", tau.len())] {
             if len != q.len() {
@@ -96,6 +158,21 @@ impl<'a, const N: usize> Samples<'a, N> {
                     expected: format!("{} samples (as q)", q.len()),
                     got: format!("{len} samples"),
                 });
+            }
+        }
+        if let Some(first) = q.first() {
+            let n = first.nrows();
+            // Compile-time sizes make this loop a no-op; run-time vectors can differ.
+            if N::try_to_usize().is_none() {
+                for (name, s) in [("q", q), ("qd", qd), ("qdd", qdd), ("tau", tau)] {
+                    if let Some((k, v)) = s.iter().enumerate().find(|(_, v)| v.nrows() != n) {
+                        return Err(PrrrpError::ShapeMismatch {
+                            what: format!("{name}[{k}]"),
+                            expected: format!("{n} entries (as q[0])"),
+                            got: format!("{} entries", v.nrows()),
+                        });
+                    }
+                }
             }
         }
         Ok(Self { q, qd, qdd, tau })
@@ -118,8 +195,8 @@ impl<'a, const N: usize> Samples<'a, N> {
     /// # Panics
     /// If `k >= self.len()` (an index bug in the caller, not bad data).
     #[inline]
-    pub fn sample(&self, k: usize) -> Sample<'a, N> {
-        Sample {
+    pub fn sample(&self, k: usize) -> SampleOf<'a, N> {
+        SampleOf {
             q: &self.q[k],
             qd: &self.qd[k],
             qdd: &self.qdd[k],
@@ -128,27 +205,27 @@ impl<'a, const N: usize> Samples<'a, N> {
     }
 
     /// Iterator over the samples in order.
-    pub fn iter(&self) -> impl Iterator<Item = Sample<'a, N>> + '_ {
+    pub fn iter(&self) -> impl Iterator<Item = SampleOf<'a, N>> + '_ {
         (0..self.len()).map(move |k| self.sample(k))
     }
 
     /// The positions.
-    pub fn q(&self) -> &'a [SVector<f64, N>] {
+    pub fn q(&self) -> &'a [OVector<f64, N>] {
         self.q
     }
 
     /// The velocities.
-    pub fn qd(&self) -> &'a [SVector<f64, N>] {
+    pub fn qd(&self) -> &'a [OVector<f64, N>] {
         self.qd
     }
 
     /// The accelerations.
-    pub fn qdd(&self) -> &'a [SVector<f64, N>] {
+    pub fn qdd(&self) -> &'a [OVector<f64, N>] {
         self.qdd
     }
 
     /// The generalised forces.
-    pub fn tau(&self) -> &'a [SVector<f64, N>] {
+    pub fn tau(&self) -> &'a [OVector<f64, N>] {
         self.tau
     }
 }

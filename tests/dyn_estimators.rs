@@ -1,0 +1,617 @@
+//! The estimators at run-time sizes: `DynChainBaseModel` (a `DynChain` seen through its
+//! base parameters, N and B known only at run time) with `DynRls`, `DynAdaline`,
+//! `DynHopfield`, `DynEkf` and least squares — the same code as the compile-time PRRRP
+//! and `ChainBaseModel<N, B>` path, instantiated at `Dyn`.
+//!
+//! Two robots: the PUMA 560 (`SerialChain::puma560().to_dyn()`, 36 base parameters, the
+//! closed-loop record of `chain_estimators.rs` on its excitation seed 6), and a Panda-like
+//! 7R chain with viscous, smoothed-Coulomb and offset friction on every joint
+//! (`dyn_support::panda_like`, exact τ = inverse dynamics). Truth: β = K·π of the
+//! chains' standard parameters; data noise-free.
+//!
+//! "One implementation" is checked by running the `Dyn` and the `Const<N>` instantiation
+//! on the same data: they must give the same estimates (to round-off of a few ulps; the
+//! code paths are the same functions, only the buffer types differ).
+mod chain_support;
+mod dyn_support;
+
+use std::sync::OnceLock;
+
+use chain_support::{simulate, Fourier, Run, SimConfig};
+use dyn_support::{exact_record, panda_like, DynFourier, DynRecord};
+use prrrp_core::nalgebra::{DMatrix, DVector, SVector};
+use prrrp_core::{
+    least_squares, Adaline, AdalineConfig, BaseOptions, BaseParameters, ChainBaseModel,
+    Discretisation, DynAdaline, DynChainBaseModel, DynEkf, DynHopfield, DynRls, DynSample,
+    DynSamples, DynScaledModel, Ekf, EkfConfig, Estimator, ForwardDerivativesOf, Hopfield,
+    HopfieldConfig, LeastSquaresConfig, LinearModel, PrrrpError, Rls, RlsConfig, ScaledModel,
+    SerialChain,
+};
+
+const B: usize = 36;
+const DT: f64 = 0.01;
+type Beta = SVector<f64, B>;
+
+struct Fixture {
+    chain: SerialChain<6>,
+    model: ChainBaseModel<6, B>,
+    dmodel: DynChainBaseModel,
+    base: BaseParameters,
+    run: Run<6>,
+    rec: DynRecord,
+}
+
+fn fixture() -> &'static Fixture {
+    static F: OnceLock<Fixture> = OnceLock::new();
+    F.get_or_init(|| {
+        let chain = SerialChain::puma560();
+        let base = chain
+            .base_parameters(&BaseOptions::default())
+            .expect("analysis");
+        let model = chain.base_model::<B>(&base).expect("36");
+        let dchain = chain.to_dyn();
+        let dbase = dchain
+            .base_parameters(&BaseOptions::default())
+            .expect("analysis");
+        assert_eq!(dbase.independent, base.independent);
+        let dmodel = dchain.base_model(&dbase).expect("layout");
+        // The excitation chosen in chain_estimators.rs (best cond of 8 seeds).
+        let reference = Fourier::seeded(6, 10.0, [0.0, 1.57, -1.57, 0.0, 0.0, 0.0], [1.5; 6]);
+        let run = simulate(&chain, &reference, &SimConfig::default());
+        let r = &run.record;
+        let rec = DynRecord::from_fixed(&r.q, &r.qd, &r.qdd, &r.tau);
+        Fixture {
+            chain,
+            model,
+            dmodel,
+            base,
+            run,
+            rec,
+        }
+    })
+}
+
+fn truth() -> DVector<f64> {
+    fixture().dmodel.chain_base_values().clone()
+}
+
+fn is_zero(beta: &[f64], i: usize) -> bool {
+    let max = beta.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    beta[i].abs() <= 1e-12 * max
+}
+
+/// Worst relative error over the nonzero β_i, and worst absolute error over the zero ones.
+fn errors(est: &[f64], beta: &[f64]) -> (f64, f64) {
+    let (mut rel, mut abs) = (0.0f64, 0.0f64);
+    for i in 0..beta.len() {
+        let e = (est[i] - beta[i]).abs();
+        if is_zero(beta, i) {
+            abs = abs.max(e);
+        } else {
+            rel = rel.max(e / beta[i].abs());
+        }
+    }
+    (rel, abs)
+}
+
+fn smallest_nonzero(beta: &[f64]) -> f64 {
+    (0..beta.len())
+        .filter(|&i| !is_zero(beta, i))
+        .map(|i| beta[i].abs())
+        .fold(f64::INFINITY, f64::min)
+}
+
+/// max |a − b| / max |b|.
+fn rel_diff(a: &[f64], b: &[f64]) -> f64 {
+    let scale = b
+        .iter()
+        .fold(0.0f64, |m, v| m.max(v.abs()))
+        .max(f64::MIN_POSITIVE);
+    a.iter()
+        .zip(b)
+        .fold(0.0f64, |m, (x, y)| m.max((x - y).abs()))
+        / scale
+}
+
+fn dvec<const D: usize>(v: &SVector<f64, D>) -> DVector<f64> {
+    DVector::from_column_slice(v.as_slice())
+}
+
+/// The run-time model is the compile-time one: same regressor, inverse and forward
+/// dynamics and derivatives at the PUMA's states, at the true β and at 1.2·β (the same
+/// recursions on slices, so equal to a few ulps).
+#[test]
+fn dyn_base_model_equals_fixed_model() {
+    let f = fixture();
+    let m = &f.dmodel;
+    let (n, b) = m.dims();
+    assert_eq!((n.0, b.0), (6, B));
+    let beta_s: Beta = f.model.chain_base_values();
+    assert!(rel_diff(m.chain_base_values().as_slice(), beta_s.as_slice()) == 0.0);
+    let mut ws = m.workspace();
+    let mut phi = DMatrix::zeros(6, B);
+    let mut tau = DVector::zeros(6);
+    let mut qdd = DVector::zeros(6);
+    let mut fd = ForwardDerivativesOf::zeros(n, b);
+    let r = &f.run.record;
+    let mut worst = 0.0f64;
+    for k in (0..r.len()).step_by(97) {
+        let (q, qd, a, t) = (&f.rec.q[k], &f.rec.qd[k], &f.rec.qdd[k], &f.rec.tau[k]);
+        for scale in [1.0, 1.2] {
+            let bs = beta_s * scale;
+            let bd = dvec(&bs);
+            m.regressor_into(&mut ws, q, qd, a, &mut phi).unwrap();
+            let phi_s =
+                prrrp_core::LinearDynamics::regressor(&f.model, &r.q[k], &r.qd[k], &r.qdd[k]);
+            worst = worst.max(rel_diff(phi.as_slice(), phi_s.as_slice()));
+            m.inverse_dynamics_into(&mut ws, q, qd, a, &bd, &mut tau)
+                .unwrap();
+            let tau_s = prrrp_core::LinearDynamics::inverse_dynamics(
+                &f.model, &r.q[k], &r.qd[k], &r.qdd[k], &bs,
+            );
+            worst = worst.max(rel_diff(tau.as_slice(), tau_s.as_slice()));
+            m.forward_dynamics_into(&mut ws, q, qd, t, &bd, &mut qdd)
+                .unwrap();
+            let qdd_s = prrrp_core::LinearDynamics::forward_dynamics(
+                &f.model, &r.q[k], &r.qd[k], &r.tau[k], &bs,
+            )
+            .unwrap();
+            worst = worst.max(rel_diff(qdd.as_slice(), qdd_s.as_slice()));
+            m.forward_derivatives_into(&mut ws, q, qd, t, &bd, &mut fd)
+                .unwrap();
+            let fd_s = prrrp_core::LinearDynamics::forward_derivatives(
+                &f.model, &r.q[k], &r.qd[k], &r.tau[k], &bs,
+            )
+            .unwrap();
+            worst = worst.max(rel_diff(fd.dqdd_dq.as_slice(), fd_s.dqdd_dq.as_slice()));
+            worst = worst.max(rel_diff(fd.dqdd_dqd.as_slice(), fd_s.dqdd_dqd.as_slice()));
+            worst = worst.max(rel_diff(
+                fd.dqdd_dlambda.as_slice(),
+                fd_s.dqdd_dlambda.as_slice(),
+            ));
+            // τ = Φ_b·β: the O(n) recursion on the equivalent chain is the regressor's.
+            let lin = &phi * &bd;
+            assert!(rel_diff(lin.as_slice(), tau.as_slice()) < 1e-12);
+        }
+    }
+    println!("Dyn vs Const<6> base model: worst relative difference {worst:.1e}");
+    assert!(worst <= 1e-14, "{worst}");
+}
+
+/// The Panda-like chain with friction: the base model reproduces the chain's inverse
+/// dynamics at the true β (friction, smoothed Coulomb sign included), and the EKF's
+/// derivatives agree with central differences of the run-time forward dynamics (steps
+/// 1e-5 rad, 1e-5 rad/s and 1e-6·(1 + |β_j|); truncation and round-off of the outer
+/// differences ≈ 1e-8 relative, so 1e-6 leaves margin; ∂q̈/∂β is exact in the model, ∂q̈/∂q
+/// and ∂q̈/∂q̇ are central differences of Newton–Euler inside it, ≈ 1e-10).
+#[test]
+fn panda_like_base_model_dynamics_and_derivatives() {
+    let chain = panda_like();
+    let base = chain.base_parameters(&BaseOptions::default()).unwrap();
+    let m = chain.base_model(&base).unwrap();
+    let beta = m.chain_base_values().clone();
+    let (n, b) = m.dims();
+    println!("Panda-like: {} joints, {} base parameters", n.0, b.0);
+    assert_eq!(n.0, 7);
+    let mut ws = m.workspace();
+    let reference = DynFourier::seeded(3, 7, 1.0);
+    let mut tau = DVector::zeros(7);
+    let mut fd = ForwardDerivativesOf::zeros(n, b);
+    let (mut plus, mut minus) = (DVector::zeros(7), DVector::zeros(7));
+    for k in 0..5 {
+        let [q, qd, qdd] = reference.eval(1.3 * k as f64);
+        m.inverse_dynamics_into(&mut ws, &q, &qd, &qdd, &beta, &mut tau)
+            .unwrap();
+        let truth = chain
+            .inverse_dynamics(q.as_slice(), qd.as_slice(), qdd.as_slice())
+            .unwrap();
+        assert!(rel_diff(tau.as_slice(), &truth) < 1e-12);
+        m.forward_derivatives_into(&mut ws, &q, &qd, &tau, &beta, &mut fd)
+            .unwrap();
+        assert!(rel_diff(fd.qdd.as_slice(), qdd.as_slice()) < 1e-9);
+        let mut check =
+            |col: &mut dyn FnMut(usize, f64) -> (DVector<f64>, DVector<f64>, DVector<f64>),
+             want: &DMatrix<f64>,
+             h: &dyn Fn(usize) -> f64,
+             what: &str| {
+                let mut num = DMatrix::zeros(7, want.ncols());
+                for j in 0..want.ncols() {
+                    let hj = h(j);
+                    let (qa, va, la) = col(j, hj);
+                    m.forward_dynamics_into(&mut ws, &qa, &va, &tau, &la, &mut plus)
+                        .unwrap();
+                    let (qb, vb, lb) = col(j, -hj);
+                    m.forward_dynamics_into(&mut ws, &qb, &vb, &tau, &lb, &mut minus)
+                        .unwrap();
+                    num.set_column(j, &((&plus - &minus) / (2.0 * hj)));
+                }
+                let d = rel_diff(want.as_slice(), num.as_slice());
+                println!("sample {k}: {what} vs central differences: {d:.1e}");
+                assert!(d < 1e-6, "{what}: {d}");
+            };
+        check(
+            &mut |j, h| {
+                let mut qa = q.clone();
+                qa[j] += h;
+                (qa, qd.clone(), beta.clone())
+            },
+            &fd.dqdd_dq,
+            &|_| 1e-5,
+            "∂q̈/∂q",
+        );
+        check(
+            &mut |j, h| {
+                let mut va = qd.clone();
+                va[j] += h;
+                (q.clone(), va, beta.clone())
+            },
+            &fd.dqdd_dqd,
+            &|_| 1e-5,
+            "∂q̈/∂q̇",
+        );
+        check(
+            &mut |j, h| {
+                let mut la = beta.clone();
+                la[j] += h;
+                (q.clone(), qd.clone(), la)
+            },
+            &fd.dqdd_dlambda,
+            &|j| 1e-6 * (1.0 + beta[j].abs()),
+            "∂q̈/∂β",
+        );
+    }
+}
+
+/// Least squares at run-time sizes on the noise-free PUMA record: every nonzero base
+/// parameter to 1e-8 relative and the zero ones to 1e-8 of the smallest nonzero (cond(W_b)
+/// ≈ 113 times round-off leaves ≈ 1e-13); the `Const<6>, Const<36>` solve of the same data
+/// gives the same estimate.
+#[test]
+fn least_squares_dyn_recovers_puma_and_equals_fixed() {
+    let f = fixture();
+    let beta = truth();
+    let cfg = LeastSquaresConfig::default();
+    let ls = least_squares(&f.dmodel, &f.rec.samples(), &cfg).expect("full rank");
+    let (rel, abs) = errors(ls.lambda.as_slice(), beta.as_slice());
+    println!(
+        "Dyn LS (PUMA): worst rel {rel:.2e}, abs on zero β {abs:.2e}, cond {:.1}",
+        ls.cond
+    );
+    assert!(rel < 1e-8);
+    assert!(abs < 1e-8 * smallest_nonzero(beta.as_slice()));
+    let fixed = least_squares(&f.model, &f.run.record.samples(), &cfg).expect("full rank");
+    let d = rel_diff(ls.lambda.as_slice(), fixed.lambda.as_slice());
+    println!("Dyn vs Const LS: {d:.1e}");
+    assert!(d <= 1e-14, "{d}");
+    assert_eq!(ls.std_dev.len(), B);
+    assert!((ls.cond / fixed.cond - 1.0).abs() < 1e-12);
+}
+
+/// Least squares on the Panda-like 7R chain with viscous, Coulomb (smoothed) and offset
+/// friction: 2000 exact samples at 10 ms; every nonzero base parameter (friction ones
+/// included) to 1e-8 relative.
+#[test]
+fn least_squares_dyn_recovers_panda_like_with_friction() {
+    let chain = panda_like();
+    let base = chain.base_parameters(&BaseOptions::default()).unwrap();
+    let m = chain.base_model(&base).unwrap();
+    let beta = m.chain_base_values().clone();
+    let rec = exact_record(&chain, &DynFourier::seeded(11, 7, 1.0), 2000, DT);
+    let ls = least_squares(&m, &rec.samples(), &LeastSquaresConfig::default()).expect("rank");
+    let (rel, abs) = errors(ls.lambda.as_slice(), beta.as_slice());
+    println!(
+        "Dyn LS (Panda-like, {} base parameters): worst rel {rel:.2e}, abs on zero β \
+         {abs:.2e}, cond {:.1}",
+        beta.len(),
+        ls.cond
+    );
+    assert!(rel < 1e-8);
+    assert!(abs < 1e-8 * smallest_nonzero(beta.as_slice()));
+}
+
+/// RLS, one pass from β₀ = 0: the same estimate at both sizes, and within the bound
+/// ‖β‖/(δ·σmin²(W_b)) of the regularised batch solution (see chain_estimators.rs).
+#[test]
+fn rls_dyn_equals_fixed_and_meets_the_bound() {
+    let f = fixture();
+    let beta = truth();
+    let cfg = RlsConfig::default();
+    let mut d = DynRls::new(f.dmodel.clone(), DVector::zeros(B), cfg).unwrap();
+    let est = d.run(&f.rec.samples()).unwrap();
+    let mut s = Rls::new(f.model, Beta::zeros(), cfg).unwrap();
+    let est_s = s.run(&f.run.record.samples()).unwrap();
+    let diff = rel_diff(est.as_slice(), est_s.as_slice());
+    let ls = least_squares(&f.dmodel, &f.rec.samples(), &LeastSquaresConfig::default()).unwrap();
+    let smin = ls.singular_values[B - 1];
+    let bound = beta.norm() / (cfg.initial_covariance * smin * smin);
+    let worst = (&est - &beta).amax();
+    println!("Dyn RLS: |error| {worst:.2e} ≤ {bound:.2e}; Dyn vs Const {diff:.1e}");
+    assert!(diff <= 1e-14, "{diff}");
+    assert!(worst <= bound);
+}
+
+/// Adaline (normalised, μ = 0.5) and the Hopfield network on the column-equilibrated
+/// run-time model, with the settings and the 150 epochs of chain_estimators.rs, where the
+/// compile-time path reaches 1e-3 relative on every nonzero base parameter (see the
+/// reasoning there); the `Dyn` estimates equal the `Const` ones.
+#[test]
+fn adaline_and_hopfield_dyn_equal_fixed_and_converge() {
+    let f = fixture();
+    let beta = truth();
+    let data = f.rec.samples();
+    let sdata = f.run.record.samples();
+    let dm = DynScaledModel::equilibrated(f.dmodel.clone(), &data).unwrap();
+    let sm = ScaledModel::equilibrated(f.model, &sdata).unwrap();
+    assert!(rel_diff(dm.scale().as_slice(), sm.scale().as_slice()) <= 1e-15);
+
+    let cfg = AdalineConfig {
+        step_size: 0.5,
+        ..Default::default()
+    };
+    let mut ad = DynAdaline::new(dm.clone(), DVector::zeros(B), cfg).unwrap();
+    ad.train(&data, 150).unwrap();
+    let mut ad_s = Adaline::new(sm, Beta::zeros(), cfg).unwrap();
+    ad_s.train(&sdata, 150).unwrap();
+    let est = dm.to_model(ad.estimate());
+    let diff = rel_diff(ad.estimate().as_slice(), ad_s.estimate().as_slice());
+    let (rel, abs) = errors(est.as_slice(), beta.as_slice());
+    println!("Dyn Adaline: worst rel {rel:.2e}, abs {abs:.2e}; Dyn vs Const {diff:.1e}");
+    assert!(diff <= 1e-12, "{diff}");
+    assert!(rel < 1e-3);
+    assert!(abs < 1e-3 * smallest_nonzero(beta.as_slice()));
+
+    let c = 100.0;
+    let cfg = HopfieldConfig {
+        bound: c,
+        beta: c * DT * (6 * B) as f64,
+        dt: DT,
+        max_substeps: 64,
+        ..Default::default()
+    };
+    let mut hn = DynHopfield::new(dm.clone(), DVector::zeros(B), cfg).unwrap();
+    hn.train(&data, 150).unwrap();
+    let mut hn_s = Hopfield::new(sm, Beta::zeros(), cfg).unwrap();
+    hn_s.train(&sdata, 150).unwrap();
+    let est = dm.to_model(hn.estimate());
+    let diff = rel_diff(hn.estimate().as_slice(), hn_s.estimate().as_slice());
+    let (rel, abs) = errors(est.as_slice(), beta.as_slice());
+    println!("Dyn Hopfield: worst rel {rel:.2e}, abs {abs:.2e}; Dyn vs Const {diff:.1e}");
+    assert_eq!(hn.substeps(), hn_s.substeps());
+    assert!(diff <= 1e-12, "{diff}");
+    assert!(rel < 1e-3);
+    assert!(abs < 1e-3 * smallest_nonzero(beta.as_slice()));
+}
+
+/// The PUMA under computed torque held over each 10 ms sample (the EKF's zero-order-hold
+/// input model), integrated by RK4 at 1 ms with the run-time model at the true β.
+fn zoh_record(m: &DynChainBaseModel, samples: usize) -> DynRecord {
+    let beta = m.chain_base_values();
+    let mut ws = m.workspace();
+    let reference = Fourier::<6>::seeded(6, 10.0, [0.0, 1.57, -1.57, 0.0, 0.0, 0.0], [1.5; 6]);
+    let [q0, v0, _] = reference.eval(0.0);
+    let (mut q, mut v) = (dvec(&q0), dvec(&v0));
+    let (kp, kd) = (400.0, 40.0);
+    let mut rec = DynRecord::default();
+    let mut acc = DVector::zeros(6);
+    let mut tau = DVector::zeros(6);
+    for k in 0..samples {
+        let [qr, vr, ar] = reference.eval(k as f64 * DT);
+        let a = dvec(&ar) + (dvec(&qr) - &q) * kp + (dvec(&vr) - &v) * kd;
+        m.inverse_dynamics_into(&mut ws, &q, &v, &a, beta, &mut tau)
+            .unwrap();
+        m.forward_dynamics_into(&mut ws, &q, &v, &tau, beta, &mut acc)
+            .unwrap();
+        rec.q.push(q.clone());
+        rec.qd.push(v.clone());
+        rec.qdd.push(acc.clone());
+        rec.tau.push(tau.clone());
+        let h = DT / 10.0;
+        for _ in 0..10 {
+            let mut f = |q: &DVector<f64>, v: &DVector<f64>| {
+                let mut a = DVector::zeros(6);
+                m.forward_dynamics_into(&mut ws, q, v, &tau, beta, &mut a)
+                    .unwrap();
+                (v.clone(), a)
+            };
+            let (k1q, k1v) = f(&q, &v);
+            let (k2q, k2v) = f(&(&q + &k1q * (h / 2.0)), &(&v + &k1v * (h / 2.0)));
+            let (k3q, k3v) = f(&(&q + &k2q * (h / 2.0)), &(&v + &k2v * (h / 2.0)));
+            let (k4q, k4v) = f(&(&q + &k3q * h), &(&v + &k3v * h));
+            q += (k1q + k2q * 2.0 + k3q * 2.0 + k4q) * (h / 6.0);
+            v += (k1v + k2v * 2.0 + k3v * 2.0 + k4v) * (h / 6.0);
+        }
+    }
+    rec
+}
+
+/// RMS over all joints and samples of the torque prediction error of `est`, relative to
+/// the RMS torque.
+fn prediction_error(m: &DynChainBaseModel, est: &DVector<f64>, rec: &DynRecord) -> f64 {
+    let mut ws = m.workspace();
+    let mut tau = DVector::zeros(6);
+    let (mut se, mut st) = (0.0, 0.0);
+    for k in 0..rec.len() {
+        m.inverse_dynamics_into(&mut ws, &rec.q[k], &rec.qd[k], &rec.qdd[k], est, &mut tau)
+            .unwrap();
+        se += (&tau - &rec.tau[k]).norm_squared();
+        st += rec.tau[k].norm_squared();
+    }
+    (se / st).sqrt()
+}
+
+/// The EKF (positions measured, second-order discretisation, 10 ms) from λ₀ = 1.2·β on
+/// 1500 samples of the PUMA under held torques: the run-time and the compile-time filter
+/// give the same estimate (to 1e-9 of ‖β‖∞: the same arithmetic, FMA in both), and it
+/// moves towards the truth — the torque prediction error of the final estimate on the
+/// record is at most half that of λ₀ (20 %), the filter's job being to remove the model
+/// error it starts with.
+#[test]
+fn ekf_dyn_equals_fixed_and_moves_towards_truth() {
+    let f = fixture();
+    let beta = truth();
+    let rec = zoh_record(&f.dmodel, 1500);
+    let cfg = EkfConfig {
+        dt: DT,
+        discretisation: Discretisation::SecondOrder,
+        // The prior: λ₀ is 20 % off, so a relative σ of 25 % covers it; the structurally
+        // zero β_i are 0 in λ₀ too, and the floor sits below the smallest nonzero
+        // (Izz6 = 4e-5 kg·m²) so that the filter cannot push the wrist's tiny inertias
+        // out of the physical region.
+        initial_parameter_rel_std: 0.25,
+        initial_parameter_min_std: 1e-6,
+        ..Default::default()
+    };
+    let lambda0 = &beta * 1.2;
+    let mut ekf = DynEkf::new(f.dmodel.clone(), lambda0.clone(), cfg).unwrap();
+    let est = ekf.run(&rec.samples()).unwrap();
+    let beta_s: Beta = f.model.chain_base_values();
+    let mut ekf_s = Ekf::<_, 6, B, 48>::new(f.model, beta_s * 1.2, cfg).unwrap();
+    let (q, qd, qdd, tau): (Vec<_>, Vec<_>, Vec<_>, Vec<_>) = (
+        rec.q
+            .iter()
+            .map(|v| SVector::<f64, 6>::from_column_slice(v.as_slice()))
+            .collect(),
+        rec.qd
+            .iter()
+            .map(|v| SVector::<f64, 6>::from_column_slice(v.as_slice()))
+            .collect(),
+        rec.qdd
+            .iter()
+            .map(|v| SVector::<f64, 6>::from_column_slice(v.as_slice()))
+            .collect(),
+        rec.tau
+            .iter()
+            .map(|v| SVector::<f64, 6>::from_column_slice(v.as_slice()))
+            .collect(),
+    );
+    let est_s = ekf_s
+        .run(&prrrp_core::Samples::new(&q, &qd, &qdd, &tau).unwrap())
+        .unwrap();
+    let diff = rel_diff(est.as_slice(), est_s.as_slice());
+    let e0 = prediction_error(&f.dmodel, &lambda0, &rec);
+    let e1 = prediction_error(&f.dmodel, &est, &rec);
+    println!(
+        "Dyn EKF: torque prediction error {e0:.3} (λ0) → {e1:.4}; damped {}, Dyn vs Const \
+         {diff:.1e}",
+        ekf.damped_updates()
+    );
+    assert!(diff <= 1e-9, "{diff}");
+    assert!(e1 <= 0.5 * e0, "{e1} vs {e0}");
+}
+
+/// Bad input at run-time sizes: typed errors that say what to fix, never a panic.
+#[test]
+fn bad_input_is_a_typed_error_at_run_time_sizes() {
+    let f = fixture();
+    let m = &f.dmodel;
+    // λ₀ of the wrong length, for every estimator.
+    let short = DVector::zeros(B - 1);
+    assert!(matches!(
+        DynRls::new(m.clone(), short.clone(), RlsConfig::default()),
+        Err(PrrrpError::ShapeMismatch { .. })
+    ));
+    assert!(matches!(
+        DynAdaline::new(m.clone(), short.clone(), AdalineConfig::default()),
+        Err(PrrrpError::ShapeMismatch { .. })
+    ));
+    assert!(matches!(
+        DynHopfield::new(m.clone(), short.clone(), HopfieldConfig::default()),
+        Err(PrrrpError::ShapeMismatch { .. })
+    ));
+    assert!(matches!(
+        DynEkf::new(m.clone(), short, EkfConfig::default()),
+        Err(PrrrpError::ShapeMismatch { .. })
+    ));
+    // A compile-time S that is not 2N + P.
+    let beta_s: Beta = f.model.chain_base_values();
+    assert!(matches!(
+        Ekf::<_, 6, B, 47>::new(f.model, beta_s, EkfConfig::default()),
+        Err(PrrrpError::ShapeMismatch { .. })
+    ));
+    // A sample with the wrong joint count.
+    let mut rls = DynRls::new(m.clone(), DVector::zeros(B), RlsConfig::default()).unwrap();
+    let five = DVector::zeros(5);
+    let six = DVector::zeros(6);
+    let e = rls
+        .step(DynSample::new(&five, &six, &six, &six))
+        .unwrap_err();
+    assert!(matches!(e, PrrrpError::ShapeMismatch { .. }), "{e}");
+    println!("{e}");
+    let mut ekf = DynEkf::new(m.clone(), truth(), EkfConfig::default()).unwrap();
+    assert!(matches!(
+        ekf.step(DynSample::new(&six, &six, &six, &five)),
+        Err(PrrrpError::ShapeMismatch { .. })
+    ));
+    // Samples of unequal vector lengths.
+    let qs = vec![six.clone(), five.clone()];
+    let e = DynSamples::new(&qs, &qs, &qs, &qs).unwrap_err();
+    assert!(matches!(e, PrrrpError::ShapeMismatch { .. }), "{e}");
+    // NaN.
+    let mut nan = six.clone();
+    nan[2] = f64::NAN;
+    assert!(matches!(
+        rls.step(DynSample::new(&six, &nan, &six, &six)),
+        Err(PrrrpError::NonFinite { .. })
+    ));
+    // Too few samples, rank-deficient data.
+    let cfg = LeastSquaresConfig::default();
+    let few = DynRecord {
+        q: f.rec.q[..6].to_vec(),
+        qd: f.rec.qd[..6].to_vec(),
+        qdd: f.rec.qdd[..6].to_vec(),
+        tau: f.rec.tau[..6].to_vec(),
+    };
+    assert!(matches!(
+        least_squares(m, &few.samples(), &cfg),
+        Err(PrrrpError::TooFewSamples { .. })
+    ));
+    let same = DynRecord {
+        q: vec![f.rec.q[0].clone(); 50],
+        qd: vec![f.rec.qd[0].clone(); 50],
+        qdd: vec![f.rec.qdd[0].clone(); 50],
+        tau: vec![f.rec.tau[0].clone(); 50],
+    };
+    assert!(matches!(
+        least_squares(m, &same.samples(), &cfg),
+        Err(PrrrpError::RankDeficient { .. })
+    ));
+    // An unstable step size.
+    let unstable = AdalineConfig {
+        step_size: 2.5,
+        ..Default::default()
+    };
+    assert!(matches!(
+        DynAdaline::new(m.clone(), DVector::zeros(B), unstable),
+        Err(PrrrpError::InvalidParameter { .. })
+    ));
+    // A diverging EKF: λ₀ = −β makes M(q, λ₀) negative definite.
+    let mut ekf = DynEkf::new(m.clone(), -truth(), EkfConfig::default()).unwrap();
+    let s = f.rec.samples();
+    let e = ekf.step(s.sample(0)).unwrap_err();
+    assert!(matches!(e, PrrrpError::Diverged { .. }), "{e}");
+    println!("{e}");
+    // A base-parameter analysis of another chain.
+    let other = panda_like()
+        .base_parameters(&BaseOptions::default())
+        .unwrap();
+    assert!(matches!(
+        f.chain.to_dyn().base_model(&other),
+        Err(PrrrpError::ShapeMismatch { .. })
+    ));
+    // Model calls with wrong sizes or a workspace of another model.
+    let mut ws = m.workspace();
+    let mut phi = DMatrix::zeros(6, B - 1);
+    assert!(matches!(
+        m.regressor_into(&mut ws, &six, &six, &six, &mut phi),
+        Err(PrrrpError::ShapeMismatch { .. })
+    ));
+    let panda = panda_like();
+    let pm = panda.base_model(&other).unwrap();
+    let mut pws = pm.workspace();
+    let mut phi = DMatrix::zeros(6, B);
+    assert!(matches!(
+        m.regressor_into(&mut pws, &six, &six, &six, &mut phi),
+        Err(PrrrpError::ShapeMismatch { .. })
+    ));
+    let _ = &f.base;
+}

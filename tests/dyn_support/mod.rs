@@ -1,0 +1,174 @@
+//! Run-time-size test data: a Panda-like 7R chain with viscous, Coulomb and offset
+//! friction built with `DynChain::new`, an analytic Fourier excitation, exact records
+//! (τ = inverse dynamics of the chain's true parameters, no noise) and conversions of
+//! compile-time records to run-time vectors. Shared by tests and benchmarks.
+#![allow(dead_code)]
+
+use prrrp_core::nalgebra::{DVector, SVector};
+use prrrp_core::{
+    inertial_parameters, DhConvention, DhRow, DynChain, DynSamples, FrictionModel, JointKind,
+};
+use rand::rngs::StdRng;
+use rand::{RngExt, SeedableRng};
+
+/// Velocity scale of the smoothed Coulomb sign tanh(q̇/v_s), rad/s.
+pub const COULOMB_SMOOTHING: f64 = 0.02;
+
+/// A 7R arm with the Franka Panda's modified-DH kinematics, plausible (physically
+/// consistent) link inertials and friction on every joint (viscous, smoothed Coulomb,
+/// offset).
+pub fn panda_like() -> DynChain {
+    use std::f64::consts::FRAC_PI_2;
+    let a = [0.0, 0.0, 0.0, 0.0825, -0.0825, 0.0, 0.088];
+    let d = [0.333, 0.0, 0.316, 0.0, 0.384, 0.0, 0.0];
+    let alpha = [
+        0.0, -FRAC_PI_2, FRAC_PI_2, FRAC_PI_2, -FRAC_PI_2, FRAC_PI_2, FRAC_PI_2,
+    ];
+    let dh = (0..7)
+        .map(|i| DhRow {
+            kind: JointKind::Revolute,
+            theta: 0.0,
+            d: d[i],
+            a: a[i],
+            alpha: alpha[i],
+        })
+        .collect();
+    // Mass (kg), centre of mass in the link frame (m), principal inertia about it
+    // (kg·m², each satisfying the triangle inequality).
+    let links: [(f64, [f64; 3], [f64; 3]); 7] = [
+        (4.97, [0.0039, 0.0021, -0.0476], [0.70, 0.70, 0.009]),
+        (0.65, [-0.0031, -0.0287, 0.0035], [0.008, 0.028, 0.026]),
+        (3.23, [0.0275, 0.0393, -0.0665], [0.037, 0.036, 0.011]),
+        (3.59, [-0.0532, 0.1047, 0.0274], [0.026, 0.019, 0.029]),
+        (1.23, [-0.0120, 0.0411, -0.0384], [0.036, 0.029, 0.009]),
+        (1.67, [0.0601, -0.0141, -0.0105], [0.002, 0.004, 0.005]),
+        (0.74, [0.0105, -0.0043, 0.0617], [0.013, 0.010, 0.008]),
+    ];
+    let inertial = links
+        .iter()
+        .map(|&(m, c, i)| inertial_parameters(m, c, [i[0], 0.0, i[1], 0.0, 0.0, i[2]]))
+        .collect();
+    // fv (N·m·s/rad), fc (N·m), fo (N·m) per joint.
+    let friction = (0..7)
+        .map(|j| {
+            let s = if j < 4 { 1.0 } else { 0.4 };
+            [0.5 * s, 0.8 * s, if j % 2 == 0 { 0.1 } else { -0.05 } * s]
+        })
+        .collect();
+    let model = FrictionModel {
+        coulomb_smoothing: COULOMB_SMOOTHING,
+        ..FrictionModel::all()
+    };
+    DynChain::new(dh, DhConvention::Modified)
+        .expect("DH table")
+        .with_inertial(inertial)
+        .expect("inertials")
+        .with_friction(model, friction)
+        .expect("friction")
+}
+
+/// Owned run-time columns of a record.
+#[derive(Debug, Clone, Default)]
+pub struct DynRecord {
+    pub q: Vec<DVector<f64>>,
+    pub qd: Vec<DVector<f64>>,
+    pub qdd: Vec<DVector<f64>>,
+    pub tau: Vec<DVector<f64>>,
+}
+
+impl DynRecord {
+    pub fn samples(&self) -> DynSamples<'_> {
+        DynSamples::new(&self.q, &self.qd, &self.qdd, &self.tau).expect("equal lengths")
+    }
+
+    pub fn len(&self) -> usize {
+        self.q.len()
+    }
+
+    /// The same record from compile-time vectors.
+    pub fn from_fixed<const N: usize>(
+        q: &[SVector<f64, N>],
+        qd: &[SVector<f64, N>],
+        qdd: &[SVector<f64, N>],
+        tau: &[SVector<f64, N>],
+    ) -> Self {
+        let conv = |v: &[SVector<f64, N>]| {
+            v.iter()
+                .map(|x| DVector::from_column_slice(x.as_slice()))
+                .collect()
+        };
+        Self {
+            q: conv(q),
+            qd: conv(qd),
+            qdd: conv(qdd),
+            tau: conv(tau),
+        }
+    }
+}
+
+/// q_j(t) = Σ_k a_jk·sin(k·ω·t + φ_jk), five harmonics of a 10 s fundamental, amplitude
+/// of harmonic k in `scale`·[0.3, 1]/k/2 rad, seeded; returns (q, q̇, q̈) exactly.
+pub struct DynFourier {
+    omega: f64,
+    amp: Vec<[f64; 5]>,
+    phase: Vec<[f64; 5]>,
+}
+
+impl DynFourier {
+    pub fn seeded(seed: u64, n: usize, scale: f64) -> Self {
+        let mut rng = StdRng::seed_from_u64(seed);
+        let mut amp = vec![[0.0; 5]; n];
+        let mut phase = vec![[0.0; 5]; n];
+        for j in 0..n {
+            for k in 0..5 {
+                let u: f64 = rng.random();
+                let p: f64 = rng.random();
+                amp[j][k] = scale * (0.3 + 0.7 * u) / (k as f64 + 1.0) / 2.0;
+                phase[j][k] = 2.0 * std::f64::consts::PI * p;
+            }
+        }
+        Self {
+            omega: 2.0 * std::f64::consts::PI / 10.0,
+            amp,
+            phase,
+        }
+    }
+
+    pub fn eval(&self, t: f64) -> [DVector<f64>; 3] {
+        let n = self.amp.len();
+        let (mut q, mut qd, mut qdd) = (DVector::zeros(n), DVector::zeros(n), DVector::zeros(n));
+        for j in 0..n {
+            for k in 0..5 {
+                let w = (k as f64 + 1.0) * self.omega;
+                let (s, c) = (w * t + self.phase[j][k]).sin_cos();
+                let a = self.amp[j][k];
+                q[j] += a * s;
+                qd[j] += a * w * c;
+                qdd[j] -= a * w * w * s;
+            }
+        }
+        [q, qd, qdd]
+    }
+}
+
+/// `samples` samples every `dt` s of the reference, with τ the chain's exact inverse
+/// dynamics (true parameters, friction included): noise-free identification data.
+pub fn exact_record(
+    chain: &DynChain,
+    reference: &DynFourier,
+    samples: usize,
+    dt: f64,
+) -> DynRecord {
+    let mut rec = DynRecord::default();
+    for k in 0..samples {
+        let [q, qd, qdd] = reference.eval(k as f64 * dt);
+        let tau = chain
+            .inverse_dynamics(q.as_slice(), qd.as_slice(), qdd.as_slice())
+            .expect("sizes");
+        rec.q.push(q);
+        rec.qd.push(qd);
+        rec.qdd.push(qdd);
+        rec.tau.push(DVector::from_vec(tau));
+    }
+    rec
+}
