@@ -49,9 +49,9 @@ impl PyDataset {
     ) -> PyResult<Self> {
         let t = vector(t, "t")?;
         let (_, n, q) = table(q, "q")?;
-        let (.., qd) = table(qd, "qd")?;
-        let (.., qdd) = table(qdd, "qdd")?;
-        let (.., tau) = table(tau, "tau")?;
+        let qd = columns_like(qd, "qd", n)?;
+        let qdd = columns_like(qdd, "qdd", n)?;
+        let tau = columns_like(tau, "tau", n)?;
         let inner =
             DynDataset::with_min_samples(n, Dataset::MIN_SAMPLES, t, q, qd, qdd, tau).to_py(py)?;
         Ok(Self { inner })
@@ -194,6 +194,20 @@ impl PyDataset {
     }
 }
 
+/// The values of a (N, n) argument whose joint count must match q's.
+fn columns_like(obj: &Bound<'_, PyAny>, name: &'static str, n: usize) -> PyResult<Vec<f64>> {
+    let (rows, m, data) = table(obj, name)?;
+    if m != n {
+        return Err(crate::errors::shape_error(
+            obj.py(),
+            name,
+            format!("(N, {n}) (n = {n} joints, from q)"),
+            format!("({rows}, {m})"),
+        ));
+    }
+    Ok(data)
+}
+
 impl PyDataset {
     fn column<'py>(&self, py: Python<'py>, flat: &[f64]) -> Out<'py> {
         to_array(
@@ -238,8 +252,8 @@ fn preprocess_log_py<'py>(
 ) -> PyResult<(PyDataset, Bound<'py, PyDict>)> {
     let t = vector(t, "t")?;
     let (_, n, q) = table(q, "q")?;
-    let (.., tau) = table(tau, "tau")?;
-    let qd = qd.map(|v| table(v, "qd").map(|x| x.2)).transpose()?;
+    let tau = columns_like(tau, "tau", n)?;
+    let qd = qd.map(|v| columns_like(v, "qd", n)).transpose()?;
     let config = LogConfig {
         rate_hz,
         cutoff_hz,
