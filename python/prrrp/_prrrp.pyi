@@ -605,6 +605,15 @@ class SerialChain:
         Loading it back gives the same dynamics (to round-off). Chains whose link frames sit
         off the joint axes (standard DH) are written in joint frames, inertials moved
         accordingly."""
+    def with_friction(
+        self,
+        friction: str | list[str] | None,
+        friction_params: _ArrayLike | None = None,
+        *,
+        coulomb_smoothing: float = 0.0,
+    ) -> SerialChain:
+        """The same chain with another friction model (terms as in the constructor),
+        per-joint [fv, fc, fo] (n, 3) (default zeros) and the smooth-sign scale (rad/s)."""
     @property
     def name(self) -> str:
         """The robot's name from its file ('robot' otherwise)."""
@@ -774,6 +783,24 @@ def identified_model_from_parts(
     base: BaseParameters | None = None,
 ) -> IdentifiedModel:
     """An IdentifiedModel from its parts (β̂ in `base`, default `robot.base_parameters()`)."""
+
+def identify(
+    robot: SerialChain,
+    data: Dataset,
+    method: Literal["ls", "wls"] = "ls",
+    *,
+    base: BaseParameters | None = None,
+    rank_tolerance: float = 1e-10,
+    preprocessing: dict[str, Any] | None = None,
+) -> IdentifiedModel:
+    """Identifies the base parameters of `robot` (default analysis `robot.base_parameters()`,
+    friction columns included) from `data` (a Dataset with the robot's joint count) by
+    ordinary ("ls") or weighted least squares with per-joint noise variances estimated from
+    the residuals ("wls"). The model carries β̂ with σ and %σ, cond(W_b), the per-joint
+    residual RMS and `preprocessing` as given (e.g. the report of `preprocess_log`). The
+    online methods (rls, adaline, hopfield, ekf) are not yet available here for chains.
+    Errors: ShapeMismatchError (joint count), TooFewSamplesError, RankDeficientError (data
+    that do not excite every base parameter), NonFiniteError."""
 
 class BaseParameters:
     """Result of `SerialChain.base_parameters()`: base parameters β = map @ π (b of them)."""

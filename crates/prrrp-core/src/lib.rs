@@ -96,7 +96,9 @@ pub use excitation::{
     excitation_variables, optimise_excitation, ExcitationConfig, ExcitationProgress,
     ExcitationResult, DEFAULT_EXCITATION_KNOTS,
 };
-pub use identification::{BaseDescription, IdentifiedModel, Predictor, MODEL_SCHEMA_VERSION};
+pub use identification::{
+    identify_least_squares, BaseDescription, IdentifiedModel, Predictor, MODEL_SCHEMA_VERSION,
+};
 pub use interrupt::{check_count, clear_stop, request_stop, stop_requested, MAX_SAMPLES};
 pub use limits::{limit_usage, JointLimits, LimitUsage};
 pub use metrics::{

@@ -351,6 +351,29 @@ impl PySerialChain {
         self.inner.to_urdf(params.as_deref()).to_py(py)
     }
 
+    /// The same chain with another friction model: terms among 'viscous', 'coulomb',
+    /// 'offset', per-joint [fv, fc, fo] (n, 3) (default zeros) and the smooth-sign scale.
+    #[pyo3(signature = (friction, friction_params=None, *, coulomb_smoothing=0.0))]
+    fn with_friction(
+        &self,
+        py: Python<'_>,
+        friction: Option<&Bound<'_, PyAny>>,
+        friction_params: Option<&Bound<'_, PyAny>>,
+        coulomb_smoothing: f64,
+    ) -> PyResult<Self> {
+        let n = self.inner.dof();
+        let model = friction_from(friction, coulomb_smoothing)?;
+        let params = match friction_params {
+            Some(obj) => {
+                let (_, flat) = matrix_rows(obj, "friction_params", Some(n), 3)?;
+                flat.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect()
+            }
+            None => vec![[0.0; 3]; n],
+        };
+        let chain = self.inner.clone().with_friction(model, params).to_py(py)?;
+        Ok(Self::wrap(chain))
+    }
+
     /// The robot's name (from its file; 'robot' otherwise).
     #[getter]
     fn name(&self) -> String {

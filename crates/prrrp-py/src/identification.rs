@@ -258,8 +258,88 @@ fn identified_model_from_parts(
     Ok(PyIdentifiedModel { inner })
 }
 
+/// Identifies `robot` from `data`; see `_prrrp.pyi`.
+#[pyfunction]
+#[pyo3(signature = (robot, data, method="ls", *, base=None, rank_tolerance=1e-10,
+    preprocessing=None))]
+fn identify(
+    py: Python<'_>,
+    robot: &Bound<'_, PyAny>,
+    data: &crate::dataset::PyDataset,
+    method: &str,
+    base: Option<&crate::chain::PyBaseParameters>,
+    rank_tolerance: f64,
+    preprocessing: Option<&Bound<'_, PyDict>>,
+) -> PyResult<PyIdentifiedModel> {
+    let invalid = |field: &str, reason: &'static str| {
+        to_pyerr(
+            py,
+            &prrrp_core::PrrrpError::InvalidParameter {
+                field: field.into(),
+                value: f64::NAN,
+                reason,
+            },
+        )
+    };
+    let Ok(chain) = robot.cast::<PySerialChain>() else {
+        return Err(invalid(
+            "robot",
+            "must be a prrrp.SerialChain (for the paper's arm: prrrp.SerialChain.paper(), or \
+             the closed-form estimators prrrp.least_squares, Adaline, Hopfield, Ekf)",
+        ));
+    };
+    let chain = chain.get();
+    let weighted = match method {
+        "ls" => false,
+        "wls" => true,
+        "rls" | "adaline" | "hopfield" | "ekf" => {
+            return Err(invalid(
+                &format!("method {method:?}"),
+                "is not yet available through identify for SerialChain robots; use \"ls\" \
+                 or \"wls\"",
+            ))
+        }
+        _ => {
+            return Err(invalid(
+                &format!("method {method:?}"),
+                "unknown: use \"ls\" or \"wls\"",
+            ))
+        }
+    };
+    let base = match base {
+        Some(b) => b.inner.clone(),
+        None => chain.default_base(py)?.clone(),
+    };
+    let preprocessing = match preprocessing {
+        Some(d) => {
+            let text: String = py.import("json")?.call_method1("dumps", (d,))?.extract()?;
+            serde_json::from_str(&text).map_err(|_| {
+                invalid(
+                    "preprocessing",
+                    "must be a JSON-serialisable dict of finite values",
+                )
+            })?
+        }
+        None => serde_json::Value::Object(Default::default()),
+    };
+    let config = prrrp_core::LeastSquaresConfig { rank_tolerance };
+    let inner = crate::interrupt::interruptible(py, || {
+        prrrp_core::identify_least_squares(
+            chain.chain(),
+            &base,
+            &data.inner,
+            weighted,
+            &config,
+            preprocessing,
+        )
+    })?
+    .to_py(py)?;
+    Ok(PyIdentifiedModel { inner })
+}
+
 pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyIdentifiedModel>()?;
+    m.add_function(wrap_pyfunction!(identify, m)?)?;
     m.add_function(wrap_pyfunction!(identified_model_from_parts, m)?)?;
     Ok(())
 }
