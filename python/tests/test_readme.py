@@ -14,7 +14,9 @@ def python_blocks() -> list[str]:
     return re.findall(r"```python\n(.*?)```", README.read_text(encoding="utf-8"), re.S)
 
 
-@pytest.mark.parametrize("needle", ["SerialChain.puma560", "SerialChain.from_urdf"])
+@pytest.mark.parametrize(
+    "needle", ["SerialChain.puma560", "SerialChain.from_urdf", "prrrp.identify"]
+)
 def test_readme_example_runs(needle):
     blocks = [b for b in python_blocks() if needle in b]
     assert blocks, f"no README example uses {needle}"
