@@ -119,7 +119,15 @@ pub fn rsd(observed: &[f64], predicted: &[f64]) -> Result<f64> {
             })
         };
     }
-    Ok((num / den).sqrt())
+    // √num/√den: num/den itself can overflow when o is tiny next to p.
+    let r = num.sqrt() / den.sqrt();
+    if !r.is_finite() {
+        return Err(PrrrpError::NonFinite {
+            what: "rsd (the residual dwarfs the observed series beyond the f64 range)".into(),
+            row: None,
+        });
+    }
+    Ok(r)
 }
 
 /// Willmott's agreement index (eq. 47): 1 − Σ(oᵢ − pᵢ)² / Σ(|pᵢ − o_m| + |oᵢ − o_m|)².
@@ -263,5 +271,11 @@ mod extreme {
             );
         }
         assert!(rms(&[f64::MAX, -f64::MAX], &[-f64::MAX, f64::MAX]).is_err());
+        // A tiny observed series next to a huge prediction: RSD is huge but representable.
+        let r = rsd(&[8e133, 0.0], &[5e287, 5e287]).unwrap();
+        assert!(
+            (r / (5e287 * 2f64.sqrt() / 8e133) - 1.0).abs() < 1e-12,
+            "{r}"
+        );
     }
 }
