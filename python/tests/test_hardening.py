@@ -15,7 +15,7 @@ import prrrp
 
 LONG_CALLS = {
     "sensitivity": "prrrp.sensitivity(points=400)",
-    "simulation": "prrrp.simulate_closed_loop(s, 20000.0, substeps=100)",
+    "simulation": "prrrp.simulate_closed_loop(s, 5000.0, substeps=400)",
     "excitation": "prrrp.optimise_excitation(max_evaluations=10**6, restarts=50)",
 }
 
