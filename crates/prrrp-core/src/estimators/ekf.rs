@@ -207,6 +207,8 @@ where
     pz: OMatrix<f64, S, N>,
     d: OMatrix<f64, S, N>,
     g: OMatrix<f64, S, N>,
+    /// A = ∂q̈/∂x = [∂q̈/∂q, ∂q̈/∂q̇, ∂q̈/∂λ] (N×S), contiguous.
+    a: OMatrix<f64, N, S>,
     sz: OMatrix<f64, N, N>,
     chol: OMatrix<f64, N, N>,
     linv: OMatrix<f64, N, N>,
@@ -234,6 +236,7 @@ where
             pz: OMatrix::zeros_generic(s, n),
             d: OMatrix::zeros_generic(s, n),
             g: OMatrix::zeros_generic(s, n),
+            a: OMatrix::zeros_generic(n, s),
             sz: OMatrix::zeros_generic(n, n),
             chol: OMatrix::zeros_generic(n, n),
             linv: OMatrix::zeros_generic(n, n),
@@ -736,17 +739,21 @@ where
         let b = &mut self.buf;
         let fd = &b.fd;
 
-        // A = ∂q̈/∂x = [∂q̈/∂q, ∂q̈/∂q̇, ∂q̈/∂λ] (N×S), read in place from the three
-        // blocks; then G = P·Aᵀ (S×N), skipping zero entries of A.
-        let (dq, dqd, dl) = (
-            fd.dqdd_dq.as_slice(),
-            fd.dqdd_dqd.as_slice(),
-            fd.dqdd_dlambda.as_slice(),
-        );
+        // A = ∂q̈/∂x = [∂q̈/∂q, ∂q̈/∂q̇, ∂q̈/∂λ] (N×S) assembled contiguously (uniform
+        // column indexing in the loops below); then G = P·Aᵀ (S×N), skipping zero
+        // entries of A.
+        {
+            let a = b.a.as_mut_slice();
+            let nn = n * n;
+            a[..nn].copy_from_slice(fd.dqdd_dq.as_slice());
+            a[nn..2 * nn].copy_from_slice(fd.dqdd_dqd.as_slice());
+            a[2 * nn..].copy_from_slice(fd.dqdd_dlambda.as_slice());
+        }
+        let a = b.a.as_slice();
         b.g.fill(0.0);
-        p_times_at::<FMA>(self.p.as_slice(), dq, dqd, dl, b.g.as_mut_slice(), n, s);
+        p_times_at::<FMA>(self.p.as_slice(), a, b.g.as_mut_slice(), n, s);
         b.apa.fill(0.0);
-        a_times_g::<FMA>(dq, dqd, dl, b.g.as_slice(), b.apa.as_mut_slice(), n, s);
+        a_times_g::<FMA>(a, b.g.as_slice(), b.apa.as_mut_slice(), n, s);
 
         // F = I + E with E_q = [c·h·A_q, h·I + c·h·A_v, c·h·A_λ], E_v = h·A, E_λ = 0
         // (c = h/2 for the second-order position update, 0 for Euler), so
@@ -894,23 +901,9 @@ fn gain_columns<const FMA: bool>(pzs: &[f64], sinv: &[f64], ks: &mut [f64], n: u
 /// G += P·Aᵀ (S×N) with A = [∂q̈/∂q, ∂q̈/∂q̇, ∂q̈/∂λ] given as its three column-major
 /// blocks, skipping zero entries of A (most of −M⁻¹Φ for PRRRP).
 #[inline(always)]
-fn p_times_at<const FMA: bool>(
-    ps: &[f64],
-    dq: &[f64],
-    dqd: &[f64],
-    dl: &[f64],
-    gs: &mut [f64],
-    n: usize,
-    s: usize,
-) {
+fn p_times_at<const FMA: bool>(ps: &[f64], a: &[f64], gs: &mut [f64], n: usize, s: usize) {
     for kk in 0..s {
-        let acol = if kk < n {
-            &dq[kk * n..kk * n + n]
-        } else if kk < 2 * n {
-            &dqd[(kk - n) * n..(kk - n) * n + n]
-        } else {
-            &dl[(kk - 2 * n) * n..(kk - 2 * n) * n + n]
-        };
+        let acol = &a[kk * n..kk * n + n];
         let pc = &ps[kk * s..kk * s + s];
         for (i, &f) in acol.iter().enumerate() {
             if f != 0.0 {
@@ -942,23 +935,9 @@ fn minus_k_sz<const FMA: bool>(ks: &[f64], sz: &[f64], dsm: &mut [f64], n: usize
 /// side by side instead of one dependent chain at a time; zero columns of A (joints the
 /// dynamics do not depend on) are skipped.
 #[inline(always)]
-fn a_times_g<const FMA: bool>(
-    dq: &[f64],
-    dqd: &[f64],
-    dl: &[f64],
-    gs: &[f64],
-    apa: &mut [f64],
-    n: usize,
-    s: usize,
-) {
+fn a_times_g<const FMA: bool>(a: &[f64], gs: &[f64], apa: &mut [f64], n: usize, s: usize) {
     for kk in 0..s {
-        let ac = if kk < n {
-            &dq[kk * n..kk * n + n]
-        } else if kk < 2 * n {
-            &dqd[(kk - n) * n..(kk - n) * n + n]
-        } else {
-            &dl[(kk - 2 * n) * n..(kk - 2 * n) * n + n]
-        };
+        let ac = &a[kk * n..kk * n + n];
         if ac.iter().all(|&v| v == 0.0) {
             continue;
         }
