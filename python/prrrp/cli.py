@@ -273,12 +273,18 @@ def _iterative(method: str, data: dict[str, Any]) -> dict[str, Any]:
     lam0 = INITIAL_GUESS_FACTOR * prrrp.Robot.paper().base_parameters()
     cols = (data["q"], data["qd"], data["qdd"], data["tau"])
     dt = float(np.median(np.diff(data["t"])))
-    if method == "adaline":
-        estimator = prrrp.Adaline(lam0)
-        estimator.train(*cols, ADALINE_EPOCHS)
-    elif method == "hopfield":
-        estimator = prrrp.Hopfield(lam0, dt=dt)
-        estimator.train(*cols, HOPFIELD_EPOCHS)
+    if method in ("adaline", "hopfield"):
+        if method == "adaline":
+            estimator = prrrp.Adaline(lam0)
+            errors = estimator.train(*cols, ADALINE_EPOCHS)
+        else:
+            estimator = prrrp.Hopfield(lam0, dt=dt)
+            errors = estimator.train(*cols, HOPFIELD_EPOCHS)
+        if not np.all(np.isfinite(errors)):
+            raise CliError(
+                f"{method}: the equation error is not finite; the data holds values too "
+                "large to compute with (remove or rescale those rows)"
+            )
     else:
         estimator = prrrp.Ekf(lam0, dt=dt)
         estimator.run(*cols)
@@ -291,6 +297,22 @@ ESTIMATORS: dict[str, Callable[[str, dict[str, Any], str], dict[str, Any]]] = {
     "hopfield": lambda m, d, p: _iterative(m, d),
     "ekf": lambda m, d, p: _iterative(m, d),
 }
+
+
+def _estimate(method: str, data: dict[str, Any], path: str) -> dict[str, Any]:
+    """One estimator's result; an estimate that is not finite (data whose magnitudes
+    overflow the arithmetic, e.g. τ = 1e308 on some rows) is a usage error (exit 2)."""
+    try:
+        result = ESTIMATORS[method](method, data, path)
+    except prrrp.NonFiniteError as e:
+        raise CliError(f"{path}: {method}: {_first_line(e)}") from None
+    lam = np.asarray(result["lambda"], dtype=float)
+    if not np.all(np.isfinite(lam)):
+        raise CliError(
+            f"{path}: {method}: the estimate is not finite; the data holds values too large "
+            "to compute with (remove or rescale those rows)"
+        )
+    return result
 
 
 def _validate(estimates: list[dict[str, Any]], data: dict[str, Any]) -> list[dict[str, Any]]:
@@ -354,7 +376,7 @@ def cmd_identify(args: argparse.Namespace) -> int:
     try:
         for k, method in enumerate(methods):
             progress("identify", k, len(methods))
-            estimates.append(ESTIMATORS[method](method, data, args.data))
+            estimates.append(_estimate(method, data, args.data))
         progress("identify", len(methods), len(methods))
     finally:
         progress.close()

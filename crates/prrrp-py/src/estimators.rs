@@ -11,12 +11,15 @@ use prrrp_core::{
     PrrrpError, PrrrpModel, Rls as CoreRls, RlsConfig, Robot, Sample, Samples as CoreSamples, Vec5,
     NDOF, NPARAM, PRRRP_EKF_STATES,
 };
+use std::sync::{Mutex, MutexGuard, TryLockError};
+
 use pyo3::prelude::*;
 
 use crate::arrays::{
-    fixed_matrix, fixed_or, fixed_vector, rows_to_array, to_array, write_row_major, Samples,
+    fixed_matrix, fixed_or, fixed_vector, rows_to_array, to_array, write_row_major, Samples, UInt,
 };
-use crate::errors::{to_pyerr, ToPyResult};
+use crate::errors::{to_pyerr, Exc, ToPyResult};
+use crate::interrupt::interruptible;
 
 type Model = PrrrpModel;
 
@@ -42,6 +45,27 @@ fn invalid(py: Python<'_>, field: &str, reason: &'static str) -> PyErr {
         },
     )
 }
+
+/// Locks an estimator's state. A second thread using the same estimator while a call
+/// runs (e.g. `step` during another thread's `run`, which releases the GIL) gets a
+/// `prrrp.PrrrpError` instead of waiting or corrupting the state.
+fn lock<'a, E>(py: Python<'_>, m: &'a Mutex<E>) -> PyResult<MutexGuard<'a, E>> {
+    match m.try_lock() {
+        Ok(g) => Ok(g),
+        // A panic in an earlier call was already reported; the state is plain numbers.
+        Err(TryLockError::Poisoned(p)) => Ok(p.into_inner()),
+        Err(TryLockError::WouldBlock) => Err(Exc::Base.new_err(
+            py,
+            "estimator in use by another thread: use one estimator per thread, or wait \
+             for the other call to finish"
+                .into(),
+            &[],
+        )),
+    }
+}
+
+/// Samples between two polls of the stop flag in `run`.
+const CHECK_EVERY: usize = 1024;
 
 /// The four (N, 5) columns of a batch call.
 struct Columns {
@@ -137,6 +161,14 @@ fn least_squares(
     let report = py
         .detach(|| {
             let s = cols.samples()?;
+            // One sample per parameter (as `Dataset`): fewer leave the statistics
+            // (σ², per-joint variances) without meaningful degrees of freedom.
+            if s.len() < NPARAM {
+                return Err(PrrrpError::TooFewSamples {
+                    needed: NPARAM,
+                    got: s.len(),
+                });
+            }
             if weighted {
                 core_wls(&model, &s, noise, &config)
             } else {
@@ -181,6 +213,10 @@ fn step_one<'py, E: Estimator<nalgebra::Const<NDOF>, nalgebra::Const<NPARAM>>>(
         one(tau, "tau")?,
     );
     let lam = *est.step(Sample::new(&q, &qd, &qdd, &tau)).to_py(py)?;
+    if !lam.iter().all(|x| x.is_finite()) {
+        let what = "estimate λ̂ (the sample's magnitudes overflow f64 arithmetic)".into();
+        return Err(to_pyerr(py, &PrrrpError::NonFinite { what, row: None }));
+    }
     vec8(py, &lam)
 }
 
@@ -201,10 +237,18 @@ fn run_batch<'py, E: Estimator<nalgebra::Const<NDOF>, nalgebra::Const<NPARAM>> +
         return Err(invalid(py, "history_every", "must be >= 1 (or None)"));
     }
     let mut history: Vec<nalgebra::SVector<f64, NPARAM>> = Vec::new();
-    let result = py.detach(|| -> Result<Lambda, (usize, PrrrpError)> {
+    let result = interruptible(py, || -> Result<Lambda, (usize, PrrrpError)> {
         let s = cols.samples().map_err(|e| (0, e))?;
         for (k, sample) in s.iter().enumerate() {
+            if k % CHECK_EVERY == 0 && prrrp_core::stop_requested() {
+                let what = "estimator run";
+                return Err((k, PrrrpError::Interrupted { what }));
+            }
             let lam = *est.step(sample).map_err(|e| (k, e))?;
+            if !lam.iter().all(|x| x.is_finite()) {
+                let what = "estimate λ̂ (the data's magnitudes overflow f64 arithmetic)".into();
+                return Err((k, PrrrpError::NonFinite { what, row: None }));
+            }
             if let Some(every) = history_every {
                 if (k + 1) % every == 0 {
                     history.push(lam);
@@ -212,7 +256,7 @@ fn run_batch<'py, E: Estimator<nalgebra::Const<NDOF>, nalgebra::Const<NPARAM>> +
             }
         }
         Ok(*est.estimate())
-    });
+    })?;
     let lam = match result {
         Ok(l) => l,
         Err((k, e)) => {
@@ -242,25 +286,26 @@ macro_rules! online_methods {
     ($name:ident) => {
         impl $name {
             fn do_step<'py>(
-                &mut self,
+                &self,
                 py: Python<'py>,
                 q: &Bound<'py, PyAny>,
                 qd: &Bound<'py, PyAny>,
                 qdd: &Bound<'py, PyAny>,
                 tau: &Bound<'py, PyAny>,
             ) -> PyResult<Bound<'py, PyAny>> {
-                step_one(py, &mut self.inner, q, qd, qdd, tau)
+                step_one(py, &mut *lock(py, &self.inner)?, q, qd, qdd, tau)
             }
             fn do_run<'py>(
-                &mut self,
+                &self,
                 py: Python<'py>,
                 q: &Bound<'py, PyAny>,
                 qd: &Bound<'py, PyAny>,
                 qdd: &Bound<'py, PyAny>,
                 tau: &Bound<'py, PyAny>,
-                history_every: Option<usize>,
+                history_every: Option<UInt<usize>>,
             ) -> PyResult<Bound<'py, PyAny>> {
-                run_batch(py, &mut self.inner, q, qd, qdd, tau, history_every)
+                let every = history_every.map(|u| u.0);
+                run_batch(py, &mut *lock(py, &self.inner)?, q, qd, qdd, tau, every)
             }
         }
     };
@@ -275,7 +320,7 @@ macro_rules! estimator_pymethods {
         $($extra)*
         /// Consumes one sample (each (5,)) and returns the updated λ̂ (8,).
         fn step<'py>(
-            &mut self,
+            &self,
             py: Python<'py>,
             q: &Bound<'py, PyAny>,
             qd: &Bound<'py, PyAny>,
@@ -289,24 +334,26 @@ macro_rules! estimator_pymethods {
         /// (M, 8) the estimate after every `history_every` samples.
         #[pyo3(signature = (q, qd, qdd, tau, *, history_every=None))]
         fn run<'py>(
-            &mut self,
+            &self,
             py: Python<'py>,
             q: &Bound<'py, PyAny>,
             qd: &Bound<'py, PyAny>,
             qdd: &Bound<'py, PyAny>,
             tau: &Bound<'py, PyAny>,
-            history_every: Option<usize>,
+            history_every: Option<UInt<usize>>,
         ) -> PyResult<Bound<'py, PyAny>> {
             self.do_run(py, q, qd, qdd, tau, history_every)
         }
         /// The current estimate λ̂, (8,).
         #[getter]
         fn estimate<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
-            vec8(py, self.inner.estimate())
+            let lam = *lock(py, &self.inner)?.estimate();
+            vec8(py, &lam)
         }
         /// Returns to the state right after construction.
-        fn reset(&mut self) {
-            self.inner.reset()
+        fn reset(&self, py: Python<'_>) -> PyResult<()> {
+            lock(py, &self.inner)?.reset();
+            Ok(())
         }
         }
     };
@@ -325,12 +372,11 @@ where
     F: FnOnce(&CoreSamples<'_, NDOF>) -> Result<prrrp_core::TrainingReport, PrrrpError> + Send,
 {
     let cols = Columns::extract(q, qd, qdd, tau)?;
-    let report = py
-        .detach(|| {
-            let s = cols.samples()?;
-            f(&s)
-        })
-        .to_py(py)?;
+    let report = interruptible(py, || {
+        let s = cols.samples()?;
+        f(&s)
+    })?
+    .to_py(py)?;
     let n = report.rms_error.len();
     to_array(py, report.rms_error, None, &[n])
 }
@@ -338,9 +384,9 @@ where
 /// Adaline network (paper §3.2) whose weights are λ; `rule` "normalised" (NLMS, step size
 /// `step_size` in (0, 2)) or "delta" (eq. 11, rate `learning_rate`). `lam0` (8,) defaults
 /// to Table 3.
-#[pyclass(module = "prrrp", name = "Adaline")]
+#[pyclass(module = "prrrp", name = "Adaline", frozen)]
 struct Adaline {
-    inner: CoreAdaline<Model, NDOF, NPARAM>,
+    inner: Mutex<CoreAdaline<Model, NDOF, NPARAM>>,
 }
 online_methods!(Adaline);
 
@@ -370,30 +416,32 @@ estimator_pymethods!(Adaline {
             divergence_ratio,
         };
         Ok(Self {
-            inner: CoreAdaline::new(model(), lambda0(lam0)?, config).to_py(py)?,
+            inner: Mutex::new(CoreAdaline::new(model(), lambda0(lam0)?, config).to_py(py)?),
         })
     }
     /// `epochs` passes over the N samples; returns the a-priori RMS equation error of
-    /// each epoch, (epochs,).
+    /// each epoch, (epochs,). At most 10**7 epochs per call (train in several calls for
+    /// more); Ctrl-C stops it with KeyboardInterrupt.
     fn train<'py>(
-        &mut self,
+        &self,
         py: Python<'py>,
         q: &Bound<'py, PyAny>,
         qd: &Bound<'py, PyAny>,
         qdd: &Bound<'py, PyAny>,
         tau: &Bound<'py, PyAny>,
-        epochs: usize,
+        epochs: UInt<usize>,
     ) -> PyResult<Bound<'py, PyAny>> {
-        let inner = &mut self.inner;
-        train_epochs(py, q, qd, qdd, tau, |s| inner.train(s, epochs))
+        let mut inner = lock(py, &self.inner)?;
+        let inner = &mut *inner;
+        train_epochs(py, q, qd, qdd, tau, |s| inner.train(s, epochs.0))
     }
 });
 
 /// Hopfield network (paper §3.3, Abe's formulation, eq. 19): estimates in (−bound, bound),
 /// slope `beta`, each sample integrated over `dt` s. `lam0` (8,) defaults to Table 3.
-#[pyclass(module = "prrrp", name = "Hopfield")]
+#[pyclass(module = "prrrp", name = "Hopfield", frozen)]
 struct Hopfield {
-    inner: CoreHopfield<Model, NDOF, NPARAM>,
+    inner: Mutex<CoreHopfield<Model, NDOF, NPARAM>>,
 }
 online_methods!(Hopfield);
 
@@ -418,29 +466,31 @@ estimator_pymethods!(Hopfield {
             max_substeps,
         };
         Ok(Self {
-            inner: CoreHopfield::new(model(), lambda0(lam0)?, config).to_py(py)?,
+            inner: Mutex::new(CoreHopfield::new(model(), lambda0(lam0)?, config).to_py(py)?),
         })
     }
-    /// `epochs` passes over the N samples; returns the RMS equation error per epoch.
+    /// `epochs` passes over the N samples; returns the RMS equation error per epoch. At
+    /// most 10**7 epochs per call; Ctrl-C stops it with KeyboardInterrupt.
     fn train<'py>(
-        &mut self,
+        &self,
         py: Python<'py>,
         q: &Bound<'py, PyAny>,
         qd: &Bound<'py, PyAny>,
         qdd: &Bound<'py, PyAny>,
         tau: &Bound<'py, PyAny>,
-        epochs: usize,
+        epochs: UInt<usize>,
     ) -> PyResult<Bound<'py, PyAny>> {
-        let inner = &mut self.inner;
-        train_epochs(py, q, qd, qdd, tau, |s| inner.train(s, epochs))
+        let mut inner = lock(py, &self.inner)?;
+        let inner = &mut *inner;
+        train_epochs(py, q, qd, qdd, tau, |s| inner.train(s, epochs.0))
     }
 });
 
 /// Recursive least squares with forgetting factor `forgetting` in (0, 1] and P₀ =
 /// `initial_covariance`·I. `lam0` (8,) defaults to Table 3.
-#[pyclass(module = "prrrp", name = "Rls")]
+#[pyclass(module = "prrrp", name = "Rls", frozen)]
 struct Rls {
-    inner: CoreRls<Model, NDOF, NPARAM>,
+    inner: Mutex<CoreRls<Model, NDOF, NPARAM>>,
 }
 online_methods!(Rls);
 
@@ -458,7 +508,7 @@ estimator_pymethods!(Rls {
             initial_covariance,
         };
         Ok(Self {
-            inner: CoreRls::new(model(), lambda0(lam0)?, config).to_py(py)?,
+            inner: Mutex::new(CoreRls::new(model(), lambda0(lam0)?, config).to_py(py)?),
         })
     }
 });
@@ -468,9 +518,9 @@ estimator_pymethods!(Rls {
 /// "second_order". `step`/`run` take (q, qd, qdd, tau) like the other estimators; q̈ is
 /// ignored and q̇ used only when measured. Noise settings as the core's `EkfConfig`
 /// (SI units). `lam0` (8,) defaults to Table 3.
-#[pyclass(module = "prrrp", name = "Ekf")]
+#[pyclass(module = "prrrp", name = "Ekf", frozen)]
 struct Ekf {
-    inner: CoreEkf<Model, NDOF, NPARAM, PRRRP_EKF_STATES>,
+    inner: Mutex<CoreEkf<Model, NDOF, NPARAM, PRRRP_EKF_STATES>>,
 }
 online_methods!(Ekf);
 
@@ -537,61 +587,62 @@ estimator_pymethods!(Ekf {
             init_from_first_measurement,
         };
         Ok(Self {
-            inner: CoreEkf::new(model(), lambda0(lam0)?, config).to_py(py)?,
+            inner: Mutex::new(CoreEkf::new(model(), lambda0(lam0)?, config).to_py(py)?),
         })
     }
     /// Standard deviations of λ̂ from the filter covariance, (8,).
     #[getter]
     fn parameter_std<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
-        vec8(py, &self.inner.parameter_std())
+        vec8(py, &lock(py, &self.inner)?.parameter_std())
     }
     /// Measurement updates skipped because of NaN measurements.
     #[getter]
-    fn skipped_updates(&self) -> usize {
-        self.inner.skipped_updates()
+    fn skipped_updates(&self, py: Python<'_>) -> PyResult<usize> {
+        Ok(lock(py, &self.inner)?.skipped_updates())
     }
     /// Samples whose update was damped (gain halved) to keep M(q, λ̂) positive definite.
     #[getter]
-    fn damped_updates(&self) -> usize {
-        self.inner.damped_updates()
+    fn damped_updates(&self, py: Python<'_>) -> PyResult<usize> {
+        Ok(lock(py, &self.inner)?.damped_updates())
     }
     /// The state x = [q (5), q̇ (5), λ (8)] predicted for the next sample, (18,).
     #[getter]
     fn state<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
-        to_array(py, self.inner.state().as_slice().to_vec(), None, &[PRRRP_EKF_STATES])
+        let state = lock(py, &self.inner)?.state().as_slice().to_vec();
+        to_array(py, state, None, &[PRRRP_EKF_STATES])
     }
     /// The state covariance P, (18, 18), in the squares of the state's SI units.
     #[getter]
     fn covariance<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
         let mut buf = vec![0.0; PRRRP_EKF_STATES * PRRRP_EKF_STATES];
-        write_row_major(self.inner.covariance(), &mut buf);
+        write_row_major(lock(py, &self.inner)?.covariance(), &mut buf);
         to_array(py, buf, None, &[PRRRP_EKF_STATES, PRRRP_EKF_STATES])
     }
     /// Replaces the initial covariance P₀ (18, 18): symmetric positive definite, squares
     /// of the state units. Also the current P when no sample has been consumed yet.
-    fn set_initial_covariance(&mut self, py: Python<'_>, p0: &Bound<'_, PyAny>) -> PyResult<()> {
+    fn set_initial_covariance(&self, py: Python<'_>, p0: &Bound<'_, PyAny>) -> PyResult<()> {
         let p0 = fixed_matrix::<PRRRP_EKF_STATES, PRRRP_EKF_STATES>(p0, "p0")?;
-        self.inner.set_initial_covariance(&p0).to_py(py)
+        lock(py, &self.inner)?.set_initial_covariance(&p0).to_py(py)
     }
     /// Replaces the process noise Q = diag(variances), (18,), per step, squares of the
     /// state units; each ≥ 0.
-    fn set_process_noise(&mut self, py: Python<'_>, variances: &Bound<'_, PyAny>) -> PyResult<()> {
+    fn set_process_noise(&self, py: Python<'_>, variances: &Bound<'_, PyAny>) -> PyResult<()> {
         let v = fixed_vector::<PRRRP_EKF_STATES>(variances, "variances")?;
-        self.inner
+        lock(py, &self.inner)?
             .set_process_noise(&SVector::from_column_slice(&v))
             .to_py(py)
     }
     /// Replaces the measurement noise R = diag(positions (5,), velocities (5,)), variances
     /// in m², rad², (m/s)², (rad/s)²; each > 0.
     fn set_measurement_noise(
-        &mut self,
+        &self,
         py: Python<'_>,
         positions: &Bound<'_, PyAny>,
         velocities: &Bound<'_, PyAny>,
     ) -> PyResult<()> {
         let p = fixed_vector::<NDOF>(positions, "positions")?;
         let v = fixed_vector::<NDOF>(velocities, "velocities")?;
-        self.inner
+        lock(py, &self.inner)?
             .set_measurement_noise(
                 &SVector::from_column_slice(&p),
                 &SVector::from_column_slice(&v),

@@ -141,7 +141,10 @@ where
     /// reports the a-priori RMS equation error of each epoch.
     ///
     /// # Errors
-    /// As [`Estimator::step`], with the sample index in [`PrrrpError::NonFinite`].
+    /// As [`Estimator::step`], with the sample index in [`PrrrpError::NonFinite`];
+    /// [`PrrrpError::InvalidParameter`] for more than 10⁷ epochs ([`crate::MAX_SAMPLES`]; train
+    /// in several calls instead); [`PrrrpError::Interrupted`] once [`crate::request_stop`]
+    /// is called (polled every epoch and every 1024 samples).
     pub fn train(&mut self, data: &SamplesOf<'_, N>, epochs: usize) -> Result<TrainingReport> {
         train_epochs(self, data, epochs, |e| (&mut e.sse, &mut e.equations))
     }
@@ -161,9 +164,11 @@ where
     ///
     /// # Errors
     /// [`PrrrpError::ShapeMismatch`] for a sample whose vectors do not have one entry per
-    /// joint; [`PrrrpError::NonFinite`] for NaN/∞ in the sample; [`PrrrpError::Diverged`] when an
-    /// error grows past the divergence threshold (delta rule: lower the learning rate, or
-    /// use the normalised rule).
+    /// joint; [`PrrrpError::NonFinite`] for NaN/∞ in the sample, or for weights that
+    /// overflow under the normalised rule (data of huge magnitude, e.g. τ = 1e308);
+    /// [`PrrrpError::Diverged`] when an error grows past the divergence threshold or a
+    /// delta-rule weight becomes non-finite (lower the learning rate, or use the
+    /// normalised rule).
     fn step(&mut self, sample: SampleOf<'_, N>) -> Result<&OVector<f64, P>> {
         let (n, np) = self.phi.shape();
         sample.check(n)?;
@@ -205,6 +210,15 @@ where
         }
         self.equations += n;
         if !self.lambda.iter().all(|x| x.is_finite()) {
+            if c.rule == AdalineRule::Normalised {
+                // The normalised rule cannot diverge (μ < 2): the sample's values overflowed.
+                return Err(PrrrpError::NonFinite {
+                    what: "Adaline weights (the sample's magnitudes overflow f64 arithmetic: \
+                           remove or rescale rows with huge values)"
+                        .into(),
+                    row: None,
+                });
+            }
             return Err(PrrrpError::Diverged {
                 what: "Adaline",
                 at: self.samples,

@@ -35,11 +35,43 @@ where
     ///
     /// # Errors
     /// The first error of `step`; a [`PrrrpError::NonFinite`] names the sample index.
+    /// A non-finite estimate is [`PrrrpError::NonFinite`]; a raised stop flag
+    /// ([`crate::request_stop`]) is [`PrrrpError::Interrupted`].
     fn run(&mut self, data: &SamplesOf<'_, N>) -> Result<OVector<f64, P>> {
         for (k, sample) in data.iter().enumerate() {
+            if k % CHECK_EVERY == 0 {
+                crate::interrupt::check("estimator run")?;
+            }
             self.step(sample).map_err(|e| with_row(e, k))?;
         }
+        check_estimate(self.estimate())?;
         Ok(self.estimate().clone())
+    }
+}
+
+/// Samples between two polls of the stop flag in the batch loops.
+const CHECK_EVERY: usize = 1024;
+
+/// Largest `epochs` of one [`super::Adaline::train`] / [`super::Hopfield::train`] call:
+/// [`crate::MAX_SAMPLES`] (10 million), since the report keeps one entry per epoch. Train in
+/// several calls (each continues from the current weights) for more.
+pub(crate) const MAX_EPOCHS: usize = crate::interrupt::MAX_SAMPLES;
+
+/// [`PrrrpError::NonFinite`] for an estimate with NaN or ∞ (an overflow the estimator's own
+/// checks did not catch), so that no caller ever receives a non-finite λ̂.
+pub(crate) fn check_estimate<P: Dim>(lambda: &OVector<f64, P>) -> Result<()>
+where
+    DefaultAllocator: Allocator<P>,
+{
+    if lambda.iter().all(|x| x.is_finite()) {
+        Ok(())
+    } else {
+        Err(PrrrpError::NonFinite {
+            what: "estimate λ̂ (the data's magnitudes overflow f64 arithmetic: remove or \
+                   rescale rows with huge values)"
+                .into(),
+            row: None,
+        })
     }
 }
 
@@ -63,6 +95,11 @@ pub struct TrainingReport {
 /// The epoch loop shared by [`super::Adaline::train`] and [`super::Hopfield::train`]:
 /// `totals` gives the estimator's running sum of squared a-priori equation errors and its
 /// equation count, which are cleared before each epoch and read after it.
+///
+/// `epochs` above `MAX_EPOCHS` (1e7) is [`PrrrpError::InvalidParameter`] (before anything is
+/// allocated); the stop flag is polled every epoch and every [`CHECK_EVERY`] samples
+/// ([`PrrrpError::Interrupted`]); a non-finite estimate after an epoch is
+/// [`PrrrpError::NonFinite`].
 pub(crate) fn train_epochs<E, N: Dim, P: Dim>(
     est: &mut E,
     data: &SamplesOf<'_, N>,
@@ -73,13 +110,27 @@ where
     E: Estimator<N, P>,
     DefaultAllocator: Allocator<N> + Allocator<P>,
 {
-    let mut rms_error = Vec::with_capacity(epochs);
+    if epochs > MAX_EPOCHS {
+        return Err(PrrrpError::InvalidParameter {
+            field: "epochs".into(),
+            value: epochs as f64,
+            reason: "exceeds MAX_EPOCHS (1e7) passes per call: train in several calls, each \
+                     continues from the current weights",
+        });
+    }
+    // Grown as the epochs run: an interrupted call never holds a huge empty buffer.
+    let mut rms_error = Vec::with_capacity(epochs.min(CHECK_EVERY));
     for _ in 0..epochs {
+        crate::interrupt::check("training")?;
         let (sse, equations) = totals(est);
         (*sse, *equations) = (0.0, 0);
         for (k, s) in data.iter().enumerate() {
+            if k % CHECK_EVERY == CHECK_EVERY - 1 {
+                crate::interrupt::check("training")?;
+            }
             est.step(s).map_err(|e| with_row(e, k))?;
         }
+        check_estimate(est.estimate())?;
         let (sse, equations) = totals(est);
         rms_error.push((*sse / (*equations).max(1) as f64).sqrt());
     }

@@ -95,7 +95,8 @@ where
     /// Standard deviation σ_i of each parameter: the square root of the diagonal of
     /// σ²·(WᵀW)⁻¹, with (WᵀW)⁻¹ = P·R⁻¹·R⁻ᵀ·Pᵀ from the QR factor (never formed from WᵀW).
     pub std_dev: OVector<f64, P>,
-    /// Relative standard deviation %σ_i = 100·σ_i/|λ̂_i| (percent; infinite for λ̂_i = 0).
+    /// Relative standard deviation %σ_i = 100·σ_i/|λ̂_i| (percent). Always defined: +∞
+    /// for an estimate λ̂_i = 0 exactly (even when σ_i = 0 too, e.g. τ ≡ 0), never NaN.
     pub rel_std_dev: OVector<f64, P>,
     /// Per-joint noise variances σ_j² (units of τ_j²). Ordinary least squares: estimated
     /// from the residuals of joint j as ‖ρ_j‖²/(n − P/N), the residual degrees of freedom
@@ -179,7 +180,7 @@ impl LeastSquares {
         // σ_j² = ‖ρ_j‖²/(n − P/N): the residual degrees of freedom shared equally.
         let joint_variances =
             joint_ss / (data.len() as f64 - pd.value() as f64 / nd.value() as f64);
-        Ok(sol.report(joint_variances, data.len()))
+        sol.report(joint_variances, data.len())
     }
 
     /// Weighted least squares; see [`weighted_least_squares`].
@@ -254,7 +255,7 @@ impl LeastSquares {
         let scale = variances.map(|s| 1.0 / s.sqrt());
         let masks = self.build(model, data, &scale)?;
         let (sol, _) = self.factor_and_solve(nd, pd, data.len(), &masks)?;
-        Ok(sol.report(variances, data.len()))
+        sol.report(variances, data.len())
     }
 
     /// Stacks the row-scaled regressors into W (column-major, N·n × P) and τ into y, joint
@@ -605,14 +606,25 @@ impl<P: Dim> Solution<P>
 where
     DefaultAllocator: Allocator<P>,
 {
+    /// The report, or [`PrrrpError::NonFinite`] when λ̂, σ_i or σ² overflowed (finite data
+    /// whose magnitudes, e.g. τ = 1e308, are beyond what f64 arithmetic can square and sum).
     fn report<N: Dim>(
         self,
         joint_variances: OVector<f64, N>,
         samples: usize,
-    ) -> LeastSquaresReportOf<N, P>
+    ) -> Result<LeastSquaresReportOf<N, P>>
     where
         DefaultAllocator: Allocator<N>,
     {
+        let finite = |v: &OVector<f64, P>| v.iter().all(|x| x.is_finite());
+        if !(finite(&self.lambda) && finite(&self.std_dev) && self.sigma2.is_finite()) {
+            return Err(PrrrpError::NonFinite {
+                what: "least-squares estimate (the data's magnitudes overflow f64 arithmetic: \
+                       remove or rescale rows with huge values such as 1e308)"
+                    .into(),
+                row: None,
+            });
+        }
         let s = &self.singular_values;
         let last = s.nrows() - 1;
         let cond = if s[last] > 0.0 {
@@ -620,10 +632,15 @@ where
         } else {
             f64::INFINITY
         };
-        let rel_std_dev = self
-            .std_dev
-            .zip_map(&self.lambda, |sd, l| 100.0 * sd / l.abs());
-        LeastSquaresReportOf {
+        // λ̂_i = 0 exactly: +∞ (not 0/0 = NaN when σ_i = 0 as well).
+        let rel_std_dev = self.std_dev.zip_map(&self.lambda, |sd, l| {
+            if l == 0.0 {
+                f64::INFINITY
+            } else {
+                100.0 * sd / l.abs()
+            }
+        });
+        Ok(LeastSquaresReportOf {
             lambda: self.lambda,
             cond,
             singular_values: self.singular_values,
@@ -632,7 +649,7 @@ where
             rel_std_dev,
             joint_variances,
             samples,
-        }
+        })
     }
 }
 
