@@ -123,3 +123,11 @@ def test_bad_dataset_slices_are_typed(key):
     data = prrrp.Dataset(t, z, z, z, z)
     with pytest.raises(prrrp.InvalidParameterError):
         data[key]
+
+
+@pytest.mark.parametrize("trim", [2**63, 10**12])
+def test_absurd_trim_is_a_typed_error(trim):
+    t = 0.02 * np.arange(200)
+    q = np.zeros((200, 5))
+    with pytest.raises(prrrp.TooFewSamplesError):
+        prrrp.preprocess(t, q, q, trim=trim)
