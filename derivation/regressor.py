@@ -10,7 +10,7 @@ them, reproducibly:
    checks that both are identical after substituting lambda(physical), and checks that the
    equations of motion agree.
 3. It derives Phi = d tau / d lambda from the grouped form (tau is linear in lambda) and
-   prints every entry, in the notation of crates/prrrp-core/src/regressor.rs.
+   prints every entry, in the notation of crates/prrrp-core/src/models/prrrp/regressor.rs.
 4. It checks the printed Annex A / Annex B entries that survived extraction, with the typos
    of the notes corrected, against the derived model.
 

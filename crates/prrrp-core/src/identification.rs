@@ -6,8 +6,8 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::chain::{BaseParameters, ChainDescription, DynChain, DynWorkspace};
 use crate::error::{PrrrpError, Result};
+use crate::models::chain::{BaseParameters, ChainDescription, DynChain, DynWorkspace};
 
 /// Version of the [`IdentifiedModel`] JSON layout; bumped on any incompatible change.
 pub const MODEL_SCHEMA_VERSION: u32 = 1;
@@ -228,7 +228,7 @@ impl IdentifiedModel {
     pub fn predict(&self, q: &[f64], qd: &[f64], qdd: &[f64]) -> Result<Vec<f64>> {
         let mut p = self.predictor()?;
         let n = p.chain.dof();
-        let samples = crate::chain::flat_samples(n, q, qd, qdd)?;
+        let samples = crate::models::chain::flat_samples(n, q, qd, qdd)?;
         let mut tau = vec![0.0; n * samples];
         for k in 0..samples {
             let r = n * k..n * k + n;

@@ -42,47 +42,24 @@
 //! ```
 #![warn(missing_docs)]
 
-mod chain;
 mod data;
-mod dataset;
-mod derivatives;
-mod dynamics;
 mod error;
 mod estimators;
-mod excitation;
 mod identification;
 mod interrupt;
-mod limits;
-mod metrics;
-mod model;
-mod preprocess;
-mod regressor;
-mod robot;
-mod robot_files;
-mod scaled;
-mod sensitivity;
-mod simulation;
-mod study;
-mod terms;
-mod trajectory;
-mod types;
+mod models;
+mod motion;
+mod paper;
 mod validation;
 
-pub use chain::{
-    com_and_inertia, inertial_parameters, is_physically_consistent, transform_inertial_parameters,
-    BaseOptions, BaseParameters, ChainBaseModel, ChainDescription, ChainMeta, DhConvention,
-    DhDescription, DynBaseWorkspace, DynChain, DynChainBaseModel, DynWorkspace, FrictionModel,
-    Joint, JointDescription, JointInfo, JointLimit, JointType, PoseDescription, SerialChain,
-    AXIS_UNIT_TOLERANCE, CHAIN_SCHEMA_VERSION, FRICTION_PARAMETER_NAMES, INERTIAL_PARAMETER_NAMES,
-    LINK_PARAMS, MAX_MATRIX_ENTRIES, PHYSICAL_TOLERANCE,
+pub use data::dataset::{Dataset, DatasetParts};
+pub use data::preprocess::{
+    central_differences, preprocess, ButterworthLowPass, PreprocessConfig, MAX_BUTTERWORTH_ORDER,
 };
 pub use data::{
     preprocess_log, DynDataset, DynDatasetParts, LogConfig, LogReport, DEFAULT_LOG_CUTOFF_HZ,
     LOG_MAX_UPSAMPLING, LOG_UNIFORM_TOLERANCE,
 };
-pub use dataset::{Dataset, DatasetParts};
-pub use derivatives::InverseDerivatives;
-pub use dynamics::{MassCholesky, PrrrpModel};
 pub use error::{PrrrpError, Result};
 pub use estimators::{
     least_squares, weighted_least_squares, Adaline, AdalineConfig, AdalineOf, AdalineRule,
@@ -92,41 +69,48 @@ pub use estimators::{
     LeastSquaresConfig, LeastSquaresReport, LeastSquaresReportOf, PrrrpEkf, Rls, RlsConfig, RlsOf,
     Sample, SampleOf, Samples, SamplesOf, TrainingReport, PRRRP_EKF_STATES,
 };
-pub use excitation::{
-    excitation_variables, optimise_excitation, ExcitationConfig, ExcitationProgress,
-    ExcitationResult, DEFAULT_EXCITATION_KNOTS,
-};
 pub use identification::{
     identify_least_squares, BaseDescription, IdentifiedModel, Predictor, MODEL_SCHEMA_VERSION,
 };
 pub use interrupt::{check_count, clear_stop, request_stop, stop_requested, MAX_SAMPLES};
-pub use limits::{limit_usage, JointLimits, LimitUsage};
-pub use metrics::{
-    agreement_index, error_indices, relative_errors_percent, rms, rsd, ErrorIndices,
+pub use models::chain::{
+    com_and_inertia, inertial_parameters, is_physically_consistent, transform_inertial_parameters,
+    BaseOptions, BaseParameters, ChainBaseModel, ChainDescription, ChainMeta, DhConvention,
+    DhDescription, DynBaseWorkspace, DynChain, DynChainBaseModel, DynWorkspace, FrictionModel,
+    Joint, JointDescription, JointInfo, JointLimit, JointType, PoseDescription, SerialChain,
+    AXIS_UNIT_TOLERANCE, CHAIN_SCHEMA_VERSION, FRICTION_PARAMETER_NAMES, INERTIAL_PARAMETER_NAMES,
+    LINK_PARAMS, MAX_MATRIX_ENTRIES, PHYSICAL_TOLERANCE,
 };
-pub use model::{ForwardDerivatives, ForwardDerivativesOf, LinearDynamics, LinearModel};
-pub use preprocess::{
-    central_differences, preprocess, ButterworthLowPass, PreprocessConfig, MAX_BUTTERWORTH_ORDER,
+pub use models::prrrp::derivatives::InverseDerivatives;
+pub use models::prrrp::dynamics::{MassCholesky, PrrrpModel};
+pub use models::prrrp::regressor::{condition_number, observation_matrix, singular_values};
+pub use models::prrrp::robot::{DhRow, JointKind, Robot, STANDARD_GRAVITY};
+pub use models::prrrp::types::{Lambda, Mat5, Regressor, Vec5, NDOF, NPARAM};
+pub use models::robot_files::{UrdfOptions, MAX_ROBOT_FILE_BYTES};
+pub use models::scaled::{DynScaledModel, DynScaledWorkspace, ScaledModel};
+pub use models::{ForwardDerivatives, ForwardDerivativesOf, LinearDynamics, LinearModel};
+pub use motion::excitation::{
+    excitation_variables, optimise_excitation, ExcitationConfig, ExcitationProgress,
+    ExcitationResult, DEFAULT_EXCITATION_KNOTS,
 };
-pub use regressor::{condition_number, observation_matrix, singular_values};
-pub use robot::{DhRow, JointKind, Robot, STANDARD_GRAVITY};
-pub use robot_files::{UrdfOptions, MAX_ROBOT_FILE_BYTES};
-pub use scaled::{DynScaledModel, DynScaledWorkspace, ScaledModel};
-pub use sensitivity::{sensitivity, SensitivityConfig, SensitivityReport};
-pub use simulation::{
+pub use motion::limits::{limit_usage, JointLimits, LimitUsage};
+pub use motion::simulation::{
     rk4_step, simulate_closed_loop, simulate_open_loop, ComputedTorque, SensorNoise,
     SimulationConfig, SimulationRecord, MAX_INTEGRATION_STEPS,
 };
-pub use study::{
+pub use motion::trajectory::{
+    sample_trajectory, ExcitationTrajectory, FourierSeries, JointTrajectory, PiecewiseQuintic,
+    Quintic, SampledTrajectory, ScalarTrajectory, Sinusoid, TrajectoryPoint,
+};
+pub use paper::sensitivity::{sensitivity, SensitivityConfig, SensitivityReport};
+pub use paper::study::{
     run_study, EstimationData, ExcitationSummary, History, MethodEstimate, MethodValidationSummary,
     SensitivitySummary, StudyConfig, StudyProgress, StudyResult, Timings, ValidationSummary,
     METHODS,
 };
-pub use trajectory::{
-    sample_trajectory, ExcitationTrajectory, FourierSeries, JointTrajectory, PiecewiseQuintic,
-    Quintic, SampledTrajectory, ScalarTrajectory, Sinusoid, TrajectoryPoint,
+pub use validation::metrics::{
+    agreement_index, error_indices, relative_errors_percent, rms, rsd, ErrorIndices,
 };
-pub use types::{Lambda, Mat5, Regressor, Vec5, NDOF, NPARAM};
 pub use validation::{
     default_validation_reference, joint_indices, torque_prediction, validate, MethodValidation,
     TorquePrediction, ValidationConfig, ValidationReport,

@@ -8,8 +8,8 @@ use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
 use crate::arrays::{batch_len, map_samples_with, to_array, DynSamples};
-use crate::chain::PySerialChain;
 use crate::errors::{to_pyerr, ToPyResult};
+use crate::models::chain::PySerialChain;
 
 type Out<'py> = PyResult<Bound<'py, PyAny>>;
 
@@ -211,7 +211,7 @@ fn identified_model_from_parts(
     method: &str,
     settings: Option<&Bound<'_, PyDict>>,
     preprocessing: Option<&Bound<'_, PyDict>>,
-    base: Option<&crate::chain::PyBaseParameters>,
+    base: Option<&crate::models::chain::PyBaseParameters>,
 ) -> PyResult<PyIdentifiedModel> {
     let chain = robot.chain();
     let base = match base {
@@ -265,9 +265,9 @@ fn identified_model_from_parts(
 fn identify(
     py: Python<'_>,
     robot: &Bound<'_, PyAny>,
-    data: &crate::dataset::PyDataset,
+    data: &crate::data::dataset::PyDataset,
     method: &str,
-    base: Option<&crate::chain::PyBaseParameters>,
+    base: Option<&crate::models::chain::PyBaseParameters>,
     rank_tolerance: f64,
     preprocessing: Option<&Bound<'_, PyDict>>,
 ) -> PyResult<PyIdentifiedModel> {

@@ -20,20 +20,14 @@
 //! - `study`: the whole study as JSON.
 
 mod arrays;
-mod chain;
-mod dataset;
-mod derivatives;
+mod data;
 mod errors;
 mod estimators;
 mod identification;
 mod interrupt;
-mod metrics;
-mod preprocessing;
-mod regressor;
-mod robot;
-mod simulation;
-mod study;
-mod trajectories;
+mod models;
+mod motion;
+mod paper;
 mod validation;
 
 use pyo3::prelude::*;
@@ -46,18 +40,18 @@ fn _prrrp(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("NPARAM", prrrp_core::NPARAM)?;
     m.add("STANDARD_GRAVITY", prrrp_core::STANDARD_GRAVITY)?;
     errors::register(m)?;
-    robot::register(m)?;
-    chain::register(m)?;
+    models::robot::register(m)?;
+    models::chain::register(m)?;
     identification::register(m)?;
-    dataset::register(m)?;
-    validation::register(m)?;
-    derivatives::register(m)?;
-    regressor::register(m)?;
-    trajectories::register(m)?;
-    simulation::register(m)?;
-    preprocessing::register(m)?;
+    data::dataset::register(m)?;
+    validation::prediction::register(m)?;
+    models::derivatives::register(m)?;
+    models::regressor::register(m)?;
+    motion::trajectories::register(m)?;
+    motion::simulation::register(m)?;
+    data::preprocessing::register(m)?;
     estimators::register(m)?;
-    metrics::register(m)?;
-    study::register(m)?;
+    validation::metrics::register(m)?;
+    paper::study::register(m)?;
     Ok(())
 }

@@ -2,10 +2,10 @@
 
 use std::ops::Range;
 
-use crate::chain::{FRICTION_PARAMETER_NAMES, LINK_PARAMS};
-use crate::dataset::Dataset;
+use crate::data::dataset::Dataset;
 use crate::error::{PrrrpError, Result};
-use crate::types::{Vec5, NDOF};
+use crate::models::chain::{FRICTION_PARAMETER_NAMES, LINK_PARAMS};
+use crate::models::prrrp::types::{Vec5, NDOF};
 
 /// Time stamps plus joint positions, velocities, accelerations and generalised forces of
 /// a robot with `n` joints (known at run time), checked on creation.

@@ -1,10 +1,13 @@
-//! Identification data for robots with a run-time number of joints: the validated
-//! [`DynDataset`] and [`preprocess_log`], which turns a real, irregular log into one.
-//! The PRRRP's fixed-size [`crate::preprocess()`] runs on the same filtering core.
+//! Identification data: the validated [`DynDataset`] of any joint count and
+//! [`preprocess_log`], which turns a real, irregular log into one; the PRRRP's fixed-size
+//! [`Dataset`](dataset::Dataset) and [`preprocess`](crate::preprocess) run on the same
+//! filtering core.
 
+pub(crate) mod dataset;
 mod dyn_dataset;
 mod log;
 pub(crate) mod pipeline;
+pub(crate) mod preprocess;
 
 pub use dyn_dataset::{DynDataset, DynDatasetParts};
 pub use log::{

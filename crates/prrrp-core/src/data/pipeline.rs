@@ -2,8 +2,8 @@
 //! uniform samples) and [`crate::preprocess_log`] (n joints, resampled real logs).
 
 use crate::data::dyn_dataset::DynDataset;
+use crate::data::preprocess::ButterworthLowPass;
 use crate::error::{PrrrpError, Result};
-use crate::preprocess::ButterworthLowPass;
 
 /// Where grid sample i comes from: rows `a` and `b` of the (row-major) inputs mixed as
 /// (1 − w)·x_a + w·x_b. w = 0 takes x_a exactly, so a grid that is the input's own rows

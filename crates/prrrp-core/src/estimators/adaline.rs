@@ -17,7 +17,7 @@ use super::estimator::{train_epochs, Estimator, TrainingReport};
 use super::rls::check_lambda0;
 use super::samples::{SampleOf, SamplesOf};
 use crate::error::{PrrrpError, Result};
-use crate::model::LinearModel;
+use crate::models::LinearModel;
 
 /// Adaline for a compile-time-size model (e.g. the PRRRP arm).
 pub type Adaline<M, const N: usize, const P: usize> = AdalineOf<M, Const<N>, Const<P>>;

@@ -26,10 +26,10 @@ use nalgebra::{Const, DefaultAllocator, Dim, Dyn, OMatrix, OVector, U1};
 use super::estimator::Estimator;
 use super::rls::check_lambda0;
 use super::samples::{all_finite, SampleOf};
-use crate::dynamics::PrrrpModel;
 use crate::error::{PrrrpError, Result};
-use crate::model::{ForwardDerivativesOf, LinearModel};
-use crate::types::{NDOF, NPARAM};
+use crate::models::prrrp::dynamics::PrrrpModel;
+use crate::models::prrrp::types::{NDOF, NPARAM};
+use crate::models::{ForwardDerivativesOf, LinearModel};
 
 /// State dimension of the PRRRP filter: 5 positions, 5 velocities, 8 parameters.
 pub const PRRRP_EKF_STATES: usize = 2 * NDOF + NPARAM;

@@ -20,7 +20,7 @@ use super::estimator::{train_epochs, Estimator, TrainingReport};
 use super::rls::check_lambda0;
 use super::samples::{SampleOf, SamplesOf};
 use crate::error::{PrrrpError, Result};
-use crate::model::LinearModel;
+use crate::models::LinearModel;
 
 /// Hopfield network for a compile-time-size model (e.g. the PRRRP arm).
 pub type Hopfield<M, const N: usize, const P: usize> = HopfieldOf<M, Const<N>, Const<P>>;

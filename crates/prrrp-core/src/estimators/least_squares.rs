@@ -13,7 +13,7 @@ use nalgebra::{Const, DefaultAllocator, Dim, Dyn, OMatrix, OVector, U1};
 
 use super::samples::SamplesOf;
 use crate::error::{PrrrpError, Result};
-use crate::model::LinearModel;
+use crate::models::LinearModel;
 
 /// Per-joint noise of a compile-time-size model.
 pub type JointNoise<const N: usize> = JointNoiseOf<Const<N>>;

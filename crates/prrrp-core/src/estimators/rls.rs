@@ -7,7 +7,7 @@ use nalgebra::{Const, DefaultAllocator, Dim, Dyn, OMatrix, OVector};
 use super::estimator::Estimator;
 use super::samples::SampleOf;
 use crate::error::{PrrrpError, Result};
-use crate::model::LinearModel;
+use crate::models::LinearModel;
 
 /// Recursive least squares for a compile-time-size model (e.g. the PRRRP arm).
 pub type Rls<M, const N: usize, const P: usize> = RlsOf<M, Const<N>, Const<P>>;

@@ -1,0 +1,487 @@
+//! A run-time-size chain seen through its base parameters: the [`LinearModel`]`<Dyn, Dyn>`
+//! the estimators take for a robot whose joint count N and base-parameter count B are
+//! known only at run time (a URDF, a Python call), τ = Φ_b(q, q̇, q̈)·β.
+//!
+//! Same construction as the compile-time [`super::ChainBaseModel`]: the model at any β is
+//! the equivalent chain whose independent standard parameters equal β and whose others
+//! are zero, so inverse dynamics, M(β) and the bias forces at an arbitrary β come from the
+//! O(n) recursions. Every per-sample method works in a [`DynBaseWorkspace`] sized once.
+
+use nalgebra::{DMatrix, DVector, Dyn};
+
+use super::base_model::{friction_slope, slot_of, Slot, NONE};
+use super::base_params::BaseParameters;
+use super::crba::{cholesky_in_place, cholesky_solve};
+use super::friction::FrictionModel;
+use super::regressor::RegressorSink;
+use super::rnea::{ChainView, LinkState};
+use super::serial_chain::DynChain;
+use crate::error::{PrrrpError, Result};
+use crate::models::{ForwardDerivativesOf, LinearModel};
+
+/// The dynamics of a [`DynChain`] parametrised by its B base parameters β (from
+/// [`DynChain::base_parameters`]), for the estimators: it implements
+/// [`LinearModel<Dyn, Dyn>`] with N = [`DynChain::dof`] joints and B =
+/// [`BaseParameters::count`] parameters, allocation-free per sample.
+///
+/// Friction columns of the analysis are base columns like the inertial ones; a Coulomb
+/// term uses the chain's [`FrictionModel::coulomb_smoothing`] (tanh(q̇/v_s) when v_s > 0,
+/// the exact sign otherwise), in the regressor, the dynamics and the derivatives alike.
+///
+/// ```
+/// use prrrp_core::{BaseOptions, LinearModel, SerialChain};
+/// let chain = SerialChain::puma560().to_dyn();
+/// let base = chain.base_parameters(&BaseOptions::default())?;
+/// let model = chain.base_model(&base)?;
+/// let (n, b) = model.dims();
+/// assert_eq!((n.0, b.0), (6, base.count()));
+/// # Ok::<(), prrrp_core::PrrrpError>(())
+/// ```
+#[derive(Debug, Clone, PartialEq)]
+pub struct DynChainBaseModel {
+    chain: DynChain,
+    rigid_map: Vec<[usize; 10]>,
+    friction_map: Vec<[usize; 3]>,
+    slots: Vec<Slot>,
+    beta: DVector<f64>,
+}
+
+/// Scratch memory of the per-sample methods of one [`DynChainBaseModel`] (from
+/// [`LinearModel::workspace`]); O(N) except for the N×N mass matrix.
+#[derive(Debug, Clone)]
+pub struct DynBaseWorkspace {
+    n: usize,
+    st: Vec<LinkState>,
+    comp: Vec<[f64; 10]>,
+    /// Standard parameters of the equivalent chain at the current β.
+    rig: Vec<[f64; 10]>,
+    fr: Vec<[f64; 3]>,
+    /// Cholesky factor of M(q, β), column-major.
+    m: Vec<f64>,
+    zero: Vec<f64>,
+    /// Perturbed joint vectors and the two sides of a central difference.
+    pert: Vec<f64>,
+    plus: Vec<f64>,
+    minus: Vec<f64>,
+}
+
+struct DynBaseSink<'a> {
+    out: &'a mut DMatrix<f64>,
+    rigid_map: &'a [[usize; 10]],
+    friction_map: &'a [[usize; 3]],
+}
+
+impl RegressorSink for DynBaseSink<'_> {
+    #[inline(always)]
+    fn rigid(&mut self, row: usize, link: usize, k: usize, v: f64) {
+        let c = self.rigid_map[link][k];
+        if c != NONE {
+            self.out[(row, c)] = v;
+        }
+    }
+    #[inline(always)]
+    fn friction(&mut self, joint: usize, kind: usize, v: f64) {
+        let c = self.friction_map[joint][kind];
+        if c != NONE {
+            self.out[(joint, c)] = v;
+        }
+    }
+}
+
+fn mismatch(what: &str, want: String, got: String) -> PrrrpError {
+    PrrrpError::ShapeMismatch {
+        what: what.into(),
+        expected: want,
+        got,
+    }
+}
+
+impl DynChain {
+    /// The run-time base-parameter model of this chain for the analysis `base` (from
+    /// [`DynChain::base_parameters`] of this chain).
+    ///
+    /// # Errors
+    /// [`PrrrpError::ShapeMismatch`] if `base` was computed for a chain with another
+    /// number of joints or friction model, or has no base parameter.
+    pub fn base_model(&self, base: &BaseParameters) -> Result<DynChainBaseModel> {
+        let n = self.dof();
+        base.check_layout(n, &self.friction())?;
+        if base.count() == 0 {
+            return Err(mismatch(
+                "base parameters",
+                "at least one identifiable parameter".into(),
+                "0 (the chain has no dynamics to identify)".into(),
+            ));
+        }
+        let p = self.num_params();
+        if let Some(&bad) = base.independent.iter().find(|&&i| i >= p) {
+            return Err(mismatch(
+                "base parameter index",
+                format!("< {p} (standard parameters of this chain)"),
+                format!("{bad}"),
+            ));
+        }
+        let mut rigid_map = vec![[NONE; 10]; n];
+        let mut friction_map = vec![[NONE; 3]; n];
+        let mut slots = Vec::with_capacity(base.count());
+        for (c, &idx) in base.independent.iter().enumerate() {
+            let slot = slot_of(idx, n, &self.friction());
+            match slot {
+                Slot::Rigid(i, k) => rigid_map[i][k] = c,
+                Slot::Friction(j, kind) => friction_map[j][kind] = c,
+            }
+            slots.push(slot);
+        }
+        let beta = DVector::from_vec(base.base_values(&self.parameters())?);
+        Ok(DynChainBaseModel {
+            chain: self.clone(),
+            rigid_map,
+            friction_map,
+            slots,
+            beta,
+        })
+    }
+}
+
+impl DynChainBaseModel {
+    /// Number of joints N.
+    pub fn dof(&self) -> usize {
+        self.chain.dof()
+    }
+
+    /// Number of base parameters B.
+    pub fn count(&self) -> usize {
+        self.slots.len()
+    }
+
+    /// The base parameters β = K·π of the chain this model was built from (its true
+    /// values, e.g. for simulation studies; units of the standard parameters: kg, kg·m,
+    /// kg·m², N·s/m or N·m·s/rad, N or N·m).
+    pub fn chain_base_values(&self) -> &DVector<f64> {
+        &self.beta
+    }
+
+    /// The chain this model was built from.
+    pub fn chain(&self) -> &DynChain {
+        &self.chain
+    }
+
+    /// Mass matrix M(q, β) of the equivalent chain (kg, kg·m, kg·m² by joint kinds).
+    ///
+    /// # Errors
+    /// [`PrrrpError::ShapeMismatch`] if q does not have N entries or β not B.
+    pub fn mass_matrix(&self, q: &DVector<f64>, beta: &DVector<f64>) -> Result<DMatrix<f64>> {
+        self.check_joint("q", q.len())?;
+        self.check_beta(beta.len())?;
+        let mut ws = self.workspace();
+        self.equivalent(beta, &mut ws);
+        let DynBaseWorkspace {
+            st, comp, rig, fr, ..
+        } = &mut ws;
+        let view = self.view_with(rig, fr);
+        let n = self.dof();
+        let mut m = DMatrix::zeros(n, n);
+        view.mass_matrix_with(rig, q.as_slice(), st, comp, m.as_mut_slice());
+        Ok(m)
+    }
+
+    fn check_joint(&self, what: &str, len: usize) -> Result<()> {
+        let n = self.dof();
+        if len != n {
+            return Err(mismatch(
+                what,
+                format!("{n} entries (one per joint)"),
+                format!("{len} entries"),
+            ));
+        }
+        Ok(())
+    }
+
+    fn check_beta(&self, len: usize) -> Result<()> {
+        let b = self.count();
+        if len != b {
+            return Err(mismatch(
+                "lambda (base parameters)",
+                format!("{b} entries (one per base parameter)"),
+                format!("{len} entries"),
+            ));
+        }
+        Ok(())
+    }
+
+    fn check_ws(&self, ws: &DynBaseWorkspace) -> Result<()> {
+        if ws.n != self.dof() {
+            return Err(mismatch(
+                "workspace",
+                format!("a workspace of this model ({} joints)", self.dof()),
+                format!("{} joints", ws.n),
+            ));
+        }
+        Ok(())
+    }
+
+    fn check_matrix(&self, what: &str, m: &DMatrix<f64>, cols: usize) -> Result<()> {
+        let n = self.dof();
+        if m.shape() != (n, cols) {
+            return Err(mismatch(
+                what,
+                format!("{n}×{cols}"),
+                format!("{}×{}", m.nrows(), m.ncols()),
+            ));
+        }
+        Ok(())
+    }
+
+    /// Standard parameters of the equivalent chain with base parameters β, into `ws`.
+    #[inline]
+    fn equivalent(&self, beta: &DVector<f64>, ws: &mut DynBaseWorkspace) {
+        for r in ws.rig.iter_mut() {
+            *r = [0.0; 10];
+        }
+        for f in ws.fr.iter_mut() {
+            *f = [0.0; 3];
+        }
+        for (c, s) in self.slots.iter().enumerate() {
+            match *s {
+                Slot::Rigid(i, k) => ws.rig[i][k] = beta[c],
+                Slot::Friction(j, kind) => ws.fr[j][kind] = beta[c],
+            }
+        }
+    }
+
+    #[inline]
+    fn view_with<'a>(&'a self, rig: &'a [[f64; 10]], fr: &'a [[f64; 3]]) -> ChainView<'a> {
+        let mut v = self.chain.view();
+        v.inertial = rig;
+        v.friction_params = fr;
+        v
+    }
+
+    /// q̈ = M⁻¹(τ − bias) at the β already loaded into `ws`; leaves the factor of M in
+    /// `ws.m`.
+    fn forward_loaded(
+        &self,
+        ws: &mut DynBaseWorkspace,
+        q: &[f64],
+        qd: &[f64],
+        tau: &[f64],
+        out: &mut [f64],
+    ) -> Result<()> {
+        let n = self.dof();
+        let DynBaseWorkspace {
+            st,
+            comp,
+            rig,
+            fr,
+            m,
+            zero,
+            ..
+        } = ws;
+        let view = self.view_with(rig, fr);
+        view.mass_matrix_with(rig, q, st, comp, m);
+        cholesky_in_place(m, n).map_err(|_| PrrrpError::NotPositiveDefinite {
+            what: "mass matrix M(q, β) of the base-parameter model",
+        })?;
+        view.rnea(q, qd, zero, st, out);
+        for (x, t) in out.iter_mut().zip(tau) {
+            *x = t - *x;
+        }
+        cholesky_solve(m, n, out);
+        Ok(())
+    }
+}
+
+impl LinearModel<Dyn, Dyn> for DynChainBaseModel {
+    type Workspace = DynBaseWorkspace;
+
+    fn dims(&self) -> (Dyn, Dyn) {
+        (Dyn(self.dof()), Dyn(self.count()))
+    }
+
+    fn workspace(&self) -> DynBaseWorkspace {
+        let n = self.dof();
+        DynBaseWorkspace {
+            n,
+            st: vec![LinkState::default(); n],
+            comp: vec![[0.0; 10]; n],
+            rig: vec![[0.0; 10]; n],
+            fr: vec![[0.0; 3]; n],
+            m: vec![0.0; n * n],
+            zero: vec![0.0; n],
+            pert: vec![0.0; n],
+            plus: vec![0.0; n],
+            minus: vec![0.0; n],
+        }
+    }
+
+    /// Base regressor Φ_b (N×B): the independent columns of the chain's full regressor,
+    /// friction columns included.
+    fn regressor_into(
+        &self,
+        ws: &mut DynBaseWorkspace,
+        q: &DVector<f64>,
+        qd: &DVector<f64>,
+        qdd: &DVector<f64>,
+        out: &mut DMatrix<f64>,
+    ) -> Result<()> {
+        self.check_ws(ws)?;
+        for (what, v) in [("q", q), ("qd", qd), ("qdd", qdd)] {
+            self.check_joint(what, v.len())?;
+        }
+        self.check_matrix("regressor output", out, self.count())?;
+        out.fill(0.0);
+        let mut sink = DynBaseSink {
+            out,
+            rigid_map: &self.rigid_map,
+            friction_map: &self.friction_map,
+        };
+        self.chain.view().regressor_into(
+            q.as_slice(),
+            qd.as_slice(),
+            qdd.as_slice(),
+            true,
+            &mut ws.st,
+            &mut sink,
+        );
+        Ok(())
+    }
+
+    /// τ = Φ_b·β by recursive Newton–Euler on the equivalent chain (O(N), Φ_b never
+    /// built).
+    fn inverse_dynamics_into(
+        &self,
+        ws: &mut DynBaseWorkspace,
+        q: &DVector<f64>,
+        qd: &DVector<f64>,
+        qdd: &DVector<f64>,
+        lambda: &DVector<f64>,
+        out: &mut DVector<f64>,
+    ) -> Result<()> {
+        self.check_ws(ws)?;
+        for (what, v) in [("q", q), ("qd", qd), ("qdd", qdd), ("out", &*out)] {
+            self.check_joint(what, v.len())?;
+        }
+        self.check_beta(lambda.len())?;
+        self.equivalent(lambda, ws);
+        let DynBaseWorkspace { st, rig, fr, .. } = ws;
+        self.view_with(rig, fr).rnea(
+            q.as_slice(),
+            qd.as_slice(),
+            qdd.as_slice(),
+            st,
+            out.as_mut_slice(),
+        );
+        Ok(())
+    }
+
+    /// q̈ = M(q, β)⁻¹·(τ − C(q, q̇, β)·q̇ − G(q, β) − τ_f(q̇, β)), with M by the
+    /// composite-rigid-body algorithm and the bias by Newton–Euler at q̈ = 0.
+    fn forward_dynamics_into(
+        &self,
+        ws: &mut DynBaseWorkspace,
+        q: &DVector<f64>,
+        qd: &DVector<f64>,
+        tau: &DVector<f64>,
+        lambda: &DVector<f64>,
+        out: &mut DVector<f64>,
+    ) -> Result<()> {
+        self.check_ws(ws)?;
+        for (what, v) in [("q", q), ("qd", qd), ("tau", tau), ("out", &*out)] {
+            self.check_joint(what, v.len())?;
+        }
+        self.check_beta(lambda.len())?;
+        self.equivalent(lambda, ws);
+        self.forward_loaded(
+            ws,
+            q.as_slice(),
+            qd.as_slice(),
+            tau.as_slice(),
+            out.as_mut_slice(),
+        )
+    }
+
+    /// ∂q̈/∂β = −M⁻¹·Φ_b(q, q̇, q̈) exactly. ∂q̈/∂q and ∂q̈/∂q̇ are −M⁻¹ times the
+    /// derivatives of the rigid-body inverse dynamics at fixed q̈, by central differences
+    /// with steps 6e-6·(1 + |x|) (relative error ≈ 1e-10, as [`super::ChainBaseModel`]),
+    /// plus the friction slope in closed form (the exact Coulomb sign contributes 0; set
+    /// `coulomb_smoothing` > 0 for a smooth model). Costs 4N + 2 recursions.
+    fn forward_derivatives_into(
+        &self,
+        ws: &mut DynBaseWorkspace,
+        q: &DVector<f64>,
+        qd: &DVector<f64>,
+        tau: &DVector<f64>,
+        lambda: &DVector<f64>,
+        out: &mut ForwardDerivativesOf<Dyn, Dyn>,
+    ) -> Result<()> {
+        self.check_ws(ws)?;
+        for (what, v) in [("q", q), ("qd", qd), ("tau", tau), ("out.qdd", &out.qdd)] {
+            self.check_joint(what, v.len())?;
+        }
+        self.check_beta(lambda.len())?;
+        let n = self.dof();
+        self.check_matrix("out.dqdd_dq", &out.dqdd_dq, n)?;
+        self.check_matrix("out.dqdd_dqd", &out.dqdd_dqd, n)?;
+        self.check_matrix("out.dqdd_dlambda", &out.dqdd_dlambda, self.count())?;
+        self.equivalent(lambda, ws);
+        let (q, qd) = (q.as_slice(), qd.as_slice());
+        self.forward_loaded(ws, q, qd, tau.as_slice(), out.qdd.as_mut_slice())?;
+        let DynBaseWorkspace {
+            st,
+            rig,
+            fr,
+            m,
+            pert,
+            plus,
+            minus,
+            ..
+        } = ws;
+        let mut rigid = self.view_with(rig, fr);
+        rigid.friction = FrictionModel::default();
+        let qdd = out.qdd.as_slice();
+        let dq = out.dqdd_dq.as_mut_slice();
+        let dqd = out.dqdd_dqd.as_mut_slice();
+        for k in 0..n {
+            let h = 6e-6 * (1.0 + q[k].abs());
+            pert.copy_from_slice(q);
+            pert[k] = q[k] + h;
+            rigid.rnea(pert, qd, qdd, st, plus);
+            pert[k] = q[k] - h;
+            rigid.rnea(pert, qd, qdd, st, minus);
+            for i in 0..n {
+                dq[k * n + i] = -(plus[i] - minus[i]) / (2.0 * h);
+            }
+            let h = 6e-6 * (1.0 + qd[k].abs());
+            pert.copy_from_slice(qd);
+            pert[k] = qd[k] + h;
+            rigid.rnea(q, pert, qdd, st, plus);
+            pert[k] = qd[k] - h;
+            rigid.rnea(q, pert, qdd, st, minus);
+            for i in 0..n {
+                dqd[k * n + i] = -(plus[i] - minus[i]) / (2.0 * h);
+            }
+            dqd[k * n + k] -= friction_slope(&self.chain.friction(), qd[k], &fr[k]);
+        }
+        for c in dq.chunks_exact_mut(n).chain(dqd.chunks_exact_mut(n)) {
+            cholesky_solve(m, n, c);
+        }
+        // Φ_b at the q̈ just computed, then −M⁻¹·Φ_b column by column.
+        let dl = &mut out.dqdd_dlambda;
+        dl.fill(0.0);
+        let mut sink = DynBaseSink {
+            out: dl,
+            rigid_map: &self.rigid_map,
+            friction_map: &self.friction_map,
+        };
+        self.chain
+            .view()
+            .regressor_into(q, qd, qdd, true, st, &mut sink);
+        for c in dl.as_mut_slice().chunks_exact_mut(n) {
+            for v in c.iter_mut() {
+                *v = -*v;
+            }
+            cholesky_solve(m, n, c);
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,952 @@
+//! Serial chains of revolute and prismatic joints described by a DH table: a fixed-size
+//! [`SerialChain<N>`] (allocation-free per sample) and a run-time-size [`DynChain`].
+
+use faer::Mat;
+use nalgebra::{DMatrix, SMatrix, SVector, Vector3};
+
+use super::crba::{cholesky_in_place, cholesky_solve};
+use super::dh::DhConvention;
+use super::friction::{FrictionModel, FRICTION_PARAMETER_NAMES};
+use super::inertia::INERTIAL_PARAMETER_NAMES;
+use super::joint::{Joint, JointGeom};
+use super::meta::{ChainMeta, JointInfo};
+use super::regressor::{ColumnMajorSink, FaerSink};
+use super::rnea::{ChainView, LinkState};
+use crate::error::{PrrrpError, Result};
+use crate::models::prrrp::robot::{DhRow, STANDARD_GRAVITY};
+
+/// A serial manipulator with `N` joints, sized at compile time: every per-sample method
+/// works on the stack and never allocates.
+///
+/// # Model
+/// - Geometry: one [`Joint`] per joint — a placement, an axis and the link frame — built
+///   from a DH table ([`SerialChain::new`], either [`DhConvention`]) or given directly
+///   ([`SerialChain::from_joints`], e.g. from a URDF). Frame 0 is the world (base) frame;
+///   link i carries frame i.
+/// - Inertial parameters: for each link the 10-vector
+///   πᵢ = [m, m·x, m·y, m·z, Ixx, Ixy, Iyy, Ixz, Iyz, Izz] (kg, kg·m, kg·m²) — Pinocchio's
+///   order — with the centre of mass (x, y, z) in frame i and the inertia tensor **about
+///   the origin of frame i**, in the axes of frame i. In standard DH frame i sits at the
+///   distal end of link i: a centre of mass at distance lc from joint i along a link of
+///   length aᵢ lies at x = lc − aᵢ. See [`super::inertial_parameters`] to convert from a
+///   centre-of-mass description.
+/// - Gravity: a vector in world coordinates (m/s²), default (0, 0, −9.81).
+/// - Friction: optional per-joint terms, see [`FrictionModel`] (default none).
+///
+/// The full parameter vector is π = [π₁, …, π_N, friction terms] with
+/// [`SerialChain::num_params`] = 10·N + (friction terms per joint)·N entries, named by
+/// [`SerialChain::parameter_names`].
+///
+/// ```
+/// use prrrp_core::{SerialChain, DhConvention, DhRow, JointKind};
+/// use prrrp_core::nalgebra::{SMatrix, SVector};
+///
+/// // A planar 2R arm in the vertical x–z plane (standard DH, α = 0, base x axis
+/// // horizontal): gravity along −y of the base frame.
+/// let row = |a| DhRow { kind: JointKind::Revolute, theta: 0.0, d: 0.0, a, alpha: 0.0 };
+/// let rod = |m: f64, l: f64| prrrp_core::inertial_parameters(
+///     m, [-l / 2.0, 0.0, 0.0], [0.0, 0.0, m * l * l / 12.0, 0.0, 0.0, m * l * l / 12.0]);
+/// let chain = SerialChain::new([row(0.5), row(0.4)], DhConvention::Standard)?
+///     .with_inertial([rod(2.0, 0.5), rod(1.0, 0.4)])?
+///     .with_gravity([0.0, -9.81, 0.0])?;
+/// let q = SVector::<f64, 2>::new(0.3, -0.8);
+/// let qd = SVector::<f64, 2>::new(1.0, 0.5);
+/// let qdd = SVector::<f64, 2>::new(-2.0, 3.0);
+/// let tau = chain.inverse_dynamics(&q, &qd, &qdd);
+/// // The regressor reproduces it (20 = 10·N columns).
+/// let y: SMatrix<f64, 2, 20> = chain.regressor(&q, &qd, &qdd);
+/// assert!((y * chain.inertial_vector::<20>() - tau).norm() < 1e-12);
+/// // Forward dynamics inverts it.
+/// assert!((chain.forward_dynamics(&q, &qd, &tau)? - qdd).norm() < 1e-10);
+/// # Ok::<(), prrrp_core::PrrrpError>(())
+/// ```
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SerialChain<const N: usize> {
+    joints: [Joint; N],
+    dh: Option<([DhRow; N], DhConvention)>,
+    geom: [JointGeom; N],
+    inertial: [[f64; 10]; N],
+    friction: FrictionModel,
+    friction_params: [[f64; 3]; N],
+    gravity: Vector3<f64>,
+}
+
+/// A serial manipulator whose number of joints is known only at run time (e.g. read from
+/// a file or a Python call). Same model and conventions as [`SerialChain`]; joint-space
+/// inputs are slices of length n, and each call allocates O(n) scratch (the `*_into`
+/// methods with a [`super::DynWorkspace`] do not). It also carries the names and limits of
+/// its robot file ([`DynChain::meta`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct DynChain {
+    joints: Vec<Joint>,
+    dh: Option<(Vec<DhRow>, DhConvention)>,
+    geom: Vec<JointGeom>,
+    inertial: Vec<[f64; 10]>,
+    friction: FrictionModel,
+    friction_params: Vec<[f64; 3]>,
+    gravity: Vector3<f64>,
+    meta: ChainMeta,
+}
+
+fn invalid(field: String, value: f64, reason: &'static str) -> PrrrpError {
+    PrrrpError::InvalidParameter {
+        field,
+        value,
+        reason,
+    }
+}
+
+fn validate_joints(joints: &[Joint]) -> Result<()> {
+    if joints.is_empty() {
+        return Err(PrrrpError::ShapeMismatch {
+            what: "joints".into(),
+            expected: "at least one joint".into(),
+            got: "0 joints".into(),
+        });
+    }
+    for (i, j) in joints.iter().enumerate() {
+        j.validate(&format!("joint {}", i + 1))?;
+    }
+    Ok(())
+}
+
+fn validate_dh(dh: &[DhRow]) -> Result<()> {
+    if dh.is_empty() {
+        return Err(PrrrpError::ShapeMismatch {
+            what: "DH table".into(),
+            expected: "at least one row".into(),
+            got: "0 rows".into(),
+        });
+    }
+    for (i, r) in dh.iter().enumerate() {
+        for (name, v) in [
+            ("theta", r.theta),
+            ("d", r.d),
+            ("a", r.a),
+            ("alpha", r.alpha),
+        ] {
+            if !v.is_finite() {
+                return Err(invalid(
+                    format!("dh[{i}].{name}"),
+                    v,
+                    "DH constants must be finite (m, rad)",
+                ));
+            }
+        }
+    }
+    Ok(())
+}
+
+fn validate_inertial(p: &[[f64; 10]]) -> Result<()> {
+    for (i, link) in p.iter().enumerate() {
+        for (k, &v) in link.iter().enumerate() {
+            if !v.is_finite() {
+                return Err(invalid(
+                    format!(
+                        "inertial[{i}][{k}] ({}{})",
+                        INERTIAL_PARAMETER_NAMES[k],
+                        i + 1
+                    ),
+                    v,
+                    "inertial parameters must be finite",
+                ));
+            }
+        }
+    }
+    Ok(())
+}
+
+fn validate_gravity(g: [f64; 3]) -> Result<Vector3<f64>> {
+    for (k, &v) in g.iter().enumerate() {
+        if !v.is_finite() {
+            return Err(invalid(
+                format!("gravity[{k}]"),
+                v,
+                "gravity must be finite (m/s², world frame)",
+            ));
+        }
+    }
+    Ok(Vector3::from(g))
+}
+
+fn validate_friction(model: &FrictionModel, p: &[[f64; 3]]) -> Result<()> {
+    let s = model.coulomb_smoothing;
+    if !(s.is_finite() && s >= 0.0) {
+        return Err(invalid(
+            "friction.coulomb_smoothing".into(),
+            s,
+            "must be finite and >= 0 (rad/s or m/s; 0 = exact sign)",
+        ));
+    }
+    for (j, row) in p.iter().enumerate() {
+        for (k, &v) in row.iter().enumerate() {
+            if !v.is_finite() {
+                return Err(invalid(
+                    format!(
+                        "friction[{j}][{k}] ({}{})",
+                        FRICTION_PARAMETER_NAMES[k],
+                        j + 1
+                    ),
+                    v,
+                    "friction parameters must be finite",
+                ));
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Relative tolerance of the chains' physical-consistency check: the accepted negative
+/// eigenvalue of a link's pseudo-inertia, as a fraction of the link's largest parameter
+/// magnitude (absorbs the round-off of files that list a thin rod's zero moment).
+pub const PHYSICAL_TOLERANCE: f64 = 1e-9;
+
+fn non_physical_links(inertial: &[[f64; 10]]) -> Vec<usize> {
+    inertial
+        .iter()
+        .enumerate()
+        .filter(|(_, p)| {
+            let scale = p.iter().fold(0.0f64, |a, &b| a.max(b.abs()));
+            !super::is_physically_consistent(p, PHYSICAL_TOLERANCE * scale)
+        })
+        .map(|(i, _)| i)
+        .collect()
+}
+
+pub(crate) fn parameter_names(n: usize, friction: &FrictionModel) -> Vec<String> {
+    let mut names = Vec::with_capacity(n * (10 + friction.columns_per_joint()));
+    for i in 0..n {
+        for s in INERTIAL_PARAMETER_NAMES {
+            names.push(format!("{s}{}", i + 1));
+        }
+    }
+    let en = friction.enabled();
+    for j in 0..n {
+        for k in 0..3 {
+            if en[k] {
+                names.push(format!("{}{}", FRICTION_PARAMETER_NAMES[k], j + 1));
+            }
+        }
+    }
+    names
+}
+
+fn parameter_vector(inertial: &[[f64; 10]], friction: &FrictionModel, fp: &[[f64; 3]]) -> Vec<f64> {
+    let mut v: Vec<f64> = inertial.iter().flatten().copied().collect();
+    let en = friction.enabled();
+    for row in fp {
+        for k in 0..3 {
+            if en[k] {
+                v.push(row[k]);
+            }
+        }
+    }
+    v
+}
+
+fn check_len(what: &str, len: usize, n: usize) -> Result<()> {
+    if len != n {
+        return Err(PrrrpError::ShapeMismatch {
+            what: what.into(),
+            expected: format!("{n} entries (one per joint)"),
+            got: format!("{len} entries"),
+        });
+    }
+    Ok(())
+}
+
+/// Stacks the full regressor (with friction) of `samples` samples into a faer matrix,
+/// checking finiteness. `get(k)` returns (q, q̇, q̈) of sample k.
+pub(crate) fn stack_regressor<'s>(
+    view: &ChainView<'_>,
+    samples: usize,
+    mut get: impl FnMut(usize) -> (&'s [f64], &'s [f64], &'s [f64]),
+    st: &mut [LinkState],
+) -> Result<Mat<f64>> {
+    let n = view.dof();
+    let per_joint = view.friction.columns_per_joint();
+    let p = n * (10 + per_joint);
+    let mut w = Mat::<f64>::zeros(n * samples, p);
+    for k in 0..samples {
+        crate::interrupt::check("regressor stacking")?;
+        let (q, qd, qdd) = get(k);
+        for (name, v) in [("q", q), ("qd", qd), ("qdd", qdd)] {
+            if !v.iter().all(|x| x.is_finite()) {
+                return Err(PrrrpError::NonFinite {
+                    what: name.into(),
+                    row: Some(k),
+                });
+            }
+        }
+        let mut sink = FaerSink {
+            mat: &mut w,
+            row0: n * k,
+            n,
+            per_joint,
+            slots: view.friction.slots(),
+        };
+        view.regressor_into(q, qd, qdd, true, st, &mut sink);
+    }
+    Ok(w)
+}
+
+impl<const N: usize> SerialChain<N> {
+    /// A chain with the given DH table and convention, massless links, no friction and
+    /// gravity (0, 0, −9.81) m/s².
+    ///
+    /// # Errors
+    /// [`PrrrpError::ShapeMismatch`] if N = 0, [`PrrrpError::InvalidParameter`] for a
+    /// non-finite DH constant.
+    pub fn new(dh: [DhRow; N], convention: DhConvention) -> Result<Self> {
+        validate_dh(&dh)?;
+        let mut c = Self::from_joints(dh.map(|r| Joint::from_dh(&r, convention)))?;
+        c.dh = Some((dh, convention));
+        Ok(c)
+    }
+
+    /// A chain of general joints (see [`Joint`]), massless links, no friction and gravity
+    /// (0, 0, −9.81) m/s².
+    ///
+    /// # Errors
+    /// [`PrrrpError::ShapeMismatch`] if N = 0, [`PrrrpError::InvalidParameter`] for a
+    /// non-finite placement or an axis that is not a unit vector.
+    pub fn from_joints(joints: [Joint; N]) -> Result<Self> {
+        validate_joints(&joints)?;
+        Ok(Self {
+            joints,
+            dh: None,
+            geom: joints.map(|j| JointGeom::new(&j)),
+            inertial: [[0.0; 10]; N],
+            friction: FrictionModel::default(),
+            friction_params: [[0.0; 3]; N],
+            gravity: Vector3::new(0.0, 0.0, -STANDARD_GRAVITY),
+        })
+    }
+
+    pub(crate) fn from_parts_unchecked(
+        dh: [DhRow; N],
+        convention: DhConvention,
+        inertial: [[f64; 10]; N],
+        gravity: [f64; 3],
+    ) -> Self {
+        let joints = dh.map(|r| Joint::from_dh(&r, convention));
+        Self {
+            joints,
+            dh: Some((dh, convention)),
+            geom: joints.map(|j| JointGeom::new(&j)),
+            inertial,
+            friction: FrictionModel::default(),
+            friction_params: [[0.0; 3]; N],
+            gravity: Vector3::from(gravity),
+        }
+    }
+
+    /// Sets the inertial parameters of every link (see the type docs for the frame).
+    ///
+    /// # Errors
+    /// [`PrrrpError::InvalidParameter`] for a non-finite entry. Parameters no rigid body
+    /// has (a negative mass, an inertia breaking the triangle inequality) are accepted, as
+    /// a robot file's inertials are only a prior: see
+    /// [`SerialChain::non_physical_links`].
+    pub fn with_inertial(mut self, inertial: [[f64; 10]; N]) -> Result<Self> {
+        validate_inertial(&inertial)?;
+        self.inertial = inertial;
+        Ok(self)
+    }
+
+    /// Sets the gravity vector in world (base-frame) coordinates, m/s².
+    ///
+    /// # Errors
+    /// [`PrrrpError::InvalidParameter`] for a non-finite entry.
+    pub fn with_gravity(mut self, gravity: [f64; 3]) -> Result<Self> {
+        self.gravity = validate_gravity(gravity)?;
+        Ok(self)
+    }
+
+    /// Sets the friction model and each joint's [fv, fc, fo] (disabled terms are kept but
+    /// ignored).
+    ///
+    /// # Errors
+    /// [`PrrrpError::InvalidParameter`] for a non-finite value or a negative smoothing.
+    pub fn with_friction(mut self, model: FrictionModel, params: [[f64; 3]; N]) -> Result<Self> {
+        validate_friction(&model, &params)?;
+        self.friction = model;
+        self.friction_params = params;
+        Ok(self)
+    }
+
+    /// The joints (placements, axes, link frames).
+    pub fn joints(&self) -> &[Joint; N] {
+        &self.joints
+    }
+    /// The DH table, when the chain was built from one.
+    pub fn dh(&self) -> Option<&[DhRow; N]> {
+        self.dh.as_ref().map(|(t, _)| t)
+    }
+    /// The DH convention, when the chain was built from a DH table.
+    pub fn convention(&self) -> Option<DhConvention> {
+        self.dh.as_ref().map(|(_, c)| *c)
+    }
+    /// Inertial parameters of each link.
+    pub fn inertial(&self) -> &[[f64; 10]; N] {
+        &self.inertial
+    }
+    /// Gravity vector in world coordinates, m/s².
+    pub fn gravity(&self) -> [f64; 3] {
+        self.gravity.into()
+    }
+    /// The friction model.
+    pub fn friction(&self) -> FrictionModel {
+        self.friction
+    }
+    /// Friction parameters [fv, fc, fo] of each joint.
+    pub fn friction_params(&self) -> &[[f64; 3]; N] {
+        &self.friction_params
+    }
+    /// Number of joints.
+    pub const fn dof(&self) -> usize {
+        N
+    }
+    /// Number of standard parameters: 10·N inertial plus the enabled friction terms.
+    pub fn num_params(&self) -> usize {
+        N * (10 + self.friction.columns_per_joint())
+    }
+    /// Names of the standard parameters in order, e.g. `m1, mx1, …, Izz6, fv1, fc1, …`.
+    pub fn parameter_names(&self) -> Vec<String> {
+        parameter_names(N, &self.friction)
+    }
+    /// The standard parameter vector π (inertial, then enabled friction terms).
+    pub fn parameters(&self) -> Vec<f64> {
+        parameter_vector(&self.inertial, &self.friction, &self.friction_params)
+    }
+
+    /// Indices (0-based) of the links whose inertial parameters no rigid body has: a
+    /// pseudo-inertia that is not positive semidefinite (see
+    /// [`super::is_physically_consistent`]; tolerance [`PHYSICAL_TOLERANCE`] relative to
+    /// the link's largest parameter).
+    pub fn non_physical_links(&self) -> Vec<usize> {
+        non_physical_links(&self.inertial)
+    }
+
+    /// True when every link's inertial parameters describe a rigid body
+    /// ([`Self::non_physical_links`] is empty).
+    pub fn is_physically_consistent(&self) -> bool {
+        self.non_physical_links().is_empty()
+    }
+
+    /// The 10·N inertial parameters as one vector, matching [`SerialChain::regressor`].
+    /// P must equal 10·N (checked at compile time).
+    pub fn inertial_vector<const P: usize>(&self) -> SVector<f64, P> {
+        const { assert!(P == 10 * N, "P must equal 10·N") };
+        SVector::from_iterator(self.inertial.iter().flatten().copied())
+    }
+
+    pub(crate) fn view(&self) -> ChainView<'_> {
+        ChainView {
+            geom: &self.geom,
+            inertial: &self.inertial,
+            friction_params: &self.friction_params,
+            friction: self.friction,
+            gravity: self.gravity,
+        }
+    }
+
+    /// Inverse dynamics τ = M(q)·q̈ + C(q, q̇)·q̇ + G(q) + τ_friction(q̇) by recursive
+    /// Newton–Euler (N or N·m per joint).
+    #[inline]
+    pub fn inverse_dynamics(
+        &self,
+        q: &SVector<f64, N>,
+        qd: &SVector<f64, N>,
+        qdd: &SVector<f64, N>,
+    ) -> SVector<f64, N> {
+        let mut st = [LinkState::default(); N];
+        let mut tau = SVector::<f64, N>::zeros();
+        self.view().rnea(
+            q.as_slice(),
+            qd.as_slice(),
+            qdd.as_slice(),
+            &mut st,
+            tau.as_mut_slice(),
+        );
+        tau
+    }
+
+    /// Nonlinear effects C(q, q̇)·q̇ + G(q) + τ_friction(q̇): the torque at q̈ = 0.
+    #[inline]
+    pub fn nonlinear_effects(&self, q: &SVector<f64, N>, qd: &SVector<f64, N>) -> SVector<f64, N> {
+        self.inverse_dynamics(q, qd, &SVector::zeros())
+    }
+
+    /// Gravity torques G(q) (N, N·m).
+    #[inline]
+    pub fn gravity_torques(&self, q: &SVector<f64, N>) -> SVector<f64, N> {
+        let z = SVector::<f64, N>::zeros();
+        let mut st = [LinkState::default(); N];
+        let mut tau = SVector::<f64, N>::zeros();
+        let mut view = self.view();
+        view.friction = FrictionModel::default();
+        view.rnea(
+            q.as_slice(),
+            z.as_slice(),
+            z.as_slice(),
+            &mut st,
+            tau.as_mut_slice(),
+        );
+        tau
+    }
+
+    /// Joint-space mass matrix M(q) by the composite-rigid-body algorithm (kg, kg·m,
+    /// kg·m² by joint kinds).
+    #[inline]
+    pub fn mass_matrix(&self, q: &SVector<f64, N>) -> SMatrix<f64, N, N> {
+        let mut st = [LinkState::default(); N];
+        let mut comp = [[0.0; 10]; N];
+        let mut m = SMatrix::<f64, N, N>::zeros();
+        self.view().mass_matrix_with(
+            &self.inertial,
+            q.as_slice(),
+            &mut st,
+            &mut comp,
+            m.as_mut_slice(),
+        );
+        m
+    }
+
+    /// Forward dynamics q̈ = M⁻¹·(τ − C·q̇ − G − τ_friction) via a Cholesky factorisation of M.
+    ///
+    /// # Errors
+    /// [`PrrrpError::NotPositiveDefinite`] if M(q) is singular (e.g. a massless end of the
+    /// chain) or the parameters are not physical.
+    #[inline]
+    pub fn forward_dynamics(
+        &self,
+        q: &SVector<f64, N>,
+        qd: &SVector<f64, N>,
+        tau: &SVector<f64, N>,
+    ) -> Result<SVector<f64, N>> {
+        let mut m = self.mass_matrix(q);
+        cholesky_in_place(m.as_mut_slice(), N)?;
+        let mut x = tau - self.nonlinear_effects(q, qd);
+        cholesky_solve(m.as_slice(), N, x.as_mut_slice());
+        Ok(x)
+    }
+
+    /// Friction forces τ_friction(q̇) of the enabled terms (N, N·m).
+    #[inline]
+    pub fn friction_torque(&self, qd: &SVector<f64, N>) -> SVector<f64, N> {
+        SVector::from_fn(|j, _| self.friction.torque(qd[j], &self.friction_params[j]))
+    }
+
+    /// Standard rigid-body regressor Y(q, q̇, q̈) ∈ R^{N×P}, P = 10·N (checked at compile
+    /// time): τ − τ_friction = Y·π with π = [`SerialChain::inertial_vector`]. Column
+    /// 10·i + k belongs to parameter k of link i+1 in the order
+    /// [m, mx, my, mz, Ixx, Ixy, Iyy, Ixz, Iyz, Izz].
+    #[inline]
+    pub fn regressor<const P: usize>(
+        &self,
+        q: &SVector<f64, N>,
+        qd: &SVector<f64, N>,
+        qdd: &SVector<f64, N>,
+    ) -> SMatrix<f64, N, P> {
+        const { assert!(P == 10 * N, "P must equal 10·N") };
+        let mut st = [LinkState::default(); N];
+        let mut y = SMatrix::<f64, N, P>::zeros();
+        let mut sink = ColumnMajorSink {
+            data: y.as_mut_slice(),
+            ld: N,
+            row0: 0,
+            n: N,
+            per_joint: 0,
+            slots: [usize::MAX; 3],
+        };
+        self.view().regressor_into(
+            q.as_slice(),
+            qd.as_slice(),
+            qdd.as_slice(),
+            false,
+            &mut st,
+            &mut sink,
+        );
+        y
+    }
+
+    /// The full regressor, friction columns included, written column-major (N rows,
+    /// [`SerialChain::num_params`] columns) into `out`: τ = Y_full·π with
+    /// π = [`SerialChain::parameters`]. Allocation-free.
+    ///
+    /// # Errors
+    /// [`PrrrpError::ShapeMismatch`] if `out.len()` ≠ N·num_params.
+    pub fn regressor_full_into(
+        &self,
+        q: &SVector<f64, N>,
+        qd: &SVector<f64, N>,
+        qdd: &SVector<f64, N>,
+        out: &mut [f64],
+    ) -> Result<()> {
+        check_len(
+            "regressor output (column-major N × num_params)",
+            out.len(),
+            N * self.num_params(),
+        )?;
+        out.fill(0.0);
+        let mut st = [LinkState::default(); N];
+        let mut sink = ColumnMajorSink {
+            data: out,
+            ld: N,
+            row0: 0,
+            n: N,
+            per_joint: self.friction.columns_per_joint(),
+            slots: self.friction.slots(),
+        };
+        self.view().regressor_into(
+            q.as_slice(),
+            qd.as_slice(),
+            qdd.as_slice(),
+            true,
+            &mut st,
+            &mut sink,
+        );
+        Ok(())
+    }
+
+    /// The full regressor (friction included) of many samples stacked into
+    /// W ∈ R^{(N·samples)×num_params}: rows N·k .. N·k+N hold sample k.
+    ///
+    /// # Errors
+    /// [`PrrrpError::ShapeMismatch`] if the slices differ in length,
+    /// [`PrrrpError::NonFinite`] naming the first bad sample.
+    pub fn observation_matrix(
+        &self,
+        q: &[SVector<f64, N>],
+        qd: &[SVector<f64, N>],
+        qdd: &[SVector<f64, N>],
+    ) -> Result<Mat<f64>> {
+        crate::models::prrrp::regressor::check_lengths(
+            q.len(),
+            &[("qd", qd.len()), ("qdd", qdd.len())],
+        )?;
+        let mut st = [LinkState::default(); N];
+        stack_regressor(
+            &self.view(),
+            q.len(),
+            |k| (q[k].as_slice(), qd[k].as_slice(), qdd[k].as_slice()),
+            &mut st,
+        )
+    }
+
+    /// The same chain with a run-time size.
+    pub fn to_dyn(&self) -> DynChain {
+        DynChain {
+            joints: self.joints.to_vec(),
+            dh: self.dh.map(|(t, c)| (t.to_vec(), c)),
+            geom: self.geom.to_vec(),
+            inertial: self.inertial.to_vec(),
+            friction: self.friction,
+            friction_params: self.friction_params.to_vec(),
+            gravity: self.gravity,
+            meta: ChainMeta::numbered(N),
+        }
+    }
+}
+
+impl DynChain {
+    /// A chain with the given DH table and convention, massless links, no friction and
+    /// gravity (0, 0, −9.81) m/s².
+    ///
+    /// # Errors
+    /// [`PrrrpError::ShapeMismatch`] for an empty table, [`PrrrpError::InvalidParameter`]
+    /// for a non-finite DH constant.
+    pub fn new(dh: Vec<DhRow>, convention: DhConvention) -> Result<Self> {
+        validate_dh(&dh)?;
+        let mut c = Self::from_joints(dh.iter().map(|r| Joint::from_dh(r, convention)).collect())?;
+        c.dh = Some((dh, convention));
+        Ok(c)
+    }
+
+    /// A chain of general joints (see [`Joint`]), massless links, no friction, gravity
+    /// (0, 0, −9.81) m/s² and numbered names ([`ChainMeta::numbered`]).
+    ///
+    /// # Errors
+    /// [`PrrrpError::ShapeMismatch`] for no joints, [`PrrrpError::InvalidParameter`] for a
+    /// non-finite placement or an axis that is not a unit vector.
+    pub fn from_joints(joints: Vec<Joint>) -> Result<Self> {
+        validate_joints(&joints)?;
+        let n = joints.len();
+        Ok(Self {
+            geom: joints.iter().map(JointGeom::new).collect(),
+            joints,
+            dh: None,
+            inertial: vec![[0.0; 10]; n],
+            friction: FrictionModel::default(),
+            friction_params: vec![[0.0; 3]; n],
+            gravity: Vector3::new(0.0, 0.0, -STANDARD_GRAVITY),
+            meta: ChainMeta::numbered(n),
+        })
+    }
+
+    /// Sets the names and limits (one [`JointInfo`] and one link name per joint).
+    ///
+    /// # Errors
+    /// [`PrrrpError::ShapeMismatch`] if `meta` does not name every joint and link.
+    pub fn with_meta(mut self, meta: ChainMeta) -> Result<Self> {
+        check_len("meta.joints", meta.joints.len(), self.dof())?;
+        check_len("meta.links", meta.links.len(), self.dof())?;
+        self.meta = meta;
+        Ok(self)
+    }
+
+    /// Names and limits of the chain and its joints.
+    pub fn meta(&self) -> &ChainMeta {
+        &self.meta
+    }
+
+    /// Joint names, base to tip.
+    pub fn joint_names(&self) -> Vec<&str> {
+        self.meta.joints.iter().map(|j| j.name.as_str()).collect()
+    }
+
+    /// Each joint's name, limits and file figures.
+    pub fn joint_info(&self) -> &[JointInfo] {
+        &self.meta.joints
+    }
+
+    /// Sets the inertial parameters of every link (one 10-vector per joint).
+    ///
+    /// # Errors
+    /// [`PrrrpError::ShapeMismatch`] for a wrong count, [`PrrrpError::InvalidParameter`]
+    /// for a non-finite entry. Non-physical parameters are accepted: see
+    /// [`DynChain::non_physical_links`].
+    pub fn with_inertial(mut self, inertial: Vec<[f64; 10]>) -> Result<Self> {
+        check_len("inertial", inertial.len(), self.dof())?;
+        validate_inertial(&inertial)?;
+        self.inertial = inertial;
+        Ok(self)
+    }
+
+    /// Sets the gravity vector in world coordinates, m/s².
+    ///
+    /// # Errors
+    /// [`PrrrpError::InvalidParameter`] for a non-finite entry.
+    pub fn with_gravity(mut self, gravity: [f64; 3]) -> Result<Self> {
+        self.gravity = validate_gravity(gravity)?;
+        Ok(self)
+    }
+
+    /// Sets the friction model and each joint's [fv, fc, fo].
+    ///
+    /// # Errors
+    /// [`PrrrpError::ShapeMismatch`] for a wrong count, [`PrrrpError::InvalidParameter`]
+    /// for a non-finite value or a negative smoothing.
+    pub fn with_friction(mut self, model: FrictionModel, params: Vec<[f64; 3]>) -> Result<Self> {
+        check_len("friction params", params.len(), self.dof())?;
+        validate_friction(&model, &params)?;
+        self.friction = model;
+        self.friction_params = params;
+        Ok(self)
+    }
+
+    /// The same chain with a compile-time size.
+    ///
+    /// # Errors
+    /// [`PrrrpError::ShapeMismatch`] if the chain does not have N joints.
+    pub fn to_fixed<const N: usize>(&self) -> Result<SerialChain<N>> {
+        check_len("chain joints", self.dof(), N)?;
+        let mut c = SerialChain::<N>::from_joints(std::array::from_fn(|i| self.joints[i]))?;
+        c.dh = self
+            .dh
+            .as_ref()
+            .map(|(t, conv)| (std::array::from_fn(|i| t[i]), *conv));
+        c.inertial = std::array::from_fn(|i| self.inertial[i]);
+        c.friction = self.friction;
+        c.friction_params = std::array::from_fn(|i| self.friction_params[i]);
+        c.gravity = self.gravity;
+        Ok(c)
+    }
+
+    /// The joints (placements, axes, link frames).
+    pub fn joints(&self) -> &[Joint] {
+        &self.joints
+    }
+    /// The DH table, when the chain was built from one.
+    pub fn dh(&self) -> Option<&[DhRow]> {
+        self.dh.as_ref().map(|(t, _)| t.as_slice())
+    }
+    /// The DH convention, when the chain was built from a DH table.
+    pub fn convention(&self) -> Option<DhConvention> {
+        self.dh.as_ref().map(|(_, c)| *c)
+    }
+    /// Inertial parameters of each link.
+    pub fn inertial(&self) -> &[[f64; 10]] {
+        &self.inertial
+    }
+    /// Gravity vector in world coordinates, m/s².
+    pub fn gravity(&self) -> [f64; 3] {
+        self.gravity.into()
+    }
+    /// The friction model.
+    pub fn friction(&self) -> FrictionModel {
+        self.friction
+    }
+    /// Friction parameters [fv, fc, fo] of each joint.
+    pub fn friction_params(&self) -> &[[f64; 3]] {
+        &self.friction_params
+    }
+    /// Number of joints n.
+    pub fn dof(&self) -> usize {
+        self.joints.len()
+    }
+    /// Number of standard parameters: 10·n inertial plus the enabled friction terms.
+    pub fn num_params(&self) -> usize {
+        self.dof() * (10 + self.friction.columns_per_joint())
+    }
+    /// Names of the standard parameters in order.
+    pub fn parameter_names(&self) -> Vec<String> {
+        parameter_names(self.dof(), &self.friction)
+    }
+    /// The standard parameter vector π (inertial, then enabled friction terms).
+    pub fn parameters(&self) -> Vec<f64> {
+        parameter_vector(&self.inertial, &self.friction, &self.friction_params)
+    }
+
+    /// Indices (0-based) of the links whose inertial parameters no rigid body has: a
+    /// pseudo-inertia that is not positive semidefinite (see
+    /// [`super::is_physically_consistent`]; tolerance [`PHYSICAL_TOLERANCE`] relative to
+    /// the link's largest parameter).
+    pub fn non_physical_links(&self) -> Vec<usize> {
+        non_physical_links(&self.inertial)
+    }
+
+    /// True when every link's inertial parameters describe a rigid body
+    /// ([`Self::non_physical_links`] is empty).
+    pub fn is_physically_consistent(&self) -> bool {
+        self.non_physical_links().is_empty()
+    }
+
+    pub(crate) fn view(&self) -> ChainView<'_> {
+        ChainView {
+            geom: &self.geom,
+            inertial: &self.inertial,
+            friction_params: &self.friction_params,
+            friction: self.friction,
+            gravity: self.gravity,
+        }
+    }
+
+    fn check3(&self, q: &[f64], qd: &[f64], qdd: &[f64]) -> Result<()> {
+        let n = self.dof();
+        check_len("q", q.len(), n)?;
+        check_len("qd", qd.len(), n)?;
+        check_len("qdd", qdd.len(), n)
+    }
+
+    /// Inverse dynamics τ (friction included) by recursive Newton–Euler.
+    ///
+    /// # Errors
+    /// [`PrrrpError::ShapeMismatch`] if an input does not have n entries.
+    pub fn inverse_dynamics(&self, q: &[f64], qd: &[f64], qdd: &[f64]) -> Result<Vec<f64>> {
+        self.check3(q, qd, qdd)?;
+        let mut st = vec![LinkState::default(); self.dof()];
+        let mut tau = vec![0.0; self.dof()];
+        self.view().rnea(q, qd, qdd, &mut st, &mut tau);
+        Ok(tau)
+    }
+
+    /// Mass matrix M(q) (n×n) by the composite-rigid-body algorithm.
+    ///
+    /// # Errors
+    /// [`PrrrpError::ShapeMismatch`] if `q` does not have n entries.
+    pub fn mass_matrix(&self, q: &[f64]) -> Result<DMatrix<f64>> {
+        let n = self.dof();
+        check_len("q", q.len(), n)?;
+        let mut st = vec![LinkState::default(); n];
+        let mut comp = vec![[0.0; 10]; n];
+        let mut m = DMatrix::zeros(n, n);
+        self.view()
+            .mass_matrix_with(&self.inertial, q, &mut st, &mut comp, m.as_mut_slice());
+        Ok(m)
+    }
+
+    /// Forward dynamics q̈ = M⁻¹·(τ − C·q̇ − G − τ_friction).
+    ///
+    /// # Errors
+    /// [`PrrrpError::ShapeMismatch`] for wrong lengths, [`PrrrpError::NotPositiveDefinite`]
+    /// if M(q) is singular.
+    pub fn forward_dynamics(&self, q: &[f64], qd: &[f64], tau: &[f64]) -> Result<Vec<f64>> {
+        self.check3(q, qd, tau)?;
+        let n = self.dof();
+        let mut m = self.mass_matrix(q)?;
+        cholesky_in_place(m.as_mut_slice(), n)?;
+        let zero = vec![0.0; n];
+        let bias = self.inverse_dynamics(q, qd, &zero)?;
+        let mut x: Vec<f64> = tau.iter().zip(&bias).map(|(t, b)| t - b).collect();
+        cholesky_solve(m.as_slice(), n, &mut x);
+        Ok(x)
+    }
+
+    /// The full regressor (n × num_params, friction columns included): τ = Y·π with
+    /// π = [`DynChain::parameters`].
+    ///
+    /// # Errors
+    /// [`PrrrpError::ShapeMismatch`] if an input does not have n entries.
+    pub fn regressor(&self, q: &[f64], qd: &[f64], qdd: &[f64]) -> Result<DMatrix<f64>> {
+        self.check3(q, qd, qdd)?;
+        let n = self.dof();
+        let mut y = DMatrix::zeros(n, self.num_params());
+        let mut st = vec![LinkState::default(); n];
+        let mut sink = ColumnMajorSink {
+            data: y.as_mut_slice(),
+            ld: n,
+            row0: 0,
+            n,
+            per_joint: self.friction.columns_per_joint(),
+            slots: self.friction.slots(),
+        };
+        self.view()
+            .regressor_into(q, qd, qdd, true, &mut st, &mut sink);
+        Ok(y)
+    }
+
+    /// The full regressor of many samples stacked into W ∈ R^{(n·samples)×num_params}.
+    /// Inputs are flat, row-major (samples × n) slices, as numpy arrays are.
+    ///
+    /// # Errors
+    /// [`PrrrpError::ShapeMismatch`] if a slice length is not a multiple of n or the three
+    /// differ, [`PrrrpError::NonFinite`] naming the first bad sample.
+    pub fn observation_matrix(&self, q: &[f64], qd: &[f64], qdd: &[f64]) -> Result<Mat<f64>> {
+        let n = self.dof();
+        let samples = flat_samples(n, q, qd, qdd)?;
+        let mut st = vec![LinkState::default(); n];
+        stack_regressor(
+            &self.view(),
+            samples,
+            |k| {
+                let r = n * k..n * k + n;
+                (&q[r.clone()], &qd[r.clone()], &qdd[r])
+            },
+            &mut st,
+        )
+    }
+}
+
+/// Number of samples in three flat row-major (samples × n) arrays.
+pub(crate) fn flat_samples(n: usize, q: &[f64], qd: &[f64], qdd: &[f64]) -> Result<usize> {
+    if q.len() % n != 0 {
+        return Err(PrrrpError::ShapeMismatch {
+            what: "q (flat samples × n)".into(),
+            expected: format!("a multiple of n = {n}"),
+            got: format!("{} values", q.len()),
+        });
+    }
+    crate::models::prrrp::regressor::check_lengths(
+        q.len(),
+        &[("qd", qd.len()), ("qdd", qdd.len())],
+    )?;
+    Ok(q.len() / n)
+}
+
+impl<const N: usize> From<&SerialChain<N>> for DynChain {
+    fn from(c: &SerialChain<N>) -> Self {
+        c.to_dyn()
+    }
+}

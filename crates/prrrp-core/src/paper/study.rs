@@ -1,0 +1,635 @@
+//! The paper's whole study from one seed (sections 4–5): optimise the excitation,
+//! simulate the robot with sensor noise, preprocess, run the four estimators, validate,
+//! and sweep the sensitivity — one deterministic, serialisable result.
+
+use std::time::Instant;
+
+use serde::{Deserialize, Serialize};
+
+use crate::data::dataset::Dataset;
+use crate::data::preprocess::PreprocessConfig;
+use crate::error::{PrrrpError, Result};
+use crate::estimators::{
+    least_squares, Adaline, AdalineConfig, Discretisation, Ekf, EkfConfig, Estimator, Hopfield,
+    HopfieldConfig, LeastSquaresConfig, Sample, Samples,
+};
+use crate::models::prrrp::robot::Robot;
+use crate::models::prrrp::types::{Lambda, Vec5, NDOF, NPARAM};
+use crate::motion::excitation::{optimise_excitation, ExcitationConfig, DEFAULT_EXCITATION_KNOTS};
+use crate::motion::simulation::{simulate_closed_loop, SimulationConfig};
+use crate::paper::sensitivity::{sensitivity, SensitivityConfig};
+use crate::validation::metrics::relative_errors_percent;
+use crate::validation::{validate, ValidationConfig};
+
+/// Names of the four methods, in the order of the paper's tables.
+pub const METHODS: [&str; 4] = ["least_squares", "adaline", "hopfield", "ekf"];
+
+/// Settings of [`run_study`]. Every field has a documented default.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StudyConfig {
+    /// Seed of everything random (default 0): the excitation's initial guess uses it, the
+    /// estimation run's sensor noise uses it, the validation run's noise uses seed + 1.
+    pub seed: u64,
+    /// Excitation optimisation (default [`ExcitationConfig::default`]).
+    pub excitation: ExcitationConfig,
+    /// Controller, sampling and sensor noise of the estimation run (default
+    /// [`SimulationConfig::default`]).
+    pub simulation: SimulationConfig,
+    /// Filtering and differentiation of the measured positions (default
+    /// [`PreprocessConfig::default`]).
+    pub preprocess: PreprocessConfig,
+    /// λ0 of the iterative estimators and the controller's model, as a multiple of the
+    /// true λ (default 1.3: a model 30 % too heavy, as from a rough CAD estimate; scaling
+    /// every mass and inertia keeps it physical). The paper's λ0 = ones is not physical.
+    pub initial_guess_scale: f64,
+    /// Least squares (default [`LeastSquaresConfig::default`]).
+    pub least_squares: LeastSquaresConfig,
+    /// Adaline (default [`AdalineConfig::default`], normalised rule, with step size 0.05
+    /// so that sensor noise averages out over the epochs).
+    pub adaline: AdalineConfig,
+    /// Training epochs of Adaline over the estimation data (default 20).
+    pub adaline_epochs: usize,
+    /// Hopfield network (default [`HopfieldConfig::default`]).
+    pub hopfield: HopfieldConfig,
+    /// Passes of the Hopfield network over the estimation data (default 10).
+    pub hopfield_epochs: usize,
+    /// Extended Kalman filter; it runs once over the raw measured positions and torques.
+    /// Default: [`EkfConfig::default`] with the second-order discretisation (its O(h) bias
+    /// is smaller than Euler's at 50 Hz), an initial λ uncertainty of 30 % (the size of
+    /// the λ0 error, `initial_guess_scale`) and a position noise of 1e-2: the recorded
+    /// torque is the controller's value at the sample instant while the 1 kHz controller
+    /// changes it within the sample, and the larger R absorbs that model error. With the
+    /// filter's own defaults (50 % and 1e-3) the estimate leaves the physical region
+    /// within the 10 s of excitation data.
+    pub ekf: EkfConfig,
+    /// Validation runs (default [`ValidationConfig::default`], seed replaced by seed + 1).
+    pub validation: ValidationConfig,
+    /// Sensitivity sweep (default [`SensitivityConfig::default`], ±50 %, 11 points).
+    pub sensitivity: SensitivityConfig,
+    /// Points of each estimator's history kept for the figures (default 200).
+    pub history_points: usize,
+}
+
+impl Default for StudyConfig {
+    fn default() -> Self {
+        Self {
+            seed: 0,
+            excitation: ExcitationConfig::default(),
+            simulation: SimulationConfig::default(),
+            preprocess: PreprocessConfig::default(),
+            initial_guess_scale: 1.3,
+            least_squares: LeastSquaresConfig::default(),
+            adaline: AdalineConfig {
+                step_size: 0.05,
+                ..AdalineConfig::default()
+            },
+            adaline_epochs: 20,
+            hopfield: HopfieldConfig::default(),
+            hopfield_epochs: 10,
+            ekf: EkfConfig {
+                discretisation: Discretisation::SecondOrder,
+                initial_parameter_rel_std: 0.3,
+                position_noise: 1e-2,
+                ..EkfConfig::default()
+            },
+            validation: ValidationConfig::default(),
+            sensitivity: SensitivityConfig::default(),
+            history_points: 200,
+        }
+    }
+}
+
+/// Excitation summary.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ExcitationSummary {
+    /// cond(W) of the initial guess.
+    pub cond_initial: f64,
+    /// cond(W) of the optimised trajectory.
+    pub cond_final: f64,
+    /// Cost evaluations.
+    pub evaluations: usize,
+    /// Whether every joint limit holds.
+    pub limits_satisfied: bool,
+    /// Samples in W.
+    pub samples: usize,
+    /// Horizon, s.
+    pub duration: f64,
+}
+
+/// The estimation run (paper Fig. 3).
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+pub struct EstimationData {
+    /// Time, s.
+    pub t: Vec<f64>,
+    /// Reference positions.
+    pub q_ref: Vec<[f64; NDOF]>,
+    /// True positions.
+    pub q: Vec<[f64; NDOF]>,
+    /// Measured positions.
+    pub q_measured: Vec<[f64; NDOF]>,
+    /// Measured generalised forces.
+    pub tau_measured: Vec<[f64; NDOF]>,
+}
+
+/// The evolution of an iterative estimate (paper Figs. 5 and 6).
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+pub struct History {
+    /// Time of each point, s (estimation time, over all passes; for Adaline the epoch).
+    pub t: Vec<f64>,
+    /// λ̂ at each point.
+    pub lambda: Vec<[f64; NPARAM]>,
+}
+
+/// One method's estimate (paper Table 4).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct MethodEstimate {
+    /// One of [`METHODS`].
+    pub method: String,
+    /// λ̂.
+    pub lambda: [f64; NPARAM],
+    /// |λ̂ − λ|/|λ|, %.
+    pub relative_error_percent: Vec<f64>,
+    /// Least squares only: σ_i.
+    pub std: Option<[f64; NPARAM]>,
+    /// Least squares only: %σ_i.
+    pub rsd_percent: Option<[f64; NPARAM]>,
+    /// Least squares only: cond(W).
+    pub cond: Option<f64>,
+    /// Least squares only: residual variance σ².
+    pub sigma2: Option<f64>,
+    /// Iterative methods: history of λ̂.
+    pub history: Option<History>,
+    /// Wall time of the method, s.
+    pub seconds: f64,
+    /// Why the method failed, if it did (its λ is then λ0 and its other fields empty);
+    /// one failing estimator does not stop the study.
+    pub error: Option<String>,
+}
+
+/// Validation of one method (paper Table 5 and Fig. 7).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct MethodValidationSummary {
+    /// One of [`METHODS`].
+    pub method: String,
+    /// Positions of the robot simulated with λ̂.
+    pub q: Vec<[f64; NDOF]>,
+    /// RMS per joint (m, rad).
+    pub rms: [f64; NDOF],
+    /// RSD per joint.
+    pub rsd: [f64; NDOF],
+    /// Agreement index per joint.
+    pub ai: [f64; NDOF],
+    /// Torque-prediction RMS per joint (N, N·m).
+    pub torque_rms: [f64; NDOF],
+    /// Torque-prediction error relative to the measured torque's RMS, per joint, %.
+    pub torque_relative_percent: [f64; NDOF],
+}
+
+/// Validation runs.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ValidationSummary {
+    /// Time, s.
+    pub t: Vec<f64>,
+    /// Validation reference.
+    pub q_ref: Vec<[f64; NDOF]>,
+    /// The true robot's positions.
+    pub q_true: Vec<[f64; NDOF]>,
+    /// One entry per method.
+    pub methods: Vec<MethodValidationSummary>,
+}
+
+/// Sensitivity sweep (paper Table 6 and Fig. 8).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SensitivitySummary {
+    /// Scale factors applied to each λᵢ.
+    pub factors: Vec<f64>,
+    /// [min, max] of each λᵢ.
+    pub ranges: Vec<[f64; 2]>,
+    /// `rms[i][k][j]`, `None` where the varied λ is not physical.
+    pub rms: Vec<Vec<Option<[f64; NDOF]>>>,
+}
+
+/// Wall time of each stage, s.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+pub struct Timings {
+    /// Excitation optimisation.
+    pub excitation: f64,
+    /// Closed-loop simulation of the estimation run.
+    pub simulation: f64,
+    /// Filtering and differentiation.
+    pub preprocessing: f64,
+    /// Least squares.
+    pub least_squares: f64,
+    /// Adaline (all epochs).
+    pub adaline: f64,
+    /// Hopfield (all passes).
+    pub hopfield: f64,
+    /// Extended Kalman filter.
+    pub ekf: f64,
+    /// Validation runs.
+    pub validation: f64,
+    /// Sensitivity sweep.
+    pub sensitivity: f64,
+    /// Whole study.
+    pub total: f64,
+}
+
+/// Everything the study produces; serialised with stable field names (schema version 1,
+/// documented in `docs/results-schema.md`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct StudyResult {
+    /// Version of the field layout (1).
+    pub schema_version: u32,
+    /// Seed of the study.
+    pub seed: u64,
+    /// True λ of the simulated robot.
+    pub truth: [f64; NPARAM],
+    /// λ0 of the iterative estimators and the controller.
+    pub initial_guess: [f64; NPARAM],
+    /// Excitation summary.
+    pub excitation: ExcitationSummary,
+    /// The estimation run.
+    pub estimation_data: EstimationData,
+    /// One estimate per method, in the order of [`METHODS`].
+    pub estimates: Vec<MethodEstimate>,
+    /// Validation.
+    pub validation: ValidationSummary,
+    /// Sensitivity.
+    pub sensitivity: SensitivitySummary,
+    /// Stage timings.
+    pub timings_s: Timings,
+}
+
+impl StudyResult {
+    /// The result as JSON text.
+    ///
+    /// # Errors
+    /// [`PrrrpError::NonFinite`] if a value is NaN or infinite (JSON cannot hold it).
+    pub fn to_json(&self) -> Result<String> {
+        serde_json::to_string(self).map_err(|e| PrrrpError::NonFinite {
+            what: format!("study result ({e})"),
+            row: None,
+        })
+    }
+
+    /// Parses a result written by [`StudyResult::to_json`].
+    ///
+    /// # Errors
+    /// [`PrrrpError::InvalidParameter`] if the text is not a schema-1 study result.
+    pub fn from_json(text: &str) -> Result<Self> {
+        serde_json::from_str(text).map_err(|_| PrrrpError::InvalidParameter {
+            field: "json".into(),
+            value: f64::NAN,
+            reason: "not a prrrp study result (schema_version 1)",
+        })
+    }
+}
+
+fn arr(v: &Vec5) -> [f64; NDOF] {
+    [v[0], v[1], v[2], v[3], v[4]]
+}
+
+fn arr8(v: &Lambda) -> [f64; NPARAM] {
+    let mut a = [0.0; NPARAM];
+    a.copy_from_slice(v.as_slice());
+    a
+}
+
+fn rows(v: &[Vec5]) -> Vec<[f64; NDOF]> {
+    v.iter().map(arr).collect()
+}
+
+/// Progress callback of [`run_study`]: (stage, done, total).
+pub type StudyProgress<'a> = &'a (dyn Fn(&str, usize, usize) + Sync);
+
+/// Runs the whole study on `robot` (the "true" robot to identify). Deterministic for a
+/// given configuration; the estimators and the sensitivity points run in parallel.
+///
+/// # Errors
+/// Any stage's error (an infeasible excitation, a non-physical robot, a diverging
+/// estimator, …), unchanged.
+pub fn run_study(
+    robot: &Robot,
+    config: &StudyConfig,
+    progress: StudyProgress<'_>,
+) -> Result<StudyResult> {
+    robot.validate()?;
+    if !(config.initial_guess_scale.is_finite() && config.initial_guess_scale > 0.0) {
+        return Err(PrrrpError::InvalidParameter {
+            field: "initial_guess_scale".into(),
+            value: config.initial_guess_scale,
+            reason: "must be finite and > 0 (λ0 = scale·λ must stay physical)",
+        });
+    }
+    let start = Instant::now();
+    let mut timings = Timings::default();
+    let model = robot.model();
+    let truth = robot.base_parameters();
+    let lambda0 = truth * config.initial_guess_scale;
+
+    // 1. Excitation.
+    let t0 = Instant::now();
+    let exc_cfg = ExcitationConfig {
+        seed: config.seed,
+        ..config.excitation
+    };
+    let exc = optimise_excitation::<DEFAULT_EXCITATION_KNOTS>(&model, &exc_cfg, |p| {
+        progress("excitation", p.evaluations, p.max_evaluations)
+    })?;
+    timings.excitation = t0.elapsed().as_secs_f64();
+
+    // 2. Estimation run: the true robot under a controller with the rough model λ0.
+    let t0 = Instant::now();
+    let sim_cfg = SimulationConfig {
+        seed: config.seed,
+        ..config.simulation
+    };
+    let rec = simulate_closed_loop(
+        &model,
+        &truth,
+        &lambda0,
+        &exc.trajectory,
+        exc_cfg.duration,
+        &sim_cfg,
+    )?;
+    timings.simulation = t0.elapsed().as_secs_f64();
+    progress("simulation", 1, 1);
+
+    // 3. Preprocessing of the measured signals.
+    let t0 = Instant::now();
+    let data = rec.measured_dataset(&config.preprocess)?;
+    timings.preprocessing = t0.elapsed().as_secs_f64();
+    progress("preprocessing", 1, 1);
+
+    // 4. The four estimators, in parallel.
+    let zeros = vec![Vec5::zeros(); rec.len()];
+    let raw = Samples::new(&rec.q_measured, &zeros, &zeros, &rec.tau_measured)?;
+    let done = std::sync::atomic::AtomicUsize::new(0);
+    let tick = || {
+        progress(
+            "estimators",
+            done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1,
+            4,
+        )
+    };
+    let (ls, ad, hn, ekf) = std::thread::scope(|s| {
+        let ls = s.spawn(|| {
+            let r = run_least_squares(&model, &data, &config.least_squares);
+            tick();
+            r
+        });
+        let ad = s.spawn(|| {
+            let r = run_adaline(&model, &data, &lambda0, config);
+            tick();
+            r
+        });
+        let hn = s.spawn(|| {
+            let r = run_hopfield(&model, &data, &lambda0, config);
+            tick();
+            r
+        });
+        let ekf = run_ekf(
+            &model,
+            &raw,
+            &lambda0,
+            &config.ekf,
+            config.history_points,
+            sim_cfg.dt,
+        );
+        tick();
+        (join(ls), join(ad), join(hn), ekf)
+    });
+    let mut estimates: Vec<MethodEstimate> = [ls, ad, hn, ekf]
+        .into_iter()
+        .zip(METHODS)
+        .map(|(r, name)| {
+            r.unwrap_or_else(|e| MethodEstimate {
+                lambda: arr8(&lambda0),
+                error: Some(e.to_string()),
+                ..empty(name)
+            })
+        })
+        .collect();
+    for e in &mut estimates {
+        e.relative_error_percent = relative_errors_percent(&e.lambda, truth.as_slice());
+    }
+    timings.least_squares = estimates[0].seconds;
+    timings.adaline = estimates[1].seconds;
+    timings.hopfield = estimates[2].seconds;
+    timings.ekf = estimates[3].seconds;
+
+    // 5. Validation on other references, same controller for every model.
+    let t0 = Instant::now();
+    let val_cfg = ValidationConfig {
+        seed: config.seed + 1,
+        ..config.validation
+    };
+    let named: Vec<(String, Lambda)> = estimates
+        .iter()
+        .map(|e| (e.method.clone(), Lambda::from(e.lambda)))
+        .collect();
+    let report = validate(&model, &truth, &lambda0, &named, Some(&truth), &val_cfg)?;
+    timings.validation = t0.elapsed().as_secs_f64();
+    progress("validation", 1, 1);
+    let validation = ValidationSummary {
+        t: report.truth.t.clone(),
+        q_ref: rows(&report.truth.q_ref),
+        q_true: rows(&report.truth.q),
+        methods: report
+            .methods
+            .iter()
+            .map(|m| MethodValidationSummary {
+                method: m.method.clone(),
+                q: rows(&m.q),
+                rms: m.indices.map(|i| i.rms),
+                rsd: m.indices.map(|i| i.rsd),
+                ai: m.indices.map(|i| i.ai),
+                torque_rms: m.torque.rms,
+                torque_relative_percent: m.torque.relative_percent,
+            })
+            .collect(),
+    };
+
+    // 6. Sensitivity around the truth, on the validation reference.
+    let t0 = Instant::now();
+    let sens_cfg = SensitivityConfig {
+        validation: val_cfg,
+        ..config.sensitivity
+    };
+    let sens = sensitivity(&model, &truth, &sens_cfg, &|d, n| {
+        progress("sensitivity", d, n)
+    })?;
+    timings.sensitivity = t0.elapsed().as_secs_f64();
+
+    timings.total = start.elapsed().as_secs_f64();
+    Ok(StudyResult {
+        schema_version: 1,
+        seed: config.seed,
+        truth: arr8(&truth),
+        initial_guess: arr8(&lambda0),
+        excitation: ExcitationSummary {
+            cond_initial: exc.cond_initial,
+            cond_final: exc.cond_final,
+            evaluations: exc.evaluations,
+            limits_satisfied: exc.limits_satisfied,
+            samples: exc.samples,
+            duration: exc_cfg.duration,
+        },
+        estimation_data: EstimationData {
+            t: rec.t.clone(),
+            q_ref: rows(&rec.q_ref),
+            q: rows(&rec.q),
+            q_measured: rows(&rec.q_measured),
+            tau_measured: rows(&rec.tau_measured),
+        },
+        estimates,
+        validation,
+        sensitivity: SensitivitySummary {
+            factors: sens.factors,
+            ranges: sens.ranges.iter().map(|&(a, b)| [a, b]).collect(),
+            rms: sens.rms,
+        },
+        timings_s: timings,
+    })
+}
+
+fn join<T>(h: std::thread::ScopedJoinHandle<'_, Result<T>>) -> Result<T> {
+    h.join().unwrap_or(Err(PrrrpError::Diverged {
+        what: "estimator thread",
+        at: 0,
+        hint: "an estimator panicked; this is a bug, please report it",
+    }))
+}
+
+fn empty(method: &str) -> MethodEstimate {
+    MethodEstimate {
+        method: method.into(),
+        lambda: [0.0; NPARAM],
+        relative_error_percent: vec![],
+        std: None,
+        rsd_percent: None,
+        cond: None,
+        sigma2: None,
+        history: None,
+        seconds: 0.0,
+        error: None,
+    }
+}
+
+fn run_least_squares(
+    model: &crate::PrrrpModel,
+    data: &Dataset,
+    config: &LeastSquaresConfig,
+) -> Result<MethodEstimate> {
+    let t0 = Instant::now();
+    let r = least_squares(model, &data.samples(), config)?;
+    Ok(MethodEstimate {
+        lambda: arr8(&r.lambda),
+        std: Some(arr8(&r.std_dev)),
+        rsd_percent: Some(arr8(&r.rel_std_dev)),
+        cond: Some(r.cond),
+        sigma2: Some(r.sigma2),
+        seconds: t0.elapsed().as_secs_f64(),
+        ..empty(METHODS[0])
+    })
+}
+
+fn run_adaline(
+    model: &crate::PrrrpModel,
+    data: &Dataset,
+    lambda0: &Lambda,
+    config: &StudyConfig,
+) -> Result<MethodEstimate> {
+    let t0 = Instant::now();
+    let mut net = Adaline::new(*model, *lambda0, config.adaline)?;
+    let samples = data.samples();
+    let mut history = History {
+        t: vec![0.0],
+        lambda: vec![arr8(lambda0)],
+    };
+    for epoch in 0..config.adaline_epochs {
+        net.train(&samples, 1)?;
+        history.t.push((epoch + 1) as f64);
+        history.lambda.push(arr8(net.estimate()));
+    }
+    Ok(MethodEstimate {
+        lambda: arr8(net.estimate()),
+        history: Some(history),
+        seconds: t0.elapsed().as_secs_f64(),
+        ..empty(METHODS[1])
+    })
+}
+
+/// Runs an online estimator over `passes` passes of `data`, keeping about `points`
+/// snapshots of λ̂ against estimation time (sample index × dt).
+fn run_online<E: Estimator<nalgebra::Const<NDOF>, nalgebra::Const<NPARAM>>>(
+    est: &mut E,
+    data: &Samples<'_, NDOF>,
+    passes: usize,
+    points: usize,
+    dt: f64,
+) -> Result<History> {
+    let total = passes * data.len();
+    let every = (total / points.max(1)).max(1);
+    let mut history = History {
+        t: vec![0.0],
+        lambda: vec![arr8(est.estimate())],
+    };
+    let mut k = 0;
+    for _ in 0..passes {
+        for i in 0..data.len() {
+            let s: Sample<'_, NDOF> = data.sample(i);
+            est.step(s).map_err(|e| crate::estimators::with_row(e, i))?;
+            k += 1;
+            if k % every == 0 || k == total {
+                history.t.push(k as f64 * dt);
+                history.lambda.push(arr8(est.estimate()));
+            }
+        }
+    }
+    Ok(history)
+}
+
+fn run_hopfield(
+    model: &crate::PrrrpModel,
+    data: &Dataset,
+    lambda0: &Lambda,
+    config: &StudyConfig,
+) -> Result<MethodEstimate> {
+    let t0 = Instant::now();
+    let hcfg: HopfieldConfig = config.hopfield;
+    let mut net = Hopfield::new(*model, *lambda0, hcfg)?;
+    let history = run_online(
+        &mut net,
+        &data.samples(),
+        config.hopfield_epochs,
+        config.history_points,
+        hcfg.dt,
+    )?;
+    Ok(MethodEstimate {
+        lambda: arr8(net.estimate()),
+        history: Some(history),
+        seconds: t0.elapsed().as_secs_f64(),
+        ..empty(METHODS[2])
+    })
+}
+
+fn run_ekf(
+    model: &crate::PrrrpModel,
+    raw: &Samples<'_, NDOF>,
+    lambda0: &Lambda,
+    config: &EkfConfig,
+    points: usize,
+    dt: f64,
+) -> Result<MethodEstimate> {
+    let t0 = Instant::now();
+    let mut ekf: Ekf<crate::PrrrpModel, NDOF, NPARAM, { 2 * NDOF + NPARAM }> =
+        Ekf::new(*model, *lambda0, *config)?;
+    let history = run_online(&mut ekf, raw, 1, points, dt)?;
+    Ok(MethodEstimate {
+        lambda: arr8(ekf.estimate()),
+        history: Some(history),
+        seconds: t0.elapsed().as_secs_f64(),
+        ..empty(METHODS[3])
+    })
+}

@@ -1,0 +1,4 @@
+//! Bindings of identification data: datasets and preprocessing.
+
+pub(crate) mod dataset;
+pub(crate) mod preprocessing;

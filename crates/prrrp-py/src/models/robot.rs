@@ -1,0 +1,368 @@
+//! `prrrp.Robot`: the physical robot (paper Table 2) and its dynamics at its own λ or at a
+//! user-supplied λ (keyword `lam`), for one sample or a batch.
+
+use numpy::PyArray1;
+use prrrp_core::{JointKind, Robot, NPARAM, STANDARD_GRAVITY};
+use pyo3::prelude::*;
+use pyo3::types::{PyDict, PyList, PyTuple};
+
+use crate::arrays::{batch_len, fixed_vector, map_samples, write_row_major, Samples};
+use crate::errors::ToPyResult;
+use crate::models::derivatives::{
+    forward_derivatives, inverse_derivatives, PyForwardDerivatives, PyInverseDerivatives,
+};
+
+/// The PRRRP arm: link parameters in SI units and its dynamic model.
+///
+/// Every dynamics method takes q, q̇, q̈, τ as arrays of shape (5,) for one sample or
+/// (N, 5) for N samples (single samples broadcast against a batch), and the base
+/// parameters λ as the keyword `lam` of shape (8,) or (N, 8), by default this robot's own
+/// `base_parameters()`. Batches are computed in Rust with the GIL released.
+#[pyclass(module = "prrrp", name = "Robot", frozen, eq)]
+#[derive(Clone, PartialEq)]
+pub(crate) struct PyRobot {
+    inner: Robot,
+}
+
+impl PyRobot {
+    fn lam(&self, lam: Option<&Bound<'_, PyAny>>) -> PyResult<Samples<NPARAM>> {
+        Samples::extract_or(lam, "lam", self.inner.base_parameters())
+    }
+}
+
+type Out<'py> = PyResult<Bound<'py, PyAny>>;
+
+#[pymethods]
+impl PyRobot {
+    /// A robot from the paper's Table 2 quantities (keyword-only, SI units). Omitted
+    /// arguments take the paper's values.
+    #[new]
+    #[pyo3(signature = (*, mass=None, length=None, com=None, inertia_zz=None, gravity=STANDARD_GRAVITY))]
+    fn new(
+        py: Python<'_>,
+        mass: Option<&Bound<'_, PyAny>>,
+        length: Option<&Bound<'_, PyAny>>,
+        com: Option<&Bound<'_, PyAny>>,
+        inertia_zz: Option<&Bound<'_, PyAny>>,
+        gravity: f64,
+    ) -> PyResult<Self> {
+        let p = Robot::paper();
+        let mass = mass.map_or(Ok(p.mass), |o| fixed_vector(o, "mass"))?;
+        let length = length.map_or(Ok(p.length), |o| fixed_vector(o, "length"))?;
+        let com = com.map_or(Ok(p.com), |o| fixed_vector(o, "com"))?;
+        let inertia_zz = inertia_zz.map_or(Ok(p.inertia_zz), |o| fixed_vector(o, "inertia_zz"))?;
+        let inner = Robot::new(mass, length, com, inertia_zz, gravity).to_py(py)?;
+        Ok(Self { inner })
+    }
+
+    /// The robot of Urrea & Pascal 2017, Table 2, with g = 9.81 m/s².
+    #[staticmethod]
+    fn paper() -> Self {
+        Self {
+            inner: Robot::paper(),
+        }
+    }
+
+    /// Link masses m1..m5, kg, shape (5,).
+    #[getter]
+    fn mass<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
+        PyArray1::from_slice(py, &self.inner.mass)
+    }
+
+    /// Link lengths l1..l5, m, shape (5,).
+    #[getter]
+    fn length<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
+        PyArray1::from_slice(py, &self.inner.length)
+    }
+
+    /// Centre-of-mass distances lc2..lc4 from joints 2–4, m, shape (3,).
+    #[getter]
+    fn com<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
+        PyArray1::from_slice(py, &self.inner.com)
+    }
+
+    /// Moments of inertia I2zz..I4zz about the centres of mass, kg·m², shape (3,).
+    #[getter]
+    fn inertia_zz<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
+        PyArray1::from_slice(py, &self.inner.inertia_zz)
+    }
+
+    /// Gravitational acceleration g, m/s², acting along world −z.
+    #[getter]
+    fn g(&self) -> f64 {
+        self.inner.gravity
+    }
+
+    /// The 8 grouped base parameters λ (paper Table 3, corrected), shape (8,).
+    fn base_parameters<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
+        PyArray1::from_slice(py, self.inner.base_parameters().as_slice())
+    }
+
+    /// Standard DH table at q = 0 (paper Table 1): a list of five dicts with keys
+    /// kind ("prismatic"/"revolute"), theta (rad), d (m), a (m), alpha (rad).
+    fn dh_table<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyList>> {
+        let rows = self.inner.dh_table();
+        let list = PyList::empty(py);
+        for r in rows {
+            let d = PyDict::new(py);
+            let kind = match r.kind {
+                JointKind::Prismatic => "prismatic",
+                JointKind::Revolute => "revolute",
+            };
+            d.set_item("kind", kind)?;
+            d.set_item("theta", r.theta)?;
+            d.set_item("d", r.d)?;
+            d.set_item("a", r.a)?;
+            d.set_item("alpha", r.alpha)?;
+            list.append(d)?;
+        }
+        Ok(list)
+    }
+
+    /// Mass matrix M(q, λ), shape (5, 5) or (N, 5, 5).
+    #[pyo3(signature = (q, *, lam=None))]
+    fn mass_matrix<'py>(
+        &self,
+        py: Python<'py>,
+        q: &Bound<'py, PyAny>,
+        lam: Option<&Bound<'py, PyAny>>,
+    ) -> Out<'py> {
+        let q = Samples::<5>::extract(q, "q")?;
+        let lam = self.lam(lam)?;
+        let n = batch_len(py, &[&q, &lam])?;
+        let model = self.inner.model();
+        let [m] = map_samples(py, n, [&[5, 5]], |k, [out]| {
+            write_row_major(&model.mass_matrix(q.at(k), lam.at(k)), out);
+            Ok(())
+        })?;
+        Ok(m)
+    }
+
+    /// Coriolis and centrifugal vector C(q, q̇, λ)·q̇ (N, N·m), shape (5,) or (N, 5).
+    #[pyo3(signature = (q, qd, *, lam=None))]
+    fn coriolis<'py>(
+        &self,
+        py: Python<'py>,
+        q: &Bound<'py, PyAny>,
+        qd: &Bound<'py, PyAny>,
+        lam: Option<&Bound<'py, PyAny>>,
+    ) -> Out<'py> {
+        let (q, qd) = (
+            Samples::<5>::extract(q, "q")?,
+            Samples::<5>::extract(qd, "qd")?,
+        );
+        let lam = self.lam(lam)?;
+        let n = batch_len(py, &[&q, &qd, &lam])?;
+        let model = self.inner.model();
+        let [h] = map_samples(py, n, [&[5]], |k, [out]| {
+            out.copy_from_slice(model.coriolis(q.at(k), qd.at(k), lam.at(k)).as_slice());
+            Ok(())
+        })?;
+        Ok(h)
+    }
+
+    /// Gravity vector G(λ) (N, N·m), shape (5,) or (N, 5). It does not depend on q for
+    /// this arm; q sets the output shape.
+    #[pyo3(signature = (q, *, lam=None))]
+    fn gravity<'py>(
+        &self,
+        py: Python<'py>,
+        q: &Bound<'py, PyAny>,
+        lam: Option<&Bound<'py, PyAny>>,
+    ) -> Out<'py> {
+        let q = Samples::<5>::extract(q, "q")?;
+        let lam = self.lam(lam)?;
+        let n = batch_len(py, &[&q, &lam])?;
+        let model = self.inner.model();
+        let [g] = map_samples(py, n, [&[5]], |k, [out]| {
+            out.copy_from_slice(model.gravity_vector(lam.at(k)).as_slice());
+            Ok(())
+        })?;
+        Ok(g)
+    }
+
+    /// Nonlinear effects C(q, q̇, λ)·q̇ + G(λ) (N, N·m), shape (5,) or (N, 5).
+    #[pyo3(signature = (q, qd, *, lam=None))]
+    fn nonlinear_effects<'py>(
+        &self,
+        py: Python<'py>,
+        q: &Bound<'py, PyAny>,
+        qd: &Bound<'py, PyAny>,
+        lam: Option<&Bound<'py, PyAny>>,
+    ) -> Out<'py> {
+        let (q, qd) = (
+            Samples::<5>::extract(q, "q")?,
+            Samples::<5>::extract(qd, "qd")?,
+        );
+        let lam = self.lam(lam)?;
+        let n = batch_len(py, &[&q, &qd, &lam])?;
+        let model = self.inner.model();
+        let [h] = map_samples(py, n, [&[5]], |k, [out]| {
+            let v = model.nonlinear_effects(q.at(k), qd.at(k), lam.at(k));
+            out.copy_from_slice(v.as_slice());
+            Ok(())
+        })?;
+        Ok(h)
+    }
+
+    /// Inverse dynamics τ = M·q̈ + C·q̇ + G (N, N·m), shape (5,) or (N, 5).
+    #[pyo3(signature = (q, qd, qdd, *, lam=None))]
+    fn inverse_dynamics<'py>(
+        &self,
+        py: Python<'py>,
+        q: &Bound<'py, PyAny>,
+        qd: &Bound<'py, PyAny>,
+        qdd: &Bound<'py, PyAny>,
+        lam: Option<&Bound<'py, PyAny>>,
+    ) -> Out<'py> {
+        let (q, qd, qdd) = (
+            Samples::<5>::extract(q, "q")?,
+            Samples::<5>::extract(qd, "qd")?,
+            Samples::<5>::extract(qdd, "qdd")?,
+        );
+        let lam = self.lam(lam)?;
+        let n = batch_len(py, &[&q, &qd, &qdd, &lam])?;
+        let model = self.inner.model();
+        let [tau] = map_samples(py, n, [&[5]], |k, [out]| {
+            let v = model.inverse_dynamics(q.at(k), qd.at(k), qdd.at(k), lam.at(k));
+            out.copy_from_slice(v.as_slice());
+            Ok(())
+        })?;
+        Ok(tau)
+    }
+
+    /// Forward dynamics q̈ = M⁻¹(τ − C·q̇ − G) (m/s², rad/s²), shape (5,) or (N, 5).
+    /// Raises NotPositiveDefiniteError if M(q, λ) is not positive definite (non-physical λ).
+    #[pyo3(signature = (q, qd, tau, *, lam=None))]
+    fn forward_dynamics<'py>(
+        &self,
+        py: Python<'py>,
+        q: &Bound<'py, PyAny>,
+        qd: &Bound<'py, PyAny>,
+        tau: &Bound<'py, PyAny>,
+        lam: Option<&Bound<'py, PyAny>>,
+    ) -> Out<'py> {
+        let (q, qd, tau) = (
+            Samples::<5>::extract(q, "q")?,
+            Samples::<5>::extract(qd, "qd")?,
+            Samples::<5>::extract(tau, "tau")?,
+        );
+        let lam = self.lam(lam)?;
+        let n = batch_len(py, &[&q, &qd, &tau, &lam])?;
+        let model = self.inner.model();
+        let [qdd] = map_samples(py, n, [&[5]], |k, [out]| {
+            let v = model.forward_dynamics(q.at(k), qd.at(k), tau.at(k), lam.at(k))?;
+            out.copy_from_slice(v.as_slice());
+            Ok(())
+        })?;
+        Ok(qdd)
+    }
+
+    /// Regressor Φ(q, q̇, q̈) at this robot's gravity, shape (5, 8) or (N, 5, 8); τ = Φ·λ.
+    fn regressor<'py>(
+        &self,
+        py: Python<'py>,
+        q: &Bound<'py, PyAny>,
+        qd: &Bound<'py, PyAny>,
+        qdd: &Bound<'py, PyAny>,
+    ) -> Out<'py> {
+        crate::models::regressor::regressor_at(py, self.inner.model(), q, qd, qdd)
+    }
+
+    /// Kinetic energy ½·q̇ᵀ·M(q, λ)·q̇ (J): a float, or shape (N,).
+    #[pyo3(signature = (q, qd, *, lam=None))]
+    fn kinetic_energy<'py>(
+        &self,
+        py: Python<'py>,
+        q: &Bound<'py, PyAny>,
+        qd: &Bound<'py, PyAny>,
+        lam: Option<&Bound<'py, PyAny>>,
+    ) -> Out<'py> {
+        let (q, qd) = (
+            Samples::<5>::extract(q, "q")?,
+            Samples::<5>::extract(qd, "qd")?,
+        );
+        let lam = self.lam(lam)?;
+        let n = batch_len(py, &[&q, &qd, &lam])?;
+        let model = self.inner.model();
+        let [e] = map_samples(py, n, [&[]], |k, [out]| {
+            out[0] = model.kinetic_energy(q.at(k), qd.at(k), lam.at(k));
+            Ok(())
+        })?;
+        Ok(e)
+    }
+
+    /// Potential energy g·(λ1·d1 + λ8·(d1 − d5)) (J), zero at d1 = d5 = 0: a float, or
+    /// shape (N,).
+    #[pyo3(signature = (q, *, lam=None))]
+    fn potential_energy<'py>(
+        &self,
+        py: Python<'py>,
+        q: &Bound<'py, PyAny>,
+        lam: Option<&Bound<'py, PyAny>>,
+    ) -> Out<'py> {
+        let q = Samples::<5>::extract(q, "q")?;
+        let lam = self.lam(lam)?;
+        let n = batch_len(py, &[&q, &lam])?;
+        let model = self.inner.model();
+        let [e] = map_samples(py, n, [&[]], |k, [out]| {
+            out[0] = model.potential_energy(q.at(k), lam.at(k));
+            Ok(())
+        })?;
+        Ok(e)
+    }
+
+    /// ∂τ/∂q and ∂τ/∂q̇ of the inverse dynamics at fixed q̈ and λ (analytic), each of shape
+    /// (5, 5) or (N, 5, 5).
+    #[pyo3(signature = (q, qd, qdd, *, lam=None))]
+    fn inverse_derivatives(
+        &self,
+        py: Python<'_>,
+        q: &Bound<'_, PyAny>,
+        qd: &Bound<'_, PyAny>,
+        qdd: &Bound<'_, PyAny>,
+        lam: Option<&Bound<'_, PyAny>>,
+    ) -> PyResult<PyInverseDerivatives> {
+        inverse_derivatives(py, self.inner.model(), q, qd, qdd, self.lam(lam)?)
+    }
+
+    /// Forward dynamics and its derivatives at fixed τ: qdd (5,), dqdd_dq (5, 5),
+    /// dqdd_dqd (5, 5), dqdd_dlambda (5, 8), each with a leading N for a batch.
+    #[pyo3(signature = (q, qd, tau, *, lam=None))]
+    fn forward_derivatives(
+        &self,
+        py: Python<'_>,
+        q: &Bound<'_, PyAny>,
+        qd: &Bound<'_, PyAny>,
+        tau: &Bound<'_, PyAny>,
+        lam: Option<&Bound<'_, PyAny>>,
+    ) -> PyResult<PyForwardDerivatives> {
+        forward_derivatives(py, self.inner.model(), q, qd, tau, self.lam(lam)?)
+    }
+
+    fn __repr__(&self) -> String {
+        let r = &self.inner;
+        format!(
+            "Robot(mass={:?}, length={:?}, com={:?}, inertia_zz={:?}, gravity={:?})",
+            r.mass, r.length, r.com, r.inertia_zz, r.gravity
+        )
+    }
+
+    /// Pickle and copy support: the keyword arguments that rebuild this robot.
+    fn __getnewargs_ex__<'py>(
+        &self,
+        py: Python<'py>,
+    ) -> PyResult<(Bound<'py, PyTuple>, Bound<'py, PyDict>)> {
+        let kw = PyDict::new(py);
+        kw.set_item("mass", self.inner.mass.to_vec())?;
+        kw.set_item("length", self.inner.length.to_vec())?;
+        kw.set_item("com", self.inner.com.to_vec())?;
+        kw.set_item("inertia_zz", self.inner.inertia_zz.to_vec())?;
+        kw.set_item("gravity", self.inner.gravity)?;
+        Ok((PyTuple::empty(py), kw))
+    }
+}
+
+pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_class::<PyRobot>()
+}

@@ -1,0 +1,4 @@
+//! Bindings of motion: trajectories and simulation.
+
+pub(crate) mod simulation;
+pub(crate) mod trajectories;

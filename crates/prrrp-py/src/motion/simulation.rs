@@ -1,0 +1,168 @@
+//! The simulators: `prrrp.simulate_closed_loop` (computed-torque tracking of a reference)
+//! and `prrrp.simulate_open_loop` (a torque sequence). Results are dicts of arrays.
+
+use prrrp_core::{
+    simulate_closed_loop as core_closed, simulate_open_loop as core_open, Lambda, Robot,
+    SensorNoise, SimulationConfig, SimulationRecord, Vec5, NDOF, NPARAM,
+};
+use pyo3::exceptions::PyTypeError;
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+
+use crate::arrays::{fixed_or, rows_to_array, to_array, Samples, UInt};
+use crate::errors::ToPyResult;
+use crate::interrupt::interruptible;
+use crate::motion::trajectories::{Excitation, SinusoidReference};
+
+pub(crate) fn record_dict<'py>(
+    py: Python<'py>,
+    r: &SimulationRecord,
+) -> PyResult<Bound<'py, PyDict>> {
+    let d = PyDict::new(py);
+    d.set_item("t", to_array(py, r.t.clone(), Some(r.t.len()), &[])?)?;
+    for (k, v) in [
+        ("q_ref", &r.q_ref),
+        ("qd_ref", &r.qd_ref),
+        ("qdd_ref", &r.qdd_ref),
+        ("q", &r.q),
+        ("qd", &r.qd),
+        ("qdd", &r.qdd),
+        ("tau", &r.tau),
+        ("q_measured", &r.q_measured),
+        ("tau_measured", &r.tau_measured),
+    ] {
+        // The open-loop simulator has no reference.
+        if v.len() == r.t.len() {
+            d.set_item(k, rows_to_array(py, v)?)?;
+        }
+    }
+    Ok(d)
+}
+
+/// λ (8,) or the paper's Table 3 values.
+fn lambda_or(obj: Option<&Bound<'_, PyAny>>, name: &'static str) -> PyResult<Lambda> {
+    fixed_or::<NPARAM>(obj, name, Robot::paper().base_parameters())
+}
+
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn config(
+    dt: f64,
+    substeps: usize,
+    kp: Option<&Bound<'_, PyAny>>,
+    kd: Option<&Bound<'_, PyAny>>,
+    q_noise: Option<&Bound<'_, PyAny>>,
+    tau_noise: Option<&Bound<'_, PyAny>>,
+    seed: u64,
+) -> PyResult<SimulationConfig> {
+    let d = SimulationConfig::default();
+    Ok(SimulationConfig {
+        dt,
+        substeps,
+        kp: fixed_or(kp, "kp", d.kp)?,
+        kd: fixed_or(kd, "kd", d.kd)?,
+        noise: SensorNoise {
+            q_std: fixed_or(q_noise, "q_noise", d.noise.q_std)?,
+            tau_std: fixed_or(tau_noise, "tau_noise", d.noise.tau_std)?,
+        },
+        seed,
+    })
+}
+
+/// Simulates the paper robot with parameters `lam` (default Table 3) tracking `reference`
+/// (an `Excitation` or a `SinusoidReference`) under computed-torque control with the
+/// controller's parameters `controller_lam` (default `lam`), gains `kp`, `kd` (5,) (default
+/// 400, 40), from t = 0 to `duration` s, sampled every `dt` s (RK4 with `substeps` steps
+/// per sample). Sensor noise standard deviations `q_noise`, `tau_noise` (5,) (m, rad; N,
+/// N·m; default the core's `SensorNoise`, zeros for none), seeded by `seed`.
+///
+/// Returns a dict of arrays: `t` (N,), `q_ref`, `qd_ref`, `qdd_ref`, `q`, `qd`, `qdd`,
+/// `tau`, `q_measured`, `tau_measured` (N, 5).
+#[pyfunction]
+#[pyo3(signature = (reference, duration, *, lam=None, controller_lam=None, dt=0.02,
+    substeps=UInt(20), kp=None, kd=None, q_noise=None, tau_noise=None, seed=UInt(0)))]
+#[allow(clippy::too_many_arguments)]
+fn simulate_closed_loop<'py>(
+    py: Python<'py>,
+    reference: &Bound<'py, PyAny>,
+    duration: f64,
+    lam: Option<&Bound<'py, PyAny>>,
+    controller_lam: Option<&Bound<'py, PyAny>>,
+    dt: f64,
+    substeps: UInt<usize>,
+    kp: Option<&Bound<'py, PyAny>>,
+    kd: Option<&Bound<'py, PyAny>>,
+    q_noise: Option<&Bound<'py, PyAny>>,
+    tau_noise: Option<&Bound<'py, PyAny>>,
+    seed: UInt<u64>,
+) -> PyResult<Bound<'py, PyDict>> {
+    let substeps = substeps.0;
+    let seed = seed.0;
+    let lam = lambda_or(lam, "lam")?;
+    let ctrl = fixed_or::<NPARAM>(controller_lam, "controller_lam", lam)?;
+    let cfg = config(dt, substeps, kp, kd, q_noise, tau_noise, seed)?;
+    let model = Robot::paper().model();
+    let rec = if let Ok(e) = reference.extract::<PyRef<'_, Excitation>>() {
+        let traj = e.inner.trajectory;
+        interruptible(py, || {
+            core_closed(&model, &lam, &ctrl, &traj, duration, &cfg)
+        })?
+    } else if let Ok(s) = reference.extract::<PyRef<'_, SinusoidReference>>() {
+        let traj = s.inner;
+        interruptible(py, || {
+            core_closed(&model, &lam, &ctrl, &traj, duration, &cfg)
+        })?
+    } else {
+        return Err(PyTypeError::new_err(format!(
+            "`reference` must be a prrrp.Excitation or prrrp.SinusoidReference, got {}",
+            reference.get_type().name()?
+        )));
+    };
+    record_dict(py, &rec.to_py(py)?)
+}
+
+/// Simulates the paper robot with parameters `lam` (default Table 3) from (q0, qd0) (5,)
+/// under the torques `tau` (N, 5), each held over one period `dt` s (zero-order hold).
+/// Returns a dict of arrays `t`, `q`, `qd`, `qdd`, `tau`, `q_measured`, `tau_measured`
+/// (noise-free unless `q_noise`/`tau_noise` are given).
+#[pyfunction]
+#[pyo3(signature = (q0, qd0, tau, *, lam=None, dt=0.02, substeps=UInt(20), q_noise=None,
+    tau_noise=None, seed=UInt(0)))]
+#[allow(clippy::too_many_arguments)]
+fn simulate_open_loop<'py>(
+    py: Python<'py>,
+    q0: &Bound<'py, PyAny>,
+    qd0: &Bound<'py, PyAny>,
+    tau: &Bound<'py, PyAny>,
+    lam: Option<&Bound<'py, PyAny>>,
+    dt: f64,
+    substeps: UInt<usize>,
+    q_noise: Option<&Bound<'py, PyAny>>,
+    tau_noise: Option<&Bound<'py, PyAny>>,
+    seed: UInt<u64>,
+) -> PyResult<Bound<'py, PyDict>> {
+    let substeps = substeps.0;
+    let seed = seed.0;
+    let lam = lambda_or(lam, "lam")?;
+    let q0: Vec5 = fixed_or(Some(q0), "q0", Vec5::zeros())?;
+    let qd0: Vec5 = fixed_or(Some(qd0), "qd0", Vec5::zeros())?;
+    let tau = Samples::<NDOF>::extract_rows(tau, "tau")?;
+    let zeros = Some(to_array(py, vec![0.0; NDOF], None, &[NDOF])?);
+    let cfg = config(
+        dt,
+        substeps,
+        None,
+        None,
+        q_noise.or(zeros.as_ref()),
+        tau_noise.or(zeros.as_ref()),
+        seed,
+    )?;
+    let model = Robot::paper().model();
+    let rec = interruptible(py, || core_open(&model, &lam, &q0, &qd0, &tau, &cfg))?;
+    record_dict(py, &rec.to_py(py)?)
+}
+
+pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_function(wrap_pyfunction!(simulate_closed_loop, m)?)?;
+    m.add_function(wrap_pyfunction!(simulate_open_loop, m)?)?;
+    Ok(())
+}

@@ -1,0 +1,3 @@
+//! Bindings of the paper's study.
+
+pub(crate) mod study;
