@@ -229,7 +229,11 @@ fn random_chain() -> impl Strategy<Value = SerialChain<4>> {
     )
         .prop_map(|(m, c, l)| {
             let lm = Matrix3::new(l[0], 0.0, 0.0, l[1], l[2], 0.0, l[3], l[4], l[5]);
-            let i = lm * lm.transpose() + Matrix3::identity() * 0.01;
+            // A rigid body's inertia is tr(Σ)·1 − Σ for its second moment Σ = ∫ r·rᵀ dm ⪰ 0;
+            // any PSD Σ gives one (an arbitrary PD matrix may break the triangle
+            // inequality, which forward dynamics refuses).
+            let sigma = lm * lm.transpose() + Matrix3::identity() * 0.005;
+            let i = Matrix3::identity() * sigma.trace() - sigma;
             inertial_parameters(
                 m,
                 c,
@@ -458,7 +462,29 @@ fn bad_input_is_a_typed_error() {
     // not load.
     let mut neg = [[0.0; 10]; 2];
     neg[1][0] = -1.0;
-    assert_eq!(c.with_inertial(neg).unwrap().non_physical_links(), vec![1]);
+    let bad = c.with_inertial(neg).unwrap();
+    assert_eq!(bad.non_physical_links(), vec![1]);
+    // ... but forward dynamics, which needs a rigid body, refuses them naming the link.
+    let z = SVector::<f64, 2>::zeros();
+    match bad.forward_dynamics(&z, &z, &z) {
+        Err(PrrrpError::InvalidParameter { field, .. }) => {
+            assert!(field.contains("link 2"), "{field}")
+        }
+        other => panic!("expected a typed error, got {other:?}"),
+    }
+    match bad
+        .to_dyn()
+        .forward_dynamics(&[0.0; 2], &[0.0; 2], &[0.0; 2])
+    {
+        Err(PrrrpError::InvalidParameter { field, .. }) => {
+            assert!(field.contains("'link2' (link 2)"), "{field}")
+        }
+        other => panic!("expected a typed error, got {other:?}"),
+    }
+    // The built-in robots are rigid bodies (the PUMA's published link 1 and 3 inertias
+    // are corrected to the nearest physical ones, see `SerialChain::puma560`).
+    assert!(SerialChain::puma560().is_physically_consistent());
+    assert!(SerialChain::paper().is_physically_consistent());
     neg[0][3] = f64::NAN;
     assert!(matches!(
         c.with_inertial(neg),

@@ -30,11 +30,13 @@ DH = [
 
 # Per link: mass (kg), centre of mass in frame i (m), [Ixx, Iyy, Izz] about the centre of
 # mass in the axes of frame i (kg·m², products zero). Link 1: only the inertia about its
-# joint axis (y of frame 1) is given.
+# joint axis (y of frame 1) acts. As in prrrp's `puma560()`, the source's link-1 Ixx = Izz = 0
+# and link-3 Izz = 0.0125 break the triangle inequality; they are raised to the smallest
+# values a rigid body can have (Iyy/2, and Iyy − Ixx = 0.020).
 LINKS = [
-    (0.0, (0.0, 0.0, 0.0), (0.0, 0.35, 0.0)),
+    (0.0, (0.0, 0.0, 0.0), (0.175, 0.35, 0.175)),
     (17.4, (-0.3638, 0.006, 0.2275), (0.13, 0.524, 0.539)),
-    (4.8, (-0.0203, -0.0141, 0.070), (0.066, 0.086, 0.0125)),
+    (4.8, (-0.0203, -0.0141, 0.070), (0.066, 0.086, 0.020)),
     (0.82, (0.0, 0.019, 0.0), (1.8e-3, 1.3e-3, 1.8e-3)),
     (0.34, (0.0, 0.0, 0.0), (0.3e-3, 0.4e-3, 0.3e-3)),
     (0.09, (0.0, 0.0, 0.032), (0.15e-3, 0.15e-3, 0.04e-3)),

@@ -266,6 +266,9 @@ def test_non_physical_inertials_load_and_are_flagged(mass, ixx):
     chain = prrrp.SerialChain.from_urdf(BAD_INERTIA.format(mass=mass, ixx=ixx))
     assert not chain.is_physically_consistent()
     assert chain.non_physical_links == ["l1"]
+    # Forward dynamics needs a rigid body: refused, naming the link.
+    with pytest.raises(prrrp.InvalidParameterError, match="'l1'"):
+        chain.forward_dynamics([0.0], [0.0], [0.0])
     good = prrrp.SerialChain.from_urdf(BAD_INERTIA.format(mass=1.0, ixx=0.01))
     assert good.is_physically_consistent()
 

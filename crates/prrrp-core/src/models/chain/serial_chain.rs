@@ -69,6 +69,9 @@ pub struct SerialChain<const N: usize> {
     friction: FrictionModel,
     friction_params: [[f64; 3]; N],
     gravity: Vector3<f64>,
+    /// The first link whose inertial parameters no rigid body has, cached so that the
+    /// per-sample forward dynamics can refuse it with one branch.
+    non_physical: Option<usize>,
 }
 
 /// A serial manipulator whose number of joints is known only at run time (e.g. read from
@@ -86,6 +89,8 @@ pub struct DynChain {
     friction_params: Vec<[f64; 3]>,
     gravity: Vector3<f64>,
     meta: ChainMeta,
+    /// See [`SerialChain`]'s field of the same name.
+    non_physical: Option<usize>,
 }
 
 fn invalid(field: String, value: f64, reason: &'static str) -> PrrrpError {
@@ -213,6 +218,19 @@ fn non_physical_links(inertial: &[[f64; 10]]) -> Vec<usize> {
         .collect()
 }
 
+/// The typed error of a dynamics function that needs a physical robot (forward dynamics,
+/// simulation): M(q) of a non-physical link is not a rigid body's, and an integrator
+/// driven by it produces motion no robot makes.
+pub(crate) fn non_physical_error(link: &str) -> PrrrpError {
+    PrrrpError::InvalidParameter {
+        field: format!("inertial parameters of link {link}"),
+        value: f64::NAN,
+        reason: "are not physically consistent (negative mass, or an inertia breaking the \
+                 triangle inequality); forward dynamics and simulation need a physical robot: \
+                 fix the link's mass, centre of mass and inertia",
+    }
+}
+
 pub(crate) fn parameter_names(n: usize, friction: &FrictionModel) -> Vec<String> {
     let mut names = Vec::with_capacity(n * (10 + friction.columns_per_joint()));
     for i in 0..n {
@@ -320,6 +338,7 @@ impl<const N: usize> SerialChain<N> {
             friction: FrictionModel::default(),
             friction_params: [[0.0; 3]; N],
             gravity: Vector3::new(0.0, 0.0, -STANDARD_GRAVITY),
+            non_physical: None,
         })
     }
 
@@ -338,6 +357,7 @@ impl<const N: usize> SerialChain<N> {
             friction: FrictionModel::default(),
             friction_params: [[0.0; 3]; N],
             gravity: Vector3::from(gravity),
+            non_physical: non_physical_links(&inertial).first().copied(),
         }
     }
 
@@ -350,6 +370,7 @@ impl<const N: usize> SerialChain<N> {
     /// [`SerialChain::non_physical_links`].
     pub fn with_inertial(mut self, inertial: [[f64; 10]; N]) -> Result<Self> {
         validate_inertial(&inertial)?;
+        self.non_physical = non_physical_links(&inertial).first().copied();
         self.inertial = inertial;
         Ok(self)
     }
@@ -431,7 +452,19 @@ impl<const N: usize> SerialChain<N> {
     /// True when every link's inertial parameters describe a rigid body
     /// ([`Self::non_physical_links`] is empty).
     pub fn is_physically_consistent(&self) -> bool {
-        self.non_physical_links().is_empty()
+        self.non_physical.is_none()
+    }
+
+    /// `Ok` if every link is physical, else the typed error functions that need a physical
+    /// robot (forward dynamics, simulation) return, naming the first bad link.
+    ///
+    /// # Errors
+    /// [`PrrrpError::InvalidParameter`] naming the link.
+    pub fn require_physical(&self) -> Result<()> {
+        match self.non_physical {
+            None => Ok(()),
+            Some(i) => Err(non_physical_error(&(i + 1).to_string())),
+        }
     }
 
     /// The 10·N inertial parameters as one vector, matching [`SerialChain::regressor`].
@@ -516,8 +549,9 @@ impl<const N: usize> SerialChain<N> {
     /// Forward dynamics q̈ = M⁻¹·(τ − C·q̇ − G − τ_friction) via a Cholesky factorisation of M.
     ///
     /// # Errors
-    /// [`PrrrpError::NotPositiveDefinite`] if M(q) is singular (e.g. a massless end of the
-    /// chain) or the parameters are not physical.
+    /// [`PrrrpError::InvalidParameter`] naming the link if a link is not physical
+    /// ([`SerialChain::non_physical_links`]); [`PrrrpError::NotPositiveDefinite`] if M(q)
+    /// is singular (e.g. a massless end of the chain).
     #[inline]
     pub fn forward_dynamics(
         &self,
@@ -525,6 +559,7 @@ impl<const N: usize> SerialChain<N> {
         qd: &SVector<f64, N>,
         tau: &SVector<f64, N>,
     ) -> Result<SVector<f64, N>> {
+        self.require_physical()?;
         let mut m = self.mass_matrix(q);
         cholesky_in_place(m.as_mut_slice(), N)?;
         let mut x = tau - self.nonlinear_effects(q, qd);
@@ -646,6 +681,7 @@ impl<const N: usize> SerialChain<N> {
             friction_params: self.friction_params.to_vec(),
             gravity: self.gravity,
             meta: ChainMeta::numbered(N),
+            non_physical: self.non_physical,
         }
     }
 }
@@ -682,6 +718,7 @@ impl DynChain {
             friction_params: vec![[0.0; 3]; n],
             gravity: Vector3::new(0.0, 0.0, -STANDARD_GRAVITY),
             meta: ChainMeta::numbered(n),
+            non_physical: None,
         })
     }
 
@@ -720,6 +757,7 @@ impl DynChain {
     pub fn with_inertial(mut self, inertial: Vec<[f64; 10]>) -> Result<Self> {
         check_len("inertial", inertial.len(), self.dof())?;
         validate_inertial(&inertial)?;
+        self.non_physical = non_physical_links(&inertial).first().copied();
         self.inertial = inertial;
         Ok(self)
     }
@@ -758,6 +796,7 @@ impl DynChain {
             .as_ref()
             .map(|(t, conv)| (std::array::from_fn(|i| t[i]), *conv));
         c.inertial = std::array::from_fn(|i| self.inertial[i]);
+        c.non_physical = self.non_physical;
         c.friction = self.friction;
         c.friction_params = std::array::from_fn(|i| self.friction_params[i]);
         c.gravity = self.gravity;
@@ -820,7 +859,23 @@ impl DynChain {
     /// True when every link's inertial parameters describe a rigid body
     /// ([`Self::non_physical_links`] is empty).
     pub fn is_physically_consistent(&self) -> bool {
-        self.non_physical_links().is_empty()
+        self.non_physical.is_none()
+    }
+
+    /// `Ok` if every link is physical, else the typed error functions that need a physical
+    /// robot (forward dynamics, simulation) return, naming the first bad link.
+    ///
+    /// # Errors
+    /// [`PrrrpError::InvalidParameter`] naming the link.
+    pub fn require_physical(&self) -> Result<()> {
+        match self.non_physical {
+            None => Ok(()),
+            Some(i) => Err(non_physical_error(&format!(
+                "'{}' (link {})",
+                self.meta.links[i],
+                i + 1
+            ))),
+        }
     }
 
     pub(crate) fn view(&self) -> ChainView<'_> {
@@ -870,10 +925,12 @@ impl DynChain {
     /// Forward dynamics q̈ = M⁻¹·(τ − C·q̇ − G − τ_friction).
     ///
     /// # Errors
-    /// [`PrrrpError::ShapeMismatch`] for wrong lengths, [`PrrrpError::NotPositiveDefinite`]
-    /// if M(q) is singular.
+    /// [`PrrrpError::ShapeMismatch`] for wrong lengths, [`PrrrpError::InvalidParameter`]
+    /// naming the link if a link is not physical ([`DynChain::non_physical_links`]),
+    /// [`PrrrpError::NotPositiveDefinite`] if M(q) is singular.
     pub fn forward_dynamics(&self, q: &[f64], qd: &[f64], tau: &[f64]) -> Result<Vec<f64>> {
         self.check3(q, qd, tau)?;
+        self.require_physical()?;
         let n = self.dof();
         let mut m = self.mass_matrix(q)?;
         cholesky_in_place(m.as_mut_slice(), n)?;

@@ -184,8 +184,9 @@ impl DynChain {
     /// (n entries), by a Cholesky factorisation of M(q).
     ///
     /// # Errors
-    /// As [`DynChain::inverse_dynamics_into`], and [`PrrrpError::NotPositiveDefinite`] if
-    /// M(q) is singular (e.g. massless distal links).
+    /// As [`DynChain::inverse_dynamics_into`], [`PrrrpError::InvalidParameter`] naming the
+    /// link for a non-physical link ([`DynChain::require_physical`]), and
+    /// [`PrrrpError::NotPositiveDefinite`] if M(q) is singular (e.g. massless distal links).
     pub fn forward_dynamics_into(
         &self,
         ws: &mut DynWorkspace,
@@ -194,6 +195,7 @@ impl DynChain {
         tau: &[f64],
         qdd: &mut [f64],
     ) -> Result<()> {
+        self.require_physical()?;
         self.check_ws(ws)?;
         self.check_joint(&[
             ("q", q.len()),
