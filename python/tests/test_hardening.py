@@ -2,14 +2,11 @@
 which gets a real SIGINT); absurd sizes are refused before anything is allocated; integer
 arguments out of range are ValueErrors; simulations do not run past their reference."""
 
-import signal
-import subprocess
-import sys
-import textwrap
 import time
 
 import numpy as np
 import pytest
+from ctrl_c import assert_ctrl_c_stops
 
 import prrrp
 
@@ -22,35 +19,11 @@ LONG_CALLS = {
 
 @pytest.mark.parametrize("call", sorted(LONG_CALLS))
 def test_ctrl_c_stops_a_long_call(call):
-    script = textwrap.dedent(
-        f"""
-        import sys, time
-        import numpy as np
-        import prrrp
-        s = prrrp.SinusoidReference(
-            offset=np.zeros(5), amplitude=np.full(5, 0.1), omega=np.ones(5))
-        print("started", flush=True)
-        t = time.monotonic()
-        try:
-            {LONG_CALLS[call]}
-        except KeyboardInterrupt:
-            print(f"interrupted after {{time.monotonic() - t:.2f}} s", flush=True)
-            sys.exit(130)
-        print("finished", flush=True)
-        """
+    assert_ctrl_c_stops(
+        LONG_CALLS[call],
+        setup="s = prrrp.SinusoidReference("
+        "offset=np.zeros(5), amplitude=np.full(5, 0.1), omega=np.ones(5))",
     )
-    child = subprocess.Popen(
-        [sys.executable, "-c", script], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
-    )
-    try:
-        assert child.stdout.readline().strip() == "started"
-        time.sleep(1.0)
-        child.send_signal(signal.SIGINT)
-        out, err = child.communicate(timeout=20)
-    finally:
-        child.kill()
-    assert child.returncode == 130, (out, err)
-    assert "interrupted" in out
 
 
 S = prrrp.SinusoidReference(offset=np.zeros(5), amplitude=np.full(5, 0.1), omega=np.ones(5))

@@ -4,16 +4,13 @@ non-finite estimates (also through the command line)."""
 
 from __future__ import annotations
 
-import signal
-import subprocess
-import sys
-import textwrap
 import threading
 import time
 from pathlib import Path
 
 import numpy as np
 import pytest
+from ctrl_c import assert_ctrl_c_stops
 
 import prrrp
 from prrrp import cli, csvio
@@ -58,38 +55,16 @@ def test_negative_epochs_and_samples_are_value_errors(call):
 
 
 def test_ctrl_c_stops_a_long_training():
-    script = textwrap.dedent(
-        """
-        import sys, time
-        import numpy as np
-        import prrrp
+    assert_ctrl_c_stops(
+        "prrrp.Adaline().train(q, qd, qdd, tau, 10**7)",
+        setup="""
         t = 0.02 * np.arange(200)
         q = 0.3 * np.sin(np.outer(t, [1.0, 1.3, 0.7, 1.9, 0.4]))
         qd = np.cos(np.outer(t, [1.0, 1.3, 0.7, 1.9, 0.4]))
         qdd = -q
         tau = prrrp.Robot.paper().inverse_dynamics(q, qd, qdd)
-        print("started", flush=True)
-        t0 = time.monotonic()
-        try:
-            prrrp.Adaline().train(q, qd, qdd, tau, 10**7)
-        except KeyboardInterrupt:
-            print(f"interrupted after {time.monotonic() - t0:.2f} s", flush=True)
-            sys.exit(130)
-        print("finished", flush=True)
-        """
+        """,
     )
-    child = subprocess.Popen(
-        [sys.executable, "-c", script], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
-    )
-    try:
-        assert child.stdout.readline().strip() == "started"
-        time.sleep(1.0)
-        child.send_signal(signal.SIGINT)
-        out, err = child.communicate(timeout=20)
-    finally:
-        child.kill()
-    assert child.returncode == 130, (out, err)
-    assert "interrupted" in out
 
 
 @pytest.mark.parametrize("n", [2, 5, 7])
