@@ -1,0 +1,111 @@
+"""The ``prrrp`` command line (also ``python -m prrrp``).
+
+Subcommands:
+
+- ``prrrp reproduce [--out DIR] [--seed N]``: the paper's whole study (excitation, simulation,
+  the four estimators, validation, sensitivity) → ``DIR/results.json``, ``DIR/report.md`` and
+  the figures ``DIR/*.png``.
+- ``prrrp simulate --out data.csv [--seed N] [--noise SCALE] [--duration S]``: an optimised
+  excitation run on the simulated robot, written as a measurement file.
+- ``prrrp identify DATA.csv [--method ls|adaline|hopfield|ekf|all] [--validate VAL.csv]
+  [--out results.json]``: λ from a measurement file, optionally validated on another.
+
+The measurement CSV format is documented in :mod:`prrrp.csvio`. Exit codes: 0 success,
+1 a computation failed (e.g. an estimator diverged), 2 bad usage or bad input, 130
+interrupted. Errors are one line on stderr, never a traceback.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import signal
+from collections.abc import Sequence
+from typing import Any
+
+import prrrp
+from prrrp.cli import identify, reproduce, simulate
+from prrrp.cli.common import (
+    EXIT_FAILED,
+    EXIT_INTERRUPTED,
+    EXIT_OK,
+    EXIT_USAGE,
+    CliError,
+    Parser,
+    error,
+    first_line,
+)
+from prrrp.cli.simulate import DEFAULT_Q_NOISE, DEFAULT_TAU_NOISE
+
+__all__ = [
+    "DEFAULT_Q_NOISE",
+    "DEFAULT_TAU_NOISE",
+    "EXIT_FAILED",
+    "EXIT_INTERRUPTED",
+    "EXIT_OK",
+    "EXIT_USAGE",
+    "CliError",
+    "build_parser",
+    "main",
+]
+
+#: One module per command, each with ``add_parser(subparsers)`` and ``run(args) -> int``.
+COMMANDS = (reproduce, simulate, identify)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = Parser(
+        prog="prrrp",
+        description="Dynamic parameter identification of the PRRRP robot (Urrea & Pascal 2017).",
+        epilog="Run `prrrp reproduce` for the paper's whole study; `prrrp COMMAND --help` "
+        "for each command.",
+    )
+    parser.add_argument("--version", action="version", version=f"prrrp {prrrp.__version__}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
+    for command in COMMANDS:
+        command.add_parser(sub)
+    return parser
+
+
+def _oserror_message(e: OSError) -> str:
+    what = e.filename if e.filename is not None else ""
+    reason = e.strerror or str(e)
+    if isinstance(e, FileNotFoundError):
+        return f"{what}: no such file or directory"
+    return f"{what}: {reason}" if what else reason
+
+
+def _on_sigterm(signum: int, _frame: Any) -> None:
+    # An exception, unlike the default action, unwinds: temporary output is removed and
+    # running computations stop (the bindings poll for signals).
+    raise SystemExit(128 + signum)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Runs the command line; returns the exit code (argparse exits itself on usage errors)."""
+    args = build_parser().parse_args(argv)
+    with contextlib.suppress(ValueError):  # not the main thread: keep the default
+        signal.signal(signal.SIGTERM, _on_sigterm)
+    try:
+        return int(args.func(args))
+    except CliError as e:
+        error(str(e))
+        return e.code
+    except KeyboardInterrupt:
+        error("interrupted")
+        return EXIT_INTERRUPTED
+    except OSError as e:
+        error(_oserror_message(e))
+        return EXIT_USAGE
+    except prrrp.RankDeficientError as e:
+        error(
+            f"the data does not excite every parameter (rank deficient, cond(W) = "
+            f"{getattr(e, 'cond', float('inf')):.3g}): {first_line(e)}"
+        )
+        return EXIT_USAGE
+    except (prrrp.InvalidInputError, ValueError) as e:
+        error(first_line(e))
+        return EXIT_USAGE
+    except prrrp.PrrrpError as e:
+        error(first_line(e))
+        return EXIT_FAILED

@@ -1,0 +1,152 @@
+"""What every command of the ``prrrp`` command line shares: exit codes, one-line errors,
+progress bars, JSON output, argument types."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import shutil
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any, NoReturn
+
+import numpy as np
+
+EXIT_OK = 0
+EXIT_FAILED = 1
+EXIT_USAGE = 2
+EXIT_INTERRUPTED = 130
+
+
+class CliError(Exception):
+    """A user-facing failure: the message is printed as one line."""
+
+    def __init__(self, message: str, code: int = EXIT_USAGE) -> None:
+        super().__init__(message)
+        self.code = code
+
+
+# ---------------------------------------------------------------------------------- progress
+
+
+class Progress:
+    """Progress bars (tqdm) on stderr when it is a terminal; silent otherwise.
+
+    Call as ``progress(stage, done, total)``; a new stage closes the previous bar.
+    """
+
+    def __init__(self, enabled: bool | None = None) -> None:
+        self.enabled = sys.stderr.isatty() if enabled is None else enabled
+        self._bar: Any = None
+        self._stage: str | None = None
+
+    def __call__(self, stage: str, done: int, total: int) -> None:
+        if not self.enabled:
+            return
+        from tqdm import tqdm
+
+        if stage != self._stage or self._bar is None:
+            self.close()
+            self._stage = stage
+            size = shutil.get_terminal_size()
+            self._bar = tqdm(
+                total=max(int(total), 1),
+                desc=f"{stage:<13}",
+                file=sys.stderr,
+                leave=False,
+                # tqdm draws nothing on a terminal that reports a size of 0 × 0 (some
+                # pseudo-terminals do): fall back to 80 × 24 then.
+                ncols=size.columns or 80,
+                nrows=size.lines or 24,
+            )
+        if total and self._bar.total != total:
+            self._bar.total = int(total)
+        self._bar.n = int(done)
+        self._bar.refresh()
+
+    def close(self) -> None:
+        if self._bar is not None:
+            self._bar.close()
+            self._bar = None
+            self._stage = None
+
+
+# ---------------------------------------------------------------------------------- helpers
+
+
+def attr(obj: Any, name: str, default: Any = None) -> Any:
+    """Field ``name`` of a result that may be a dict or an object."""
+    if isinstance(obj, dict):
+        return obj.get(name, default)
+    return getattr(obj, name, default)
+
+
+def as_list(x: Any) -> Any:
+    if x is None:
+        return None
+    if isinstance(x, np.ndarray):
+        return x.tolist()
+    if isinstance(x, np.generic):
+        return x.item()
+    return x
+
+
+def json_default(x: Any) -> Any:
+    if isinstance(x, np.ndarray | np.generic):
+        return x.tolist()
+    raise TypeError(f"not JSON serialisable: {type(x).__name__}")
+
+
+def dump_json(data: Any, path: Path) -> None:
+    with path.open("w", encoding="utf-8") as f:
+        json.dump(data, f, indent=1, default=json_default, allow_nan=True)
+        f.write("\n")
+
+
+def check_output_file(path: Path) -> None:
+    if path.is_dir():
+        raise CliError(f"output {path} is a directory; give a file name")
+    parent = path.parent if str(path.parent) else Path(".")
+    if not parent.is_dir():
+        raise CliError(f"output directory {parent} does not exist")
+
+
+def print_table(header: Sequence[str], rows: Sequence[Sequence[str]]) -> None:
+    widths = [max(len(h), *(len(r[k]) for r in rows)) for k, h in enumerate(header)]
+    print("  ".join(h.rjust(w) for h, w in zip(header, widths, strict=True)))
+    for r in rows:
+        print("  ".join(c.rjust(w) for c, w in zip(r, widths, strict=True)))
+
+
+def seed(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from None
+    if not 0 <= value < 2**64:
+        raise argparse.ArgumentTypeError(f"must be between 0 and 2^64 - 1, got {value}")
+    return value
+
+
+class Parser(argparse.ArgumentParser):
+    """Usage errors in one line on stderr (argparse prints the whole usage first)."""
+
+    def error(self, message: str) -> NoReturn:
+        error(f"{message} (see `{self.prog} --help`)")
+        raise SystemExit(EXIT_USAGE)
+
+
+def nonempty_path(text: str) -> str:
+    if not text.strip():
+        raise argparse.ArgumentTypeError("an empty path")
+    return text
+
+
+def first_line(e: BaseException) -> str:
+    text = str(e).strip() or type(e).__name__
+    return text.splitlines()[0]
+
+
+def error(message: str) -> None:
+    print(f"prrrp: error: {message}", file=sys.stderr)

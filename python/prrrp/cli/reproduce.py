@@ -1,0 +1,65 @@
+"""``prrrp reproduce``: the paper's whole study into a folder of results, report and figures."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+from typing import Any
+
+import prrrp
+from prrrp.cli.common import (
+    EXIT_FAILED,
+    EXIT_OK,
+    CliError,
+    Progress,
+    dump_json,
+    nonempty_path,
+    seed,
+)
+
+
+def add_parser(sub: Any) -> None:
+    p = sub.add_parser(
+        "reproduce",
+        help="run the paper's whole study: tables, figures, results.json",
+        description="Runs the paper's study (excitation optimisation, closed-loop simulation, "
+        "least squares, Adaline, Hopfield, EKF, validation, sensitivity) and writes "
+        "results.json, report.md and PNG figures into DIR. DIR is built aside and swapped "
+        "in whole when the run succeeds; a failed or interrupted run leaves it as it was. "
+        "An existing DIR must be empty or an earlier prrrp output.",
+    )
+    p.add_argument(
+        "--out",
+        default="prrrp-out",
+        type=nonempty_path,
+        metavar="DIR",
+        help="output directory (default: ./prrrp-out)",
+    )
+    p.add_argument("--seed", type=seed, default=0, help="random seed (default: 0)")
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    from prrrp import outdir, plots, report
+
+    if not hasattr(prrrp, "run_study"):
+        raise CliError("this build of prrrp has no run_study (reinstall the package)", EXIT_FAILED)
+    out = Path(args.out)
+    progress = Progress()
+
+    # The folder is built aside and swapped in whole (outdir.write_dir): a failed or
+    # interrupted run leaves the previous results exactly as they were.
+    def build(tmp: Path) -> tuple[dict[str, Any], list[Path]]:
+        try:
+            results = prrrp.run_study(seed=args.seed, progress=progress)
+        finally:
+            progress.close()
+        dump_json(results, tmp / "results.json")
+        (tmp / "report.md").write_text(report.render(results), encoding="utf-8")
+        return results, plots.write_all(results, tmp)
+
+    results, figures = outdir.write_dir(out, build)
+    total = (results.get("timings_s") or {}).get("total")
+    took = f" ({total:.1f} s)" if isinstance(total, int | float) else ""
+    print(f"results in {out}/report.md, {out}/results.json and {len(figures)} figures{took}")
+    return EXIT_OK
