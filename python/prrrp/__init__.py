@@ -76,6 +76,7 @@ from prrrp._prrrp import (
     torque_prediction,
     validate,
 )
+from prrrp.measurements import measurements_to_dataset, read_measurements
 
 __all__ = [
     "NDOF",
@@ -115,10 +116,12 @@ __all__ = [
     "identify",
     "joint_limits",
     "least_squares",
+    "measurements_to_dataset",
     "observation_matrix",
     "optimise_excitation",
     "preprocess",
     "preprocess_log",
+    "read_measurements",
     "regressor",
     "relative_errors_percent",
     "rms",

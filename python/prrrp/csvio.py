@@ -1,13 +1,18 @@
 """Measurement files of the ``prrrp`` command line, and safe writing of output files.
 
-CSV format (comma-separated, one header line, then one row per sample):
+CSV format (comma-separated, one header line, then one row per sample), for a robot of N
+joints (N = 5 for the paper's arm, :func:`read_measurements`; any N, :func:`read_table`):
 
-- ``t``: time, s, strictly increasing (uniform sampling for the preprocessing, e.g. 0.02 s);
-- ``q1..q5``: joint positions [d1, θ2, θ3, θ4, d5] in m, rad, rad, rad, m;
-- ``tau1..tau5``: generalised forces [F1, τ2, τ3, τ4, F5] in N, N·m, N·m, N·m, N;
-- optional ``qd1..qd5`` (m/s, rad/s) and ``qdd1..qdd5`` (m/s², rad/s²): when both are given
-  they are used as they are; otherwise velocities and accelerations are obtained by
-  ``prrrp.preprocess`` (zero-phase low-pass filter and central differences).
+- ``t``: time, s, increasing (uniform sampling for the paper's preprocessing, e.g. 0.02 s; a
+  real log read by :func:`read_table` may repeat time stamps, which ``prrrp.preprocess_log``
+  drops);
+- ``q1..qN``: joint positions, m (prismatic) or rad (revolute) — for the paper's arm
+  [d1, θ2, θ3, θ4, d5];
+- ``tau1..tauN``: generalised forces, N or N·m — for the paper's arm [F1, τ2, τ3, τ4, F5];
+- optional ``qd1..qdN`` (m/s, rad/s) and ``qdd1..qddN`` (m/s², rad/s²): when both are given
+  they are used as they are; otherwise velocities and accelerations are obtained by the
+  preprocessing (zero-phase low-pass filter and differentiation). A real log may give
+  ``qd`` alone (measured velocities, used by ``prrrp.preprocess_log``).
 
 Column order does not matter, names are case-insensitive, extra columns are an error (so a
 misspelt name is not silently ignored). Lines starting with ``#`` are comments.
@@ -44,8 +49,23 @@ class InputError(ValueError):
     """Bad input file: the message is one line saying what is wrong and where."""
 
 
-def _expected() -> str:
-    return "expected t, q1..q5, tau1..tau5 and optionally qd1..qd5, qdd1..qdd5"
+def _expected(n: int | None = NDOF) -> str:
+    k = "N" if n is None else str(n)
+    return f"expected t, q1..q{k}, tau1..tau{k} and optionally qd1..qd{k}, qdd1..qdd{k}"
+
+
+def columns(n: int) -> dict[str, tuple[str, ...]]:
+    """The column names of a measurement file of ``n`` joints, by group."""
+    return {
+        "q": tuple(f"q{i}" for i in range(1, n + 1)),
+        "tau": tuple(f"tau{i}" for i in range(1, n + 1)),
+        "qd": tuple(f"qd{i}" for i in range(1, n + 1)),
+        "qdd": tuple(f"qdd{i}" for i in range(1, n + 1)),
+    }
+
+
+#: Most joints a measurement file may have (a bound against a mistaken or hostile header).
+MAX_JOINTS = 1000
 
 
 #: Largest measurement file read, bytes (2 GiB: ~10 million rows of 11 columns). Checked
@@ -69,57 +89,92 @@ def _lines(path: Path) -> Iterator[tuple[int, str]]:
 
 
 def read_measurements(path: str | os.PathLike[str]) -> dict[str, np.ndarray]:
-    """Reads a measurement CSV file (see :func:`_read`)."""
+    """Reads a measurement CSV file of the paper's arm (5 joints, strictly increasing time,
+    ``qd`` and ``qdd`` both or neither); see :func:`read_table`."""
+    return read_table(path, NDOF)
+
+
+def read_table(
+    path: str | os.PathLike[str],
+    dof: int | None = None,
+    *,
+    real_log: bool = False,
+    need_tau: bool = True,
+) -> dict[str, np.ndarray]:
+    """Reads a measurement CSV file of ``dof`` joints (None: as many as the header has).
+
+    Returns a dict with ``t`` (S,), ``q`` and ``tau`` (S, N) and, when present in the file,
+    ``qd`` and ``qdd`` (S, N). With ``real_log`` the file is a raw log for
+    ``prrrp.preprocess_log``: time stamps may repeat (it drops the repeats), and measured
+    velocities ``qd`` may come without ``qdd``. Raises InputError (one-line message naming the
+    file, row and column) for a missing/misspelt column, a non-numeric or non-finite cell,
+    time that is not increasing (or, with ``real_log``, that runs backwards) or too few
+    samples; OSError for an unreadable file. Without ``need_tau`` the torque columns may be
+    absent (all of them; the result then has no ``tau``).
+    """
     try:
-        return _read(Path(path))
+        return _read(Path(path), dof, real_log, need_tau)
     except UnicodeDecodeError:
         raise InputError(f"{path}: not a UTF-8 text (CSV) file") from None
     except csv.Error as e:
         raise InputError(f"{path}: not a readable CSV file ({e})") from None
 
 
-def _read(path: Path) -> dict[str, np.ndarray]:
-    """Reads a measurement CSV file.
+def _dof_of(path: Path, header: list[str]) -> int:
+    """The joint count a header names: the largest k of its q<k> columns."""
+    ks = [int(h[1:]) for h in header if h.startswith("q") and h[1:].isdigit()]
+    if not ks:
+        raise InputError(f"{path}: no joint position columns q1, q2, ...; {_expected(None)}")
+    n = max(ks)
+    if n > MAX_JOINTS:
+        raise InputError(f"{path}: column 'q{n}' asks for {n} joints, more than {MAX_JOINTS}")
+    return n
 
-    Returns a dict with ``t`` (N,), ``q`` and ``tau`` (N, 5) and, when present in the file,
-    ``qd`` and ``qdd`` (N, 5). Raises InputError (one-line message naming the file, row and
-    column) for a missing/misspelt column, a non-numeric or non-finite cell, non-increasing
-    time or too few samples; OSError for an unreadable file.
-    """
+
+def _read(path: Path, dof: int | None, real_log: bool, need_tau: bool) -> dict[str, np.ndarray]:
     rows = _lines(path)
     try:
         header_lineno, header_line = next(rows)
     except StopIteration:
-        raise InputError(f"{path}: the file is empty; {_expected()}") from None
+        raise InputError(f"{path}: the file is empty; {_expected(dof)}") from None
     header = [h.strip().lower() for h in next(csv.reader([header_line]))]
     seen: set[str] = set()
     for name in header:
         if name in seen:
             raise InputError(f"{path}: column '{name}' appears twice in the header")
         seen.add(name)
-    missing = [c for c in REQUIRED_COLUMNS if c not in seen]
+    n = _dof_of(path, header) if dof is None else dof
+    groups = columns(n)
+    required = ("t", *groups["q"], *groups["tau"])
+    every = (*required, *groups["qd"], *groups["qdd"])
+    has_tau = need_tau or any(c in seen for c in groups["tau"])
+    if not has_tau:
+        required = ("t", *groups["q"])
+    missing = [c for c in required if c not in seen]
     for name in header:
-        if name not in ALL_COLUMNS:
+        if name not in every:
             # A close name among all columns; else the closest of those still missing (so
             # that 'time' is matched with 't').
-            close = difflib.get_close_matches(name, ALL_COLUMNS, n=1) or (
+            close = difflib.get_close_matches(name, every, n=1) or (
                 difflib.get_close_matches(name, missing, n=1, cutoff=0.3)
             )
             hint = f" (did you mean '{close[0]}'?)" if close else ""
-            raise InputError(f"{path}: unknown column '{name}'{hint}; {_expected()}")
+            if not close and dof is not None and name[:1] in ("q", "t") and name[-1:].isdigit():
+                hint = f" (the robot has {n} joints)"
+            raise InputError(f"{path}: unknown column '{name}'{hint}; {_expected(n)}")
     if missing:
         names = ", ".join(f"'{c}'" for c in missing)
         plural = "s" if len(missing) > 1 else ""
-        raise InputError(f"{path}: missing column{plural} {names}; {_expected()}")
-    has_qd = any(c in seen for c in VELOCITY_COLUMNS)
-    has_qdd = any(c in seen for c in ACCELERATION_COLUMNS)
-    if has_qd != has_qdd:
+        raise InputError(f"{path}: missing column{plural} {names}; {_expected(n)}")
+    has_qd = any(c in seen for c in groups["qd"])
+    has_qdd = any(c in seen for c in groups["qdd"])
+    if (has_qdd and not has_qd) or (has_qd and not has_qdd and not real_log):
         given, absent = ("qd", "qdd") if has_qd else ("qdd", "qd")
         raise InputError(
-            f"{path}: {given}1..{given}5 given without {absent}1..{absent}5; give both (used "
+            f"{path}: {given}1..{given}{n} given without {absent}1..{absent}{n}; give both (used "
             "as they are) or neither (derived from q by the preprocessing)"
         )
-    for group, present in ((VELOCITY_COLUMNS, has_qd), (ACCELERATION_COLUMNS, has_qdd)):
+    for group, present in ((groups["qd"], has_qd), (groups["qdd"], has_qdd)):
         for name in group:
             if present and name not in seen:
                 raise InputError(
@@ -156,21 +211,17 @@ def _read(path: Path) -> dict[str, np.ndarray]:
     col = {name: table[:, j] for j, name in enumerate(header)}
     t = col["t"]
     steps = np.diff(t)
-    bad = np.flatnonzero(~(steps > 0))
+    bad = np.flatnonzero(~(steps >= 0) if real_log else ~(steps > 0))
     if bad.size:
         k = int(bad[0]) + 1
+        what = "runs backwards" if real_log else "is not strictly increasing"
         raise InputError(
-            f"{path}: time is not strictly increasing at data row {k + 1} "
-            f"(t = {t[k]:g} s after {t[k - 1]:g} s)"
+            f"{path}: time {what} at data row {k + 1} (t = {t[k]:g} s after {t[k - 1]:g} s)"
         )
-    out = {
-        "t": t.copy(),
-        "q": np.column_stack([col[c] for c in POSITION_COLUMNS]),
-        "tau": np.column_stack([col[c] for c in TORQUE_COLUMNS]),
-    }
-    if has_qd and has_qdd:
-        out["qd"] = np.column_stack([col[c] for c in VELOCITY_COLUMNS])
-        out["qdd"] = np.column_stack([col[c] for c in ACCELERATION_COLUMNS])
+    out = {"t": t.copy()}
+    for key, present in (("q", True), ("tau", has_tau), ("qd", has_qd), ("qdd", has_qdd)):
+        if present:
+            out[key] = np.column_stack([col[c] for c in groups[key]])
     return out
 
 
@@ -181,14 +232,17 @@ def format_measurements(
     qd: np.ndarray | None = None,
     qdd: np.ndarray | None = None,
 ) -> str:
-    """The CSV text of a measurement file (see the module docstring), full float precision."""
-    columns = ["t", *POSITION_COLUMNS, *TORQUE_COLUMNS]
-    blocks = [np.asarray(t, dtype=np.float64)[:, None], np.asarray(q), np.asarray(tau)]
+    """The CSV text of a measurement file of N = q.shape[1] joints (see the module
+    docstring), full float precision."""
+    q = np.atleast_2d(np.asarray(q, dtype=np.float64))
+    groups = columns(q.shape[1])
+    names = ["t", *groups["q"], *groups["tau"]]
+    blocks = [np.asarray(t, dtype=np.float64)[:, None], q, np.asarray(tau)]
     if qd is not None and qdd is not None:
-        columns += [*VELOCITY_COLUMNS, *ACCELERATION_COLUMNS]
+        names += [*groups["qd"], *groups["qdd"]]
         blocks += [np.asarray(qd), np.asarray(qdd)]
     table = np.hstack(blocks)
-    lines = [",".join(columns)]
+    lines = [",".join(names)]
     lines.extend(",".join(repr(float(x)) for x in row) for row in table)
     return "\n".join(lines) + "\n"
 

@@ -1,0 +1,130 @@
+"""ROS 2 bags: joint measurements from ``sensor_msgs/JointState`` messages, read with the
+``rosbags`` package (an optional extra: ``pip install prrrp[ros]``; no ROS installation is
+needed).
+
+A bag is a folder (rosbag2, sqlite3 or mcap storage) or a single ``.mcap`` file. Each message
+on the topic gives one sample: the time is the message header's stamp (the bag's receive
+time when the stamp is zero), ``position`` → q (rad, m), ``velocity`` → measured q̇ (used
+when every message carries it) and ``effort`` → τ (N·m, N). Joints are matched to the
+robot's joints by name, so the message may list them in any order and carry more joints
+(grippers, other arms) than the robot has.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from prrrp.csvio import InputError
+
+#: The default topic of ``sensor_msgs/JointState`` (ros2_control's joint_state_broadcaster).
+DEFAULT_TOPIC = "/joint_states"
+JOINT_STATE = "sensor_msgs/msg/JointState"
+#: Most messages read from one topic (10 hours at 1 kHz), a bound against mistaken input.
+MAX_MESSAGES = 36_000_000
+
+
+def is_bag(path: str | os.PathLike[str]) -> bool:
+    """Whether ``path`` looks like a ROS 2 bag: a folder with ``metadata.yaml`` or a ``.mcap``
+    or ``.db3`` file."""
+    p = Path(path)
+    if p.is_dir():
+        return (p / "metadata.yaml").is_file()
+    return p.suffix.lower() in (".mcap", ".db3")
+
+
+def _rosbags() -> Any:
+    try:
+        from rosbags.highlevel import AnyReader
+    except ImportError:
+        raise InputError(
+            "reading ROS 2 bags needs the `rosbags` package: pip install 'prrrp[ros]'"
+        ) from None
+    return AnyReader
+
+
+def read_joint_states(
+    path: str | os.PathLike[str],
+    joint_names: list[str],
+    topic: str = DEFAULT_TOPIC,
+) -> dict[str, np.ndarray]:
+    """Reads the robot's joints from the ``JointState`` messages of ``topic`` in the bag at
+    ``path``.
+
+    Returns ``t`` (S,) s, ``q`` and ``tau`` (S, N) in the order of ``joint_names`` and, when
+    every message carries velocities, ``qd`` (S, N). Raises :class:`prrrp.csvio.InputError`
+    (one line) for a missing topic (naming the topics the bag has), a topic of another
+    message type, a joint that the messages do not name, messages without efforts, or
+    non-finite values.
+    """
+    reader_cls = _rosbags()
+    p = Path(path)
+    if not p.exists():
+        raise InputError(f"{p}: no such file or directory")
+    # A single .mcap file is read as a bag of one file (rosbags wants its folder then).
+    try:
+        reader = reader_cls([p])
+        reader.open()
+    except Exception as e:  # rosbags raises its own hierarchy; any failure is bad input
+        raise InputError(f"{p}: not a readable ROS 2 bag ({type(e).__name__}: {e})") from None
+    try:
+        conns = [c for c in reader.connections if c.topic == topic]
+        if not conns:
+            topics = sorted({c.topic for c in reader.connections})
+            raise InputError(
+                f"{p}: no topic '{topic}' in the bag (it has {', '.join(topics) or 'none'}); "
+                "choose one with --topic"
+            )
+        wrong = [c.msgtype for c in conns if c.msgtype != JOINT_STATE]
+        if wrong:
+            raise InputError(f"{p}: topic '{topic}' carries {wrong[0]}, not {JOINT_STATE}")
+        t: list[float] = []
+        q: list[np.ndarray] = []
+        qd: list[np.ndarray | None] = []
+        tau: list[np.ndarray] = []
+        index: dict[tuple[str, ...], np.ndarray] = {}
+        for k, (conn, stamp_ns, raw) in enumerate(reader.messages(connections=conns)):
+            if k >= MAX_MESSAGES:
+                raise InputError(f"{p}: more than {MAX_MESSAGES} messages on '{topic}'")
+            msg = reader.deserialize(raw, conn.msgtype)
+            names = tuple(msg.name)
+            if names not in index:
+                index[names] = _match(p, names, joint_names, k)
+            cols = index[names]
+            if len(msg.effort) != len(names):
+                raise InputError(
+                    f"{p}: message {k} on '{topic}' has {len(msg.effort)} efforts for "
+                    f"{len(names)} joints; identification needs measured joint torques"
+                )
+            sec = msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec
+            t.append(sec if sec > 0 else 1e-9 * stamp_ns)
+            q.append(np.asarray(msg.position, dtype=float)[cols])
+            tau.append(np.asarray(msg.effort, dtype=float)[cols])
+            vel = np.asarray(msg.velocity, dtype=float)
+            qd.append(vel[cols] if len(vel) == len(names) else None)
+    finally:
+        reader.close()
+    if not t:
+        raise InputError(f"{p}: no messages on '{topic}'")
+    out = {"t": np.asarray(t), "q": np.vstack(q), "tau": np.vstack(tau)}
+    if all(v is not None for v in qd):
+        out["qd"] = np.vstack(qd)
+    for key, value in out.items():
+        bad = np.argwhere(~np.isfinite(value))
+        if bad.size:
+            raise InputError(f"{p}: message {int(bad[0][0])} on '{topic}': {key} is not finite")
+    return out
+
+
+def _match(path: Path, names: tuple[str, ...], joints: list[str], k: int) -> np.ndarray:
+    where = {n: i for i, n in enumerate(names)}
+    missing = [j for j in joints if j not in where]
+    if missing:
+        raise InputError(
+            f"{path}: message {k} does not name the robot's joint(s) {', '.join(missing)} "
+            f"(it names {', '.join(names) or 'none'})"
+        )
+    return np.asarray([where[j] for j in joints], dtype=int)

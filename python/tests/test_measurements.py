@@ -1,0 +1,154 @@
+"""Measurements of any robot: CSV files of N joints and ROS 2 bags (written here with
+rosbags' own writer), their conversion to a data set, and `prrrp predict` on them."""
+
+from __future__ import annotations
+
+import importlib.metadata
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import prrrp
+from prrrp import cli, csvio
+
+ROBOTS = importlib.metadata.distribution("example-robot-data").locate_file(
+    "cmeel.prefix/share/example-robot-data/robots"
+)
+
+
+@pytest.fixture(scope="module")
+def panda():
+    return prrrp.SerialChain.from_urdf(
+        str(ROBOTS / "panda_description/urdf/panda.urdf"), tip="panda_link8"
+    )
+
+
+def motion(seconds=12.0, rate=200.0, seed=0):
+    rng = np.random.default_rng(seed)
+    t = np.arange(0.0, seconds, 1.0 / rate)
+    w = 2 * np.pi * 0.15 * np.arange(1, 5)
+    a = rng.uniform(-1, 1, (7, 4)) * 0.6 / np.arange(1, 5)
+    s, c = np.sin(np.outer(t, w)), np.cos(np.outer(t, w))
+    return t, s @ a.T, (c * w) @ a.T, -(s * w**2) @ a.T
+
+
+def test_csv_of_seven_joints_with_repeated_rows(tmp_path: Path, panda):
+    t, q, qd, qdd = motion()
+    tau = panda.inverse_dynamics(q, qd, qdd)
+    # A real log repeats rows: every 20th row twice.
+    rep = np.repeat(np.arange(len(t)), np.where(np.arange(len(t)) % 20 == 0, 2, 1))
+    path = tmp_path / "log.csv"
+    path.write_text(csvio.format_measurements(t[rep], q[rep], tau[rep]))
+    raw = prrrp.read_measurements(path, panda)
+    assert raw["q"].shape == (len(rep), 7)
+    assert "qd" not in raw
+    data, report = prrrp.measurements_to_dataset(raw, {"cutoff_hz": 8.0})
+    assert report["repeated_rows"] == len(rep) - len(t)
+    assert data.dof == 7
+    # The preprocessing differentiates the log back to the true motion (up to the filter).
+    k = np.searchsorted(t, data.t)
+    assert np.abs(data.qd - qd[k]).max() < 0.02 * np.abs(qd).max()
+    # Without a robot the joint count comes from the header.
+    assert prrrp.read_measurements(path)["q"].shape[1] == 7
+
+
+def test_csv_errors_name_what_to_fix(tmp_path: Path, panda):
+    t, q, _, _ = motion(seconds=1.0)
+    tau = np.zeros_like(q)
+    path = tmp_path / "five.csv"
+    path.write_text(csvio.format_measurements(t, q[:, :5], tau[:, :5]))
+    with pytest.raises(csvio.InputError, match="missing columns 'q6', 'q7'"):
+        prrrp.read_measurements(path, panda)
+    back = tmp_path / "back.csv"
+    tt = t.copy()
+    tt[30] = tt[28]
+    back.write_text(csvio.format_measurements(tt, q, tau))
+    with pytest.raises(csvio.InputError, match="runs backwards at data row 31"):
+        prrrp.read_measurements(back, panda)
+
+
+def write_bag(path: Path, t, names, q, qd, tau, topic="/joint_states"):
+    from rosbags.rosbag2 import Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    store = get_typestore(Stores.ROS2_HUMBLE)
+    js = store.types["sensor_msgs/msg/JointState"]
+    header = store.types["std_msgs/msg/Header"]
+    stamp = store.types["builtin_interfaces/msg/Time"]
+    with Writer(path, version=8) as writer:
+        conn = writer.add_connection(topic, js.__msgtype__, typestore=store)
+        for k, tk in enumerate(t):
+            sec = int(tk)
+            msg = js(
+                header=header(stamp=stamp(sec=sec, nanosec=round((tk - sec) * 1e9)), frame_id=""),
+                name=list(names),
+                position=q[k],
+                velocity=qd[k],
+                effort=tau[k],
+            )
+            writer.write(conn, round(tk * 1e9), store.serialize_cdr(msg, js.__msgtype__))
+
+
+def test_bag_joints_matched_by_name(tmp_path: Path, panda):
+    pytest.importorskip("rosbags")
+    t, q, qd, qdd = motion(seconds=3.0)
+    t = t + 100.0
+    tau = panda.inverse_dynamics(q, qd, qdd)
+    joints = list(panda.joint_names)
+    # The message lists the joints in another order, with two finger joints extra.
+    order = [3, 0, 6, 1, 5, 2, 4]
+    names = [joints[i] for i in order] + ["panda_finger_joint1", "panda_finger_joint2"]
+    extra = np.zeros((len(t), 2))
+
+    def shuffle(x):
+        return np.hstack([x[:, order], extra])
+
+    bag = tmp_path / "bag"
+    write_bag(bag, t, names, shuffle(q), shuffle(qd), shuffle(tau))
+    raw = prrrp.read_measurements(bag, panda)
+    np.testing.assert_allclose(raw["t"], t, atol=1e-9)
+    np.testing.assert_array_equal(raw["q"], q)
+    np.testing.assert_array_equal(raw["qd"], qd)
+    np.testing.assert_array_equal(raw["tau"], tau)
+    with pytest.raises(csvio.InputError, match=r"no topic '/other'.*/joint_states"):
+        prrrp.read_measurements(bag, panda, topic="/other")
+    puma = prrrp.SerialChain.puma560()
+    with pytest.raises(csvio.InputError, match="does not name the robot's joint"):
+        prrrp.read_measurements(bag, puma)
+
+
+def test_predict_command(tmp_path: Path, panda, capsys):
+    t, q, qd, qdd = motion(seconds=20.0, rate=100.0, seed=1)
+    tau = panda.inverse_dynamics(q, qd, qdd)
+    model = prrrp.identify(
+        panda,
+        prrrp.Dataset(t, q, qd, qdd, tau),
+        preprocessing={"settings": {"cutoff_hz": 6.0}},
+    )
+    model_path = tmp_path / "model.json"
+    model.save(model_path)
+    t2, q2, qd2, qdd2 = motion(seconds=10.0, rate=100.0, seed=2)
+    tau2 = panda.inverse_dynamics(q2, qd2, qdd2)
+    # States given in full: the prediction is the rigid-body torque of those states.
+    full = tmp_path / "full.csv"
+    full.write_text(csvio.format_measurements(t2, q2, tau2, qd2, qdd2))
+    out = tmp_path / "tau.csv"
+    assert cli.main(["predict", str(model_path), str(full), "--out", str(out)]) == 0
+    table = np.loadtxt(out, delimiter=",", skiprows=1)
+    assert out.read_text().splitlines()[0] == "t," + ",".join(f"tau{i}" for i in range(1, 8))
+    np.testing.assert_allclose(table[:, 1:], tau2, atol=1e-6 * np.abs(tau2).max())
+    assert "torque-prediction error" in capsys.readouterr().out
+    # Positions only: derived with the model's recorded preprocessing (6 Hz cut-off).
+    bare = tmp_path / "bare.csv"
+    bare.write_text(csvio.format_measurements(t2, q2, tau2))
+    assert cli.main(["predict", str(model_path), str(bare), "--out", str(out)]) == 0
+    table = np.loadtxt(out, delimiter=",", skiprows=1)
+    k = np.searchsorted(t2, table[:, 0])
+    err = np.sqrt(((table[:, 1:] - tau2[k]) ** 2).mean(axis=0))
+    assert (err < 0.05 * np.sqrt((tau2**2).mean(axis=0))).all(), err
+    # Bad input: one line on stderr, exit 2, nothing written.
+    out.unlink()
+    assert cli.main(["predict", str(full), str(full), "--out", str(out)]) == cli.EXIT_USAGE
+    assert "not an identified model" in capsys.readouterr().err
+    assert not out.exists()
