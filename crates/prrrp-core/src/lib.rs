@@ -62,6 +62,10 @@ pub use data::{
 };
 pub use error::{PrrrpError, Result};
 pub use estimators::{
+    default_coulomb_scales, select_coulomb_scale, CoulombScaleConfig, CoulombScaleReport,
+    COULOMB_SCALE_GRID, COULOMB_SCALE_RANGE, MAX_COULOMB_CANDIDATES,
+};
+pub use estimators::{
     least_squares, weighted_least_squares, Adaline, AdalineConfig, AdalineOf, AdalineRule,
     Discretisation, DynAdaline, DynEkf, DynHopfield, DynJointNoise, DynLeastSquaresReport, DynRls,
     DynSample, DynSamples, Ekf, EkfAllocator, EkfConfig, EkfMeasurement, EkfOf, Estimator,

@@ -12,6 +12,7 @@
 //! aliases [`DynRls`], [`DynAdaline`], [`DynHopfield`], [`DynSamples`], …).
 
 mod adaline;
+mod coulomb_scale;
 mod ekf;
 mod estimator;
 mod hopfield;
@@ -20,6 +21,10 @@ mod rls;
 mod samples;
 
 pub use adaline::{Adaline, AdalineConfig, AdalineOf, AdalineRule, DynAdaline};
+pub use coulomb_scale::{
+    default_coulomb_scales, select_coulomb_scale, CoulombScaleConfig, CoulombScaleReport,
+    COULOMB_SCALE_GRID, COULOMB_SCALE_RANGE, MAX_COULOMB_CANDIDATES,
+};
 pub use ekf::{
     Discretisation, DynEkf, Ekf, EkfAllocator, EkfConfig, EkfMeasurement, EkfOf, PrrrpEkf,
     PRRRP_EKF_STATES,

@@ -149,7 +149,10 @@ impl BaseParameters {
     }
 
     pub(crate) fn check_layout(&self, dof: usize, friction: &FrictionModel) -> Result<()> {
-        if self.dof != dof || self.friction != *friction {
+        // The Coulomb speed scale changes a column's values, not which columns exist or
+        // which combinations are identifiable, so one analysis serves every v_s (the
+        // Coulomb speed-scale search relies on it).
+        if self.dof != dof || self.friction.enabled() != friction.enabled() {
             return Err(PrrrpError::ShapeMismatch {
                 what: "base parameters".into(),
                 expected: format!("an analysis of this chain ({dof} joints, {friction:?})"),
