@@ -694,6 +694,23 @@ class SerialChain:
         parameter k of link i+1 (link-frame parameters), then the friction columns."""
     def observation_matrix(self, q: _ArrayLike, qd: _ArrayLike, qdd: _ArrayLike) -> _F64:
         """The regressors stacked, (N·n, P); rows n·k..n·k+n hold sample k."""
+    def coulomb_scale(
+        self,
+        data: Dataset,
+        *,
+        candidates: _ArrayLike | None = None,
+        folds: int = 4,
+        refine: bool = True,
+    ) -> dict[str, Any]:
+        """Chooses the speed scale v_s (rad/s, m/s) of this chain's smooth Coulomb friction
+        fc·tanh(q̇/v_s) from `data` (the chain must have a Coulomb term): for each candidate
+        (default 0 = the exact sign, and 16 log-spaced values over 1e-3..0.3) least squares
+        on the base parameters is scored by `folds`-fold cross-validation over contiguous
+        blocks of samples, and the best grid point is refined by a parabola in log v_s.
+        Returns {"chosen", "candidates", "cv_rms" (N·m, N; None where singular),
+        "reversals" (speed sign changes per joint), "note" (why the chain's own scale was
+        kept when the data cannot decide: no speed reversal, a flat curve)}. Apply it with
+        `with_friction(..., coulomb_smoothing=report["chosen"])`."""
     def base_parameters(
         self, *, samples: int = 0, seed: int = 0x5EED_BA5E, rank_tolerance: float = 1e-8
     ) -> BaseParameters:

@@ -690,6 +690,32 @@ impl PySerialChain {
         Ok(PyBaseParameters { inner })
     }
 
+    /// The Coulomb speed scale v_s chosen from `data` by cross-validated least squares
+    /// (see `_prrrp.pyi`); a dict (the core's `CoulombScaleReport`).
+    #[pyo3(signature = (data, *, candidates=None, folds=UInt(4), refine=true))]
+    fn coulomb_scale<'py>(
+        &self,
+        py: Python<'py>,
+        data: &crate::data::dataset::PyDataset,
+        candidates: Option<Vec<f64>>,
+        folds: UInt<usize>,
+        refine: bool,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        let base = self.default_base(py)?.clone();
+        let config = prrrp_core::CoulombScaleConfig {
+            candidates,
+            folds: folds.0,
+            refine,
+        };
+        let report = interruptible(py, || {
+            prrrp_core::select_coulomb_scale(&self.inner, &base, &data.inner, &config)
+        })?
+        .to_py(py)?;
+        let text = serde_json::to_string(&report)
+            .map_err(|e| pyo3::exceptions::PyRuntimeError::new_err(e.to_string()))?;
+        py.import("json")?.call_method1("loads", (text,))
+    }
+
     /// Base regressor Y_b (the independent columns of Y) with τ = Y_b·β: (n, b) or
     /// (N, n, b). `base` defaults to `base_parameters()` with default options.
     #[pyo3(signature = (q, qd, qdd, *, base=None))]
