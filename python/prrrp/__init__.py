@@ -77,6 +77,7 @@ from prrrp._prrrp import (
     validate,
 )
 from prrrp.measurements import measurements_to_dataset, read_measurements
+from prrrp.workflow import Identification, identify_measurements, load_robot
 
 __all__ = [
     "NDOF",
@@ -90,6 +91,7 @@ __all__ = [
     "Excitation",
     "ForwardDerivatives",
     "Hopfield",
+    "Identification",
     "IdentifiedModel",
     "InfeasibleError",
     "InvalidInputError",
@@ -114,8 +116,10 @@ __all__ = [
     "error_indices",
     "identified_model_from_parts",
     "identify",
+    "identify_measurements",
     "joint_limits",
     "least_squares",
+    "load_robot",
     "measurements_to_dataset",
     "observation_matrix",
     "optimise_excitation",

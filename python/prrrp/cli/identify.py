@@ -11,7 +11,8 @@ from typing import Any
 import numpy as np
 
 import prrrp
-from prrrp import csvio, paper
+from prrrp import csvio, paper, workflow
+from prrrp.cli import identify_robot
 from prrrp.cli.common import (
     EXIT_OK,
     CliError,
@@ -25,31 +26,43 @@ from prrrp.cli.common import (
     print_table,
 )
 
-METHOD_CHOICES = ("ls", "adaline", "hopfield", "ekf", "all")
+#: Methods of the paper's arm (without --robot).
+PAPER_METHODS = ("ls", "adaline", "hopfield", "ekf", "all")
+METHOD_CHOICES = (*workflow.METHODS, "all")
 METHOD_KEYS = {"ls": "least_squares", "adaline": "adaline", "hopfield": "hopfield", "ekf": "ekf"}
 
 
 def add_parser(sub: Any) -> None:
     p = sub.add_parser(
         "identify",
-        help="estimate λ from a measurement file (CSV)",
-        description="Reads DATA.csv (columns t, q1..q5, tau1..tau5, optionally qd1..qd5 and "
-        "qdd1..qdd5; SI units), filters and differentiates it when velocities and "
-        "accelerations are absent, runs the chosen estimators and prints λ. With --validate, "
-        "predicts the torques of VAL.csv with each estimate.",
+        help="identify a robot's dynamic parameters from a measurement file",
+        description="Without --robot: the paper's arm. Reads DATA.csv (columns t, q1..q5, "
+        "tau1..tau5, optionally qd1..qd5 and qdd1..qdd5; SI units), filters and "
+        "differentiates it when velocities and accelerations are absent, runs the chosen "
+        "estimators and prints λ; with --validate, predicts the torques of VAL.csv with each "
+        "estimate. With --robot ROBOT (.urdf or .toml): any arm, from a CSV (t, q1..qN, "
+        "tau1..tauN, optional qd1..qdN, qdd1..qddN; time stamps may repeat) or a ROS 2 bag "
+        "(sensor_msgs/JointState matched by joint name); writes DIR/model.json "
+        "(DIR/model-<method>.json for --method all), DIR/report.md and figures.",
     )
-    p.add_argument("data", metavar="DATA.csv", help="measurement file")
+    p.add_argument("data", metavar="DATA", help="measurement file (CSV, or a bag with --robot)")
     p.add_argument(
         "--method",
         choices=METHOD_CHOICES,
         default="ls",
-        help="ls = least squares (with σ and cond(W)), adaline, hopfield, ekf, or all "
-        "(default: ls)",
+        help="ls = least squares (with σ and cond(W)), wls = weighted, rls, adaline, "
+        "hopfield, ekf, physical (physically consistent), or all (default: ls; the paper's "
+        "arm: ls, adaline, hopfield, ekf, all)",
     )
     p.add_argument("--validate", metavar="VAL.csv", help="validation measurement file")
     p.add_argument(
-        "--out", type=nonempty_path, metavar="RESULTS.json", help="write the estimates as JSON"
+        "--out",
+        type=nonempty_path,
+        metavar="RESULTS.json|DIR",
+        help="the paper's arm: write the estimates as JSON; with --robot: the output folder "
+        "(built aside and swapped in whole)",
     )
+    identify_robot.add_arguments(p)
     p.set_defaults(func=run)
 
 
@@ -196,6 +209,12 @@ def _print_estimates(estimates: list[dict[str, Any]], truth: np.ndarray) -> None
 
 
 def run(args: argparse.Namespace) -> int:
+    if args.robot:
+        return identify_robot.run(args)
+    if args.method not in PAPER_METHODS:
+        raise CliError(
+            f"--method {args.method} needs --robot (the paper's arm has {PAPER_METHODS})"
+        )
     out = Path(args.out) if args.out else None
     if out is not None:
         check_output_file(out)

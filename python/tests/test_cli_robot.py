@@ -1,0 +1,103 @@
+"""`prrrp identify --robot` and `prrrp predict` on the Panda URDF, run as a user would: a
+7-joint log with friction turning over at 0.03 rad/s, repeated rows and no velocities."""
+
+from __future__ import annotations
+
+import importlib.metadata
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import prrrp
+from prrrp import cli, csvio
+
+URDF = importlib.metadata.distribution("example-robot-data").locate_file(
+    "cmeel.prefix/share/example-robot-data/robots/panda_description/urdf/panda.urdf"
+)
+FRICTION = np.tile([0.3, 0.8, 0.05], (7, 1))
+
+
+@pytest.fixture(scope="module")
+def truth():
+    chain = prrrp.SerialChain.from_urdf(str(URDF), tip="panda_link8")
+    return chain.with_friction("viscous+coulomb+offset", FRICTION, coulomb_smoothing=0.03)
+
+
+def log(truth, path: Path, seed: int, seconds: float, noise: float = 0.02) -> None:
+    rng = np.random.default_rng(seed)
+    t = np.arange(0.0, seconds, 0.002)
+    w = 2 * np.pi * 0.2 * np.arange(1, 5)
+    a = rng.normal(0, 0.4, (7, 4)) / np.arange(1, 5)
+    s, c = np.sin(np.outer(t, w)), np.cos(np.outer(t, w))
+    q, qd, qdd = s @ a.T, (c * w) @ a.T, -(s * w**2) @ a.T
+    tau = truth.inverse_dynamics(q, qd, qdd) + rng.normal(0, noise, q.shape)
+    rep = np.repeat(np.arange(len(t)), np.where(rng.random(len(t)) < 0.05, 2, 1))
+    path.write_text(csvio.format_measurements(t[rep], q[rep], tau[rep]))
+
+
+def test_identify_any_robot_then_predict(tmp_path: Path, truth, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    log(truth, tmp_path / "data.csv", 1, 24.0)
+    log(truth, tmp_path / "val.csv", 2, 12.0)
+    # The friction turns over within 0.03 rad/s; at joint accelerations of ~1 rad/s² that
+    # takes ~0.03 s, so the torque carries content up to ~15 Hz, which the low-pass must
+    # keep (at the default 10 Hz the smeared turnover costs up to 6 % on joint 3).
+    argv = ["identify", "data.csv", "--robot", str(URDF), "--tip", "panda_link8"]
+    code = cli.main([*argv, "--validate", "val.csv", "--out", "out", "--cutoff", "20"])
+    out = capsys.readouterr().out
+    assert code == 0, out
+    assert "Coulomb speed scale" in out
+    for name in ("model.json", "report.md", "torque.png", "residual.png", "friction.png"):
+        assert (tmp_path / "out" / name).is_file(), name
+    model = prrrp.IdentifiedModel.load(tmp_path / "out" / "model.json")
+    # The scale was found from the data (truth 0.03 rad/s) and recorded with the model.
+    assert 0.015 <= model.robot.coulomb_smoothing <= 0.06
+    assert model.preprocessing["report"]["repeated_rows"] > 0
+    report = (tmp_path / "out" / "report.md").read_text()
+    assert "## Base parameters" in report
+    assert "## Coulomb speed scale" in report
+    # Predict a third log with the saved model alone.
+    log(truth, tmp_path / "new.csv", 3, 12.0, noise=0.0)
+    code = cli.main(["predict", "out/model.json", "new.csv", "--out", "tau.csv"])
+    assert code == 0
+    table = np.loadtxt(tmp_path / "tau.csv", delimiter=",", skiprows=1)
+    raw = csvio.read_table(tmp_path / "new.csv", 7, real_log=True)
+    _, keep = np.unique(raw["t"], return_index=True)
+    t, q = raw["t"][keep], raw["q"][keep]
+    # Reference: the true robot's torque at the exact states of the grid the prediction
+    # was made on (the log's sines, evaluated at those times).
+    k = np.searchsorted(t, table[:, 0])
+    assert np.allclose(t[k], table[:, 0], atol=1e-9)
+    rng = np.random.default_rng(3)
+    w = 2 * np.pi * 0.2 * np.arange(1, 5)
+    a = rng.normal(0, 0.4, (7, 4)) / np.arange(1, 5)
+    tt = table[:, 0]
+    s, c = np.sin(np.outer(tt, w)), np.cos(np.outer(tt, w))
+    qq, qqd, qqdd = s @ a.T, (c * w) @ a.T, -(s * w**2) @ a.T
+    assert np.allclose(qq, q[k], atol=1e-12)
+    ref = truth.inverse_dynamics(qq, qqd, qqdd)
+    rel = np.sqrt(((table[:, 1:] - ref) ** 2).mean(axis=0) / (ref**2).mean(axis=0))
+    assert (rel < 0.03).all(), rel
+
+
+def test_identify_any_robot_bad_input(tmp_path: Path, truth, capsys):
+    log(truth, tmp_path / "data.csv", 1, 4.0)
+    base = ["identify", str(tmp_path / "data.csv"), "--robot", str(URDF), "--tip", "panda_link8"]
+    assert cli.main(base) == cli.EXIT_USAGE
+    assert "--out DIR is required" in capsys.readouterr().err
+    out = ["--out", str(tmp_path / "o")]
+    assert cli.main([*base, *out, "--coulomb-scale", "-1"]) == cli.EXIT_USAGE
+    assert ">= 0" in capsys.readouterr().err
+    assert cli.main([*base, *out, "--friction", "sticky"]) == cli.EXIT_USAGE
+    assert "unknown term 'sticky'" in capsys.readouterr().err
+    puma = tmp_path / "five.csv"
+    puma.write_text(
+        csvio.format_measurements(np.arange(50) * 0.01, np.zeros((50, 5)), np.zeros((50, 5)))
+    )
+    argv = ["identify", str(puma), "--robot", str(URDF), "--tip", "panda_link8", *out]
+    assert cli.main(argv) == cli.EXIT_USAGE
+    assert "missing columns 'q6', 'q7'" in capsys.readouterr().err
+    assert not (tmp_path / "o").exists()
+    assert cli.main(["identify", str(puma), "--method", "wls"]) == cli.EXIT_USAGE
+    assert "needs --robot" in capsys.readouterr().err
