@@ -94,12 +94,17 @@ pub use motion::excitation::{
     ExcitationResult, DEFAULT_EXCITATION_KNOTS,
 };
 pub use motion::limits::{limit_usage, JointLimits, LimitUsage};
+pub use motion::dyn_trajectory::{DynSampledTrajectory, FourierTrajectory};
+pub use motion::dynamics::{Dynamics, ParameterisedModel, ParameterisedWorkspace};
 pub use motion::simulation::{
-    rk4_step, simulate_closed_loop, simulate_open_loop, ComputedTorque, SensorNoise,
-    SimulationConfig, SimulationRecord, MAX_INTEGRATION_STEPS,
+    rk4_step, rk4_step_into, simulate_closed_loop, simulate_dyn_closed_loop,
+    simulate_dyn_open_loop, simulate_open_loop, ComputedTorque, DynComputedTorque,
+    DynSensorNoise, DynSimulationConfig, DynSimulationRecord, Rk4Integrator, SensorNoise,
+    SimulationConfig, SimulationRecord, MAX_INTEGRATION_STEPS, RK4_SCRATCH_PER_JOINT,
 };
 pub use motion::trajectory::{
-    sample_trajectory, ExcitationTrajectory, FourierSeries, JointTrajectory, PiecewiseQuintic,
+    sample_trajectory, DynTrajectory, ExcitationTrajectory, FourierSeries, JointTrajectory,
+    PiecewiseQuintic,
     Quintic, SampledTrajectory, ScalarTrajectory, Sinusoid, TrajectoryPoint,
 };
 pub use paper::sensitivity::{sensitivity, SensitivityConfig, SensitivityReport};
