@@ -117,8 +117,9 @@ pub use validation::metrics::{
     agreement_index, error_indices, relative_errors_percent, rms, rsd, ErrorIndices,
 };
 pub use validation::{
-    default_validation_reference, joint_indices, torque_prediction, validate, MethodValidation,
-    TorquePrediction, ValidationConfig, ValidationReport,
+    default_validation_reference, joint_indices, per_joint_indices, torque_prediction, validate,
+    validate_identified_model, validate_torque_prediction, MethodValidation, TorquePrediction,
+    TorqueValidation, ValidationConfig, ValidationReport,
 };
 
 /// Re-exported so that users name the same nalgebra and faer versions as the crate.
