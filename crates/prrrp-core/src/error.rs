@@ -72,9 +72,10 @@ pub enum PrrrpError {
     /// A simulation's state became NaN or infinite (it diverged): which signal, joint and
     /// time, so the setting to change (gains, step, parameters, torques) can be found.
     SimulationDiverged {
-        /// Output sample at which the non-finite state was found.
+        /// The output sample the integration was heading for when the state became
+        /// non-finite.
         sample: usize,
-        /// Time of that sample, s.
+        /// Time of the integration step at whose end the state was non-finite, s.
         time: f64,
         /// Index of the first non-finite joint (0-based).
         joint: usize,

@@ -397,7 +397,9 @@ pub const RK4_SCRATCH_PER_JOINT: usize = 5;
 ///
 /// # Errors
 /// [`PrrrpError::ShapeMismatch`] for slices of the wrong length; the errors of
-/// [`Dynamics::forward_dynamics_into`] (e.g. [`PrrrpError::NotPositiveDefinite`]).
+/// [`Dynamics::forward_dynamics_into`] (e.g. [`PrrrpError::NotPositiveDefinite`]);
+/// [`PrrrpError::SimulationDiverged`] if an intermediate stage state is NaN/∞ (with
+/// `sample` 0 and `time` 0: the simulators fill in where the step was).
 #[inline]
 pub fn rk4_step_into<D: Dynamics + ?Sized>(
     plant: &D,
@@ -425,6 +427,21 @@ pub fn rk4_step_into<D: Dynamics + ?Sized>(
     let (v, rest) = rest.split_at_mut(n);
     let sq = &mut rest[..n];
     let (half, sixth) = (0.5 * h, h / 6.0);
+    // A stage state that overflowed is a blow-up of the integration, not a property of the
+    // model at that state (its mass matrix at NaN would fail as "not positive definite").
+    let stage_diverged = |qs: &[f64], v: &[f64]| -> Result<()> {
+        for (signal, x) in [("q", qs), ("qd", v)] {
+            if let Some(joint) = x.iter().position(|x| !x.is_finite()) {
+                return Err(PrrrpError::SimulationDiverged {
+                    sample: 0,
+                    time: 0.0,
+                    joint,
+                    signal,
+                });
+            }
+        }
+        Ok(())
+    };
     // Stage sums are accumulated in the order (x1 + 2·x2) + 2·x3 + x4 of the textbook
     // formula, so the result does not depend on how the stages are stored.
     plant.forward_dynamics_into(ws, q, qd, tau, a)?;
@@ -434,6 +451,7 @@ pub fn rk4_step_into<D: Dynamics + ?Sized>(
         v[j] = qd[j] + half * a[j];
         sq[j] = qd[j] + 2.0 * v[j];
     }
+    stage_diverged(qs, v)?;
     plant.forward_dynamics_into(ws, qs, v, tau, a)?;
     for j in 0..n {
         sa[j] += 2.0 * a[j];
@@ -441,6 +459,7 @@ pub fn rk4_step_into<D: Dynamics + ?Sized>(
         v[j] = qd[j] + half * a[j];
         sq[j] += 2.0 * v[j];
     }
+    stage_diverged(qs, v)?;
     plant.forward_dynamics_into(ws, qs, v, tau, a)?;
     for j in 0..n {
         sa[j] += 2.0 * a[j];
@@ -448,6 +467,7 @@ pub fn rk4_step_into<D: Dynamics + ?Sized>(
         v[j] = qd[j] + h * a[j];
         sq[j] += v[j];
     }
+    stage_diverged(qs, v)?;
     plant.forward_dynamics_into(ws, qs, v, tau, a)?;
     for j in 0..n {
         sa[j] += a[j];
@@ -733,6 +753,19 @@ fn check_diverged(q: &[f64], qd: &[f64], k: usize, t: f64) -> Result<()> {
     Ok(())
 }
 
+/// A divergence inside an RK4 step, placed at the step's sample and end time.
+fn at_step(e: PrrrpError, sample: usize, time: f64) -> PrrrpError {
+    match e {
+        PrrrpError::SimulationDiverged { joint, signal, .. } => PrrrpError::SimulationDiverged {
+            sample,
+            time,
+            joint,
+            signal,
+        },
+        other => other,
+    }
+}
+
 fn check_dofs(n: usize, pairs: &[(&str, usize)]) -> Result<()> {
     if n == 0 {
         return Err(PrrrpError::InvalidParameter {
@@ -854,9 +887,12 @@ where
                 reference.eval_into(ts, &mut q_r, &mut qd_r, &mut qdd_r);
                 ctrl.torque_into((&q_r, &qd_r, &qdd_r), &q, &qd, &mut tau)?;
             }
-            rk.step(&mut q, &mut qd, &tau, h)?;
+            rk.step(&mut q, &mut qd, &tau, h)
+                .map_err(|e| at_step(e, k + 1, t + h * (s + 1) as f64))?;
+            // Checked at every step, so that a blow-up is reported as such with its time
+            // rather than as a failure of the next step's dynamics at a NaN state.
+            check_diverged(&q, &qd, k + 1, t + h * (s + 1) as f64)?;
         }
-        check_diverged(&q, &qd, k + 1, config.dt * (k + 1) as f64)?;
     }
     Ok(rec)
 }
@@ -925,10 +961,12 @@ pub fn simulate_dyn_open_loop<P: Dynamics + ?Sized>(
         if k + 1 == samples {
             break;
         }
-        for _ in 0..config.substeps {
-            rk.step(&mut q, &mut qd, tk, h)?;
+        let t = config.dt * k as f64;
+        for s in 0..config.substeps {
+            rk.step(&mut q, &mut qd, tk, h)
+                .map_err(|e| at_step(e, k + 1, t + h * (s + 1) as f64))?;
+            check_diverged(&q, &qd, k + 1, t + h * (s + 1) as f64)?;
         }
-        check_diverged(&q, &qd, k + 1, config.dt * (k + 1) as f64)?;
     }
     Ok(rec)
 }
