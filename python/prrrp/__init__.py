@@ -28,6 +28,8 @@ from prrrp._prrrp import (
     STANDARD_GRAVITY,
     Adaline,
     BaseParameters,
+    ChainSimulation,
+    ChainTrajectory,
     Dataset,
     DivergedError,
     Ekf,
@@ -70,11 +72,14 @@ from prrrp._prrrp import (
     rsd,
     run_study_json,
     sensitivity,
+    simulate_chain,
+    simulate_chain_open_loop,
     simulate_closed_loop,
     simulate_open_loop,
     singular_values,
     torque_prediction,
     validate,
+    validate_model,
 )
 from prrrp.measurements import measurements_to_dataset, read_measurements
 from prrrp.workflow import Identification, identify_measurements, load_robot
@@ -85,6 +90,8 @@ __all__ = [
     "STANDARD_GRAVITY",
     "Adaline",
     "BaseParameters",
+    "ChainSimulation",
+    "ChainTrajectory",
     "Dataset",
     "DivergedError",
     "Ekf",
@@ -132,11 +139,14 @@ __all__ = [
     "rsd",
     "run_study",
     "sensitivity",
+    "simulate_chain",
+    "simulate_chain_open_loop",
     "simulate_closed_loop",
     "simulate_open_loop",
     "singular_values",
     "torque_prediction",
     "validate",
+    "validate_model",
 ]
 
 

@@ -1029,3 +1029,158 @@ def sensitivity(
     `points` factors in [1 − range, 1 + range] (0 < range < 1), the others nominal (default
     Table 3), each run tracking `reference` under the nominal controller without noise.
     threads = 0 uses every core. Runs in Rust with the GIL released."""
+
+# --- simulation and validation of any chain -----------------------------------------------
+
+class ChainTrajectory:
+    """A reference trajectory of n joints (any robot): per-joint Fourier series, one
+    sinusoid per joint, or a recorded trajectory. Units: m, rad; m/s, rad/s; m/s², rad/s²."""
+
+    @staticmethod
+    def fourier(
+        omega: float, offsets: _ArrayLike, a: _ArrayLike, b: _ArrayLike
+    ) -> ChainTrajectory:
+        """Finite Fourier series (Swevers 1997) with base angular frequency `omega` (rad/s,
+        > 0), offsets q0 (n,) and sine/cosine coefficients a, b (n, H) in velocity units:
+        q_j = q0_j + Σ_l [a_jl/(ω·l)·sin(ω·l·t) − b_jl/(ω·l)·cos(ω·l·t)]. Periodic, so
+        defined for every t (end_time None). Starts at rest when Σ_l a_jl = 0 and
+        Σ_l l·b_jl = 0."""
+    @staticmethod
+    def sinusoids(
+        offset: _ArrayLike,
+        amplitude: _ArrayLike,
+        omega: _ArrayLike,
+        phase: _ArrayLike | None = None,
+    ) -> ChainTrajectory:
+        """q_j = offset_j + amplitude_j·sin(omega_j·t + phase_j); offset (n,) sets n, the
+        others are scalars or (n,); phase defaults to 0 (rad)."""
+    @staticmethod
+    def sampled(
+        t: _ArrayLike, q: _ArrayLike, qd: _ArrayLike, qdd: _ArrayLike
+    ) -> ChainTrajectory:
+        """A recorded trajectory: t (N,) s strictly increasing (taken relative to t[0]),
+        q, qd, qdd (N, n); interpolated by the quintic matching (q, q̇, q̈) at both ends of
+        each interval; ends at the last sample."""
+    @property
+    def dof(self) -> int:
+        """Number of joints n."""
+    @property
+    def end_time(self) -> float | None:
+        """Last time at which the trajectory is defined (s), or None."""
+    def eval(self, t: _ArrayLike) -> tuple[_F64, _F64, _F64]:
+        """(q, qd, qdd) at a scalar t (each (n,)) or at t of shape (N,) (each (N, n))."""
+
+class ChainSimulation:
+    """What `simulate_chain` / `simulate_chain_open_loop` recorded at t_k = k/rate. The true
+    signals are consistent: tau[k] = inverse dynamics of the chain at (q, qd, qdd)[k]."""
+
+    @property
+    def dof(self) -> int:
+        """Number of joints n."""
+    def __len__(self) -> int: ...
+    @property
+    def t(self) -> _F64:
+        """Time stamps (N,), s."""
+    @property
+    def q(self) -> _F64:
+        """True positions (N, n), m or rad."""
+    @property
+    def qd(self) -> _F64:
+        """True velocities (N, n)."""
+    @property
+    def qdd(self) -> _F64:
+        """True accelerations (N, n) at the sample instant, under the torque applied from it."""
+    @property
+    def tau(self) -> _F64:
+        """Applied torques (N, n), N or N·m, held from the sample instant."""
+    @property
+    def q_ref(self) -> _F64 | None:
+        """Reference positions (N, n); None for open-loop runs."""
+    @property
+    def qd_ref(self) -> _F64 | None:
+        """Reference velocities (N, n); None for open-loop runs."""
+    @property
+    def qdd_ref(self) -> _F64 | None:
+        """Reference accelerations (N, n); None for open-loop runs."""
+    @property
+    def q_measured(self) -> _F64:
+        """q plus Gaussian noise (N, n)."""
+    @property
+    def qd_measured(self) -> _F64 | None:
+        """qd plus Gaussian noise (N, n); None unless qd_noise was given."""
+    @property
+    def tau_measured(self) -> _F64:
+        """tau plus Gaussian noise (N, n)."""
+    def true_dataset(self) -> Dataset:
+        """The noise-free (t, q, qd, qdd, tau) as a Dataset (at least 14 samples)."""
+    def measured_dataset(self, **kwargs: Any) -> tuple[Dataset, dict[str, Any]]:
+        """`preprocess_log(t, q_measured, tau_measured, qd=qd_measured, **kwargs)`: the
+        Dataset an estimator would see on the real robot, and the preprocessing report."""
+
+def simulate_chain(
+    chain: SerialChain,
+    reference: ChainTrajectory | Dataset | Mapping[str, _ArrayLike] | tuple[Any, ...],
+    duration: float,
+    *,
+    rate: float = 100.0,
+    substeps: int = 10,
+    controller: SerialChain | None = None,
+    kp: _ArrayLike | None = None,
+    kd: _ArrayLike | None = None,
+    q_noise: _ArrayLike | None = None,
+    qd_noise: _ArrayLike | None = None,
+    tau_noise: _ArrayLike | None = None,
+    seed: int = 0,
+) -> ChainSimulation:
+    """Simulates `chain` (its inertials and friction) tracking `reference` (a
+    ChainTrajectory, a Dataset, a dict with t, q, qd, qdd, or a tuple (t, q, qd, qdd)) from
+    t = 0 to `duration` s, starting on it, under computed-torque control
+    τ = ID_ctrl(q, q̇, q̈_r + kd·(q̇_r − q̇) + kp·(q_r − q)) with the model `controller`
+    (default: the chain itself). RK4 with `substeps` steps per sample of `rate` Hz; the
+    controller updates at every step. kp (1/s², default 400), kd (1/s, default 40) and the
+    Gaussian noise stds q_noise (m, rad), qd_noise (m/s, rad/s; velocities are measured
+    only when given), tau_noise (N, N·m) are scalars or (n,); noise defaults to none.
+    Seeded (ChaCha8). Runs in Rust with the GIL released; Ctrl-C interrupts. Raises
+    ShapeMismatchError for joint-count mismatches, InvalidParameterError for bad rates,
+    gains, noise or durations, DivergedError (attributes at, time, joint, signal) if the
+    state becomes NaN/∞."""
+
+def simulate_chain_open_loop(
+    chain: SerialChain,
+    q0: _ArrayLike,
+    qd0: _ArrayLike,
+    tau: _ArrayLike,
+    *,
+    rate: float = 100.0,
+    substeps: int = 10,
+    q_noise: _ArrayLike | None = None,
+    qd_noise: _ArrayLike | None = None,
+    tau_noise: _ArrayLike | None = None,
+    seed: int = 0,
+) -> ChainSimulation:
+    """Simulates `chain` from (q0, qd0) (n,) under the torques tau (N, n), row k held over
+    [k/rate, (k+1)/rate) (zero-order hold). No reference (q_ref etc. are None)."""
+
+class _TorqueValidation(TypedDict):
+    rms: _F64
+    """(n,) RMS of measured minus predicted torque per joint, N or N·m."""
+    rsd: _F64
+    """(n,) ‖τ − τ̂‖/‖τ‖ per joint (dimensionless; 0 is perfect)."""
+    ai: _F64
+    """(n,) Willmott's agreement index per joint, in [0, 1] (1 is perfect)."""
+    predicted: _F64
+    """(N, n) predicted torques."""
+
+def validate_model(
+    model: IdentifiedModel | SerialChain,
+    data: Dataset,
+    *,
+    beta: _ArrayLike | None = None,
+    base: BaseParameters | None = None,
+) -> _TorqueValidation:
+    """Torque-prediction validation on a Dataset the model was not fitted on: predicts
+    data's torques from its (q, qd, qdd) and compares them with data.tau per joint (paper
+    eqs. 45–47). `model` is an IdentifiedModel (τ̂ = Y_b·β̂), or a SerialChain with its
+    own parameters, or a SerialChain with base parameters `beta` in the analysis `base`
+    (default the chain's `base_parameters()`). Raises ShapeMismatchError if data's joint
+    count is not the model's."""

@@ -69,6 +69,19 @@ pub enum PrrrpError {
         /// What to change.
         hint: &'static str,
     },
+    /// A simulation's state became NaN or infinite (it diverged): which signal, joint and
+    /// time, so the setting to change (gains, step, parameters, torques) can be found.
+    SimulationDiverged {
+        /// The output sample the integration was heading for when the state became
+        /// non-finite.
+        sample: usize,
+        /// Time of the integration step at whose end the state was non-finite, s.
+        time: f64,
+        /// Index of the first non-finite joint (0-based).
+        joint: usize,
+        /// `"q"` or `"qd"`.
+        signal: &'static str,
+    },
     /// A constrained problem (e.g. excitation under joint limits) has no feasible answer.
     Infeasible {
         /// What could not be met.
@@ -154,6 +167,16 @@ impl fmt::Display for PrrrpError {
             Self::Diverged { what, at, hint } => {
                 write!(f, "{what} diverged at sample/iteration {at}: {hint}")
             }
+            Self::SimulationDiverged {
+                sample,
+                time,
+                joint,
+                signal,
+            } => write!(
+                f,
+                "simulation diverged: {signal}[{joint}] (joint {}) is NaN/∞ at t = {time} s                  (sample {sample}); check the torques, gains and parameters (a non-physical                  model), or increase substeps",
+                joint + 1
+            ),
             Self::Infeasible { what } => write!(f, "infeasible: {what}"),
             Self::Interrupted { what } => write!(f, "{what} interrupted"),
             Self::NonIncreasingTime { row } => {

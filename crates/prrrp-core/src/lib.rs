@@ -98,12 +98,17 @@ pub use motion::excitation::{
     ExcitationResult, DEFAULT_EXCITATION_KNOTS,
 };
 pub use motion::limits::{limit_usage, JointLimits, LimitUsage};
+pub use motion::dyn_trajectory::{DynSampledTrajectory, FourierTrajectory};
+pub use motion::dynamics::{Dynamics, ParameterisedModel, ParameterisedWorkspace};
 pub use motion::simulation::{
-    rk4_step, simulate_closed_loop, simulate_open_loop, ComputedTorque, SensorNoise,
-    SimulationConfig, SimulationRecord, MAX_INTEGRATION_STEPS,
+    rk4_step, rk4_step_into, simulate_closed_loop, simulate_dyn_closed_loop,
+    simulate_dyn_open_loop, simulate_open_loop, ComputedTorque, DynComputedTorque,
+    DynSensorNoise, DynSimulationConfig, DynSimulationRecord, Rk4Integrator, SensorNoise,
+    SimulationConfig, SimulationRecord, MAX_INTEGRATION_STEPS, RK4_SCRATCH_PER_JOINT,
 };
 pub use motion::trajectory::{
-    sample_trajectory, ExcitationTrajectory, FourierSeries, JointTrajectory, PiecewiseQuintic,
+    sample_trajectory, DynTrajectory, ExcitationTrajectory, FourierSeries, JointTrajectory,
+    PiecewiseQuintic,
     Quintic, SampledTrajectory, ScalarTrajectory, Sinusoid, TrajectoryPoint,
 };
 pub use paper::sensitivity::{sensitivity, SensitivityConfig, SensitivityReport};
@@ -116,8 +121,9 @@ pub use validation::metrics::{
     agreement_index, error_indices, relative_errors_percent, rms, rsd, ErrorIndices,
 };
 pub use validation::{
-    default_validation_reference, joint_indices, torque_prediction, validate, MethodValidation,
-    TorquePrediction, ValidationConfig, ValidationReport,
+    default_validation_reference, joint_indices, per_joint_indices, torque_prediction, validate,
+    validate_identified_model, validate_torque_prediction, MethodValidation, TorquePrediction,
+    TorqueValidation, ValidationConfig, ValidationReport,
 };
 
 /// Re-exported so that users name the same nalgebra and faer versions as the crate.

@@ -257,6 +257,23 @@ pub(crate) fn to_pyerr(py: Python<'_>, err: &PrrrpError) -> PyErr {
             msg,
             &attrs!("what" => *what, "at" => *at, "hint" => *hint),
         ),
+        PrrrpError::SimulationDiverged {
+            sample,
+            time,
+            joint,
+            signal,
+        } => Exc::Diverged.new_err(
+            py,
+            msg,
+            &attrs!(
+                "what" => "simulation",
+                "at" => *sample,
+                "hint" => "check the torques, gains and parameters, or increase substeps",
+                "time" => *time,
+                "joint" => *joint,
+                "signal" => *signal,
+            ),
+        ),
         PrrrpError::Infeasible { what } => {
             Exc::Infeasible.new_err(py, msg, &attrs!("what" => what.as_str()))
         }

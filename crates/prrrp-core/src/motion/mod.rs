@@ -1,6 +1,9 @@
-//! Motion: joint trajectories, the paper's excitation design, joint limits, and
-//! closed- and open-loop simulation.
+//! Motion: joint trajectories (the paper arm's and any robot's), the paper's excitation
+//! design, joint limits, the dynamics a simulator needs, and closed- and open-loop
+//! simulation.
 
+pub(crate) mod dyn_trajectory;
+pub(crate) mod dynamics;
 pub(crate) mod excitation;
 pub(crate) mod limits;
 pub(crate) mod simulation;

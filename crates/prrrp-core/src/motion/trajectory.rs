@@ -3,6 +3,12 @@
 //! and finite Fourier series (Swevers et al. 1997).
 //!
 //! Every type here is `Copy`, fixed-size, and evaluates without touching the heap.
+//!
+//! Two trajectory traits: [`DynTrajectory`] for any number of joints known at run time
+//! (the simulators take it; values written into slices), and [`JointTrajectory`], the
+//! paper arm's five joints as [`Vec5`] values. Every [`JointTrajectory`] is a
+//! [`DynTrajectory`] of 5 joints, and a slice or `Vec` of one-joint trajectories
+//! ([`ScalarTrajectory`]) is a [`DynTrajectory`] of as many joints.
 
 use crate::error::{PrrrpError, Result};
 use crate::models::prrrp::types::{Vec5, NDOF};
@@ -35,6 +41,77 @@ pub trait JointTrajectory {
     /// rather than extrapolate a polynomial.
     fn end_time(&self) -> Option<f64> {
         None
+    }
+}
+
+/// A trajectory of n joints, n known at run time: what the simulators follow.
+///
+/// Implementations must not allocate in [`DynTrajectory::eval_into`].
+pub trait DynTrajectory {
+    /// Number of joints n.
+    fn dof(&self) -> usize;
+
+    /// Positions, velocities and accelerations of every joint at time `t` (s), written
+    /// into `q`, `qd`, `qdd` (m, rad; m/s, rad/s; m/s², rad/s²), each n entries long
+    /// (callers check the lengths once; entries beyond the shorter of a slice and n are
+    /// left alone rather than panicking).
+    fn eval_into(&self, t: f64, q: &mut [f64], qd: &mut [f64], qdd: &mut [f64]);
+
+    /// The last time at which the trajectory is defined, s; `None` (the default) when it
+    /// is defined for every t ≥ 0. Simulations refuse to run past it.
+    fn end_time(&self) -> Option<f64> {
+        None
+    }
+}
+
+/// The paper arm's trajectories are 5-joint [`DynTrajectory`]s.
+impl<T: JointTrajectory + ?Sized> DynTrajectory for T {
+    #[inline]
+    fn dof(&self) -> usize {
+        NDOF
+    }
+
+    #[inline]
+    fn eval_into(&self, t: f64, q: &mut [f64], qd: &mut [f64], qdd: &mut [f64]) {
+        let p = self.eval(t);
+        for (dst, src) in [(q, &p.q), (qd, &p.qd), (qdd, &p.qdd)] {
+            for (d, s) in dst.iter_mut().zip(src.iter()) {
+                *d = *s;
+            }
+        }
+    }
+
+    fn end_time(&self) -> Option<f64> {
+        JointTrajectory::end_time(self)
+    }
+}
+
+/// Independent one-joint trajectories, joint i driven by entry i: e.g. a `Vec` of
+/// [`Sinusoid`]s or of [`FourierSeries`] for a robot of any size.
+impl<S: ScalarTrajectory> DynTrajectory for [S] {
+    #[inline]
+    fn dof(&self) -> usize {
+        self.len()
+    }
+
+    #[inline]
+    fn eval_into(&self, t: f64, q: &mut [f64], qd: &mut [f64], qdd: &mut [f64]) {
+        for (((s, q), qd), qdd) in self.iter().zip(q).zip(qd).zip(qdd) {
+            (*q, *qd, *qdd) = s.eval(t);
+        }
+    }
+}
+
+/// As the slice: one one-joint trajectory per joint.
+impl<S: ScalarTrajectory> DynTrajectory for Vec<S> {
+    #[inline]
+    fn dof(&self) -> usize {
+        self.len()
+    }
+
+    #[inline]
+    fn eval_into(&self, t: f64, q: &mut [f64], qd: &mut [f64], qdd: &mut [f64]) {
+        self.as_slice().eval_into(t, q, qd, qdd)
     }
 }
 
@@ -113,7 +190,7 @@ impl Quintic {
 
 /// Coefficients of the quintic on [0, h] matching (q, q̇, q̈) at both ends.
 #[inline]
-fn hermite_quintic(
+pub(crate) fn hermite_quintic(
     h: f64,
     (q0, v0, a0): (f64, f64, f64),
     (q1, v1, a1): (f64, f64, f64),

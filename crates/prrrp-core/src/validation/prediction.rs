@@ -6,11 +6,20 @@
 //! true robot (RMS, RSD, AI, eqs. 45–47). Under a tracking controller those trajectories
 //! barely depend on λ̂ (the paper's indices are all ≈ 0 / 1), so we also predict the
 //! measured torques with Φ·λ̂, which separates good from bad estimates.
+//!
+//! For any robot, [`validate_torque_prediction`] (a [`Dynamics`] model: a chain, a base
+//! model at β̂) and [`validate_identified_model`] (an [`IdentifiedModel`]) predict the
+//! torques of a [`DynDataset`] the model was not fitted on and report RMS, RSD and the
+//! agreement index per joint ([`TorqueValidation`]). The paper arm's functions run
+//! through the same prediction loop and per-joint indices.
 
 use crate::data::dataset::Dataset;
+use crate::data::DynDataset;
 use crate::error::{PrrrpError, Result};
+use crate::identification::IdentifiedModel;
 use crate::models::prrrp::dynamics::PrrrpModel;
 use crate::models::prrrp::types::{Lambda, Vec5, NDOF};
+use crate::motion::dynamics::{Dynamics, ParameterisedModel};
 use crate::motion::simulation::{simulate_closed_loop, SimulationConfig, SimulationRecord};
 use crate::motion::trajectory::{JointTrajectory, Sinusoid};
 use crate::validation::metrics::{error_indices, ErrorIndices};
@@ -86,9 +95,13 @@ pub fn torque_prediction(
             row: None,
         });
     }
-    let predicted: Vec<Vec5> = (0..data.len())
-        .map(|k| model.inverse_dynamics(&data.q()[k], &data.qd()[k], &data.qdd()[k], lambda))
-        .collect();
+    let plant = ParameterisedModel::new(*model, *lambda)?;
+    let mut ws = plant.workspace();
+    let rows = DynDataset::from(data);
+    let flat = predict_with(&rows, |q, qd, qdd, tau| {
+        plant.inverse_dynamics_into(&mut ws, q, qd, qdd, tau)
+    })?;
+    let predicted: Vec<Vec5> = flat.chunks_exact(NDOF).map(Vec5::from_column_slice).collect();
     let n = data.len().max(1) as f64;
     let mut rms = [0.0; NDOF];
     let mut relative_percent = [0.0; NDOF];
@@ -218,15 +231,191 @@ pub fn validate(
 /// # Errors
 /// As [`error_indices`].
 pub fn joint_indices(observed: &[Vec5], predicted: &[Vec5]) -> Result<[ErrorIndices; NDOF]> {
+    let flat = |v: &[Vec5]| -> Vec<f64> { v.iter().flat_map(|x| x.iter().copied()).collect() };
+    let v = per_joint_indices(NDOF, &flat(observed), &flat(predicted))?;
     let mut out = [ErrorIndices {
         rms: 0.0,
         rsd: 0.0,
         ai: 1.0,
     }; NDOF];
-    for (j, slot) in out.iter_mut().enumerate() {
-        let o: Vec<f64> = observed.iter().map(|v| v[j]).collect();
-        let p: Vec<f64> = predicted.iter().map(|v| v[j]).collect();
-        *slot = error_indices(&o, &p)?;
+    out.copy_from_slice(&v);
+    Ok(out)
+}
+
+/// RMS, RSD and AI ([`error_indices`]) of each of `n` joints between two flat row-major
+/// (samples × n) series: joint j's column is entries j, j + n, j + 2n, ….
+///
+/// # Errors
+/// [`PrrrpError::ShapeMismatch`] if the lengths differ or are not multiples of n; the
+/// errors of [`error_indices`], with the joint named for an undefined RSD (a column
+/// observed as identically zero but predicted otherwise).
+pub fn per_joint_indices(
+    n: usize,
+    observed: &[f64],
+    predicted: &[f64],
+) -> Result<Vec<ErrorIndices>> {
+    if n == 0 || observed.len() % n != 0 || predicted.len() != observed.len() {
+        return Err(PrrrpError::ShapeMismatch {
+            what: "predicted".into(),
+            expected: format!(
+                "{} values, rows of n = {n} joints (as observed)",
+                observed.len()
+            ),
+            got: format!("{} values", predicted.len()),
+        });
+    }
+    let column = |v: &[f64], j: usize| -> Vec<f64> { v.iter().skip(j).step_by(n).copied().collect() };
+    (0..n)
+        .map(|j| {
+            error_indices(&column(observed, j), &column(predicted, j)).map_err(|e| match e {
+                PrrrpError::InvalidParameter { value, reason, .. } => {
+                    PrrrpError::InvalidParameter {
+                        field: format!("observed[{j}] (joint {})", j + 1),
+                        value,
+                        reason,
+                    }
+                }
+                other => other,
+            })
+        })
+        .collect()
+}
+
+/// Predicted torques of every sample of `data` (flat row-major samples × n) by `predict`,
+/// which writes τ̂(q, q̇, q̈) into its last argument without allocating.
+fn predict_with(
+    data: &DynDataset,
+    mut predict: impl FnMut(&[f64], &[f64], &[f64], &mut [f64]) -> Result<()>,
+) -> Result<Vec<f64>> {
+    let n = data.dof();
+    let mut out = vec![0.0; n * data.len()];
+    for (k, tau) in out.chunks_exact_mut(n).enumerate() {
+        if k % 4096 == 0 {
+            crate::interrupt::check("torque prediction")?;
+        }
+        predict(data.q_row(k), data.qd_row(k), data.qdd_row(k), tau).map_err(|e| match e {
+            PrrrpError::NonFinite { what, .. } => PrrrpError::NonFinite { what, row: Some(k) },
+            other => other,
+        })?;
     }
     Ok(out)
+}
+
+/// Torque-prediction validation of a model of a robot with n joints on a data set it was
+/// not fitted on ([`validate_torque_prediction`], [`validate_identified_model`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct TorqueValidation {
+    dof: usize,
+    /// RMS (N, N·m), RSD (dimensionless) and agreement index of measured against predicted
+    /// torque, per joint (paper eqs. 45–47; perfect prediction: 0, 0, 1).
+    pub indices: Vec<ErrorIndices>,
+    /// The predicted torques τ̂(q, q̇, q̈), flat row-major (samples × n).
+    pub predicted: Vec<f64>,
+}
+
+impl TorqueValidation {
+    /// Number of joints n.
+    pub fn dof(&self) -> usize {
+        self.dof
+    }
+
+    /// Number of samples.
+    pub fn len(&self) -> usize {
+        self.predicted.len() / self.dof.max(1)
+    }
+
+    /// True if there are no samples (never, for a report from a valid data set).
+    pub fn is_empty(&self) -> bool {
+        self.predicted.is_empty()
+    }
+
+    /// RMS of τ − τ̂ per joint (N, N·m).
+    pub fn rms(&self) -> Vec<f64> {
+        self.indices.iter().map(|e| e.rms).collect()
+    }
+
+    /// RSD ‖τ − τ̂‖/‖τ‖ per joint (dimensionless; ×100 for the relative error in %).
+    pub fn rsd(&self) -> Vec<f64> {
+        self.indices.iter().map(|e| e.rsd).collect()
+    }
+
+    /// Willmott's agreement index per joint, in [0, 1].
+    pub fn agreement_index(&self) -> Vec<f64> {
+        self.indices.iter().map(|e| e.ai).collect()
+    }
+}
+
+fn check_dof(model: usize, data: &DynDataset) -> Result<()> {
+    if data.dof() != model {
+        return Err(PrrrpError::ShapeMismatch {
+            what: "data".into(),
+            expected: format!("{model} joints (the model's)"),
+            got: format!("{} joints", data.dof()),
+        });
+    }
+    Ok(())
+}
+
+fn report(data: &DynDataset, predicted: Vec<f64>) -> Result<TorqueValidation> {
+    let indices = per_joint_indices(data.dof(), data.tau(), &predicted)?;
+    Ok(TorqueValidation {
+        dof: data.dof(),
+        indices,
+        predicted,
+    })
+}
+
+/// Predicts the torques of `data` with the inverse dynamics of `model` (e.g. a
+/// [`crate::DynChain`] with its parameters, or [`ParameterisedModel`] of a
+/// [`crate::DynChainBaseModel`] at identified β̂) and compares them with the measured
+/// torques of `data`, per joint.
+///
+/// ```
+/// use prrrp_core::{validate_torque_prediction, DynDataset, SerialChain};
+/// let puma = SerialChain::puma560().to_dyn();
+/// let rows = 20;
+/// let t: Vec<f64> = (0..rows).map(|k| 0.01 * k as f64).collect();
+/// let q: Vec<f64> = (0..rows * 6).map(|i| (0.1 * i as f64).sin()).collect();
+/// let (qd, qdd) = (vec![0.3; rows * 6], vec![-0.2; rows * 6]);
+/// let tau = (0..rows)
+///     .flat_map(|k| {
+///         let r = 6 * k..6 * k + 6;
+///         puma.inverse_dynamics(&q[r.clone()], &qd[r.clone()], &qdd[r]).unwrap()
+///     })
+///     .collect();
+/// let data = DynDataset::new(6, t, q, qd, qdd, tau)?;
+/// let v = validate_torque_prediction(&puma, &data)?;
+/// assert!(v.rms().iter().all(|&r| r < 1e-12));
+/// # Ok::<(), prrrp_core::PrrrpError>(())
+/// ```
+///
+/// # Errors
+/// [`PrrrpError::ShapeMismatch`] if the data's joint count is not the model's; the
+/// errors of the model's inverse dynamics and of [`per_joint_indices`].
+pub fn validate_torque_prediction<D: Dynamics + ?Sized>(
+    model: &D,
+    data: &DynDataset,
+) -> Result<TorqueValidation> {
+    check_dof(model.dof(), data)?;
+    let mut ws = model.workspace();
+    let predicted = predict_with(data, |q, qd, qdd, tau| {
+        model.inverse_dynamics_into(&mut ws, q, qd, qdd, tau)
+    })?;
+    report(data, predicted)
+}
+
+/// Predicts the torques of `data` with an identified model (τ̂ = Y_b·β̂, through its
+/// [`crate::Predictor`]) and compares them with the measured torques of `data`, per
+/// joint.
+///
+/// # Errors
+/// As [`validate_torque_prediction`] and [`IdentifiedModel::predictor`].
+pub fn validate_identified_model(
+    model: &IdentifiedModel,
+    data: &DynDataset,
+) -> Result<TorqueValidation> {
+    let mut p = model.predictor()?;
+    check_dof(p.chain().dof(), data)?;
+    let predicted = predict_with(data, |q, qd, qdd, tau| p.predict_into(q, qd, qdd, tau))?;
+    report(data, predicted)
 }

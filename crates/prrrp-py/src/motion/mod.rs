@@ -1,4 +1,5 @@
 //! Bindings of motion: trajectories and simulation.
 
+pub(crate) mod chain_simulation;
 pub(crate) mod simulation;
 pub(crate) mod trajectories;

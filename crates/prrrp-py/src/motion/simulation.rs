@@ -164,5 +164,6 @@ fn simulate_open_loop<'py>(
 pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(simulate_closed_loop, m)?)?;
     m.add_function(wrap_pyfunction!(simulate_open_loop, m)?)?;
+    crate::motion::chain_simulation::register(m)?;
     Ok(())
 }

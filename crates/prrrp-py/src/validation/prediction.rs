@@ -4,16 +4,19 @@
 
 use prrrp_core::{
     sensitivity as core_sensitivity, torque_prediction as core_torque, validate as core_validate,
-    ErrorIndices, Lambda, PrrrpError, Robot, SensitivityConfig, TorquePrediction, ValidationConfig,
-    NDOF, NPARAM, STANDARD_GRAVITY,
+    validate_identified_model, validate_torque_prediction, ErrorIndices, Lambda,
+    ParameterisedModel, PrrrpError, Robot, SensitivityConfig, TorquePrediction, TorqueValidation,
+    ValidationConfig, NDOF, NPARAM, STANDARD_GRAVITY,
 };
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
 
 use numpy::PyArrayMethods;
 
-use crate::arrays::{fixed_or, fixed_vector, rows_to_array, to_array, UInt};
-use crate::data::dataset::dataset_from;
+use crate::arrays::{fixed_or, fixed_vector, rows_to_array, to_array, vector, UInt};
+use crate::data::dataset::{dataset_from, PyDataset};
+use crate::identification::PyIdentifiedModel;
+use crate::models::chain::{PyBaseParameters, PySerialChain};
 use crate::errors::{to_pyerr, ToPyResult};
 use crate::interrupt::interruptible;
 use crate::motion::simulation::{config as sim_config, record_dict};
@@ -230,7 +233,77 @@ fn sensitivity<'py>(
     Ok(out)
 }
 
+fn torque_validation_dict<'py>(
+    py: Python<'py>,
+    v: &TorqueValidation,
+) -> PyResult<Bound<'py, PyDict>> {
+    let n = v.dof();
+    let d = PyDict::new(py);
+    d.set_item("rms", to_array(py, v.rms(), None, &[n])?)?;
+    d.set_item("rsd", to_array(py, v.rsd(), None, &[n])?)?;
+    d.set_item("ai", to_array(py, v.agreement_index(), None, &[n])?)?;
+    d.set_item(
+        "predicted",
+        to_array(py, v.predicted.clone(), Some(v.len()), &[n])?,
+    )?;
+    Ok(d)
+}
+
+/// Torque-prediction validation of a model of any robot on a `Dataset` it was not fitted
+/// on; see `_prrrp.pyi`.
+#[pyfunction]
+#[pyo3(signature = (model, data, *, beta=None, base=None))]
+fn validate_model<'py>(
+    py: Python<'py>,
+    model: &Bound<'py, PyAny>,
+    data: PyRef<'py, PyDataset>,
+    beta: Option<&Bound<'py, PyAny>>,
+    base: Option<PyRef<'py, PyBaseParameters>>,
+) -> PyResult<Bound<'py, PyDict>> {
+    let data = &data.inner;
+    let report = if let Ok(m) = model.extract::<PyRef<'_, PyIdentifiedModel>>() {
+        if beta.is_some() || base.is_some() {
+            return Err(to_pyerr(
+                py,
+                &PrrrpError::InvalidParameter {
+                    field: "beta/base".into(),
+                    value: f64::NAN,
+                    reason: "an IdentifiedModel carries its own β and base analysis:                              leave beta and base out",
+                },
+            ));
+        }
+        let m = &m.inner;
+        interruptible(py, || validate_identified_model(m, data))?
+    } else if let Ok(chain) = model.extract::<PyRef<'_, PySerialChain>>() {
+        match beta {
+            None => {
+                let c = chain.chain();
+                interruptible(py, || validate_torque_prediction(c, data))?
+            }
+            Some(beta) => {
+                let beta = vector(beta, "beta")?;
+                let base = match &base {
+                    Some(b) => &b.inner,
+                    None => chain.default_base(py)?,
+                };
+                let bm = chain.chain().base_model(base).to_py(py)?;
+                let pm = ParameterisedModel::new(bm, nalgebra::DVector::from_vec(beta))
+                    .to_py(py)?;
+                interruptible(py, || validate_torque_prediction(&pm, data))?
+            }
+        }
+    } else {
+        return Err(pyo3::exceptions::PyTypeError::new_err(format!(
+            "`model` must be a prrrp.IdentifiedModel or a prrrp.SerialChain, got {}",
+            model.get_type().name()?
+        )));
+    }
+    .to_py(py)?;
+    torque_validation_dict(py, &report)
+}
+
 pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_function(wrap_pyfunction!(validate_model, m)?)?;
     m.add_function(wrap_pyfunction!(validate, m)?)?;
     m.add_function(wrap_pyfunction!(torque_prediction, m)?)?;
     m.add_function(wrap_pyfunction!(sensitivity, m)?)?;

@@ -1,0 +1,584 @@
+//! Simulation of any chain: `prrrp.ChainTrajectory` (per-joint Fourier series, sinusoids,
+//! or a sampled trajectory), `prrrp.simulate_chain` (computed-torque tracking) and
+//! `prrrp.simulate_chain_open_loop` (a torque sequence), both returning a
+//! `prrrp.ChainSimulation` record convertible to `prrrp.Dataset`.
+
+use prrrp_core::{
+    simulate_dyn_closed_loop, simulate_dyn_open_loop, DynSampledTrajectory, DynSensorNoise,
+    DynSimulationConfig, DynSimulationRecord, DynTrajectory, FourierTrajectory, PrrrpError,
+    Sinusoid,
+};
+use pyo3::exceptions::PyTypeError;
+use pyo3::prelude::*;
+use pyo3::types::{PyDict, PyTuple};
+
+use crate::arrays::{any_array, fmt_shape, to_array, vector, UInt};
+use crate::data::dataset::PyDataset;
+use crate::errors::{shape_error, to_pyerr, ToPyResult};
+use crate::interrupt::interruptible;
+use crate::models::chain::PySerialChain;
+
+type Out<'py> = PyResult<Bound<'py, PyAny>>;
+
+/// The trajectories a Python caller can build, dispatched to the core's.
+#[derive(Debug, Clone)]
+enum Traj {
+    Fourier(FourierTrajectory),
+    Sinusoids(Vec<Sinusoid>),
+    Sampled(DynSampledTrajectory),
+}
+
+impl DynTrajectory for Traj {
+    fn dof(&self) -> usize {
+        match self {
+            Traj::Fourier(f) => f.dof(),
+            Traj::Sinusoids(s) => s.dof(),
+            Traj::Sampled(s) => s.dof(),
+        }
+    }
+
+    #[inline]
+    fn eval_into(&self, t: f64, q: &mut [f64], qd: &mut [f64], qdd: &mut [f64]) {
+        match self {
+            Traj::Fourier(f) => f.eval_into(t, q, qd, qdd),
+            Traj::Sinusoids(s) => s.eval_into(t, q, qd, qdd),
+            Traj::Sampled(s) => s.eval_into(t, q, qd, qdd),
+        }
+    }
+
+    fn end_time(&self) -> Option<f64> {
+        match self {
+            Traj::Fourier(f) => f.end_time(),
+            Traj::Sinusoids(s) => s.end_time(),
+            Traj::Sampled(s) => s.end_time(),
+        }
+    }
+}
+
+/// A reference trajectory of n joints; see `_prrrp.pyi`.
+#[pyclass(module = "prrrp", name = "ChainTrajectory", frozen)]
+pub(crate) struct PyChainTrajectory {
+    inner: Traj,
+}
+
+/// A per-joint vector: a scalar broadcast to n joints, or shape (n,).
+fn per_joint(obj: &Bound<'_, PyAny>, name: &'static str, n: usize) -> PyResult<Vec<f64>> {
+    let (shape, data) = any_array(obj, name, &format!("() or ({n},)"))?;
+    match *shape {
+        [] => Ok(vec![data[0]; n]),
+        [m] if m == n => Ok(data),
+        _ => Err(shape_error(
+            obj.py(),
+            name,
+            format!("() or ({n},)"),
+            fmt_shape(&shape),
+        )),
+    }
+}
+
+/// A 2-D table (rows, cols) with `cols` fixed when given.
+fn table(
+    obj: &Bound<'_, PyAny>,
+    name: &'static str,
+    rows: Option<usize>,
+    cols: Option<usize>,
+) -> PyResult<(usize, usize, Vec<f64>)> {
+    let want = format!(
+        "({}, {})",
+        rows.map_or("N".into(), |r| r.to_string()),
+        cols.map_or("n".into(), |c| c.to_string())
+    );
+    let (shape, data) = any_array(obj, name, &want)?;
+    match *shape {
+        [r, c] if rows.is_none_or(|x| x == r) && cols.is_none_or(|x| x == c) => Ok((r, c, data)),
+        _ => Err(shape_error(obj.py(), name, want, fmt_shape(&shape))),
+    }
+}
+
+fn sampled(
+    py: Python<'_>,
+    t: &Bound<'_, PyAny>,
+    q: &Bound<'_, PyAny>,
+    qd: &Bound<'_, PyAny>,
+    qdd: &Bound<'_, PyAny>,
+) -> PyResult<DynSampledTrajectory> {
+    let t = vector(t, "t")?;
+    let (rows, n, q) = table(q, "q", Some(t.len()), None)?;
+    let (_, _, qd) = table(qd, "qd", Some(rows), Some(n))?;
+    let (_, _, qdd) = table(qdd, "qdd", Some(rows), Some(n))?;
+    DynSampledTrajectory::new(n, t, q, qd, qdd).to_py(py)
+}
+
+#[pymethods]
+impl PyChainTrajectory {
+    /// Per-joint Fourier series with base angular frequency `omega` (rad/s), offsets (n,)
+    /// and sine/cosine coefficients `a`, `b` (n, H) in velocity units.
+    #[staticmethod]
+    fn fourier(
+        py: Python<'_>,
+        omega: f64,
+        offsets: &Bound<'_, PyAny>,
+        a: &Bound<'_, PyAny>,
+        b: &Bound<'_, PyAny>,
+    ) -> PyResult<Self> {
+        let offsets = vector(offsets, "offsets")?;
+        let n = offsets.len();
+        let (_, h, a) = table(a, "a", Some(n), None)?;
+        let (_, _, b) = table(b, "b", Some(n), Some(h))?;
+        let f = FourierTrajectory::new(omega, offsets, a, b).to_py(py)?;
+        Ok(Self {
+            inner: Traj::Fourier(f),
+        })
+    }
+
+    /// One sinusoid per joint, q_j = offset_j + amplitude_j·sin(omega_j·t + phase_j);
+    /// each argument a scalar or (n,), n taken from `offset`.
+    #[staticmethod]
+    #[pyo3(signature = (offset, amplitude, omega, phase=None))]
+    fn sinusoids(
+        py: Python<'_>,
+        offset: &Bound<'_, PyAny>,
+        amplitude: &Bound<'_, PyAny>,
+        omega: &Bound<'_, PyAny>,
+        phase: Option<&Bound<'_, PyAny>>,
+    ) -> PyResult<Self> {
+        let offset = vector(offset, "offset")?;
+        let n = offset.len();
+        let amplitude = per_joint(amplitude, "amplitude", n)?;
+        let omega = per_joint(omega, "omega", n)?;
+        let phase = match phase {
+            Some(p) => per_joint(p, "phase", n)?,
+            None => vec![0.0; n],
+        };
+        for (name, v) in [
+            ("offset", &offset),
+            ("amplitude", &amplitude),
+            ("omega", &omega),
+            ("phase", &phase),
+        ] {
+            if let Some(j) = v.iter().position(|x| !x.is_finite()) {
+                return Err(to_pyerr(
+                    py,
+                    &PrrrpError::NonFinite {
+                        what: format!("{name}[{j}]"),
+                        row: None,
+                    },
+                ));
+            }
+        }
+        if n == 0 {
+            return Err(shape_error(py, "offset", "(n,) with n >= 1", "(0,)"));
+        }
+        let s = (0..n)
+            .map(|j| Sinusoid {
+                offset: offset[j],
+                amplitude: amplitude[j],
+                omega: omega[j],
+                phase: phase[j],
+            })
+            .collect();
+        Ok(Self {
+            inner: Traj::Sinusoids(s),
+        })
+    }
+
+    /// A recorded trajectory: t (N,) s and q, qd, qdd (N, n), interpolated by quintics.
+    #[staticmethod]
+    fn sampled(
+        py: Python<'_>,
+        t: &Bound<'_, PyAny>,
+        q: &Bound<'_, PyAny>,
+        qd: &Bound<'_, PyAny>,
+        qdd: &Bound<'_, PyAny>,
+    ) -> PyResult<Self> {
+        Ok(Self {
+            inner: Traj::Sampled(sampled(py, t, q, qd, qdd)?),
+        })
+    }
+
+    /// Number of joints.
+    #[getter]
+    fn dof(&self) -> usize {
+        self.inner.dof()
+    }
+
+    /// Last time at which the trajectory is defined (s), or None.
+    #[getter]
+    fn end_time(&self) -> Option<f64> {
+        self.inner.end_time()
+    }
+
+    /// (q, qd, qdd) at a scalar t (each (n,)) or at t of shape (N,) (each (N, n)).
+    fn eval<'py>(&self, py: Python<'py>, t: &Bound<'py, PyAny>,
+    ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>, Bound<'py, PyAny>)> {
+        let (shape, ts) = any_array(t, "t", "() or (N,)")?;
+        let batch = match *shape {
+            [] => None,
+            [k] => Some(k),
+            _ => return Err(shape_error(py, "t", "() or (N,)", fmt_shape(&shape))),
+        };
+        if let Some(k) = ts.iter().position(|x| !x.is_finite()) {
+            return Err(to_pyerr(
+                py,
+                &PrrrpError::NonFinite {
+                    what: "t".into(),
+                    row: batch.map(|_| k),
+                },
+            ));
+        }
+        let n = self.inner.dof();
+        let (mut q, mut qd, mut qdd) = (
+            vec![0.0; n * ts.len()],
+            vec![0.0; n * ts.len()],
+            vec![0.0; n * ts.len()],
+        );
+        py.detach(|| {
+            for (k, &t) in ts.iter().enumerate() {
+                let r = n * k..n * k + n;
+                self.inner
+                    .eval_into(t, &mut q[r.clone()], &mut qd[r.clone()], &mut qdd[r]);
+            }
+        });
+        Ok((
+            to_array(py, q, batch, &[n])?,
+            to_array(py, qd, batch, &[n])?,
+            to_array(py, qdd, batch, &[n])?,
+        ))
+    }
+
+    fn __repr__(&self) -> String {
+        let kind = match &self.inner {
+            Traj::Fourier(f) => format!("fourier, {} harmonics", f.harmonics()),
+            Traj::Sinusoids(_) => "sinusoids".into(),
+            Traj::Sampled(s) => format!("sampled, {} samples", s.len()),
+        };
+        format!("ChainTrajectory({kind}, dof={})", self.inner.dof())
+    }
+}
+
+/// The reference of `simulate_chain`: a `ChainTrajectory`, a `Dataset`, a mapping with
+/// keys t, q, qd, qdd, or a tuple (t, q, qd, qdd).
+fn reference_from(obj: &Bound<'_, PyAny>) -> PyResult<Traj> {
+    let py = obj.py();
+    if let Ok(t) = obj.extract::<PyRef<'_, PyChainTrajectory>>() {
+        return Ok(t.inner.clone());
+    }
+    if let Ok(d) = obj.extract::<PyRef<'_, PyDataset>>() {
+        let d = &d.inner;
+        let s = DynSampledTrajectory::new(
+            d.dof(),
+            d.t().to_vec(),
+            d.q().to_vec(),
+            d.qd().to_vec(),
+            d.qdd().to_vec(),
+        )
+        .to_py(py)?;
+        return Ok(Traj::Sampled(s));
+    }
+    if let Ok(tup) = obj.cast::<PyTuple>() {
+        if tup.len() == 4 {
+            return Ok(Traj::Sampled(sampled(
+                py,
+                &tup.get_item(0)?,
+                &tup.get_item(1)?,
+                &tup.get_item(2)?,
+                &tup.get_item(3)?,
+            )?));
+        }
+    }
+    if let Ok(d) = obj.cast::<PyDict>() {
+        let get = |k: &str| -> PyResult<Bound<'_, PyAny>> {
+            d.get_item(k)?.ok_or_else(|| {
+                to_pyerr(
+                    py,
+                    &PrrrpError::ShapeMismatch {
+                        what: "reference".into(),
+                        expected: "a mapping with keys t, q, qd, qdd".into(),
+                        got: format!("no key {k:?}"),
+                    },
+                )
+            })
+        };
+        return Ok(Traj::Sampled(sampled(
+            py,
+            &get("t")?,
+            &get("q")?,
+            &get("qd")?,
+            &get("qdd")?,
+        )?));
+    }
+    Err(PyTypeError::new_err(format!(
+        "`reference` must be a prrrp.ChainTrajectory, a prrrp.Dataset, a dict with t, q, qd, \
+         qdd or a tuple (t, q, qd, qdd), got {}",
+        obj.get_type().name()?
+    )))
+}
+
+/// Simulation settings from the Python arguments (gains and noise: scalar or (n,)).
+#[allow(clippy::too_many_arguments)]
+fn config(
+    n: usize,
+    rate: f64,
+    substeps: usize,
+    kp: Option<&Bound<'_, PyAny>>,
+    kd: Option<&Bound<'_, PyAny>>,
+    q_noise: Option<&Bound<'_, PyAny>>,
+    qd_noise: Option<&Bound<'_, PyAny>>,
+    tau_noise: Option<&Bound<'_, PyAny>>,
+    seed: u64,
+) -> PyResult<DynSimulationConfig> {
+    let d = DynSimulationConfig::new(n);
+    let or = |o: Option<&Bound<'_, PyAny>>, name: &'static str, dflt: Vec<f64>| match o {
+        Some(o) => per_joint(o, name, n),
+        None => Ok(dflt),
+    };
+    Ok(DynSimulationConfig {
+        // 1/rate: a bad rate (0, negative, NaN) becomes a bad dt that the core names.
+        dt: 1.0 / rate,
+        substeps,
+        kp: or(kp, "kp", d.kp)?,
+        kd: or(kd, "kd", d.kd)?,
+        noise: DynSensorNoise {
+            q_std: or(q_noise, "q_noise", vec![0.0; n])?,
+            qd_std: qd_noise.map(|o| per_joint(o, "qd_noise", n)).transpose()?,
+            tau_std: or(tau_noise, "tau_noise", vec![0.0; n])?,
+        },
+        seed,
+    })
+}
+
+fn check_rate(py: Python<'_>, rate: f64) -> PyResult<()> {
+    if !(rate.is_finite() && rate > 0.0) {
+        return Err(to_pyerr(
+            py,
+            &PrrrpError::InvalidParameter {
+                field: "rate".into(),
+                value: rate,
+                reason: "the sampling rate must be finite and > 0 Hz",
+            },
+        ));
+    }
+    Ok(())
+}
+
+/// What a chain simulation recorded; see `_prrrp.pyi`.
+#[pyclass(module = "prrrp", name = "ChainSimulation", frozen)]
+pub(crate) struct PyChainSimulation {
+    inner: DynSimulationRecord,
+}
+
+impl PyChainSimulation {
+    fn table<'py>(&self, py: Python<'py>, v: &[f64]) -> Out<'py> {
+        let n = self.inner.dof();
+        to_array(py, v.to_vec(), Some(v.len() / n), &[n])
+    }
+
+    fn reference<'py>(&self, py: Python<'py>, v: &[f64]) -> Out<'py> {
+        if v.is_empty() {
+            Ok(py.None().into_bound(py))
+        } else {
+            self.table(py, v)
+        }
+    }
+}
+
+#[pymethods]
+impl PyChainSimulation {
+    /// Number of joints.
+    #[getter]
+    fn dof(&self) -> usize {
+        self.inner.dof()
+    }
+
+    fn __len__(&self) -> usize {
+        self.inner.len()
+    }
+
+    /// Time stamps (N,), s.
+    #[getter]
+    fn t<'py>(&self, py: Python<'py>) -> Out<'py> {
+        to_array(py, self.inner.t.clone(), Some(self.inner.len()), &[])
+    }
+
+    /// True positions (N, n).
+    #[getter]
+    fn q<'py>(&self, py: Python<'py>) -> Out<'py> {
+        self.table(py, &self.inner.q)
+    }
+
+    /// True velocities (N, n).
+    #[getter]
+    fn qd<'py>(&self, py: Python<'py>) -> Out<'py> {
+        self.table(py, &self.inner.qd)
+    }
+
+    /// True accelerations (N, n).
+    #[getter]
+    fn qdd<'py>(&self, py: Python<'py>) -> Out<'py> {
+        self.table(py, &self.inner.qdd)
+    }
+
+    /// Applied torques (N, n).
+    #[getter]
+    fn tau<'py>(&self, py: Python<'py>) -> Out<'py> {
+        self.table(py, &self.inner.tau)
+    }
+
+    /// Reference positions (N, n), None for open-loop runs.
+    #[getter]
+    fn q_ref<'py>(&self, py: Python<'py>) -> Out<'py> {
+        self.reference(py, &self.inner.q_ref)
+    }
+
+    /// Reference velocities (N, n), None for open-loop runs.
+    #[getter]
+    fn qd_ref<'py>(&self, py: Python<'py>) -> Out<'py> {
+        self.reference(py, &self.inner.qd_ref)
+    }
+
+    /// Reference accelerations (N, n), None for open-loop runs.
+    #[getter]
+    fn qdd_ref<'py>(&self, py: Python<'py>) -> Out<'py> {
+        self.reference(py, &self.inner.qdd_ref)
+    }
+
+    /// Measured positions (N, n).
+    #[getter]
+    fn q_measured<'py>(&self, py: Python<'py>) -> Out<'py> {
+        self.table(py, &self.inner.q_measured)
+    }
+
+    /// Measured velocities (N, n), None unless `qd_noise` was given.
+    #[getter]
+    fn qd_measured<'py>(&self, py: Python<'py>) -> Out<'py> {
+        match &self.inner.qd_measured {
+            Some(v) => self.table(py, v),
+            None => Ok(py.None().into_bound(py)),
+        }
+    }
+
+    /// Measured torques (N, n).
+    #[getter]
+    fn tau_measured<'py>(&self, py: Python<'py>) -> Out<'py> {
+        self.table(py, &self.inner.tau_measured)
+    }
+
+    /// The noise-free signals as a `Dataset`.
+    fn true_dataset(&self, py: Python<'_>) -> PyResult<PyDataset> {
+        let inner = self.inner.true_dataset().to_py(py)?;
+        Ok(PyDataset { inner })
+    }
+
+    /// The measured signals through `prrrp.preprocess_log(t, q_measured, tau_measured,
+    /// qd=qd_measured, **kwargs)`: returns (Dataset, report).
+    #[pyo3(signature = (**kwargs))]
+    fn measured_dataset<'py>(
+        &self,
+        py: Python<'py>,
+        kwargs: Option<&Bound<'py, PyDict>>,
+    ) -> Out<'py> {
+        let kw = match kwargs {
+            Some(k) => k.copy()?,
+            None => PyDict::new(py),
+        };
+        if !kw.contains("qd")? {
+            kw.set_item("qd", self.qd_measured(py)?)?;
+        }
+        py.import("prrrp")?.getattr("preprocess_log")?.call(
+            (self.t(py)?, self.q_measured(py)?, self.tau_measured(py)?),
+            Some(&kw),
+        )
+    }
+
+    fn __repr__(&self) -> String {
+        format!(
+            "ChainSimulation(dof={}, samples={})",
+            self.inner.dof(),
+            self.inner.len()
+        )
+    }
+}
+
+/// Simulates `chain` tracking `reference` under computed-torque control; see `_prrrp.pyi`.
+#[pyfunction]
+#[pyo3(signature = (chain, reference, duration, *, rate=100.0, substeps=UInt(10),
+    controller=None, kp=None, kd=None, q_noise=None, qd_noise=None, tau_noise=None,
+    seed=UInt(0)))]
+#[allow(clippy::too_many_arguments)]
+fn simulate_chain(
+    py: Python<'_>,
+    chain: PyRef<'_, PySerialChain>,
+    reference: &Bound<'_, PyAny>,
+    duration: f64,
+    rate: f64,
+    substeps: UInt<usize>,
+    controller: Option<PyRef<'_, PySerialChain>>,
+    kp: Option<&Bound<'_, PyAny>>,
+    kd: Option<&Bound<'_, PyAny>>,
+    q_noise: Option<&Bound<'_, PyAny>>,
+    qd_noise: Option<&Bound<'_, PyAny>>,
+    tau_noise: Option<&Bound<'_, PyAny>>,
+    seed: UInt<u64>,
+) -> PyResult<PyChainSimulation> {
+    check_rate(py, rate)?;
+    let reference = reference_from(reference)?;
+    let plant = chain.chain();
+    let cfg = config(
+        plant.dof(),
+        rate,
+        substeps.0,
+        kp,
+        kd,
+        q_noise,
+        qd_noise,
+        tau_noise,
+        seed.0,
+    )?;
+    let ctrl = controller.as_ref().map_or(plant, |c| c.chain());
+    let inner = interruptible(py, || {
+        simulate_dyn_closed_loop(plant, ctrl, &reference, duration, &cfg)
+    })?
+    .to_py(py)?;
+    Ok(PyChainSimulation { inner })
+}
+
+/// Simulates `chain` from (q0, qd0) under the torques `tau` (N, n), each held for one
+/// sample; see `_prrrp.pyi`.
+#[pyfunction]
+#[pyo3(signature = (chain, q0, qd0, tau, *, rate=100.0, substeps=UInt(10), q_noise=None,
+    qd_noise=None, tau_noise=None, seed=UInt(0)))]
+#[allow(clippy::too_many_arguments)]
+fn simulate_chain_open_loop(
+    py: Python<'_>,
+    chain: PyRef<'_, PySerialChain>,
+    q0: &Bound<'_, PyAny>,
+    qd0: &Bound<'_, PyAny>,
+    tau: &Bound<'_, PyAny>,
+    rate: f64,
+    substeps: UInt<usize>,
+    q_noise: Option<&Bound<'_, PyAny>>,
+    qd_noise: Option<&Bound<'_, PyAny>>,
+    tau_noise: Option<&Bound<'_, PyAny>>,
+    seed: UInt<u64>,
+) -> PyResult<PyChainSimulation> {
+    check_rate(py, rate)?;
+    let plant = chain.chain();
+    let n = plant.dof();
+    let q0 = vector(q0, "q0")?;
+    let qd0 = vector(qd0, "qd0")?;
+    let (_, _, tau) = table(tau, "tau", None, Some(n))?;
+    let cfg = config(
+        n, rate, substeps.0, None, None, q_noise, qd_noise, tau_noise, seed.0,
+    )?;
+    let inner = interruptible(py, || simulate_dyn_open_loop(plant, &q0, &qd0, &tau, &cfg))?
+        .to_py(py)?;
+    Ok(PyChainSimulation { inner })
+}
+
+pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_class::<PyChainTrajectory>()?;
+    m.add_class::<PyChainSimulation>()?;
+    m.add_function(wrap_pyfunction!(simulate_chain, m)?)?;
+    m.add_function(wrap_pyfunction!(simulate_chain_open_loop, m)?)?;
+    Ok(())
+}

@@ -1,0 +1,107 @@
+//! The per-step simulation of a run-time chain allocates nothing: reference evaluation,
+//! computed-torque control and RK4 with buffers sized once; and a whole simulation
+//! allocates the same number of times whatever its length (its record is reserved up
+//! front). A counting global allocator, per thread, so parallel tests do not interfere.
+
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::cell::Cell;
+
+use prrrp_core::{
+    simulate_dyn_closed_loop, DynComputedTorque, DynSimulationConfig, DynTrajectory,
+    FourierTrajectory, FrictionModel, Rk4Integrator, SerialChain,
+};
+
+struct Counting;
+
+thread_local! {
+    static ALLOCATIONS: Cell<usize> = const { Cell::new(0) };
+}
+
+unsafe impl GlobalAlloc for Counting {
+    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
+        ALLOCATIONS.with(|c| c.set(c.get() + 1));
+        // SAFETY: forwarded unchanged to the system allocator.
+        unsafe { System.alloc(layout) }
+    }
+    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
+        // SAFETY: `ptr` came from `System.alloc` with this layout.
+        unsafe { System.dealloc(ptr, layout) }
+    }
+    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
+        ALLOCATIONS.with(|c| c.set(c.get() + 1));
+        // SAFETY: forwarded unchanged to the system allocator.
+        unsafe { System.realloc(ptr, layout, new_size) }
+    }
+}
+
+#[global_allocator]
+static GLOBAL: Counting = Counting;
+
+fn allocations() -> usize {
+    ALLOCATIONS.with(|c| c.get())
+}
+
+fn chain() -> prrrp_core::DynChain {
+    SerialChain::puma560()
+        .to_dyn()
+        .with_friction(
+            FrictionModel {
+                coulomb_smoothing: 0.1,
+                ..FrictionModel::all()
+            },
+            vec![[0.01, 0.005, 0.001]; 6],
+        )
+        .unwrap()
+}
+
+fn reference() -> FourierTrajectory {
+    FourierTrajectory::new(
+        1.2,
+        vec![0.1; 6],
+        (0..12).map(|i| 0.2 * ((i % 2) as f64 - 0.5)).collect(),
+        vec![0.05; 12],
+    )
+    .unwrap()
+}
+
+#[test]
+fn closed_loop_step_of_a_dyn_chain_does_not_allocate() {
+    let chain = chain();
+    let reference = reference();
+    let mut ctrl = DynComputedTorque::new(&chain, &[400.0; 6], &[40.0; 6]).unwrap();
+    let mut rk = Rk4Integrator::new(&chain);
+    let (mut q_r, mut qd_r, mut qdd_r) = (vec![0.0; 6], vec![0.0; 6], vec![0.0; 6]);
+    reference.eval_into(0.0, &mut q_r, &mut qd_r, &mut qdd_r);
+    let (mut q, mut qd) = (q_r.clone(), qd_r.clone());
+    let (mut tau, mut qdd) = (vec![0.0; 6], vec![0.0; 6]);
+    let h = 1e-3;
+    let before = allocations();
+    for k in 0..2000 {
+        let t = h * k as f64;
+        reference.eval_into(t, &mut q_r, &mut qd_r, &mut qdd_r);
+        ctrl.torque_into((&q_r, &qd_r, &qdd_r), &q, &qd, &mut tau)
+            .unwrap();
+        rk.acceleration_into(&q, &qd, &tau, &mut qdd).unwrap();
+        rk.step(&mut q, &mut qd, &tau, h).unwrap();
+    }
+    let n = allocations() - before;
+    assert_eq!(n, 0, "{n} allocations in 2000 control + RK4 steps");
+    // The loop did track the reference (the work was not optimised away).
+    assert!(q.iter().zip(&q_r).all(|(a, b)| (a - b).abs() < 1e-2), "{q:?} vs {q_r:?}");
+}
+
+#[test]
+fn whole_simulation_allocations_do_not_grow_with_length() {
+    let chain = chain();
+    let reference = reference();
+    let cfg = DynSimulationConfig::new(6);
+    let count = |duration: f64| {
+        let before = allocations();
+        let rec = simulate_dyn_closed_loop(&chain, &chain, &reference, duration, &cfg).unwrap();
+        let n = allocations() - before;
+        std::hint::black_box(rec);
+        n
+    };
+    let (short, long) = (count(0.5), count(5.0));
+    assert_eq!(short, long, "allocations grow with the run: {short} vs {long}");
+}
