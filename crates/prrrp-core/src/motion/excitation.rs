@@ -533,7 +533,7 @@ impl<const K: usize> CostFunction for &Problem<'_, '_, K> {
 /// can be given here instead of enabling argmin-math's `vec` backend and its second
 /// `rand` version).
 #[derive(Debug, Clone, PartialEq)]
-struct Params(Vec<f64>);
+pub(crate) struct Params(pub(crate) Vec<f64>);
 
 impl ArgminAdd<Params, Params> for Params {
     fn add(&self, other: &Params) -> Params {

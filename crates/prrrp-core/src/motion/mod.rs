@@ -1,7 +1,8 @@
 //! Motion: joint trajectories (the paper arm's and any robot's), the paper's excitation
-//! design, joint limits, the dynamics a simulator needs, and closed- and open-loop
+//! design and the excitation design of any robot, joint limits, the dynamics a simulator needs, and closed- and open-loop
 //! simulation.
 
+pub(crate) mod chain_excitation;
 pub(crate) mod dyn_trajectory;
 pub(crate) mod dynamics;
 pub(crate) mod excitation;

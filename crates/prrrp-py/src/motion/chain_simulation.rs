@@ -209,7 +209,10 @@ impl PyChainTrajectory {
     }
 
     /// (q, qd, qdd) at a scalar t (each (n,)) or at t of shape (N,) (each (N, n)).
-    fn eval<'py>(&self, py: Python<'py>, t: &Bound<'py, PyAny>,
+    fn eval<'py>(
+        &self,
+        py: Python<'py>,
+        t: &Bound<'py, PyAny>,
     ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>, Bound<'py, PyAny>)> {
         let (shape, ts) = any_array(t, "t", "() or (N,)")?;
         let batch = match *shape {
@@ -570,8 +573,8 @@ fn simulate_chain_open_loop(
     let cfg = config(
         n, rate, substeps.0, None, None, q_noise, qd_noise, tau_noise, seed.0,
     )?;
-    let inner = interruptible(py, || simulate_dyn_open_loop(plant, &q0, &qd0, &tau, &cfg))?
-        .to_py(py)?;
+    let inner =
+        interruptible(py, || simulate_dyn_open_loop(plant, &q0, &qd0, &tau, &cfg))?.to_py(py)?;
     Ok(PyChainSimulation { inner })
 }
 
