@@ -48,6 +48,7 @@ fn _prrrp(m: &Bound<'_, PyModule>) -> PyResult<()> {
     models::derivatives::register(m)?;
     models::regressor::register(m)?;
     motion::trajectories::register(m)?;
+    motion::chain_excitation::register(m)?;
     motion::simulation::register(m)?;
     data::preprocessing::register(m)?;
     estimators::register(m)?;
