@@ -674,7 +674,7 @@ where
         let k = if alpha == 1.0 { &b.k } else { &b.damped_k };
         b.d.copy_from(&b.pz);
         minus_k_sz::<FMA>(k.as_slice(), b.sz.as_slice(), b.d.as_mut_slice(), n, s);
-        joseph_columns::<FMA>(
+        let upper_only = joseph_columns::<FMA>(
             k.as_slice(),
             b.d.as_slice(),
             b.pz.as_slice(),
@@ -682,8 +682,13 @@ where
             n,
             s,
         );
-        // The two triangles now differ by rounding; the prediction that always follows
-        // mirrors its upper triangle, so the stored P is exactly symmetric.
+        // Whole columns: the two triangles now differ by rounding, and the prediction
+        // that always follows mirrors its upper triangle, so the stored P is exactly
+        // symmetric. Upper triangle only: the next gain and the prediction read whole
+        // columns, so mirror now.
+        if upper_only {
+            mirror_upper(self.p.as_mut_slice(), s);
+        }
     }
 
     /// Full measurement update (state and covariance) with the gain α·K.
@@ -956,10 +961,11 @@ fn a_times_g<const FMA: bool>(a: &[f64], gs: &[f64], apa: &mut [f64], n: usize, 
 const ACC_ROWS: usize = 32;
 
 /// The Joseph update P ← P − K'·P_z· − D·K'ᵀ column by column: column j of P loses
-/// Σ_m (P_·z)_jm·K'_·m + K'_jm·D_·m. Whole columns (in blocks of [`ACC_ROWS`] rows summed in a stack array, so
-/// that the accumulator stays in registers and cannot alias P): at compile-time sizes
-/// fully unrolled and vectorised, which is faster than the triangle's ragged loops
-/// although it does twice the flops.
+/// Σ_m (P_·z)_jm·K'_·m + K'_jm·D_·m, in blocks of [`ACC_ROWS`] rows summed in a stack
+/// array (the accumulator stays in registers and cannot alias P). Up to [`ACC_ROWS`]
+/// states whole columns, fully unrolled and vectorised, which is faster than the
+/// triangle's ragged loops although it does twice the flops; beyond, the upper triangle
+/// only. Returns whether only the upper triangle was written.
 #[inline(always)]
 fn joseph_columns<const FMA: bool>(
     ks: &[f64],
@@ -968,7 +974,7 @@ fn joseph_columns<const FMA: bool>(
     p: &mut [f64],
     n: usize,
     s: usize,
-) {
+) -> bool {
     if s <= ACC_ROWS {
         // One block per column (every compile-time size up to 32 states, PRRRP's 18):
         // the trip count is the constant S, so the column is fully unrolled.
@@ -987,12 +993,14 @@ fn joseph_columns<const FMA: bool>(
                 *c -= v;
             }
         }
-        return;
+        return false;
     }
+    // Larger states: the upper triangle only (rows 0..=j of column j), half the work;
+    // the caller mirrors it.
     for j in 0..s {
         let mut r0 = 0;
-        while r0 < s {
-            let len = (s - r0).min(ACC_ROWS);
+        while r0 <= j {
+            let len = (j + 1 - r0).min(ACC_ROWS);
             let mut acc = [0.0f64; ACC_ROWS];
             let acc = &mut acc[..len];
             for m in 0..n {
@@ -1010,6 +1018,7 @@ fn joseph_columns<const FMA: bool>(
             r0 += len;
         }
     }
+    true
 }
 
 /// Lower Cholesky factor of a small SPD n×n matrix (column-major slices) into `l`;

@@ -1,10 +1,13 @@
 //! Batch least squares (eqs. 2–4, 35–36) and weighted least squares with per-joint noise
-//! variances, solved by a rank-revealing QR factorisation (faer, column pivoting) — never
-//! through the normal equations WᵀW·λ = Wᵀτ, which square the condition number.
+//! variances, solved by a blocked Householder QR factorisation of W (faer) — never through
+//! the normal equations WᵀW·λ = Wᵀτ, which square the condition number. The rank decision
+//! and cond(W) come from the singular values of the P×P factor R, which are W's (Q is
+//! orthogonal), so column pivoting (level-2 and 3–4× slower on a 14000×64 W) is not needed
+//! to reveal the rank.
 
 use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
 use faer::linalg::householder;
-use faer::linalg::qr::col_pivoting::factor::{
+use faer::linalg::qr::no_pivoting::factor::{
     qr_in_place, qr_in_place_scratch, recommended_block_size,
 };
 use faer::{Conj, Mat, Par};
@@ -93,7 +96,7 @@ where
     /// least squares; dimensionless — ≈ 1 when the variances are right — for weighted).
     pub sigma2: f64,
     /// Standard deviation σ_i of each parameter: the square root of the diagonal of
-    /// σ²·(WᵀW)⁻¹, with (WᵀW)⁻¹ = P·R⁻¹·R⁻ᵀ·Pᵀ from the QR factor (never formed from WᵀW).
+    /// σ²·(WᵀW)⁻¹, with (WᵀW)⁻¹ = R⁻¹·R⁻ᵀ from the QR factor (never formed from WᵀW).
     pub std_dev: OVector<f64, P>,
     /// Relative standard deviation %σ_i = 100·σ_i/|λ̂_i| (percent). Always defined: +∞
     /// for an estimate λ̂_i = 0 exactly (even when σ_i = 0 too, e.g. τ ≡ 0), never NaN.
@@ -126,8 +129,6 @@ pub struct LeastSquares {
     block: Mat<f64>,
     block_y: Mat<f64>,
     householder: Mat<f64>,
-    perm_fwd: Vec<usize>,
-    perm_bwd: Vec<usize>,
     scratch: Option<((usize, usize), MemBuffer)>,
 }
 
@@ -154,8 +155,6 @@ impl LeastSquares {
             block: Mat::new(),
             block_y: Mat::new(),
             householder: Mat::new(),
-            perm_fwd: Vec::new(),
-            perm_bwd: Vec::new(),
             scratch: None,
         })
     }
@@ -316,8 +315,8 @@ impl LeastSquares {
     /// Least squares block by block. After permuting rows and columns, W is block diagonal:
     /// each block couples the joints and parameters connected through non-zero entries
     /// (for PRRRP {F1, F5}×{λ1, λ8} and {τ2, τ3, τ4}×{λ2..λ7}, the networks of eq. 40).
-    /// Each block is factorised by QR with column pivoting in place (B·Πᵀ = Q·R), with
-    /// z = Qᵀy, λ̂ = Πᵀ·R⁻¹·z and the residual Q·[0; z_p..]; the singular values of W are
+    /// Each block is factorised by Householder QR in place (B = Q·R), with
+    /// z = Qᵀy, λ̂ = R⁻¹·z and the residual Q·[0; z_p..]; the singular values of W are
     /// those of the blocks' R factors together, (WᵀW)⁻¹ is block diagonal, and a parameter
     /// in no block is an unidentifiable direction of its own. Returns the solution and the
     /// residual sum of squares of each joint.
@@ -341,7 +340,7 @@ impl LeastSquares {
             !matches!(&self.scratch, Some((shape, _)) if *shape == (total_rows, bs));
         if needs_scratch {
             let req = StackReq::any_of(&[
-                qr_in_place_scratch::<usize, f64>(total_rows, P, bs, Par::Seq, Default::default()),
+                qr_in_place_scratch::<f64>(total_rows, P, bs, Par::Seq, Default::default()),
                 householder::apply_block_householder_sequence_transpose_on_the_left_in_place_scratch::<f64>(total_rows, bs, 1),
                 householder::apply_block_householder_sequence_on_the_left_in_place_scratch::<f64>(total_rows, bs, 1),
             ]);
@@ -384,16 +383,12 @@ impl LeastSquares {
                 (&mut self.block, &mut self.block_y)
             };
             self.householder.resize_with(bs, pc, |_, _| 0.0);
-            self.perm_fwd.resize(pc, 0);
-            self.perm_bwd.resize(pc, 0);
             let Some((_, buf)) = self.scratch.as_mut() else {
                 unreachable!("scratch was just allocated");
             };
             qr_in_place(
                 wm.as_mut(),
                 self.householder.as_mut(),
-                &mut self.perm_fwd,
-                &mut self.perm_bwd,
                 Par::Seq,
                 MemStack::new(buf),
                 Default::default(),
@@ -412,11 +407,11 @@ impl LeastSquares {
                 }
                 wm[(j, j)] = 1.0;
             }
-            // Parameter index of the k-th pivoted column.
-            let pidx = |k: usize| params[self.perm_fwd[k]];
+            // Parameter index of the k-th column of the block.
+            let pidx = |k: usize| params[k];
 
             // The block and R share their singular values; its right singular vectors are
-            // Πᵀ·V_R, embedded in parameter space.
+            // V_R, embedded in parameter space.
             let svd = r.svd().map_err(|_| PrrrpError::NonFinite {
                 what: "SVD of the QR factor R (did not converge)".into(),
                 row: None,
@@ -439,7 +434,7 @@ impl LeastSquares {
                 MemStack::new(buf),
             );
             let y = ym.col_as_slice_mut(0);
-            // λ̂ = R⁻¹·z; var(λ̂_pidx(k)) = σ²·‖row k of R⁻¹‖² ((WᵀW)⁻¹ = Πᵀ·R⁻¹·R⁻ᵀ·Π).
+            // λ̂ = R⁻¹·z; var(λ̂_pidx(k)) = σ²·‖row k of R⁻¹‖² ((WᵀW)⁻¹ = R⁻¹·R⁻ᵀ).
             let r_inv = upper_triangular_inverse_dyn(&r);
             for k in 0..pc {
                 let mut l = 0.0;
@@ -513,7 +508,7 @@ impl LeastSquares {
 /// statistics the field reports.
 ///
 /// Builds W ∈ R^{(N·n)×P} from the regressor of every sample and factorises it in place
-/// by QR with column pivoting (faer); the singular values come from an SVD of the P×P
+/// by Householder QR (faer); the singular values come from an SVD of the P×P
 /// factor R, which has the same singular values as W. Allocates W for this call: use
 /// [`LeastSquares`] to reuse the buffers across solves.
 ///

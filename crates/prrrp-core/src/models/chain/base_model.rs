@@ -4,7 +4,8 @@
 use nalgebra::{SMatrix, SVector};
 
 use super::base_params::BaseParameters;
-use super::crba::{cholesky_in_place, cholesky_solve};
+use super::crba::{cholesky_in_place, cholesky_solve, inverse_from_factor, minus_inverse_times};
+use super::derivatives::LinkTangent;
 use super::friction::FrictionModel;
 use super::regressor::RegressorSink;
 use super::rnea::{ChainView, LinkState};
@@ -252,11 +253,11 @@ impl<const N: usize, const B: usize> LinearDynamics<N, B> for ChainBaseModel<N, 
         Ok(x)
     }
 
-    /// ∂q̈/∂β = −M⁻¹·Φ_b(q, q̇, q̈) exactly. ∂q̈/∂q and ∂q̈/∂q̇ are −M⁻¹ times the
-    /// derivatives of the rigid-body inverse dynamics at fixed q̈, taken by central
-    /// differences with steps 6e-6·(1 + |x|) (relative error ≈ 1e-10), plus the friction
-    /// derivative in closed form (the exact Coulomb sign contributes 0; use
-    /// `coulomb_smoothing` > 0 for a smooth model). Costs 4N + 2 recursions.
+    /// ∂q̈/∂β = −M⁻¹·Φ_b(q, q̇, q̈); ∂q̈/∂q and ∂q̈/∂q̇ = −M⁻¹ times the exact
+    /// derivatives of the rigid-body inverse dynamics at fixed q̈ (tangent-linear
+    /// Newton–Euler, as [`super::DynChainBaseModel`]), plus the friction slope in closed
+    /// form (the exact Coulomb sign contributes 0; use `coulomb_smoothing` > 0 for a
+    /// smooth model).
     fn forward_derivatives(
         &self,
         q: &SVector<f64, N>,
@@ -271,36 +272,28 @@ impl<const N: usize, const B: usize> LinearDynamics<N, B> for ChainBaseModel<N, 
         let mut qdd = tau - self.rnea_at(&view, q, qd, &SVector::zeros(), true, &mut st);
         cholesky_solve(l.as_slice(), N, qdd.as_mut_slice());
 
+        // The primal pass at q̈ leaves what the tangent passes differentiate.
+        self.rnea_at(&view, q, qd, &qdd, false, &mut st);
         let mut dq = SMatrix::<f64, N, N>::zeros();
         let mut dqd = SMatrix::<f64, N, N>::zeros();
+        let mut tan = [LinkTangent::default(); N];
+        view.rnea_derivatives(
+            &rig,
+            qd.as_slice(),
+            &st,
+            &mut tan,
+            dq.as_mut_slice(),
+            dqd.as_mut_slice(),
+        );
         for k in 0..N {
-            let h = 6e-6 * (1.0 + q[k].abs());
-            let (mut qp, mut qm) = (*q, *q);
-            qp[k] += h;
-            qm[k] -= h;
-            let d = (self.rnea_at(&view, &qp, qd, &qdd, false, &mut st)
-                - self.rnea_at(&view, &qm, qd, &qdd, false, &mut st))
-                / (2.0 * h);
-            dq.set_column(k, &d);
-            let h = 6e-6 * (1.0 + qd[k].abs());
-            let (mut vp, mut vm) = (*qd, *qd);
-            vp[k] += h;
-            vm[k] -= h;
-            let mut d = (self.rnea_at(&view, q, &vp, &qdd, false, &mut st)
-                - self.rnea_at(&view, q, &vm, &qdd, false, &mut st))
-                / (2.0 * h);
-            d[k] += friction_slope(&view.friction, qd[k], &fr[k]);
-            dqd.set_column(k, &d);
+            dqd[(k, k)] += friction_slope(&view.friction, qd[k], &fr[k]);
         }
-        let mut dl = -self.regressor(q, qd, &qdd);
-        for m in [&mut dq, &mut dqd] {
-            *m = -*m;
-            for mut c in m.column_iter_mut() {
-                cholesky_solve(l.as_slice(), N, c.as_mut_slice());
-            }
-        }
-        for mut c in dl.column_iter_mut() {
-            cholesky_solve(l.as_slice(), N, c.as_mut_slice());
+        let mut dl = self.regressor(q, qd, &qdd);
+        let mut inv = SMatrix::<f64, N, N>::zeros();
+        let mut tmp = SVector::<f64, N>::zeros();
+        inverse_from_factor(l.as_slice(), N, inv.as_mut_slice());
+        for m in [dq.as_mut_slice(), dqd.as_mut_slice(), dl.as_mut_slice()] {
+            minus_inverse_times(inv.as_slice(), N, m, tmp.as_mut_slice());
         }
         Ok(ForwardDerivatives {
             qdd,

@@ -99,6 +99,35 @@ pub(crate) fn cholesky_solve(l: &[f64], n: usize, b: &mut [f64]) {
     }
 }
 
+/// M⁻¹ (column-major n×n, into `inv`) from the factor of [`cholesky_in_place`].
+#[inline]
+pub(crate) fn inverse_from_factor(l: &[f64], n: usize, inv: &mut [f64]) {
+    inv.fill(0.0);
+    for (j, c) in inv.chunks_exact_mut(n).enumerate() {
+        c[j] = 1.0;
+        cholesky_solve(l, n, c);
+    }
+}
+
+/// Replaces every n-long column of `cols` (column-major) by −M⁻¹ times it, with
+/// `inv` = M⁻¹ from [`inverse_from_factor`] and `tmp` scratch of length n. For many
+/// right-hand sides (the 2N + B columns of the forward-dynamics derivatives) one inverse
+/// and products with independent rows beat chained triangular solves per column.
+#[inline]
+pub(crate) fn minus_inverse_times(inv: &[f64], n: usize, cols: &mut [f64], tmp: &mut [f64]) {
+    for c in cols.chunks_exact_mut(n) {
+        tmp.fill(0.0);
+        for (&x, mc) in c.iter().zip(inv.chunks_exact(n)) {
+            if x != 0.0 {
+                for (y, &mv) in tmp.iter_mut().zip(mc) {
+                    *y -= mv * x;
+                }
+            }
+        }
+        c.copy_from_slice(tmp);
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

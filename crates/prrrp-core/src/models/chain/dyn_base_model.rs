@@ -11,7 +11,8 @@ use nalgebra::{DMatrix, DVector, Dyn};
 
 use super::base_model::{friction_slope, slot_of, Slot, NONE};
 use super::base_params::BaseParameters;
-use super::crba::{cholesky_in_place, cholesky_solve};
+use super::crba::{cholesky_in_place, cholesky_solve, inverse_from_factor, minus_inverse_times};
+use super::derivatives::LinkTangent;
 use super::friction::FrictionModel;
 use super::regressor::RegressorSink;
 use super::rnea::{ChainView, LinkState};
@@ -59,10 +60,13 @@ pub struct DynBaseWorkspace {
     /// Cholesky factor of M(q, β), column-major.
     m: Vec<f64>,
     zero: Vec<f64>,
-    /// Perturbed joint vectors and the two sides of a central difference.
-    pert: Vec<f64>,
-    plus: Vec<f64>,
-    minus: Vec<f64>,
+    /// M⁻¹ (column-major), for the derivatives' 2N + B right-hand sides at once.
+    minv: Vec<f64>,
+    /// τ of the primal pass, and one column being multiplied by M⁻¹.
+    tmp: Vec<f64>,
+    col: Vec<f64>,
+    /// Tangents of the derivative kernel.
+    tan: Vec<LinkTangent>,
 }
 
 struct DynBaseSink<'a> {
@@ -308,9 +312,10 @@ impl LinearModel<Dyn, Dyn> for DynChainBaseModel {
             fr: vec![[0.0; 3]; n],
             m: vec![0.0; n * n],
             zero: vec![0.0; n],
-            pert: vec![0.0; n],
-            plus: vec![0.0; n],
-            minus: vec![0.0; n],
+            minv: vec![0.0; n * n],
+            tmp: vec![0.0; n],
+            col: vec![0.0; n],
+            tan: vec![LinkTangent::default(); n],
         }
     }
 
@@ -400,11 +405,11 @@ impl LinearModel<Dyn, Dyn> for DynChainBaseModel {
         )
     }
 
-    /// ∂q̈/∂β = −M⁻¹·Φ_b(q, q̇, q̈) exactly. ∂q̈/∂q and ∂q̈/∂q̇ are −M⁻¹ times the
-    /// derivatives of the rigid-body inverse dynamics at fixed q̈, by central differences
-    /// with steps 6e-6·(1 + |x|) (relative error ≈ 1e-10, as [`super::ChainBaseModel`]),
-    /// plus the friction slope in closed form (the exact Coulomb sign contributes 0; set
-    /// `coulomb_smoothing` > 0 for a smooth model). Costs 4N + 2 recursions.
+    /// ∂q̈/∂β = −M⁻¹·Φ_b(q, q̇, q̈); ∂q̈/∂q and ∂q̈/∂q̇ = −M⁻¹ times the exact derivatives
+    /// of the rigid-body inverse dynamics at fixed q̈ (tangent-linear Newton–Euler, O(N²),
+    /// no perturbation step), plus the friction slope in closed form (the exact Coulomb
+    /// sign contributes 0; set `coulomb_smoothing` > 0 for a smooth model). Costs a mass
+    /// matrix, three recursions and the tangent passes (about N/2 recursions).
     fn forward_derivatives_into(
         &self,
         ws: &mut DynBaseWorkspace,
@@ -431,41 +436,25 @@ impl LinearModel<Dyn, Dyn> for DynChainBaseModel {
             rig,
             fr,
             m,
-            pert,
-            plus,
-            minus,
+            minv,
+            tmp,
+            col,
+            tan,
             ..
         } = ws;
         let mut rigid = self.view_with(rig, fr);
         rigid.friction = FrictionModel::default();
         let qdd = out.qdd.as_slice();
+        // The primal pass at the q̈ just computed leaves the kinematics and joint forces
+        // that the tangent passes differentiate.
+        rigid.rnea(q, qd, qdd, st, tmp);
         let dq = out.dqdd_dq.as_mut_slice();
         let dqd = out.dqdd_dqd.as_mut_slice();
+        rigid.rnea_derivatives(rig, qd, st, tan, dq, dqd);
         for k in 0..n {
-            let h = 6e-6 * (1.0 + q[k].abs());
-            pert.copy_from_slice(q);
-            pert[k] = q[k] + h;
-            rigid.rnea(pert, qd, qdd, st, plus);
-            pert[k] = q[k] - h;
-            rigid.rnea(pert, qd, qdd, st, minus);
-            for i in 0..n {
-                dq[k * n + i] = -(plus[i] - minus[i]) / (2.0 * h);
-            }
-            let h = 6e-6 * (1.0 + qd[k].abs());
-            pert.copy_from_slice(qd);
-            pert[k] = qd[k] + h;
-            rigid.rnea(q, pert, qdd, st, plus);
-            pert[k] = qd[k] - h;
-            rigid.rnea(q, pert, qdd, st, minus);
-            for i in 0..n {
-                dqd[k * n + i] = -(plus[i] - minus[i]) / (2.0 * h);
-            }
-            dqd[k * n + k] -= friction_slope(&self.chain.friction(), qd[k], &fr[k]);
+            dqd[k * n + k] += friction_slope(&self.chain.friction(), qd[k], &fr[k]);
         }
-        for c in dq.chunks_exact_mut(n).chain(dqd.chunks_exact_mut(n)) {
-            cholesky_solve(m, n, c);
-        }
-        // Φ_b at the q̈ just computed, then −M⁻¹·Φ_b column by column.
+        // Φ_b at the q̈ just computed.
         let dl = &mut out.dqdd_dlambda;
         dl.fill(0.0);
         let mut sink = DynBaseSink {
@@ -476,12 +465,11 @@ impl LinearModel<Dyn, Dyn> for DynChainBaseModel {
         self.chain
             .view()
             .regressor_into(q, qd, qdd, true, st, &mut sink);
-        for c in dl.as_mut_slice().chunks_exact_mut(n) {
-            for v in c.iter_mut() {
-                *v = -*v;
-            }
-            cholesky_solve(m, n, c);
-        }
+        // −M⁻¹ times the 2N + B columns.
+        inverse_from_factor(m, n, minv);
+        minus_inverse_times(minv, n, out.dqdd_dq.as_mut_slice(), col);
+        minus_inverse_times(minv, n, out.dqdd_dqd.as_mut_slice(), col);
+        minus_inverse_times(minv, n, out.dqdd_dlambda.as_mut_slice(), col);
         Ok(())
     }
 }

@@ -11,6 +11,7 @@
 mod base_model;
 mod base_params;
 mod crba;
+mod derivatives;
 mod description;
 mod dh;
 mod dyn_base_model;

@@ -37,6 +37,11 @@ pub(crate) struct LinkState {
     pub(crate) s_ang: Vector3<f64>,
     /// Linear part of `s_ang`'s motion vector.
     pub(crate) s_lin: Vector3<f64>,
+    /// Force that link i−1 exerts on link i, in frame i (N), left by the backward pass of
+    /// [`ChainView::rnea_with`] for the derivative kernels.
+    pub(crate) f: Vector3<f64>,
+    /// Moment about the origin of frame i that goes with `f` (N·m).
+    pub(crate) nm: Vector3<f64>,
 }
 
 impl Default for LinkState {
@@ -49,6 +54,8 @@ impl Default for LinkState {
             a: Vector3::zeros(),
             s_ang: Vector3::zeros(),
             s_lin: Vector3::zeros(),
+            f: Vector3::zeros(),
+            nm: Vector3::zeros(),
         }
     }
 }
@@ -158,6 +165,8 @@ impl ChainView<'_> {
             }
             let g = &self.geom[i];
             tau[i] = g.s_ang.dot(&nm) + g.s_lin.dot(&f);
+            st[i].f = f;
+            st[i].nm = nm;
             f_c = f;
             n_c = nm;
         }
