@@ -1184,3 +1184,31 @@ def validate_model(
     own parameters, or a SerialChain with base parameters `beta` in the analysis `base`
     (default the chain's `base_parameters()`). Raises ShapeMismatchError if data's joint
     count is not the model's."""
+
+
+def design_excitation(
+    robot: SerialChain,
+    *,
+    harmonics: int = 5,
+    base_frequency: float = 0.1,
+    sample_rate: float = 10.0,
+    margin: float = 0.05,
+    seed: int = 0,
+    restarts: int = 16,
+    max_evaluations: int = 2000,
+    limits: dict[str, _ArrayLike] | None = None,
+    progress: Callable[[int, int], object] | None = None,
+) -> dict[str, Any]:
+    """An exciting trajectory for any robot: per joint a finite Fourier series of
+    `harmonics` harmonics of `base_frequency` (Hz; one period = 1/base_frequency s),
+    starting and ending at rest, each joint scaled to use (1 − margin) of its tightest
+    position / speed / acceleration limit, with coefficients that minimise cond(W_b) of the
+    robot's base regressor (friction columns included) sampled at `sample_rate` Hz;
+    Nelder–Mead from the best of `restarts` seeded random shapes, `max_evaluations` in all.
+    Limits are the robot file's; `limits` overrides them ({"lower", "upper", "velocity",
+    "acceleration"}: (n,) arrays, NaN = none). A joint whose limits do not bound its motion
+    (no speed limit, or neither position nor acceleration limit) is an
+    InvalidParameterError naming it. `progress(evaluations, max_evaluations)` is called
+    every few evaluations. Returns {"trajectory": ChainTrajectory, "omega" (rad/s),
+    "offsets" (n,), "a", "b" (n, H), "period" (s), "cond_initial", "cond_final",
+    "evaluations", "limit_usage" (n, 3): fraction of each limit used, NaN where none}."""
