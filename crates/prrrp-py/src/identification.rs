@@ -467,7 +467,7 @@ fn identify(
                  pass prrrp.SerialChain.paper() to give one",
             ));
         }
-        let robot = r.get().inner.clone();
+        let robot = r.get().inner;
         let inner = crate::interrupt::interruptible(py, || {
             prrrp_core::identify_robot(&robot, &data.inner, &method, preprocessing)
         })?

@@ -644,7 +644,7 @@ fn gradient(
             }
         };
         settings["bound"] = json!(c);
-        if !(frob_peak > 0.0) {
+        if frob_peak.is_nan() || frob_peak <= 0.0 {
             return Err(invalid(
                 "regressor",
                 frob_peak,
