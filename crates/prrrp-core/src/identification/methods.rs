@@ -21,11 +21,18 @@
 //!   (stable for μ < 2, since one row's update contracts the error by 1 − γ_lr·‖x_i‖²),
 //!   the normalised rule's step μ directly, the Hopfield gain μ/max_k‖Φ_k‖_F² per sample
 //!   (λmax(ΦᵀΦ) ≤ ‖Φ‖_F²). They train in epochs over the data with a step that halves
-//!   whenever the a-priori RMS equation error stops improving (noise then dominates the
-//!   update and a smaller step averages it), until `max_epochs` or `halvings`;
+//!   once the a-priori RMS equation error e comes within e² < (1 + μ)·floor² of the
+//!   least-squares residual floor (noise then dominates the update and a smaller step
+//!   averages it), until `max_epochs` or `halvings`. They converge in the poorly excited
+//!   directions at a rate set by cond² of the scaled W_b: on the Panda with friction
+//!   (64 base parameters, 2000 noisy samples) 300 epochs leave their held-out torque
+//!   error ≈ 5× that of least squares;
 //! - the EKF starts from the least-squares β̂ (the accelerations it does not need are in
 //!   the data set anyway) with a relative prior uncertainty, dt from the time stamps, and
-//!   measures positions and velocities.
+//!   measures positions and velocities; it holds the interval's mean torque, and its
+//!   process noise on q̇ includes the torque noise (the least-squares residual variances)
+//!   propagated through M⁻¹. τ is its input, so torque noise still moves the estimate:
+//!   on the Panda example its held-out torque error is ≈ 10× least squares'.
 //!
 //! Uncertainties: LS and WLS report σ from the residual (σ² = ‖ρ‖²/(rows − B)); RLS
 //! without forgetting is exactly least squares regularised by ‖γ‖²/δ, so σ̂²·D·P·D is the
