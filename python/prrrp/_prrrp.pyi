@@ -381,7 +381,8 @@ class _OnlineEstimator:
     @property
     def estimate(self) -> _F64: ...
     def step(self, q: _ArrayLike, qd: _ArrayLike, qdd: _ArrayLike, tau: _ArrayLike) -> _F64:
-        """One sample ((5,) each) → the updated λ̂ (8,)."""
+        """One sample ((5,) each; (n,) for a chain) → the updated λ̂ (8,) (β̂ (b,) for a
+        chain)."""
     @overload
     def run(
         self,
@@ -414,7 +415,15 @@ class Adaline(_OnlineEstimator):
         step_size: float = 1.0,
         epsilon: float = 1e-9,
         divergence_ratio: float = 1e6,
-    ) -> None: ...
+        beta0: _ArrayLike | None = None,
+        base: BaseParameters | None = None,
+        scale: _ArrayLike | None = None,
+    ) -> None:
+        """The paper's arm (`lam0` (8,), default Table 3), or any chain: pass a
+        `SerialChain` first; then `beta0` (b,) (default zeros), the analysis `base`
+        (default `chain.base_parameters()`) and a positive column `scale` (b,) (default
+        ones): the estimator trains on γ = β/scale and reports β."""
+
     def train(
         self, q: _ArrayLike, qd: _ArrayLike, qdd: _ArrayLike, tau: _ArrayLike, epochs: int
     ) -> _F64:
@@ -430,7 +439,15 @@ class Hopfield(_OnlineEstimator):
         dt: float = 0.02,
         stability_limit: float = 1.0,
         max_substeps: int = 64,
-    ) -> None: ...
+        beta0: _ArrayLike | None = None,
+        base: BaseParameters | None = None,
+        scale: _ArrayLike | None = None,
+    ) -> None:
+        """The paper's arm (`lam0` (8,), default Table 3), or any chain: pass a
+        `SerialChain` first; then `beta0` (b,) (default zeros), the analysis `base`
+        (default `chain.base_parameters()`) and a positive column `scale` (b,) (default
+        ones): the estimator trains on γ = β/scale and reports β."""
+
     def train(
         self, q: _ArrayLike, qd: _ArrayLike, qdd: _ArrayLike, tau: _ArrayLike, epochs: int
     ) -> _F64: ...
@@ -442,7 +459,14 @@ class Rls(_OnlineEstimator):
         *,
         forgetting: float = 1.0,
         initial_covariance: float = 1e6,
-    ) -> None: ...
+        beta0: _ArrayLike | None = None,
+        base: BaseParameters | None = None,
+        scale: _ArrayLike | None = None,
+    ) -> None:
+        """The paper's arm (`lam0` (8,), default Table 3), or any chain: pass a
+        `SerialChain` first; then `beta0` (b,) (default zeros), the analysis `base`
+        (default `chain.base_parameters()`) and a positive column `scale` (b,) (default
+        ones): the estimator trains on γ = β/scale and reports β."""
 
 class Ekf(_OnlineEstimator):
     def __init__(
@@ -462,7 +486,14 @@ class Ekf(_OnlineEstimator):
         initial_parameter_rel_std: float = 0.5,
         initial_parameter_min_std: float = 1e-3,
         init_from_first_measurement: bool = True,
-    ) -> None: ...
+        beta0: _ArrayLike | None = None,
+        base: BaseParameters | None = None,
+    ) -> None:
+        """The paper's arm (`lam0` (8,), default Table 3), or any chain: pass a
+        `SerialChain` first; then `beta0` (b,) (default the chain's own base parameters,
+        since the filter needs a positive definite M(q, β0)) and the analysis `base`.
+        States S = 2n + b; `state`, `covariance`, `parameter_std` and the setters take
+        the chain's sizes."""
     @property
     def parameter_std(self) -> _F64: ...
     @property
@@ -802,22 +833,34 @@ def identified_model_from_parts(
     """An IdentifiedModel from its parts (β̂ in `base`, default `robot.base_parameters()`)."""
 
 def identify(
-    robot: SerialChain,
+    robot: SerialChain | Robot,
     data: Dataset,
-    method: Literal["ls", "wls"] = "ls",
+    method: Literal["ls", "wls", "rls", "adaline", "hopfield", "ekf"] = "ls",
     *,
     base: BaseParameters | None = None,
-    rank_tolerance: float = 1e-10,
     preprocessing: dict[str, Any] | None = None,
+    **settings: Any,
 ) -> IdentifiedModel:
     """Identifies the base parameters of `robot` (default analysis `robot.base_parameters()`,
-    friction columns included) from `data` (a Dataset with the robot's joint count) by
-    ordinary ("ls") or weighted least squares with per-joint noise variances estimated from
-    the residuals ("wls"). The model carries β̂ with σ and %σ, cond(W_b), the per-joint
-    residual RMS and `preprocessing` as given (e.g. the report of `preprocess_log`). The
-    online methods (rls, adaline, hopfield, ekf) are not yet available here for chains.
+    friction columns included; a `Robot` is the paper's arm, identified through its chain
+    form with 9 base parameters) from `data` (a Dataset with the robot's joint count).
+
+    Methods: "ls" / "wls" (ordinary / weighted least squares, σ from the residual); "rls"
+    (one pass on the column-equilibrated model, σ from σ̂²·P when `forgetting` = 1);
+    "adaline" / "hopfield" (epochs over the data, step from the data, halved near the
+    least-squares residual floor; no σ); "ekf" (starts from the least-squares β̂, dt from
+    the time stamps, positions and velocities measured; σ and covariance from the filter).
+
+    Settings (keywords; an unknown one is a TypeError naming the valid ones): all methods
+    `rank_tolerance`; rls `forgetting`, `initial_covariance`, `scale_columns`; adaline
+    `rule`, `step_size` (0, 2), `learning_rate` (delta rule; unstable → error),
+    `max_epochs`, `halvings`, `scale_columns`; hopfield `step_size`, `bound`,
+    `max_epochs`, `halvings`, `scale_columns`; ekf `initial` ("ls", "prior" or β0), `dt`,
+    `measurement`, `discretisation` and the noise settings of `Ekf`. The model records
+    the settings used, including the values chosen from the data.
     Errors: ShapeMismatchError (joint count), TooFewSamplesError, RankDeficientError (data
-    that do not excite every base parameter), NonFiniteError."""
+    that do not excite every base parameter), InvalidParameterError (unknown method, a
+    setting out of range, an unstable step), DivergedError, NonFiniteError."""
 
 class BaseParameters:
     """Result of `SerialChain.base_parameters()`: base parameters β = map @ π (b of them)."""

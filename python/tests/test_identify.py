@@ -69,6 +69,9 @@ def test_identify_bad_input(panda):
     with pytest.raises(prrrp.InvalidParameterError, match="unknown"):
         prrrp.identify(panda, data, "magic")
     with pytest.raises(prrrp.InvalidParameterError, match="SerialChain"):
+        prrrp.identify("panda", data)
+    # The paper's arm is accepted, with its own joint count.
+    with pytest.raises(prrrp.ShapeMismatchError):
         prrrp.identify(prrrp.Robot.paper(), data)
     with pytest.raises(prrrp.ShapeMismatchError):
         prrrp.identify(prrrp.SerialChain.puma560(), data)

@@ -74,7 +74,9 @@ pub use estimators::{
     Sample, SampleOf, Samples, SamplesOf, TrainingReport, PRRRP_EKF_STATES,
 };
 pub use identification::{
-    identify_least_squares, BaseDescription, IdentifiedModel, Predictor, MODEL_SCHEMA_VERSION,
+    identify, identify_least_squares, identify_robot, BaseDescription, EkfSettings, EkfStart,
+    GradientSettings, IdentifiedModel, LsSettings, Method, Predictor, RlsSettings, METHOD_NAMES,
+    MODEL_SCHEMA_VERSION,
 };
 pub use interrupt::{check_count, clear_stop, request_stop, stop_requested, MAX_SAMPLES};
 pub use models::chain::{

@@ -3,13 +3,17 @@
 //! qdd, tau)`, `estimate`, `reset()` and the batch `run(...)` (plus `train(..., epochs)`
 //! for Adaline and Hopfield), looping in Rust with the GIL released.
 
-use prrrp_core::nalgebra::SVector;
+use prrrp_core::nalgebra::{DMatrix, DVector, SVector};
 use prrrp_core::{
     least_squares as core_ls, weighted_least_squares as core_wls, Adaline as CoreAdaline,
     AdalineConfig, AdalineRule, Discretisation, Ekf as CoreEkf, EkfConfig, EkfMeasurement,
     Estimator, Hopfield as CoreHopfield, HopfieldConfig, JointNoise, Lambda, LeastSquaresConfig,
     PrrrpError, PrrrpModel, Rls as CoreRls, RlsConfig, Robot, Sample, Samples as CoreSamples, Vec5,
     NDOF, NPARAM, PRRRP_EKF_STATES,
+};
+use prrrp_core::{
+    DynAdaline, DynChainBaseModel, DynEkf, DynHopfield, DynRls, DynSample,
+    DynSamples as CoreDynSamples, DynScaledModel,
 };
 use std::sync::{Mutex, MutexGuard, TryLockError};
 
@@ -66,6 +70,269 @@ fn lock<'a, E>(py: Python<'_>, m: &'a Mutex<E>) -> PyResult<MutexGuard<'a, E>> {
 
 /// Samples between two polls of the stop flag in `run`.
 const CHECK_EVERY: usize = 1024;
+
+/// The run-time chain model the chain estimators train on: the base-parameter model with
+/// columns scaled by `scale` (β = scale·γ; ones unless the user gives a scale).
+type Scaled = DynScaledModel<DynChainBaseModel>;
+
+/// An online estimator of the paper's arm (compile-time sizes, the closed-form model) or
+/// of any `SerialChain` (run-time sizes, its base-parameter model).
+enum Inner<F, D> {
+    Paper(F),
+    Chain(ChainEst<D>),
+}
+
+/// A chain estimator with its sizes and the column scale its estimate is mapped back by.
+struct ChainEst<D> {
+    est: D,
+    scale: DVector<f64>,
+    n: usize,
+}
+
+impl<D: Estimator<nalgebra::Dyn, nalgebra::Dyn>> ChainEst<D> {
+    fn beta(&self) -> Vec<f64> {
+        self.est
+            .estimate()
+            .iter()
+            .zip(self.scale.iter())
+            .map(|(g, s)| g * s)
+            .collect()
+    }
+}
+
+/// What a chain constructor needs: the base model, β₀ (or None) and the scale.
+struct ChainSetup {
+    model: DynChainBaseModel,
+    beta0: Option<Vec<f64>>,
+    scale: DVector<f64>,
+}
+
+/// Reads the chain constructor's arguments: `robot` a SerialChain, the analysis `base`
+/// (default the chain's), `beta0` (b,) and `scale` (b,) positive.
+fn chain_setup(
+    py: Python<'_>,
+    robot: &Bound<'_, PyAny>,
+    base: Option<&crate::models::chain::PyBaseParameters>,
+    beta0: Option<&Bound<'_, PyAny>>,
+    scale: Option<&Bound<'_, PyAny>>,
+) -> PyResult<ChainSetup> {
+    let chain = robot.cast::<crate::models::chain::PySerialChain>()?.get();
+    let base = match base {
+        Some(b) => b.inner.clone(),
+        None => chain.default_base(py)?.clone(),
+    };
+    let model = chain.chain().base_model(&base).to_py(py)?;
+    let b = model.count();
+    let sized = |o: &Bound<'_, PyAny>, name: &'static str| -> PyResult<Vec<f64>> {
+        let v = crate::arrays::vector(o, name)?;
+        if v.len() != b {
+            return Err(to_pyerr(
+                py,
+                &PrrrpError::ShapeMismatch {
+                    what: name.into(),
+                    expected: format!("({b},): one per base parameter"),
+                    got: format!("({},)", v.len()),
+                },
+            ));
+        }
+        Ok(v)
+    };
+    let beta0 = beta0.map(|o| sized(o, "beta0")).transpose()?;
+    let scale = match scale {
+        Some(o) => DVector::from_vec(sized(o, "scale")?),
+        None => DVector::repeat(b, 1.0),
+    };
+    Ok(ChainSetup {
+        model,
+        beta0,
+        scale,
+    })
+}
+
+impl ChainSetup {
+    /// The scaled model and γ₀ = β₀/scale (β₀ defaulting to zeros).
+    fn scaled(self, py: Python<'_>) -> PyResult<(Scaled, DVector<f64>, DVector<f64>)> {
+        let b = self.model.count();
+        let beta0 = DVector::from_vec(self.beta0.unwrap_or_else(|| vec![0.0; b]));
+        let gamma0 = beta0.component_div(&self.scale);
+        let scale = self.scale.clone();
+        let model = DynScaledModel::new(self.model, self.scale).to_py(py)?;
+        Ok((model, gamma0, scale))
+    }
+}
+
+/// The SerialChain in the first positional argument of an estimator constructor, if any.
+fn chain_arg<'a, 'py>(first: Option<&'a Bound<'py, PyAny>>) -> Option<&'a Bound<'py, PyAny>> {
+    first.filter(|o| o.is_instance_of::<crate::models::chain::PySerialChain>())
+}
+
+/// The chain-only keywords given to a paper-arm constructor are an error.
+fn paper_only(
+    py: Python<'_>,
+    beta0: Option<&Bound<'_, PyAny>>,
+    base: Option<&crate::models::chain::PyBaseParameters>,
+    scale: Option<&Bound<'_, PyAny>>,
+) -> PyResult<()> {
+    if beta0.is_some() || base.is_some() || scale.is_some() {
+        return Err(invalid(
+            py,
+            "beta0/base/scale",
+            "are for an estimator of a SerialChain (pass the chain first); the paper's arm \
+             takes lam0",
+        ));
+    }
+    Ok(())
+}
+
+/// One sample ((n,) arrays) into the preallocated row buffers.
+fn dyn_rows(rows: &mut [DVector<f64>; 4], args: [&Bound<'_, PyAny>; 4], n: usize) -> PyResult<()> {
+    const NAMES: [&str; 4] = ["q", "qd", "qdd", "tau"];
+    for ((buf, obj), name) in rows.iter_mut().zip(args).zip(NAMES) {
+        let s = crate::arrays::DynSamples::extract(obj, name, n)?;
+        if crate::arrays::batch_len(obj.py(), &[&s])?.is_some() {
+            return Err(to_pyerr(
+                obj.py(),
+                &PrrrpError::ShapeMismatch {
+                    what: name.into(),
+                    expected: format!("({n},): one sample (use run for a batch)"),
+                    got: "a batch".into(),
+                },
+            ));
+        }
+        buf.as_mut_slice().copy_from_slice(s.at(0));
+    }
+    Ok(())
+}
+
+/// `step` of a chain estimator: one sample, returns β̂ (b,).
+fn step_chain<'py, D: Estimator<nalgebra::Dyn, nalgebra::Dyn>>(
+    py: Python<'py>,
+    c: &mut ChainEst<D>,
+    args: [&Bound<'py, PyAny>; 4],
+) -> PyResult<Bound<'py, PyAny>> {
+    let n = c.n;
+    let mut rows: [DVector<f64>; 4] = std::array::from_fn(|_| DVector::zeros(n));
+    dyn_rows(&mut rows, args, n)?;
+    let [q, qd, qdd, tau] = &rows;
+    c.est.step(DynSample::new(q, qd, qdd, tau)).to_py(py)?;
+    let beta = c.beta();
+    if !beta.iter().all(|x| x.is_finite()) {
+        let what = "estimate β̂ (the sample's magnitudes overflow f64 arithmetic)".into();
+        return Err(to_pyerr(py, &PrrrpError::NonFinite { what, row: None }));
+    }
+    let b = beta.len();
+    to_array(py, beta, None, &[b])
+}
+
+/// The four (N, n) columns of a chain batch as run-time vectors.
+struct DynColumns {
+    q: Vec<DVector<f64>>,
+    qd: Vec<DVector<f64>>,
+    qdd: Vec<DVector<f64>>,
+    tau: Vec<DVector<f64>>,
+}
+
+impl DynColumns {
+    fn extract(args: [&Bound<'_, PyAny>; 4], n: usize) -> PyResult<Self> {
+        const NAMES: [&str; 4] = ["q", "qd", "qdd", "tau"];
+        let mut cols: [Vec<DVector<f64>>; 4] = Default::default();
+        for ((col, obj), name) in cols.iter_mut().zip(args).zip(NAMES) {
+            let (shape, data) = crate::arrays::any_array(obj, name, &format!("(N, {n})"))?;
+            if shape.len() != 2 || shape[1] != n {
+                return Err(to_pyerr(
+                    obj.py(),
+                    &PrrrpError::ShapeMismatch {
+                        what: name.into(),
+                        expected: format!("(N, {n})"),
+                        got: crate::arrays::fmt_shape(&shape),
+                    },
+                ));
+            }
+            *col = data
+                .chunks_exact(n)
+                .map(DVector::from_column_slice)
+                .collect();
+        }
+        let [q, qd, qdd, tau] = cols;
+        Ok(Self { q, qd, qdd, tau })
+    }
+
+    fn samples(&self) -> Result<CoreDynSamples<'_>, PrrrpError> {
+        CoreDynSamples::new(&self.q, &self.qd, &self.qdd, &self.tau)
+    }
+}
+
+/// `run` of a chain estimator, GIL released; β̂ (b,) or (β̂, history (M, b)).
+fn run_chain<'py, D: Estimator<nalgebra::Dyn, nalgebra::Dyn> + Send>(
+    py: Python<'py>,
+    c: &mut ChainEst<D>,
+    args: [&Bound<'py, PyAny>; 4],
+    history_every: Option<usize>,
+) -> PyResult<Bound<'py, PyAny>> {
+    if history_every == Some(0) {
+        return Err(invalid(py, "history_every", "must be >= 1 (or None)"));
+    }
+    let cols = DynColumns::extract(args, c.n)?;
+    let mut history: Vec<f64> = Vec::new();
+    let result = interruptible(py, || -> Result<(), (usize, PrrrpError)> {
+        let s = cols.samples().map_err(|e| (0, e))?;
+        for (k, sample) in s.iter().enumerate() {
+            if k % CHECK_EVERY == 0 && prrrp_core::stop_requested() {
+                let what = "estimator run";
+                return Err((k, PrrrpError::Interrupted { what }));
+            }
+            c.est.step(sample).map_err(|e| (k, e))?;
+            let beta = c.beta();
+            if !beta.iter().all(|x| x.is_finite()) {
+                let what = "estimate β̂ (the data's magnitudes overflow f64 arithmetic)".into();
+                return Err((k, PrrrpError::NonFinite { what, row: None }));
+            }
+            if let Some(every) = history_every {
+                if (k + 1) % every == 0 {
+                    history.extend_from_slice(&beta);
+                }
+            }
+        }
+        Ok(())
+    })?;
+    if let Err((k, e)) = result {
+        let e = match e {
+            PrrrpError::NonFinite { what, row: None } => {
+                PrrrpError::NonFinite { what, row: Some(k) }
+            }
+            other => other,
+        };
+        let err = to_pyerr(py, &e);
+        err.value(py).setattr("sample", k)?;
+        err.add_note(py, format!("at sample {k} (index along the leading axis)"))?;
+        return Err(err);
+    }
+    let beta = c.beta();
+    let b = beta.len();
+    let beta = to_array(py, beta, None, &[b])?;
+    match history_every {
+        None => Ok(beta),
+        Some(_) => {
+            let m = history.len() / b.max(1);
+            let h = to_array(py, history, None, &[m, b])?;
+            Ok((beta, h).into_pyobject(py)?.into_any())
+        }
+    }
+}
+
+/// `train` of a chain Adaline/Hopfield: RMS equation error per epoch.
+fn train_chain<'py, D: Send>(
+    py: Python<'py>,
+    c: &mut ChainEst<D>,
+    args: [&Bound<'py, PyAny>; 4],
+    f: impl FnOnce(&mut D, &CoreDynSamples<'_>) -> Result<prrrp_core::TrainingReport, PrrrpError> + Send,
+) -> PyResult<Bound<'py, PyAny>> {
+    let cols = DynColumns::extract(args, c.n)?;
+    let est = &mut c.est;
+    let report = interruptible(py, || f(est, &cols.samples()?))?.to_py(py)?;
+    let n = report.rms_error.len();
+    to_array(py, report.rms_error, None, &[n])
+}
 
 /// The four (N, 5) columns of a batch call.
 struct Columns {
@@ -293,7 +560,10 @@ macro_rules! online_methods {
                 qdd: &Bound<'py, PyAny>,
                 tau: &Bound<'py, PyAny>,
             ) -> PyResult<Bound<'py, PyAny>> {
-                step_one(py, &mut *lock(py, &self.inner)?, q, qd, qdd, tau)
+                match &mut *lock(py, &self.inner)? {
+                    Inner::Paper(e) => step_one(py, e, q, qd, qdd, tau),
+                    Inner::Chain(c) => step_chain(py, c, [q, qd, qdd, tau]),
+                }
             }
             fn do_run<'py>(
                 &self,
@@ -305,7 +575,27 @@ macro_rules! online_methods {
                 history_every: Option<UInt<usize>>,
             ) -> PyResult<Bound<'py, PyAny>> {
                 let every = history_every.map(|u| u.0);
-                run_batch(py, &mut *lock(py, &self.inner)?, q, qd, qdd, tau, every)
+                match &mut *lock(py, &self.inner)? {
+                    Inner::Paper(e) => run_batch(py, e, q, qd, qdd, tau, every),
+                    Inner::Chain(c) => run_chain(py, c, [q, qd, qdd, tau], every),
+                }
+            }
+            fn do_estimate<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+                match &*lock(py, &self.inner)? {
+                    Inner::Paper(e) => vec8(py, e.estimate()),
+                    Inner::Chain(c) => {
+                        let beta = c.beta();
+                        let b = beta.len();
+                        to_array(py, beta, None, &[b])
+                    }
+                }
+            }
+            fn do_reset(&self, py: Python<'_>) -> PyResult<()> {
+                match &mut *lock(py, &self.inner)? {
+                    Inner::Paper(e) => e.reset(),
+                    Inner::Chain(c) => c.est.reset(),
+                }
+                Ok(())
             }
         }
     };
@@ -347,13 +637,11 @@ macro_rules! estimator_pymethods {
         /// The current estimate λ̂, (8,).
         #[getter]
         fn estimate<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
-            let lam = *lock(py, &self.inner)?.estimate();
-            vec8(py, &lam)
+            self.do_estimate(py)
         }
         /// Returns to the state right after construction.
         fn reset(&self, py: Python<'_>) -> PyResult<()> {
-            lock(py, &self.inner)?.reset();
-            Ok(())
+            self.do_reset(py)
         }
         }
     };
@@ -386,14 +674,15 @@ where
 /// to Table 3.
 #[pyclass(module = "prrrp", name = "Adaline", frozen)]
 struct Adaline {
-    inner: Mutex<CoreAdaline<Model, NDOF, NPARAM>>,
+    inner: Mutex<Inner<CoreAdaline<Model, NDOF, NPARAM>, DynAdaline<Scaled>>>,
 }
 online_methods!(Adaline);
 
 estimator_pymethods!(Adaline {
     #[new]
     #[pyo3(signature = (lam0=None, *, rule="normalised", learning_rate=5e-3, step_size=1.0,
-        epsilon=1e-9, divergence_ratio=1e6))]
+        epsilon=1e-9, divergence_ratio=1e6, beta0=None, base=None, scale=None))]
+    #[allow(clippy::too_many_arguments)]
     fn new(
         py: Python<'_>,
         lam0: Option<&Bound<'_, PyAny>>,
@@ -402,6 +691,9 @@ estimator_pymethods!(Adaline {
         step_size: f64,
         epsilon: f64,
         divergence_ratio: f64,
+        beta0: Option<&Bound<'_, PyAny>>,
+        base: Option<&crate::models::chain::PyBaseParameters>,
+        scale: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<Self> {
         let rule = match rule {
             "normalised" | "normalized" => AdalineRule::Normalised,
@@ -415,8 +707,20 @@ estimator_pymethods!(Adaline {
             epsilon,
             divergence_ratio,
         };
+        if let Some(robot) = chain_arg(lam0) {
+            let setup = chain_setup(py, robot, base, beta0, scale)?;
+            let n = setup.model.dof();
+            let (model, gamma0, scale) = setup.scaled(py)?;
+            let est = DynAdaline::new(model, gamma0, config).to_py(py)?;
+            return Ok(Self {
+                inner: Mutex::new(Inner::Chain(ChainEst { est, scale, n })),
+            });
+        }
+        paper_only(py, beta0, base, scale)?;
         Ok(Self {
-            inner: Mutex::new(CoreAdaline::new(model(), lambda0(lam0)?, config).to_py(py)?),
+            inner: Mutex::new(Inner::Paper(
+                CoreAdaline::new(model(), lambda0(lam0)?, config).to_py(py)?,
+            )),
         })
     }
     /// `epochs` passes over the N samples; returns the a-priori RMS equation error of
@@ -431,9 +735,12 @@ estimator_pymethods!(Adaline {
         tau: &Bound<'py, PyAny>,
         epochs: UInt<usize>,
     ) -> PyResult<Bound<'py, PyAny>> {
-        let mut inner = lock(py, &self.inner)?;
-        let inner = &mut *inner;
-        train_epochs(py, q, qd, qdd, tau, |s| inner.train(s, epochs.0))
+        match &mut *lock(py, &self.inner)? {
+            Inner::Paper(e) => train_epochs(py, q, qd, qdd, tau, |s| e.train(s, epochs.0)),
+            Inner::Chain(c) => {
+                train_chain(py, c, [q, qd, qdd, tau], |e, s| e.train(s, epochs.0))
+            }
+        }
     }
 });
 
@@ -441,14 +748,15 @@ estimator_pymethods!(Adaline {
 /// slope `beta`, each sample integrated over `dt` s. `lam0` (8,) defaults to Table 3.
 #[pyclass(module = "prrrp", name = "Hopfield", frozen)]
 struct Hopfield {
-    inner: Mutex<CoreHopfield<Model, NDOF, NPARAM>>,
+    inner: Mutex<Inner<CoreHopfield<Model, NDOF, NPARAM>, DynHopfield<Scaled>>>,
 }
 online_methods!(Hopfield);
 
 estimator_pymethods!(Hopfield {
     #[new]
     #[pyo3(signature = (lam0=None, *, bound=10.0, beta=100.0, dt=0.02, stability_limit=1.0,
-        max_substeps=64))]
+        max_substeps=64, beta0=None, base=None, scale=None))]
+    #[allow(clippy::too_many_arguments)]
     fn new(
         py: Python<'_>,
         lam0: Option<&Bound<'_, PyAny>>,
@@ -457,6 +765,9 @@ estimator_pymethods!(Hopfield {
         dt: f64,
         stability_limit: f64,
         max_substeps: u32,
+        beta0: Option<&Bound<'_, PyAny>>,
+        base: Option<&crate::models::chain::PyBaseParameters>,
+        scale: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<Self> {
         let config = HopfieldConfig {
             bound,
@@ -465,8 +776,20 @@ estimator_pymethods!(Hopfield {
             stability_limit,
             max_substeps,
         };
+        if let Some(robot) = chain_arg(lam0) {
+            let setup = chain_setup(py, robot, base, beta0, scale)?;
+            let n = setup.model.dof();
+            let (model, gamma0, scale) = setup.scaled(py)?;
+            let est = DynHopfield::new(model, gamma0, config).to_py(py)?;
+            return Ok(Self {
+                inner: Mutex::new(Inner::Chain(ChainEst { est, scale, n })),
+            });
+        }
+        paper_only(py, beta0, base, scale)?;
         Ok(Self {
-            inner: Mutex::new(CoreHopfield::new(model(), lambda0(lam0)?, config).to_py(py)?),
+            inner: Mutex::new(Inner::Paper(
+                CoreHopfield::new(model(), lambda0(lam0)?, config).to_py(py)?,
+            )),
         })
     }
     /// `epochs` passes over the N samples; returns the RMS equation error per epoch. At
@@ -480,9 +803,12 @@ estimator_pymethods!(Hopfield {
         tau: &Bound<'py, PyAny>,
         epochs: UInt<usize>,
     ) -> PyResult<Bound<'py, PyAny>> {
-        let mut inner = lock(py, &self.inner)?;
-        let inner = &mut *inner;
-        train_epochs(py, q, qd, qdd, tau, |s| inner.train(s, epochs.0))
+        match &mut *lock(py, &self.inner)? {
+            Inner::Paper(e) => train_epochs(py, q, qd, qdd, tau, |s| e.train(s, epochs.0)),
+            Inner::Chain(c) => {
+                train_chain(py, c, [q, qd, qdd, tau], |e, s| e.train(s, epochs.0))
+            }
+        }
     }
 });
 
@@ -490,25 +816,41 @@ estimator_pymethods!(Hopfield {
 /// `initial_covariance`·I. `lam0` (8,) defaults to Table 3.
 #[pyclass(module = "prrrp", name = "Rls", frozen)]
 struct Rls {
-    inner: Mutex<CoreRls<Model, NDOF, NPARAM>>,
+    inner: Mutex<Inner<CoreRls<Model, NDOF, NPARAM>, DynRls<Scaled>>>,
 }
 online_methods!(Rls);
 
 estimator_pymethods!(Rls {
     #[new]
-    #[pyo3(signature = (lam0=None, *, forgetting=1.0, initial_covariance=1e6))]
+    #[pyo3(signature = (lam0=None, *, forgetting=1.0, initial_covariance=1e6, beta0=None,
+        base=None, scale=None))]
     fn new(
         py: Python<'_>,
         lam0: Option<&Bound<'_, PyAny>>,
         forgetting: f64,
         initial_covariance: f64,
+        beta0: Option<&Bound<'_, PyAny>>,
+        base: Option<&crate::models::chain::PyBaseParameters>,
+        scale: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<Self> {
         let config = RlsConfig {
             forgetting,
             initial_covariance,
         };
+        if let Some(robot) = chain_arg(lam0) {
+            let setup = chain_setup(py, robot, base, beta0, scale)?;
+            let n = setup.model.dof();
+            let (model, gamma0, scale) = setup.scaled(py)?;
+            let est = DynRls::new(model, gamma0, config).to_py(py)?;
+            return Ok(Self {
+                inner: Mutex::new(Inner::Chain(ChainEst { est, scale, n })),
+            });
+        }
+        paper_only(py, beta0, base, scale)?;
         Ok(Self {
-            inner: Mutex::new(CoreRls::new(model(), lambda0(lam0)?, config).to_py(py)?),
+            inner: Mutex::new(Inner::Paper(
+                CoreRls::new(model(), lambda0(lam0)?, config).to_py(py)?,
+            )),
         })
     }
 });
@@ -520,7 +862,7 @@ estimator_pymethods!(Rls {
 /// (SI units). `lam0` (8,) defaults to Table 3.
 #[pyclass(module = "prrrp", name = "Ekf", frozen)]
 struct Ekf {
-    inner: Mutex<CoreEkf<Model, NDOF, NPARAM, PRRRP_EKF_STATES>>,
+    inner: Mutex<Inner<CoreEkf<Model, NDOF, NPARAM, PRRRP_EKF_STATES>, DynEkf<DynChainBaseModel>>>,
 }
 online_methods!(Ekf);
 
@@ -530,7 +872,7 @@ estimator_pymethods!(Ekf {
         dt=0.02, position_noise=1e-3, velocity_noise=1e-2, process_position_noise=1e-6,
         process_velocity_noise=1e-3, process_parameter_noise=1e-5, initial_position_std=1e-3,
         initial_velocity_std=1.0, initial_parameter_rel_std=0.5, initial_parameter_min_std=1e-3,
-        init_from_first_measurement=true))]
+        init_from_first_measurement=true, beta0=None, base=None))]
     #[allow(clippy::too_many_arguments)]
     fn new(
         py: Python<'_>,
@@ -548,6 +890,8 @@ estimator_pymethods!(Ekf {
         initial_parameter_rel_std: f64,
         initial_parameter_min_std: f64,
         init_from_first_measurement: bool,
+        beta0: Option<&Bound<'_, PyAny>>,
+        base: Option<&crate::models::chain::PyBaseParameters>,
     ) -> PyResult<Self> {
         let measurement = match measurement {
             "positions" => EkfMeasurement::Positions,
@@ -586,53 +930,124 @@ estimator_pymethods!(Ekf {
             initial_parameter_min_std,
             init_from_first_measurement,
         };
+        if let Some(robot) = chain_arg(lam0) {
+            let setup = chain_setup(py, robot, base, beta0, None)?;
+            let n = setup.model.dof();
+            let b = setup.model.count();
+            // The chain's own parameters (its CAD / URDF values) unless β0 is given: the
+            // filter needs M(q, β0) positive definite, which zeros are not.
+            let beta0 = match setup.beta0 {
+                Some(v) => DVector::from_vec(v),
+                None => setup.model.chain_base_values().clone(),
+            };
+            let est = DynEkf::new(setup.model, beta0, config).to_py(py)?;
+            let scale = DVector::repeat(b, 1.0);
+            return Ok(Self {
+                inner: Mutex::new(Inner::Chain(ChainEst { est, scale, n })),
+            });
+        }
+        paper_only(py, beta0, base, None)?;
         Ok(Self {
-            inner: Mutex::new(CoreEkf::new(model(), lambda0(lam0)?, config).to_py(py)?),
+            inner: Mutex::new(Inner::Paper(
+                CoreEkf::new(model(), lambda0(lam0)?, config).to_py(py)?,
+            )),
         })
     }
-    /// Standard deviations of λ̂ from the filter covariance, (8,).
+    /// Standard deviations of λ̂ (β̂ for a chain) from the filter covariance, (P,).
     #[getter]
     fn parameter_std<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
-        vec8(py, &lock(py, &self.inner)?.parameter_std())
+        match &*lock(py, &self.inner)? {
+            Inner::Paper(e) => vec8(py, &e.parameter_std()),
+            Inner::Chain(c) => {
+                let v: Vec<f64> = c.est.parameter_std().iter().copied().collect();
+                let b = v.len();
+                to_array(py, v, None, &[b])
+            }
+        }
     }
     /// Measurement updates skipped because of NaN measurements.
     #[getter]
     fn skipped_updates(&self, py: Python<'_>) -> PyResult<usize> {
-        Ok(lock(py, &self.inner)?.skipped_updates())
+        Ok(match &*lock(py, &self.inner)? {
+            Inner::Paper(e) => e.skipped_updates(),
+            Inner::Chain(c) => c.est.skipped_updates(),
+        })
     }
     /// Samples whose update was damped (gain halved) to keep M(q, λ̂) positive definite.
     #[getter]
     fn damped_updates(&self, py: Python<'_>) -> PyResult<usize> {
-        Ok(lock(py, &self.inner)?.damped_updates())
+        Ok(match &*lock(py, &self.inner)? {
+            Inner::Paper(e) => e.damped_updates(),
+            Inner::Chain(c) => c.est.damped_updates(),
+        })
     }
-    /// The state x = [q (5), q̇ (5), λ (8)] predicted for the next sample, (18,).
+    /// The state x = [q (n), q̇ (n), λ (P)] predicted for the next sample, (S,).
     #[getter]
     fn state<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
-        let state = lock(py, &self.inner)?.state().as_slice().to_vec();
-        to_array(py, state, None, &[PRRRP_EKF_STATES])
+        let state = match &*lock(py, &self.inner)? {
+            Inner::Paper(e) => e.state().as_slice().to_vec(),
+            Inner::Chain(c) => c.est.state().as_slice().to_vec(),
+        };
+        let s = state.len();
+        to_array(py, state, None, &[s])
     }
-    /// The state covariance P, (18, 18), in the squares of the state's SI units.
+    /// The state covariance P, (S, S), in the squares of the state's SI units.
     #[getter]
     fn covariance<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
-        let mut buf = vec![0.0; PRRRP_EKF_STATES * PRRRP_EKF_STATES];
-        write_row_major(lock(py, &self.inner)?.covariance(), &mut buf);
-        to_array(py, buf, None, &[PRRRP_EKF_STATES, PRRRP_EKF_STATES])
+        match &*lock(py, &self.inner)? {
+            Inner::Paper(e) => {
+                let mut buf = vec![0.0; PRRRP_EKF_STATES * PRRRP_EKF_STATES];
+                write_row_major(e.covariance(), &mut buf);
+                to_array(py, buf, None, &[PRRRP_EKF_STATES, PRRRP_EKF_STATES])
+            }
+            Inner::Chain(c) => {
+                let p = c.est.covariance();
+                let s = p.nrows();
+                to_array(py, p.transpose().as_slice().to_vec(), None, &[s, s])
+            }
+        }
     }
-    /// Replaces the initial covariance P₀ (18, 18): symmetric positive definite, squares
+    /// Replaces the initial covariance P₀ (S, S): symmetric positive definite, squares
     /// of the state units. Also the current P when no sample has been consumed yet.
     fn set_initial_covariance(&self, py: Python<'_>, p0: &Bound<'_, PyAny>) -> PyResult<()> {
-        let p0 = fixed_matrix::<PRRRP_EKF_STATES, PRRRP_EKF_STATES>(p0, "p0")?;
-        lock(py, &self.inner)?.set_initial_covariance(&p0).to_py(py)
+        match &mut *lock(py, &self.inner)? {
+            Inner::Paper(e) => {
+                let p0 = fixed_matrix::<PRRRP_EKF_STATES, PRRRP_EKF_STATES>(p0, "p0")?;
+                e.set_initial_covariance(&p0).to_py(py)
+            }
+            Inner::Chain(c) => {
+                let s = c.est.state().len();
+                let (shape, data) = crate::arrays::any_array(p0, "p0", &format!("({s}, {s})"))?;
+                if shape != [s, s] {
+                    return Err(to_pyerr(
+                        py,
+                        &PrrrpError::ShapeMismatch {
+                            what: "p0".into(),
+                            expected: format!("({s}, {s})"),
+                            got: crate::arrays::fmt_shape(&shape),
+                        },
+                    ));
+                }
+                let m = DMatrix::from_row_slice(s, s, &data);
+                c.est.set_initial_covariance(&m).to_py(py)
+            }
+        }
     }
-    /// Replaces the process noise Q = diag(variances), (18,), per step, squares of the
+    /// Replaces the process noise Q = diag(variances), (S,), per step, squares of the
     /// state units; each ≥ 0.
     fn set_process_noise(&self, py: Python<'_>, variances: &Bound<'_, PyAny>) -> PyResult<()> {
-        let v = fixed_vector::<PRRRP_EKF_STATES>(variances, "variances")?;
-        lock(py, &self.inner)?
-            .set_process_noise(&SVector::from_column_slice(&v))
-            .to_py(py)
+        match &mut *lock(py, &self.inner)? {
+            Inner::Paper(e) => {
+                let v = fixed_vector::<PRRRP_EKF_STATES>(variances, "variances")?;
+                e.set_process_noise(&SVector::from_column_slice(&v)).to_py(py)
+            }
+            Inner::Chain(c) => {
+                let v = DVector::from_vec(crate::arrays::vector(variances, "variances")?);
+                c.est.set_process_noise(&v).to_py(py)
+            }
+        }
     }
-    /// Replaces the measurement noise R = diag(positions (5,), velocities (5,)), variances
+    /// Replaces the measurement noise R = diag(positions (n,), velocities (n,)), variances
     /// in m², rad², (m/s)², (rad/s)²; each > 0.
     fn set_measurement_noise(
         &self,
@@ -640,14 +1055,22 @@ estimator_pymethods!(Ekf {
         positions: &Bound<'_, PyAny>,
         velocities: &Bound<'_, PyAny>,
     ) -> PyResult<()> {
-        let p = fixed_vector::<NDOF>(positions, "positions")?;
-        let v = fixed_vector::<NDOF>(velocities, "velocities")?;
-        lock(py, &self.inner)?
-            .set_measurement_noise(
-                &SVector::from_column_slice(&p),
-                &SVector::from_column_slice(&v),
-            )
-            .to_py(py)
+        match &mut *lock(py, &self.inner)? {
+            Inner::Paper(e) => {
+                let p = fixed_vector::<NDOF>(positions, "positions")?;
+                let v = fixed_vector::<NDOF>(velocities, "velocities")?;
+                e.set_measurement_noise(
+                    &SVector::from_column_slice(&p),
+                    &SVector::from_column_slice(&v),
+                )
+                .to_py(py)
+            }
+            Inner::Chain(c) => {
+                let p = DVector::from_vec(crate::arrays::vector(positions, "positions")?);
+                let v = DVector::from_vec(crate::arrays::vector(velocities, "velocities")?);
+                c.est.set_measurement_noise(&p, &v).to_py(py)
+            }
+        }
     }
 });
 

@@ -258,18 +258,183 @@ fn identified_model_from_parts(
     Ok(PyIdentifiedModel { inner })
 }
 
+/// The settings keys each method accepts (besides `base` and `preprocessing`).
+fn valid_keys(method: &str) -> &'static [&'static str] {
+    match method {
+        "ls" | "wls" => &["rank_tolerance"],
+        "rls" => &[
+            "rank_tolerance",
+            "forgetting",
+            "initial_covariance",
+            "scale_columns",
+        ],
+        "adaline" => &[
+            "rank_tolerance",
+            "rule",
+            "step_size",
+            "learning_rate",
+            "max_epochs",
+            "halvings",
+            "scale_columns",
+        ],
+        "hopfield" => &[
+            "rank_tolerance",
+            "step_size",
+            "bound",
+            "max_epochs",
+            "halvings",
+            "scale_columns",
+        ],
+        _ => &[
+            "rank_tolerance",
+            "initial",
+            "dt",
+            "measurement",
+            "discretisation",
+            "position_noise",
+            "velocity_noise",
+            "process_position_noise",
+            "process_velocity_noise",
+            "process_parameter_noise",
+            "initial_position_std",
+            "initial_velocity_std",
+            "initial_parameter_rel_std",
+            "initial_parameter_min_std",
+            "init_from_first_measurement",
+        ],
+    }
+}
+
+/// `method` with its settings from the keyword arguments; unknown keys are a TypeError
+/// naming the valid ones.
+fn parse_method(
+    py: Python<'_>,
+    method: &str,
+    settings: Option<&Bound<'_, PyDict>>,
+) -> PyResult<prrrp_core::Method> {
+    use prrrp_core::{AdalineRule, Discretisation, EkfMeasurement, EkfStart, Method};
+    let mut m = Method::parse(method).to_py(py)?;
+    let Some(settings) = settings else {
+        return Ok(m);
+    };
+    let valid = valid_keys(method);
+    let bad = |field: String, reason: &'static str| {
+        to_pyerr(
+            py,
+            &prrrp_core::PrrrpError::InvalidParameter {
+                field,
+                value: f64::NAN,
+                reason,
+            },
+        )
+    };
+    for (k, v) in settings.iter() {
+        let key: String = k.extract()?;
+        if !valid.contains(&key.as_str()) {
+            return Err(pyo3::exceptions::PyTypeError::new_err(format!(
+                "identify(method={method:?}) got an unknown setting {key:?}; valid settings: \
+                 {}",
+                valid.join(", ")
+            )));
+        }
+        let f = || -> PyResult<f64> { v.extract::<f64>() };
+        let u = || -> PyResult<usize> { Ok(v.extract::<crate::arrays::UInt<usize>>()?.0) };
+        match (&mut m, key.as_str()) {
+            (Method::Ls(s) | Method::Wls(s), "rank_tolerance") => s.rank_tolerance = f()?,
+            (Method::Rls(s), "rank_tolerance") => s.rank_tolerance = f()?,
+            (Method::Adaline(s) | Method::Hopfield(s), "rank_tolerance") => s.rank_tolerance = f()?,
+            (Method::Ekf(s), "rank_tolerance") => s.rank_tolerance = f()?,
+            (Method::Rls(s), "forgetting") => s.forgetting = f()?,
+            (Method::Rls(s), "initial_covariance") => s.initial_covariance = f()?,
+            (Method::Rls(s), "scale_columns") => s.scale_columns = v.extract()?,
+            (Method::Adaline(s) | Method::Hopfield(s), k) => match k {
+                "rule" => {
+                    s.rule = match v.extract::<String>()?.as_str() {
+                        "normalised" | "normalized" => AdalineRule::Normalised,
+                        "delta" => AdalineRule::Delta,
+                        _ => return Err(bad("rule".into(), "must be \"normalised\" or \"delta\"")),
+                    }
+                }
+                "step_size" => s.step_size = f()?,
+                "learning_rate" => s.learning_rate = Some(f()?),
+                "bound" => s.bound = Some(f()?),
+                "max_epochs" => s.max_epochs = u()?,
+                "halvings" => s.halvings = u()?,
+                _ => s.scale_columns = v.extract()?,
+            },
+            (Method::Ekf(s), k) => {
+                let c = &mut s.config;
+                match k {
+                    "initial" => {
+                        s.initial = if let Ok(name) = v.extract::<String>() {
+                            match name.as_str() {
+                                "ls" => EkfStart::LeastSquares,
+                                "prior" => EkfStart::Prior,
+                                _ => {
+                                    return Err(bad(
+                                        "initial".into(),
+                                        "must be \"ls\", \"prior\" or an array of β0",
+                                    ))
+                                }
+                            }
+                        } else {
+                            EkfStart::Given(crate::arrays::vector(&v, "initial")?)
+                        }
+                    }
+                    "dt" => s.dt = Some(f()?),
+                    "measurement" => {
+                        c.measurement = match v.extract::<String>()?.as_str() {
+                            "positions" => EkfMeasurement::Positions,
+                            "positions_velocities" => EkfMeasurement::PositionsVelocities,
+                            _ => {
+                                return Err(bad(
+                                    "measurement".into(),
+                                    "must be \"positions\" or \"positions_velocities\"",
+                                ))
+                            }
+                        }
+                    }
+                    "discretisation" => {
+                        c.discretisation = match v.extract::<String>()?.as_str() {
+                            "euler" => Discretisation::Euler,
+                            "second_order" => Discretisation::SecondOrder,
+                            _ => {
+                                return Err(bad(
+                                    "discretisation".into(),
+                                    "must be \"euler\" or \"second_order\"",
+                                ))
+                            }
+                        }
+                    }
+                    "position_noise" => c.position_noise = f()?,
+                    "velocity_noise" => c.velocity_noise = f()?,
+                    "process_position_noise" => c.process_position_noise = f()?,
+                    "process_velocity_noise" => c.process_velocity_noise = f()?,
+                    "process_parameter_noise" => c.process_parameter_noise = f()?,
+                    "initial_position_std" => c.initial_position_std = f()?,
+                    "initial_velocity_std" => c.initial_velocity_std = f()?,
+                    "initial_parameter_rel_std" => c.initial_parameter_rel_std = f()?,
+                    "initial_parameter_min_std" => c.initial_parameter_min_std = f()?,
+                    _ => c.init_from_first_measurement = v.extract()?,
+                }
+            }
+            _ => unreachable!("keys are checked against valid_keys"),
+        }
+    }
+    Ok(m)
+}
+
 /// Identifies `robot` from `data`; see `_prrrp.pyi`.
 #[pyfunction]
-#[pyo3(signature = (robot, data, method="ls", *, base=None, rank_tolerance=1e-10,
-    preprocessing=None))]
+#[pyo3(signature = (robot, data, method="ls", *, base=None, preprocessing=None, **settings))]
 fn identify(
     py: Python<'_>,
     robot: &Bound<'_, PyAny>,
     data: &crate::data::dataset::PyDataset,
     method: &str,
     base: Option<&crate::models::chain::PyBaseParameters>,
-    rank_tolerance: f64,
     preprocessing: Option<&Bound<'_, PyDict>>,
+    settings: Option<&Bound<'_, PyDict>>,
 ) -> PyResult<PyIdentifiedModel> {
     let invalid = |field: &str, reason: &'static str| {
         to_pyerr(
@@ -281,35 +446,7 @@ fn identify(
             },
         )
     };
-    let Ok(chain) = robot.cast::<PySerialChain>() else {
-        return Err(invalid(
-            "robot",
-            "must be a prrrp.SerialChain (for the paper's arm: prrrp.SerialChain.paper(), or \
-             the closed-form estimators prrrp.least_squares, Adaline, Hopfield, Ekf)",
-        ));
-    };
-    let chain = chain.get();
-    let weighted = match method {
-        "ls" => false,
-        "wls" => true,
-        "rls" | "adaline" | "hopfield" | "ekf" => {
-            return Err(invalid(
-                &format!("method {method:?}"),
-                "is not yet available through identify for SerialChain robots; use \"ls\" \
-                 or \"wls\"",
-            ))
-        }
-        _ => {
-            return Err(invalid(
-                &format!("method {method:?}"),
-                "unknown: use \"ls\" or \"wls\"",
-            ))
-        }
-    };
-    let base = match base {
-        Some(b) => b.inner.clone(),
-        None => chain.default_base(py)?.clone(),
-    };
+    let method = parse_method(py, method, settings)?;
     let preprocessing = match preprocessing {
         Some(d) => {
             let text: String = py.import("json")?.call_method1("dumps", (d,))?.extract()?;
@@ -322,16 +459,34 @@ fn identify(
         }
         None => serde_json::Value::Object(Default::default()),
     };
-    let config = prrrp_core::LeastSquaresConfig { rank_tolerance };
+    if let Ok(r) = robot.cast::<crate::models::robot::PyRobot>() {
+        if base.is_some() {
+            return Err(invalid(
+                "base",
+                "is chosen by identify for the paper's Robot (its chain form's analysis); \
+                 pass prrrp.SerialChain.paper() to give one",
+            ));
+        }
+        let robot = r.get().inner;
+        let inner = crate::interrupt::interruptible(py, || {
+            prrrp_core::identify_robot(&robot, &data.inner, &method, preprocessing)
+        })?
+        .to_py(py)?;
+        return Ok(PyIdentifiedModel { inner });
+    }
+    let Ok(chain) = robot.cast::<PySerialChain>() else {
+        return Err(invalid(
+            "robot",
+            "must be a prrrp.SerialChain or a prrrp.Robot (the paper's arm)",
+        ));
+    };
+    let chain = chain.get();
+    let base = match base {
+        Some(b) => b.inner.clone(),
+        None => chain.default_base(py)?.clone(),
+    };
     let inner = crate::interrupt::interruptible(py, || {
-        prrrp_core::identify_least_squares(
-            chain.chain(),
-            &base,
-            &data.inner,
-            weighted,
-            &config,
-            preprocessing,
-        )
+        prrrp_core::identify(chain.chain(), &base, &data.inner, &method, preprocessing)
     })?
     .to_py(py)?;
     Ok(PyIdentifiedModel { inner })

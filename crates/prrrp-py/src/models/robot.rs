@@ -21,7 +21,7 @@ use crate::models::derivatives::{
 #[pyclass(module = "prrrp", name = "Robot", frozen, eq)]
 #[derive(Clone, PartialEq)]
 pub(crate) struct PyRobot {
-    inner: Robot,
+    pub(crate) inner: Robot,
 }
 
 impl PyRobot {

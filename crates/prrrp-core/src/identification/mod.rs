@@ -9,6 +9,12 @@ use serde::{Deserialize, Serialize};
 use crate::error::{PrrrpError, Result};
 use crate::models::chain::{BaseParameters, ChainDescription, DynChain, DynWorkspace};
 
+mod methods;
+pub use methods::{
+    identify, identify_robot, EkfSettings, EkfStart, GradientSettings, LsSettings, Method,
+    RlsSettings, METHOD_NAMES,
+};
+
 /// Version of the [`IdentifiedModel`] JSON layout; bumped on any incompatible change.
 pub const MODEL_SCHEMA_VERSION: u32 = 1;
 
@@ -332,13 +338,11 @@ impl Predictor<'_> {
 
 /// Identifies the base parameters of `chain` (in the analysis `base`) from `data` by
 /// ordinary (`weighted = false`, method `"ls"`) or weighted least squares with per-joint
-/// noise variances estimated from the residuals (`"wls"`). The model carries σ and %σ of
-/// every β̂, cond(W_b) and the per-joint residual RMS; `preprocessing` is recorded as given.
+/// noise variances estimated from the residuals (`"wls"`): [`identify`] with
+/// [`Method::Ls`] or [`Method::Wls`].
 ///
 /// # Errors
-/// [`PrrrpError::ShapeMismatch`] if the data's joint count or the analysis do not fit the
-/// chain, [`PrrrpError::TooFewSamples`], [`PrrrpError::RankDeficient`] for data that do not
-/// excite every base parameter, [`PrrrpError::NonFinite`] naming a bad sample.
+/// As [`identify`].
 pub fn identify_least_squares(
     chain: &DynChain,
     base: &BaseParameters,
@@ -347,58 +351,13 @@ pub fn identify_least_squares(
     config: &crate::LeastSquaresConfig,
     preprocessing: serde_json::Value,
 ) -> Result<IdentifiedModel> {
-    use nalgebra::DVector;
-    let n = chain.dof();
-    if data.dof() != n {
-        return Err(PrrrpError::ShapeMismatch {
-            what: "data".into(),
-            expected: format!("{n} joints (the robot's)"),
-            got: format!("{} joints", data.dof()),
-        });
-    }
-    let model = chain.base_model(base)?;
-    let rows = |flat: &[f64]| -> Vec<DVector<f64>> {
-        flat.chunks_exact(n)
-            .map(DVector::from_column_slice)
-            .collect()
+    let s = LsSettings {
+        rank_tolerance: config.rank_tolerance,
     };
-    let (q, qd, qdd, tau) = (
-        rows(data.q()),
-        rows(data.qd()),
-        rows(data.qdd()),
-        rows(data.tau()),
-    );
-    let samples = crate::DynSamples::new(&q, &qd, &qdd, &tau)?;
-    let report = if weighted {
-        crate::weighted_least_squares(&model, &samples, crate::DynJointNoise::Estimated, config)?
+    let method = if weighted {
+        Method::Wls(s)
     } else {
-        crate::least_squares(&model, &samples, config)?
+        Method::Ls(s)
     };
-    let beta: Vec<f64> = report.lambda.iter().copied().collect();
-    let sigma: Vec<f64> = report.std_dev.iter().copied().collect();
-    let mut model = IdentifiedModel::new(
-        chain,
-        base,
-        beta,
-        Some(sigma),
-        None,
-        Some(report.cond),
-        vec![0.0; n],
-        if weighted { "wls" } else { "ls" },
-        serde_json::json!({ "rank_tolerance": config.rank_tolerance }),
-        preprocessing,
-    )?;
-    let predicted = model.predict(data.q(), data.qd(), data.qdd())?;
-    let samples = data.len() as f64;
-    for (j, r) in model.residual_rms.iter_mut().enumerate() {
-        let sse: f64 = predicted
-            .iter()
-            .zip(data.tau())
-            .skip(j)
-            .step_by(n)
-            .map(|(p, t)| (p - t) * (p - t))
-            .sum();
-        *r = (sse / samples).sqrt();
-    }
-    Ok(model)
+    identify(chain, base, data, &method, preprocessing)
 }
