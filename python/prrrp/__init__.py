@@ -83,7 +83,7 @@ from prrrp._prrrp import (
     validate_model,
 )
 from prrrp.measurements import measurements_to_dataset, read_measurements
-from prrrp.workflow import Identification, identify_measurements, load_robot
+from prrrp.workflow import Identification, excite, identify_measurements, load_robot, simulate
 
 __all__ = [
     "NDOF",
@@ -123,6 +123,7 @@ __all__ = [
     "condition_number",
     "design_excitation",
     "error_indices",
+    "excite",
     "identified_model_from_parts",
     "identify",
     "identify_measurements",
@@ -141,6 +142,7 @@ __all__ = [
     "rsd",
     "run_study",
     "sensitivity",
+    "simulate",
     "simulate_chain",
     "simulate_chain_open_loop",
     "simulate_closed_loop",

@@ -11,14 +11,23 @@ and report — what ``prrrp identify --robot`` runs, for notebook users.
 from __future__ import annotations
 
 import dataclasses
+import math
 import os
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from prrrp import model_report
-from prrrp._prrrp import Dataset, IdentifiedModel, SerialChain, identify
+from prrrp._prrrp import (
+    Dataset,
+    IdentifiedModel,
+    SerialChain,
+    design_excitation,
+    identify,
+    simulate_chain,
+)
 from prrrp.measurements import PREPROCESS_KEYS, measurements_to_dataset
 
 #: Methods of :func:`identify_measurements`, in the order ``--method all`` runs them.
@@ -118,3 +127,100 @@ def identify_measurements(
     record = {"settings": preprocessing, "report": log_report, "coulomb_scale": coulomb}
     model = identify(robot, data, method, preprocessing=record, **settings)
     return Identification(model, data, log_report, coulomb)
+
+
+#: Default sensor noise of :func:`simulate` (standard deviations, scaled by ``noise``):
+#: positions 1e-4 rad or m (an encoder of ~16 bits per turn), joint torques 0.05 N·m or N
+#: (a strain-gauge joint torque sensor).
+DEFAULT_Q_NOISE = 1e-4
+DEFAULT_TAU_NOISE = 0.05
+
+
+def excite(
+    robot: SerialChain,
+    duration: float = 10.0,
+    *,
+    harmonics: int = 5,
+    base_frequency: float | None = None,
+    rate: float = 100.0,
+    seed: int = 0,
+    limits: dict[str, Any] | None = None,
+    progress: Callable[[int, int], object] | None = None,
+    **design: Any,
+) -> dict[str, Any]:
+    """An exciting trajectory of ``robot`` (see ``prrrp.design_excitation``) sampled at
+    ``rate`` Hz over ``duration`` s, which must be a whole number of periods of
+    ``base_frequency`` (default 1/duration: one period) so that it ends at rest. Returns
+    the design's dict plus ``t``, ``q``, ``qd``, ``qdd`` (SI units)."""
+    if not (math.isfinite(duration) and duration > 0):
+        raise ValueError(f"duration must be a positive number of seconds, got {duration}")
+    if not (math.isfinite(rate) and rate > 0):
+        raise ValueError(f"rate must be a positive number of Hz, got {rate}")
+    f0 = 1.0 / duration if base_frequency is None else float(base_frequency)
+    periods = duration * f0
+    whole = math.isfinite(periods) and abs(periods - round(periods)) < 1e-6
+    if not (whole and periods >= 1 - 1e-9):
+        raise ValueError(
+            f"duration {duration} s is not a whole number of periods of {f0} Hz "
+            "(the trajectory would not end at rest)"
+        )
+    if duration * rate > 1e7:
+        raise ValueError(f"{duration * rate:.3g} samples asked for; at most 10^7 (MAX_SAMPLES)")
+    samples = round(duration * rate) + 1
+    out = design_excitation(
+        robot,
+        harmonics=harmonics,
+        base_frequency=f0,
+        seed=seed,
+        limits=limits,
+        progress=progress,
+        **design,
+    )
+    t = np.arange(samples) / rate
+    out["t"] = t
+    out["q"], out["qd"], out["qdd"] = out["trajectory"].eval(t)
+    out["duration"] = duration
+    return out
+
+
+def simulate(
+    robot: SerialChain,
+    trajectory: dict[str, np.ndarray],
+    *,
+    noise: float = 1.0,
+    seed: int = 0,
+    substeps: int = 10,
+) -> dict[str, np.ndarray]:
+    """``robot`` (its file's inertials and friction) tracking ``trajectory`` (``t``, ``q``,
+    ``qd``, ``qdd`` at a uniform rate) in closed loop, with sensor noise ``noise`` times
+    :data:`DEFAULT_Q_NOISE` / :data:`DEFAULT_TAU_NOISE` (0: none). Returns the measurements
+    ``t``, ``q``, ``tau`` and the truth ``q_true``, ``qd_true``, ``qdd_true``, ``tau_true``."""
+    if not (math.isfinite(noise) and noise >= 0):
+        raise ValueError(f"noise must be a finite number >= 0, got {noise}")
+    t = np.asarray(trajectory["t"], dtype=float)
+    if t.ndim != 1 or len(t) < 2:
+        raise ValueError("the trajectory needs at least two time stamps")
+    dt = np.diff(t)
+    if not (np.all(dt > 0) and np.ptp(dt) <= 1e-6 * dt.mean()):
+        raise ValueError("the trajectory's time stamps must be uniformly spaced")
+    rate = 1.0 / dt.mean()
+    ref = (t - t[0], trajectory["q"], trajectory["qd"], trajectory["qdd"])
+    rec = simulate_chain(
+        robot,
+        ref,
+        float(t[-1] - t[0]),
+        rate=rate,
+        substeps=substeps,
+        q_noise=noise * DEFAULT_Q_NOISE,
+        tau_noise=noise * DEFAULT_TAU_NOISE,
+        seed=seed,
+    )
+    return {
+        "t": np.asarray(rec.t) + t[0],
+        "q": np.asarray(rec.q_measured),
+        "tau": np.asarray(rec.tau_measured),
+        "q_true": np.asarray(rec.q),
+        "qd_true": np.asarray(rec.qd),
+        "qdd_true": np.asarray(rec.qdd),
+        "tau_true": np.asarray(rec.tau),
+    }

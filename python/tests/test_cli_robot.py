@@ -101,3 +101,62 @@ def test_identify_any_robot_bad_input(tmp_path: Path, truth, capsys):
     assert not (tmp_path / "o").exists()
     assert cli.main(["identify", str(puma), "--method", "wls"]) == cli.EXIT_USAGE
     assert "needs --robot" in capsys.readouterr().err
+
+
+def test_excite_simulate_identify_tour(tmp_path: Path, capsys, monkeypatch):
+    """The README's "your robot" tour, as a user runs it, on the Panda URDF."""
+    monkeypatch.chdir(tmp_path)
+    robot = ["--robot", str(URDF), "--tip", "panda_link8"]
+    assert cli.main(["excite", *robot, "--duration", "20", "--out", "traj.csv"]) == 0
+    out = capsys.readouterr().out
+    assert "cond(W_b)" in out
+    traj = csvio.read_table(tmp_path / "traj.csv", 7, need_tau=False)
+    chain = prrrp.SerialChain.from_urdf(str(URDF), tip="panda_link8")
+    lim = chain.limits
+    # At rest at both ends, within the file's position and speed limits everywhere.
+    for k in (0, -1):
+        assert np.abs(traj["qd"][k]).max() < 1e-9
+        assert np.abs(traj["qdd"][k]).max() < 1e-9
+    assert (traj["q"] >= lim["lower"]).all()
+    assert (traj["q"] <= lim["upper"]).all()
+    assert (np.abs(traj["qd"]) <= lim["velocity"]).all()
+    # The trajectory's accelerations are the derivative of its velocities.
+    dqd = np.gradient(traj["qd"], traj["t"], axis=0)
+    assert np.abs(dqd[2:-2] - traj["qdd"][2:-2]).max() < 1e-2 * np.abs(traj["qdd"]).max()
+    argv = ["simulate", *robot, "--trajectory", "traj.csv", "--out", "data.csv"]
+    assert cli.main(argv) == 0
+    data = csvio.read_table(tmp_path / "data.csv", 7)
+    # Closed-loop tracking: the measured motion follows the reference to within a few
+    # milliradians; the measured torques are the robot's (noise 0.05 N·m).
+    assert np.abs(data["q"] - traj["q"]).max() < 5e-3
+    ref = chain.inverse_dynamics(traj["q"], traj["qd"], traj["qdd"])
+    assert np.sqrt(((data["tau"] - ref) ** 2).mean()) < 0.5
+    argv = ["identify", "data.csv", *robot, "--out", "out", "--cutoff", "20"]
+    assert cli.main(argv) == 0
+    assert cli.main(["predict", "out/model.json", "traj.csv", "--out", "tau.csv"]) == 0
+    pred = np.loadtxt(tmp_path / "tau.csv", delimiter=",", skiprows=1)[:, 1:]
+    scale = np.sqrt((ref**2).mean(axis=0))
+    rel = np.sqrt(((pred - ref) ** 2).mean(axis=0)) / scale
+    # Joints with torques well above the sensor noise are predicted within a few %.
+    big = scale > 2.0
+    assert (rel[big] < 0.05).all(), rel
+
+
+def test_excite_bad_input(tmp_path: Path, capsys):
+    robot = ["--robot", str(URDF), "--tip", "panda_link8", "--out", str(tmp_path / "t.csv")]
+    assert cli.main(["excite", *robot, "--duration", "10", "--base-freq", "0.15"]) == 2
+    assert "whole number of periods" in capsys.readouterr().err
+    assert cli.main(["excite", *robot, "--limits", "speed=3"]) == 2
+    assert "KEY=VALUE" in capsys.readouterr().err
+    assert not (tmp_path / "t.csv").exists()
+    puma = tmp_path / "puma.toml"
+    # A DH robot file without limits: the error names the joint.
+    puma.write_text(
+        'name = "two"\nconvention = "standard"\n'
+        '[[joints]]\nkind = "revolute"\nd = 0.0\na = 0.5\nalpha = 0.0\n'
+        "[joints.inertial]\nmass = 1.0\ncom = [-0.25, 0.0, 0.0]\n"
+        "inertia = [0.01, 0.0, 0.02, 0.0, 0.0, 0.02]\n"
+    )
+    code = cli.main(["excite", "--robot", str(puma), "--out", str(tmp_path / "t.csv")])
+    err = capsys.readouterr().err
+    assert code in (1, 2), err

@@ -24,7 +24,7 @@ from collections.abc import Sequence
 from typing import Any
 
 import prrrp
-from prrrp.cli import identify, predict, reproduce, simulate
+from prrrp.cli import excite, identify, predict, reproduce, simulate
 from prrrp.cli.common import (
     EXIT_FAILED,
     EXIT_INTERRUPTED,
@@ -50,7 +50,7 @@ __all__ = [
 ]
 
 #: One module per command, each with ``add_parser(subparsers)`` and ``run(args) -> int``.
-COMMANDS = (reproduce, simulate, identify, predict)
+COMMANDS = (reproduce, excite, simulate, identify, predict)
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -12,6 +12,7 @@ import numpy as np
 
 import prrrp
 from prrrp import csvio
+from prrrp.cli import simulate_robot
 from prrrp.cli.common import (
     EXIT_OK,
     CliError,
@@ -32,7 +33,7 @@ DEFAULT_TAU_NOISE = (0.5, 0.03, 0.015, 0.007, 0.05)
 def add_parser(sub: Any) -> None:
     p = sub.add_parser(
         "simulate",
-        help="write a simulated measurement file (CSV)",
+        help="write a simulated measurement file (CSV) of the paper's arm or any robot",
         description="Optimises an excitation trajectory, runs it on the simulated paper robot "
         "under PD control with sensor noise, and writes the measured t, q1..q5, tau1..tau5 as "
         "CSV (SI units: s, m/rad, N/N·m) for `prrrp identify`.",
@@ -58,6 +59,7 @@ def add_parser(sub: Any) -> None:
         metavar="S",
         help="simulated time, s (default: the excitation's period, 10 s)",
     )
+    simulate_robot.add_arguments(p)
     p.set_defaults(func=run)
 
 
@@ -71,6 +73,8 @@ def _noise(scale: float) -> tuple[Any, Any]:
 
 
 def run(args: argparse.Namespace) -> int:
+    if args.robot:
+        return simulate_robot.run(args)
     out = Path(args.out)
     check_output_file(out)
     if not (math.isfinite(args.noise) and args.noise >= 0):

@@ -1,0 +1,135 @@
+"""``prrrp excite --robot ROBOT --duration S --out traj.csv``: an exciting trajectory for any
+robot, within its limits, starting and ending at rest."""
+
+from __future__ import annotations
+
+import argparse
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from prrrp import csvio, workflow
+from prrrp.cli.common import (
+    EXIT_OK,
+    CliError,
+    Progress,
+    check_output_file,
+    nonempty_path,
+    print_table,
+    seed,
+)
+from prrrp.cli.identify_robot import _friction
+
+LIMIT_KEYS = ("lower", "upper", "velocity", "acceleration")
+
+
+def add_parser(sub: Any) -> None:
+    p = sub.add_parser(
+        "excite",
+        help="design an exciting trajectory for a robot (CSV)",
+        description="Designs per-joint Fourier series (Swevers 1997) whose coefficients "
+        "minimise cond(W_b) of the robot's base regressor (friction columns included when "
+        "asked), starting and ending at rest, within the position, velocity and acceleration "
+        "limits of the robot file, and writes t, q1..qN, qd1..qdN, qdd1..qddN (SI units).",
+    )
+    p.add_argument("--robot", required=True, metavar="ROBOT", help="robot file (.urdf, .toml)")
+    p.add_argument("--base", metavar="LINK", help="URDF: first link of the chain")
+    p.add_argument("--tip", metavar="LINK", help="URDF: last link of the chain")
+    p.add_argument(
+        "--out", required=True, type=nonempty_path, metavar="TRAJ.csv", help="CSV file to write"
+    )
+    p.add_argument("--duration", type=float, default=10.0, metavar="S", help="seconds (10)")
+    p.add_argument("--seed", type=seed, default=0, help="seed of the random shapes (0)")
+    p.add_argument("--harmonics", type=int, default=5, metavar="K", help="per joint (5)")
+    p.add_argument(
+        "--base-freq",
+        type=float,
+        default=None,
+        metavar="HZ",
+        help="base frequency; the duration must be a whole number of its periods "
+        "(default: 1/duration)",
+    )
+    p.add_argument("--rate", type=float, default=100.0, metavar="HZ", help="samples/s (100)")
+    p.add_argument(
+        "--friction",
+        metavar="TERMS",
+        default="viscous,coulomb,offset",
+        help="friction columns of W_b: viscous, coulomb, offset or none (all three)",
+    )
+    p.add_argument(
+        "--limits",
+        metavar="K=V,...",
+        help="override the file's limits for every joint, e.g. velocity=2,acceleration=8 "
+        "(keys: lower, upper in rad/m; velocity; acceleration)",
+    )
+    p.add_argument(
+        "--evaluations", type=int, default=2000, metavar="N", help="cost evaluations (2000)"
+    )
+    p.set_defaults(func=run)
+
+
+def _limits(text: str | None, n: int) -> dict[str, np.ndarray] | None:
+    if not text:
+        return None
+    out: dict[str, np.ndarray] = {}
+    for item in text.split(","):
+        key, sep, value = item.partition("=")
+        key = key.strip()
+        if not sep or key not in LIMIT_KEYS:
+            raise CliError(f"--limits: '{item}' is not KEY=VALUE with KEY in {LIMIT_KEYS}")
+        try:
+            v = float(value)
+        except ValueError:
+            raise CliError(f"--limits: {key}={value!r} is not a number") from None
+        if not math.isfinite(v):
+            raise CliError(f"--limits: {key} must be finite")
+        out[key] = np.full(n, v)
+    return out
+
+
+def run(args: argparse.Namespace) -> int:
+    out = Path(args.out)
+    check_output_file(out)
+    robot = workflow.load_robot(
+        args.robot, base=args.base, tip=args.tip, friction=_friction(args.friction)
+    )
+    limits = _limits(args.limits, robot.dof)
+    progress = Progress()
+    try:
+        design = workflow.excite(
+            robot,
+            args.duration,
+            harmonics=args.harmonics,
+            base_frequency=args.base_freq,
+            rate=args.rate,
+            seed=args.seed,
+            limits=limits,
+            progress=lambda done, total: progress("excitation", done, total),
+            max_evaluations=args.evaluations,
+        )
+    except ValueError as e:
+        if "prrrp" in type(e).__module__:
+            raise
+        raise CliError(str(e)) from None
+    finally:
+        progress.close()
+    groups = csvio.columns(robot.dof)
+    names = ["t", *groups["q"], *groups["qd"], *groups["qdd"]]
+    table = np.column_stack([design["t"], design["q"], design["qd"], design["qdd"]])
+    lines = [",".join(names)]
+    lines.extend(",".join(repr(float(x)) for x in row) for row in table)
+    csvio.write_text_atomic(out, "\n".join(lines) + "\n")
+    print(
+        f"cond(W_b) {design['cond_initial']:.4g} -> {design['cond_final']:.4g} "
+        f"({design['evaluations']} evaluations); limit usage per joint:"
+    )
+    usage = np.asarray(design["limit_usage"])
+    rows = [
+        [j, *("-" if not np.isfinite(x) else f"{100 * x:.0f}%" for x in usage[i])]
+        for i, j in enumerate(robot.joint_names)
+    ]
+    print_table(["joint", "position", "velocity", "acceleration"], rows)
+    print(f"trajectory in {out} ({len(table)} samples over {args.duration:g} s)")
+    return EXIT_OK
