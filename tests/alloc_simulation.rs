@@ -87,7 +87,10 @@ fn closed_loop_step_of_a_dyn_chain_does_not_allocate() {
     let n = allocations() - before;
     assert_eq!(n, 0, "{n} allocations in 2000 control + RK4 steps");
     // The loop did track the reference (the work was not optimised away).
-    assert!(q.iter().zip(&q_r).all(|(a, b)| (a - b).abs() < 1e-2), "{q:?} vs {q_r:?}");
+    assert!(
+        q.iter().zip(&q_r).all(|(a, b)| (a - b).abs() < 1e-2),
+        "{q:?} vs {q_r:?}"
+    );
 }
 
 #[test]
@@ -103,5 +106,8 @@ fn whole_simulation_allocations_do_not_grow_with_length() {
         n
     };
     let (short, long) = (count(0.5), count(5.0));
-    assert_eq!(short, long, "allocations grow with the run: {short} vs {long}");
+    assert_eq!(
+        short, long,
+        "allocations grow with the run: {short} vs {long}"
+    );
 }

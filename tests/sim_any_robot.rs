@@ -59,7 +59,10 @@ fn with_substeps(n: usize, substeps: usize) -> DynSimulationConfig {
 }
 
 fn max_abs_diff(a: &[f64], b: &[f64]) -> f64 {
-    a.iter().zip(b).map(|(x, y)| (x - y).abs()).fold(0.0, f64::max)
+    a.iter()
+        .zip(b)
+        .map(|(x, y)| (x - y).abs())
+        .fold(0.0, f64::max)
 }
 
 /// Checks, for any chain: τ = ID(q, q̇, q̈) of every sample, no noise without noise
@@ -81,9 +84,18 @@ fn exact_tracking(
     for k in 0..rec.len() {
         let r = n * k..n * k + n;
         chain
-            .inverse_dynamics_into(&mut ws, &rec.q[r.clone()], &rec.qd[r.clone()], &rec.qdd[r.clone()], &mut tau)
+            .inverse_dynamics_into(
+                &mut ws,
+                &rec.q[r.clone()],
+                &rec.qd[r.clone()],
+                &rec.qdd[r.clone()],
+                &mut tau,
+            )
             .unwrap();
-        let scale = 1.0 + rec.tau[r.clone()].iter().fold(0.0f64, |m, x| m.max(x.abs()));
+        let scale = 1.0
+            + rec.tau[r.clone()]
+                .iter()
+                .fold(0.0f64, |m, x| m.max(x.abs()));
         assert!(
             max_abs_diff(&tau, &rec.tau[r.clone()]) < 1e-9 * scale,
             "sample {k}: ID(q, qd, qdd) {tau:?} vs recorded {:?}",
@@ -138,7 +150,9 @@ fn puma_exact_model_tracks_and_wrong_model_does_not() {
         err_wrong > 10.0 * err && err_wrong < 0.1,
         "wrong-model error {err_wrong} vs exact {err}"
     );
-    eprintln!("PUMA tracking error: exact model {err:.2e} rad, 30 % wrong model {err_wrong:.2e} rad");
+    eprintln!(
+        "PUMA tracking error: exact model {err:.2e} rad, 30 % wrong model {err_wrong:.2e} rad"
+    );
 }
 
 /// The controller may be a base-parameter model at β (what an identification returns):
@@ -182,7 +196,11 @@ fn urdf_fixture_follows_sinusoids_and_sampled_trajectory() {
     // exact to O(dt⁶·q⁽⁶⁾), so the robot tracks the sinusoid itself to ~1e-6.
     let rows = 151;
     let t: Vec<f64> = (0..rows).map(|k| 0.02 * k as f64).collect();
-    let (mut q, mut qd, mut qdd) = (vec![0.0; 3 * rows], vec![0.0; 3 * rows], vec![0.0; 3 * rows]);
+    let (mut q, mut qd, mut qdd) = (
+        vec![0.0; 3 * rows],
+        vec![0.0; 3 * rows],
+        vec![0.0; 3 * rows],
+    );
     for (k, &tk) in t.iter().enumerate() {
         let r = 3 * k..3 * k + 3;
         sines.eval_into(tk, &mut q[r.clone()], &mut qd[r.clone()], &mut qdd[r]);
@@ -205,14 +223,14 @@ fn urdf_fixture_follows_sinusoids_and_sampled_trajectory() {
 
 /// Gauss–Legendre nodes and weights on [0, 1] (8 points, exact for degree 15).
 const GL8: [(f64, f64); 8] = [
-    (0.019_855_071_751_231_856, 0.050_614_268_145_188_13),
-    (0.101_666_761_293_186_6, 0.111_190_517_226_687_24),
-    (0.237_233_795_041_835_5, 0.156_853_322_938_943_65),
-    (0.408_282_678_752_175_1, 0.181_341_891_689_180_99),
-    (0.591_717_321_247_824_9, 0.181_341_891_689_180_99),
-    (0.762_766_204_958_164_5, 0.156_853_322_938_943_65),
-    (0.898_333_238_706_813_4, 0.111_190_517_226_687_24),
-    (0.980_144_928_248_768_2, 0.050_614_268_145_188_13),
+    (0.019855071751231912, 0.05061426814518853),
+    (0.10166676129318664, 0.11119051722668721),
+    (0.2372337950418355, 0.15685332293894344),
+    (0.4082826787521751, 0.18134189168918083),
+    (0.5917173212478248, 0.18134189168918083),
+    (0.7627662049581645, 0.15685332293894344),
+    (0.8983332387068134, 0.11119051722668721),
+    (0.9801449282487681, 0.05061426814518853),
 ];
 
 /// Largest per-sample imbalance |ΔT + ΔV − τᵀΔq| (J) and the largest work (J) of a PUMA
@@ -288,7 +306,10 @@ fn open_loop_energy_balance_holds_to_fourth_order() {
     // fourth order), with up to 2.7 J of work per sample. A mass matrix inconsistent with
     // the bias forces or gravity would leave an imbalance of the order of the work.
     assert!(err < 1e-6, "energy balance off by {err} J (work {work} J)");
-    assert!(err_half < err / 8.0, "not fourth order: {err} -> {err_half}");
+    assert!(
+        err_half < err / 8.0,
+        "not fourth order: {err} -> {err_half}"
+    );
 }
 
 /// Noise on q, q̇ and τ with per-joint σ: sample std within 4 standard errors of σ, mean
@@ -315,14 +336,23 @@ fn noise_has_configured_statistics_and_is_seeded() {
         (&qd_measured, &rec.qd, cfg.noise.qd_std.as_ref().unwrap()),
         (&rec.tau_measured, &rec.tau, &cfg.noise.tau_std),
     ] {
-        for j in 0..n {
-            let e: Vec<f64> = meas.iter().zip(truth).skip(j).step_by(n).map(|(m, t)| m - t).collect();
+        for (j, &sigma) in std.iter().enumerate() {
+            let e: Vec<f64> = meas
+                .iter()
+                .zip(truth)
+                .skip(j)
+                .step_by(n)
+                .map(|(m, t)| m - t)
+                .collect();
             let mean = e.iter().sum::<f64>() / samples;
             let sd = (e.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (samples - 1.0)).sqrt();
             // 801 samples: the sample std has a relative spread 1/√(2·801) = 2.5 %, the
             // mean σ/√801 = 0.035σ.
-            assert!((sd / std[j] - 1.0).abs() < 0.1, "joint {j}: std {sd} vs {}", std[j]);
-            assert!(mean.abs() < 0.15 * std[j], "joint {j}: mean {mean}");
+            assert!(
+                (sd / sigma - 1.0).abs() < 0.1,
+                "joint {j}: std {sd} vs {sigma}"
+            );
+            assert!(mean.abs() < 0.15 * sigma, "joint {j}: mean {mean}");
         }
     }
     let again = simulate_dyn_closed_loop(&chain, &chain, &reference, 8.0, &cfg).unwrap();
@@ -332,7 +362,10 @@ fn noise_has_configured_statistics_and_is_seeded() {
         &chain,
         &reference,
         8.0,
-        &DynSimulationConfig { seed: 8, ..cfg.clone() },
+        &DynSimulationConfig {
+            seed: 8,
+            ..cfg.clone()
+        },
     )
     .unwrap();
     assert_ne!(rec.q_measured, other.q_measured);
@@ -348,15 +381,25 @@ fn noise_has_configured_statistics_and_is_seeded() {
 #[test]
 fn torque_validation_of_simulated_data() {
     let chain = puma();
-    let rec = simulate_dyn_closed_loop(&chain, &chain, &fourier(6, 1.0), 4.0, &noiseless(6)).unwrap();
+    let rec =
+        simulate_dyn_closed_loop(&chain, &chain, &fourier(6, 1.0), 4.0, &noiseless(6)).unwrap();
     let data = rec.true_dataset().unwrap();
     let v = validate_torque_prediction(&chain, &data).unwrap();
     for e in &v.indices {
-        assert!(e.rms < 1e-9 && e.rsd < 1e-9 && (1.0 - e.ai) < 1e-12, "{e:?}");
+        assert!(
+            e.rms < 1e-9 && e.rsd < 1e-9 && (1.0 - e.ai) < 1e-12,
+            "{e:?}"
+        );
     }
     let wrong = chain
         .clone()
-        .with_inertial(chain.inertial().iter().map(|p| p.map(|x| 1.2 * x)).collect())
+        .with_inertial(
+            chain
+                .inertial()
+                .iter()
+                .map(|p| p.map(|x| 1.2 * x))
+                .collect(),
+        )
         .unwrap();
     let w = validate_torque_prediction(&wrong, &data).unwrap();
     // 20 % heavier links: every joint's prediction is off (the wrist's by ~1e-5 N·m).
@@ -387,7 +430,10 @@ fn bad_inputs_are_typed_errors() {
     let three = fourier(3, 1.0);
     let cfg = noiseless(6);
     let e = simulate_dyn_closed_loop(&chain, &chain, &three, 1.0, &cfg).unwrap_err();
-    assert!(matches!(e, PrrrpError::ShapeMismatch { ref what, .. } if what == "reference"), "{e}");
+    assert!(
+        matches!(e, PrrrpError::ShapeMismatch { ref what, .. } if what == "reference"),
+        "{e}"
+    );
     let short = DynSimulationConfig {
         kp: vec![400.0; 5],
         ..noiseless(6)
@@ -439,8 +485,16 @@ fn bad_inputs_are_typed_errors() {
     ));
     let huge = vec![1e200; 6 * 50];
     match simulate_dyn_open_loop(&chain, &[0.0; 6], &[0.0; 6], &huge, &cfg) {
-        Err(PrrrpError::SimulationDiverged { sample, time, joint, .. }) => {
-            assert!(joint < 6 && time > 0.0 && sample >= 1, "{sample} {time} {joint}");
+        Err(PrrrpError::SimulationDiverged {
+            sample,
+            time,
+            joint,
+            ..
+        }) => {
+            assert!(
+                joint < 6 && time > 0.0 && sample >= 1,
+                "{sample} {time} {joint}"
+            );
             assert!(time <= 0.01 * sample as f64 + 1e-12);
         }
         other => panic!("expected a divergence error, got {other:?}"),

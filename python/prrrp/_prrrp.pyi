@@ -1020,9 +1020,7 @@ class ChainTrajectory:
     sinusoid per joint, or a recorded trajectory. Units: m, rad; m/s, rad/s; m/s², rad/s²."""
 
     @staticmethod
-    def fourier(
-        omega: float, offsets: _ArrayLike, a: _ArrayLike, b: _ArrayLike
-    ) -> ChainTrajectory:
+    def fourier(omega: float, offsets: _ArrayLike, a: _ArrayLike, b: _ArrayLike) -> ChainTrajectory:
         """Finite Fourier series (Swevers 1997) with base angular frequency `omega` (rad/s,
         > 0), offsets q0 (n,) and sine/cosine coefficients a, b (n, H) in velocity units:
         q_j = q0_j + Σ_l [a_jl/(ω·l)·sin(ω·l·t) − b_jl/(ω·l)·cos(ω·l·t)]. Periodic, so
@@ -1038,9 +1036,7 @@ class ChainTrajectory:
         """q_j = offset_j + amplitude_j·sin(omega_j·t + phase_j); offset (n,) sets n, the
         others are scalars or (n,); phase defaults to 0 (rad)."""
     @staticmethod
-    def sampled(
-        t: _ArrayLike, q: _ArrayLike, qd: _ArrayLike, qdd: _ArrayLike
-    ) -> ChainTrajectory:
+    def sampled(t: _ArrayLike, q: _ArrayLike, qd: _ArrayLike, qdd: _ArrayLike) -> ChainTrajectory:
         """A recorded trajectory: t (N,) s strictly increasing (taken relative to t[0]),
         q, qd, qdd (N, n); interpolated by the quintic matching (q, q̇, q̈) at both ends of
         each interval; ends at the last sample."""

@@ -89,23 +89,22 @@ pub use models::prrrp::types::{Lambda, Mat5, Regressor, Vec5, NDOF, NPARAM};
 pub use models::robot_files::{UrdfOptions, MAX_ROBOT_FILE_BYTES};
 pub use models::scaled::{DynScaledModel, DynScaledWorkspace, ScaledModel};
 pub use models::{ForwardDerivatives, ForwardDerivativesOf, LinearDynamics, LinearModel};
+pub use motion::dyn_trajectory::{DynSampledTrajectory, FourierTrajectory};
+pub use motion::dynamics::{Dynamics, ParameterisedModel, ParameterisedWorkspace};
 pub use motion::excitation::{
     excitation_variables, optimise_excitation, ExcitationConfig, ExcitationProgress,
     ExcitationResult, DEFAULT_EXCITATION_KNOTS,
 };
 pub use motion::limits::{limit_usage, JointLimits, LimitUsage};
-pub use motion::dyn_trajectory::{DynSampledTrajectory, FourierTrajectory};
-pub use motion::dynamics::{Dynamics, ParameterisedModel, ParameterisedWorkspace};
 pub use motion::simulation::{
     rk4_step, rk4_step_into, simulate_closed_loop, simulate_dyn_closed_loop,
-    simulate_dyn_open_loop, simulate_open_loop, ComputedTorque, DynComputedTorque,
-    DynSensorNoise, DynSimulationConfig, DynSimulationRecord, Rk4Integrator, SensorNoise,
-    SimulationConfig, SimulationRecord, MAX_INTEGRATION_STEPS, RK4_SCRATCH_PER_JOINT,
+    simulate_dyn_open_loop, simulate_open_loop, ComputedTorque, DynComputedTorque, DynSensorNoise,
+    DynSimulationConfig, DynSimulationRecord, Rk4Integrator, SensorNoise, SimulationConfig,
+    SimulationRecord, MAX_INTEGRATION_STEPS, RK4_SCRATCH_PER_JOINT,
 };
 pub use motion::trajectory::{
     sample_trajectory, DynTrajectory, ExcitationTrajectory, FourierSeries, JointTrajectory,
-    PiecewiseQuintic,
-    Quintic, SampledTrajectory, ScalarTrajectory, Sinusoid, TrajectoryPoint,
+    PiecewiseQuintic, Quintic, SampledTrajectory, ScalarTrajectory, Sinusoid, TrajectoryPoint,
 };
 pub use paper::sensitivity::{sensitivity, SensitivityConfig, SensitivityReport};
 pub use paper::study::{

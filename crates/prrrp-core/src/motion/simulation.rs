@@ -417,7 +417,10 @@ pub fn rk4_step_into<D: Dynamics + ?Sized>(
     if scratch.len() < RK4_SCRATCH_PER_JOINT * n {
         return Err(PrrrpError::ShapeMismatch {
             what: "rk4 scratch".into(),
-            expected: format!("at least {} entries (5 per joint)", RK4_SCRATCH_PER_JOINT * n),
+            expected: format!(
+                "at least {} entries (5 per joint)",
+                RK4_SCRATCH_PER_JOINT * n
+            ),
             got: format!("{} entries", scratch.len()),
         });
     }
@@ -862,7 +865,8 @@ where
     let (mut q, mut qd) = (q_r.clone(), qd_r.clone());
     let (mut tau, mut qdd) = (vec![0.0; n], vec![0.0; n]);
     let mut noise = Noise::new(&config.noise, config.seed)?;
-    let mut rec = DynSimulationRecord::with_capacity(n, samples, true, config.noise.qd_std.is_some());
+    let mut rec =
+        DynSimulationRecord::with_capacity(n, samples, true, config.noise.qd_std.is_some());
     for k in 0..samples {
         crate::interrupt::check("simulation")?;
         let t = config.dt * k as f64;

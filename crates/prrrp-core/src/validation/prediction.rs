@@ -101,7 +101,10 @@ pub fn torque_prediction(
     let flat = predict_with(&rows, |q, qd, qdd, tau| {
         plant.inverse_dynamics_into(&mut ws, q, qd, qdd, tau)
     })?;
-    let predicted: Vec<Vec5> = flat.chunks_exact(NDOF).map(Vec5::from_column_slice).collect();
+    let predicted: Vec<Vec5> = flat
+        .chunks_exact(NDOF)
+        .map(Vec5::from_column_slice)
+        .collect();
     let n = data.len().max(1) as f64;
     let mut rms = [0.0; NDOF];
     let mut relative_percent = [0.0; NDOF];
@@ -264,7 +267,8 @@ pub fn per_joint_indices(
             got: format!("{} values", predicted.len()),
         });
     }
-    let column = |v: &[f64], j: usize| -> Vec<f64> { v.iter().skip(j).step_by(n).copied().collect() };
+    let column =
+        |v: &[f64], j: usize| -> Vec<f64> { v.iter().skip(j).step_by(n).copied().collect() };
     (0..n)
         .map(|j| {
             error_indices(&column(observed, j), &column(predicted, j)).map_err(|e| match e {

@@ -90,7 +90,9 @@ fn table(
     );
     let (shape, data) = any_array(obj, name, &want)?;
     match *shape {
-        [r, c] if rows.is_none_or(|x| x == r) && cols.is_none_or(|x| x == c) => Ok((r, c, data)),
+        [r, c] if rows.map_or(true, |x| x == r) && cols.map_or(true, |x| x == c) => {
+            Ok((r, c, data))
+        }
         _ => Err(shape_error(obj.py(), name, want, fmt_shape(&shape))),
     }
 }
@@ -209,7 +211,10 @@ impl PyChainTrajectory {
     }
 
     /// (q, qd, qdd) at a scalar t (each (n,)) or at t of shape (N,) (each (N, n)).
-    fn eval<'py>(&self, py: Python<'py>, t: &Bound<'py, PyAny>,
+    fn eval<'py>(
+        &self,
+        py: Python<'py>,
+        t: &Bound<'py, PyAny>,
     ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>, Bound<'py, PyAny>)> {
         let (shape, ts) = any_array(t, "t", "() or (N,)")?;
         let batch = match *shape {
@@ -570,8 +575,8 @@ fn simulate_chain_open_loop(
     let cfg = config(
         n, rate, substeps.0, None, None, q_noise, qd_noise, tau_noise, seed.0,
     )?;
-    let inner = interruptible(py, || simulate_dyn_open_loop(plant, &q0, &qd0, &tau, &cfg))?
-        .to_py(py)?;
+    let inner =
+        interruptible(py, || simulate_dyn_open_loop(plant, &q0, &qd0, &tau, &cfg))?.to_py(py)?;
     Ok(PyChainSimulation { inner })
 }
 

@@ -15,10 +15,10 @@ use numpy::PyArrayMethods;
 
 use crate::arrays::{fixed_or, fixed_vector, rows_to_array, to_array, vector, UInt};
 use crate::data::dataset::{dataset_from, PyDataset};
-use crate::identification::PyIdentifiedModel;
-use crate::models::chain::{PyBaseParameters, PySerialChain};
 use crate::errors::{to_pyerr, ToPyResult};
+use crate::identification::PyIdentifiedModel;
 use crate::interrupt::interruptible;
+use crate::models::chain::{PyBaseParameters, PySerialChain};
 use crate::motion::simulation::{config as sim_config, record_dict};
 use crate::motion::trajectories::SinusoidReference;
 
