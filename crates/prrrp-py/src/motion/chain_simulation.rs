@@ -90,7 +90,9 @@ fn table(
     );
     let (shape, data) = any_array(obj, name, &want)?;
     match *shape {
-        [r, c] if rows.is_none_or(|x| x == r) && cols.is_none_or(|x| x == c) => Ok((r, c, data)),
+        [r, c] if rows.map_or(true, |x| x == r) && cols.map_or(true, |x| x == c) => {
+            Ok((r, c, data))
+        }
         _ => Err(shape_error(obj.py(), name, want, fmt_shape(&shape))),
     }
 }
