@@ -33,15 +33,21 @@ fn designed_excitation_is_at_rest_within_limits_and_better_conditioned() {
     };
     let lim = limits();
     let mut calls = 0;
-    let e = optimise_chain_excitation(&chain, &base, Some(&lim), &config, |_, _| calls += 1)
-        .unwrap();
+    let e =
+        optimise_chain_excitation(&chain, &base, Some(&lim), &config, |_, _| calls += 1).unwrap();
     assert!(calls > 0);
-    assert!(e.cond_final.is_finite() && e.cond_final < e.cond_initial, "{e:?}");
+    assert!(
+        e.cond_final.is_finite() && e.cond_final < e.cond_initial,
+        "{e:?}"
+    );
     let (mut q, mut qd, mut qdd) = ([0.0; 6], [0.0; 6], [0.0; 6]);
     for t in [0.0, e.period] {
         e.trajectory.eval_into(t, &mut q, &mut qd, &mut qdd);
         for j in 0..6 {
-            assert!(qd[j].abs() < 1e-9 && qdd[j].abs() < 1e-9, "not at rest at {t}");
+            assert!(
+                qd[j].abs() < 1e-9 && qdd[j].abs() < 1e-9,
+                "not at rest at {t}"
+            );
         }
     }
     let points = 50 * 40 * config.harmonics;
@@ -52,14 +58,26 @@ fn designed_excitation_is_at_rest_within_limits_and_better_conditioned() {
             let l = &lim[j];
             // The search keeps a 5 % margin on its grid; between its points the motion may
             // reach a little further, never past the limit.
-            assert!(q[j] >= l.lower && q[j] <= l.upper, "joint {j} at {t}: {}", q[j]);
+            assert!(
+                q[j] >= l.lower && q[j] <= l.upper,
+                "joint {j} at {t}: {}",
+                q[j]
+            );
             assert!(qd[j].abs() <= l.velocity, "joint {j} speed {}", qd[j]);
-            assert!(qdd[j].abs() <= l.acceleration, "joint {j} acceleration {}", qdd[j]);
+            assert!(
+                qdd[j].abs() <= l.acceleration,
+                "joint {j} acceleration {}",
+                qdd[j]
+            );
         }
     }
     // Every joint uses most of its tightest limit (the shapes are scaled to it).
     for u in &e.limit_usage {
-        let top = u.iter().copied().filter(|x| x.is_finite()).fold(0.0, f64::max);
+        let top = u
+            .iter()
+            .copied()
+            .filter(|x| x.is_finite())
+            .fold(0.0, f64::max);
         assert!((0.9..=1.0).contains(&top), "{u:?}");
     }
     // A seed fixes the result.

@@ -784,6 +784,17 @@ class IdentifiedModel:
     def to_json(self) -> str: ...
     def save(self, path: str | os.PathLike[str]) -> None:
         """Writes the model as JSON, atomically (a temporary file moved into place)."""
+    def report(
+        self,
+        dir: str | os.PathLike[str],
+        data: Dataset,
+        *,
+        validation: Dataset | None = None,
+    ) -> list[Any]:
+        """Writes `report.md` and figures (torque prediction per joint on `validation` or
+        `data`, residual histograms, friction curves over the data's residual-corrected
+        points) about this model into the folder `dir`, built aside and swapped in whole.
+        Returns the written paths."""
     def predict(self, q: _ArrayLike, qd: _ArrayLike, qdd: _ArrayLike) -> _F64:
         """Joint torques τ = Y_b(q, q̇, q̈)·β̂ (N·m or N), (n,) or (N, n)."""
     @property

@@ -272,3 +272,27 @@ def write_report(
     figures = write_figures(model, data, d, kwargs.get("validation"))
     (d / "report.md").write_text(render(model, data, figures=figures, **kwargs), "utf-8")
     return [d / "report.md", *(d / name for name, _ in figures)]
+
+
+def write_report_dir(
+    model: IdentifiedModel,
+    directory: str | os.PathLike[str],
+    data: Dataset,
+    validation: Dataset | None = None,
+) -> list[Path]:
+    """``IdentifiedModel.report``: :func:`write_report` into ``directory``, built aside and
+    swapped in whole (:func:`prrrp.outdir.write_dir`), with the preprocessing and Coulomb
+    speed-scale records the model carries."""
+    from prrrp import outdir
+
+    pre = model.preprocessing if isinstance(model.preprocessing, dict) else {}
+    log_report = pre.get("report") if isinstance(pre.get("report"), dict) else None
+    coulomb = pre.get("coulomb_scale") if isinstance(pre.get("coulomb_scale"), dict) else None
+
+    def build(tmp: Path) -> list[Path]:
+        written = write_report(
+            model, tmp, data, validation=validation, log_report=log_report, coulomb=coulomb
+        )
+        return [Path(directory) / p.name for p in written]
+
+    return outdir.write_dir(Path(directory), build)

@@ -162,3 +162,17 @@ def test_excite_bad_input(tmp_path: Path, capsys):
     code = cli.main(["excite", "--robot", str(puma), "--out", str(tmp_path / "t.csv")])
     err = capsys.readouterr().err
     assert code in (1, 2), err
+
+
+def test_model_report_from_python(tmp_path: Path, truth):
+    log(truth, tmp_path / "data.csv", 4, 12.0)
+    robot = prrrp.load_robot(str(URDF), tip="panda_link8", friction="viscous+coulomb+offset")
+    run = prrrp.identify_measurements(
+        robot, prrrp.read_measurements(tmp_path / "data.csv", robot), "wls"
+    )
+    written = run.model.report(tmp_path / "rep", run.data)
+    names = sorted(p.name for p in written)
+    assert names == ["friction.png", "report.md", "residual.png", "torque.png"]
+    text = (tmp_path / "rep" / "report.md").read_text()
+    assert "(wls)" in text
+    assert "## Coulomb speed scale" in text

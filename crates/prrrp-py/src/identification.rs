@@ -61,6 +61,20 @@ impl PyIdentifiedModel {
         self.inner.to_json().to_py(py)
     }
 
+    /// Writes `report.md` and figures about this model on `data` into the folder `dir`
+    /// (built aside and swapped in whole); see `prrrp.model_report`.
+    #[pyo3(signature = (dir, data, *, validation=None))]
+    fn report<'py>(
+        slf: &Bound<'py, Self>,
+        dir: PathBuf,
+        data: &Bound<'py, PyAny>,
+        validation: Option<&Bound<'py, PyAny>>,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        let py = slf.py();
+        py.import("prrrp.model_report")?
+            .call_method1("write_report_dir", (slf, dir, data, validation))
+    }
+
     /// Writes the model to `path` as JSON, atomically (a temporary file moved into place).
     fn save(&self, py: Python<'_>, path: PathBuf) -> PyResult<()> {
         let text = self.to_json(py)?;

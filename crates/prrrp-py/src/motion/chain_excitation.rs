@@ -102,10 +102,13 @@ fn design_excitation<'py>(
     let offsets = to_array(py, t.offsets().to_vec(), None, &[n])?;
     let a = to_array(py, t.a().to_vec(), None, &[n, h])?;
     let b = to_array(py, t.b().to_vec(), None, &[n, h])?;
-    let traj = py.import("prrrp")?.getattr("ChainTrajectory")?.call_method1(
-        "fourier",
-        (t.omega(), offsets.clone(), a.clone(), b.clone()),
-    )?;
+    let traj = py
+        .import("prrrp")?
+        .getattr("ChainTrajectory")?
+        .call_method1(
+            "fourier",
+            (t.omega(), offsets.clone(), a.clone(), b.clone()),
+        )?;
     out.set_item("trajectory", traj)?;
     out.set_item("omega", t.omega())?;
     out.set_item("offsets", offsets)?;
