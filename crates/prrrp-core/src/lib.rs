@@ -69,6 +69,10 @@ pub use estimators::{
     LeastSquaresConfig, LeastSquaresReport, LeastSquaresReportOf, PrrrpEkf, Rls, RlsConfig, RlsOf,
     Sample, SampleOf, Samples, SamplesOf, TrainingReport, PRRRP_EKF_STATES,
 };
+pub use estimators::{
+    base_feasibility, identify_physical, BaseFeasibility, PhysicalConfig, PhysicalEstimate,
+    PhysicalProblem, BASE_FEASIBILITY_TOLERANCE,
+};
 pub use identification::{
     identify_least_squares, BaseDescription, IdentifiedModel, Predictor, MODEL_SCHEMA_VERSION,
 };
@@ -80,6 +84,10 @@ pub use models::chain::{
     Joint, JointDescription, JointInfo, JointLimit, JointType, PoseDescription, SerialChain,
     AXIS_UNIT_TOLERANCE, CHAIN_SCHEMA_VERSION, FRICTION_PARAMETER_NAMES, INERTIAL_PARAMETER_NAMES,
     LINK_PARAMS, MAX_MATRIX_ENTRIES, PHYSICAL_TOLERANCE,
+};
+pub use models::chain::{
+    pseudo_inertia, pseudo_inertia_to_parameters, standard_from_base, FeasibilityReport,
+    JointFrictionFeasibility, LinkFeasibility,
 };
 pub use models::prrrp::derivatives::InverseDerivatives;
 pub use models::prrrp::dynamics::{MassCholesky, PrrrpModel};
