@@ -421,7 +421,7 @@ fn bad_input_is_a_typed_error() {
     beta[0] = f64::NAN;
     let e = base_feasibility(&base, &beta, &cfg).unwrap_err();
     assert!(matches!(e, PrrrpError::NonFinite { .. }), "{e}");
-    let e = FeasibilityReport::new(&[0.0; 12], 1, &FrictionModel::viscous_coulomb()).unwrap_err();
+    let e = FeasibilityReport::new(&[0.0; 11], 1, &FrictionModel::viscous_coulomb()).unwrap_err();
     assert!(matches!(e, PrrrpError::ShapeMismatch { .. }), "{e}");
 }
 

@@ -89,7 +89,7 @@ impl Default for PhysicalConfig {
         Self {
             prior: None,
             prior_weight: 0.0,
-            regularisation: 1e-6,
+            regularisation: 1e-10,
             joint_weights: None,
             max_iterations: 1000,
             tolerance: 1e-10,
@@ -116,6 +116,14 @@ impl PhysicalConfig {
                 field: "PhysicalConfig::tolerance".into(),
                 value: self.tolerance,
                 reason: "must be in (0, 1); the default is 1e-10",
+            });
+        }
+        if self.regularisation == 0.0 && self.prior_weight == 0.0 {
+            return Err(PrrrpError::InvalidParameter {
+                field: "PhysicalConfig::regularisation".into(),
+                value: 0.0,
+                reason: "must be > 0 when prior_weight is 0: something has to fix the \
+                         directions the data do not see (default 1e8)",
             });
         }
         if self.max_iterations == 0 {
@@ -391,29 +399,16 @@ impl PhysicalProblem {
         config.validate()?;
         let layout = Layout::new(self.dof, self.friction);
         let anchor = layout.anchor(config.prior.as_deref())?;
-        let p = layout.p;
-        let scale = data_scale(&self.a, p);
-        let mut theta = layout.start(&anchor);
-        let mut iterations = 0;
-        let what = "physically consistent identification";
-        if config.regularisation > 0.0 {
-            let reg = (config.prior_weight + config.regularisation) * scale;
-            iterations += lm(
-                &layout, &self.a, &self.z, self.r0sq, reg, &anchor, &mut theta, config, what,
-            )?;
-        }
-        iterations += lm(
+        let (pi, iterations) = interior_point(
             &layout,
             &self.a,
             &self.z,
             self.r0sq,
-            config.prior_weight * scale,
+            &self.base,
             &anchor,
-            &mut theta,
             config,
-            what,
+            "physically consistent identification",
         )?;
-        let pi = layout.pi(&theta);
         let base = self.base.base_values(&pi)?;
         let residual = self.residual(&pi)?;
         let (ls_base, ls_residual) = self.least_squares();
@@ -524,28 +519,16 @@ pub fn base_feasibility(
     let z = DVector::from_fn(b, |r, _| beta[r] / s[r]);
     let layout = Layout::new(base.dof, base.friction);
     let anchor = layout.anchor(config.prior.as_deref())?;
-    let scale = data_scale(&a, p);
-    let mut theta = layout.start(&anchor);
-    let what = "base feasibility";
-    let mut iterations = 0;
-    if config.regularisation > 0.0 {
-        let reg = (config.prior_weight + config.regularisation) * scale;
-        iterations += lm(
-            &layout, &a, &z, 0.0, reg, &anchor, &mut theta, config, what,
-        )?;
-    }
-    iterations += lm(
+    let (pi, iterations) = interior_point(
         &layout,
         &a,
         &z,
         0.0,
-        config.prior_weight * scale,
+        base,
         &anchor,
-        &mut theta,
         config,
-        what,
+        "base feasibility",
     )?;
-    let pi = layout.pi(&theta);
     let kb = base.base_values(&pi)?;
     let mismatch: Vec<f64> = kb.iter().zip(beta).map(|(x, y)| x - y).collect();
     let max_relative_mismatch = mismatch
@@ -584,14 +567,14 @@ fn data_scale(a: &DMatrix<f64>, p: usize) -> f64 {
     }
 }
 
-/// How a friction term is parametrised: dissipative terms as θ² (≥ 0), the offset freely.
+/// Whether a friction term is constrained (viscous, Coulomb: ≥ 0) or free (offset).
 #[derive(Debug, Clone, Copy, PartialEq)]
 enum FrictionParam {
-    Square,
+    NonNegative,
     Free,
 }
 
-/// The parametrisation θ ↦ π of a chain's standard parameters.
+/// Layout of a chain's standard parameters for the solver.
 struct Layout {
     dof: usize,
     p: usize,
@@ -601,21 +584,23 @@ struct Layout {
 
 /// Second moment of the default body along each axis (kg·m²) per kg.
 const DEFAULT_SECOND_MOMENT: f64 = 0.01;
-/// Start value of dissipative friction terms whose prior is ≤ this (SI).
+/// Start value of dissipative friction terms whose prior is below this (SI).
 const FRICTION_FLOOR: f64 = 1e-3;
 /// Pseudo-inertia eigenvalues of the start point are raised to this fraction of the
 /// link's largest.
-const EIGEN_FLOOR: f64 = 1e-6;
+const EIGEN_FLOOR: f64 = 1e-4;
+/// Factor by which the barrier weight t shrinks between centering steps.
+const BARRIER_SHRINK: f64 = 10.0;
 
 impl Layout {
     fn new(dof: usize, model: FrictionModel) -> Self {
         let mut friction = Vec::new();
         for _ in 0..dof {
             if model.viscous {
-                friction.push(FrictionParam::Square);
+                friction.push(FrictionParam::NonNegative);
             }
             if model.coulomb {
-                friction.push(FrictionParam::Square);
+                friction.push(FrictionParam::NonNegative);
             }
             if model.offset {
                 friction.push(FrictionParam::Free);
@@ -626,6 +611,17 @@ impl Layout {
             p: dof * LINK_PARAMS + friction.len(),
             friction,
         }
+    }
+
+    /// Degree of the barrier: 4 per pseudo-inertia, 1 per constrained friction term; the
+    /// central point of weight t is within degree·t of the optimum.
+    fn degree(&self) -> f64 {
+        (4 * self.dof
+            + self
+                .friction
+                .iter()
+                .filter(|k| **k == FrictionParam::NonNegative)
+                .count()) as f64
     }
 
     /// The prior π₀, or the default one.
@@ -651,60 +647,89 @@ impl Layout {
         }
     }
 
-    /// θ of the feasible point nearest to π₀ in the sense of the module docs.
+    /// A strictly feasible start near π₀: each pseudo-inertia's eigenvalues raised to
+    /// [`EIGEN_FLOOR`] of its largest (the default body if none is positive), constrained
+    /// friction raised to [`FRICTION_FLOOR`].
     fn start(&self, anchor: &[f64]) -> Vec<f64> {
-        let mut theta = vec![0.0; self.p];
+        let mut pi = anchor.to_vec();
         for i in 0..self.dof {
+            let r = LINK_PARAMS * i..LINK_PARAMS * (i + 1);
             let mut l = [0.0; LINK_PARAMS];
-            l.copy_from_slice(&anchor[LINK_PARAMS * i..LINK_PARAMS * (i + 1)]);
-            theta[LINK_PARAMS * i..LINK_PARAMS * (i + 1)].copy_from_slice(&link_theta(&l));
+            l.copy_from_slice(&anchor[r.clone()]);
+            pi[r].copy_from_slice(&interior_link(&l));
         }
         let off = self.dof * LINK_PARAMS;
         for (k, kind) in self.friction.iter().enumerate() {
-            let f = anchor[off + k];
-            theta[off + k] = match kind {
-                FrictionParam::Square => f.max(FRICTION_FLOOR).sqrt(),
-                FrictionParam::Free => f,
-            };
+            if *kind == FrictionParam::NonNegative {
+                pi[off + k] = pi[off + k].max(FRICTION_FLOOR);
+            }
         }
-        theta
-    }
-
-    fn pi(&self, theta: &[f64]) -> Vec<f64> {
-        let mut pi = vec![0.0; self.p];
-        self.pi_into(theta, &mut pi);
         pi
     }
 
-    fn pi_into(&self, theta: &[f64], pi: &mut [f64]) {
+    /// −Σ log det J_i − Σ log f_j, or `None` outside the interior.
+    fn barrier(&self, pi: &[f64]) -> Option<f64> {
+        let mut b = 0.0;
         for i in 0..self.dof {
-            let r = LINK_PARAMS * i..LINK_PARAMS * (i + 1);
-            let u = link_u(&theta[r.clone()]);
-            pi[r].copy_from_slice(&pseudo_inertia_to_parameters(&(u * u.transpose())));
+            let chol = pseudo_inertia(&link(pi, i)).cholesky()?;
+            b -= 2.0 * chol.l_dirty().diagonal().map(f64::ln).sum();
         }
         let off = self.dof * LINK_PARAMS;
         for (k, kind) in self.friction.iter().enumerate() {
-            let t = theta[off + k];
-            pi[off + k] = match kind {
-                FrictionParam::Square => t * t,
-                FrictionParam::Free => t,
-            };
+            if *kind == FrictionParam::NonNegative {
+                let f = pi[off + k];
+                if !(f > 0.0) {
+                    return None;
+                }
+                b -= f.ln();
+            }
         }
+        b.is_finite().then_some(b)
     }
 
-    /// dπ/dθ: `links[i]` is link i's 10×10 block, `fric[k]` friction parameter k's slope.
-    fn jacobian(&self, theta: &[f64], links: &mut [DMatrix<f64>], fric: &mut [f64]) {
-        for (i, blk) in links.iter_mut().enumerate() {
-            link_jacobian(&theta[LINK_PARAMS * i..LINK_PARAMS * (i + 1)], blk);
+    /// Adds t·∇barrier to `grad` and t·∇²barrier to `hess` at an interior π:
+    /// ∂/∂π_k (−log det J) = −tr(J⁻¹A_k), ∂²/∂π_k∂π_l = tr(J⁻¹A_k·J⁻¹A_l), with
+    /// J = Σ π_k·A_k linear in π.
+    fn add_barrier_derivatives(
+        &self,
+        pi: &[f64],
+        t: f64,
+        basis: &[Matrix4<f64>; LINK_PARAMS],
+        grad: &mut DVector<f64>,
+        hess: &mut DMatrix<f64>,
+    ) -> Option<()> {
+        for i in 0..self.dof {
+            let jinv = pseudo_inertia(&link(pi, i)).cholesky()?.inverse();
+            let b: [Matrix4<f64>; LINK_PARAMS] = std::array::from_fn(|k| jinv * basis[k]);
+            let o = LINK_PARAMS * i;
+            for k in 0..LINK_PARAMS {
+                grad[o + k] -= t * b[k].trace();
+                for l in k..LINK_PARAMS {
+                    // tr(B_k·B_l) without forming the product.
+                    let v = b[k].component_mul(&b[l].transpose()).sum();
+                    hess[(o + k, o + l)] += t * v;
+                    if l != k {
+                        hess[(o + l, o + k)] += t * v;
+                    }
+                }
+            }
         }
         let off = self.dof * LINK_PARAMS;
         for (k, kind) in self.friction.iter().enumerate() {
-            fric[k] = match kind {
-                FrictionParam::Square => 2.0 * theta[off + k],
-                FrictionParam::Free => 1.0,
-            };
+            if *kind == FrictionParam::NonNegative {
+                let f = pi[off + k];
+                grad[off + k] -= t / f;
+                hess[(off + k, off + k)] += t / (f * f);
+            }
         }
+        Some(())
     }
+}
+
+fn link(pi: &[f64], i: usize) -> [f64; LINK_PARAMS] {
+    let mut l = [0.0; LINK_PARAMS];
+    l.copy_from_slice(&pi[LINK_PARAMS * i..LINK_PARAMS * (i + 1)]);
+    l
 }
 
 fn default_body() -> [f64; LINK_PARAMS] {
@@ -713,285 +738,338 @@ fn default_body() -> [f64; LINK_PARAMS] {
     [1.0, 0.0, 0.0, 0.0, i, 0.0, i, 0.0, 0.0, i]
 }
 
-/// U(θ) of the log-Cholesky parametrisation (module docs), θ = (α, d₁, d₂, d₃, s₁₂, s₂₃,
-/// s₁₃, t₁, t₂, t₃).
-fn link_u(t: &[f64]) -> Matrix4<f64> {
-    let e = t[0].exp();
-    Matrix4::new(
-        e * t[1].exp(),
-        e * t[4],
-        e * t[6],
-        e * t[7],
-        0.0,
-        e * t[2].exp(),
-        e * t[5],
-        e * t[8],
-        0.0,
-        0.0,
-        e * t[3].exp(),
-        e * t[9],
-        0.0,
-        0.0,
-        0.0,
-        e,
-    )
+/// A link's parameters with the pseudo-inertia's eigenvalues raised to [`EIGEN_FLOOR`] of
+/// the largest (the default body if none is positive).
+fn interior_link(params: &[f64; LINK_PARAMS]) -> [f64; LINK_PARAMS] {
+    let eig = pseudo_inertia(params).symmetric_eigen();
+    let top = eig.eigenvalues.max();
+    if !(top > 0.0 && top.is_finite()) {
+        return default_body();
+    }
+    let d = eig.eigenvalues.map(|l| l.max(EIGEN_FLOOR * top));
+    let j = &eig.eigenvectors * Matrix4::from_diagonal(&d) * eig.eigenvectors.transpose();
+    pseudo_inertia_to_parameters(&j)
 }
 
-/// Position in U of the entry each θ_k (k ≥ 4) drives linearly.
-const OFF_DIAGONAL: [(usize, usize); 6] = [(0, 1), (1, 2), (0, 2), (0, 3), (1, 3), (2, 3)];
+/// An orthonormal basis Q = [Q_r Q_n] of parameter space whose first `rows` columns span
+/// the row space of K (what the data see) and the others its null space.
+fn split_basis(base: &BaseParameters) -> (DMatrix<f64>, usize) {
+    let (b, p) = (base.count(), base.num_standard());
+    let k = DMatrix::from_fn(b, p, |r, j| base.map[(r, j)]);
+    let kkt = &k * k.transpose();
+    let x = match kkt.cholesky() {
+        Some(c) => c.solve(&k),
+        None => DMatrix::zeros(b, p),
+    };
+    // Projector onto row(K): eigenvalues 1 on row(K), 0 on null(K).
+    let proj = k.transpose() * x;
+    let eig = proj.symmetric_eigen();
+    let mut order: Vec<usize> = (0..p).collect();
+    order.sort_by(|&i, &j| eig.eigenvalues[j].total_cmp(&eig.eigenvalues[i]));
+    let rows = order.iter().filter(|&&i| eig.eigenvalues[i] > 0.5).count();
+    let q = DMatrix::from_fn(p, p, |r, c| eig.eigenvectors[(r, order[c])]);
+    (q, rows)
+}
 
-/// dπ/dθ of one link into a 10×10 block: column k = π(dU/dθ_k·Uᵀ + U·dU/dθ_kᵀ), π(·)
-/// being linear in J.
-fn link_jacobian(t: &[f64], out: &mut DMatrix<f64>) {
-    let u = link_u(t);
-    let e = t[0].exp();
-    for k in 0..LINK_PARAMS {
-        let mut du = Matrix4::zeros();
-        match k {
-            0 => du = u,
-            1..=3 => du[(k - 1, k - 1)] = u[(k - 1, k - 1)],
-            _ => {
-                let (r, c) = OFF_DIAGONAL[k - 4];
-                du[(r, c)] = e;
-            }
-        }
-        let m = du * u.transpose();
-        let dj = m + m.transpose();
-        let col = pseudo_inertia_to_parameters(&dj);
-        for (row, v) in col.iter().enumerate() {
-            out[(row, k)] = *v;
-        }
+/// The quadratic part of a solve in the coordinates x = Qᵀ·π of [`split_basis`].
+struct Quadratic<'a> {
+    /// Data restricted to the seen directions: ‖ar·x_r − z‖² (+ r0sq).
+    ar: DMatrix<f64>,
+    z: &'a DVector<f64>,
+    /// Qᵀ·π₀.
+    x0: DVector<f64>,
+    /// Anchor of the proximal term in the unseen directions (starts at Qᵀ·π₀).
+    xn: DVector<f64>,
+    rows: usize,
+    /// ρ·s of the full prior term.
+    rho: f64,
+    /// ε·s of the proximal term ε·s·‖x_n − anchor‖² in the unseen directions.
+    omega: f64,
+}
+
+impl Quadratic<'_> {
+    fn data(&self, x: &DVector<f64>) -> f64 {
+        (&self.ar * x.rows(0, self.rows) - self.z).norm_squared()
+    }
+
+    fn prox(&self, x: &DVector<f64>) -> f64 {
+        let n = x.len() - self.rows;
+        self.omega * (x.rows(self.rows, n) - &self.xn).norm_squared()
+    }
+
+    fn value(&self, x: &DVector<f64>) -> f64 {
+        self.data(x) + self.rho * (x - &self.x0).norm_squared() + self.prox(x)
     }
 }
 
-/// θ of a link's parameters after raising the pseudo-inertia's eigenvalues to
-/// [`EIGEN_FLOOR`] of the largest (the default body if none is positive).
-fn link_theta(params: &[f64; LINK_PARAMS]) -> [f64; LINK_PARAMS] {
-    let j = pseudo_inertia(params);
-    let eig = j.symmetric_eigen();
-    let top = eig.eigenvalues.max();
-    let j = if top > 0.0 && top.is_finite() {
-        let floor = EIGEN_FLOOR * top;
-        let d = eig.eigenvalues.map(|l| l.max(floor));
-        eig.eigenvectors * Matrix4::from_diagonal(&d) * eig.eigenvectors.transpose()
-    } else {
-        pseudo_inertia(&default_body())
-    };
-    // J = U·Uᵀ with U upper triangular: the Cholesky factor of J with rows and columns
-    // reversed, reversed back.
-    let rev = Matrix4::from_fn(|r, c| j[(3 - r, 3 - c)]);
-    let l = match rev.cholesky() {
-        Some(c) => c.l(),
-        None => return link_theta(&default_body()),
-    };
-    let u = Matrix4::from_fn(|r, c| l[(3 - r, 3 - c)]);
-    let e = u[(3, 3)];
-    [
-        e.ln(),
-        (u[(0, 0)] / e).ln(),
-        (u[(1, 1)] / e).ln(),
-        (u[(2, 2)] / e).ln(),
-        u[(0, 1)] / e,
-        u[(1, 2)] / e,
-        u[(0, 2)] / e,
-        u[(0, 3)] / e,
-        u[(1, 3)] / e,
-        u[(2, 3)] / e,
-    ]
-}
-
-/// Levenberg–Marquardt on F(θ) = ‖a·π(θ) − z‖² + reg·‖π(θ) − π₀‖² from `theta` (updated in
-/// place); returns the iterations. `r0sq` only enters the relative stopping test.
+/// Barrier (interior-point) method for
+/// min ‖a·π − z‖² + ρ·s·‖π − π₀‖² subject to every J_i(π) ⪰ 0 and the constrained
+/// friction terms ≥ 0, with the unseen directions held near π₀ by ω·t·‖N·(π − π₀)‖²
+/// (N the projector onto null(K)). Damped Newton steps with a backtracking line search
+/// on φ_t = objective + t·barrier; t shrinks tenfold once φ_t is centred, until the
+/// duality-gap bound degree·t is below `tolerance` times the objective (plus `r0sq`, the
+/// part of the data outside the model) or `tolerance²` times the data energy, and ω·t is
+/// below `tolerance` times the data scale, so the base values are those of the
+/// constrained least squares. Working in the coordinates x = Qᵀπ of [`split_basis`]
+/// keeps the Newton systems accurate as t → 0: the seen block carries the data
+/// curvature, the unseen one only terms of order t, and Cholesky eliminates the first
+/// before the second. Returns π and the number of Newton steps.
 #[allow(clippy::too_many_arguments)]
-fn lm(
+fn interior_point(
     layout: &Layout,
     a: &DMatrix<f64>,
     z: &DVector<f64>,
     r0sq: f64,
-    reg: f64,
+    base: &BaseParameters,
     anchor: &[f64],
-    theta: &mut [f64],
     config: &PhysicalConfig,
     what: &'static str,
-) -> Result<usize> {
+) -> Result<(Vec<f64>, usize)> {
     let p = layout.p;
-    let nl = layout.dof;
     let tol = config.tolerance;
-    let mut gram = a.transpose() * a;
-    for k in 0..p {
-        gram[(k, k)] += reg;
-    }
-    let anchor = DVector::from_column_slice(anchor);
-    let objective = |pi: &DVector<f64>| -> (f64, DVector<f64>) {
-        let r = a * pi - z;
-        let d = pi - &anchor;
-        let f = r.norm_squared() + reg * d.norm_squared();
-        // Half-gradient in π: aᵀ·r + reg·(π − π₀), without forming aᵀa·π − aᵀz.
-        let g = a.tr_mul(&r) + d * reg;
-        (f, g)
+    let scale = data_scale(a, p);
+    let (q, rows) = split_basis(base);
+    let anchor_v = DVector::from_column_slice(anchor);
+    let x0 = q.tr_mul(&anchor_v);
+    let mut quad = Quadratic {
+        ar: a * q.columns(0, rows),
+        z,
+        xn: x0.rows(rows, p - rows).into_owned(),
+        x0,
+        rows,
+        rho: config.prior_weight * scale,
+        omega: config.regularisation * scale,
     };
-    let mut pi = DVector::from_column_slice(&layout.pi(theta));
-    let (mut f, mut g) = objective(&pi);
-    if !f.is_finite() {
+    let data_hess = quad.ar.tr_mul(&quad.ar) * 2.0;
+    let basis: [Matrix4<f64>; LINK_PARAMS] = std::array::from_fn(|k| {
+        let mut e = [0.0; LINK_PARAMS];
+        e[k] = 1.0;
+        pseudo_inertia(&e)
+    });
+    let pi_start = DVector::from_vec(layout.start(anchor));
+    let mut x = q.tr_mul(&pi_start);
+    let mut pi = &q * &x;
+    let Some(mut bar) = layout.barrier(pi.as_slice()) else {
+        return Err(PrrrpError::Infeasible {
+            what: "no interior start point (prior too close to the boundary)".into(),
+        });
+    };
+    let f0 = quad.data(&x);
+    if !f0.is_finite() {
         return Err(PrrrpError::NonFinite {
             what: "objective at the start point (data or prior too large)".into(),
             row: None,
         });
     }
+    let degree = layout.degree();
     let signal = z.norm_squared() + r0sq;
-    let mut links = vec![DMatrix::zeros(LINK_PARAMS, LINK_PARAMS); nl];
-    let mut fric = vec![0.0; layout.friction.len()];
-    let mut gd = DMatrix::zeros(p, p);
-    let mut h = DMatrix::zeros(p, p);
-    let mut j = DVector::zeros(p);
-    let mut scale = vec![0.0f64; p];
-    let mut mu = 1e-3;
-    let mut nu = 2.0;
-    let mut fresh = true;
-    let mut new_theta = vec![0.0; p];
-    let mut new_pi = DVector::zeros(p);
-    let off = nl * LINK_PARAMS;
-    for it in 1..=config.max_iterations {
-        crate::interrupt::check(what)?;
-        if fresh {
-            // H = Dᵀ·G·D and j = Dᵀ·g with D = dπ/dθ block diagonal.
-            layout.jacobian(theta, &mut links, &mut fric);
-            for (i, blk) in links.iter().enumerate() {
-                let c = LINK_PARAMS * i;
-                let gcols = gram.columns(c, LINK_PARAMS) * blk;
-                gd.columns_mut(c, LINK_PARAMS).copy_from(&gcols);
+    let mut t = (f0 + r0sq).max(f64::MIN_POSITIVE) / degree;
+    let mut f = quad.value(&x);
+    let mut steps = 0;
+    let mut last_fd = f64::INFINITY;
+    let mut gpi = DVector::zeros(p);
+    let mut hpi = DMatrix::zeros(p, p);
+    let mut grad = DVector::zeros(p);
+    let mut hess = DMatrix::zeros(p, p);
+    loop {
+        // Centre φ_t by damped Newton.
+        loop {
+            steps += 1;
+            if steps > config.max_iterations {
+                return Err(PrrrpError::Diverged {
+                    what,
+                    at: config.max_iterations,
+                    hint: "no convergence within PhysicalConfig::max_iterations (Newton \
+                           steps): raise it or the tolerance, and check the data (outliers, \
+                           scaling)",
+                });
             }
-            for (k, &s) in fric.iter().enumerate() {
-                let col = gram.column(off + k) * s;
-                gd.column_mut(off + k).copy_from(&col);
+            crate::interrupt::check(what)?;
+            gpi.fill(0.0);
+            hpi.fill(0.0);
+            if layout
+                .add_barrier_derivatives(pi.as_slice(), t, &basis, &mut gpi, &mut hpi)
+                .is_none()
+            {
+                return Err(PrrrpError::Infeasible {
+                    what: "the iterate left the interior (round-off)".into(),
+                });
             }
-            for (i, blk) in links.iter().enumerate() {
-                let c = LINK_PARAMS * i;
-                let rows = blk.tr_mul(&gd.rows(c, LINK_PARAMS));
-                h.rows_mut(c, LINK_PARAMS).copy_from(&rows);
-                let gj = blk.tr_mul(&g.rows(c, LINK_PARAMS));
-                j.rows_mut(c, LINK_PARAMS).copy_from(&gj);
+            // Barrier terms to x, then the quadratic ones.
+            grad.copy_from(&q.tr_mul(&gpi));
+            hess.copy_from(&(q.tr_mul(&(&hpi * &q))));
+            let d = &x - &quad.x0;
+            let r = &quad.ar * x.rows(0, rows) - z;
+            let gd = quad.ar.tr_mul(&r) * 2.0;
+            {
+                let mut top = grad.rows_mut(0, rows);
+                top += gd;
             }
-            for (k, &s) in fric.iter().enumerate() {
-                let row = gd.row(off + k) * s;
-                h.row_mut(off + k).copy_from(&row);
-                j[off + k] = g[off + k] * s;
+            let mut hb = hess.view_mut((0, 0), (rows, rows));
+            hb += &data_hess;
+            grad += &d * (2.0 * quad.rho);
+            for k in 0..p {
+                hess[(k, k)] += 2.0 * quad.rho;
             }
-            let hmax = (0..p).fold(0.0f64, |m, k| m.max(h[(k, k)]));
-            for (k, s) in scale.iter_mut().enumerate() {
-                *s = s.max(h[(k, k)]).max(1e-12 * hmax);
+            for k in rows..p {
+                grad[k] += 2.0 * quad.omega * (x[k] - quad.xn[k - rows]);
+                hess[(k, k)] += 2.0 * quad.omega;
             }
-            // Every direction already optimal: the gradient's cosine with each Jacobian
-            // column, |jₖ| / (‖(AD)ₖ‖·‖r‖), is scale-free.
-            let ftot = f + r0sq;
-            let cos = (0..p).fold(0.0f64, |m, k| {
-                let d = (h[(k, k)] * ftot).sqrt();
-                if d > 0.0 {
-                    m.max(j[k].abs() / d)
-                } else {
-                    m
+            let Some(step) = newton_step(&hess, &grad) else {
+                return Err(PrrrpError::NotPositiveDefinite {
+                    what: "the Newton system of the physically consistent fit",
+                });
+            };
+            // Newton decrement λ² = −∇φᵀ·Δ; φ_t is within λ²/2 of its minimum.
+            let dec = -grad.dot(&step);
+            if std::env::var("PRRRP_IP_DEBUG").is_ok() {
+                eprintln!("step {steps} t {t:.3e} f {f:.6e} data {:.6e} bar {bar:.4e} dec {dec:.3e} |g| {:.3e}", quad.data(&x), grad.norm());
+            }
+            if !(dec > 0.05 * degree * t) {
+                break;
+            }
+            let phi = f + t * bar;
+            let mut s = 1.0;
+            let mut moved = false;
+            while s > 1e-10 {
+                let cand = &x + &step * s;
+                let cand_pi = &q * &cand;
+                if let Some(b) = layout.barrier(cand_pi.as_slice()) {
+                    let fc = quad.value(&cand);
+                    // Strictly lower: at the round-off floor equal values would loop.
+                    if fc + t * b < phi - 0.25 * s * dec && fc + t * b < phi {
+                        x = cand;
+                        pi = cand_pi;
+                        f = fc;
+                        bar = b;
+                        moved = true;
+                        break;
+                    }
                 }
-            });
-            if cos <= tol || ftot <= tol * tol * signal {
-                return Ok(it - 1);
+                s *= 0.5;
+            }
+            if !moved {
+                // Round-off floor of φ_t: as centred as it gets.
+                break;
             }
         }
-        let mut sys = h.clone();
-        for k in 0..p {
-            sys[(k, k)] += mu * scale[k];
+        let fd = quad.data(&x) + quad.rho * (&x - &quad.x0).norm_squared();
+        let gap_ok = degree * t <= tol * (fd + r0sq) || degree * t <= tol * tol * signal;
+        // Re-anchored solves that no longer lower the data term: the proximal term
+        // biases nothing any more.
+        let settled = (last_fd - fd).abs() <= tol * (fd + r0sq) + tol * tol * signal;
+        last_fd = fd;
+        if gap_ok && settled {
+            return Ok((pi.as_slice().to_vec(), steps));
         }
-        let Some(chol) = sys.cholesky() else {
-            mu *= nu;
-            nu *= 2.0;
-            fresh = false;
-            continue;
-        };
-        let delta = -chol.solve(&j);
-        let tnorm = theta.iter().map(|x| x * x).sum::<f64>().sqrt();
-        if delta.norm() <= tol * (tnorm + tol) {
-            return Ok(it);
+        // Proximal re-anchoring: the unseen directions stay where the path brought them,
+        // so at the fixed point the proximal term vanishes and does not bias β.
+        quad.xn.copy_from(&x.rows(rows, p - rows));
+        if !gap_ok {
+            t /= BARRIER_SHRINK;
         }
-        for k in 0..p {
-            new_theta[k] = theta[k] + delta[k];
-        }
-        layout.pi_into(&new_theta, new_pi.as_mut_slice());
-        let (nf, ng) = objective(&new_pi);
-        // Predicted decrease of the local quadratic model: δᵀHδ + 2μ·δᵀSδ > 0.
-        let hd = &h * &delta;
-        let pred = delta.dot(&hd)
-            + 2.0 * mu * (0..p).map(|k| scale[k] * delta[k] * delta[k]).sum::<f64>();
-        let actual = f - nf;
-        if nf.is_finite() && actual > 0.0 && pred > 0.0 {
-            let rho = actual / pred;
-            theta.copy_from_slice(&new_theta);
-            pi.copy_from(&new_pi);
-            f = nf;
-            g = ng;
-            mu *= (1.0f64 / 3.0).max(1.0 - (2.0 * rho - 1.0).powi(3));
-            nu = 2.0;
-            fresh = true;
-            let ftot = f + r0sq;
-            if actual <= tol * ftot && pred <= tol * ftot {
-                return Ok(it);
-            }
-        } else {
-            mu *= nu;
-            nu *= 2.0;
-            fresh = false;
-            if !mu.is_finite() {
-                return Ok(it);
-            }
-        }
+        f = quad.value(&x);
     }
-    Err(PrrrpError::Diverged {
-        what,
-        at: config.max_iterations,
-        hint: "no convergence within PhysicalConfig::max_iterations: raise it, or the \
-               regularisation / prior_weight, and check the data (outliers, scaling)",
-    })
+}
+
+/// Δ = −H⁻¹·g by Cholesky, with a growing diagonal shift if H is numerically singular.
+fn newton_step(h: &DMatrix<f64>, g: &DVector<f64>) -> Option<DVector<f64>> {
+    let p = h.nrows();
+    let hmax = (0..p).fold(0.0f64, |m, k| m.max(h[(k, k)].abs()));
+    let mut shift = 0.0;
+    for _ in 0..12 {
+        let mut m = h.clone();
+        for k in 0..p {
+            m[(k, k)] += shift;
+        }
+        if let Some(c) = m.cholesky() {
+            let step = -c.solve(g);
+            if step.iter().all(|x| x.is_finite()) {
+                return Some(step);
+            }
+        }
+        shift = if shift == 0.0 {
+            1e-14 * hmax
+        } else {
+            shift * 100.0
+        };
+    }
+    None
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
 
-    /// The analytic dπ/dθ against central differences, at a generic θ.
+    /// The barrier's analytic gradient and Hessian against central differences of its
+    /// value, at an interior point of a link with friction.
     #[test]
-    fn jacobian_matches_finite_differences() {
-        let t = [0.3, -0.4, 0.2, -1.1, 0.15, -0.3, 0.25, 0.1, -0.2, 0.05];
-        let mut jac = DMatrix::zeros(10, 10);
-        link_jacobian(&t, &mut jac);
-        let pi_of = |t: &[f64]| {
-            let u = link_u(t);
-            pseudo_inertia_to_parameters(&(u * u.transpose()))
+    fn barrier_derivatives_match_finite_differences() {
+        let layout = Layout::new(1, FrictionModel::all());
+        let mut pi = crate::models::chain::inertial_parameters(
+            2.0,
+            [0.1, -0.2, 0.3],
+            [0.05, 0.001, 0.04, -0.002, 0.003, 0.03],
+        )
+        .to_vec();
+        pi.extend([0.4, 0.7, -0.2]);
+        let basis: [Matrix4<f64>; LINK_PARAMS] = std::array::from_fn(|k| {
+            let mut e = [0.0; LINK_PARAMS];
+            e[k] = 1.0;
+            pseudo_inertia(&e)
+        });
+        let mut g = DVector::zeros(13);
+        let mut h = DMatrix::zeros(13, 13);
+        layout
+            .add_barrier_derivatives(&pi, 1.0, &basis, &mut g, &mut h)
+            .unwrap();
+        let eps = 1e-6;
+        let grad_at = |x: &[f64]| {
+            let mut g = DVector::zeros(13);
+            let mut h = DMatrix::zeros(13, 13);
+            layout
+                .add_barrier_derivatives(x, 1.0, &basis, &mut g, &mut h)
+                .unwrap();
+            g
         };
-        let h = 1e-6;
-        for k in 0..10 {
-            let (mut tp, mut tm) = (t, t);
-            tp[k] += h;
-            tm[k] -= h;
-            let (a, b) = (pi_of(&tp), pi_of(&tm));
-            for r in 0..10 {
-                let fd = (a[r] - b[r]) / (2.0 * h);
-                assert!((fd - jac[(r, k)]).abs() < 1e-7, "({r},{k}): {fd} vs {}", jac[(r, k)]);
+        for k in 0..13 {
+            let (mut a, mut b) = (pi.clone(), pi.clone());
+            a[k] += eps;
+            b[k] -= eps;
+            let fd = (layout.barrier(&a).unwrap() - layout.barrier(&b).unwrap()) / (2.0 * eps);
+            assert!((fd - g[k]).abs() < 1e-5 * (1.0 + g[k].abs()), "grad {k}: {fd} vs {}", g[k]);
+            let dg = (grad_at(&a) - grad_at(&b)) / (2.0 * eps);
+            for l in 0..13 {
+                assert!(
+                    (dg[l] - h[(l, k)]).abs() < 1e-4 * (1.0 + h[(l, k)].abs()),
+                    "hess ({l},{k}): {} vs {}",
+                    dg[l],
+                    h[(l, k)]
+                );
             }
         }
+        assert_eq!(g[12], 0.0, "the offset is free");
     }
 
-    /// θ of a consistent link maps back to the same parameters, and the image is always
-    /// consistent.
+    /// The start point of a consistent link is the link itself; of a non-physical one, a
+    /// strictly consistent body.
     #[test]
-    fn theta_round_trip() {
+    fn interior_start() {
         let p = crate::models::chain::inertial_parameters(
             2.0,
             [0.1, -0.2, 0.3],
             [0.05, 0.001, 0.04, -0.002, 0.003, 0.03],
         );
-        let t = link_theta(&p);
-        let u = link_u(&t);
-        let back = pseudo_inertia_to_parameters(&(u * u.transpose()));
+        let q = interior_link(&p);
         for k in 0..10 {
-            assert!((back[k] - p[k]).abs() < 1e-12, "{k}: {} vs {}", back[k], p[k]);
+            assert!((q[k] - p[k]).abs() < 1e-12, "{k}");
         }
+        let bad = crate::models::chain::inertial_parameters(
+            1.0,
+            [0.0; 3],
+            [0.01, 0.0, 0.01, 0.0, 0.0, 0.05],
+        );
+        assert!(pseudo_inertia(&interior_link(&bad)).cholesky().is_some());
+        assert_eq!(interior_link(&[0.0; 10]), default_body());
     }
 }
