@@ -11,36 +11,41 @@
 //!
 //! with W the stacked full regressor (friction columns included), Λ per-joint weights,
 //! J_i the 4×4 pseudo-inertia of link i (Wensing, Kim & Slotine 2017) and π₀ a prior
-//! (e.g. the URDF inertials). The problem is convex in π; it is solved without a
-//! semidefinite solver by writing every link as J = U·Uᵀ with the **log-Cholesky**
-//! parametrisation of Rucker & Wensing ("Smooth parameterization of rigid-body inertia",
-//! IEEE RA-L 2022):
+//! (e.g. the URDF inertials). The problem is convex in π (a least-squares objective under
+//! linear matrix inequalities).
 //!
-//! U = e^α·[[e^{d₁}, s₁₂, s₁₃, t₁], [0, e^{d₂}, s₂₃, t₂], [0, 0, e^{d₃}, t₃], [0, 0, 0, 1]],
+//! **Solver.** A barrier (interior-point) method, written here without a semidefinite
+//! solver: Newton steps with a backtracking line search on
+//! objective + t·(−Σ log det J_i − Σ log fv_j − Σ log fc_j), t shrunk tenfold after each
+//! centring, until the duality-gap bound (4·links + friction terms)·t falls below
+//! `tolerance` times the objective. The log-det barrier is self-concordant, its gradient
+//! and Hessian are closed-form (tr(J⁻¹A_k), tr(J⁻¹A_k·J⁻¹A_l) with J = Σ π_k·A_k), and
+//! boundary optima (a point mass, a rod, zero friction) are approached as t → 0. The
+//! data enter once, through a QR factorisation of [Λ^{1/2}W | Λ^{1/2}τ]:
+//! ‖Λ^{1/2}(Wπ − τ)‖² = ‖R·π − z‖² + r₀², so a Newton step costs O(P³) in the P standard
+//! parameters (P = 91 for a 7-joint arm with three friction terms), independent of the
+//! number of samples, and residuals are evaluated without the cancellation of the
+//! normal equations.
 //!
-//! ten unconstrained numbers θ = (α, d₁, d₂, d₃, s₁₂, s₂₃, s₁₃, t₁, t₂, t₃) per link that
-//! reach every positive definite J, and fv = θ², fc = θ² (the offset fo is free). The map
-//! θ ↦ π is a diffeomorphism onto the interior of the feasible set, so every stationary
-//! point of the objective in θ is the global constrained minimum (the problem in π being
-//! convex); optima on the boundary (a point mass, a rod, zero friction) are approached as
-//! θ runs off to −∞, which the iteration reaches in a few steps.
+//! A log-Cholesky parametrisation (Rucker & Wensing, IEEE RA-L 2022) with
+//! Levenberg–Marquardt was tried first: from a default start on exact PUMA 560 data it
+//! needed more than 1000 iterations (a curved, ill-conditioned valley towards the
+//! boundary), where the barrier method takes about a hundred Newton steps.
 //!
-//! **Solver.** Levenberg–Marquardt (Nielsen's damping update, Marquardt's diagonal
-//! scaling) with the analytic Jacobian dπ/dθ (block diagonal: 10×10 per link, scalars for
-//! friction). The data enter once, through a QR factorisation of [Λ^{1/2}W | Λ^{1/2}τ]:
-//! ‖Λ^{1/2}(Wπ − τ)‖² = ‖R·π − z‖² + r₀², so an iteration costs O(P²) (P standard
-//! parameters), independent of the number of samples, and residuals are evaluated without
-//! the cancellation of the normal equations.
-//!
-//! **Unidentifiable directions.** The data see only the base combinations β = K·π; the
-//! other directions of π are fixed by the prior: a first solve adds the small regulariser
-//! ε·s·‖π − π₀‖² ([`PhysicalConfig::regularisation`], s = ‖Λ^{1/2}W‖²_F / P, so ε is
-//! dimensionless) to make the minimum unique; a second solve from there drops ε (keeping
-//! the user's ρ), so the base parameters are the constrained least-squares ones,
-//! unbiased by ε, while the unseen directions stay where the first solve put them
-//! (Levenberg–Marquardt steps have no component along directions the objective does not
-//! see). Without a prior, π₀ is a default body per link (1 kg at the link origin, second
-//! moments 0.01 kg·m² on each axis) and zero friction.
+//! **Unidentifiable directions.** The data see only the base combinations β = K·π. The
+//! solver works in coordinates x = Qᵀ·π with Q = [Q_r Q_n] an orthonormal basis of
+//! row(K) and null(K), so that the data curvature and the barrier's O(t) curvature sit in
+//! separate blocks and the Newton systems stay accurate as t → 0. The unseen part x_n is
+//! held by a proximal term ε·s·‖x_n − a‖² ([`PhysicalConfig::regularisation`] ε,
+//! s = ‖Λ^{1/2}W‖²_F / P): a starts at the prior's Qₙᵀ·π₀ and is moved to the current
+//! iterate after every centring, so that at the solution the term vanishes and does not
+//! bias β (the base parameters are the constrained least-squares ones, to `tolerance`),
+//! while the unseen directions stay where the prior and the constraints put them. With
+//! the prior itself feasible and the data exact, the whole π₀ is returned. Without a
+//! prior, π₀ is a default body per link (1 kg at the link origin, second moments
+//! 0.01 kg·m² on each axis) and zero friction. A positive
+//! [`PhysicalConfig::prior_weight`] adds the full ridge term ρ·s·‖π − π₀‖², which does
+//! bias β towards the prior (a maximum a posteriori estimate).
 
 use faer::Mat;
 use nalgebra::{DMatrix, DVector, Matrix4};
@@ -60,27 +65,29 @@ pub const BASE_FEASIBILITY_TOLERANCE: f64 = 1e-6;
 pub struct PhysicalConfig {
     /// Prior standard parameters π₀ (the chain's layout, e.g. the URDF's
     /// [`DynChain::parameters`]); `None` (default) uses a default body per link and zero
-    /// friction. The start point is π₀ projected onto the feasible set (pseudo-inertia
-    /// eigenvalues raised to 10⁻⁶ of the link's largest, friction to ≥ 10⁻³).
+    /// friction. The start point is π₀ moved into the interior (pseudo-inertia
+    /// eigenvalues raised to 10⁻⁴ of the link's largest, fv and fc to ≥ 10⁻³).
     pub prior: Option<Vec<f64>>,
     /// Weight ρ ≥ 0 of the prior term ρ·s·‖π − π₀‖² (dimensionless, relative to the data
     /// scale s = ‖Λ^{1/2}W‖²_F / P; SI units for π). Default 0: the prior only fixes the
     /// directions the data do not see. A positive ρ biases the base parameters towards
     /// the prior (a ridge / maximum a posteriori estimate).
     pub prior_weight: f64,
-    /// The small regulariser ε ≥ 0 of the first solve (dimensionless, same scale as
-    /// `prior_weight`, default 1e-6); see the module docs. 0 skips the first solve.
+    /// Weight ε of the proximal term that holds the directions the data do not see
+    /// (dimensionless, same scale as `prior_weight`, default 1e-10); see the module
+    /// docs. It does not bias the base parameters; must be > 0 unless `prior_weight` is.
     pub regularisation: f64,
     /// Per-joint weights Λ (length n, each finite and ≥ 0, not all 0) multiplying each
     /// joint's squared residuals, e.g. inverse noise variances; `None` (default) weighs
     /// all joints 1. Applied when the problem is built.
     pub joint_weights: Option<Vec<f64>>,
-    /// Most Levenberg–Marquardt iterations per solve (default 1000); exceeding it is
+    /// Most Newton steps per solve (default 1000); exceeding it is
     /// [`PrrrpError::Diverged`].
     pub max_iterations: usize,
-    /// Relative tolerance (default 1e-10): stop when an accepted step lowers the
-    /// objective by less than `tolerance` times its value, or the step is shorter than
-    /// `tolerance` times ‖θ‖.
+    /// Relative tolerance (default 1e-10, in (0, 1)): stop when the duality-gap bound is
+    /// below `tolerance` times the objective (or `tolerance²` times ‖Λ^{1/2}τ‖² for exact
+    /// data) and a re-anchoring of the unseen directions changes the objective by less
+    /// than `tolerance` times its value.
     pub tolerance: f64,
 }
 
@@ -157,7 +164,7 @@ pub struct PhysicalEstimate {
     /// 100·(residual / ls_residual − 1): the price of physical consistency on these data
     /// (%; 0 when both residuals vanish).
     pub residual_increase_percent: f64,
-    /// Levenberg–Marquardt iterations (accepted and rejected steps) over both solves.
+    /// Newton steps of the solve.
     pub iterations: usize,
     /// Feasibility of π̂ (every link consistent, friction ≥ 0, up to round-off).
     pub feasibility: FeasibilityReport,
@@ -177,13 +184,17 @@ pub struct BaseFeasibility {
     pub max_relative_mismatch: f64,
     /// Feasibility of `parameters`.
     pub report: FeasibilityReport,
-    /// Levenberg–Marquardt iterations.
+    /// Newton steps of the solve.
     pub iterations: usize,
+    /// Whether the solve converged within `max_iterations`. If not, `parameters` are
+    /// still consistent and the mismatch they reach is an upper bound of the smallest
+    /// one: `feasible = true` stays a proof, `false` is then not certain.
+    pub converged: bool,
 }
 
 /// A physically consistent identification problem in compact form: the data reduced to
-/// R (P×P) and z (P) once, so that solves with other priors or weights of the prior cost
-/// O(P²) per iteration whatever the number of samples.
+/// R (P×P) and z (P) once, so that solves (e.g. with other priors) cost the same whatever
+/// the number of samples.
 #[derive(Debug, Clone)]
 pub struct PhysicalProblem {
     dof: usize,
@@ -399,7 +410,7 @@ impl PhysicalProblem {
         config.validate()?;
         let layout = Layout::new(self.dof, self.friction);
         let anchor = layout.anchor(config.prior.as_deref())?;
-        let (pi, iterations) = interior_point(
+        let (pi, iterations, _) = interior_point(
             &layout,
             &self.a,
             &self.z,
@@ -408,6 +419,7 @@ impl PhysicalProblem {
             &anchor,
             config,
             "physically consistent identification",
+            false,
         )?;
         let base = self.base.base_values(&pi)?;
         let residual = self.residual(&pi)?;
@@ -440,8 +452,8 @@ impl PhysicalProblem {
 /// slices as numpy arrays are: positions (rad or m), velocities, accelerations and
 /// measured generalised forces τ (N·m or N).
 ///
-/// Cost: one QR of the (n·samples) × (p + 1) data, then O(p²) per iteration; a 7-joint
-/// arm with friction (91 parameters) on 2000 samples takes a fraction of a second.
+/// Cost: one QR of the (n·samples) × (p + 1) data, then O(p³) per Newton step (tens to a
+/// few hundred steps); see `benches/physical.rs` for the 7-joint arm on 2000 samples.
 ///
 /// # Example
 /// ```
@@ -519,15 +531,22 @@ pub fn base_feasibility(
     let z = DVector::from_fn(b, |r, _| beta[r] / s[r]);
     let layout = Layout::new(base.dof, base.friction);
     let anchor = layout.anchor(config.prior.as_deref())?;
-    let (pi, iterations) = interior_point(
+    // A yes/no question with a mismatch to report: 1e-7 of the objective is accuracy
+    // enough, and saves the slow last digits of boundary optima.
+    let loose = PhysicalConfig {
+        tolerance: config.tolerance.max(1e-7),
+        ..config.clone()
+    };
+    let (pi, iterations, converged) = interior_point(
         &layout,
         &a,
         &z,
         0.0,
         base,
         &anchor,
-        config,
+        &loose,
         "base feasibility",
+        true,
     )?;
     let kb = base.base_values(&pi)?;
     let mismatch: Vec<f64> = kb.iter().zip(beta).map(|(x, y)| x - y).collect();
@@ -543,6 +562,7 @@ pub fn base_feasibility(
         max_relative_mismatch,
         report,
         iterations,
+        converged,
     })
 }
 
@@ -824,7 +844,8 @@ fn interior_point(
     anchor: &[f64],
     config: &PhysicalConfig,
     what: &'static str,
-) -> Result<(Vec<f64>, usize)> {
+    partial_ok: bool,
+) -> Result<(Vec<f64>, usize, bool)> {
     let p = layout.p;
     let tol = config.tolerance;
     let scale = data_scale(a, p);
@@ -876,6 +897,9 @@ fn interior_point(
         loop {
             steps += 1;
             if steps > config.max_iterations {
+                if partial_ok {
+                    return Ok((pi.as_slice().to_vec(), steps - 1, false));
+                }
                 return Err(PrrrpError::Diverged {
                     what,
                     at: config.max_iterations,
@@ -922,9 +946,6 @@ fn interior_point(
             };
             // Newton decrement λ² = −∇φᵀ·Δ; φ_t is within λ²/2 of its minimum.
             let dec = -grad.dot(&step);
-            if std::env::var("PRRRP_IP_DEBUG").is_ok() {
-                eprintln!("step {steps} t {t:.3e} f {f:.6e} data {:.6e} bar {bar:.4e} dec {dec:.3e} |g| {:.3e}", quad.data(&x), grad.norm());
-            }
             if !(dec > 0.05 * degree * t) {
                 break;
             }
@@ -960,7 +981,7 @@ fn interior_point(
         let settled = (last_fd - fd).abs() <= tol * (fd + r0sq) + tol * tol * signal;
         last_fd = fd;
         if gap_ok && settled {
-            return Ok((pi.as_slice().to_vec(), steps));
+            return Ok((pi.as_slice().to_vec(), steps, true));
         }
         // Proximal re-anchoring: the unseen directions stay where the path brought them,
         // so at the fixed point the proximal term vanishes and does not bias β.
