@@ -16,8 +16,8 @@ use dyn_support::{exact_record, panda_like, DynFourier, DynRecord};
 use prrrp_core::faer::Mat;
 use prrrp_core::{
     base_feasibility, identify_physical, inertial_parameters, standard_from_base, DynChain,
-    FeasibilityReport, FrictionModel, LinkFeasibility, PhysicalConfig, PhysicalProblem,
-    PrrrpError, SerialChain,
+    FeasibilityReport, FrictionModel, LinkFeasibility, PhysicalConfig, PhysicalProblem, PrrrpError,
+    SerialChain,
 };
 use rand::rngs::StdRng;
 use rand::SeedableRng;
@@ -33,7 +33,9 @@ struct Flat {
 
 fn flat(rec: &DynRecord) -> Flat {
     let cat = |v: &[prrrp_core::nalgebra::DVector<f64>]| {
-        v.iter().flat_map(|x| x.iter().copied()).collect::<Vec<f64>>()
+        v.iter()
+            .flat_map(|x| x.iter().copied())
+            .collect::<Vec<f64>>()
     };
     Flat {
         q: cat(&rec.q),
@@ -229,7 +231,9 @@ fn few_noisy_samples() {
 
     // Held-out trajectory, exact torques.
     let test = data(&chain, 77, 400, 0.025);
-    let w = chain.observation_matrix(&test.q, &test.qd, &test.qdd).unwrap();
+    let w = chain
+        .observation_matrix(&test.q, &test.qd, &test.qdd)
+        .unwrap();
     let wb = base.select_columns(&w).unwrap();
     let e_phys = rms_error(&w, &est.parameters, &test.tau);
     let e_ls = rms_error(&wb, &ls_beta, &test.tau);
@@ -276,14 +280,22 @@ fn report_of_known_bodies() {
     assert_eq!(point.mass, 2.0);
     let com = point.com.unwrap();
     assert!((com[2] - 0.3).abs() < 1e-15);
-    assert!(point.principal_moments.unwrap().iter().all(|x| x.abs() < 1e-14));
+    assert!(point
+        .principal_moments
+        .unwrap()
+        .iter()
+        .all(|x| x.abs() < 1e-14));
     assert!(point.consistent);
 
     // Thin rod of mass m, length L along x, about its centre: moments (0, mL²/12, mL²/12),
     // margins (mL²/6, 0, 0); J = diag(mL²/12, 0, 0, m).
     let (m, l) = (3.0, 0.6);
     let k = m * l * l / 12.0;
-    let rod = LinkFeasibility::of(&inertial_parameters(m, [0.0; 3], [0.0, 0.0, k, 0.0, 0.0, k]));
+    let rod = LinkFeasibility::of(&inertial_parameters(
+        m,
+        [0.0; 3],
+        [0.0, 0.0, k, 0.0, 0.0, k],
+    ));
     let pm = rod.principal_moments.unwrap();
     assert!(pm[0].abs() < 1e-15 && (pm[1] - k).abs() < 1e-15 && (pm[2] - k).abs() < 1e-15);
     let tm = rod.triangle_margins.unwrap();
@@ -320,7 +332,11 @@ fn report_of_known_bodies() {
     // Friction signs, and the layout (fv, fc, fo per joint after the inertials).
     let mut pi: Vec<f64> = inertial_parameters(1.0, [0.0; 3], [0.01, 0.0, 0.01, 0.0, 0.0, 0.01])
         .into_iter()
-        .chain(inertial_parameters(1.0, [0.0; 3], [0.0, 0.0, k, 0.0, 0.0, k]))
+        .chain(inertial_parameters(
+            1.0,
+            [0.0; 3],
+            [0.0, 0.0, k, 0.0, 0.0, k],
+        ))
         .collect();
     pi.extend([0.5, 0.2, -3.0, 0.4, -0.1, 2.0]);
     let rep = FeasibilityReport::new(&pi, 2, &FrictionModel::all()).unwrap();
@@ -417,7 +433,10 @@ fn bad_input_is_a_typed_error() {
     let mut tau = d.tau.clone();
     tau[20] = f64::NAN;
     let e = identify_physical(&chain, &d.q, &d.qd, &d.qdd, &tau, &cfg).unwrap_err();
-    assert!(matches!(e, PrrrpError::NonFinite { row: Some(2), .. }), "{e}");
+    assert!(
+        matches!(e, PrrrpError::NonFinite { row: Some(2), .. }),
+        "{e}"
+    );
     let mut q = d.q.clone();
     q[8] = f64::INFINITY;
     let e = identify_physical(&chain, &q, &d.qd, &d.qdd, &d.tau, &cfg).unwrap_err();
@@ -466,7 +485,9 @@ fn measure_chain7_2000() {
     let anchored = standard_from_base(base, &est.ls_base, &chain.parameters()).unwrap();
     let rep = FeasibilityReport::new(&anchored, 7, &chain.friction()).unwrap();
     let test = data(&chain, 77, 1000, 0.01);
-    let w = chain.observation_matrix(&test.q, &test.qd, &test.qdd).unwrap();
+    let w = chain
+        .observation_matrix(&test.q, &test.qd, &test.qdd)
+        .unwrap();
     let wb = base.select_columns(&w).unwrap();
     println!("solve time {dt:?}, iterations {}", est.iterations);
     println!(

@@ -62,16 +62,16 @@ pub use data::{
 };
 pub use error::{PrrrpError, Result};
 pub use estimators::{
+    base_feasibility, identify_physical, BaseFeasibility, PhysicalConfig, PhysicalEstimate,
+    PhysicalProblem, BASE_FEASIBILITY_TOLERANCE,
+};
+pub use estimators::{
     least_squares, weighted_least_squares, Adaline, AdalineConfig, AdalineOf, AdalineRule,
     Discretisation, DynAdaline, DynEkf, DynHopfield, DynJointNoise, DynLeastSquaresReport, DynRls,
     DynSample, DynSamples, Ekf, EkfAllocator, EkfConfig, EkfMeasurement, EkfOf, Estimator,
     Hopfield, HopfieldConfig, HopfieldOf, JointNoise, JointNoiseOf, LeastSquares,
     LeastSquaresConfig, LeastSquaresReport, LeastSquaresReportOf, PrrrpEkf, Rls, RlsConfig, RlsOf,
     Sample, SampleOf, Samples, SamplesOf, TrainingReport, PRRRP_EKF_STATES,
-};
-pub use estimators::{
-    base_feasibility, identify_physical, BaseFeasibility, PhysicalConfig, PhysicalEstimate,
-    PhysicalProblem, BASE_FEASIBILITY_TOLERANCE,
 };
 pub use identification::{
     identify_least_squares, BaseDescription, IdentifiedModel, Predictor, MODEL_SCHEMA_VERSION,

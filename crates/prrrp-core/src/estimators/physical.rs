@@ -1,51 +1,4 @@
-//! Physically consistent identification: least squares over the standard parameters of a
-//! chain, constrained to rigid bodies and dissipative friction.
-//!
-//! Least squares on the base parameters β fits the torques best but may return values no
-//! rigid body has (a negative mass, an inertia breaking the triangle inequality, negative
-//! friction) — a model that forward simulation refuses and controllers should not trust.
-//! This estimator solves
-//!
-//! min_π ‖Λ^{1/2}·(W·π − τ)‖² + ρ·s·‖π − π₀‖²
-//! subject to J_i(π) ⪰ 0 for every link i, fv_j ≥ 0, fc_j ≥ 0 for every joint j,
-//!
-//! with W the stacked full regressor (friction columns included), Λ per-joint weights,
-//! J_i the 4×4 pseudo-inertia of link i (Wensing, Kim & Slotine 2017) and π₀ a prior
-//! (e.g. the URDF inertials). The problem is convex in π (a least-squares objective under
-//! linear matrix inequalities).
-//!
-//! **Solver.** A barrier (interior-point) method, written here without a semidefinite
-//! solver: Newton steps with a backtracking line search on
-//! objective + t·(−Σ log det J_i − Σ log fv_j − Σ log fc_j), t shrunk tenfold after each
-//! centring, until the duality-gap bound (4·links + friction terms)·t falls below
-//! `tolerance` times the objective. The log-det barrier is self-concordant, its gradient
-//! and Hessian are closed-form (tr(J⁻¹A_k), tr(J⁻¹A_k·J⁻¹A_l) with J = Σ π_k·A_k), and
-//! boundary optima (a point mass, a rod, zero friction) are approached as t → 0. The
-//! data enter once, through a QR factorisation of [Λ^{1/2}W | Λ^{1/2}τ]:
-//! ‖Λ^{1/2}(Wπ − τ)‖² = ‖R·π − z‖² + r₀², so a Newton step costs O(P³) in the P standard
-//! parameters (P = 91 for a 7-joint arm with three friction terms), independent of the
-//! number of samples, and residuals are evaluated without the cancellation of the
-//! normal equations.
-//!
-//! A log-Cholesky parametrisation (Rucker & Wensing, IEEE RA-L 2022) with
-//! Levenberg–Marquardt was tried first: from a default start on exact PUMA 560 data it
-//! needed more than 1000 iterations (a curved, ill-conditioned valley towards the
-//! boundary), where the barrier method takes about a hundred Newton steps.
-//!
-//! **Unidentifiable directions.** The data see only the base combinations β = K·π. The
-//! solver works in coordinates x = Qᵀ·π with Q = [Q_r Q_n] an orthonormal basis of
-//! row(K) and null(K), so that the data curvature and the barrier's O(t) curvature sit in
-//! separate blocks and the Newton systems stay accurate as t → 0. The unseen part x_n is
-//! held by a proximal term ε·s·‖x_n − a‖² ([`PhysicalConfig::regularisation`] ε,
-//! s = ‖Λ^{1/2}W‖²_F / P): a starts at the prior's Qₙᵀ·π₀ and is moved to the current
-//! iterate after every centring, so that at the solution the term vanishes and does not
-//! bias β (the base parameters are the constrained least-squares ones, to `tolerance`),
-//! while the unseen directions stay where the prior and the constraints put them. With
-//! the prior itself feasible and the data exact, the whole π₀ is returned. Without a
-//! prior, π₀ is a default body per link (1 kg at the link origin, second moments
-//! 0.01 kg·m² on each axis) and zero friction. A positive
-//! [`PhysicalConfig::prior_weight`] adds the full ridge term ρ·s·‖π − π₀‖², which does
-//! bias β towards the prior (a maximum a posteriori estimate).
+//! Physically consistent identification (the method is documented on [`PhysicalProblem`]).
 
 use faer::Mat;
 use nalgebra::{DMatrix, DVector, Matrix4};
@@ -74,8 +27,8 @@ pub struct PhysicalConfig {
     /// the prior (a ridge / maximum a posteriori estimate).
     pub prior_weight: f64,
     /// Weight ε of the proximal term that holds the directions the data do not see
-    /// (dimensionless, same scale as `prior_weight`, default 1e-10); see the module
-    /// docs. It does not bias the base parameters; must be > 0 unless `prior_weight` is.
+    /// (dimensionless, same scale as `prior_weight`, default 1e-10); see
+    /// [`PhysicalProblem`]. It does not bias the base parameters; must be > 0 unless `prior_weight` is.
     pub regularisation: f64,
     /// Per-joint weights Λ (length n, each finite and ≥ 0, not all 0) multiplying each
     /// joint's squared residuals, e.g. inverse noise variances; `None` (default) weighs
@@ -195,6 +148,56 @@ pub struct BaseFeasibility {
 /// A physically consistent identification problem in compact form: the data reduced to
 /// R (P×P) and z (P) once, so that solves (e.g. with other priors) cost the same whatever
 /// the number of samples.
+///
+/// # Method
+/// Physically consistent identification: least squares over the standard parameters of a
+/// chain, constrained to rigid bodies and dissipative friction.
+///
+/// Least squares on the base parameters β fits the torques best but may return values no
+/// rigid body has (a negative mass, an inertia breaking the triangle inequality, negative
+/// friction) — a model that forward simulation refuses and controllers should not trust.
+/// This estimator solves
+///
+/// min_π ‖Λ^{1/2}·(W·π − τ)‖² + ρ·s·‖π − π₀‖²
+/// subject to J_i(π) ⪰ 0 for every link i, fv_j ≥ 0, fc_j ≥ 0 for every joint j,
+///
+/// with W the stacked full regressor (friction columns included), Λ per-joint weights,
+/// J_i the 4×4 pseudo-inertia of link i (Wensing, Kim & Slotine 2017) and π₀ a prior
+/// (e.g. the URDF inertials). The problem is convex in π (a least-squares objective under
+/// linear matrix inequalities).
+///
+/// **Solver.** A barrier (interior-point) method, written here without a semidefinite
+/// solver: Newton steps with a backtracking line search on
+/// objective + t·(−Σ log det J_i − Σ log fv_j − Σ log fc_j), t shrunk tenfold after each
+/// centring, until the duality-gap bound (4·links + friction terms)·t falls below
+/// `tolerance` times the objective. The log-det barrier is self-concordant, its gradient
+/// and Hessian are closed-form (tr(J⁻¹A_k), tr(J⁻¹A_k·J⁻¹A_l) with J = Σ π_k·A_k), and
+/// boundary optima (a point mass, a rod, zero friction) are approached as t → 0. The
+/// data enter once, through a QR factorisation of [Λ^{1/2}W | Λ^{1/2}τ]:
+/// ‖Λ^{1/2}(Wπ − τ)‖² = ‖R·π − z‖² + r₀², so a Newton step costs O(P³) in the P standard
+/// parameters (P = 91 for a 7-joint arm with three friction terms), independent of the
+/// number of samples, and residuals are evaluated without the cancellation of the
+/// normal equations.
+///
+/// A log-Cholesky parametrisation (Rucker & Wensing, IEEE RA-L 2022) with
+/// Levenberg–Marquardt was tried first: from a default start on exact PUMA 560 data it
+/// needed more than 1000 iterations (a curved, ill-conditioned valley towards the
+/// boundary), where the barrier method takes about a hundred Newton steps.
+///
+/// **Unidentifiable directions.** The data see only the base combinations β = K·π. The
+/// solver works in coordinates x = Qᵀ·π with Q = [Q_r Q_n] an orthonormal basis of
+/// row(K) and null(K), so that the data curvature and the barrier's O(t) curvature sit in
+/// separate blocks and the Newton systems stay accurate as t → 0. The unseen part x_n is
+/// held by a proximal term ε·s·‖x_n − a‖² ([`PhysicalConfig::regularisation`] ε,
+/// s = ‖Λ^{1/2}W‖²_F / P): a starts at the prior's Qₙᵀ·π₀ and is moved to the current
+/// iterate after every centring, so that at the solution the term vanishes and does not
+/// bias β (the base parameters are the constrained least-squares ones, to `tolerance`),
+/// while the unseen directions stay where the prior and the constraints put them. With
+/// the prior itself feasible and the data exact, the whole π₀ is returned. Without a
+/// prior, π₀ is a default body per link (1 kg at the link origin, second moments
+/// 0.01 kg·m² on each axis) and zero friction. A positive
+/// [`PhysicalConfig::prior_weight`] adds the full ridge term ρ·s·‖π − π₀‖², which does
+/// bias β towards the prior (a maximum a posteriori estimate).
 #[derive(Debug, Clone)]
 pub struct PhysicalProblem {
     dof: usize,
@@ -448,7 +451,7 @@ impl PhysicalProblem {
 
 /// Physically consistent identification of a chain's standard parameters from samples:
 /// least squares on the torques over rigid-body inertias and dissipative friction (see
-/// the [module docs](self) for the method). Inputs are flat row-major (samples × n)
+/// [`PhysicalProblem`] for the method). Inputs are flat row-major (samples × n)
 /// slices as numpy arrays are: positions (rad or m), velocities, accelerations and
 /// measured generalised forces τ (N·m or N).
 ///
@@ -698,7 +701,7 @@ impl Layout {
         for (k, kind) in self.friction.iter().enumerate() {
             if *kind == FrictionParam::NonNegative {
                 let f = pi[off + k];
-                if !(f > 0.0) {
+                if f.is_nan() || f <= 0.0 {
                     return None;
                 }
                 b -= f.ln();
@@ -767,7 +770,7 @@ fn interior_link(params: &[f64; LINK_PARAMS]) -> [f64; LINK_PARAMS] {
         return default_body();
     }
     let d = eig.eigenvalues.map(|l| l.max(EIGEN_FLOOR * top));
-    let j = &eig.eigenvectors * Matrix4::from_diagonal(&d) * eig.eigenvectors.transpose();
+    let j = eig.eigenvectors * Matrix4::from_diagonal(&d) * eig.eigenvectors.transpose();
     pseudo_inertia_to_parameters(&j)
 }
 
@@ -946,7 +949,8 @@ fn interior_point(
             };
             // Newton decrement λ² = −∇φᵀ·Δ; φ_t is within λ²/2 of its minimum.
             let dec = -grad.dot(&step);
-            if !(dec > 0.05 * degree * t) {
+            // (NaN-safe: a NaN decrement also stops the centring.)
+            if dec.is_nan() || dec <= 0.05 * degree * t {
                 break;
             }
             let phi = f + t * bar;
@@ -1058,7 +1062,11 @@ mod tests {
             a[k] += eps;
             b[k] -= eps;
             let fd = (layout.barrier(&a).unwrap() - layout.barrier(&b).unwrap()) / (2.0 * eps);
-            assert!((fd - g[k]).abs() < 1e-5 * (1.0 + g[k].abs()), "grad {k}: {fd} vs {}", g[k]);
+            assert!(
+                (fd - g[k]).abs() < 1e-5 * (1.0 + g[k].abs()),
+                "grad {k}: {fd} vs {}",
+                g[k]
+            );
             let dg = (grad_at(&a) - grad_at(&b)) / (2.0 * eps);
             for l in 0..13 {
                 assert!(

@@ -204,7 +204,11 @@ mod tests {
     /// Σ of a point mass is m·c·cᵀ, and J ↦ π inverts π ↦ J.
     #[test]
     fn pseudo_inertia_round_trip() {
-        let p = inertial_parameters(2.0, [0.1, -0.2, 0.3], [0.05, 0.001, 0.04, -0.002, 0.003, 0.03]);
+        let p = inertial_parameters(
+            2.0,
+            [0.1, -0.2, 0.3],
+            [0.05, 0.001, 0.04, -0.002, 0.003, 0.03],
+        );
         let back = pseudo_inertia_to_parameters(&pseudo_inertia(&p));
         for k in 0..10 {
             assert!((back[k] - p[k]).abs() < 1e-15, "{k}");
