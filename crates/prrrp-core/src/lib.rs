@@ -62,8 +62,10 @@ pub use data::{
 };
 pub use error::{PrrrpError, Result};
 pub use estimators::{
-    default_coulomb_scales, select_coulomb_scale, CoulombScaleConfig, CoulombScaleReport,
-    COULOMB_SCALE_GRID, COULOMB_SCALE_RANGE, MAX_COULOMB_CANDIDATES,
+    base_feasibility, default_coulomb_scales, identify_physical, select_coulomb_scale,
+    BaseFeasibility, CoulombScaleConfig, CoulombScaleReport, PhysicalConfig, PhysicalEstimate,
+    PhysicalProblem, BASE_FEASIBILITY_TOLERANCE, COULOMB_SCALE_GRID, COULOMB_SCALE_RANGE,
+    MAX_COULOMB_CANDIDATES,
 };
 pub use estimators::{
     least_squares, weighted_least_squares, Adaline, AdalineConfig, AdalineOf, AdalineRule,
@@ -86,6 +88,10 @@ pub use models::chain::{
     Joint, JointDescription, JointInfo, JointLimit, JointType, PoseDescription, SerialChain,
     AXIS_UNIT_TOLERANCE, CHAIN_SCHEMA_VERSION, FRICTION_PARAMETER_NAMES, INERTIAL_PARAMETER_NAMES,
     LINK_PARAMS, MAX_MATRIX_ENTRIES, PHYSICAL_TOLERANCE,
+};
+pub use models::chain::{
+    pseudo_inertia, pseudo_inertia_to_parameters, standard_from_base, FeasibilityReport,
+    JointFrictionFeasibility, LinkFeasibility,
 };
 pub use models::prrrp::derivatives::InverseDerivatives;
 pub use models::prrrp::dynamics::{MassCholesky, PrrrpModel};

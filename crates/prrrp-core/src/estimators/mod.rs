@@ -17,6 +17,7 @@ mod ekf;
 mod estimator;
 mod hopfield;
 mod least_squares;
+mod physical;
 mod rls;
 mod samples;
 
@@ -35,6 +36,10 @@ pub use hopfield::{DynHopfield, Hopfield, HopfieldConfig, HopfieldOf};
 pub use least_squares::{
     least_squares, weighted_least_squares, DynJointNoise, DynLeastSquaresReport, JointNoise,
     JointNoiseOf, LeastSquares, LeastSquaresConfig, LeastSquaresReport, LeastSquaresReportOf,
+};
+pub use physical::{
+    base_feasibility, identify_physical, BaseFeasibility, PhysicalConfig, PhysicalEstimate,
+    PhysicalProblem, BASE_FEASIBILITY_TOLERANCE,
 };
 pub use rls::{DynRls, Rls, RlsConfig, RlsOf};
 pub use samples::{DynSample, DynSamples, Sample, SampleOf, Samples, SamplesOf};

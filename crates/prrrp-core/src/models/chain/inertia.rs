@@ -64,6 +64,17 @@ pub fn is_physically_consistent(params: &[f64; 10], tol: f64) -> bool {
     if !params.iter().all(|x| x.is_finite()) {
         return false;
     }
+    pseudo_inertia(params)
+        .symmetric_eigenvalues()
+        .iter()
+        .all(|&e| e >= -tol)
+}
+
+/// The 4×4 pseudo-inertia J = [[Σ, h], [hᵀ, m]] of π (kg·m² in the 3×3 block, kg·m in
+/// h, kg in m), with Σ = ½·tr(I)·1 − I = ∫ r·rᵀ dm the second moment of the mass
+/// distribution about the link origin (Wensing, Kim & Slotine 2017). π is physically
+/// consistent exactly when J ⪰ 0; see [`pseudo_inertia_to_parameters`] for the inverse.
+pub fn pseudo_inertia(params: &[f64; 10]) -> Matrix4<f64> {
     let i = inertia_matrix(params);
     let h = first_moment(params);
     let sigma = Matrix3::identity() * (0.5 * i.trace()) - i;
@@ -72,7 +83,25 @@ pub fn is_physically_consistent(params: &[f64; 10], tol: f64) -> bool {
     j.fixed_view_mut::<3, 1>(0, 3).copy_from(&h);
     j.fixed_view_mut::<1, 3>(3, 0).copy_from(&h.transpose());
     j[(3, 3)] = params[0];
-    j.symmetric_eigenvalues().iter().all(|&e| e >= -tol)
+    j
+}
+
+/// Inverse of [`pseudo_inertia`]: π from a symmetric J (I = tr(Σ)·1 − Σ; only the upper
+/// triangle of J is read).
+pub fn pseudo_inertia_to_parameters(j: &Matrix4<f64>) -> [f64; 10] {
+    let tr = j[(0, 0)] + j[(1, 1)] + j[(2, 2)];
+    [
+        j[(3, 3)],
+        j[(0, 3)],
+        j[(1, 3)],
+        j[(2, 3)],
+        tr - j[(0, 0)],
+        -j[(0, 1)],
+        tr - j[(1, 1)],
+        -j[(0, 2)],
+        -j[(1, 2)],
+        tr - j[(2, 2)],
+    ]
 }
 
 /// Expresses the inertial parameters of a body, given in frame B, in frame A, where frame B
@@ -170,6 +199,24 @@ mod tests {
         // A body whose Izz_C exceeds Ixx_C + Iyy_C cannot exist.
         let bad = inertial_parameters(1.0, [0.0; 3], [0.01, 0.0, 0.01, 0.0, 0.0, 0.05]);
         assert!(!is_physically_consistent(&bad, 1e-12));
+    }
+
+    /// Σ of a point mass is m·c·cᵀ, and J ↦ π inverts π ↦ J.
+    #[test]
+    fn pseudo_inertia_round_trip() {
+        let p = inertial_parameters(
+            2.0,
+            [0.1, -0.2, 0.3],
+            [0.05, 0.001, 0.04, -0.002, 0.003, 0.03],
+        );
+        let back = pseudo_inertia_to_parameters(&pseudo_inertia(&p));
+        for k in 0..10 {
+            assert!((back[k] - p[k]).abs() < 1e-15, "{k}");
+        }
+        let point = inertial_parameters(3.0, [0.1, 0.2, 0.3], [0.0; 6]);
+        let j = pseudo_inertia(&point);
+        assert!((j[(0, 1)] - 3.0 * 0.1 * 0.2).abs() < 1e-15);
+        assert!((j[(2, 2)] - 3.0 * 0.09).abs() < 1e-15);
     }
 
     /// Transforming a point mass moves it to the transformed point.

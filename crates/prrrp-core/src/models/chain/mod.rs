@@ -15,6 +15,7 @@ mod derivatives;
 mod description;
 mod dh;
 mod dyn_base_model;
+mod feasibility;
 mod friction;
 mod inertia;
 mod joint;
@@ -33,10 +34,14 @@ pub use description::{
 };
 pub use dh::DhConvention;
 pub use dyn_base_model::{DynBaseWorkspace, DynChainBaseModel};
+pub use feasibility::{
+    standard_from_base, FeasibilityReport, JointFrictionFeasibility, LinkFeasibility,
+};
 pub use friction::{FrictionModel, FRICTION_PARAMETER_NAMES};
 pub use inertia::{
-    com_and_inertia, inertial_parameters, is_physically_consistent, transform_inertial_parameters,
-    INERTIAL_PARAMETER_NAMES, LINK_PARAMS,
+    com_and_inertia, inertial_parameters, is_physically_consistent, pseudo_inertia,
+    pseudo_inertia_to_parameters, transform_inertial_parameters, INERTIAL_PARAMETER_NAMES,
+    LINK_PARAMS,
 };
 pub use joint::{Joint, JointType, AXIS_UNIT_TOLERANCE};
 pub use meta::{ChainMeta, JointInfo, JointLimit};
