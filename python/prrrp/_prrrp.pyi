@@ -784,6 +784,14 @@ class IdentifiedModel:
     def to_json(self) -> str: ...
     def save(self, path: str | os.PathLike[str]) -> None:
         """Writes the model as JSON, atomically (a temporary file moved into place)."""
+    def to_urdf(self) -> str:
+        """A URDF of the robot with the identified inertials, for models of method
+        "physical" (they carry physically consistent standard parameters); others raise
+        InvalidParameterError (base parameters do not determine each link)."""
+    @property
+    def standard_parameters(self) -> _F64 | None:
+        """Physically consistent standard parameters π (P,) with base values β̂ (method
+        "physical"); None otherwise."""
     def report(
         self,
         dir: str | os.PathLike[str],
@@ -846,7 +854,7 @@ def identified_model_from_parts(
 def identify(
     robot: SerialChain | Robot,
     data: Dataset,
-    method: Literal["ls", "wls", "rls", "adaline", "hopfield", "ekf"] = "ls",
+    method: Literal["ls", "wls", "rls", "adaline", "hopfield", "ekf", "physical"] = "ls",
     *,
     base: BaseParameters | None = None,
     preprocessing: dict[str, Any] | None = None,
@@ -860,15 +868,20 @@ def identify(
     (one pass on the column-equilibrated model, σ from σ̂²·P when `forgetting` = 1);
     "adaline" / "hopfield" (epochs over the data, step from the data, halved near the
     least-squares residual floor; no σ); "ekf" (starts from the least-squares β̂, dt from
-    the time stamps, positions and velocities measured; σ and covariance from the filter).
+    the time stamps, positions and velocities measured; σ and covariance from the filter);
+    "physical" (least squares over the standard parameters with every link's pseudo-inertia
+    positive semidefinite and fv, fc ≥ 0, a barrier interior-point method; the model keeps
+    the standard parameters, `standard_parameters`, and writes a URDF, `to_urdf()`; no σ).
 
     Settings (keywords; an unknown one is a TypeError naming the valid ones): all methods
     `rank_tolerance`; rls `forgetting`, `initial_covariance`, `scale_columns`; adaline
     `rule`, `step_size` (0, 2), `learning_rate` (delta rule; unstable → error),
     `max_epochs`, `halvings`, `scale_columns`; hopfield `step_size`, `bound`,
     `max_epochs`, `halvings`, `scale_columns`; ekf `initial` ("ls", "prior" or β0), `dt`,
-    `measurement`, `discretisation` and the noise settings of `Ekf`. The model records
-    the settings used, including the values chosen from the data.
+    `measurement`, `discretisation` and the noise settings of `Ekf`; physical `prior`
+    (standard parameters π0, e.g. `robot.parameters`; default a 1 kg body per link),
+    `prior_weight` (≥ 0, default 0: the prior only fixes what the data do not see). The
+    model records the settings used, including the values chosen from the data.
     Errors: ShapeMismatchError (joint count), TooFewSamplesError, RankDeficientError (data
     that do not excite every base parameter), InvalidParameterError (unknown method, a
     setting out of range, an unstable step), DivergedError, NonFiniteError."""

@@ -243,6 +243,16 @@ def render(
             [[_g(coulomb["candidates"][i]), _g(coulomb["cv_rms"][i])] for i in order],
         )
         lines.append("")
+    if feasibility is None and model.standard_parameters is not None:
+        st = model.settings
+        feasibility = (
+            "The estimate is a set of rigid bodies (every link's pseudo-inertia positive "
+            "semidefinite, fv, fc >= 0): non-physical links "
+            f"{st.get('non_physical_links') or 'none'}; its residual is "
+            f"{_g(st.get('residual_increase_percent'), 3)} % above the unconstrained least "
+            f"squares' ({st.get('iterations')} barrier Newton steps). `robot.urdf` carries "
+            "its inertials."
+        )
     if feasibility is not None:
         lines += ["## Physical feasibility", "", str(feasibility), ""]
     lines += ["## Preprocessing", ""]

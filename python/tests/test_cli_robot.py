@@ -176,3 +176,14 @@ def test_model_report_from_python(tmp_path: Path, truth):
     text = (tmp_path / "rep" / "report.md").read_text()
     assert "(wls)" in text
     assert "## Coulomb speed scale" in text
+
+
+def test_identify_physical_writes_a_urdf(tmp_path: Path, truth, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    log(truth, tmp_path / "data.csv", 6, 12.0)
+    argv = ["identify", "data.csv", "--robot", str(URDF), "--tip", "panda_link8"]
+    assert cli.main([*argv, "--method", "physical", "--out", "out", "--cutoff", "20"]) == 0
+    chain = prrrp.SerialChain.from_urdf(str(tmp_path / "out" / "robot.urdf"))
+    assert chain.dof == 7
+    assert chain.is_physically_consistent()
+    assert "## Physical feasibility" in (tmp_path / "out" / "report.md").read_text()

@@ -77,8 +77,8 @@ pub use estimators::{
 };
 pub use identification::{
     identify, identify_least_squares, identify_robot, BaseDescription, EkfSettings, EkfStart,
-    GradientSettings, IdentifiedModel, LsSettings, Method, Predictor, RlsSettings, METHOD_NAMES,
-    MODEL_SCHEMA_VERSION,
+    GradientSettings, IdentifiedModel, LsSettings, Method, PhysicalSettings, Predictor,
+    RlsSettings, METHOD_NAMES, MODEL_SCHEMA_VERSION,
 };
 pub use interrupt::{check_count, clear_stop, request_stop, stop_requested, MAX_SAMPLES};
 pub use models::chain::{

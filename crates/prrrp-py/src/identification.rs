@@ -75,6 +75,18 @@ impl PyIdentifiedModel {
             .call_method1("write_report_dir", (slf, dir, data, validation))
     }
 
+    /// A URDF of the robot with the identified inertials (models of method "physical").
+    fn to_urdf(&self, py: Python<'_>) -> PyResult<String> {
+        self.inner.to_urdf().to_py(py)
+    }
+
+    /// Physically consistent standard parameters π (P,), where the method gives them.
+    #[getter]
+    fn standard_parameters<'py>(&self, py: Python<'py>) -> Out<'py> {
+        let n = self.inner.standard.as_ref().map(|v| v.len()).unwrap_or(0);
+        opt_array(py, &self.inner.standard, &[n])
+    }
+
     /// Writes the model to `path` as JSON, atomically (a temporary file moved into place).
     fn save(&self, py: Python<'_>, path: PathBuf) -> PyResult<()> {
         let text = self.to_json(py)?;
@@ -276,6 +288,7 @@ fn identified_model_from_parts(
 fn valid_keys(method: &str) -> &'static [&'static str] {
     match method {
         "ls" | "wls" => &["rank_tolerance"],
+        "physical" => &["rank_tolerance", "prior", "prior_weight"],
         "rls" => &[
             "rank_tolerance",
             "forgetting",
@@ -358,6 +371,15 @@ fn parse_method(
             (Method::Rls(s), "rank_tolerance") => s.rank_tolerance = f()?,
             (Method::Adaline(s) | Method::Hopfield(s), "rank_tolerance") => s.rank_tolerance = f()?,
             (Method::Ekf(s), "rank_tolerance") => s.rank_tolerance = f()?,
+            (Method::Physical(s), "rank_tolerance") => s.rank_tolerance = f()?,
+            (Method::Physical(s), "prior_weight") => s.prior_weight = f()?,
+            (Method::Physical(s), "prior") => {
+                s.prior = if v.is_none() {
+                    None
+                } else {
+                    Some(crate::arrays::vector(&v, "prior")?)
+                }
+            }
             (Method::Rls(s), "forgetting") => s.forgetting = f()?,
             (Method::Rls(s), "initial_covariance") => s.initial_covariance = f()?,
             (Method::Rls(s), "scale_columns") => s.scale_columns = v.extract()?,

@@ -113,6 +113,14 @@ def run(args: argparse.Namespace) -> int:
         if args.validate:
             sources["validation"] = str(args.validate)
         written += main.report(tmp, validation=val, sources=sources)
+        physical = runs.get("physical")
+        if physical is not None:
+            (tmp / "robot.urdf").write_text(physical.model.to_urdf(), encoding="utf-8")
+            written.append(tmp / "robot.urdf")
+            if physical is not main:
+                report_dir = tmp / "physical"
+                report_dir.mkdir()
+                written += physical.report(report_dir, validation=val, sources=sources)
         return written
 
     written = outdir.write_dir(out, build)

@@ -70,10 +70,27 @@ pub enum Method {
     Hopfield(GradientSettings),
     /// The extended Kalman filter on [q, q̇, β], one pass over the data.
     Ekf(EkfSettings),
+    /// Physically consistent least squares over the standard parameters (every link's
+    /// pseudo-inertia ⪰ 0, fv, fc ≥ 0; [`crate::identify_physical`]). The model carries
+    /// the standard parameters ([`IdentifiedModel::standard`]) and exports a URDF.
+    Physical(PhysicalSettings),
+}
+
+/// Settings of [`Method::Physical`].
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct PhysicalSettings {
+    /// Prior standard parameters π₀ (e.g. the robot file's, [`DynChain::parameters`]);
+    /// `None`: the estimator's default body per link (see [`crate::PhysicalConfig`]).
+    pub prior: Option<Vec<f64>>,
+    /// Weight of the prior, ≥ 0 (default 0: the prior only holds the directions the data
+    /// do not see); see [`crate::PhysicalConfig::prior_weight`].
+    pub prior_weight: f64,
+    /// Rank tolerance of the least-squares solve made for cond(W_b) (default 1e-10).
+    pub rank_tolerance: f64,
 }
 
 /// The names [`Method::parse`] accepts, in the order of [`Method`].
-pub const METHOD_NAMES: [&str; 6] = ["ls", "wls", "rls", "adaline", "hopfield", "ekf"];
+pub const METHOD_NAMES: [&str; 7] = ["ls", "wls", "rls", "adaline", "hopfield", "ekf", "physical"];
 
 impl Method {
     /// The method by name (one of [`METHOD_NAMES`]) with default settings.
@@ -88,6 +105,10 @@ impl Method {
             "adaline" => Self::Adaline(GradientSettings::adaline()),
             "hopfield" => Self::Hopfield(GradientSettings::hopfield()),
             "ekf" => Self::Ekf(EkfSettings::default()),
+            "physical" => Self::Physical(PhysicalSettings {
+                rank_tolerance: LsSettings::default().rank_tolerance,
+                ..Default::default()
+            }),
             _ => {
                 return Err(PrrrpError::InvalidParameter {
                     field: format!("method {name:?}"),
@@ -108,6 +129,7 @@ impl Method {
             Self::Adaline(_) => "adaline",
             Self::Hopfield(_) => "hopfield",
             Self::Ekf(_) => "ekf",
+            Self::Physical(_) => "physical",
         }
     }
 
@@ -118,6 +140,7 @@ impl Method {
             Self::Rls(s) => s.rank_tolerance,
             Self::Adaline(s) | Self::Hopfield(s) => s.rank_tolerance,
             Self::Ekf(s) => s.rank_tolerance,
+            Self::Physical(s) => s.rank_tolerance,
         }
     }
 }
@@ -345,6 +368,7 @@ pub fn identify(
     } else {
         least_squares(&model, &samples, &config)?
     };
+    let mut standard: Option<Vec<f64>> = None;
     let fit = match method {
         Method::Ls(s) | Method::Wls(s) => Fit {
             beta: ls.lambda.clone(),
@@ -363,6 +387,43 @@ pub fn identify(
             &ls.lambda,
             ls.joint_variances.as_slice(),
         )?,
+        Method::Physical(s) => {
+            let config = crate::PhysicalConfig {
+                prior: s.prior.clone(),
+                prior_weight: s.prior_weight,
+                ..Default::default()
+            };
+            let est = crate::identify_physical(
+                chain,
+                data.q(),
+                data.qd(),
+                data.qdd(),
+                data.tau(),
+                &config,
+            )?;
+            standard = Some(est.parameters.clone());
+            let failing: Vec<usize> = est
+                .feasibility
+                .links
+                .iter()
+                .enumerate()
+                .filter(|(_, l)| !l.consistent)
+                .map(|(i, _)| i + 1)
+                .collect();
+            Fit {
+                beta: DVector::from_vec(base.base_values(&est.parameters)?),
+                sigma: None,
+                covariance: None,
+                settings: json!({
+                    "prior": s.prior.is_some(),
+                    "prior_weight": s.prior_weight,
+                    "rank_tolerance": s.rank_tolerance,
+                    "iterations": est.iterations,
+                    "residual_increase_percent": est.residual_increase_percent,
+                    "non_physical_links": failing,
+                }),
+            }
+        }
     };
     let mut out = IdentifiedModel::new(
         chain,
@@ -376,6 +437,7 @@ pub fn identify(
         fit.settings,
         preprocessing,
     )?;
+    out.standard = standard;
     let predicted = out.predict(data.q(), data.qd(), data.qdd())?;
     let (sse, rms) = residuals(&predicted, data.tau(), n);
     out.residual_rms = rms;

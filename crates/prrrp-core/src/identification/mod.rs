@@ -12,7 +12,7 @@ use crate::models::chain::{BaseParameters, ChainDescription, DynChain, DynWorksp
 mod methods;
 pub use methods::{
     identify, identify_robot, EkfSettings, EkfStart, GradientSettings, LsSettings, Method,
-    RlsSettings, METHOD_NAMES,
+    PhysicalSettings, RlsSettings, METHOD_NAMES,
 };
 
 /// Version of the [`IdentifiedModel`] JSON layout; bumped on any incompatible change.
@@ -75,6 +75,11 @@ pub struct IdentifiedModel {
     pub settings: serde_json::Value,
     /// What the preprocessing did (free-form JSON object: rows dropped, rate, cut-off …).
     pub preprocessing: serde_json::Value,
+    /// Physically consistent standard parameters π (the robot's layout: 10 inertial per
+    /// link, then friction) with K·π = β̂, where the method gives them (`"physical"`);
+    /// they make [`IdentifiedModel::to_urdf`] possible. Optional in the JSON (schema v1).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub standard: Option<Vec<f64>>,
 }
 
 impl IdentifiedModel {
@@ -115,9 +120,30 @@ impl IdentifiedModel {
             method: method.into(),
             settings,
             preprocessing,
+            standard: None,
         };
         model.validate()?;
         Ok(model)
+    }
+
+    /// A URDF of the robot with the identified inertials: the standard parameters π of a
+    /// physically consistent method written into the robot's links (friction is not a
+    /// URDF quantity and stays in the model).
+    ///
+    /// # Errors
+    /// [`PrrrpError::InvalidParameter`] if the model carries no standard parameters (only
+    /// `"physical"` gives them: base parameters alone do not determine the links), and as
+    /// [`DynChain::to_urdf`].
+    pub fn to_urdf(&self) -> Result<String> {
+        let Some(pi) = &self.standard else {
+            return Err(PrrrpError::InvalidParameter {
+                field: format!("model of method {:?}", self.method),
+                value: f64::NAN,
+                reason: "carries base parameters only, which do not determine each link's \
+                         inertials: identify with method \"physical\" for a URDF",
+            });
+        };
+        self.chain()?.to_urdf(Some(pi))
     }
 
     fn validate(&self) -> Result<()> {
