@@ -725,6 +725,20 @@ class SerialChain:
         parameter k of link i+1 (link-frame parameters), then the friction columns."""
     def observation_matrix(self, q: _ArrayLike, qd: _ArrayLike, qdd: _ArrayLike) -> _F64:
         """The regressors stacked, (N·n, P); rows n·k..n·k+n hold sample k."""
+    def feasibility(self, parameters: _ArrayLike | None = None) -> dict[str, Any]:
+        """Physical feasibility of standard parameters (P,) (default `parameters`): per link
+        ("links": link, mass, min_eigenvalue and pseudo_inertia_eigenvalues of the 4×4
+        pseudo-inertia, com, principal_moments about it, triangle_margins, consistent), per
+        joint ("friction": joint, viscous, coulomb, consistent: both ≥ 0), and overall
+        "consistent" and "non_physical_links"."""
+    def base_feasibility(
+        self, beta: _ArrayLike, *, prior: _ArrayLike | None = None
+    ) -> dict[str, Any]:
+        """Whether physically consistent standard parameters with base values `beta` (in
+        `base_parameters()`) exist, e.g. for a least-squares estimate: the nearest rigid
+        bodies found ("parameters", their feasibility report as in `feasibility`),
+        "max_relative_mismatch" of their base values, "feasible" (mismatch below 1e-7),
+        "converged", "iterations". The unseen directions come from `prior`."""
     def coulomb_scale(
         self,
         data: Dataset,

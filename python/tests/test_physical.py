@@ -78,3 +78,42 @@ def test_urdf_of_the_estimate_matches_in_pinocchio(models):
 def test_base_parameter_models_have_no_urdf(models):
     with pytest.raises(prrrp.InvalidParameterError, match="physical"):
         models["ls"].to_urdf()
+
+
+def test_feasibility_report_by_hand():
+    # One link: a 2 kg point mass 0.5 m along x — physical (pseudo-inertia rank 1); then a
+    # body whose inertia breaks the triangle inequality (Ixx + Iyy < Izz).
+    urdf = """<robot name="one"><link name="base"/>
+      <link name="l1"><inertial><mass value="2"/><origin xyz="0.5 0 0"/>
+        <inertia ixx="0" ixy="0" ixz="0" iyy="0" iyz="0" izz="0"/></inertial></link>
+      <joint name="j1" type="revolute"><parent link="base"/><child link="l1"/>
+        <axis xyz="0 0 1"/><limit lower="-1" upper="1" velocity="1" effort="1"/></joint>
+    </robot>"""
+    chain = prrrp.SerialChain.from_urdf(urdf).with_friction("viscous", [[0.1, 0, 0]])
+    r = chain.feasibility()
+    assert r["consistent"]
+    link = r["links"][0]
+    assert link["link"] == "l1"
+    assert link["mass"] == pytest.approx(2.0)
+    assert link["min_eigenvalue"] == pytest.approx(0.0, abs=1e-12)
+    bad = chain.parameters.copy()
+    bad[4] = bad[6] = 0.01  # Ixx = Iyy = 0.01 about the link frame, plus m·0.25 on Iyy, Izz
+    bad[9] = 1.0  # Izz far above Ixx + Iyy
+    r = chain.feasibility(bad)
+    assert not r["consistent"]
+    assert r["non_physical_links"] == ["l1"]
+    assert min(r["links"][0]["triangle_margins"]) < 0
+    neg = chain.parameters.copy()
+    neg[-1] = -0.1
+    assert not chain.feasibility(neg)["friction"][0]["consistent"]
+
+
+def test_least_squares_base_values_checked_for_rigid_bodies(truth, models):
+    exact = truth.base_parameters().base_values(truth.parameters)
+    assert truth.base_feasibility(exact)["feasible"]
+    # Base values no rigid bodies have: the truth with one link's mass negated.
+    pi = truth.parameters.copy()
+    pi[30:40] *= -1.0
+    r = truth.base_feasibility(truth.base_parameters().base_values(pi))
+    assert not r["feasible"]
+    assert r["max_relative_mismatch"] > 1e-3

@@ -690,6 +690,50 @@ impl PySerialChain {
         Ok(PyBaseParameters { inner })
     }
 
+    /// Physical feasibility of standard parameters (default this chain's own); see
+    /// `_prrrp.pyi`.
+    #[pyo3(signature = (parameters=None))]
+    fn feasibility<'py>(
+        &self,
+        py: Python<'py>,
+        parameters: Option<&Bound<'py, PyAny>>,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        let c = &self.inner;
+        let pi = match parameters {
+            Some(p) => crate::arrays::vector(p, "parameters")?,
+            None => c.parameters(),
+        };
+        let report = prrrp_core::FeasibilityReport::new(&pi, c.dof(), &c.friction()).to_py(py)?;
+        feasibility_dict(py, c, &report)
+    }
+
+    /// Whether rigid bodies reproduce base values `beta`; see `_prrrp.pyi`.
+    #[pyo3(signature = (beta, *, prior=None))]
+    fn base_feasibility<'py>(
+        &self,
+        py: Python<'py>,
+        beta: &Bound<'py, PyAny>,
+        prior: Option<&Bound<'py, PyAny>>,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        let beta = crate::arrays::vector(beta, "beta")?;
+        let config = prrrp_core::PhysicalConfig {
+            prior: prior
+                .map(|p| crate::arrays::vector(p, "prior"))
+                .transpose()?,
+            ..Default::default()
+        };
+        let base = self.default_base(py)?.clone();
+        let r =
+            interruptible(py, || prrrp_core::base_feasibility(&base, &beta, &config))?.to_py(py)?;
+        let d = feasibility_dict(py, &self.inner, &r.report)?;
+        d.set_item("feasible", r.feasible)?;
+        d.set_item("max_relative_mismatch", r.max_relative_mismatch)?;
+        d.set_item("converged", r.converged)?;
+        d.set_item("iterations", r.iterations)?;
+        d.set_item("parameters", PyArray1::from_vec(py, r.parameters))?;
+        Ok(d)
+    }
+
     /// The Coulomb speed scale v_s chosen from `data` by cross-validated least squares
     /// (see `_prrrp.pyi`); a dict (the core's `CoulombScaleReport`).
     #[pyo3(signature = (data, *, candidates=None, folds=UInt(4), refine=true))]
@@ -932,4 +976,53 @@ pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PySerialChain>()?;
     m.add_class::<PyBaseParameters>()?;
     Ok(())
+}
+
+/// The feasibility report as a dict: per link and per joint, named.
+fn feasibility_dict<'py>(
+    py: Python<'py>,
+    c: &DynChain,
+    r: &prrrp_core::FeasibilityReport,
+) -> PyResult<Bound<'py, PyDict>> {
+    let links = pyo3::types::PyList::empty(py);
+    for (i, l) in r.links.iter().enumerate() {
+        let d = PyDict::new(py);
+        d.set_item("link", &c.meta().links[i])?;
+        d.set_item("mass", l.mass)?;
+        d.set_item("min_eigenvalue", l.min_eigenvalue())?;
+        d.set_item(
+            "pseudo_inertia_eigenvalues",
+            l.pseudo_inertia_eigenvalues.to_vec(),
+        )?;
+        d.set_item("com", l.com.map(|v| v.to_vec()))?;
+        d.set_item("principal_moments", l.principal_moments.map(|v| v.to_vec()))?;
+        d.set_item("triangle_margins", l.triangle_margins.map(|v| v.to_vec()))?;
+        d.set_item("consistent", l.consistent)?;
+        links.append(d)?;
+    }
+    let joints = pyo3::types::PyList::empty(py);
+    for (j, f) in r.friction.iter().enumerate() {
+        let d = PyDict::new(py);
+        d.set_item("joint", &c.meta().joints[j].name)?;
+        d.set_item("viscous", f.viscous)?;
+        d.set_item("coulomb", f.coulomb)?;
+        d.set_item("consistent", f.consistent)?;
+        joints.append(d)?;
+    }
+    let out = PyDict::new(py);
+    let bad: Vec<&String> = r
+        .links
+        .iter()
+        .enumerate()
+        .filter(|(_, l)| !l.consistent)
+        .map(|(i, _)| &c.meta().links[i])
+        .collect();
+    out.set_item(
+        "consistent",
+        bad.is_empty() && r.friction.iter().all(|f| f.consistent),
+    )?;
+    out.set_item("non_physical_links", bad)?;
+    out.set_item("links", links)?;
+    out.set_item("friction", joints)?;
+    Ok(out)
 }
