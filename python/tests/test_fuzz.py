@@ -216,3 +216,73 @@ def test_csv_reader_numbers(tmp_path_factory, rows):
     except csvio.InputError:
         return
     assert all(np.isfinite(v).all() for v in data.values())
+
+
+# ------------------------------------------------------------------ any robot's workflow
+
+SEVEN = prrrp.SerialChain.from_urdf(
+    """<robot name="two"><link name="base"/>
+      <link name="l1"><inertial><mass value="2"/><origin xyz="0.1 0 0"/>
+        <inertia ixx="0.01" ixy="0" ixz="0" iyy="0.01" iyz="0" izz="0.01"/></inertial></link>
+      <link name="l2"><inertial><mass value="1"/><origin xyz="0 0.1 0"/>
+        <inertia ixx="0.01" ixy="0" ixz="0" iyy="0.01" iyz="0" izz="0.01"/></inertial></link>
+      <joint name="j1" type="revolute"><parent link="base"/><child link="l1"/>
+        <axis xyz="0 0 1"/><limit lower="-1" upper="1" velocity="2" effort="10"/></joint>
+      <joint name="j2" type="revolute"><parent link="l1"/><child link="l2"/>
+        <origin xyz="0.3 0 0"/><axis xyz="0 1 0"/>
+        <limit lower="-1" upper="1" velocity="2" effort="10"/></joint>
+    </robot>""",
+    friction="viscous+coulomb",
+)
+
+
+@given(
+    body=st.binary(max_size=600),
+    header=st.sampled_from(
+        [b"t,q1,q2,tau1,tau2", b"t,q1,q2,tau1,tau2,qd1,qd2", b"t,q1,q2,q3,tau1", b"time,q1"]
+    ),
+)
+@settings(suppress_health_check=[HealthCheck.function_scoped_fixture])
+def test_any_robot_csv_reader(tmp_path_factory, body, header):
+    path = tmp_path_factory.mktemp("csv") / "log.csv"
+    path.write_bytes(header + b"\n" + body)
+    try:
+        raw = prrrp.read_measurements(path, SEVEN)
+    except csvio.InputError:
+        return
+    assert all(np.isfinite(v).all() for v in raw.values())
+    holds_contract(lambda: prrrp.measurements_to_dataset(raw))
+
+
+@given(
+    harmonics=st.one_of(st.integers(-3, 8), st.just(2**63)),
+    base_frequency=FLOATS,
+    sample_rate=FLOATS,
+    margin=FLOATS,
+    evaluations=st.integers(0, 60),
+)
+def test_design_excitation(harmonics, base_frequency, sample_rate, margin, evaluations):
+    try:
+        out = prrrp.design_excitation(
+            SEVEN,
+            harmonics=harmonics,
+            base_frequency=base_frequency,
+            sample_rate=sample_rate,
+            margin=margin,
+            restarts=2,
+            max_evaluations=evaluations,
+        )
+    except prrrp.PrrrpError:
+        return
+    out = {k: v for k, v in out.items() if k not in ("trajectory", "limit_usage")}
+    assert finite(out), out
+
+
+@given(candidates=st.one_of(st.none(), st.lists(FLOATS, max_size=4)), folds=st.integers(0, 6))
+def test_coulomb_scale(candidates, folds):
+    t = np.arange(40) * 0.05
+    q = np.column_stack([np.sin(t), np.cos(1.3 * t)])
+    qd = np.column_stack([np.cos(t), -1.3 * np.sin(1.3 * t)])
+    qdd = np.column_stack([-np.sin(t), -1.69 * np.cos(1.3 * t)])
+    data = prrrp.Dataset(t, q, qd, qdd, SEVEN.inverse_dynamics(q, qd, qdd))
+    holds_contract(lambda: SEVEN.coulomb_scale(data, candidates=candidates, folds=folds))
