@@ -140,6 +140,7 @@ pub struct LeastSquares {
     block_y: Mat<f64>,
     householder: Mat<f64>,
     gram: Mat<f64>,
+    resid: Mat<f64>,
     scratch: Option<((usize, usize), MemBuffer)>,
 }
 
@@ -167,6 +168,7 @@ impl LeastSquares {
             block_y: Mat::new(),
             householder: Mat::new(),
             gram: Mat::new(),
+            resid: Mat::new(),
             scratch: None,
         })
     }
@@ -361,12 +363,10 @@ impl LeastSquares {
         }
         self.gram.resize_with(p, p, |_, _| 0.0);
         self.gram.fill(0.0);
-        let mut wty = Mat::<f64>::zeros(p, 1);
         let mut runs_buf: Vec<(usize, usize)> = Vec::with_capacity(8);
         for (i, &m) in masks.iter().enumerate() {
             column_runs(m, p, &mut runs_buf);
             let wi = self.w.as_ref().subrows(i * n, n);
-            let yi = self.y.as_ref().subrows(i * n, n);
             for (ia, &(a0, a1)) in runs_buf.iter().enumerate() {
                 let wa = wi.subcols(a0, a1 - a0);
                 tri::matmul(
@@ -391,14 +391,6 @@ impl LeastSquares {
                         Par::Seq,
                     );
                 }
-                matmul(
-                    wty.as_mut().subrows_mut(a0, a1 - a0),
-                    Accum::Add,
-                    wa.transpose(),
-                    yi,
-                    1.0,
-                    Par::Seq,
-                );
             }
         }
         // Unit-diagonal scaling; a zero column is rank deficiency, for the QR path.
@@ -429,13 +421,47 @@ impl LeastSquares {
         {
             return None;
         }
-        // λ = D·μ with G_s·μ = D·Wᵀy.
-        for (k, &dk) in d.iter().enumerate() {
-            wty[(k, 0)] *= dk;
-        }
-        triangular_solve::solve_lower_triangular_in_place(l, wty.as_mut(), Par::Seq);
-        triangular_solve::solve_upper_triangular_in_place(l.transpose(), wty.as_mut(), Par::Seq);
-        let lambda = OVector::<f64, P>::from_fn_generic(pd, U1, |k, _| d[k] * wty[(k, 0)]);
+        // λ = D·μ with G_s·μ = D·Wᵀy, then one step of iterative refinement with the exact
+        // residual (δ from G·δ = Wᵀρ): it takes the error from cond²·ε·(scaled) to about
+        // QR's cond·ε, which the chain's small parameters need (1e-8 relative), for two
+        // more passes over W at matrix-vector cost.
+        let solve = |v: &mut Mat<f64>| {
+            for (k, &dk) in d.iter().enumerate() {
+                v[(k, 0)] *= dk;
+            }
+            triangular_solve::solve_lower_triangular_in_place(l, v.as_mut(), Par::Seq);
+            triangular_solve::solve_upper_triangular_in_place(l.transpose(), v.as_mut(), Par::Seq);
+            for (k, &dk) in d.iter().enumerate() {
+                v[(k, 0)] *= dk;
+            }
+        };
+        let mut lam = Mat::<f64>::zeros(p, 1);
+        transpose_times(&self.w, &self.y, masks, n, &mut runs_buf, &mut lam);
+        solve(&mut lam);
+        self.resid.resize_with(nj * n, 1, |_, _| 0.0);
+        residual(
+            &self.w,
+            &self.y,
+            masks,
+            n,
+            &mut runs_buf,
+            &lam,
+            &mut self.resid,
+        );
+        let mut delta = Mat::<f64>::zeros(p, 1);
+        transpose_times(&self.w, &self.resid, masks, n, &mut runs_buf, &mut delta);
+        solve(&mut delta);
+        lam += &delta;
+        residual(
+            &self.w,
+            &self.y,
+            masks,
+            n,
+            &mut runs_buf,
+            &lam,
+            &mut self.resid,
+        );
+        let lambda = OVector::<f64, P>::from_fn_generic(pd, U1, |k, _| lam[(k, 0)]);
         // (G⁻¹)_kk = d_k²·‖column k of L⁻¹‖², as ‖row k of R⁻¹‖² in the QR path.
         let mut linv = Mat::<f64>::identity(p, p);
         triangular_solve::solve_lower_triangular_in_place(l, linv.as_mut(), Par::Seq);
@@ -443,28 +469,10 @@ impl LeastSquares {
             let c = linv.col(k);
             d[k] * d[k] * (k..p).map(|j| c[j] * c[j]).sum::<f64>()
         });
-        // Exact residuals joint by joint.
-        let lam = Mat::<f64>::from_fn(p, 1, |k, _| lambda[k]);
-        let mut joint_ss = OVector::<f64, N>::zeros_generic(nd, U1);
-        self.block_y.resize_with(n, 1, |_, _| 0.0);
-        for (i, &m) in masks.iter().enumerate() {
-            column_runs(m, p, &mut runs_buf);
-            self.block_y
-                .col_as_slice_mut(0)
-                .copy_from_slice(&self.y.col_as_slice(0)[i * n..i * n + n]);
-            let wi = self.w.as_ref().subrows(i * n, n);
-            for &(a0, a1) in &runs_buf {
-                matmul(
-                    self.block_y.as_mut(),
-                    Accum::Add,
-                    wi.subcols(a0, a1 - a0),
-                    lam.as_ref().subrows(a0, a1 - a0),
-                    -1.0,
-                    Par::Seq,
-                );
-            }
-            joint_ss[i] = self.block_y.col_as_slice(0).iter().map(|v| v * v).sum();
-        }
+        let rho = self.resid.col_as_slice(0);
+        let joint_ss = OVector::<f64, N>::from_fn_generic(nd, U1, |i, _| {
+            rho[i * n..i * n + n].iter().map(|v| v * v).sum()
+        });
         let sigma2 = joint_ss.sum() / (nj * n - p) as f64;
         let std_dev = rinv_norm2.map(|v| (sigma2 * v).sqrt());
         let singular_values = OVector::<f64, P>::from_fn_generic(pd, U1, |i, _| sv[i]);
@@ -831,6 +839,61 @@ fn upper_triangular_inverse_dyn(r: &Mat<f64>) -> Mat<f64> {
         }
     }
     inv
+}
+
+/// out = Wᵀ·v over the joints' column runs (v stacked as W's rows, N·n × 1).
+fn transpose_times(
+    w: &Mat<f64>,
+    v: &Mat<f64>,
+    masks: &[u64],
+    n: usize,
+    runs: &mut Vec<(usize, usize)>,
+    out: &mut Mat<f64>,
+) {
+    out.fill(0.0);
+    for (i, &m) in masks.iter().enumerate() {
+        column_runs(m, w.ncols(), runs);
+        let wi = w.as_ref().subrows(i * n, n);
+        let vi = v.as_ref().subrows(i * n, n);
+        for &(a0, a1) in runs.iter() {
+            matmul(
+                out.as_mut().subrows_mut(a0, a1 - a0),
+                Accum::Add,
+                wi.subcols(a0, a1 - a0).transpose(),
+                vi,
+                1.0,
+                Par::Seq,
+            );
+        }
+    }
+}
+
+/// rho = y − W·λ over the joints' column runs.
+fn residual(
+    w: &Mat<f64>,
+    y: &Mat<f64>,
+    masks: &[u64],
+    n: usize,
+    runs: &mut Vec<(usize, usize)>,
+    lambda: &Mat<f64>,
+    rho: &mut Mat<f64>,
+) {
+    rho.col_as_slice_mut(0).copy_from_slice(y.col_as_slice(0));
+    for (i, &m) in masks.iter().enumerate() {
+        column_runs(m, w.ncols(), runs);
+        let wi = w.as_ref().subrows(i * n, n);
+        let mut ri = rho.as_mut().subrows_mut(i * n, n);
+        for &(a0, a1) in runs.iter() {
+            matmul(
+                ri.as_mut(),
+                Accum::Add,
+                wi.subcols(a0, a1 - a0),
+                lambda.as_ref().subrows(a0, a1 - a0),
+                -1.0,
+                Par::Seq,
+            );
+        }
+    }
 }
 
 /// The runs [start, end) of set bits of `mask` among the first `p` columns (every column
