@@ -141,6 +141,7 @@ pub struct LeastSquares {
     householder: Mat<f64>,
     gram: Mat<f64>,
     resid: Mat<f64>,
+    normal_equations_used: bool,
     scratch: Option<((usize, usize), MemBuffer)>,
 }
 
@@ -169,8 +170,17 @@ impl LeastSquares {
             householder: Mat::new(),
             gram: Mat::new(),
             resid: Mat::new(),
+            normal_equations_used: false,
             scratch: None,
         })
+    }
+
+    /// Whether the last factorisation (the last weighted pass for
+    /// [`solve_weighted`](Self::solve_weighted)) went through the normal equations (true)
+    /// or Householder QR (false, a cond(W) above 1e4 or a rank near the tolerance). Both
+    /// give the same report to within ~cond(W)·ε; this is a diagnostic.
+    pub fn used_normal_equations(&self) -> bool {
+        self.normal_equations_used
     }
 
     /// Ordinary least squares; see [`least_squares`].
@@ -506,8 +516,10 @@ impl LeastSquares {
         DefaultAllocator: Allocator<N> + Allocator<P>,
     {
         if let Some(done) = self.normal_equations(nd, pd, n, masks) {
+            self.normal_equations_used = true;
             return Ok(done);
         }
+        self.normal_equations_used = false;
         #[allow(non_snake_case)]
         let (N, P) = (nd.value(), pd.value());
         let blocks = blocks(masks, P);
