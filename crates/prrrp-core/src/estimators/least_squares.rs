@@ -374,35 +374,16 @@ impl LeastSquares {
         self.gram.resize_with(p, p, |_, _| 0.0);
         self.gram.fill(0.0);
         let mut runs_buf: Vec<(usize, usize)> = Vec::with_capacity(8);
-        for (i, &m) in masks.iter().enumerate() {
-            column_runs(m, p, &mut runs_buf);
-            let wi = self.w.as_ref().subrows(i * n, n);
-            for (ia, &(a0, a1)) in runs_buf.iter().enumerate() {
-                let wa = wi.subcols(a0, a1 - a0);
-                tri::matmul(
-                    self.gram.as_mut().submatrix_mut(a0, a0, a1 - a0, a1 - a0),
-                    BlockStructure::TriangularLower,
-                    Accum::Add,
-                    wa.transpose(),
-                    BlockStructure::Rectangular,
-                    wa,
-                    BlockStructure::Rectangular,
-                    1.0,
-                    Par::Seq,
-                );
-                for &(b0, b1) in &runs_buf[ia + 1..] {
-                    let wb = wi.subcols(b0, b1 - b0);
-                    matmul(
-                        self.gram.as_mut().submatrix_mut(b0, a0, b1 - b0, a1 - a0),
-                        Accum::Add,
-                        wb.transpose(),
-                        wa,
-                        1.0,
-                        Par::Seq,
-                    );
-                }
-            }
-        }
+        let mut wty = Mat::<f64>::zeros(p, 1);
+        gram_and_wty(
+            &self.w,
+            &self.y,
+            masks,
+            n,
+            &mut runs_buf,
+            &mut self.gram,
+            &mut wty,
+        );
         // Unit-diagonal scaling; a zero column is rank deficiency, for the QR path.
         let mut d = vec![0.0; p];
         for (k, dk) in d.iter_mut().enumerate() {
@@ -445,10 +426,10 @@ impl LeastSquares {
                 v[(k, 0)] *= dk;
             }
         };
-        let mut lam = Mat::<f64>::zeros(p, 1);
-        transpose_times(&self.w, &self.y, masks, n, &mut runs_buf, &mut lam);
+        let mut lam = wty;
         solve(&mut lam);
         self.resid.resize_with(nj * n, 1, |_, _| 0.0);
+        let mut delta = Mat::<f64>::zeros(p, 1);
         residual(
             &self.w,
             &self.y,
@@ -457,9 +438,8 @@ impl LeastSquares {
             &mut runs_buf,
             &lam,
             &mut self.resid,
+            Some(&mut delta),
         );
-        let mut delta = Mat::<f64>::zeros(p, 1);
-        transpose_times(&self.w, &self.resid, masks, n, &mut runs_buf, &mut delta);
         solve(&mut delta);
         lam += &delta;
         residual(
@@ -470,6 +450,7 @@ impl LeastSquares {
             &mut runs_buf,
             &lam,
             &mut self.resid,
+            None,
         );
         let lambda = OVector::<f64, P>::from_fn_generic(pd, U1, |k, _| lam[(k, 0)]);
         // (G⁻¹)_kk = d_k²·‖column k of L⁻¹‖², as ‖row k of R⁻¹‖² in the QR path.
@@ -853,34 +834,66 @@ fn upper_triangular_inverse_dyn(r: &Mat<f64>) -> Mat<f64> {
     inv
 }
 
-/// out = Wᵀ·v over the joints' column runs (v stacked as W's rows, N·n × 1).
-fn transpose_times(
+/// Rows per chunk of the passes over W: a chunk of up to 64 columns (≤ 256 KiB) stays in
+/// the L2 cache between the products that read it.
+const CHUNK_ROWS: usize = 512;
+
+/// Lower triangle of G += WᵀW and wty += Wᵀy over the joints' column runs, chunk by chunk
+/// of rows so that W is read from memory once.
+fn gram_and_wty(
     w: &Mat<f64>,
-    v: &Mat<f64>,
+    y: &Mat<f64>,
     masks: &[u64],
     n: usize,
     runs: &mut Vec<(usize, usize)>,
-    out: &mut Mat<f64>,
+    gram: &mut Mat<f64>,
+    wty: &mut Mat<f64>,
 ) {
-    out.fill(0.0);
     for (i, &m) in masks.iter().enumerate() {
         column_runs(m, w.ncols(), runs);
-        let wi = w.as_ref().subrows(i * n, n);
-        let vi = v.as_ref().subrows(i * n, n);
-        for &(a0, a1) in runs.iter() {
-            matmul(
-                out.as_mut().subrows_mut(a0, a1 - a0),
-                Accum::Add,
-                wi.subcols(a0, a1 - a0).transpose(),
-                vi,
-                1.0,
-                Par::Seq,
-            );
+        for c0 in (0..n).step_by(CHUNK_ROWS) {
+            let rows = CHUNK_ROWS.min(n - c0);
+            let wi = w.as_ref().subrows(i * n + c0, rows);
+            let yi = y.as_ref().subrows(i * n + c0, rows);
+            for (ia, &(a0, a1)) in runs.iter().enumerate() {
+                let wa = wi.subcols(a0, a1 - a0);
+                tri::matmul(
+                    gram.as_mut().submatrix_mut(a0, a0, a1 - a0, a1 - a0),
+                    BlockStructure::TriangularLower,
+                    Accum::Add,
+                    wa.transpose(),
+                    BlockStructure::Rectangular,
+                    wa,
+                    BlockStructure::Rectangular,
+                    1.0,
+                    Par::Seq,
+                );
+                for &(b0, b1) in &runs[ia + 1..] {
+                    matmul(
+                        gram.as_mut().submatrix_mut(b0, a0, b1 - b0, a1 - a0),
+                        Accum::Add,
+                        wi.subcols(b0, b1 - b0).transpose(),
+                        wa,
+                        1.0,
+                        Par::Seq,
+                    );
+                }
+                matmul(
+                    wty.as_mut().subrows_mut(a0, a1 - a0),
+                    Accum::Add,
+                    wa.transpose(),
+                    yi,
+                    1.0,
+                    Par::Seq,
+                );
+            }
         }
     }
 }
 
-/// rho = y − W·λ over the joints' column runs.
+/// rho = y − W·λ over the joints' column runs and, when `wtr` is given, wtr += Wᵀ·rho in
+/// the same pass (chunk by chunk, while the chunk of W is in cache).
+#[allow(clippy::too_many_arguments)]
 fn residual(
     w: &Mat<f64>,
     y: &Mat<f64>,
@@ -889,21 +902,37 @@ fn residual(
     runs: &mut Vec<(usize, usize)>,
     lambda: &Mat<f64>,
     rho: &mut Mat<f64>,
+    mut wtr: Option<&mut Mat<f64>>,
 ) {
     rho.col_as_slice_mut(0).copy_from_slice(y.col_as_slice(0));
     for (i, &m) in masks.iter().enumerate() {
         column_runs(m, w.ncols(), runs);
-        let wi = w.as_ref().subrows(i * n, n);
-        let mut ri = rho.as_mut().subrows_mut(i * n, n);
-        for &(a0, a1) in runs.iter() {
-            matmul(
-                ri.as_mut(),
-                Accum::Add,
-                wi.subcols(a0, a1 - a0),
-                lambda.as_ref().subrows(a0, a1 - a0),
-                -1.0,
-                Par::Seq,
-            );
+        for c0 in (0..n).step_by(CHUNK_ROWS) {
+            let rows = CHUNK_ROWS.min(n - c0);
+            let wi = w.as_ref().subrows(i * n + c0, rows);
+            let mut ri = rho.as_mut().subrows_mut(i * n + c0, rows);
+            for &(a0, a1) in runs.iter() {
+                matmul(
+                    ri.as_mut(),
+                    Accum::Add,
+                    wi.subcols(a0, a1 - a0),
+                    lambda.as_ref().subrows(a0, a1 - a0),
+                    -1.0,
+                    Par::Seq,
+                );
+            }
+            if let Some(out) = wtr.as_deref_mut() {
+                for &(a0, a1) in runs.iter() {
+                    matmul(
+                        out.as_mut().subrows_mut(a0, a1 - a0),
+                        Accum::Add,
+                        wi.subcols(a0, a1 - a0).transpose(),
+                        ri.as_ref(),
+                        1.0,
+                        Par::Seq,
+                    );
+                }
+            }
         }
     }
 }
