@@ -89,7 +89,7 @@ fn weighted_fast_path_agrees_with_qr() {
     let ds = data.dataset();
     let var = JointNoise::<5>::Variances(sigma.map(|s| s * s));
     let mut fast = LeastSquares::new(LeastSquaresConfig::default()).unwrap();
-    let f = fast.solve_weighted(&model, &ds, var.clone()).unwrap();
+    let f = fast.solve_weighted(&model, &ds, var).unwrap();
     assert!(fast.used_normal_equations());
     let mut qr = LeastSquares::new(qr_config(f.cond)).unwrap();
     let q = qr.solve_weighted(&model, &ds, var).unwrap();
@@ -159,11 +159,10 @@ fn ill_conditioned_full_rank_falls_back_to_qr() {
     let n = ds.len();
     let mut w = DMatrix::<f64>::zeros(5 * n, 8);
     let mut y = DVector::<f64>::zeros(5 * n);
-    let mut ws = model.workspace();
     let mut phi = prrrp_core::nalgebra::OMatrix::<f64, U5, U8>::zeros();
     for (k, s) in ds.iter().enumerate() {
         model
-            .regressor_into(&mut ws, s.q, s.qd, s.qdd, &mut phi)
+            .regressor_into(&mut model.workspace(), s.q, s.qd, s.qdd, &mut phi)
             .unwrap();
         for i in 0..5 {
             y[5 * k + i] = s.tau[i];

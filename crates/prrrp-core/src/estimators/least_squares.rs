@@ -1,9 +1,17 @@
 //! Batch least squares (eqs. 2–4, 35–36) and weighted least squares with per-joint noise
-//! variances, solved by a blocked Householder QR factorisation of W (faer) — never through
-//! the normal equations WᵀW·λ = Wᵀτ, which square the condition number. The rank decision
-//! and cond(W) come from the singular values of the P×P factor R, which are W's (Q is
-//! orthogonal), so column pivoting (level-2 and 3–4× slower on a 14000×64 W) is not needed
-//! to reveal the rank.
+//! variances.
+//!
+//! Well-conditioned problems (every exciting trajectory: cond(W) 5–100, up to ~2e3 with
+//! friction and inertial columns of different units) are solved through the normal
+//! equations: G = WᵀW over the non-zero column runs of each joint, scaled to unit
+//! diagonal, Cholesky-factored, then one step of iterative refinement with the exact
+//! residual ρ = y − W·λ̂. Their error is ≈ cond(W)²·ε before the refinement and about QR's
+//! cond(W)·ε after it; they are used only when the computed cond(W) ≤ 1e4 (so cond²·ε
+//! ≤ 2e-8 before refinement) and the smallest singular value clears the rank tolerance by a
+//! factor of 2. Otherwise — ill-conditioned, nearly or truly rank-deficient W — the problem
+//! goes to a blocked Householder QR factorisation of W (faer), which loses only cond·ε and
+//! decides the rank: from the singular values of the P×P factor R, which are W's (Q is
+//! orthogonal), so column pivoting (level-2 and 3–4× slower on a 14000×64 W) is not needed.
 
 use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
 use faer::linalg::householder;
@@ -36,10 +44,11 @@ pub type DynLeastSquaresReport = LeastSquaresReportOf<Dyn, Dyn>;
 const MAX_VARIANCE_PASSES: usize = 20;
 
 /// Largest condition number for which the normal equations are trusted (dimensionless).
-/// Their relative error is ≈ cond²·ε: at cond ≤ 1e4 that is ≤ 1e4²·2.2e-16 ≈ 2e-8, far
-/// below the parameters' statistical uncertainty; exciting trajectories give cond 5–100
-/// (up to ~2e3 with friction and inertial columns of different units). Beyond it the solve
-/// falls back to Householder QR, which loses only cond·ε.
+/// Their relative error is ≈ cond²·ε: at cond ≤ 1e4 that is ≤ 1e4²·2.2e-16 ≈ 2e-8 before
+/// the refinement step (which takes it to ≈ cond·ε), far below the parameters' statistical
+/// uncertainty; exciting trajectories give cond 5–100 (up to ~2e3 with friction and
+/// inertial columns of different units). Beyond it the solve falls back to Householder
+/// QR, which loses only cond·ε.
 const NORMAL_EQUATIONS_MAX_COND: f64 = 1e4;
 
 /// Settings of [`least_squares`] and [`weighted_least_squares`].
@@ -106,7 +115,9 @@ where
     /// least squares; dimensionless — ≈ 1 when the variances are right — for weighted).
     pub sigma2: f64,
     /// Standard deviation σ_i of each parameter: the square root of the diagonal of
-    /// σ²·(WᵀW)⁻¹, with (WᵀW)⁻¹ = R⁻¹·R⁻ᵀ from the QR factor (never formed from WᵀW).
+    /// σ²·(WᵀW)⁻¹, with (WᵀW)⁻¹ = R⁻¹·R⁻ᵀ from the triangular factor (of the scaled
+    /// Cholesky factorisation of WᵀW when cond(W) ≤ 1e4, of the QR factorisation of W
+    /// otherwise).
     pub std_dev: OVector<f64, P>,
     /// Relative standard deviation %σ_i = 100·σ_i/|λ̂_i| (percent). Always defined: +∞
     /// for an estimate λ̂_i = 0 exactly (even when σ_i = 0 too, e.g. τ ≡ 0), never NaN.
@@ -346,16 +357,16 @@ impl LeastSquares {
     /// G is scaled to unit diagonal, G_s = D·G·D with D = diag(1/‖w_k‖) (the near-optimal
     /// diagonal scaling of van der Sluis), and Cholesky-factored, G_s = L·Lᵀ.
     ///
-    /// Accuracy: the computed λ̂ has relative error ≈ cond(W_s)²·ε in the scaled norm, with
-    /// cond(W_s) ≤ √P·cond(W) and in practice below cond(W). R = Lᵀ·D⁻¹ satisfies
-    /// RᵀR = G + E with ‖E‖ ≲ P²·ε·‖G‖ (Cholesky backward error), so by Weyl's inequality
-    /// its singular values are W's up to an absolute error of order P·√ε·σmax in σ², i.e.
-    /// σ_i² within P²·ε·σmax² — a W with cond(W) above the threshold cannot pass as
-    /// well-conditioned. The path is taken only when the computed cond(W) ≤ 1e4 (error
-    /// ≲ 2e-8 relative) and the smallest singular value clears the rank tolerance by a factor
-    /// of 2, so the rank decision is always the QR path's. The residuals are recomputed
-    /// exactly, ρ = y − W·λ̂ (not from τᵀτ − 2λ̂ᵀWᵀτ + λ̂ᵀGλ̂, which cancels catastrophically
-    /// for a near-perfect fit).
+    /// Accuracy: the Cholesky solve has relative error ≈ cond(W_s)²·ε in the scaled
+    /// norm (cond(W_s) ≤ √P·cond(W), in practice below cond(W)); one step of refinement
+    /// with the exactly recomputed residual brings it to about cond(W)·ε, as QR. The
+    /// residuals are never taken from τᵀτ − 2λ̂ᵀWᵀτ + λ̂ᵀGλ̂, which cancels catastrophically
+    /// for a near-perfect fit. R = Lᵀ·D⁻¹ satisfies RᵀR = G + E with ‖E‖ ≲ P²·ε·‖G‖
+    /// (Cholesky backward error), so by Weyl's inequality each computed σ_i² is W's to
+    /// within P²·ε·σmax²: a W whose cond(W) exceeds 1e4 cannot pass as better conditioned
+    /// (σmin²/σmax² < 1e-8 stays below 1e-8 + 4e-13 for P = 64). The path is taken only when
+    /// the computed cond(W) ≤ [`NORMAL_EQUATIONS_MAX_COND`] and σmin > 2·tolerance·σmax, so
+    /// the rank decision, when it is close, is always the QR path's.
     fn normal_equations<N: Dim, P: Dim>(
         &mut self,
         nd: N,
@@ -367,7 +378,7 @@ impl LeastSquares {
         DefaultAllocator: Allocator<N> + Allocator<P>,
     {
         let (nj, p) = (nd.value(), pd.value());
-        if masks.iter().any(|&m| m == 0) {
+        if masks.contains(&0) {
             // A joint with no parameter: leave the bookkeeping to the QR path.
             return None;
         }
@@ -678,9 +689,11 @@ impl LeastSquares {
 /// Ordinary least squares λ̂ = argmin ‖τ − W·λ‖² over a dataset (eqs. 35–36), with the
 /// statistics the field reports.
 ///
-/// Builds W ∈ R^{(N·n)×P} from the regressor of every sample and factorises it in place
-/// by Householder QR (faer); the singular values come from an SVD of the P×P
-/// factor R, which has the same singular values as W. Allocates W for this call: use
+/// Builds W ∈ R^{(N·n)×P} from the regressor of every sample and solves through the
+/// scaled normal equations with one refinement step when cond(W) ≤ 1e4, otherwise by
+/// Householder QR of W (faer; see the module documentation for the accuracy argument);
+/// the singular values come from an SVD of the P×P triangular factor R, which has the same
+/// singular values as W. Allocates W for this call: use
 /// [`LeastSquares`] to reuse the buffers across solves.
 ///
 /// # Errors
