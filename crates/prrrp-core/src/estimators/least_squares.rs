@@ -1,16 +1,27 @@
 //! Batch least squares (eqs. 2–4, 35–36) and weighted least squares with per-joint noise
-//! variances, solved by a blocked Householder QR factorisation of W (faer) — never through
-//! the normal equations WᵀW·λ = Wᵀτ, which square the condition number. The rank decision
-//! and cond(W) come from the singular values of the P×P factor R, which are W's (Q is
-//! orthogonal), so column pivoting (level-2 and 3–4× slower on a 14000×64 W) is not needed
-//! to reveal the rank.
+//! variances.
+//!
+//! Well-conditioned problems (every exciting trajectory: cond(W) 5–100, up to ~2e3 with
+//! friction and inertial columns of different units) are solved through the normal
+//! equations: G = WᵀW over the non-zero column runs of each joint, scaled to unit
+//! diagonal, Cholesky-factored, then one step of iterative refinement with the exact
+//! residual ρ = y − W·λ̂. Their error is ≈ cond(W)²·ε before the refinement and about QR's
+//! cond(W)·ε after it; they are used only when the computed cond(W) ≤ 1e4 (so cond²·ε
+//! ≤ 2e-8 before refinement) and the smallest singular value clears the rank tolerance by a
+//! factor of 2. Otherwise — ill-conditioned, nearly or truly rank-deficient W — the problem
+//! goes to a blocked Householder QR factorisation of W (faer), which loses only cond·ε and
+//! decides the rank: from the singular values of the P×P factor R, which are W's (Q is
+//! orthogonal), so column pivoting (level-2 and 3–4× slower on a 14000×64 W) is not needed.
 
 use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
 use faer::linalg::householder;
+use faer::linalg::matmul::matmul;
+use faer::linalg::matmul::triangular::{self as tri, BlockStructure};
 use faer::linalg::qr::no_pivoting::factor::{
     qr_in_place, qr_in_place_scratch, recommended_block_size,
 };
-use faer::{Conj, Mat, Par};
+use faer::linalg::triangular_solve;
+use faer::{Accum, Conj, Mat, Par, Side};
 use nalgebra::allocator::Allocator;
 use nalgebra::{Const, DefaultAllocator, Dim, Dyn, OMatrix, OVector, U1};
 
@@ -31,6 +42,14 @@ pub type DynLeastSquaresReport = LeastSquaresReportOf<Dyn, Dyn>;
 /// Passes of variance re-estimation for [`JointNoiseOf::Estimated`] (the fixed point is
 /// usually reached, to 0.1 %, in two to five).
 const MAX_VARIANCE_PASSES: usize = 20;
+
+/// Largest condition number for which the normal equations are trusted (dimensionless).
+/// Their relative error is ≈ cond²·ε: at cond ≤ 1e4 that is ≤ 1e4²·2.2e-16 ≈ 2e-8 before
+/// the refinement step (which takes it to ≈ cond·ε), far below the parameters' statistical
+/// uncertainty; exciting trajectories give cond 5–100 (up to ~2e3 with friction and
+/// inertial columns of different units). Beyond it the solve falls back to Householder
+/// QR, which loses only cond·ε.
+const NORMAL_EQUATIONS_MAX_COND: f64 = 1e4;
 
 /// Settings of [`least_squares`] and [`weighted_least_squares`].
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -96,7 +115,9 @@ where
     /// least squares; dimensionless — ≈ 1 when the variances are right — for weighted).
     pub sigma2: f64,
     /// Standard deviation σ_i of each parameter: the square root of the diagonal of
-    /// σ²·(WᵀW)⁻¹, with (WᵀW)⁻¹ = R⁻¹·R⁻ᵀ from the QR factor (never formed from WᵀW).
+    /// σ²·(WᵀW)⁻¹, with (WᵀW)⁻¹ = R⁻¹·R⁻ᵀ from the triangular factor (of the scaled
+    /// Cholesky factorisation of WᵀW when cond(W) ≤ 1e4, of the QR factorisation of W
+    /// otherwise).
     pub std_dev: OVector<f64, P>,
     /// Relative standard deviation %σ_i = 100·σ_i/|λ̂_i| (percent). Always defined: +∞
     /// for an estimate λ̂_i = 0 exactly (even when σ_i = 0 too, e.g. τ ≡ 0), never NaN.
@@ -129,6 +150,9 @@ pub struct LeastSquares {
     block: Mat<f64>,
     block_y: Mat<f64>,
     householder: Mat<f64>,
+    gram: Mat<f64>,
+    resid: Mat<f64>,
+    normal_equations_used: bool,
     scratch: Option<((usize, usize), MemBuffer)>,
 }
 
@@ -155,8 +179,19 @@ impl LeastSquares {
             block: Mat::new(),
             block_y: Mat::new(),
             householder: Mat::new(),
+            gram: Mat::new(),
+            resid: Mat::new(),
+            normal_equations_used: false,
             scratch: None,
         })
+    }
+
+    /// Whether the last factorisation (the last weighted pass for
+    /// [`solve_weighted`](Self::solve_weighted)) went through the normal equations (true)
+    /// or Householder QR (false, a cond(W) above 1e4 or a rank near the tolerance). Both
+    /// give the same report to within ~cond(W)·ε; this is a diagnostic.
+    pub fn used_normal_equations(&self) -> bool {
+        self.normal_equations_used
     }
 
     /// Ordinary least squares; see [`least_squares`].
@@ -312,6 +347,148 @@ impl LeastSquares {
         Ok(masks)
     }
 
+    /// The fast path: least squares through the normal equations WᵀW·λ = Wᵀy, or `None`
+    /// when they cannot be trusted and the QR path must decide (rank deficiency, cond(W)
+    /// above [`NORMAL_EQUATIONS_MAX_COND`], non-finite numbers).
+    ///
+    /// G = WᵀW costs N·n·P²/2 multiply-adds at matrix-product speed — half of the
+    /// Householder QR's and without its level-2 panels — and only the joints' non-zero
+    /// column runs enter it (a chain's joint i involves only links i.., about half of W).
+    /// G is scaled to unit diagonal, G_s = D·G·D with D = diag(1/‖w_k‖) (the near-optimal
+    /// diagonal scaling of van der Sluis), and Cholesky-factored, G_s = L·Lᵀ.
+    ///
+    /// Accuracy: the Cholesky solve has relative error ≈ cond(W_s)²·ε in the scaled
+    /// norm (cond(W_s) ≤ √P·cond(W), in practice below cond(W)); one step of refinement
+    /// with the exactly recomputed residual brings it to about cond(W)·ε, as QR. The
+    /// residuals are never taken from τᵀτ − 2λ̂ᵀWᵀτ + λ̂ᵀGλ̂, which cancels catastrophically
+    /// for a near-perfect fit. R = Lᵀ·D⁻¹ satisfies RᵀR = G + E with ‖E‖ ≲ P²·ε·‖G‖
+    /// (Cholesky backward error), so by Weyl's inequality each computed σ_i² is W's to
+    /// within P²·ε·σmax²: a W whose cond(W) exceeds 1e4 cannot pass as better conditioned
+    /// (σmin²/σmax² < 1e-8 stays below 1e-8 + 4e-13 for P = 64). The path is taken only when
+    /// the computed cond(W) ≤ [`NORMAL_EQUATIONS_MAX_COND`] and σmin > 2·tolerance·σmax, so
+    /// the rank decision, when it is close, is always the QR path's.
+    fn normal_equations<N: Dim, P: Dim>(
+        &mut self,
+        nd: N,
+        pd: P,
+        n: usize,
+        masks: &[u64],
+    ) -> Option<(Solution<P>, OVector<f64, N>)>
+    where
+        DefaultAllocator: Allocator<N> + Allocator<P>,
+    {
+        let (nj, p) = (nd.value(), pd.value());
+        if masks.contains(&0) {
+            // A joint with no parameter: leave the bookkeeping to the QR path.
+            return None;
+        }
+        self.gram.resize_with(p, p, |_, _| 0.0);
+        self.gram.fill(0.0);
+        let mut runs_buf: Vec<(usize, usize)> = Vec::with_capacity(8);
+        let mut wty = Mat::<f64>::zeros(p, 1);
+        gram_and_wty(
+            &self.w,
+            &self.y,
+            masks,
+            n,
+            &mut runs_buf,
+            &mut self.gram,
+            &mut wty,
+        );
+        // Unit-diagonal scaling; a zero column is rank deficiency, for the QR path.
+        let mut d = vec![0.0; p];
+        for (k, dk) in d.iter_mut().enumerate() {
+            let gkk = self.gram[(k, k)];
+            if !(gkk.is_finite() && gkk > 0.0) {
+                return None;
+            }
+            *dk = 1.0 / gkk.sqrt();
+        }
+        for j in 0..p {
+            for i in j..p {
+                self.gram[(i, j)] *= d[i] * d[j];
+            }
+        }
+        let llt = self.gram.as_ref().llt(Side::Lower).ok()?;
+        let l = llt.L();
+        // R = Lᵀ·D⁻¹ has W's singular values.
+        let r = Mat::<f64>::from_fn(p, p, |i, j| if i <= j { l[(j, i)] / d[j] } else { 0.0 });
+        let mut sv = r.as_ref().singular_values().ok()?;
+        sv.sort_by(|a, b| b.total_cmp(a));
+        let (smax, smin) = (sv[0], sv[p - 1]);
+        if !(sv.iter().all(|s| s.is_finite())
+            && smin > 0.0
+            && smax <= NORMAL_EQUATIONS_MAX_COND * smin
+            && smin > 2.0 * self.config.rank_tolerance * smax)
+        {
+            return None;
+        }
+        // λ = D·μ with G_s·μ = D·Wᵀy, then one step of iterative refinement with the exact
+        // residual (δ from G·δ = Wᵀρ): it takes the error from cond²·ε·(scaled) to about
+        // QR's cond·ε, which the chain's small parameters need (1e-8 relative), for two
+        // more passes over W at matrix-vector cost.
+        let solve = |v: &mut Mat<f64>| {
+            for (k, &dk) in d.iter().enumerate() {
+                v[(k, 0)] *= dk;
+            }
+            triangular_solve::solve_lower_triangular_in_place(l, v.as_mut(), Par::Seq);
+            triangular_solve::solve_upper_triangular_in_place(l.transpose(), v.as_mut(), Par::Seq);
+            for (k, &dk) in d.iter().enumerate() {
+                v[(k, 0)] *= dk;
+            }
+        };
+        let mut lam = wty;
+        solve(&mut lam);
+        self.resid.resize_with(nj * n, 1, |_, _| 0.0);
+        let mut delta = Mat::<f64>::zeros(p, 1);
+        residual(
+            &self.w,
+            &self.y,
+            masks,
+            n,
+            &mut runs_buf,
+            &lam,
+            &mut self.resid,
+            Some(&mut delta),
+        );
+        solve(&mut delta);
+        lam += &delta;
+        residual(
+            &self.w,
+            &self.y,
+            masks,
+            n,
+            &mut runs_buf,
+            &lam,
+            &mut self.resid,
+            None,
+        );
+        let lambda = OVector::<f64, P>::from_fn_generic(pd, U1, |k, _| lam[(k, 0)]);
+        // (G⁻¹)_kk = d_k²·‖column k of L⁻¹‖², as ‖row k of R⁻¹‖² in the QR path.
+        let mut linv = Mat::<f64>::identity(p, p);
+        triangular_solve::solve_lower_triangular_in_place(l, linv.as_mut(), Par::Seq);
+        let rinv_norm2 = OVector::<f64, P>::from_fn_generic(pd, U1, |k, _| {
+            let c = linv.col(k);
+            d[k] * d[k] * (k..p).map(|j| c[j] * c[j]).sum::<f64>()
+        });
+        let rho = self.resid.col_as_slice(0);
+        let joint_ss = OVector::<f64, N>::from_fn_generic(nd, U1, |i, _| {
+            rho[i * n..i * n + n].iter().map(|v| v * v).sum()
+        });
+        let sigma2 = joint_ss.sum() / (nj * n - p) as f64;
+        let std_dev = rinv_norm2.map(|v| (sigma2 * v).sqrt());
+        let singular_values = OVector::<f64, P>::from_fn_generic(pd, U1, |i, _| sv[i]);
+        Some((
+            Solution {
+                lambda,
+                singular_values,
+                sigma2,
+                std_dev,
+            },
+            joint_ss,
+        ))
+    }
+
     /// Least squares block by block. After permuting rows and columns, W is block diagonal:
     /// each block couples the joints and parameters connected through non-zero entries
     /// (for PRRRP {F1, F5}×{λ1, λ8} and {τ2, τ3, τ4}×{λ2..λ7}, the networks of eq. 40).
@@ -330,6 +507,11 @@ impl LeastSquares {
     where
         DefaultAllocator: Allocator<N> + Allocator<P>,
     {
+        if let Some(done) = self.normal_equations(nd, pd, n, masks) {
+            self.normal_equations_used = true;
+            return Ok(done);
+        }
+        self.normal_equations_used = false;
         #[allow(non_snake_case)]
         let (N, P) = (nd.value(), pd.value());
         let blocks = blocks(masks, P);
@@ -507,9 +689,11 @@ impl LeastSquares {
 /// Ordinary least squares λ̂ = argmin ‖τ − W·λ‖² over a dataset (eqs. 35–36), with the
 /// statistics the field reports.
 ///
-/// Builds W ∈ R^{(N·n)×P} from the regressor of every sample and factorises it in place
-/// by Householder QR (faer); the singular values come from an SVD of the P×P
-/// factor R, which has the same singular values as W. Allocates W for this call: use
+/// Builds W ∈ R^{(N·n)×P} from the regressor of every sample and solves through the
+/// scaled normal equations with one refinement step when cond(W) ≤ 1e4, otherwise by
+/// Householder QR of W (faer; see the module documentation for the accuracy argument);
+/// the singular values come from an SVD of the P×P triangular factor R, which has the same
+/// singular values as W. Allocates W for this call: use
 /// [`LeastSquares`] to reuse the buffers across solves.
 ///
 /// # Errors
@@ -661,6 +845,129 @@ fn upper_triangular_inverse_dyn(r: &Mat<f64>) -> Mat<f64> {
         }
     }
     inv
+}
+
+/// Rows per chunk of the passes over W: a chunk of up to 64 columns (≤ 256 KiB) stays in
+/// the L2 cache between the products that read it.
+const CHUNK_ROWS: usize = 512;
+
+/// Lower triangle of G += WᵀW and wty += Wᵀy over the joints' column runs, chunk by chunk
+/// of rows so that W is read from memory once.
+fn gram_and_wty(
+    w: &Mat<f64>,
+    y: &Mat<f64>,
+    masks: &[u64],
+    n: usize,
+    runs: &mut Vec<(usize, usize)>,
+    gram: &mut Mat<f64>,
+    wty: &mut Mat<f64>,
+) {
+    for (i, &m) in masks.iter().enumerate() {
+        column_runs(m, w.ncols(), runs);
+        for c0 in (0..n).step_by(CHUNK_ROWS) {
+            let rows = CHUNK_ROWS.min(n - c0);
+            let wi = w.as_ref().subrows(i * n + c0, rows);
+            let yi = y.as_ref().subrows(i * n + c0, rows);
+            for (ia, &(a0, a1)) in runs.iter().enumerate() {
+                let wa = wi.subcols(a0, a1 - a0);
+                tri::matmul(
+                    gram.as_mut().submatrix_mut(a0, a0, a1 - a0, a1 - a0),
+                    BlockStructure::TriangularLower,
+                    Accum::Add,
+                    wa.transpose(),
+                    BlockStructure::Rectangular,
+                    wa,
+                    BlockStructure::Rectangular,
+                    1.0,
+                    Par::Seq,
+                );
+                for &(b0, b1) in &runs[ia + 1..] {
+                    matmul(
+                        gram.as_mut().submatrix_mut(b0, a0, b1 - b0, a1 - a0),
+                        Accum::Add,
+                        wi.subcols(b0, b1 - b0).transpose(),
+                        wa,
+                        1.0,
+                        Par::Seq,
+                    );
+                }
+                matmul(
+                    wty.as_mut().subrows_mut(a0, a1 - a0),
+                    Accum::Add,
+                    wa.transpose(),
+                    yi,
+                    1.0,
+                    Par::Seq,
+                );
+            }
+        }
+    }
+}
+
+/// rho = y − W·λ over the joints' column runs and, when `wtr` is given, wtr += Wᵀ·rho in
+/// the same pass (chunk by chunk, while the chunk of W is in cache).
+#[allow(clippy::too_many_arguments)]
+fn residual(
+    w: &Mat<f64>,
+    y: &Mat<f64>,
+    masks: &[u64],
+    n: usize,
+    runs: &mut Vec<(usize, usize)>,
+    lambda: &Mat<f64>,
+    rho: &mut Mat<f64>,
+    mut wtr: Option<&mut Mat<f64>>,
+) {
+    rho.col_as_slice_mut(0).copy_from_slice(y.col_as_slice(0));
+    for (i, &m) in masks.iter().enumerate() {
+        column_runs(m, w.ncols(), runs);
+        for c0 in (0..n).step_by(CHUNK_ROWS) {
+            let rows = CHUNK_ROWS.min(n - c0);
+            let wi = w.as_ref().subrows(i * n + c0, rows);
+            let mut ri = rho.as_mut().subrows_mut(i * n + c0, rows);
+            for &(a0, a1) in runs.iter() {
+                matmul(
+                    ri.as_mut(),
+                    Accum::Add,
+                    wi.subcols(a0, a1 - a0),
+                    lambda.as_ref().subrows(a0, a1 - a0),
+                    -1.0,
+                    Par::Seq,
+                );
+            }
+            if let Some(out) = wtr.as_deref_mut() {
+                for &(a0, a1) in runs.iter() {
+                    matmul(
+                        out.as_mut().subrows_mut(a0, a1 - a0),
+                        Accum::Add,
+                        wi.subcols(a0, a1 - a0).transpose(),
+                        ri.as_ref(),
+                        1.0,
+                        Par::Seq,
+                    );
+                }
+            }
+        }
+    }
+}
+
+/// The runs [start, end) of set bits of `mask` among the first `p` columns (every column
+/// for p > 64, whose masks have every bit set), gaps of up to two columns bridged: a few
+/// long runs make fewer, more efficient matrix products than exact short ones.
+fn column_runs(mask: u64, p: usize, out: &mut Vec<(usize, usize)>) {
+    out.clear();
+    if p > 64 {
+        out.push((0, p));
+        return;
+    }
+    for j in 0..p {
+        if mask & (1u64 << j) == 0 {
+            continue;
+        }
+        match out.last_mut() {
+            Some((_, end)) if j <= *end + 2 => *end = j + 1,
+            _ => out.push((j, j + 1)),
+        }
+    }
 }
 
 /// Groups joints and parameters into independent blocks: two parameters are in the same
