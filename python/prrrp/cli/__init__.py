@@ -10,6 +10,15 @@ Subcommands:
 - ``prrrp identify DATA.csv [--method ls|adaline|hopfield|ekf|all] [--validate VAL.csv]
   [--out results.json]``: λ from a measurement file, optionally validated on another.
 
+Any robot (a ``.urdf`` with ``--base``/``--tip`` links, or a ``.toml`` robot file):
+
+- ``prrrp excite --robot ROBOT --duration S --out traj.csv``: an exciting trajectory within the
+  file's limits (:mod:`prrrp.cli.excite`);
+- ``prrrp simulate --robot ROBOT --trajectory traj.csv --out data.csv``: the robot tracking it;
+- ``prrrp identify DATA --robot ROBOT --out DIR``: model.json, report.md and figures from a CSV
+  or a ROS 2 bag (:mod:`prrrp.cli.identify_robot`);
+- ``prrrp predict MODEL.json DATA --out tau.csv``: a saved model's torques for recorded states.
+
 The measurement CSV format is documented in :mod:`prrrp.csvio`. Exit codes: 0 success,
 1 a computation failed (e.g. an estimator diverged), 2 bad usage or bad input, 130
 interrupted. Errors are one line on stderr, never a traceback.
@@ -56,7 +65,9 @@ COMMANDS = (reproduce, excite, simulate, identify, predict)
 def build_parser() -> argparse.ArgumentParser:
     parser = Parser(
         prog="prrrp",
-        description="Dynamic parameter identification of the PRRRP robot (Urrea & Pascal 2017).",
+        description="Dynamic parameter identification of robot manipulators: the PRRRP robot "
+        "of Urrea & Pascal 2017 (reproduce, simulate, identify) and any arm from its URDF or "
+        "TOML file (excite, simulate/identify --robot, predict).",
         epilog="Run `prrrp reproduce` for the paper's whole study; `prrrp COMMAND --help` "
         "for each command.",
     )
