@@ -241,7 +241,11 @@ def format_measurements(
     if qd is not None and qdd is not None:
         names += [*groups["qd"], *groups["qdd"]]
         blocks += [np.asarray(qd), np.asarray(qdd)]
-    table = np.hstack(blocks)
+    return format_table(names, np.hstack(blocks))
+
+
+def format_table(names: list[str], table: np.ndarray) -> str:
+    """CSV text of a header ``names`` and the rows of ``table``, full float precision."""
     lines = [",".join(names)]
     lines.extend(",".join(repr(float(x)) for x in row) for row in table)
     return "\n".join(lines) + "\n"

@@ -150,3 +150,14 @@ def first_line(e: BaseException) -> str:
 
 def error(message: str) -> None:
     print(f"prrrp: error: {message}", file=sys.stderr)
+
+
+def friction_terms(text: str) -> str | None:
+    """``--friction viscous,coulomb,offset`` (or ``none``) as the bindings' "a+b" form."""
+    terms = [t.strip() for t in text.split(",") if t.strip()]
+    if terms in ([], ["none"]):
+        return None
+    bad = [t for t in terms if t not in ("viscous", "coulomb", "offset")]
+    if bad:
+        raise CliError(f"--friction: unknown term '{bad[0]}' (use viscous, coulomb, offset)")
+    return "+".join(terms)

@@ -16,11 +16,11 @@ from prrrp.cli.common import (
     CliError,
     Progress,
     check_output_file,
+    friction_terms,
     nonempty_path,
     print_table,
     seed,
 )
-from prrrp.cli.identify_robot import _friction
 
 LIMIT_KEYS = ("lower", "upper", "velocity", "acceleration")
 
@@ -93,7 +93,7 @@ def run(args: argparse.Namespace) -> int:
     out = Path(args.out)
     check_output_file(out)
     robot = workflow.load_robot(
-        args.robot, base=args.base, tip=args.tip, friction=_friction(args.friction)
+        args.robot, base=args.base, tip=args.tip, friction=friction_terms(args.friction)
     )
     limits = _limits(args.limits, robot.dof)
     progress = Progress()
@@ -118,9 +118,7 @@ def run(args: argparse.Namespace) -> int:
     groups = csvio.columns(robot.dof)
     names = ["t", *groups["q"], *groups["qd"], *groups["qdd"]]
     table = np.column_stack([design["t"], design["q"], design["qd"], design["qdd"]])
-    lines = [",".join(names)]
-    lines.extend(",".join(repr(float(x)) for x in row) for row in table)
-    csvio.write_text_atomic(out, "\n".join(lines) + "\n")
+    csvio.write_text_atomic(out, csvio.format_table(names, table))
     print(
         f"cond(W_b) {design['cond_initial']:.4g} -> {design['cond_final']:.4g} "
         f"({design['evaluations']} evaluations); limit usage per joint:"

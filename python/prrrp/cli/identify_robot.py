@@ -10,7 +10,14 @@ from typing import Any
 
 import prrrp
 from prrrp import bags, model_report, outdir, workflow
-from prrrp.cli.common import EXIT_OK, CliError, Progress, first_line, print_table
+from prrrp.cli.common import (
+    EXIT_OK,
+    CliError,
+    Progress,
+    first_line,
+    friction_terms,
+    print_table,
+)
 from prrrp.measurements import measurements_to_dataset, read_measurements
 
 
@@ -43,16 +50,6 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     )
 
 
-def _friction(text: str) -> str | None:
-    terms = [t.strip() for t in text.split(",") if t.strip()]
-    if terms in ([], ["none"]):
-        return None
-    bad = [t for t in terms if t not in ("viscous", "coulomb", "offset")]
-    if bad:
-        raise CliError(f"--friction: unknown term '{bad[0]}' (use viscous, coulomb, offset)")
-    return "+".join(terms)
-
-
 def _coulomb_scale(text: str) -> str | float:
     if text == "auto":
         return text
@@ -70,7 +67,7 @@ def run(args: argparse.Namespace) -> int:
         raise CliError("--out DIR is required with --robot (the model, report and figures)")
     out = Path(args.out)
     robot = workflow.load_robot(
-        args.robot, base=args.base, tip=args.tip, friction=_friction(args.friction)
+        args.robot, base=args.base, tip=args.tip, friction=friction_terms(args.friction)
     )
     scale = _coulomb_scale(args.coulomb_scale)
     pre = {"cutoff_hz": args.cutoff, "rate_hz": args.rate, "decimate_to_hz": args.decimate}

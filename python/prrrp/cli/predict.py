@@ -55,10 +55,7 @@ def predict_file(
     measured = "tau" in raw
     if not measured:
         raw["tau"] = np.zeros_like(raw["q"])
-    if "qd" in raw and "qdd" in raw:
-        data = prrrp.Dataset(raw["t"], raw["q"], raw["qd"], raw["qdd"], raw["tau"])
-    else:
-        data, _ = measurements_to_dataset(raw, _recorded_settings(model))
+    data, _ = measurements_to_dataset(raw, _recorded_settings(model))
     tau = np.asarray(model.predict(data.q, data.qd, data.qdd))
     out = {"t": np.asarray(data.t), "tau": tau}
     if measured:
@@ -83,9 +80,7 @@ def run(args: argparse.Namespace) -> int:
     n = pred["tau"].shape[1]
     names = ["t", *csvio.columns(n)["tau"]]
     table = np.column_stack([pred["t"], pred["tau"]])
-    lines = [",".join(names)]
-    lines.extend(",".join(repr(float(x)) for x in row) for row in table)
-    csvio.write_text_atomic(out, "\n".join(lines) + "\n")
+    csvio.write_text_atomic(out, csvio.format_table(names, table))
     if "measured" not in pred:
         print(f"{len(table)} samples; torques in {out}")
         return EXIT_OK
