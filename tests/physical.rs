@@ -267,6 +267,31 @@ fn base_feasibility_of_true_values() {
     assert!(!bf.feasible && bf.max_relative_mismatch > 1e-2);
 }
 
+/// Real robots' own base values are reachable, also where the truth sits on the boundary
+/// of consistency (PUMA 560: a massless link 1, a rod-like link 3, base values that are
+/// exactly zero) and the mismatch has to be driven to round-off there.
+#[test]
+fn base_feasibility_of_boundary_robots() {
+    for (name, chain) in [
+        ("PUMA 560", prrrp_core::SerialChain::puma560().to_dyn()),
+        ("PRRRP", prrrp_core::SerialChain::paper().to_dyn()),
+    ] {
+        let base = chain
+            .base_parameters(&prrrp_core::BaseOptions::default())
+            .unwrap();
+        let beta = base.base_values(&chain.parameters()).unwrap();
+        let bf = base_feasibility(&base, &beta, &PhysicalConfig::default()).unwrap();
+        assert!(
+            bf.feasible && bf.converged,
+            "{name}: mismatch {:e} after {} steps (converged {})",
+            bf.max_relative_mismatch,
+            bf.iterations,
+            bf.converged
+        );
+        assert!(bf.report.is_feasible(), "{name}");
+    }
+}
+
 /// Hand-computed feasibility numbers.
 #[test]
 fn report_of_known_bodies() {

@@ -39,7 +39,7 @@ pub use least_squares::{
 };
 pub use physical::{
     base_feasibility, identify_physical, BaseFeasibility, PhysicalConfig, PhysicalEstimate,
-    PhysicalProblem, BASE_FEASIBILITY_TOLERANCE,
+    PhysicalProblem, BASE_FEASIBILITY_TOLERANCE, BASE_MISMATCH_FLOOR,
 };
 pub use rls::{DynRls, Rls, RlsConfig, RlsOf};
 pub use samples::{DynSample, DynSamples, Sample, SampleOf, Samples, SamplesOf};

@@ -13,6 +13,15 @@ use crate::models::chain::{
 /// the achieved relative mismatch is at most this (dimensionless).
 pub const BASE_FEASIBILITY_TOLERANCE: f64 = 1e-6;
 
+/// Base values smaller than this fraction of the largest |β| are measured against that
+/// fraction, not against themselves (dimensionless). Why 10⁻³ and not smaller: real robots
+/// have base values that are exactly zero (symmetric links, a COM on a joint axis) and
+/// links on the boundary of consistency (a massless link, a rod); weights 1/s_r² spread
+/// over more than ~10⁶ made the barrier's Newton system so stiff that the PUMA 560's own
+/// base values stalled at a mismatch of 7 (with 10⁻⁶) instead of 10⁻¹⁰ (with 10⁻³).
+/// A mismatch of 10⁻⁶ on such an entry is then 10⁻⁹ of the largest base value.
+pub const BASE_MISMATCH_FLOOR: f64 = 1e-3;
+
 /// Settings of [`identify_physical`] and [`PhysicalProblem`].
 #[derive(Debug, Clone, PartialEq)]
 pub struct PhysicalConfig {
@@ -133,7 +142,8 @@ pub struct BaseFeasibility {
     pub parameters: Vec<f64>,
     /// K·π − β per base parameter (SI).
     pub mismatch: Vec<f64>,
-    /// max_r |K·π − β|_r / s_r with s_r = max(|β_r|, 10⁻⁶·max|β|) (dimensionless).
+    /// max_r |K·π − β|_r / s_r with s_r = max(|β_r|, [`BASE_MISMATCH_FLOOR`]·max|β|)
+    /// (dimensionless).
     pub max_relative_mismatch: f64,
     /// Feasibility of `parameters`.
     pub report: FeasibilityReport,
@@ -528,7 +538,11 @@ pub fn base_feasibility(
     let bmax = beta.iter().fold(0.0f64, |a, &x| a.max(x.abs()));
     let s: Vec<f64> = beta
         .iter()
-        .map(|x| x.abs().max(1e-6 * bmax).max(f64::MIN_POSITIVE))
+        .map(|x| {
+            x.abs()
+                .max(BASE_MISMATCH_FLOOR * bmax)
+                .max(f64::MIN_POSITIVE)
+        })
         .collect();
     let a = DMatrix::from_fn(b, p, |r, j| base.map[(r, j)] / s[r]);
     let z = DVector::from_fn(b, |r, _| beta[r] / s[r]);
