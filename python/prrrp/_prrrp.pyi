@@ -737,8 +737,9 @@ class SerialChain:
         """Whether physically consistent standard parameters with base values `beta` (in
         `base_parameters()`) exist, e.g. for a least-squares estimate: the nearest rigid
         bodies found ("parameters", their feasibility report as in `feasibility`),
-        "max_relative_mismatch" of their base values, "feasible" (relative mismatch ≤ 1e-6, each entry against max(|β_r|, 1e-3·max|β|)),
-        "converged", "iterations". The unseen directions come from `prior`."""
+        "max_relative_mismatch" of their base values, "feasible" (relative mismatch
+        ≤ 1e-6, each entry against max(|β_r|, 1e-3·max|β|)), "converged", "iterations".
+        The unseen directions come from `prior`."""
     def coulomb_scale(
         self,
         data: Dataset,
