@@ -286,3 +286,77 @@ def test_coulomb_scale(candidates, folds):
     qdd = np.column_stack([-np.sin(t), -1.69 * np.cos(1.3 * t)])
     data = prrrp.Dataset(t, q, qd, qdd, SEVEN.inverse_dynamics(q, qd, qdd))
     holds_contract(lambda: SEVEN.coulomb_scale(data, candidates=candidates, folds=folds))
+
+
+# ------------------------------------------------------------------ estimators on any data
+
+METHODS = ("ls", "wls", "rls", "adaline", "hopfield", "ekf", "physical")
+
+
+@st.composite
+def datasets(draw):
+    """Columns of a Dataset of SEVEN: exact torques of a smooth motion (so that every method has
+    something to find), then a random corruption: extreme values in one column, a
+    constant (unexciting) motion, few samples, or a scale far from SI."""
+    n = draw(st.integers(0, 60))
+    t = 0.02 * np.arange(n)
+    q = np.column_stack([np.sin(1.3 * t), np.cos(0.7 * t)])
+    qd = np.column_stack([1.3 * np.cos(1.3 * t), -0.7 * np.sin(0.7 * t)])
+    qdd = np.column_stack([-1.69 * np.sin(1.3 * t), -0.49 * np.cos(0.7 * t)])
+    tau = SEVEN.inverse_dynamics(q, qd, qdd) if n else np.zeros((0, 2))
+    cols = [q, qd, qdd, tau]
+    kind = draw(st.sampled_from(["clean", "extreme", "constant", "scaled"]))
+    if n and kind == "extreme":
+        k, row, j = draw(st.integers(0, 3)), draw(st.integers(0, n - 1)), draw(st.integers(0, 1))
+        cols[k] = cols[k].copy()
+        cols[k][row, j] = draw(EXTREME)
+    elif kind == "constant":
+        cols = [np.zeros_like(c) for c in cols[:3]] + [cols[3]]
+    elif kind == "scaled":
+        cols[3] = cols[3] * draw(st.sampled_from([1e-200, 1e150, 1e300, -1.0]))
+    return t, cols
+
+
+@given(
+    data=datasets(),
+    method=st.one_of(st.sampled_from(METHODS), st.text(max_size=4)),
+    setting=st.sampled_from(
+        [{}, {"max_epochs": 3}, {"max_epochs": 0}, {"forgetting": 0.5}, {"forgetting": 2.0}]
+    ),
+)
+def test_identify_any_data(data, method, setting):
+    """`prrrp.identify` on corrupted data of any method: a typed error or a model whose
+    numbers are finite; an unknown setting or method is a TypeError / PrrrpError."""
+    t, cols = data
+    try:
+        model = prrrp.identify(SEVEN, prrrp.Dataset(t, *cols), method, **setting)
+    except (prrrp.PrrrpError, TypeError):
+        return
+    assert finite(np.asarray(model.beta)), model.beta
+    assert finite(np.asarray(model.residual_rms))
+
+
+@given(
+    q=arrays(near=(30, 2)),
+    tau=arrays(near=(30, 2)),
+    kind=st.sampled_from(["adaline", "hopfield", "rls", "ekf"]),
+    epochs=st.one_of(st.integers(-2, 3), st.just(2**63), st.just(10**12)),
+    rate=FLOATS,
+)
+def test_estimator_classes(q, tau, kind, epochs, rate):
+    """The estimator classes of a chain with random arrays, step sizes and epoch counts:
+    a typed error or finite estimates, never a panic, abort or huge allocation."""
+
+    def run():
+        if kind == "adaline":
+            est = prrrp.Adaline(SEVEN, learning_rate=rate)
+            return est.train(q, q, q, tau, epochs), est.estimate
+        if kind == "hopfield":
+            est = prrrp.Hopfield(SEVEN, dt=rate)
+            return est.train(q, q, q, tau, epochs), est.estimate
+        if kind == "rls":
+            return prrrp.Rls(SEVEN, forgetting=rate).run(q, q, q, tau)
+        est = prrrp.Ekf(SEVEN, dt=rate)
+        return est.run(q, q, q, tau), est.parameter_std
+
+    holds_contract(run)
