@@ -82,6 +82,7 @@ from prrrp._prrrp import (
     validate,
     validate_model,
 )
+from prrrp import benchmark
 from prrrp.measurements import measurements_to_dataset, read_measurements
 from prrrp.workflow import Identification, excite, identify_measurements, load_robot, simulate
 
@@ -120,6 +121,7 @@ __all__ = [
     "TooFewSamplesError",
     "__version__",
     "agreement_index",
+    "benchmark",
     "condition_number",
     "design_excitation",
     "error_indices",
