@@ -22,6 +22,7 @@ import json
 from collections.abc import Callable
 from typing import Any
 
+from prrrp import benchmark
 from prrrp._prrrp import (
     NDOF,
     NPARAM,
@@ -82,7 +83,6 @@ from prrrp._prrrp import (
     validate,
     validate_model,
 )
-from prrrp import benchmark
 from prrrp.measurements import measurements_to_dataset, read_measurements
 from prrrp.workflow import Identification, excite, identify_measurements, load_robot, simulate
 

@@ -83,7 +83,8 @@ def test_paper_truth_is_the_chain_base_parameters() -> None:
     names, truth = bc._truth(None)
     # λ1 = m1 + m2 + m3 + m4 and λ8 = m5 of the paper (Table 3) are base parameters of
     # the chain form too (notes/paper.md).
-    assert names[0] == "m1" and names[-1] == "m5"
+    assert names[0] == "m1"
+    assert names[-1] == "m5"
     assert truth[0] == pytest.approx(1.228 + 3 * 1.023)
     assert truth[-1] == pytest.approx(0.5114)
 
@@ -104,7 +105,11 @@ def test_error_grows_with_the_noise_on_paired_seeds() -> None:
 def test_panda_case() -> None:
     robot = prrrp.load_robot(URDF, tip="panda_link8")
     case = bc.Case(
-        seed=0, noise=1.0, rate=100.0, methods=("ls", "rls"), robot_json=robot.to_json(),
+        seed=0,
+        noise=1.0,
+        rate=100.0,
+        methods=("ls", "rls"),
+        robot_json=robot.to_json(),
         excitation_evaluations=50,
     )
     rows = bc.run_case(case)
@@ -124,11 +129,14 @@ def test_callable_module_and_determinism_across_worker_counts() -> None:
     one = prrrp.benchmark(workers=1, progress=False, **kwargs)
     two = prrrp.benchmark(workers=2, progress=False, **kwargs)
     threads = prrrp.benchmark(executor=cf.ThreadPoolExecutor(2), progress=False, **kwargs)
-    direct = [row for c in bc.grid(kwargs["methods"], [1, 2], [50], [3, 1]) for row in bc.run_case(c)]
+    direct = [
+        row for c in bc.grid(kwargs["methods"], [1, 2], [50], [3, 1]) for row in bc.run_case(c)
+    ]
     assert numbers(one.rows) == numbers(two.rows) == numbers(threads.rows) == numbers(direct)
     assert [(r["seed"], r["noise"]) for r in one.rows[::3]] == [(3, 1), (3, 2), (1, 1), (1, 2)]
     assert all(r["status"] == "ok" for r in one.rows)
-    assert two.stats.parallelism == 2 and two.stats.failed_cases == 0
+    assert two.stats.parallelism == 2
+    assert two.stats.failed_cases == 0
 
 
 def small_grid(**kwargs):
@@ -143,7 +151,8 @@ def test_a_killed_worker_loses_only_its_case() -> None:
     status = [(r["seed"], r["status"], r["attempts"]) for r in rows]
     assert status == [(0, "ok", 1), (1, "failed", 2), (2, "ok", 2), (3, "ok", 1)]
     assert "died" in rows[1]["error"]
-    assert stats.failed_cases == 1 and stats.restarts >= 2
+    assert stats.failed_cases == 1
+    assert stats.restarts >= 2
     # The surviving cases have the numbers of an undisturbed run.
     clean, _ = runner.run_cases(small_grid(), workers=1, progress=False)
     assert numbers([rows[0], rows[2], rows[3]]) == numbers([clean[0], clean[2], clean[3]])
@@ -153,9 +162,10 @@ def test_a_hanging_case_times_out_and_the_rest_completes() -> None:
     cases = small_grid()
     cases[0] = dataclasses.replace(cases[0], fault="hang")
     t0 = time.monotonic()
-    rows, stats = runner.run_cases(cases, workers=2, progress=False, timeout=4.0, retries=1)
+    rows, _stats = runner.run_cases(cases, workers=2, progress=False, timeout=4.0, retries=1)
     assert time.monotonic() - t0 < 40
-    assert rows[0]["status"] == "failed" and "timed out" in rows[0]["error"]
+    assert rows[0]["status"] == "failed"
+    assert "timed out" in rows[0]["error"]
     assert rows[0]["attempts"] == 2
     assert all(r["status"] == "ok" for r in rows[1:])
 
@@ -221,8 +231,16 @@ def test_save_writes_csv_json_report_and_figures(tmp_path: Path) -> None:
     result.save(out)
     with (out / "results.csv").open() as f:
         table = list(csv.DictReader(f))
-    required = {"seed", "noise", "rate", "method", "max_param_error_percent",
-                "torque_rms_relative_percent", "converged", "seconds"}
+    required = {
+        "seed",
+        "noise",
+        "rate",
+        "method",
+        "max_param_error_percent",
+        "torque_rms_relative_percent",
+        "converged",
+        "seconds",
+    }
     assert required <= set(table[0])
     assert len(table) == 2 * 2 * 2 * 2
     for row, original in zip(table, result.rows, strict=True):
@@ -240,11 +258,27 @@ def test_save_writes_csv_json_report_and_figures(tmp_path: Path) -> None:
 
 def test_cli_runs_and_reports(tmp_path: Path, capsys) -> None:
     out = tmp_path / "b"
-    code = main(["benchmark", "--methods", "ls,ekf", "--seeds", "2", "--noise", "1,2",
-                 "--rates", "50", "--workers", "2", "--out", str(out)])
+    code = main(
+        [
+            "benchmark",
+            "--methods",
+            "ls,ekf",
+            "--seeds",
+            "2",
+            "--noise",
+            "1,2",
+            "--rates",
+            "50",
+            "--workers",
+            "2",
+            "--out",
+            str(out),
+        ]
+    )
     assert code == 0
     text = capsys.readouterr().out
-    assert "results in" in text and "ekf" in text
+    assert "results in" in text
+    assert "ekf" in text
     assert (out / "results.csv").read_text().count("\n") == 1 + 2 * 2 * 2
 
 
@@ -273,8 +307,18 @@ def test_cli_bad_input_is_one_line_and_exit_2(tmp_path: Path, capsys, argv, mess
 def test_cli_ctrl_c_exits_130_without_output(tmp_path: Path) -> None:
     out = tmp_path / "b"
     child = subprocess.Popen(
-        [sys.executable, "-m", "prrrp", "benchmark", "--seeds", "400", "--workers", "2",
-         "--out", str(out)],
+        [
+            sys.executable,
+            "-m",
+            "prrrp",
+            "benchmark",
+            "--seeds",
+            "400",
+            "--workers",
+            "2",
+            "--out",
+            str(out),
+        ],
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,

@@ -16,12 +16,23 @@ from prrrp.benchmark import runner
 distributed = pytest.importorskip("distributed")
 dask = pytest.importorskip("dask")
 
-GRID = {"seeds": [0, 1, 2], "noise": [1, 3], "rates": [50], "methods": "ls,rls,adaline,hopfield,ekf"}
+GRID = {
+    "seeds": [0, 1, 2],
+    "noise": [1, 3],
+    "rates": [50],
+    "methods": "ls,rls,adaline,hopfield,ekf",
+}
 
 
 def numbers(rows):
-    keep = ("max_param_error_percent", "param_error_norm_percent",
-            "torque_rms_relative_percent", "converged", "epochs", "status")
+    keep = (
+        "max_param_error_percent",
+        "param_error_norm_percent",
+        "torque_rms_relative_percent",
+        "converged",
+        "epochs",
+        "status",
+    )
     return [(r["seed"], r["noise"], r["rate"], r["method"], *(r[k] for k in keep)) for r in rows]
 
 
@@ -49,9 +60,17 @@ def test_dask_gives_the_in_process_numbers(client) -> None:
     assert on_dask.stats.parallelism == 2
     assert on_dask.stats.engine == "ClientExecutor"
     # The concurrent.futures interface of the client works the same way.
-    again = prrrp.benchmark(executor=client.get_executor(), progress=False, seeds=[2],
-                            noise=[3], rates=[50], methods=GRID["methods"])
-    assert numbers(again.rows) == numbers([r for r in local.rows if r["seed"] == 2 and r["noise"] == 3])
+    again = prrrp.benchmark(
+        executor=client.get_executor(),
+        progress=False,
+        seeds=[2],
+        noise=[3],
+        rates=[50],
+        methods=GRID["methods"],
+    )
+    assert numbers(again.rows) == numbers(
+        [r for r in local.rows if r["seed"] == 2 and r["noise"] == 3]
+    )
 
 
 def test_a_killed_dask_worker_loses_only_its_case(client) -> None:

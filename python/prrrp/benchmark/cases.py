@@ -152,7 +152,8 @@ def grid(
         )
     if too_long := [r for r in rate_list if r * duration < 50]:
         raise _invalid(
-            f"{too_long[0]:g} Hz × {duration:g} s gives under 50 samples; raise the rate or duration"
+            f"{too_long[0]:g} Hz × {duration:g} s gives under 50 samples; "
+            "raise the rate or the duration"
         )
     if not (isinstance(excitation_evaluations, int) and excitation_evaluations >= 1):
         raise _invalid(f"excitation_evaluations must be >= 1, got {excitation_evaluations}")
@@ -196,7 +197,9 @@ def derived_seed(seed: int, stream: int) -> int:
 def _chain(robot_json: str | None) -> Any:
     import prrrp
 
-    return prrrp.SerialChain.paper() if robot_json is None else prrrp.SerialChain.from_json(robot_json)
+    return (
+        prrrp.SerialChain.paper() if robot_json is None else prrrp.SerialChain.from_json(robot_json)
+    )
 
 
 @functools.lru_cache(maxsize=8)
@@ -259,7 +262,9 @@ def _paper_data(case: Case) -> tuple[Any, Any, Any]:
         tau_noise=case.noise * _PAPER_TAU_NOISE,
         seed=derived_seed(case.seed, 1),
     )
-    data = prrrp.Dataset.from_dict(prrrp.preprocess(run["t"], run["q_measured"], run["tau_measured"]))
+    data = prrrp.Dataset.from_dict(
+        prrrp.preprocess(run["t"], run["q_measured"], run["tau_measured"])
+    )
     other = prrrp.optimise_excitation(
         seed=derived_seed(case.seed, 2), duration=case.duration, dt=0.02, max_evaluations=50
     )

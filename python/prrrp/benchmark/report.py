@@ -217,13 +217,16 @@ def errors_vs_rate(rows: Sequence[dict[str, Any]], path: str | os.PathLike[str])
     noises = sorted({r["noise"] for r in rows})
     rates = sorted({r["rate"] for r in rows})
     fig, axes = plt.subplots(
-        len(METRICS), len(noises), figsize=(3.4 * len(noises) + 1, 2.6 * len(METRICS)),
-        squeeze=False, sharey="row",
+        len(METRICS),
+        len(noises),
+        figsize=(3.4 * len(noises) + 1, 2.6 * len(METRICS)),
+        squeeze=False,
+        sharey="row",
     )
     for i, (column, label) in enumerate(METRICS.items()):
         for j, noise in enumerate(noises):
             ax = axes[i][j]
-            for m in methods:
+            for k, m in enumerate(methods):
                 stats = []
                 for rate in rates:
                     v = _values(
@@ -236,7 +239,9 @@ def errors_vs_rate(rows: Sequence[dict[str, Any]], path: str | os.PathLike[str])
                     )
                     stats.append(np.percentile(v, [25, 50, 75]) if len(v) else [np.nan] * 3)
                 s = np.asarray(stats)
-                (line,) = ax.plot(rates, s[:, 1], marker="o", label=m)
+                # Dashes tell apart methods that coincide (one-pass RLS is least squares).
+                style = ("-", "--", ":", "-.")[k % 4]
+                (line,) = ax.plot(rates, s[:, 1], marker="o", linestyle=style, label=m)
                 ax.fill_between(rates, s[:, 0], s[:, 2], color=line.get_color(), alpha=0.15)
             ax.set_xscale("log")
             ax.set_yscale("log")

@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import collections
 import concurrent.futures as cf
+import contextlib
 import dataclasses
 import multiprocessing
 import os
@@ -110,10 +111,8 @@ class _Engine:
             return
         processes = getattr(self.executor, "_processes", None) or {}
         for process in list(processes.values()):
-            try:
+            with contextlib.suppress(OSError, AttributeError):
                 process.kill()
-            except (OSError, AttributeError):
-                pass
         self.executor.shutdown(wait=False, cancel_futures=True)
 
     def restart(self) -> None:
