@@ -78,10 +78,18 @@ def test_a_killed_dask_worker_loses_only_its_case(client) -> None:
     cases[1] = dataclasses.replace(cases[1], fault="exit")
     cases[3] = dataclasses.replace(cases[3], fault="exit-once")
     rows, stats = runner.run_cases(cases, client, progress=False, timeout=120)
-    by_seed = {}
-    for r in rows:
-        by_seed.setdefault(r["seed"], set()).add((r["status"], r["attempts"]))
-    assert by_seed == {0: {("ok", 1)}, 1: {("failed", 2)}, 2: {("ok", 1)}, 3: {("ok", 2)}}
+    status = {r["seed"]: (r["status"], r["attempts"]) for r in rows}
+    assert status[1] == ("failed", 2)  # died on both attempts
+    assert status[3] == ("ok", 2)  # died once, then succeeded
+    # Dask may have queued an innocent case on the dying worker (it then reports
+    # KilledWorker for it too): the runner's retry, run alone, completes it.
+    assert status[0][0] == status[2][0] == "ok"
+    clean, _ = runner.run_cases(
+        bc.grid("ls,ekf", [1.0], [50.0], [0, 2], excitation_evaluations=100),
+        workers=1,
+        progress=False,
+    )
+    assert numbers([r for r in rows if r["seed"] in (0, 2)]) == numbers(clean)
     assert "KilledWorker" in rows[2]["error"]
     assert stats.failed_cases == 1
     # The cluster recovered: the workers were restarted by their nannies.
