@@ -22,6 +22,7 @@ import json
 from collections.abc import Callable
 from typing import Any
 
+from prrrp import benchmark
 from prrrp._prrrp import (
     NDOF,
     NPARAM,
@@ -120,6 +121,7 @@ __all__ = [
     "TooFewSamplesError",
     "__version__",
     "agreement_index",
+    "benchmark",
     "condition_number",
     "design_excitation",
     "error_indices",

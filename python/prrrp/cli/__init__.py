@@ -19,6 +19,10 @@ Any robot (a ``.urdf`` with ``--base``/``--tip`` links, or a ``.toml`` robot fil
   or a ROS 2 bag (:mod:`prrrp.cli.identify_robot`);
 - ``prrrp predict MODEL.json DATA --out tau.csv``: a saved model's torques for recorded states.
 
+- ``prrrp benchmark [--robot ROBOT] --methods ls,rls --noise 1,3 --rates 50,100 --seeds N
+  [--workers K | --dask ADDRESS] --out DIR``: a Monte-Carlo benchmark of the estimators
+  (:mod:`prrrp.cli.benchmark`).
+
 The measurement CSV format is documented in :mod:`prrrp.csvio`. Exit codes: 0 success,
 1 a computation failed (e.g. an estimator diverged), 2 bad usage or bad input, 130
 interrupted. Errors are one line on stderr, never a traceback.
@@ -33,7 +37,7 @@ from collections.abc import Sequence
 from typing import Any
 
 import prrrp
-from prrrp.cli import excite, identify, predict, reproduce, simulate
+from prrrp.cli import benchmark, excite, identify, predict, reproduce, simulate
 from prrrp.cli.common import (
     EXIT_FAILED,
     EXIT_INTERRUPTED,
@@ -59,7 +63,7 @@ __all__ = [
 ]
 
 #: One module per command, each with ``add_parser(subparsers)`` and ``run(args) -> int``.
-COMMANDS = (reproduce, excite, simulate, identify, predict)
+COMMANDS = (reproduce, excite, simulate, identify, predict, benchmark)
 
 
 def build_parser() -> argparse.ArgumentParser:
