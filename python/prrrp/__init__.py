@@ -22,7 +22,6 @@ import json
 from collections.abc import Callable
 from typing import Any
 
-from prrrp import benchmark
 from prrrp._prrrp import (
     NDOF,
     NPARAM,
@@ -84,6 +83,7 @@ from prrrp._prrrp import (
     validate_model,
 )
 from prrrp.measurements import measurements_to_dataset, read_measurements
+from prrrp.montecarlo import benchmark
 from prrrp.workflow import Identification, excite, identify_measurements, load_robot, simulate
 
 __all__ = [

@@ -20,9 +20,9 @@ import numpy as np
 import pytest
 
 import prrrp
-from prrrp.benchmark import cases as bc
-from prrrp.benchmark import runner
 from prrrp.cli import main
+from prrrp.montecarlo import cases as bc
+from prrrp.montecarlo import runner
 
 URDF = str(
     importlib.metadata.distribution("example-robot-data").locate_file(

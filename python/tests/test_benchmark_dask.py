@@ -10,8 +10,8 @@ import dataclasses
 import pytest
 
 import prrrp
-from prrrp.benchmark import cases as bc
-from prrrp.benchmark import runner
+from prrrp.montecarlo import cases as bc
+from prrrp.montecarlo import runner
 
 distributed = pytest.importorskip("distributed")
 dask = pytest.importorskip("dask")

@@ -39,7 +39,7 @@ def _positive_int(text: str) -> int:
 
 
 def add_parser(sub: Any) -> None:
-    from prrrp.benchmark import DEFAULT_METHODS, METHODS
+    from prrrp.montecarlo import DEFAULT_METHODS, METHODS
 
     p = sub.add_parser(
         "benchmark",
@@ -129,7 +129,7 @@ def _dask_executor(address: str) -> Iterator[Any]:
 def run(args: argparse.Namespace) -> int:
     import prrrp
     from prrrp import outdir
-    from prrrp.benchmark import report
+    from prrrp.montecarlo import report
 
     out = Path(args.out)
     # Refuse an unusable --out before hours of computation, not after.

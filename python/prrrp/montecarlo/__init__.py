@@ -2,32 +2,31 @@
 noise and a sampling rate (the protocol of BIRDy: many noise realisations × methods,
 parameter and torque errors, time).
 
-``prrrp.benchmark(...)`` (this module is callable) runs a grid of cases, each seed × noise
-scale × sampling rate: excitation → closed-loop simulation → sensor noise → preprocessing →
-``prrrp.identify`` with each method → torque prediction on a second trajectory. The cases
-run on every core by default, or on any ``concurrent.futures.Executor`` (a Dask cluster:
-``pip install prrrp[cluster]``, then ``executor=distributed.Client(address)``).
+``prrrp.benchmark(...)`` (:func:`benchmark`, re-exported at the top level) runs a grid of
+cases, each seed × noise scale × sampling rate: excitation → closed-loop simulation →
+sensor noise → preprocessing → ``prrrp.identify`` with each method → torque prediction on a
+second trajectory. The cases run on every core by default, or on any
+``concurrent.futures.Executor`` (a Dask cluster: ``pip install prrrp[cluster]``, then
+``executor=distributed.Client(address)``).
 
 >>> result = prrrp.benchmark(seeds=4, noise=[1, 3], rates=[50, 100])   # doctest: +SKIP
 >>> result.save("bench-out")        # results.csv, results.json, report.md, figures
 ...                                                                     # doctest: +SKIP
 
-Modules: :mod:`~prrrp.benchmark.cases` (the grid, one case),
-:mod:`~prrrp.benchmark.runner` (executors, streaming, retries, timeouts),
-:mod:`~prrrp.benchmark.report` (CSV, JSON, report.md, figures).
+Modules: :mod:`~prrrp.montecarlo.cases` (the grid, one case),
+:mod:`~prrrp.montecarlo.runner` (executors, streaming, retries, timeouts),
+:mod:`~prrrp.montecarlo.report` (CSV, JSON, report.md, figures).
 """
 
 from __future__ import annotations
 
 import dataclasses
 import os
-import sys
-import types
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from prrrp.benchmark.cases import (
+from prrrp.montecarlo.cases import (
     COLUMNS,
     DEFAULT_METHODS,
     METHODS,
@@ -36,7 +35,7 @@ from prrrp.benchmark.cases import (
     grid,
     run_case,
 )
-from prrrp.benchmark.runner import DEFAULT_TIMEOUT, RunStats, run_cases
+from prrrp.montecarlo.runner import DEFAULT_TIMEOUT, RunStats, run_cases
 
 __all__ = [
     "COLUMNS",
@@ -63,13 +62,13 @@ class BenchmarkResult:
 
     def summary(self) -> list[dict[str, Any]]:
         """Per method × noise × rate: medians and 90th percentiles of the errors."""
-        from prrrp.benchmark import report
+        from prrrp.montecarlo import report
 
         return report.summary(self.rows)
 
     def to_dict(self) -> dict[str, Any]:
         """The results.json document."""
-        from prrrp.benchmark import report
+        from prrrp.montecarlo import report
 
         stats = dataclasses.asdict(self.stats)
         stats["cases_per_second"] = self.stats.cases_per_second
@@ -86,7 +85,7 @@ class BenchmarkResult:
         built aside and swapped in whole (an existing folder must be empty or an earlier
         prrrp output). Returns the written paths."""
         from prrrp import outdir
-        from prrrp.benchmark import report
+        from prrrp.montecarlo import report
 
         document = self.to_dict()
         target = Path(directory).absolute()
@@ -185,14 +184,3 @@ def benchmark(
         "retries": retries,
     }
     return BenchmarkResult(rows, config, stats)
-
-
-class _CallableModule(types.ModuleType):
-    """Makes ``prrrp.benchmark(...)`` a call of :func:`benchmark` while
-    ``prrrp.benchmark.cases`` etc. stay reachable as submodules."""
-
-    def __call__(self, *args: Any, **kwargs: Any) -> BenchmarkResult:
-        return benchmark(*args, **kwargs)
-
-
-sys.modules[__name__].__class__ = _CallableModule

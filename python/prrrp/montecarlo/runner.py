@@ -36,7 +36,7 @@ import time
 from collections.abc import Callable, Sequence
 from typing import Any
 
-from prrrp.benchmark.cases import Case, failed_rows, ping, run_case
+from prrrp.montecarlo.cases import Case, failed_rows, ping, run_case
 
 #: Default per-case timeout, s.
 DEFAULT_TIMEOUT = 300.0

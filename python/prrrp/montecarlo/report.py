@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-from prrrp.benchmark.cases import COLUMNS, METHODS
+from prrrp.montecarlo.cases import COLUMNS, METHODS
 
 #: Version of the results.json layout.
 SCHEMA = "prrrp-benchmark/1"
