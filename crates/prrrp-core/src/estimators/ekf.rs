@@ -671,6 +671,21 @@ where
             b.damped_k.copy_from(&b.k);
             b.damped_k *= alpha;
         }
+        if alpha == 1.0 && s > ACC_ROWS {
+            // The optimal gain at a chain's size: P ← P − W·Wᵀ with W = P_·z·L⁻ᵀ (S_z =
+            // L·Lᵀ), the symmetric rank-N form of P − K·S_z·Kᵀ, on the upper triangle: half
+            // the multiply-adds of the Joseph form. Justified because K is not an
+            // approximation here but P_·z·S_z⁻¹ formed from this same P in this step, so the
+            // Joseph form's first-order insensitivity to gain errors buys nothing; the
+            // rounding of the subtraction is ε·P_ii·(P_zz/R) at most (a few digits of 16
+            // for the largest prior-to-noise ratios the filter meets). Whole columns, yet
+            // bit-for-bit symmetric: entry (i, j) and (j, i) sum the same exact products
+            // W_im·W_jm in the same order, so no mirroring is needed. A damped gain keeps
+            // the Joseph form below.
+            w_from_pz::<FMA>(b.pz.as_slice(), b.linv.as_slice(), b.d.as_mut_slice(), n, s);
+            minus_w_wt::<FMA>(b.d.as_slice(), self.p.as_mut_slice(), n, s);
+            return;
+        }
         let k = if alpha == 1.0 { &b.k } else { &b.damped_k };
         b.d.copy_from(&b.pz);
         minus_k_sz::<FMA>(k.as_slice(), b.sz.as_slice(), b.d.as_mut_slice(), n, s);
@@ -755,8 +770,12 @@ where
             a[2 * nn..].copy_from_slice(fd.dqdd_dlambda.as_slice());
         }
         let a = b.a.as_slice();
-        b.g.fill(0.0);
-        p_times_at::<FMA>(self.p.as_slice(), a, b.g.as_mut_slice(), n, s);
+        if s > ACC_ROWS {
+            p_times_at_blocked::<FMA>(self.p.as_slice(), a, b.g.as_mut_slice(), n, s);
+        } else {
+            b.g.fill(0.0);
+            p_times_at::<FMA>(self.p.as_slice(), a, b.g.as_mut_slice(), n, s);
+        }
         b.apa.fill(0.0);
         a_times_g::<FMA>(a, b.g.as_slice(), b.apa.as_mut_slice(), n, s);
 
@@ -1021,6 +1040,141 @@ fn joseph_columns<const FMA: bool>(
     true
 }
 
+/// W = P_·z·L⁻ᵀ (S×N) from the inverse L⁻¹ of the innovation covariance's Cholesky factor
+/// (lower, so column j of W sums columns m ≤ j of P_·z).
+#[inline(always)]
+fn w_from_pz<const FMA: bool>(pzs: &[f64], linv: &[f64], ws: &mut [f64], n: usize, s: usize) {
+    for j in 0..n {
+        let wc = &mut ws[j * s..j * s + s];
+        wc.fill(0.0);
+        for m in 0..=j {
+            let f = linv[m * n + j];
+            for (wv, &pv) in wc.iter_mut().zip(&pzs[m * s..m * s + s]) {
+                *wv = madd::<FMA>(f, pv, *wv);
+            }
+        }
+    }
+}
+
+/// Rows and columns of the register tile of [`minus_w_wt`] and [`p_times_at_blocked`]: an
+/// 8×4 block of accumulators (eight AVX2 registers) reused over the whole inner sum, so
+/// that each multiply-add costs under one load instead of two loads and a store.
+const TILE_ROWS: usize = 8;
+const TILE_COLS: usize = 4;
+
+/// `C[r, c] = Σ_k X[r, k]·Y[c, k]` for one tile of up to [`TILE_ROWS`] rows from `r0` and
+/// `NC` columns from `c0`, X given by columns of length `ldx` (`xcols` of them), Y by its
+/// `ycol(k)` start: returns the accumulators. Shared by P·Aᵀ and W·Wᵀ.
+#[inline(always)]
+fn tile<const FMA: bool, const NC: usize>(
+    x: &[f64],
+    ldx: usize,
+    r0: usize,
+    len: usize,
+    kdim: usize,
+    y: impl Fn(usize, usize) -> f64,
+) -> [[f64; TILE_ROWS]; NC] {
+    let mut acc = [[0.0f64; TILE_ROWS]; NC];
+    if len == TILE_ROWS {
+        for k in 0..kdim {
+            let xc: &[f64; TILE_ROWS] = x[k * ldx + r0..k * ldx + r0 + TILE_ROWS]
+                .try_into()
+                .unwrap_or(&[0.0; TILE_ROWS]);
+            for (c, a) in acc.iter_mut().enumerate() {
+                let f = y(k, c);
+                for r in 0..TILE_ROWS {
+                    a[r] = madd::<FMA>(f, xc[r], a[r]);
+                }
+            }
+        }
+    } else {
+        for k in 0..kdim {
+            let xc = &x[k * ldx + r0..k * ldx + r0 + len];
+            for (c, a) in acc.iter_mut().enumerate() {
+                let f = y(k, c);
+                for (av, &xv) in a.iter_mut().zip(xc) {
+                    *av = madd::<FMA>(f, xv, *av);
+                }
+            }
+        }
+    }
+    acc
+}
+
+/// P ← P − W·Wᵀ (W is S×N) on whole columns, tiled: the sum for entry (i, j) runs over
+/// the same products in the same order as for (j, i), so a symmetric P stays exactly so.
+#[inline(always)]
+fn minus_w_wt<const FMA: bool>(ws: &[f64], p: &mut [f64], n: usize, s: usize) {
+    let mut c0 = 0;
+    while c0 < s {
+        match s - c0 {
+            1 => minus_w_wt_cols::<FMA, 1>(ws, p, n, s, c0),
+            2 => minus_w_wt_cols::<FMA, 2>(ws, p, n, s, c0),
+            3 => minus_w_wt_cols::<FMA, 3>(ws, p, n, s, c0),
+            _ => minus_w_wt_cols::<FMA, TILE_COLS>(ws, p, n, s, c0),
+        }
+        c0 += TILE_COLS;
+    }
+}
+
+#[inline(always)]
+fn minus_w_wt_cols<const FMA: bool, const NC: usize>(
+    ws: &[f64],
+    p: &mut [f64],
+    n: usize,
+    s: usize,
+    c0: usize,
+) {
+    let mut r0 = 0;
+    while r0 < s {
+        let len = (s - r0).min(TILE_ROWS);
+        let acc = tile::<FMA, NC>(ws, s, r0, len, n, |m, c| ws[m * s + c0 + c]);
+        for (c, a) in acc.iter().enumerate() {
+            let col = &mut p[(c0 + c) * s + r0..(c0 + c) * s + r0 + len];
+            for (pv, &av) in col.iter_mut().zip(a) {
+                *pv -= av;
+            }
+        }
+        r0 += len;
+    }
+}
+
+/// G = P·Aᵀ (S×N) on whole columns, tiled as [`minus_w_wt`]; for run-time sizes, where A
+/// (the chain's −M⁻¹·Φ and its q, q̇ derivatives) is dense and skipping zeros would not pay.
+#[inline(always)]
+fn p_times_at_blocked<const FMA: bool>(ps: &[f64], a: &[f64], gs: &mut [f64], n: usize, s: usize) {
+    let mut c0 = 0;
+    while c0 < n {
+        match n - c0 {
+            1 => p_times_at_cols::<FMA, 1>(ps, a, gs, n, s, c0),
+            2 => p_times_at_cols::<FMA, 2>(ps, a, gs, n, s, c0),
+            3 => p_times_at_cols::<FMA, 3>(ps, a, gs, n, s, c0),
+            _ => p_times_at_cols::<FMA, TILE_COLS>(ps, a, gs, n, s, c0),
+        }
+        c0 += TILE_COLS;
+    }
+}
+
+#[inline(always)]
+fn p_times_at_cols<const FMA: bool, const NC: usize>(
+    ps: &[f64],
+    a: &[f64],
+    gs: &mut [f64],
+    n: usize,
+    s: usize,
+    c0: usize,
+) {
+    let mut r0 = 0;
+    while r0 < s {
+        let len = (s - r0).min(TILE_ROWS);
+        let acc = tile::<FMA, NC>(ps, s, r0, len, s, |k, c| a[k * n + c0 + c]);
+        for (c, av) in acc.iter().enumerate() {
+            gs[(c0 + c) * s + r0..(c0 + c) * s + r0 + len].copy_from_slice(&av[..len]);
+        }
+        r0 += len;
+    }
+}
+
 /// Lower Cholesky factor of a small SPD n×n matrix (column-major slices) into `l`;
 /// `false` if a pivot is not positive.
 #[inline(always)]
@@ -1065,12 +1219,21 @@ fn lower_triangular_inverse(l: &[f64], n: usize, inv: &mut [f64]) {
     }
 }
 
-/// Copies the upper triangle of the column-major d×d `p` onto the lower one.
+/// Copies the upper triangle of the column-major d×d `p` onto the lower one, in 8×8 tiles:
+/// a row of the upper triangle is strided in memory, and a tile reads each cache line of
+/// it once instead of once per element (a 78×78 P does not fit in L1).
 #[inline(always)]
 fn mirror_upper(p: &mut [f64], d: usize) {
-    for j in 0..d {
-        for i in j + 1..d {
-            p[j * d + i] = p[i * d + j];
+    const T: usize = 8;
+    for jb in (0..d).step_by(T) {
+        let je = (jb + T).min(d);
+        for ib in (jb..d).step_by(T) {
+            let ie = (ib + T).min(d);
+            for j in jb..je {
+                for i in ib.max(j + 1)..ie {
+                    p[j * d + i] = p[i * d + j];
+                }
+            }
         }
     }
 }
