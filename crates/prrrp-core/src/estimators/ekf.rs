@@ -1276,4 +1276,64 @@ mod tests {
         let dp = (fast.covariance() - portable.covariance()).amax();
         assert!(dp <= 1e-9 * fast.covariance().amax(), "{dp}");
     }
+
+    /// The symmetric rank-N update P − W·Wᵀ of run-time sizes against the textbook Joseph
+    /// form (I − K·H)·P·(I − K·H)ᵀ + K·R·Kᵀ with K = P·Hᵀ·S⁻¹, computed densely by
+    /// nalgebra, for a 78-state P with prior-to-noise ratios from 1 to 1e6: the same
+    /// matrix to round-off, exactly symmetric, positive definite.
+    #[test]
+    fn rank_n_update_equals_the_joseph_form() {
+        use nalgebra::DMatrix;
+        let (n, s) = (7usize, 78usize);
+        // A deterministic SPD P with a spread of scales: B·Bᵀ + diag.
+        let mut seed = 0x9E37_79B9_7F4A_7C15u64;
+        let mut rnd = || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+        };
+        for ratio in [1.0, 1e3, 1e6] {
+            let b = DMatrix::from_fn(s, s, |_, _| rnd());
+            let scale = DMatrix::from_fn(s, s, |i, j| {
+                let d = |k: usize| {
+                    if k < 2 * n {
+                        1e-3
+                    } else {
+                        1.0 + k as f64 / 10.0
+                    }
+                };
+                d(i) * d(j)
+            });
+            let p = (&b * b.transpose()).component_mul(&scale) + DMatrix::identity(s, s) * 1e-9;
+            let r = DMatrix::from_fn(n, n, |i, j| {
+                if i == j {
+                    1e-3 * 1e-3 * (s as f64) / ratio
+                } else {
+                    0.0
+                }
+            });
+            // H selects the positions (the first n states).
+            let h = DMatrix::from_fn(n, s, |i, j| if i == j { 1.0 } else { 0.0 });
+            let pz = &p * h.transpose();
+            let sz = &h * &pz + &r;
+            let k = &pz * sz.clone().try_inverse().unwrap();
+            let ikh = DMatrix::identity(s, s) - &k * &h;
+            let joseph = &ikh * &p * ikh.transpose() + &k * &r * k.transpose();
+
+            let mut l = vec![0.0; n * n];
+            assert!(cholesky(sz.as_slice(), n, &mut l));
+            let mut linv = vec![0.0; n * n];
+            lower_triangular_inverse(&l, n, &mut linv);
+            let mut w = vec![0.0; s * n];
+            let mut got = p.clone();
+            w_from_pz::<false>(pz.as_slice(), &linv, &mut w, n, s);
+            minus_w_wt::<false>(&w, got.as_mut_slice(), n, s);
+
+            let err = (&got - &joseph).amax() / p.amax();
+            assert!(err <= 1e-12, "ratio {ratio}: {err:e}");
+            assert_eq!(got, got.transpose(), "ratio {ratio}: not exactly symmetric");
+            assert!(got.clone().cholesky().is_some(), "ratio {ratio}: not PD");
+        }
+    }
 }
