@@ -194,7 +194,13 @@ impl Default for RlsSettings {
 pub struct GradientSettings {
     /// Rank tolerance of the least-squares solve for cond(W_b) (default `1e-10`).
     pub rank_tolerance: f64,
-    /// Adaline's update rule (default normalised; ignored by the Hopfield network).
+    /// Adaline's update rule (default [`AdalineRule::Delta`], eq. 11; ignored by the
+    /// Hopfield network). As the step shrinks, the delta rule's epochs converge to the
+    /// ordinary least-squares solution, while the normalised rule's converge to least
+    /// squares weighted by 1/‖x_i‖² (its update divides by the row norm), which gives the
+    /// rows of a slow, weakly exciting stretch of the data the largest weight and their
+    /// noise with it: on the paper's arm that left λ̂ 3–7 % off where least squares was
+    /// within 0.6 %.
     pub rule: AdalineRule,
     /// Initial step μ, dimensionless in (0, 2) (default `0.5`): the normalised rule's
     /// step, or the delta rule's learning rate times max_i‖x_i‖², or the Hopfield gain
@@ -207,12 +213,22 @@ pub struct GradientSettings {
     /// (−c, c). Default: 4·max|γ̂_LS| of the least-squares solve (floored at the RMS
     /// torque), which leaves the gain c² − γ² within 6 % of c² for every parameter.
     pub bound: Option<f64>,
-    /// Most epochs (passes over the data), default `300`. The gradient methods converge
-    /// in the poorly excited directions at a rate set by cond² of the scaled W_b: raise
-    /// this for ill-conditioned data.
+    /// Most epochs (passes over the data), default `3000`: the cap of the stopping rule.
+    /// A run that reaches it without meeting the tolerances below is reported as not
+    /// converged ([`IdentifiedModel::converged`] = false), not as a result.
     pub max_epochs: usize,
-    /// Most step halvings before training stops (default `6`: a final step μ/64).
+    /// Most step halvings (default `8`: a final step μ/256). The step halves whenever the
+    /// epoch's a-priori RMS equation error e comes within e² < (1 + μ)·floor² of the
+    /// least-squares residual floor (see [`identify`]).
     pub halvings: usize,
+    /// Tolerance on the relative change of the estimate still to come (dimensionless,
+    /// default `1e-5`): the change per epoch δ = max_j |γ_j − γ_j⁻| / max(|γ_j|,
+    /// 1e-3·max_i|γ_i|) over the column-scaled parameters γ (γ⁻: one epoch earlier),
+    /// extrapolated geometrically, δ·r/(1 − r) with r the ratio of the last two δ.
+    pub parameter_tolerance: f64,
+    /// Tolerance on the relative change of the epoch's RMS equation error (dimensionless,
+    /// default `1e-6`): |e − e⁻| / e.
+    pub error_tolerance: f64,
     /// Equilibrate the columns (default `true`).
     pub scale_columns: bool,
 }
@@ -222,12 +238,14 @@ impl GradientSettings {
     pub fn adaline() -> Self {
         Self {
             rank_tolerance: LeastSquaresConfig::default().rank_tolerance,
-            rule: AdalineRule::Normalised,
+            rule: AdalineRule::Delta,
             step_size: 0.5,
             learning_rate: None,
             bound: None,
-            max_epochs: 300,
-            halvings: 6,
+            max_epochs: 3000,
+            halvings: 8,
+            parameter_tolerance: 1e-5,
+            error_tolerance: 1e-6,
             scale_columns: true,
         }
     }
@@ -271,6 +289,14 @@ pub struct EkfSettings {
     /// starts from a fit, not a guess) floored at 1e-3 of max|β₀|, and no random walk of
     /// the parameters (they are constant over a recording).
     pub config: EkfConfig,
+    /// Take the measurement noise R of each joint's position and velocity from the data
+    /// (default `true`; the third-difference estimate of the module `ekf_defaults`,
+    /// replacing `config.position_noise` and `config.velocity_noise`).
+    pub noise_from_data: bool,
+    /// Multiply the reported parameter covariance by the correlation time κ ≥ 1 of the
+    /// least-squares residuals (default `true`): the filter assumes white noise, and
+    /// low-pass filtered data are not.
+    pub correlation_correction: bool,
 }
 
 impl Default for EkfSettings {
@@ -279,6 +305,8 @@ impl Default for EkfSettings {
             rank_tolerance: LeastSquaresConfig::default().rank_tolerance,
             initial: EkfStart::LeastSquares,
             dt: None,
+            noise_from_data: true,
+            correlation_correction: true,
             config: EkfConfig {
                 measurement: EkfMeasurement::PositionsVelocities,
                 discretisation: Discretisation::SecondOrder,
@@ -370,12 +398,27 @@ pub fn identify(
     };
     let mut standard: Option<Vec<f64>> = None;
     let fit = match method {
-        Method::Ls(s) | Method::Wls(s) => Fit {
-            beta: ls.lambda.clone(),
-            sigma: Some(ls.std_dev.iter().copied().collect()),
-            covariance: None,
-            settings: json!({ "rank_tolerance": s.rank_tolerance }),
-        },
+        Method::Ls(s) | Method::Wls(s) => {
+            // σ² = ‖ρ‖²/(rows − B) assumes white residuals; those of low-pass filtered
+            // data are correlated over κ samples, which leaves ≈ rows/κ independent
+            // equations, so the variances are κ times larger.
+            let kappa = residual_correlation_time(&model, &samples, &ls.lambda)?;
+            Fit {
+                beta: ls.lambda.clone(),
+                sigma: Some(ls.std_dev.iter().map(|v| v * kappa.sqrt()).collect()),
+                covariance: match method {
+                    Method::Ls(_) => ls_covariance(&model, &samples, ls.sigma2 * kappa)?
+                        .map(RawCovariance::Scaled),
+                    _ => None,
+                },
+                settings: json!({
+                    "rank_tolerance": s.rank_tolerance,
+                    "correlation_time_samples": kappa,
+                }),
+                converged: true,
+                epochs: None,
+            }
+        }
         Method::Rls(s) => rls(&model, &samples, s)?,
         Method::Adaline(s) => gradient(&model, &samples, s, false, &ls.lambda, ls_rms(&ls))?,
         Method::Hopfield(s) => gradient(&model, &samples, s, true, &ls.lambda, ls_rms(&ls))?,
@@ -422,6 +465,8 @@ pub fn identify(
                     "residual_increase_percent": est.residual_increase_percent,
                     "non_physical_links": failing,
                 }),
+                converged: true,
+                epochs: None,
             }
         }
     };
@@ -438,10 +483,16 @@ pub fn identify(
         preprocessing,
     )?;
     out.standard = standard;
+    out.converged = fit.converged;
+    out.epochs = fit.epochs;
     let predicted = out.predict(data.q(), data.qd(), data.qdd())?;
     let (sse, rms) = residuals(&predicted, data.tau(), n);
     out.residual_rms = rms;
     let sigma = match (fit.sigma, &fit.covariance) {
+        (Some(s), Some(RawCovariance::Scaled(p))) => {
+            out.covariance = Some(p.transpose().iter().copied().collect());
+            Some(s)
+        }
         (Some(s), _) => Some(s),
         (None, Some(RawCovariance::Unscaled(p))) => {
             // σ̂² from the residual of the final estimate, as least squares does.
@@ -508,12 +559,64 @@ struct Fit {
     sigma: Option<Vec<f64>>,
     covariance: Option<RawCovariance>,
     settings: serde_json::Value,
+    /// See [`IdentifiedModel::converged`].
+    converged: bool,
+    /// Epochs of the gradient methods.
+    epochs: Option<usize>,
 }
 
 /// RMS residual of an ordinary least-squares fit over all equations.
 fn ls_rms(ls: &crate::DynLeastSquaresReport) -> f64 {
     let rows = (ls.samples * ls.joint_variances.len()) as f64;
     (ls.sigma2 * (rows - ls.lambda.len() as f64).max(0.0) / rows).sqrt()
+}
+
+/// Covariance σ̂²·(W_bᵀW_b)⁻¹ of the ordinary least-squares β̂ (the σ of the report is the
+/// root of its diagonal), or `None` when WᵀW is not numerically positive definite (then
+/// the solve reported its rank deficiency already). WᵀW is accumulated sample by sample
+/// (b×b), never the stacked W.
+fn ls_covariance(
+    model: &DynChainBaseModel,
+    samples: &DynSamples<'_>,
+    sigma2: f64,
+) -> Result<Option<DMatrix<f64>>> {
+    let (n, b) = (model.dof(), model.count());
+    let mut ws = model.workspace();
+    let mut phi = DMatrix::zeros(n, b);
+    let mut wtw = DMatrix::zeros(b, b);
+    for (k, s) in samples.iter().enumerate() {
+        if k % 1024 == 0 {
+            crate::interrupt::check("identify")?;
+        }
+        model.regressor_into(&mut ws, s.q, s.qd, s.qdd, &mut phi)?;
+        wtw.gemm_tr(1.0, &phi, &phi, 1.0);
+    }
+    Ok(wtw
+        .cholesky()
+        .map(|c| c.inverse() * sigma2)
+        .filter(|c| c.iter().all(|v| v.is_finite())))
+}
+
+/// Correlation time κ ≥ 1 (samples) of the torque residuals τ − Y_b·β over the data
+/// (see the module `ekf_defaults`).
+fn residual_correlation_time(
+    model: &DynChainBaseModel,
+    samples: &DynSamples<'_>,
+    beta: &DVector<f64>,
+) -> Result<f64> {
+    let (n, b) = (model.dof(), model.count());
+    let mut r = vec![0.0; n * samples.len()];
+    let mut ws = model.workspace();
+    let mut phi = DMatrix::zeros(n, b);
+    for (k, smp) in samples.iter().enumerate() {
+        if k % 1024 == 0 {
+            crate::interrupt::check("identify")?;
+        }
+        model.regressor_into(&mut ws, smp.q, smp.qd, smp.qdd, &mut phi)?;
+        let res = smp.tau - &phi * beta;
+        r[k * n..(k + 1) * n].copy_from_slice(res.as_slice());
+    }
+    Ok(super::ekf_defaults::correlation_time(&r, n))
 }
 
 /// Sum of squared residuals and the per-joint RMS.
@@ -566,6 +669,8 @@ fn rls(model: &DynChainBaseModel, samples: &DynSamples<'_>, s: &RlsSettings) -> 
             "scale_columns": s.scale_columns,
             "rank_tolerance": s.rank_tolerance,
         }),
+        converged: true,
+        epochs: None,
     })
 }
 
@@ -606,15 +711,41 @@ struct Training {
     halvings: usize,
     final_step: f64,
     rms: Vec<f64>,
+    converged: bool,
+    /// The last epoch's relative changes of the estimate and of the equation error.
+    parameter_change: f64,
+    error_change: f64,
 }
 
-/// Trains over epochs with step μ (dimensionless). The least-squares residual RMS `floor`
-/// is the smallest equation error any β reaches on these data: while the epoch's a-priori
-/// RMS error e is well above it, the step stays (a smaller one would only slow the
-/// descent); once e² < (1 + μ)·floor², what remains is mostly the noise the step injects
-/// (the misadjustment of LMS grows with μ), so μ halves. Training stops after `halvings`
-/// halvings, at `max_epochs`, or when e is within 1e-9 of the RMS torque of the floor
-/// (exact data). `make(μ, γ₀)` builds an estimator, `epoch` trains it once over the data.
+/// Relative change of the estimate from `prev` to `g`: max_j |g_j − prev_j| over
+/// max(|g_j|, 1e-3·max_i|g_i|), so that a parameter near zero is measured against the
+/// scale of the others rather than against itself.
+fn relative_change(g: &DVector<f64>, prev: &DVector<f64>) -> f64 {
+    let floor = 1e-3 * g.amax();
+    g.iter()
+        .zip(prev.iter())
+        .map(|(a, b)| (a - b).abs() / a.abs().max(floor).max(f64::MIN_POSITIVE))
+        .fold(0.0, f64::max)
+}
+
+/// Trains over epochs with step μ (dimensionless) until the stopping rule holds.
+///
+/// Step schedule: the least-squares residual RMS `floor` is the smallest equation error
+/// any β reaches on these data. While the epoch's a-priori RMS error e is well above it,
+/// the step stays (a smaller one would only slow the descent); once e² < (1 + μ)·floor²,
+/// what remains is mostly the noise the step injects (the misadjustment of normalised LMS
+/// is ≈ μ/(2 − μ) < μ), so μ halves, at most `halvings` times.
+///
+/// Stopping rule: with the data presented in a fixed order, one epoch is a contraction
+/// with a fixed point for a fixed μ, so the estimate's change per epoch δ_k
+/// ([`relative_change`]) shrinks geometrically with a ratio r = δ_k/δ_k−1, and
+/// δ_k·r/(1 − r) bounds what is left to move (a small δ_k alone is not enough: a small
+/// step moves little per epoch however far the fixed point is). Training has converged
+/// when, on an epoch without a halving, that remaining change is below
+/// `parameter_tolerance` and the relative change of e below `error_tolerance`; or when floor and e are both
+/// below 1e-9 of the RMS torque (exact data). `max_epochs` caps the run, which then reports
+/// `converged = false`. `make(μ, γ₀)` builds an estimator, `epoch` trains it once over
+/// the data.
 fn anneal<E: Estimator<Dyn, Dyn>>(
     s: &GradientSettings,
     p: usize,
@@ -626,23 +757,58 @@ fn anneal<E: Estimator<Dyn, Dyn>>(
     if s.max_epochs == 0 {
         return Err(invalid("max_epochs", 0.0, "must be at least 1"));
     }
+    for (name, v) in [
+        ("parameter_tolerance", s.parameter_tolerance),
+        ("error_tolerance", s.error_tolerance),
+    ] {
+        if !(v.is_finite() && v > 0.0) {
+            return Err(invalid(name, v, "must be finite and > 0"));
+        }
+    }
     let mut mu = s.step_size;
     let mut est = make(mu, DVector::zeros(p))?;
     let mut rms = Vec::with_capacity(s.max_epochs.min(4096));
     let mut halvings = 0;
+    let mut prev = est.estimate().clone();
+    let mut prev_e = f64::NAN;
+    let mut prev_step = f64::INFINITY;
+    let (mut converged, mut dg, mut de) = (false, f64::INFINITY, f64::INFINITY);
     while rms.len() < s.max_epochs {
         let e = epoch(&mut est)?;
         rms.push(e);
-        if e <= floor + 1e-9 * tau_rms {
+        let g = est.estimate();
+        let step = relative_change(g, &prev);
+        // Geometric extrapolation: with a contraction ratio r = δ_k/δ_k−1 < 1 the estimate
+        // still has Σ_{i≥1} δ_k·rⁱ = δ_k·r/(1 − r) to move; r ≥ 1 is no convergence yet.
+        let ratio = step / prev_step;
+        dg = if prev_step.is_finite() && ratio < 1.0 {
+            step * ratio / (1.0 - ratio)
+        } else {
+            f64::INFINITY
+        };
+        prev_step = step;
+        de = (e - prev_e).abs() / e.max(f64::MIN_POSITIVE);
+        prev.copy_from(g);
+        prev_e = e;
+        // Exact data (a zero floor): nothing is left to learn once e is at round-off.
+        // With noise, the a-priori error of a moving estimate can dip below the floor
+        // of a fixed one, so e ≤ floor is no convergence test there.
+        if floor <= 1e-9 * tau_rms && e <= 1e-9 * tau_rms {
+            converged = true;
             break;
         }
-        if e * e < (1.0 + mu) * floor * floor {
-            if halvings == s.halvings {
-                break;
-            }
+        if halvings < s.halvings && e * e < (1.0 + mu) * floor * floor {
             halvings += 1;
             mu *= 0.5;
-            est = make(mu, est.estimate().clone())?;
+            est = make(mu, prev.clone())?;
+            // The next epoch's change is that of a new step: not a convergence test.
+            prev_e = f64::NAN;
+            prev_step = f64::INFINITY;
+            continue;
+        }
+        if dg < s.parameter_tolerance && de < s.error_tolerance {
+            converged = true;
+            break;
         }
     }
     Ok((
@@ -652,6 +818,9 @@ fn anneal<E: Estimator<Dyn, Dyn>>(
             halvings,
             final_step: mu,
             rms,
+            converged,
+            parameter_change: dg,
+            error_change: de,
         },
     ))
 }
@@ -762,12 +931,27 @@ fn gradient(
     settings["step_halvings"] = json!(training.halvings);
     settings["final_step_size"] = json!(training.final_step);
     settings["final_rms_error"] = json!(training.rms.last().copied().unwrap_or(0.0));
+    settings["parameter_tolerance"] = json!(s.parameter_tolerance);
+    settings["error_tolerance"] = json!(s.error_tolerance);
+    settings["final_parameter_change"] = json!(finite_or_null(training.parameter_change));
+    settings["final_error_change"] = json!(finite_or_null(training.error_change));
     Ok(Fit {
         beta: sm.to_model(&gamma),
         sigma: None,
         covariance: None,
         settings,
+        converged: training.converged,
+        epochs: Some(training.epochs),
     })
+}
+
+/// A JSON number, or null for NaN/∞ (JSON has neither).
+fn finite_or_null(v: f64) -> serde_json::Value {
+    if v.is_finite() {
+        json!(v)
+    } else {
+        serde_json::Value::Null
+    }
 }
 
 fn c_pos2(c: &EkfConfig) -> f64 {
@@ -810,7 +994,27 @@ fn ekf(
         cfg.initial_parameter_min_std = (1e-3 * beta0.amax()).max(f64::MIN_POSITIVE);
     }
     let n = model.dof();
+    // R per joint from the data's own high-frequency content (module `ekf_defaults`),
+    // floored at 1e-12 of each signal's range so that exact data stay well posed.
+    let range = |x: &[f64]| {
+        let m = x.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+        (1e-12 * m).max(f64::MIN_POSITIVE.sqrt())
+    };
+    let (r_pos, r_vel) = if s.noise_from_data {
+        (
+            super::ekf_defaults::third_difference_noise(data.q(), n, range(data.q())),
+            super::ekf_defaults::third_difference_noise(data.qd(), n, range(data.qd())),
+        )
+    } else {
+        (vec![cfg.position_noise; n], vec![cfg.velocity_noise; n])
+    };
     let mut est = DynEkf::new(model.clone(), beta0.clone(), cfg)?;
+    if s.noise_from_data {
+        est.set_measurement_noise(
+            &DVector::from_iterator(n, r_pos.iter().map(|v| v * v)),
+            &DVector::from_iterator(n, r_vel.iter().map(|v| v * v)),
+        )?;
+    }
     // τ is the filter's input, so torque noise enters q̇ through M⁻¹: per step its
     // variance is h²·Σ_k (M⁻¹)_jk²·σ_k², with σ_k² the least-squares residual variance of
     // joint k and M at the first sample and β₀. Added to the configured process noise.
@@ -822,8 +1026,9 @@ fn ekf(
         })?;
     let mut qn = DVector::zeros(2 * n + b);
     for j in 0..n {
-        qn[j] = c_pos2(&cfg);
         let torque: f64 = (0..n).map(|k| minv[(j, k)].powi(2) * joint_var[k]).sum();
+        // The same torque noise moves q by h²/2·M⁻¹·δτ within the step.
+        qn[j] = c_pos2(&cfg) + (0.5 * dt * dt).powi(2) * torque;
         qn[n + j] = cfg.process_velocity_noise.powi(2) + dt * dt * torque;
     }
     for i in 0..b {
@@ -842,7 +1047,12 @@ fn ekf(
         .collect();
     let held = DynSamples::new(samples.q(), samples.qd(), samples.qdd(), &held)?;
     let beta = est.run(&held)?;
-    let cov = est.covariance().view((2 * n, 2 * n), (b, b)).clone_owned();
+    let kappa = if s.correlation_correction {
+        residual_correlation_time(model, samples, beta_ls)?
+    } else {
+        1.0
+    };
+    let cov = est.covariance().view((2 * n, 2 * n), (b, b)).clone_owned() * kappa;
     let c = &cfg;
     Ok(Fit {
         beta,
@@ -859,8 +1069,11 @@ fn ekf(
                 Discretisation::Euler => "euler",
                 Discretisation::SecondOrder => "second_order",
             },
-            "position_noise": c.position_noise,
-            "velocity_noise": c.velocity_noise,
+            "position_noise": r_pos,
+            "velocity_noise": r_vel,
+            "noise_from_data": s.noise_from_data,
+            "correlation_correction": s.correlation_correction,
+            "correlation_time_samples": kappa,
             "process_position_noise": c.process_position_noise,
             "process_velocity_noise": c.process_velocity_noise,
             "process_parameter_noise": c.process_parameter_noise,
@@ -873,5 +1086,7 @@ fn ekf(
             "damped_updates": est.damped_updates(),
             "rank_tolerance": s.rank_tolerance,
         }),
+        converged: true,
+        epochs: None,
     })
 }
