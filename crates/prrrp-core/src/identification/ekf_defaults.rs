@@ -1,6 +1,6 @@
-//! What the EKF's defaults take from the data (see [`super::identify`]): the measurement
-//! noise of the positions and velocities, and how many samples the residuals stay
-//! correlated over. Kept out of the filter's per-step code ([`crate::DynEkf`]), which
+//! What the defaults of `identify` take from the data (see [`super::identify`]): the
+//! EKF's measurement noise of the positions and velocities, and how many samples the
+//! least-squares residuals stay correlated over (for the LS and EKF covariances). Kept out of the filter's per-step code ([`crate::DynEkf`]), which
 //! only receives the numbers.
 //!
 //! - **Measurement noise R** per joint from the third difference of the measured signal:
@@ -95,7 +95,9 @@ mod tests {
         let mut s: u64 = 0x2545_f491_4f6c_dd1d;
         (0..len)
             .map(|_| {
-                s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+                s = s
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
                 ((s >> 11) as f64 / (1u64 << 53) as f64 - 0.5) * 12f64.sqrt()
             })
             .collect()

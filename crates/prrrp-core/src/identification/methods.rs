@@ -20,24 +20,35 @@
 //!   delta rule's learning rate γ_lr = μ/max_i‖x_i‖² over the scaled regressor rows x_i
 //!   (stable for μ < 2, since one row's update contracts the error by 1 − γ_lr·‖x_i‖²),
 //!   the normalised rule's step μ directly, the Hopfield gain μ/max_k‖Φ_k‖_F² per sample
-//!   (λmax(ΦᵀΦ) ≤ ‖Φ‖_F²). They train in epochs over the data with a step that halves
-//!   once the a-priori RMS equation error e comes within e² < (1 + μ)·floor² of the
-//!   least-squares residual floor (noise then dominates the update and a smaller step
-//!   averages it), until `max_epochs` or `halvings`. They converge in the poorly excited
-//!   directions at a rate set by cond² of the scaled W_b: on the Panda with friction
-//!   (64 base parameters, 2000 noisy samples) 300 epochs leave their held-out torque
-//!   error ≈ 5× that of least squares;
+//!   (λmax(ΦᵀΦ) ≤ ‖Φ‖_F²). They train in epochs over the data from γ = 0 with a step
+//!   that halves once the a-priori RMS equation error e comes within e² < (1 + μ)·floor²
+//!   of the least-squares residual floor (noise then dominates the update and a smaller
+//!   step averages it), up to `halvings` times, until the **stopping rule** holds: the
+//!   change of the estimate still to come, extrapolated geometrically from the last two
+//!   epochs' changes, below `parameter_tolerance` and the relative change of e below
+//!   `error_tolerance`, or `max_epochs` (then [`IdentifiedModel::converged`] is false).
+//!   Adaline's default is the delta rule, whose fixed point as the step shrinks is
+//!   ordinary least squares (the normalised rule's is least squares weighted by 1/‖x‖²);
+//!   so is the Hopfield network's. They converge in the poorly excited directions at a
+//!   rate set by cond² of the scaled W_b;
 //! - the EKF starts from the least-squares β̂ (the accelerations it does not need are in
 //!   the data set anyway) with a relative prior uncertainty, dt from the time stamps, and
-//!   measures positions and velocities; it holds the interval's mean torque, and its
-//!   process noise on q̇ includes the torque noise (the least-squares residual variances)
-//!   propagated through M⁻¹. τ is its input, so torque noise still moves the estimate:
-//!   on the Panda example its held-out torque error is ≈ 10× least squares'.
+//!   measures positions and velocities; it holds the interval's mean torque. Its noises
+//!   come from the data (module `ekf_defaults`): R of each joint's position and velocity
+//!   from their third differences (the noise of the data plus what a second-order step
+//!   misses), Q of q̇ from the least-squares residual variances through M⁻¹(q, λ̂) at
+//!   every sample (the torque noise, τ being the filter's input; with M at the current λ̂
+//!   the weighted innovation is the torque error itself, as in least squares, instead of
+//!   favouring large inertias);
 //!
-//! Uncertainties: LS and WLS report σ from the residual (σ² = ‖ρ‖²/(rows − B)); RLS
-//! without forgetting is exactly least squares regularised by ‖γ‖²/δ, so σ̂²·D·P·D is the
-//! covariance of β̂ with σ̂² from its residual; the EKF reports the parameter block of its
-//! covariance; Adaline and the Hopfield network give none.
+//! Uncertainties: LS and WLS report σ from the residual (σ² = ‖ρ‖²/(rows − B)) times
+//! √κ, and LS its covariance κ·σ²·(W_bᵀW_b)⁻¹, where κ ≥ 1 is the correlation time of the
+//! residuals in samples (low-pass filtered data leave ≈ rows/κ independent equations;
+//! κ = 1 for white residuals); RLS without forgetting is exactly least squares
+//! regularised by ‖γ‖²/δ, so σ̂²·D·P·D is the covariance of β̂ with σ̂² from its
+//! residual; the EKF reports the parameter block of its covariance times the same κ
+//! (the filter assumes white noise); Adaline and
+//! the Hopfield network give none.
 
 use nalgebra::{DMatrix, DVector, Dyn};
 use serde_json::json;
@@ -223,8 +234,10 @@ pub struct GradientSettings {
     pub halvings: usize,
     /// Tolerance on the relative change of the estimate still to come (dimensionless,
     /// default `1e-5`): the change per epoch δ = max_j |γ_j − γ_j⁻| / max(|γ_j|,
-    /// 1e-3·max_i|γ_i|) over the column-scaled parameters γ (γ⁻: one epoch earlier),
-    /// extrapolated geometrically, δ·r/(1 − r) with r the ratio of the last two δ.
+    /// 1e-3·max_i|γ_i|, 0.01·σ_j/tol) over the column-scaled parameters γ (γ⁻: one epoch
+    /// earlier; σ_j least squares' standard deviation of γ_j, so that changes below 1 %
+    /// of what the data resolve count as none), extrapolated geometrically, δ·r/(1 − r)
+    /// with r the ratio of the last two δ.
     pub parameter_tolerance: f64,
     /// Tolerance on the relative change of the epoch's RMS equation error (dimensionless,
     /// default `1e-6`): |e − e⁻| / e.
@@ -289,13 +302,17 @@ pub struct EkfSettings {
     /// starts from a fit, not a guess) floored at 1e-3 of max|β₀|, and no random walk of
     /// the parameters (they are constant over a recording).
     pub config: EkfConfig,
-    /// Take the measurement noise R of each joint's position and velocity from the data
-    /// (default `true`; the third-difference estimate of the module `ekf_defaults`,
-    /// replacing `config.position_noise` and `config.velocity_noise`).
+    /// Take the noises from the data (default `true`): the measurement noise R of each
+    /// joint's position and velocity from their third differences (replacing
+    /// `config.position_noise` and `config.velocity_noise`), and the process noise Q of
+    /// q̇ (and q) from the least-squares residual variances σ² through M⁻¹(q_k, λ̂_k) at
+    /// every sample (added to `config.process_position_noise` and
+    /// `config.process_velocity_noise`, 0 by default here). With `false`: the configured
+    /// R, and the same Q with M at the first sample and β₀ only.
     pub noise_from_data: bool,
-    /// Multiply the reported parameter covariance by the correlation time κ ≥ 1 of the
-    /// least-squares residuals (default `true`): the filter assumes white noise, and
-    /// low-pass filtered data are not.
+    /// Multiply the reported parameter covariance by the correlation time κ ≥ 1 (samples)
+    /// of the least-squares torque residuals (default `true`): the filter assumes white
+    /// noise, and low-pass filtered data are not.
     pub correlation_correction: bool,
 }
 
@@ -312,6 +329,9 @@ impl Default for EkfSettings {
                 discretisation: Discretisation::SecondOrder,
                 initial_parameter_rel_std: 0.1,
                 process_parameter_noise: 0.0,
+                // Taken from the data (`noise_from_data`); these add to it.
+                process_position_noise: 0.0,
+                process_velocity_noise: 0.0,
                 initial_parameter_min_std: 0.0,
                 ..EkfConfig::default()
             },
@@ -420,8 +440,24 @@ pub fn identify(
             }
         }
         Method::Rls(s) => rls(&model, &samples, s)?,
-        Method::Adaline(s) => gradient(&model, &samples, s, false, &ls.lambda, ls_rms(&ls))?,
-        Method::Hopfield(s) => gradient(&model, &samples, s, true, &ls.lambda, ls_rms(&ls))?,
+        Method::Adaline(s) => gradient(
+            &model,
+            &samples,
+            s,
+            false,
+            &ls.lambda,
+            ls.std_dev.as_slice(),
+            ls_rms(&ls),
+        )?,
+        Method::Hopfield(s) => gradient(
+            &model,
+            &samples,
+            s,
+            true,
+            &ls.lambda,
+            ls.std_dev.as_slice(),
+            ls_rms(&ls),
+        )?,
         Method::Ekf(s) => ekf(
             &model,
             data,
@@ -717,14 +753,20 @@ struct Training {
     error_change: f64,
 }
 
-/// Relative change of the estimate from `prev` to `g`: max_j |g_j − prev_j| over
-/// max(|g_j|, 1e-3·max_i|g_i|), so that a parameter near zero is measured against the
-/// scale of the others rather than against itself.
-fn relative_change(g: &DVector<f64>, prev: &DVector<f64>) -> f64 {
+/// Relative change of the estimate from `prev` to `g`: max_j |g_j − prev_j| / s_j with
+/// s_j = max(|g_j|, 1e-3·max_i|g_i|, 0.01·σ_j/tol): a parameter near zero is measured
+/// against the scale of the others rather than against itself, and a change below 1 % of
+/// least squares' standard deviation σ_j of that parameter (what the data can resolve)
+/// counts as none.
+fn relative_change(g: &DVector<f64>, prev: &DVector<f64>, sigma: &[f64], tol: f64) -> f64 {
     let floor = 1e-3 * g.amax();
     g.iter()
         .zip(prev.iter())
-        .map(|(a, b)| (a - b).abs() / a.abs().max(floor).max(f64::MIN_POSITIVE))
+        .zip(sigma)
+        .map(|((a, b), s)| {
+            let scale = a.abs().max(floor).max(0.01 * s / tol);
+            (a - b).abs() / scale.max(f64::MIN_POSITIVE)
+        })
         .fold(0.0, f64::max)
 }
 
@@ -746,10 +788,12 @@ fn relative_change(g: &DVector<f64>, prev: &DVector<f64>) -> f64 {
 /// below 1e-9 of the RMS torque (exact data). `max_epochs` caps the run, which then reports
 /// `converged = false`. `make(μ, γ₀)` builds an estimator, `epoch` trains it once over
 /// the data.
+#[allow(clippy::too_many_arguments)]
 fn anneal<E: Estimator<Dyn, Dyn>>(
     s: &GradientSettings,
     p: usize,
     floor: f64,
+    sigma: &[f64],
     tau_rms: f64,
     make: impl Fn(f64, DVector<f64>) -> Result<E>,
     epoch: impl Fn(&mut E) -> Result<f64>,
@@ -777,7 +821,7 @@ fn anneal<E: Estimator<Dyn, Dyn>>(
         let e = epoch(&mut est)?;
         rms.push(e);
         let g = est.estimate();
-        let step = relative_change(g, &prev);
+        let step = relative_change(g, &prev, sigma, s.parameter_tolerance);
         // Geometric extrapolation: with a contraction ratio r = δ_k/δ_k−1 < 1 the estimate
         // still has Σ_{i≥1} δ_k·rⁱ = δ_k·r/(1 − r) to move; r ≥ 1 is no convergence yet.
         let ratio = step / prev_step;
@@ -831,9 +875,16 @@ fn gradient(
     s: &GradientSettings,
     hopfield: bool,
     beta_ls: &DVector<f64>,
+    sigma_ls: &[f64],
     floor: f64,
 ) -> Result<Fit> {
     let sm = scaled(model, samples, s.scale_columns)?;
+    // Least squares' σ in the scaled parameters γ = D⁻¹·β (for the stopping rule).
+    let sigma: Vec<f64> = sigma_ls
+        .iter()
+        .zip(sm.scale().iter())
+        .map(|(s, d)| s / d)
+        .collect();
     let tau_rms = (samples.tau().iter().map(|t| t.norm_squared()).sum::<f64>()
         / (samples.len() * samples.tau()[0].len()) as f64)
         .sqrt();
@@ -901,7 +952,7 @@ fn gradient(
             };
             DynHopfield::new(sm.clone(), g0, cfg)
         };
-        anneal(&s, p, floor, tau_rms, make, |e| {
+        anneal(&s, p, floor, &sigma, tau_rms, make, |e| {
             Ok(e.train(samples, 1)?.rms_error[0])
         })?
     } else {
@@ -922,7 +973,7 @@ fn gradient(
         if rule == AdalineRule::Delta {
             settings["learning_rate"] = json!(mu0 / row_peak);
         }
-        anneal(&s, p, floor, tau_rms, make, |e| {
+        anneal(&s, p, floor, &sigma, tau_rms, make, |e| {
             Ok(e.train(samples, 1)?.rms_error[0])
         })?
     };
@@ -1015,26 +1066,6 @@ fn ekf(
             &DVector::from_iterator(n, r_vel.iter().map(|v| v * v)),
         )?;
     }
-    // τ is the filter's input, so torque noise enters q̇ through M⁻¹: per step its
-    // variance is h²·Σ_k (M⁻¹)_jk²·σ_k², with σ_k² the least-squares residual variance of
-    // joint k and M at the first sample and β₀. Added to the configured process noise.
-    let minv = model
-        .mass_matrix(&samples.q()[0], &beta0)?
-        .try_inverse()
-        .ok_or(PrrrpError::NotPositiveDefinite {
-            what: "mass matrix M(q, β0) at the first sample (the EKF's start)",
-        })?;
-    let mut qn = DVector::zeros(2 * n + b);
-    for j in 0..n {
-        let torque: f64 = (0..n).map(|k| minv[(j, k)].powi(2) * joint_var[k]).sum();
-        // The same torque noise moves q by h²/2·M⁻¹·δτ within the step.
-        qn[j] = c_pos2(&cfg) + (0.5 * dt * dt).powi(2) * torque;
-        qn[n + j] = cfg.process_velocity_noise.powi(2) + dt * dt * torque;
-    }
-    for i in 0..b {
-        qn[2 * n + i] = (cfg.process_parameter_noise * beta0[i].abs()).powi(2);
-    }
-    est.set_process_noise(&qn)?;
     // The filter holds τ_k over [t_k, t_k+1] (zero-order hold); a recording samples a
     // torque that varies within the interval, whose mean (τ_k + τ_k+1)/2 is what moves
     // the state to k+1 to second order.
@@ -1045,8 +1076,81 @@ fn ekf(
             None => tau[k].clone(),
         })
         .collect();
+    // τ is the filter's input, so torque noise δτ moves q̇ by h·M⁻¹·δτ and q by
+    // h²/2·M⁻¹·δτ per step: Q_q̇,j = h²·Σ_k (M⁻¹)_jk²·σ_k² (and (h²/2)² of it on q), with
+    // σ_k² the least-squares residual variance of joint k. With `noise_from_data`, M is
+    // taken at each sample and the current λ̂: a Q fixed at β₀ weighs the innovations
+    // h·M⁻¹(λ)·δτ by a λ-independent weight, and the filter then prefers the λ with the
+    // smallest M⁻¹ (torque noise biased the inertias up by up to 37 % on gentle data);
+    // scaled with M⁻¹(λ̂), the weighted innovation is the torque error δτ itself, as in
+    // (weighted) least squares.
+    let base_q = c_pos2(&cfg);
+    let base_v = cfg.process_velocity_noise.powi(2);
+    let mut qn = DVector::zeros(2 * n + b);
+    for i in 0..b {
+        qn[2 * n + i] = (cfg.process_parameter_noise * beta0[i].abs()).powi(2);
+    }
+    let mut mws = model.workspace();
+    let (mut q0, mut q1, mut tau_j) = (DVector::zeros(n), DVector::zeros(n), DVector::zeros(n));
+    let mut minv = DMatrix::zeros(n, n);
+    let mut lam = beta0.clone();
+    // M⁻¹ column by column, exactly (q̈ is affine in τ): M⁻¹e_j = q̈(τ + e_j) − q̈(τ).
+    let mut update_q = |q: &DVector<f64>,
+                        qd: &DVector<f64>,
+                        tau: &DVector<f64>,
+                        lam: &DVector<f64>,
+                        qn: &mut DVector<f64>|
+     -> Result<()> {
+        model.forward_dynamics_into(&mut mws, q, qd, tau, lam, &mut q0)?;
+        for j in 0..n {
+            tau_j.copy_from(tau);
+            tau_j[j] += 1.0;
+            model.forward_dynamics_into(&mut mws, q, qd, &tau_j, lam, &mut q1)?;
+            for i in 0..n {
+                minv[(i, j)] = q1[i] - q0[i];
+            }
+        }
+        for j in 0..n {
+            let torque: f64 = (0..n).map(|k| minv[(j, k)].powi(2) * joint_var[k]).sum();
+            qn[j] = base_q + (0.5 * dt * dt).powi(2) * torque;
+            qn[n + j] = base_v + dt * dt * torque;
+        }
+        Ok(())
+    };
+    update_q(
+        &samples.q()[0],
+        &samples.qd()[0],
+        &samples.tau()[0],
+        &beta0,
+        &mut qn,
+    )?;
+    est.set_process_noise(&qn)?;
     let held = DynSamples::new(samples.q(), samples.qd(), samples.qdd(), &held)?;
-    let beta = est.run(&held)?;
+    for (k, smp) in held.iter().enumerate() {
+        if k % 1024 == 0 {
+            crate::interrupt::check("identify")?;
+        }
+        if s.noise_from_data && k > 0 {
+            lam.copy_from(&est.state().rows(2 * n, b));
+            // A λ̂ whose M is not positive definite keeps the last Q; the step reports it.
+            if update_q(smp.q, smp.qd, smp.tau, &lam, &mut qn).is_ok() {
+                est.set_process_noise(&qn)?;
+            }
+        }
+        est.step(smp).map_err(|e| match e {
+            PrrrpError::NonFinite { what, row: None } => {
+                PrrrpError::NonFinite { what, row: Some(k) }
+            }
+            other => other,
+        })?;
+    }
+    let beta = est.estimate().clone();
+    if !beta.iter().all(|v| v.is_finite()) {
+        return Err(PrrrpError::NonFinite {
+            what: "EKF estimate".into(),
+            row: None,
+        });
+    }
     let kappa = if s.correlation_correction {
         residual_correlation_time(model, samples, beta_ls)?
     } else {
