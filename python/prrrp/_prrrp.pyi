@@ -895,8 +895,8 @@ def identify(
     below `error_tolerance` (1e-6), within `max_epochs` (3000); `converged` and `epochs`
     say how it ended; Adaline's default rule is the delta rule, whose fixed point is least
     squares; no σ); "ekf" (starts from the least-squares β̂, dt from the time stamps,
-    positions and velocities measured with each joint's noise taken from the data's third
-    differences; process noise from the least-squares residual variances through M⁻¹;
+    positions and velocities measured; process noise from the least-squares residual
+    variances through M⁻¹ at each sample and the current estimate;
     covariance from the filter times the residuals' correlation time κ, since low-pass
     filtered data are not white); LS σ and covariance also carry κ;
     "physical" (least squares over the standard parameters with every link's pseudo-inertia
@@ -910,7 +910,8 @@ def identify(
     hopfield `step_size`, `bound`, `max_epochs`, `halvings`, `parameter_tolerance`,
     `error_tolerance`, `scale_columns`; ekf `initial` ("ls", "prior" or β0), `dt`,
     `measurement`, `discretisation`, the noise settings of `Ekf` (a given `position_noise`
-    or `velocity_noise` replaces the one from the data), `noise_from_data` (default True),
+    or `velocity_noise` replaces the one from the data), `noise_from_data` (R from the data's
+    third differences, default False), `process_noise_at_estimate` (default True),
     `correlation_correction` (default True); physical `prior`
     (standard parameters π0, e.g. `robot.parameters`; default a 1 kg body per link),
     `prior_weight` (≥ 0, default 0: the prior only fixes what the data do not see). The

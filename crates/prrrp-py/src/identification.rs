@@ -347,6 +347,7 @@ fn valid_keys(method: &str) -> &'static [&'static str] {
             "initial_parameter_min_std",
             "init_from_first_measurement",
             "noise_from_data",
+            "process_noise_at_estimate",
             "correlation_correction",
         ],
     }
@@ -475,6 +476,7 @@ fn parse_method(
                     }
                     "noise_from_data" => s.noise_from_data = v.extract()?,
                     "correlation_correction" => s.correlation_correction = v.extract()?,
+                    "process_noise_at_estimate" => s.process_noise_at_estimate = v.extract()?,
                     "process_position_noise" => c.process_position_noise = f()?,
                     "process_velocity_noise" => c.process_velocity_noise = f()?,
                     "process_parameter_noise" => c.process_parameter_noise = f()?,

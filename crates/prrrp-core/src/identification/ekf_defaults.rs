@@ -74,9 +74,9 @@ pub(super) fn correlation_time(r: &[f64], n: usize) -> f64 {
     // Geyer's initial positive sequence: pairs Γ_m = ρ(2m+1) + ρ(2m+2) while positive.
     let mut kappa = 1.0;
     let mut lag = 1;
-    while lag + 1 <= max_lag {
+    while lag < max_lag {
         let pair = rho(lag) + rho(lag + 1);
-        if !(pair > 0.0) {
+        if pair.is_nan() || pair <= 0.0 {
             break;
         }
         kappa += 2.0 * pair;

@@ -33,10 +33,9 @@
 //!   rate set by cond² of the scaled W_b;
 //! - the EKF starts from the least-squares β̂ (the accelerations it does not need are in
 //!   the data set anyway) with a relative prior uncertainty, dt from the time stamps, and
-//!   measures positions and velocities; it holds the interval's mean torque. Its noises
-//!   come from the data (module `ekf_defaults`): R of each joint's position and velocity
-//!   from their third differences (the noise of the data plus what a second-order step
-//!   misses), Q of q̇ from the least-squares residual variances through M⁻¹(q, λ̂) at
+//!   measures positions and velocities; it holds the interval's mean torque. R is the
+//!   configured one (optionally each joint's from the data's third differences,
+//!   `noise_from_data`), Q of q̇ from the least-squares residual variances through M⁻¹(q, λ̂) at
 //!   every sample (the torque noise, τ being the filter's input; with M at the current λ̂
 //!   the weighted innovation is the torque error itself, as in least squares, instead of
 //!   favouring large inertias);
@@ -302,14 +301,20 @@ pub struct EkfSettings {
     /// starts from a fit, not a guess) floored at 1e-3 of max|β₀|, and no random walk of
     /// the parameters (they are constant over a recording).
     pub config: EkfConfig,
-    /// Take the noises from the data (default `true`): the measurement noise R of each
-    /// joint's position and velocity from their third differences (replacing
-    /// `config.position_noise` and `config.velocity_noise`), and the process noise Q of
-    /// q̇ (and q) from the least-squares residual variances σ² through M⁻¹(q_k, λ̂_k) at
-    /// every sample (added to `config.process_position_noise` and
-    /// `config.process_velocity_noise`, 0 by default here). With `false`: the configured
-    /// R, and the same Q with M at the first sample and β₀ only.
+    /// Take the measurement noise R of each joint's position and velocity from their
+    /// third differences in the data (default `false`: on exact positions it makes R so
+    /// small that the filter fits the torque noise, and it did not reduce the error on
+    /// filtered noisy data either; module `ekf_defaults`), replacing
+    /// `config.position_noise` and `config.velocity_noise` (giving either from Python
+    /// turns this off). The process noise on q̇ is h²·M⁻¹·diag(σ²)·M⁻ᵀ from the
+    /// least-squares residual variances σ² (and (h²/2)² of it on q), added to
+    /// `config.process_position_noise` and `config.process_velocity_noise` (0 here).
     pub noise_from_data: bool,
+    /// Take M of the process noise Q_q̇ = h²·M⁻¹·diag(σ²)·M⁻ᵀ at every sample and the
+    /// current λ̂ (default `true`) instead of once at the first sample and β₀: with a
+    /// fixed Q the filter prefers the λ with the smallest M⁻¹ (torque noise biases the
+    /// inertias up); scaled with M⁻¹(λ̂) the weighted innovation is the torque error.
+    pub process_noise_at_estimate: bool,
     /// Multiply the reported parameter covariance by the correlation time κ ≥ 1 (samples)
     /// of the least-squares torque residuals (default `true`): the filter assumes white
     /// noise, and low-pass filtered data are not.
@@ -322,7 +327,8 @@ impl Default for EkfSettings {
             rank_tolerance: LeastSquaresConfig::default().rank_tolerance,
             initial: EkfStart::LeastSquares,
             dt: None,
-            noise_from_data: true,
+            noise_from_data: false,
+            process_noise_at_estimate: true,
             correlation_correction: true,
             config: EkfConfig {
                 measurement: EkfMeasurement::PositionsVelocities,
@@ -1130,7 +1136,7 @@ fn ekf(
         if k % 1024 == 0 {
             crate::interrupt::check("identify")?;
         }
-        if s.noise_from_data && k > 0 {
+        if s.process_noise_at_estimate && k > 0 {
             lam.copy_from(&est.state().rows(2 * n, b));
             // A λ̂ whose M is not positive definite keeps the last Q; the step reports it.
             if update_q(smp.q, smp.qd, smp.tau, &lam, &mut qn).is_ok() {
@@ -1176,6 +1182,7 @@ fn ekf(
             "position_noise": r_pos,
             "velocity_noise": r_vel,
             "noise_from_data": s.noise_from_data,
+            "process_noise_at_estimate": s.process_noise_at_estimate,
             "correlation_correction": s.correlation_correction,
             "correlation_time_samples": kappa,
             "process_position_noise": c.process_position_noise,
