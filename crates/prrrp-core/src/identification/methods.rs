@@ -1123,13 +1123,15 @@ fn ekf(
         }
         Ok(())
     };
-    update_q(
-        &samples.q()[0],
-        &samples.qd()[0],
-        &samples.tau()[0],
-        &beta0,
-        &mut qn,
-    )?;
+    // A β₀ whose M is not positive definite starts with the configured Q only; the
+    // filter then reports the start as diverged.
+    let first = (&samples.q()[0], &samples.qd()[0], &samples.tau()[0]);
+    if update_q(first.0, first.1, first.2, &beta0, &mut qn).is_err() {
+        for j in 0..n {
+            qn[j] = base_q;
+            qn[n + j] = base_v;
+        }
+    }
     est.set_process_noise(&qn)?;
     let held = DynSamples::new(samples.q(), samples.qd(), samples.qdd(), &held)?;
     for (k, smp) in held.iter().enumerate() {
