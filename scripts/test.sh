@@ -37,3 +37,6 @@ echo "== ruff"
 
 echo "== pytest"
 "$venv/bin/python" -m pytest python/tests
+
+echo "== pytest -m protocol (the full convergence grid, 2 processes)"
+"$venv/bin/python" -m pytest -q -m protocol python/tests/test_convergence_protocol.py

@@ -835,9 +835,16 @@ class IdentifiedModel:
         """100·σ/|β̂| (%), NaN where β̂ = 0."""
     @property
     def covariance(self) -> _F64 | None:
-        """(b, b), where the method gives it (the EKF)."""
+        """(b, b), where the method gives it (LS, RLS, EKF)."""
     @property
     def cond(self) -> float | None: ...
+    @property
+    def converged(self) -> bool:
+        """Adaline/Hopfield: the stopping rule held before `max_epochs` (False: β̂ is not
+        at the method's optimum). Other methods: True when they finished normally."""
+    @property
+    def epochs(self) -> int | None:
+        """Epochs trained by Adaline/Hopfield; None for the other methods."""
     @property
     def residual_rms(self) -> _F64:
         """(n,), N·m or N, on the identification data."""
@@ -881,9 +888,18 @@ def identify(
 
     Methods: "ls" / "wls" (ordinary / weighted least squares, σ from the residual); "rls"
     (one pass on the column-equilibrated model, σ from σ̂²·P when `forgetting` = 1);
-    "adaline" / "hopfield" (epochs over the data, step from the data, halved near the
-    least-squares residual floor; no σ); "ekf" (starts from the least-squares β̂, dt from
-    the time stamps, positions and velocities measured; σ and covariance from the filter);
+    "adaline" / "hopfield" (epochs over the data from β = 0, step from the data, halved
+    near the least-squares residual floor, until the stopping rule holds: the change of
+    the estimate still to come, extrapolated geometrically from the last two epochs, below
+    `parameter_tolerance` (1e-5; changes below 1 % of least squares' σ count as none)
+    and the relative change of the epoch's equation error
+    below `error_tolerance` (1e-6), within `max_epochs` (3000); `converged` and `epochs`
+    say how it ended; Adaline's default rule is the delta rule, whose fixed point is least
+    squares; no σ); "ekf" (starts from the least-squares β̂, dt from the time stamps,
+    positions and velocities measured; process noise from the least-squares residual
+    variances through M⁻¹ at each sample and the current estimate;
+    covariance from the filter times the residuals' correlation time κ, since low-pass
+    filtered data are not white); LS σ and covariance also carry κ;
     "physical" (least squares over the standard parameters with every link's pseudo-inertia
     positive semidefinite and fv, fc ≥ 0, a barrier interior-point method; the model keeps
     the standard parameters, `standard_parameters`, and writes a URDF, `to_urdf()`; no σ).
@@ -891,9 +907,13 @@ def identify(
     Settings (keywords; an unknown one is a TypeError naming the valid ones): all methods
     `rank_tolerance`; rls `forgetting`, `initial_covariance`, `scale_columns`; adaline
     `rule`, `step_size` (0, 2), `learning_rate` (delta rule; unstable → error),
-    `max_epochs`, `halvings`, `scale_columns`; hopfield `step_size`, `bound`,
-    `max_epochs`, `halvings`, `scale_columns`; ekf `initial` ("ls", "prior" or β0), `dt`,
-    `measurement`, `discretisation` and the noise settings of `Ekf`; physical `prior`
+    `max_epochs`, `halvings`, `parameter_tolerance`, `error_tolerance`, `scale_columns`;
+    hopfield `step_size`, `bound`, `max_epochs`, `halvings`, `parameter_tolerance`,
+    `error_tolerance`, `scale_columns`; ekf `initial` ("ls", "prior" or β0), `dt`,
+    `measurement`, `discretisation`, the noise settings of `Ekf` (a given `position_noise`
+    or `velocity_noise` replaces the one from the data), `noise_from_data` (R from the data's
+    third differences, default False), `process_noise_at_estimate` (default True),
+    `correlation_correction` (default True); physical `prior`
     (standard parameters π0, e.g. `robot.parameters`; default a 1 kg body per link),
     `prior_weight` (≥ 0, default 0: the prior only fixes what the data do not see). The
     model records the settings used, including the values chosen from the data.

@@ -189,6 +189,20 @@ impl PyIdentifiedModel {
         self.inner.base.combinations.clone()
     }
 
+    /// Whether the method met its stopping rule (Adaline, Hopfield: the relative changes
+    /// per epoch fell below their tolerances before `max_epochs`); True for the other
+    /// methods when they finished normally.
+    #[getter]
+    fn converged(&self) -> bool {
+        self.inner.converged
+    }
+
+    /// Epochs the gradient methods trained (Adaline, Hopfield), or None.
+    #[getter]
+    fn epochs(&self) -> Option<usize> {
+        self.inner.epochs
+    }
+
     /// The method's settings, a dict.
     #[getter]
     fn settings<'py>(&self, py: Python<'py>) -> Out<'py> {
@@ -302,6 +316,8 @@ fn valid_keys(method: &str) -> &'static [&'static str] {
             "learning_rate",
             "max_epochs",
             "halvings",
+            "parameter_tolerance",
+            "error_tolerance",
             "scale_columns",
         ],
         "hopfield" => &[
@@ -310,6 +326,8 @@ fn valid_keys(method: &str) -> &'static [&'static str] {
             "bound",
             "max_epochs",
             "halvings",
+            "parameter_tolerance",
+            "error_tolerance",
             "scale_columns",
         ],
         _ => &[
@@ -328,6 +346,9 @@ fn valid_keys(method: &str) -> &'static [&'static str] {
             "initial_parameter_rel_std",
             "initial_parameter_min_std",
             "init_from_first_measurement",
+            "noise_from_data",
+            "process_noise_at_estimate",
+            "correlation_correction",
         ],
     }
 }
@@ -396,6 +417,8 @@ fn parse_method(
                 "bound" => s.bound = Some(f()?),
                 "max_epochs" => s.max_epochs = u()?,
                 "halvings" => s.halvings = u()?,
+                "parameter_tolerance" => s.parameter_tolerance = f()?,
+                "error_tolerance" => s.error_tolerance = f()?,
                 _ => s.scale_columns = v.extract()?,
             },
             (Method::Ekf(s), k) => {
@@ -442,8 +465,18 @@ fn parse_method(
                             }
                         }
                     }
-                    "position_noise" => c.position_noise = f()?,
-                    "velocity_noise" => c.velocity_noise = f()?,
+                    // A noise given by the user replaces the one taken from the data.
+                    "position_noise" => {
+                        c.position_noise = f()?;
+                        s.noise_from_data = false;
+                    }
+                    "velocity_noise" => {
+                        c.velocity_noise = f()?;
+                        s.noise_from_data = false;
+                    }
+                    "noise_from_data" => s.noise_from_data = v.extract()?,
+                    "correlation_correction" => s.correlation_correction = v.extract()?,
+                    "process_noise_at_estimate" => s.process_noise_at_estimate = v.extract()?,
                     "process_position_noise" => c.process_position_noise = f()?,
                     "process_velocity_noise" => c.process_velocity_noise = f()?,
                     "process_parameter_noise" => c.process_parameter_noise = f()?,

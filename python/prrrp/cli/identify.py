@@ -4,7 +4,7 @@ as JSON, and validated on another file."""
 from __future__ import annotations
 
 import argparse
-from collections.abc import Callable
+import functools
 from pathlib import Path
 from typing import Any
 
@@ -17,7 +17,6 @@ from prrrp.cli.common import (
     EXIT_OK,
     CliError,
     Progress,
-    as_list,
     attr,
     check_output_file,
     dump_json,
@@ -30,6 +29,8 @@ from prrrp.cli.common import (
 PAPER_METHODS = ("ls", "adaline", "hopfield", "ekf", "all")
 METHOD_CHOICES = (*workflow.METHODS, "all")
 METHOD_KEYS = {"ls": "least_squares", "adaline": "adaline", "hopfield": "hopfield", "ekf": "ekf"}
+#: The method names of ``prrrp.identify`` by result key.
+METHOD_NAMES = {v: k for k, v in METHOD_KEYS.items()}
 
 
 def add_parser(sub: Any) -> None:
@@ -88,73 +89,81 @@ def _load(path: str) -> dict[str, Any]:
     }
 
 
-def _least_squares(data: dict[str, Any], path: str) -> dict[str, Any]:
+def _rank_deficient(path: str, e: Exception) -> CliError:
+    cond = getattr(e, "cond", float("inf"))
+    rank = getattr(e, "rank", None)
+    params = getattr(e, "params", None)
+    rank_text = f"rank {rank} of {params}, " if rank is not None and params is not None else ""
+    return CliError(
+        f"{path}: the data does not excite every parameter: the observation matrix W is "
+        f"rank deficient ({rank_text}cond(W) = {cond:.3g}); record a richer motion "
+        "(see `prrrp simulate`)"
+    )
+
+
+@functools.cache
+def lambda_map() -> np.ndarray:
+    """T, (8, 9): the paper's λ = T @ β for the base parameters β of
+    ``prrrp.identify(prrrp.Robot.paper(), ...)`` (the chain form's numerical analysis).
+
+    The chain's 9 base parameters span the paper's λ1..λ5, λ8, m4·lc4 + m5·l4 (λ6 and λ7
+    are l2 and l3 times it) and the lateral first moments my3 and my4 + my5, which the
+    paper's model sets to 0. So Y_b(x)·β = Φ(x)·λ + Y_lat(x)·μ at every state x, and T is
+    the λ rows of the exact solution of [Φ | Y_lat]·[T; L] = Y_b over random states (the
+    residual is checked to be round-off: the map is an identity, not a fit)."""
+    chain = prrrp.SerialChain.paper()
+    base = chain.base_parameters()
+    rng = np.random.default_rng(0)
+    q, qd, qdd = rng.uniform(-1.0, 1.0, size=(3, 64, prrrp.NDOF))
+    phi = np.asarray(prrrp.regressor(q, qd, qdd)).reshape(-1, prrrp.NPARAM)
+    y = np.asarray(chain.regressor(q, qd, qdd)).reshape(len(q) * prrrp.NDOF, -1)
+    names = list(base.names)
+    lateral = np.stack(
+        [y[:, names.index("my3")], y[:, names.index("my4")] + y[:, names.index("my5")]], axis=1
+    )
+    yb = np.asarray(chain.base_regressor(q, qd, qdd)).reshape(-1, base.count)
+    a = np.hstack([phi, lateral])
+    sol, *_ = np.linalg.lstsq(a, yb, rcond=None)
+    if not np.allclose(a @ sol, yb, rtol=0.0, atol=1e-9 * np.abs(yb).max()):
+        raise RuntimeError("the chain's base parameters do not map onto the paper's λ")
+    return sol[: prrrp.NPARAM]
+
+
+def _identify(method: str, data: dict[str, Any], path: str) -> dict[str, Any]:
+    """``prrrp.identify(prrrp.Robot.paper(), data, method)`` with its defaults (the same
+    as ``prrrp identify --robot``), reported in the paper's λ (:func:`lambda_map`), with
+    σ from the model's covariance where the method gives one (LS, EKF)."""
+    ds = prrrp.Dataset(data["t"], data["q"], data["qd"], data["qdd"], data["tau"])
     try:
-        res = prrrp.least_squares(data["q"], data["qd"], data["qdd"], data["tau"])
+        model = prrrp.identify(prrrp.Robot.paper(), ds, method)
     except prrrp.RankDeficientError as e:
-        cond = getattr(e, "cond", float("inf"))
-        rank = getattr(e, "rank", None)
-        params = getattr(e, "params", prrrp.NPARAM)
-        rank_text = f"rank {rank} of {params}, " if rank is not None else ""
-        raise CliError(
-            f"{path}: the data does not excite every parameter: the observation matrix W is "
-            f"rank deficient ({rank_text}cond(W) = {cond:.3g}); record a richer motion "
-            "(see `prrrp simulate`)"
-        ) from None
-    return {
-        "method": "least_squares",
-        "lambda": as_list(attr(res, "lam")),
-        "std": as_list(attr(res, "std")),
-        "rsd_percent": as_list(attr(res, "rsd_percent")),
-        "cond": as_list(attr(res, "cond")),
-        "sigma2": as_list(attr(res, "sigma2")),
+        raise _rank_deficient(path, e) from None
+    t = lambda_map()
+    lam = t @ np.asarray(model.beta)
+    out: dict[str, Any] = {
+        "method": METHOD_KEYS[method],
+        "lambda": lam.tolist(),
+        "converged": bool(model.converged),
+        "epochs": model.epochs,
     }
-
-
-#: Passes over the data of the two neural networks (they learn slowly from one pass).
-ADALINE_EPOCHS = 50
-HOPFIELD_EPOCHS = 20
-#: The iterative estimators start from this fraction of the paper robot's λ, so that they
-#: have something to learn even on data of the paper robot (their bindings' default start
-#: is the truth, λ of Table 3).
-INITIAL_GUESS_FACTOR = 0.5
-
-
-def _iterative(method: str, data: dict[str, Any]) -> dict[str, Any]:
-    lam0 = INITIAL_GUESS_FACTOR * prrrp.Robot.paper().base_parameters()
-    cols = (data["q"], data["qd"], data["qdd"], data["tau"])
-    dt = float(np.median(np.diff(data["t"])))
-    if method in ("adaline", "hopfield"):
-        if method == "adaline":
-            estimator = prrrp.Adaline(lam0)
-            errors = estimator.train(*cols, ADALINE_EPOCHS)
-        else:
-            estimator = prrrp.Hopfield(lam0, dt=dt)
-            errors = estimator.train(*cols, HOPFIELD_EPOCHS)
-        if not np.all(np.isfinite(errors)):
-            raise CliError(
-                f"{method}: the equation error is not finite; the data holds values too "
-                "large to compute with (remove or rescale those rows)"
-            )
-    else:
-        estimator = prrrp.Ekf(lam0, dt=dt)
-        estimator.run(*cols)
-    return {"method": method, "lambda": as_list(estimator.estimate), "initial_guess": lam0.tolist()}
-
-
-ESTIMATORS: dict[str, Callable[[str, dict[str, Any], str], dict[str, Any]]] = {
-    "least_squares": lambda m, d, p: _least_squares(d, p),
-    "adaline": lambda m, d, p: _iterative(m, d),
-    "hopfield": lambda m, d, p: _iterative(m, d),
-    "ekf": lambda m, d, p: _iterative(m, d),
-}
+    cov = model.covariance
+    if cov is not None:
+        std = np.sqrt(np.maximum(np.diag(t @ np.asarray(cov) @ t.T), 0.0))
+        out["std"] = std.tolist()
+        out["rsd_percent"] = (100.0 * std / np.abs(lam)).tolist()
+    if method == "ls":
+        n = len(data["t"])
+        rms = np.asarray(model.residual_rms)
+        out["cond"] = model.cond
+        out["sigma2"] = float(n * np.sum(rms**2) / (n * prrrp.NDOF - len(model.beta)))
+    return out
 
 
 def _estimate(method: str, data: dict[str, Any], path: str) -> dict[str, Any]:
     """One estimator's result; an estimate that is not finite (data whose magnitudes
     overflow the arithmetic, e.g. τ = 1e308 on some rows) is a usage error (exit 2)."""
     try:
-        result = ESTIMATORS[method](method, data, path)
+        result = _identify(method, data, path)
     except prrrp.NonFiniteError as e:
         raise CliError(f"{path}: {method}: {first_line(e)}") from None
     lam = np.asarray(result["lambda"], dtype=float)
@@ -186,10 +195,17 @@ def _validate(estimates: list[dict[str, Any]], data: dict[str, Any]) -> list[dic
     return out
 
 
+def _label(e: dict[str, Any]) -> str:
+    """The method's column title; a method that did not meet its stopping rule is flagged
+    on every number it prints, so that it is not read as a converged estimate."""
+    label = paper.METHOD_LABELS.get(e["method"], e["method"])
+    return label if e.get("converged", True) else f"{label} (NOT CONVERGED)"
+
+
 def _print_estimates(estimates: list[dict[str, Any]], truth: np.ndarray) -> None:
     header = ["λ", "unit"]
     for e in estimates:
-        header.append(paper.METHOD_LABELS.get(e["method"], e["method"]))
+        header.append(_label(e))
         if e.get("std") is not None:
             header += ["σ", "%σ"]
     header.append("paper robot")
@@ -197,12 +213,28 @@ def _print_estimates(estimates: list[dict[str, Any]], truth: np.ndarray) -> None
     for i in range(prrrp.NPARAM):
         row = [f"λ{i + 1}", paper.PARAMETER_UNITS[i]]
         for e in estimates:
-            row.append(f"{e['lambda'][i]:.6g}")
+            mark = "" if e.get("converged", True) else "?"
+            row.append(f"{e['lambda'][i]:.6g}{mark}")
             if e.get("std") is not None:
                 row += [f"{e['std'][i]:.3g}", f"{e['rsd_percent'][i]:.3g}"]
         row.append(f"{truth[i]:.6g}")
         rows.append(row)
     print_table(header, rows)
+    status = [
+        [
+            _label(e),
+            "yes" if e.get("converged", True) else "NO",
+            "-" if e.get("epochs") is None else str(e["epochs"]),
+        ]
+        for e in estimates
+    ]
+    print_table(["method", "converged", "epochs"], status)
+    for e in estimates:
+        if not e.get("converged", True):
+            print(
+                f"warning: {_label(e)} did not meet its stopping rule within its epoch cap; "
+                "its λ (marked ?) is not at the method's optimum"
+            )
     for e in estimates:
         if e.get("cond") is not None:
             print(f"cond(W) = {e['cond']:.4g}; residual variance σ² = {e['sigma2']:.4g}")
@@ -221,8 +253,9 @@ def run(args: argparse.Namespace) -> int:
     data = _load(args.data)
     val = _load(args.validate) if args.validate else None
     methods = list(paper.METHODS) if args.method == "all" else [METHOD_KEYS[args.method]]
+    methods = [METHOD_NAMES[m] for m in methods]
     progress = Progress()
-    estimates = []
+    estimates: list[dict[str, Any]] = []
     try:
         for k, method in enumerate(methods):
             progress("identify", k, len(methods))

@@ -126,6 +126,12 @@ def run(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def _converged(model: Any) -> str:
+    """'yes' (with the epochs of the gradient methods) or 'NO' for the summary table."""
+    epochs = f" ({model.epochs} epochs)" if model.epochs is not None else ""
+    return ("yes" if model.converged else "NO") + epochs
+
+
 def _summary(
     main: workflow.Identification,
     runs: dict[str, workflow.Identification],
@@ -143,12 +149,18 @@ def _summary(
         )
     check = val if val is not None else d
     which = "validation" if val is not None else "identification"
-    header = ["method", *list(robot.joint_names)]
+    header = ["method", "converged", *list(robot.joint_names)]
     rows = []
     for method, r in runs.items():
         p = model_report.prediction_table(r.model, check)
-        rows.append([method, *(f"{x:.3g}%" for x in p["percent"])])
+        rows.append([method, _converged(r.model), *(f"{x:.3g}%" for x in p["percent"])])
     print(f"torque-prediction error on the {which} data (% of RMS torque):")
     print_table(header, rows)
+    for method, r in runs.items():
+        if not r.model.converged:
+            print(
+                f"warning: {method} did not meet its stopping rule within {r.model.epochs} "
+                "epochs; its model is not at the method's optimum (raise max_epochs or use ls)"
+            )
     for method, e in failures.items():
         print(f"{method}: failed: {e}")

@@ -20,24 +20,34 @@
 //!   delta rule's learning rate γ_lr = μ/max_i‖x_i‖² over the scaled regressor rows x_i
 //!   (stable for μ < 2, since one row's update contracts the error by 1 − γ_lr·‖x_i‖²),
 //!   the normalised rule's step μ directly, the Hopfield gain μ/max_k‖Φ_k‖_F² per sample
-//!   (λmax(ΦᵀΦ) ≤ ‖Φ‖_F²). They train in epochs over the data with a step that halves
-//!   once the a-priori RMS equation error e comes within e² < (1 + μ)·floor² of the
-//!   least-squares residual floor (noise then dominates the update and a smaller step
-//!   averages it), until `max_epochs` or `halvings`. They converge in the poorly excited
-//!   directions at a rate set by cond² of the scaled W_b: on the Panda with friction
-//!   (64 base parameters, 2000 noisy samples) 300 epochs leave their held-out torque
-//!   error ≈ 5× that of least squares;
+//!   (λmax(ΦᵀΦ) ≤ ‖Φ‖_F²). They train in epochs over the data from γ = 0 with a step
+//!   that halves once the a-priori RMS equation error e comes within e² < (1 + μ)·floor²
+//!   of the least-squares residual floor (noise then dominates the update and a smaller
+//!   step averages it), up to `halvings` times, until the **stopping rule** holds: the
+//!   change of the estimate still to come, extrapolated geometrically from the last two
+//!   epochs' changes, below `parameter_tolerance` and the relative change of e below
+//!   `error_tolerance`, or `max_epochs` (then [`IdentifiedModel::converged`] is false).
+//!   Adaline's default is the delta rule, whose fixed point as the step shrinks is
+//!   ordinary least squares (the normalised rule's is least squares weighted by 1/‖x‖²);
+//!   so is the Hopfield network's. They converge in the poorly excited directions at a
+//!   rate set by cond² of the scaled W_b;
 //! - the EKF starts from the least-squares β̂ (the accelerations it does not need are in
 //!   the data set anyway) with a relative prior uncertainty, dt from the time stamps, and
-//!   measures positions and velocities; it holds the interval's mean torque, and its
-//!   process noise on q̇ includes the torque noise (the least-squares residual variances)
-//!   propagated through M⁻¹. τ is its input, so torque noise still moves the estimate:
-//!   on the Panda example its held-out torque error is ≈ 10× least squares'.
+//!   measures positions and velocities; it holds the interval's mean torque. R is the
+//!   configured one (optionally each joint's from the data's third differences,
+//!   `noise_from_data`), Q of q̇ from the least-squares residual variances through M⁻¹(q, λ̂) at
+//!   every sample (the torque noise, τ being the filter's input; with M at the current λ̂
+//!   the weighted innovation is the torque error itself, as in least squares, instead of
+//!   favouring large inertias);
 //!
-//! Uncertainties: LS and WLS report σ from the residual (σ² = ‖ρ‖²/(rows − B)); RLS
-//! without forgetting is exactly least squares regularised by ‖γ‖²/δ, so σ̂²·D·P·D is the
-//! covariance of β̂ with σ̂² from its residual; the EKF reports the parameter block of its
-//! covariance; Adaline and the Hopfield network give none.
+//! Uncertainties: LS and WLS report σ from the residual (σ² = ‖ρ‖²/(rows − B)) times
+//! √κ, and LS its covariance κ·σ²·(W_bᵀW_b)⁻¹, where κ ≥ 1 is the correlation time of the
+//! residuals in samples (low-pass filtered data leave ≈ rows/κ independent equations;
+//! κ = 1 for white residuals); RLS without forgetting is exactly least squares
+//! regularised by ‖γ‖²/δ, so σ̂²·D·P·D is the covariance of β̂ with σ̂² from its
+//! residual; the EKF reports the parameter block of its covariance times the same κ
+//! (the filter assumes white noise); Adaline and
+//! the Hopfield network give none.
 
 use nalgebra::{DMatrix, DVector, Dyn};
 use serde_json::json;
@@ -194,7 +204,13 @@ impl Default for RlsSettings {
 pub struct GradientSettings {
     /// Rank tolerance of the least-squares solve for cond(W_b) (default `1e-10`).
     pub rank_tolerance: f64,
-    /// Adaline's update rule (default normalised; ignored by the Hopfield network).
+    /// Adaline's update rule (default [`AdalineRule::Delta`], eq. 11; ignored by the
+    /// Hopfield network). As the step shrinks, the delta rule's epochs converge to the
+    /// ordinary least-squares solution, while the normalised rule's converge to least
+    /// squares weighted by 1/‖x_i‖² (its update divides by the row norm), which gives the
+    /// rows of a slow, weakly exciting stretch of the data the largest weight and their
+    /// noise with it: on the paper's arm that left λ̂ 3–7 % off where least squares was
+    /// within 0.6 %.
     pub rule: AdalineRule,
     /// Initial step μ, dimensionless in (0, 2) (default `0.5`): the normalised rule's
     /// step, or the delta rule's learning rate times max_i‖x_i‖², or the Hopfield gain
@@ -207,12 +223,24 @@ pub struct GradientSettings {
     /// (−c, c). Default: 4·max|γ̂_LS| of the least-squares solve (floored at the RMS
     /// torque), which leaves the gain c² − γ² within 6 % of c² for every parameter.
     pub bound: Option<f64>,
-    /// Most epochs (passes over the data), default `300`. The gradient methods converge
-    /// in the poorly excited directions at a rate set by cond² of the scaled W_b: raise
-    /// this for ill-conditioned data.
+    /// Most epochs (passes over the data), default `3000`: the cap of the stopping rule.
+    /// A run that reaches it without meeting the tolerances below is reported as not
+    /// converged ([`IdentifiedModel::converged`] = false), not as a result.
     pub max_epochs: usize,
-    /// Most step halvings before training stops (default `6`: a final step μ/64).
+    /// Most step halvings (default `8`: a final step μ/256). The step halves whenever the
+    /// epoch's a-priori RMS equation error e comes within e² < (1 + μ)·floor² of the
+    /// least-squares residual floor (see [`identify`]).
     pub halvings: usize,
+    /// Tolerance on the relative change of the estimate still to come (dimensionless,
+    /// default `1e-5`): the change per epoch δ = max_j |γ_j − γ_j⁻| / max(|γ_j|,
+    /// 1e-3·max_i|γ_i|, 0.01·σ_j/tol) over the column-scaled parameters γ (γ⁻: one epoch
+    /// earlier; σ_j least squares' standard deviation of γ_j, so that changes below 1 %
+    /// of what the data resolve count as none), extrapolated geometrically, δ·r/(1 − r)
+    /// with r the ratio of the last two δ.
+    pub parameter_tolerance: f64,
+    /// Tolerance on the relative change of the epoch's RMS equation error (dimensionless,
+    /// default `1e-6`): |e − e⁻| / e.
+    pub error_tolerance: f64,
     /// Equilibrate the columns (default `true`).
     pub scale_columns: bool,
 }
@@ -222,12 +250,14 @@ impl GradientSettings {
     pub fn adaline() -> Self {
         Self {
             rank_tolerance: LeastSquaresConfig::default().rank_tolerance,
-            rule: AdalineRule::Normalised,
+            rule: AdalineRule::Delta,
             step_size: 0.5,
             learning_rate: None,
             bound: None,
-            max_epochs: 300,
-            halvings: 6,
+            max_epochs: 3000,
+            halvings: 8,
+            parameter_tolerance: 1e-5,
+            error_tolerance: 1e-6,
             scale_columns: true,
         }
     }
@@ -271,6 +301,24 @@ pub struct EkfSettings {
     /// starts from a fit, not a guess) floored at 1e-3 of max|β₀|, and no random walk of
     /// the parameters (they are constant over a recording).
     pub config: EkfConfig,
+    /// Take the measurement noise R of each joint's position and velocity from their
+    /// third differences in the data (default `false`: on exact positions it makes R so
+    /// small that the filter fits the torque noise, and it did not reduce the error on
+    /// filtered noisy data either; module `ekf_defaults`), replacing
+    /// `config.position_noise` and `config.velocity_noise` (giving either from Python
+    /// turns this off). The process noise on q̇ is h²·M⁻¹·diag(σ²)·M⁻ᵀ from the
+    /// least-squares residual variances σ² (and (h²/2)² of it on q), added to
+    /// `config.process_position_noise` and `config.process_velocity_noise` (0 here).
+    pub noise_from_data: bool,
+    /// Take M of the process noise Q_q̇ = h²·M⁻¹·diag(σ²)·M⁻ᵀ at every sample and the
+    /// current λ̂ (default `true`) instead of once at the first sample and β₀: with a
+    /// fixed Q the filter prefers the λ with the smallest M⁻¹ (torque noise biases the
+    /// inertias up); scaled with M⁻¹(λ̂) the weighted innovation is the torque error.
+    pub process_noise_at_estimate: bool,
+    /// Multiply the reported parameter covariance by the correlation time κ ≥ 1 (samples)
+    /// of the least-squares torque residuals (default `true`): the filter assumes white
+    /// noise, and low-pass filtered data are not.
+    pub correlation_correction: bool,
 }
 
 impl Default for EkfSettings {
@@ -279,11 +327,17 @@ impl Default for EkfSettings {
             rank_tolerance: LeastSquaresConfig::default().rank_tolerance,
             initial: EkfStart::LeastSquares,
             dt: None,
+            noise_from_data: false,
+            process_noise_at_estimate: true,
+            correlation_correction: true,
             config: EkfConfig {
                 measurement: EkfMeasurement::PositionsVelocities,
                 discretisation: Discretisation::SecondOrder,
                 initial_parameter_rel_std: 0.1,
                 process_parameter_noise: 0.0,
+                // Taken from the data (`noise_from_data`); these add to it.
+                process_position_noise: 0.0,
+                process_velocity_noise: 0.0,
                 initial_parameter_min_std: 0.0,
                 ..EkfConfig::default()
             },
@@ -370,15 +424,46 @@ pub fn identify(
     };
     let mut standard: Option<Vec<f64>> = None;
     let fit = match method {
-        Method::Ls(s) | Method::Wls(s) => Fit {
-            beta: ls.lambda.clone(),
-            sigma: Some(ls.std_dev.iter().copied().collect()),
-            covariance: None,
-            settings: json!({ "rank_tolerance": s.rank_tolerance }),
-        },
+        Method::Ls(s) | Method::Wls(s) => {
+            // σ² = ‖ρ‖²/(rows − B) assumes white residuals; those of low-pass filtered
+            // data are correlated over κ samples, which leaves ≈ rows/κ independent
+            // equations, so the variances are κ times larger.
+            let kappa = residual_correlation_time(&model, &samples, &ls.lambda)?;
+            Fit {
+                beta: ls.lambda.clone(),
+                sigma: Some(ls.std_dev.iter().map(|v| v * kappa.sqrt()).collect()),
+                covariance: match method {
+                    Method::Ls(_) => ls_covariance(&model, &samples, ls.sigma2 * kappa)?
+                        .map(RawCovariance::Scaled),
+                    _ => None,
+                },
+                settings: json!({
+                    "rank_tolerance": s.rank_tolerance,
+                    "correlation_time_samples": kappa,
+                }),
+                converged: true,
+                epochs: None,
+            }
+        }
         Method::Rls(s) => rls(&model, &samples, s)?,
-        Method::Adaline(s) => gradient(&model, &samples, s, false, &ls.lambda, ls_rms(&ls))?,
-        Method::Hopfield(s) => gradient(&model, &samples, s, true, &ls.lambda, ls_rms(&ls))?,
+        Method::Adaline(s) => gradient(
+            &model,
+            &samples,
+            s,
+            false,
+            &ls.lambda,
+            ls.std_dev.as_slice(),
+            ls_rms(&ls),
+        )?,
+        Method::Hopfield(s) => gradient(
+            &model,
+            &samples,
+            s,
+            true,
+            &ls.lambda,
+            ls.std_dev.as_slice(),
+            ls_rms(&ls),
+        )?,
         Method::Ekf(s) => ekf(
             &model,
             data,
@@ -422,6 +507,8 @@ pub fn identify(
                     "residual_increase_percent": est.residual_increase_percent,
                     "non_physical_links": failing,
                 }),
+                converged: true,
+                epochs: None,
             }
         }
     };
@@ -438,10 +525,16 @@ pub fn identify(
         preprocessing,
     )?;
     out.standard = standard;
+    out.converged = fit.converged;
+    out.epochs = fit.epochs;
     let predicted = out.predict(data.q(), data.qd(), data.qdd())?;
     let (sse, rms) = residuals(&predicted, data.tau(), n);
     out.residual_rms = rms;
     let sigma = match (fit.sigma, &fit.covariance) {
+        (Some(s), Some(RawCovariance::Scaled(p))) => {
+            out.covariance = Some(p.transpose().iter().copied().collect());
+            Some(s)
+        }
         (Some(s), _) => Some(s),
         (None, Some(RawCovariance::Unscaled(p))) => {
             // σ̂² from the residual of the final estimate, as least squares does.
@@ -508,12 +601,64 @@ struct Fit {
     sigma: Option<Vec<f64>>,
     covariance: Option<RawCovariance>,
     settings: serde_json::Value,
+    /// See [`IdentifiedModel::converged`].
+    converged: bool,
+    /// Epochs of the gradient methods.
+    epochs: Option<usize>,
 }
 
 /// RMS residual of an ordinary least-squares fit over all equations.
 fn ls_rms(ls: &crate::DynLeastSquaresReport) -> f64 {
     let rows = (ls.samples * ls.joint_variances.len()) as f64;
     (ls.sigma2 * (rows - ls.lambda.len() as f64).max(0.0) / rows).sqrt()
+}
+
+/// Covariance σ̂²·(W_bᵀW_b)⁻¹ of the ordinary least-squares β̂ (the σ of the report is the
+/// root of its diagonal), or `None` when WᵀW is not numerically positive definite (then
+/// the solve reported its rank deficiency already). WᵀW is accumulated sample by sample
+/// (b×b), never the stacked W.
+fn ls_covariance(
+    model: &DynChainBaseModel,
+    samples: &DynSamples<'_>,
+    sigma2: f64,
+) -> Result<Option<DMatrix<f64>>> {
+    let (n, b) = (model.dof(), model.count());
+    let mut ws = model.workspace();
+    let mut phi = DMatrix::zeros(n, b);
+    let mut wtw = DMatrix::zeros(b, b);
+    for (k, s) in samples.iter().enumerate() {
+        if k % 1024 == 0 {
+            crate::interrupt::check("identify")?;
+        }
+        model.regressor_into(&mut ws, s.q, s.qd, s.qdd, &mut phi)?;
+        wtw.gemm_tr(1.0, &phi, &phi, 1.0);
+    }
+    Ok(wtw
+        .cholesky()
+        .map(|c| c.inverse() * sigma2)
+        .filter(|c| c.iter().all(|v| v.is_finite())))
+}
+
+/// Correlation time κ ≥ 1 (samples) of the torque residuals τ − Y_b·β over the data
+/// (see the module `ekf_defaults`).
+fn residual_correlation_time(
+    model: &DynChainBaseModel,
+    samples: &DynSamples<'_>,
+    beta: &DVector<f64>,
+) -> Result<f64> {
+    let (n, b) = (model.dof(), model.count());
+    let mut r = vec![0.0; n * samples.len()];
+    let mut ws = model.workspace();
+    let mut phi = DMatrix::zeros(n, b);
+    for (k, smp) in samples.iter().enumerate() {
+        if k % 1024 == 0 {
+            crate::interrupt::check("identify")?;
+        }
+        model.regressor_into(&mut ws, smp.q, smp.qd, smp.qdd, &mut phi)?;
+        let res = smp.tau - &phi * beta;
+        r[k * n..(k + 1) * n].copy_from_slice(res.as_slice());
+    }
+    Ok(super::ekf_defaults::correlation_time(&r, n))
 }
 
 /// Sum of squared residuals and the per-joint RMS.
@@ -566,6 +711,8 @@ fn rls(model: &DynChainBaseModel, samples: &DynSamples<'_>, s: &RlsSettings) -> 
             "scale_columns": s.scale_columns,
             "rank_tolerance": s.rank_tolerance,
         }),
+        converged: true,
+        epochs: None,
     })
 }
 
@@ -606,19 +753,53 @@ struct Training {
     halvings: usize,
     final_step: f64,
     rms: Vec<f64>,
+    converged: bool,
+    /// The last epoch's relative changes of the estimate and of the equation error.
+    parameter_change: f64,
+    error_change: f64,
 }
 
-/// Trains over epochs with step μ (dimensionless). The least-squares residual RMS `floor`
-/// is the smallest equation error any β reaches on these data: while the epoch's a-priori
-/// RMS error e is well above it, the step stays (a smaller one would only slow the
-/// descent); once e² < (1 + μ)·floor², what remains is mostly the noise the step injects
-/// (the misadjustment of LMS grows with μ), so μ halves. Training stops after `halvings`
-/// halvings, at `max_epochs`, or when e is within 1e-9 of the RMS torque of the floor
-/// (exact data). `make(μ, γ₀)` builds an estimator, `epoch` trains it once over the data.
+/// Relative change of the estimate from `prev` to `g`: max_j |g_j − prev_j| / s_j with
+/// s_j = max(|g_j|, 1e-3·max_i|g_i|, 0.01·σ_j/tol): a parameter near zero is measured
+/// against the scale of the others rather than against itself, and a change below 1 % of
+/// least squares' standard deviation σ_j of that parameter (what the data can resolve)
+/// counts as none.
+fn relative_change(g: &DVector<f64>, prev: &DVector<f64>, sigma: &[f64], tol: f64) -> f64 {
+    let floor = 1e-3 * g.amax();
+    g.iter()
+        .zip(prev.iter())
+        .zip(sigma)
+        .map(|((a, b), s)| {
+            let scale = a.abs().max(floor).max(0.01 * s / tol);
+            (a - b).abs() / scale.max(f64::MIN_POSITIVE)
+        })
+        .fold(0.0, f64::max)
+}
+
+/// Trains over epochs with step μ (dimensionless) until the stopping rule holds.
+///
+/// Step schedule: the least-squares residual RMS `floor` is the smallest equation error
+/// any β reaches on these data. While the epoch's a-priori RMS error e is well above it,
+/// the step stays (a smaller one would only slow the descent); once e² < (1 + μ)·floor²,
+/// what remains is mostly the noise the step injects (the misadjustment of normalised LMS
+/// is ≈ μ/(2 − μ) < μ), so μ halves, at most `halvings` times.
+///
+/// Stopping rule: with the data presented in a fixed order, one epoch is a contraction
+/// with a fixed point for a fixed μ, so the estimate's change per epoch δ_k
+/// ([`relative_change`]) shrinks geometrically with a ratio r = δ_k/δ_k−1, and
+/// δ_k·r/(1 − r) bounds what is left to move (a small δ_k alone is not enough: a small
+/// step moves little per epoch however far the fixed point is). Training has converged
+/// when, on an epoch without a halving, that remaining change is below
+/// `parameter_tolerance` and the relative change of e below `error_tolerance`; or when floor and e are both
+/// below 1e-9 of the RMS torque (exact data). `max_epochs` caps the run, which then reports
+/// `converged = false`. `make(μ, γ₀)` builds an estimator, `epoch` trains it once over
+/// the data.
+#[allow(clippy::too_many_arguments)]
 fn anneal<E: Estimator<Dyn, Dyn>>(
     s: &GradientSettings,
     p: usize,
     floor: f64,
+    sigma: &[f64],
     tau_rms: f64,
     make: impl Fn(f64, DVector<f64>) -> Result<E>,
     epoch: impl Fn(&mut E) -> Result<f64>,
@@ -626,23 +807,58 @@ fn anneal<E: Estimator<Dyn, Dyn>>(
     if s.max_epochs == 0 {
         return Err(invalid("max_epochs", 0.0, "must be at least 1"));
     }
+    for (name, v) in [
+        ("parameter_tolerance", s.parameter_tolerance),
+        ("error_tolerance", s.error_tolerance),
+    ] {
+        if !(v.is_finite() && v > 0.0) {
+            return Err(invalid(name, v, "must be finite and > 0"));
+        }
+    }
     let mut mu = s.step_size;
     let mut est = make(mu, DVector::zeros(p))?;
     let mut rms = Vec::with_capacity(s.max_epochs.min(4096));
     let mut halvings = 0;
+    let mut prev = est.estimate().clone();
+    let mut prev_e = f64::NAN;
+    let mut prev_step = f64::INFINITY;
+    let (mut converged, mut dg, mut de) = (false, f64::INFINITY, f64::INFINITY);
     while rms.len() < s.max_epochs {
         let e = epoch(&mut est)?;
         rms.push(e);
-        if e <= floor + 1e-9 * tau_rms {
+        let g = est.estimate();
+        let step = relative_change(g, &prev, sigma, s.parameter_tolerance);
+        // Geometric extrapolation: with a contraction ratio r = δ_k/δ_k−1 < 1 the estimate
+        // still has Σ_{i≥1} δ_k·rⁱ = δ_k·r/(1 − r) to move; r ≥ 1 is no convergence yet.
+        let ratio = step / prev_step;
+        dg = if prev_step.is_finite() && ratio < 1.0 {
+            step * ratio / (1.0 - ratio)
+        } else {
+            f64::INFINITY
+        };
+        prev_step = step;
+        de = (e - prev_e).abs() / e.max(f64::MIN_POSITIVE);
+        prev.copy_from(g);
+        prev_e = e;
+        // Exact data (a zero floor): nothing is left to learn once e is at round-off.
+        // With noise, the a-priori error of a moving estimate can dip below the floor
+        // of a fixed one, so e ≤ floor is no convergence test there.
+        if floor <= 1e-9 * tau_rms && e <= 1e-9 * tau_rms {
+            converged = true;
             break;
         }
-        if e * e < (1.0 + mu) * floor * floor {
-            if halvings == s.halvings {
-                break;
-            }
+        if halvings < s.halvings && e * e < (1.0 + mu) * floor * floor {
             halvings += 1;
             mu *= 0.5;
-            est = make(mu, est.estimate().clone())?;
+            est = make(mu, prev.clone())?;
+            // The next epoch's change is that of a new step: not a convergence test.
+            prev_e = f64::NAN;
+            prev_step = f64::INFINITY;
+            continue;
+        }
+        if dg < s.parameter_tolerance && de < s.error_tolerance {
+            converged = true;
+            break;
         }
     }
     Ok((
@@ -652,6 +868,9 @@ fn anneal<E: Estimator<Dyn, Dyn>>(
             halvings,
             final_step: mu,
             rms,
+            converged,
+            parameter_change: dg,
+            error_change: de,
         },
     ))
 }
@@ -662,9 +881,16 @@ fn gradient(
     s: &GradientSettings,
     hopfield: bool,
     beta_ls: &DVector<f64>,
+    sigma_ls: &[f64],
     floor: f64,
 ) -> Result<Fit> {
     let sm = scaled(model, samples, s.scale_columns)?;
+    // Least squares' σ in the scaled parameters γ = D⁻¹·β (for the stopping rule).
+    let sigma: Vec<f64> = sigma_ls
+        .iter()
+        .zip(sm.scale().iter())
+        .map(|(s, d)| s / d)
+        .collect();
     let tau_rms = (samples.tau().iter().map(|t| t.norm_squared()).sum::<f64>()
         / (samples.len() * samples.tau()[0].len()) as f64)
         .sqrt();
@@ -732,7 +958,7 @@ fn gradient(
             };
             DynHopfield::new(sm.clone(), g0, cfg)
         };
-        anneal(&s, p, floor, tau_rms, make, |e| {
+        anneal(&s, p, floor, &sigma, tau_rms, make, |e| {
             Ok(e.train(samples, 1)?.rms_error[0])
         })?
     } else {
@@ -753,7 +979,7 @@ fn gradient(
         if rule == AdalineRule::Delta {
             settings["learning_rate"] = json!(mu0 / row_peak);
         }
-        anneal(&s, p, floor, tau_rms, make, |e| {
+        anneal(&s, p, floor, &sigma, tau_rms, make, |e| {
             Ok(e.train(samples, 1)?.rms_error[0])
         })?
     };
@@ -762,12 +988,27 @@ fn gradient(
     settings["step_halvings"] = json!(training.halvings);
     settings["final_step_size"] = json!(training.final_step);
     settings["final_rms_error"] = json!(training.rms.last().copied().unwrap_or(0.0));
+    settings["parameter_tolerance"] = json!(s.parameter_tolerance);
+    settings["error_tolerance"] = json!(s.error_tolerance);
+    settings["final_parameter_change"] = json!(finite_or_null(training.parameter_change));
+    settings["final_error_change"] = json!(finite_or_null(training.error_change));
     Ok(Fit {
         beta: sm.to_model(&gamma),
         sigma: None,
         covariance: None,
         settings,
+        converged: training.converged,
+        epochs: Some(training.epochs),
     })
+}
+
+/// A JSON number, or null for NaN/∞ (JSON has neither).
+fn finite_or_null(v: f64) -> serde_json::Value {
+    if v.is_finite() {
+        json!(v)
+    } else {
+        serde_json::Value::Null
+    }
 }
 
 fn c_pos2(c: &EkfConfig) -> f64 {
@@ -810,26 +1051,27 @@ fn ekf(
         cfg.initial_parameter_min_std = (1e-3 * beta0.amax()).max(f64::MIN_POSITIVE);
     }
     let n = model.dof();
+    // R per joint from the data's own high-frequency content (module `ekf_defaults`),
+    // floored at 1e-12 of each signal's range so that exact data stay well posed.
+    let range = |x: &[f64]| {
+        let m = x.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+        (1e-12 * m).max(f64::MIN_POSITIVE.sqrt())
+    };
+    let (r_pos, r_vel) = if s.noise_from_data {
+        (
+            super::ekf_defaults::third_difference_noise(data.q(), n, range(data.q())),
+            super::ekf_defaults::third_difference_noise(data.qd(), n, range(data.qd())),
+        )
+    } else {
+        (vec![cfg.position_noise; n], vec![cfg.velocity_noise; n])
+    };
     let mut est = DynEkf::new(model.clone(), beta0.clone(), cfg)?;
-    // τ is the filter's input, so torque noise enters q̇ through M⁻¹: per step its
-    // variance is h²·Σ_k (M⁻¹)_jk²·σ_k², with σ_k² the least-squares residual variance of
-    // joint k and M at the first sample and β₀. Added to the configured process noise.
-    let minv = model
-        .mass_matrix(&samples.q()[0], &beta0)?
-        .try_inverse()
-        .ok_or(PrrrpError::NotPositiveDefinite {
-            what: "mass matrix M(q, β0) at the first sample (the EKF's start)",
-        })?;
-    let mut qn = DVector::zeros(2 * n + b);
-    for j in 0..n {
-        qn[j] = c_pos2(&cfg);
-        let torque: f64 = (0..n).map(|k| minv[(j, k)].powi(2) * joint_var[k]).sum();
-        qn[n + j] = cfg.process_velocity_noise.powi(2) + dt * dt * torque;
+    if s.noise_from_data {
+        est.set_measurement_noise(
+            &DVector::from_iterator(n, r_pos.iter().map(|v| v * v)),
+            &DVector::from_iterator(n, r_vel.iter().map(|v| v * v)),
+        )?;
     }
-    for i in 0..b {
-        qn[2 * n + i] = (cfg.process_parameter_noise * beta0[i].abs()).powi(2);
-    }
-    est.set_process_noise(&qn)?;
     // The filter holds τ_k over [t_k, t_k+1] (zero-order hold); a recording samples a
     // torque that varies within the interval, whose mean (τ_k + τ_k+1)/2 is what moves
     // the state to k+1 to second order.
@@ -840,9 +1082,89 @@ fn ekf(
             None => tau[k].clone(),
         })
         .collect();
+    // τ is the filter's input, so torque noise δτ moves q̇ by h·M⁻¹·δτ and q by
+    // h²/2·M⁻¹·δτ per step: Q_q̇,j = h²·Σ_k (M⁻¹)_jk²·σ_k² (and (h²/2)² of it on q), with
+    // σ_k² the least-squares residual variance of joint k. With `noise_from_data`, M is
+    // taken at each sample and the current λ̂: a Q fixed at β₀ weighs the innovations
+    // h·M⁻¹(λ)·δτ by a λ-independent weight, and the filter then prefers the λ with the
+    // smallest M⁻¹ (torque noise biased the inertias up by up to 37 % on gentle data);
+    // scaled with M⁻¹(λ̂), the weighted innovation is the torque error δτ itself, as in
+    // (weighted) least squares.
+    let base_q = c_pos2(&cfg);
+    let base_v = cfg.process_velocity_noise.powi(2);
+    let mut qn = DVector::zeros(2 * n + b);
+    for i in 0..b {
+        qn[2 * n + i] = (cfg.process_parameter_noise * beta0[i].abs()).powi(2);
+    }
+    let mut mws = model.workspace();
+    let (mut q0, mut q1, mut tau_j) = (DVector::zeros(n), DVector::zeros(n), DVector::zeros(n));
+    let mut minv = DMatrix::zeros(n, n);
+    let mut lam = beta0.clone();
+    // M⁻¹ column by column, exactly (q̈ is affine in τ): M⁻¹e_j = q̈(τ + e_j) − q̈(τ).
+    let mut update_q = |q: &DVector<f64>,
+                        qd: &DVector<f64>,
+                        tau: &DVector<f64>,
+                        lam: &DVector<f64>,
+                        qn: &mut DVector<f64>|
+     -> Result<()> {
+        model.forward_dynamics_into(&mut mws, q, qd, tau, lam, &mut q0)?;
+        for j in 0..n {
+            tau_j.copy_from(tau);
+            tau_j[j] += 1.0;
+            model.forward_dynamics_into(&mut mws, q, qd, &tau_j, lam, &mut q1)?;
+            for i in 0..n {
+                minv[(i, j)] = q1[i] - q0[i];
+            }
+        }
+        for j in 0..n {
+            let torque: f64 = (0..n).map(|k| minv[(j, k)].powi(2) * joint_var[k]).sum();
+            qn[j] = base_q + (0.5 * dt * dt).powi(2) * torque;
+            qn[n + j] = base_v + dt * dt * torque;
+        }
+        Ok(())
+    };
+    // A β₀ whose M is not positive definite starts with the configured Q only; the
+    // filter then reports the start as diverged.
+    let first = (&samples.q()[0], &samples.qd()[0], &samples.tau()[0]);
+    if update_q(first.0, first.1, first.2, &beta0, &mut qn).is_err() {
+        for j in 0..n {
+            qn[j] = base_q;
+            qn[n + j] = base_v;
+        }
+    }
+    est.set_process_noise(&qn)?;
     let held = DynSamples::new(samples.q(), samples.qd(), samples.qdd(), &held)?;
-    let beta = est.run(&held)?;
-    let cov = est.covariance().view((2 * n, 2 * n), (b, b)).clone_owned();
+    for (k, smp) in held.iter().enumerate() {
+        if k % 1024 == 0 {
+            crate::interrupt::check("identify")?;
+        }
+        if s.process_noise_at_estimate && k > 0 {
+            lam.copy_from(&est.state().rows(2 * n, b));
+            // A λ̂ whose M is not positive definite keeps the last Q; the step reports it.
+            if update_q(smp.q, smp.qd, smp.tau, &lam, &mut qn).is_ok() {
+                est.set_process_noise(&qn)?;
+            }
+        }
+        est.step(smp).map_err(|e| match e {
+            PrrrpError::NonFinite { what, row: None } => {
+                PrrrpError::NonFinite { what, row: Some(k) }
+            }
+            other => other,
+        })?;
+    }
+    let beta = est.estimate().clone();
+    if !beta.iter().all(|v| v.is_finite()) {
+        return Err(PrrrpError::NonFinite {
+            what: "EKF estimate".into(),
+            row: None,
+        });
+    }
+    let kappa = if s.correlation_correction {
+        residual_correlation_time(model, samples, beta_ls)?
+    } else {
+        1.0
+    };
+    let cov = est.covariance().view((2 * n, 2 * n), (b, b)).clone_owned() * kappa;
     let c = &cfg;
     Ok(Fit {
         beta,
@@ -859,8 +1181,12 @@ fn ekf(
                 Discretisation::Euler => "euler",
                 Discretisation::SecondOrder => "second_order",
             },
-            "position_noise": c.position_noise,
-            "velocity_noise": c.velocity_noise,
+            "position_noise": r_pos,
+            "velocity_noise": r_vel,
+            "noise_from_data": s.noise_from_data,
+            "process_noise_at_estimate": s.process_noise_at_estimate,
+            "correlation_correction": s.correlation_correction,
+            "correlation_time_samples": kappa,
             "process_position_noise": c.process_position_noise,
             "process_velocity_noise": c.process_velocity_noise,
             "process_parameter_noise": c.process_parameter_noise,
@@ -873,5 +1199,7 @@ fn ekf(
             "damped_updates": est.damped_updates(),
             "rank_tolerance": s.rank_tolerance,
         }),
+        converged: true,
+        epochs: None,
     })
 }

@@ -9,6 +9,7 @@ use serde::{Deserialize, Serialize};
 use crate::error::{PrrrpError, Result};
 use crate::models::chain::{BaseParameters, ChainDescription, DynChain, DynWorkspace};
 
+mod ekf_defaults;
 mod methods;
 pub use methods::{
     identify, identify_robot, EkfSettings, EkfStart, GradientSettings, LsSettings, Method,
@@ -80,6 +81,21 @@ pub struct IdentifiedModel {
     /// they make [`IdentifiedModel::to_urdf`] possible. Optional in the JSON (schema v1).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub standard: Option<Vec<f64>>,
+    /// Whether the method met its stopping rule. The gradient methods (Adaline, Hopfield)
+    /// train until the relative changes of the estimate and of the equation error per
+    /// epoch fall below their tolerances ([`GradientSettings`]); `false` means they hit
+    /// `max_epochs` first and β̂ is not at the method's optimum. The one-pass and closed-
+    /// form methods (LS, WLS, RLS, EKF, physical) are `true` when they finished normally
+    /// (a failure is an error, never a model). Optional in the JSON (default `true`).
+    #[serde(default = "converged_default")]
+    pub converged: bool,
+    /// Epochs (passes over the data) the gradient methods trained; `None` for the others.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub epochs: Option<usize>,
+}
+
+fn converged_default() -> bool {
+    true
 }
 
 impl IdentifiedModel {
@@ -121,6 +137,8 @@ impl IdentifiedModel {
             settings,
             preprocessing,
             standard: None,
+            converged: true,
+            epochs: None,
         };
         model.validate()?;
         Ok(model)
