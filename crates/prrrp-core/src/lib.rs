@@ -75,6 +75,7 @@ pub use estimators::{
     LeastSquaresConfig, LeastSquaresReport, LeastSquaresReportOf, PrrrpEkf, Rls, RlsConfig, RlsOf,
     Sample, SampleOf, Samples, SamplesOf, TrainingReport, PRRRP_EKF_STATES,
 };
+pub use estimators::ParameterJacobian;
 pub use identification::{
     identify, identify_least_squares, identify_robot, BaseDescription, EkfSettings, EkfStart,
     GradientSettings, IdentifiedModel, LsSettings, Method, PhysicalSettings, Predictor,

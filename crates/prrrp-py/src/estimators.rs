@@ -929,6 +929,7 @@ estimator_pymethods!(Ekf {
             initial_parameter_rel_std,
             initial_parameter_min_std,
             init_from_first_measurement,
+            ..EkfConfig::default()
         };
         if let Some(robot) = chain_arg(lam0) {
             let setup = chain_setup(py, robot, base, beta0, None)?;

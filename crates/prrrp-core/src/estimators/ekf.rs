@@ -60,6 +60,34 @@ pub enum Discretisation {
     SecondOrder,
 }
 
+/// At which acceleration the transition Jacobian A = ∂q̈/∂x is evaluated.
+///
+/// The parameter columns ∂q̈/∂λ = −M⁻¹·Φ(q, q̇, q̈) depend on the acceleration. At the
+/// filter's own prediction q̈ = M⁻¹(τ − n) they contain the noise of the measured torque
+/// τ, the filter's input, and that same noise drives the innovation (q̇ is moved by
+/// h·M⁻¹·δτ): a regressor whose noise is correlated with the equation error, an
+/// errors-in-variables problem whose estimate is biased (Ljung 1979, "Asymptotic
+/// behavior of the extended Kalman filter as a parameter estimator"). Evaluating A at an
+/// acceleration that does not contain the current torque noise, the data's q̈ (from the
+/// low-pass filtered positions, or measured), is the linearised Kalman filter about that
+/// nominal trajectory for the Jacobian; the state is still propagated with the
+/// prediction M⁻¹(τ − n). The parameter update then solves, at its fixed point,
+/// Σ (M⁻¹Φ(q̈_data))ᵀ·W·M⁻¹(τ − Φ(q̈_data)·λ) = 0, the normal equations of (weighted)
+/// least squares with the data's accelerations as instrument: consistent when q̈_data
+/// is independent of the torque noise.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum ParameterJacobian {
+    /// A at the filter's predicted acceleration M⁻¹(τ − n) (the textbook EKF; default of
+    /// the raw filters and the paper's study).
+    #[default]
+    Predicted,
+    /// A at the sample's q̈ (the data's acceleration): τ_lin = τ_ID(q̂, q̂̇, q̈_data, λ̂) is
+    /// formed and the derivatives taken at it, then q̈ is re-predicted from the measured τ.
+    /// A sample whose q̈ is NaN or ∞ falls back to [`ParameterJacobian::Predicted`]. Costs
+    /// an inverse and a forward dynamics more per step. Default of `identify(.., "ekf")`.
+    DataAcceleration,
+}
+
 /// Settings of [`Ekf`]. The paper's eq. 44 cannot be used as printed (λ₀ = 1 makes M
 /// singular in some configurations, P₀ = ones is singular, R has 18 entries for a
 /// 5-dimensional measurement); these defaults are physically sized for a robot measured
@@ -105,6 +133,9 @@ pub struct EkfConfig {
     /// Take the initial q (and q̇, when measured) from the first sample instead of zero
     /// (default `true`).
     pub init_from_first_measurement: bool,
+    /// At which acceleration the Jacobian is linearised (default
+    /// [`ParameterJacobian::Predicted`]).
+    pub parameter_jacobian: ParameterJacobian,
 }
 
 impl Default for EkfConfig {
@@ -123,6 +154,7 @@ impl Default for EkfConfig {
             initial_parameter_rel_std: 0.5,
             initial_parameter_min_std: 1e-3,
             init_from_first_measurement: true,
+            parameter_jacobian: ParameterJacobian::Predicted,
         }
     }
 }
@@ -201,6 +233,8 @@ where
     q: OVector<f64, N>,
     v: OVector<f64, N>,
     lam: OVector<f64, P>,
+    /// τ_ID(q̂, q̂̇, q̈_data, λ̂) of [`ParameterJacobian::DataAcceleration`].
+    tau_lin: OVector<f64, N>,
     innovation: OVector<f64, N>,
     k: OMatrix<f64, S, N>,
     damped_k: OMatrix<f64, S, N>,
@@ -230,6 +264,7 @@ where
             q: OVector::zeros_generic(n, U1),
             v: OVector::zeros_generic(n, U1),
             lam: OVector::zeros_generic(p, U1),
+            tau_lin: OVector::zeros_generic(n, U1),
             innovation: OVector::zeros_generic(n, U1),
             k: OMatrix::zeros_generic(s, n),
             damped_k: OMatrix::zeros_generic(s, n),
@@ -558,7 +593,7 @@ where
                 if qd_ok {
                     self.update::<FMA>(n, sample.qd, true, alpha)?;
                 }
-                match self.derivatives(false, sample.tau) {
+                match self.derivatives(false, sample.tau, sample.qdd) {
                     Ok(()) => break,
                     Err(e) => {
                         self.x.copy_from(&self.buf.x_prior);
@@ -587,7 +622,7 @@ where
                 let b = &mut self.buf;
                 b.candidate.copy_from(&self.x);
                 b.candidate.axpy(alpha, &b.step, 1.0);
-                match self.derivatives(true, sample.tau) {
+                match self.derivatives(true, sample.tau, sample.qdd) {
                     Ok(()) => {
                         self.x.copy_from(&self.buf.candidate);
                         break;
@@ -727,9 +762,15 @@ where
     }
 
     /// The model's forward dynamics and derivatives at the state (the candidate buffer
-    /// if `candidate`, else x), into the buffers.
+    /// if `candidate`, else x), into the buffers: q̈ from τ, and the Jacobian at the
+    /// acceleration chosen by [`EkfConfig::parameter_jacobian`].
     #[inline(always)]
-    fn derivatives(&mut self, candidate: bool, tau: &OVector<f64, N>) -> Result<()> {
+    fn derivatives(
+        &mut self,
+        candidate: bool,
+        tau: &OVector<f64, N>,
+        qdd: &OVector<f64, N>,
+    ) -> Result<()> {
         let n = self.n();
         let b = &mut self.buf;
         let x = if candidate { &b.candidate } else { &self.x };
@@ -737,9 +778,29 @@ where
         b.q.as_mut_slice().copy_from_slice(&xs[..n]);
         b.v.as_mut_slice().copy_from_slice(&xs[n..2 * n]);
         b.lam.as_mut_slice().copy_from_slice(&xs[2 * n..]);
-        self.model
-            .forward_derivatives_into(&mut self.ws, &b.q, &b.v, tau, &b.lam, &mut b.fd)
-            .map_err(|e| match e {
+        let at_data = self.config.parameter_jacobian == ParameterJacobian::DataAcceleration
+            && all_finite(qdd);
+        let ws = &mut self.ws;
+        let result = if at_data {
+            // The torque that produces q̈_data at the estimate: the derivatives taken at it
+            // are A at q̈_data exactly (including −M⁻¹·Φ(q̂, q̂̇, q̈_data)); the state is then
+            // propagated with the q̈ the measured τ produces.
+            self.model
+                .inverse_dynamics_into(ws, &b.q, &b.v, qdd, &b.lam, &mut b.tau_lin)
+                .and_then(|()| {
+                    self.model.forward_derivatives_into(
+                        ws, &b.q, &b.v, &b.tau_lin, &b.lam, &mut b.fd,
+                    )
+                })
+                .and_then(|()| {
+                    self.model
+                        .forward_dynamics_into(ws, &b.q, &b.v, tau, &b.lam, &mut b.fd.qdd)
+                })
+        } else {
+            self.model
+                .forward_derivatives_into(ws, &b.q, &b.v, tau, &b.lam, &mut b.fd)
+        };
+        result.map_err(|e| match e {
                 PrrrpError::NotPositiveDefinite { .. } => PrrrpError::Diverged {
                     what: "extended Kalman filter",
                     at: self.samples,
@@ -849,7 +910,8 @@ where
     /// One sample k: update with the measurement (q, and q̇ if configured), then predict
     /// to k+1 with τ_k held over the period. The returned λ̂ is the posterior at k (the
     /// prediction does not change λ). A NaN or ∞ in a measurement skips that update (see
-    /// [`EkfOf::skipped_updates`]); q̈ is ignored. If the posterior λ̂ makes M(q, λ̂)
+    /// [`EkfOf::skipped_updates`]); q̈ is used only by
+    /// [`ParameterJacobian::DataAcceleration`]. If the posterior λ̂ makes M(q, λ̂)
     /// indefinite, the update is repeated with the gain halved, up to 10 times (see
     /// [`EkfOf::damped_updates`]).
     ///

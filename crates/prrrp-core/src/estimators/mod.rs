@@ -30,6 +30,7 @@ pub use ekf::{
     Discretisation, DynEkf, Ekf, EkfAllocator, EkfConfig, EkfMeasurement, EkfOf, PrrrpEkf,
     PRRRP_EKF_STATES,
 };
+pub use ekf::ParameterJacobian;
 pub(crate) use estimator::with_row;
 pub use estimator::{Estimator, TrainingReport};
 pub use hopfield::{DynHopfield, Hopfield, HopfieldConfig, HopfieldOf};

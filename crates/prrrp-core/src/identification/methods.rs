@@ -57,7 +57,7 @@ use crate::error::{PrrrpError, Result};
 use crate::estimators::{
     least_squares, weighted_least_squares, AdalineConfig, AdalineRule, Discretisation, DynAdaline,
     DynEkf, DynHopfield, DynJointNoise, DynRls, DynSamples, EkfConfig, EkfMeasurement, Estimator,
-    HopfieldConfig, LeastSquaresConfig, RlsConfig,
+    HopfieldConfig, LeastSquaresConfig, ParameterJacobian, RlsConfig,
 };
 use crate::models::chain::{BaseOptions, BaseParameters, DynChain, DynChainBaseModel, SerialChain};
 use crate::models::prrrp::robot::Robot;
@@ -339,6 +339,7 @@ impl Default for EkfSettings {
                 process_position_noise: 0.0,
                 process_velocity_noise: 0.0,
                 initial_parameter_min_std: 0.0,
+                parameter_jacobian: ParameterJacobian::DataAcceleration,
                 ..EkfConfig::default()
             },
         }
