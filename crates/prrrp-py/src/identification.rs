@@ -348,6 +348,7 @@ fn valid_keys(method: &str) -> &'static [&'static str] {
             "init_from_first_measurement",
             "noise_from_data",
             "process_noise_at_estimate",
+            "parameter_jacobian",
             "correlation_correction",
         ],
     }
@@ -360,7 +361,7 @@ fn parse_method(
     method: &str,
     settings: Option<&Bound<'_, PyDict>>,
 ) -> PyResult<prrrp_core::Method> {
-    use prrrp_core::{AdalineRule, Discretisation, EkfMeasurement, EkfStart, Method};
+    use prrrp_core::{AdalineRule, Discretisation, EkfMeasurement, EkfStart, Method, ParameterJacobian};
     let mut m = Method::parse(method).to_py(py)?;
     let Some(settings) = settings else {
         return Ok(m);
@@ -457,10 +458,11 @@ fn parse_method(
                         c.discretisation = match v.extract::<String>()?.as_str() {
                             "euler" => Discretisation::Euler,
                             "second_order" => Discretisation::SecondOrder,
+                            "midpoint" => Discretisation::Midpoint,
                             _ => {
                                 return Err(bad(
                                     "discretisation".into(),
-                                    "must be \"euler\" or \"second_order\"",
+                                    "must be \"euler\", \"second_order\" or \"midpoint\"",
                                 ))
                             }
                         }
@@ -473,6 +475,18 @@ fn parse_method(
                     "velocity_noise" => {
                         c.velocity_noise = f()?;
                         s.noise_from_data = false;
+                    }
+                    "parameter_jacobian" => {
+                        c.parameter_jacobian = match v.extract::<String>()?.as_str() {
+                            "predicted" => ParameterJacobian::Predicted,
+                            "data_acceleration" => ParameterJacobian::DataAcceleration,
+                            _ => {
+                                return Err(bad(
+                                    "parameter_jacobian".into(),
+                                    "must be \"predicted\" or \"data_acceleration\"",
+                                ))
+                            }
+                        }
                     }
                     "noise_from_data" => s.noise_from_data = v.extract()?,
                     "correlation_correction" => s.correlation_correction = v.extract()?,

@@ -58,6 +58,14 @@ pub enum Discretisation {
     /// Adds the h²/2·q̈ term to the position: q⁺ = q + h·q̇ + h²/2·q̈, q̇⁺ = q̇ + h·q̈, exact
     /// when q̈ is constant over the sample (torque held by a zero-order hold). Same cost.
     SecondOrder,
+    /// Explicit midpoint (RK2) for q̇, with q̈ and the Jacobian taken at the state half a
+    /// period on, x_½ = (q + h/2·q̇ + h²/8·q̈₀, q̇ + h/2·q̈₀): q̇⁺ = q̇ + h·q̈_½, q⁺ = q + h·q̇ +
+    /// h²/6·(q̈₀ + 2·q̈_½). With the interval's mean torque as input, q̇⁺ − q̇ is then right
+    /// to O(h³) instead of O(h²): the other two evaluate M and n at the start of the
+    /// interval, half a period off, which biases λ̂ by O(h) (3 % on the wrist inertia at
+    /// 50 Hz on exact data). The covariance is propagated with F = I + h·B + h²/2-terms
+    /// at x_½ (as [`Discretisation::SecondOrder`]). One forward dynamics more per step.
+    Midpoint,
 }
 
 /// At which acceleration the transition Jacobian A = ∂q̈/∂x is evaluated.
@@ -235,6 +243,8 @@ where
     lam: OVector<f64, P>,
     /// τ_ID(q̂, q̂̇, q̈_data, λ̂) of [`ParameterJacobian::DataAcceleration`].
     tau_lin: OVector<f64, N>,
+    /// q̈ at the start of the interval ([`Discretisation::Midpoint`]).
+    qdd_start: OVector<f64, N>,
     innovation: OVector<f64, N>,
     k: OMatrix<f64, S, N>,
     damped_k: OMatrix<f64, S, N>,
@@ -265,6 +275,7 @@ where
             v: OVector::zeros_generic(n, U1),
             lam: OVector::zeros_generic(p, U1),
             tau_lin: OVector::zeros_generic(n, U1),
+            qdd_start: OVector::zeros_generic(n, U1),
             innovation: OVector::zeros_generic(n, U1),
             k: OMatrix::zeros_generic(s, n),
             damped_k: OMatrix::zeros_generic(s, n),
@@ -593,7 +604,7 @@ where
                 if qd_ok {
                     self.update::<FMA>(n, sample.qd, true, alpha)?;
                 }
-                match self.derivatives(false, sample.tau, sample.qdd) {
+                match self.derivatives(false, sample) {
                     Ok(()) => break,
                     Err(e) => {
                         self.x.copy_from(&self.buf.x_prior);
@@ -622,7 +633,7 @@ where
                 let b = &mut self.buf;
                 b.candidate.copy_from(&self.x);
                 b.candidate.axpy(alpha, &b.step, 1.0);
-                match self.derivatives(true, sample.tau, sample.qdd) {
+                match self.derivatives(true, sample) {
                     Ok(()) => {
                         self.x.copy_from(&self.buf.candidate);
                         break;
@@ -765,12 +776,8 @@ where
     /// if `candidate`, else x), into the buffers: q̈ from τ, and the Jacobian at the
     /// acceleration chosen by [`EkfConfig::parameter_jacobian`].
     #[inline(always)]
-    fn derivatives(
-        &mut self,
-        candidate: bool,
-        tau: &OVector<f64, N>,
-        qdd: &OVector<f64, N>,
-    ) -> Result<()> {
+    fn derivatives(&mut self, candidate: bool, sample: SampleOf<'_, N>) -> Result<()> {
+        let (tau, qdd) = (sample.tau, sample.qdd);
         let n = self.n();
         let b = &mut self.buf;
         let x = if candidate { &b.candidate } else { &self.x };
@@ -778,28 +785,44 @@ where
         b.q.as_mut_slice().copy_from_slice(&xs[..n]);
         b.v.as_mut_slice().copy_from_slice(&xs[n..2 * n]);
         b.lam.as_mut_slice().copy_from_slice(&xs[2 * n..]);
+        let ws = &mut self.ws;
+        let mut result = Ok(());
+        if self.config.discretisation == Discretisation::Midpoint {
+            // q̈ at the start of the interval, then the state half a period on, where the
+            // derivatives (and the q̈ that moves the state) are taken.
+            let h = self.config.dt;
+            result = self
+                .model
+                .forward_dynamics_into(ws, &b.q, &b.v, tau, &b.lam, &mut b.qdd_start);
+            for i in 0..n {
+                let a = b.qdd_start[i];
+                b.q[i] += 0.5 * h * b.v[i] + 0.125 * h * h * a;
+                b.v[i] += 0.5 * h * a;
+            }
+        }
         let at_data = self.config.parameter_jacobian == ParameterJacobian::DataAcceleration
             && all_finite(qdd);
-        let ws = &mut self.ws;
-        let result = if at_data {
-            // The torque that produces q̈_data at the estimate: the derivatives taken at it
-            // are A at q̈_data exactly (including −M⁻¹·Φ(q̂, q̂̇, q̈_data)); the state is then
-            // propagated with the q̈ the measured τ produces.
-            self.model
-                .inverse_dynamics_into(ws, &b.q, &b.v, qdd, &b.lam, &mut b.tau_lin)
-                .and_then(|()| {
-                    self.model.forward_derivatives_into(
-                        ws, &b.q, &b.v, &b.tau_lin, &b.lam, &mut b.fd,
-                    )
-                })
-                .and_then(|()| {
-                    self.model
-                        .forward_dynamics_into(ws, &b.q, &b.v, tau, &b.lam, &mut b.fd.qdd)
-                })
-        } else {
-            self.model
-                .forward_derivatives_into(ws, &b.q, &b.v, tau, &b.lam, &mut b.fd)
-        };
+        let result = result.and_then(|()| {
+            if at_data {
+                // The torque that produces q̈_data at the estimate: the derivatives taken
+                // at it are A at q̈_data exactly (including −M⁻¹·Φ(q̂, q̂̇, q̈_data)); the
+                // state is then propagated with the q̈ the measured τ produces.
+                self.model
+                    .inverse_dynamics_into(ws, &b.q, &b.v, qdd, &b.lam, &mut b.tau_lin)
+                    .and_then(|()| {
+                        self.model.forward_derivatives_into(
+                            ws, &b.q, &b.v, &b.tau_lin, &b.lam, &mut b.fd,
+                        )
+                    })
+                    .and_then(|()| {
+                        self.model
+                            .forward_dynamics_into(ws, &b.q, &b.v, tau, &b.lam, &mut b.fd.qdd)
+                    })
+            } else {
+                self.model
+                    .forward_derivatives_into(ws, &b.q, &b.v, tau, &b.lam, &mut b.fd)
+            }
+        });
         result.map_err(|e| match e {
                 PrrrpError::NotPositiveDefinite { .. } => PrrrpError::Diverged {
                     what: "extended Kalman filter",
@@ -847,7 +870,7 @@ where
         // qq, qλ, qv, vv, vλ. G_q, G_v, G_λ are the row blocks of G.
         let c = match self.config.discretisation {
             Discretisation::Euler => 0.0,
-            Discretisation::SecondOrder => 0.5 * h,
+            Discretisation::SecondOrder | Discretisation::Midpoint => 0.5 * h,
         };
         let h2 = h * h;
         let (hc, h2c, h2c2) = (h * c, h2 * c, h2 * c * c);
@@ -894,6 +917,16 @@ where
         mirror_upper(p, s);
 
         let qdd = &fd.qdd;
+        if self.config.discretisation == Discretisation::Midpoint {
+            // q̇ by the midpoint rule; q by h²/6·(q̈_0 + 2·q̈_½), exact for a q̈ linear in t.
+            let a0 = &b.qdd_start;
+            for i in 0..n {
+                let (qi, vi) = (self.x[i], self.x[n + i]);
+                self.x[i] = qi + h * vi + h2 / 6.0 * (a0[i] + 2.0 * qdd[i]);
+                self.x[n + i] = vi + h * qdd[i];
+            }
+            return;
+        }
         for i in 0..n {
             let (qi, vi) = (self.x[i], self.x[n + i]);
             self.x[i] = qi + h * vi + hc * qdd[i];

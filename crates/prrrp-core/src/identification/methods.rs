@@ -1181,9 +1181,14 @@ fn ekf(
             "discretisation": match c.discretisation {
                 Discretisation::Euler => "euler",
                 Discretisation::SecondOrder => "second_order",
+                Discretisation::Midpoint => "midpoint",
             },
             "position_noise": r_pos,
             "velocity_noise": r_vel,
+            "parameter_jacobian": match c.parameter_jacobian {
+                ParameterJacobian::Predicted => "predicted",
+                ParameterJacobian::DataAcceleration => "data_acceleration",
+            },
             "noise_from_data": s.noise_from_data,
             "process_noise_at_estimate": s.process_noise_at_estimate,
             "correlation_correction": s.correlation_correction,
