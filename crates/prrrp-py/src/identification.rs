@@ -349,6 +349,7 @@ fn valid_keys(method: &str) -> &'static [&'static str] {
             "noise_from_data",
             "process_noise_at_estimate",
             "parameter_jacobian",
+            "least_squares_prior_width",
             "correlation_correction",
         ],
     }
@@ -489,6 +490,7 @@ fn parse_method(
                         }
                     }
                     "noise_from_data" => s.noise_from_data = v.extract()?,
+                    "least_squares_prior_width" => s.least_squares_prior_width = f()?,
                     "correlation_correction" => s.correlation_correction = v.extract()?,
                     "process_noise_at_estimate" => s.process_noise_at_estimate = v.extract()?,
                     "process_position_noise" => c.process_position_noise = f()?,
