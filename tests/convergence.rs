@@ -43,10 +43,13 @@ fn run(d: &DynDataset, m: &Method) -> IdentifiedModel {
 fn gradient_methods_converge_to_least_squares() {
     let d = data(3);
     let ls = run(&d, &Method::parse("ls").unwrap());
-    let sigma = ls.sigma.clone().unwrap();
     for name in ["adaline", "hopfield"] {
         let t0 = std::time::Instant::now();
         let m = run(&d, &Method::parse(name).unwrap());
+        // Distances in the scale the stopping rule measures "no change" in (the pooled
+        // least-squares σ); LS's reported σ is the per-joint sandwich, smaller for the
+        // poorly excited parameters, see the note of issue 16.
+        let sigma: Vec<f64> = serde_json::from_value(m.settings["stopping_scale"].clone()).unwrap();
         let secs = t0.elapsed().as_secs_f64();
         let worst = m
             .beta
@@ -111,8 +114,10 @@ fn least_squares_covariance_and_white_residuals() {
             v.sqrt()
         );
     }
-    let kappa = ls.settings["correlation_time_samples"].as_f64().unwrap();
-    assert!((1.0..1.3).contains(&kappa), "white residuals: κ = {kappa}");
+    for kappa in ls.settings["correlation_time_samples"].as_array().unwrap() {
+        let kappa = kappa.as_f64().unwrap();
+        assert!((1.0..1.3).contains(&kappa), "white residuals: κ = {kappa}");
+    }
     // A model JSON without the new fields (written before them) reads as converged.
     let mut v: serde_json::Value = serde_json::from_str(&ls.to_json().unwrap()).unwrap();
     let obj = v.as_object_mut().unwrap();

@@ -6,7 +6,7 @@ use std::f64::consts::PI;
 use proptest::prelude::*;
 use prrrp_core::{
     sample_trajectory, ExcitationTrajectory, FourierSeries, JointTrajectory, PiecewiseQuintic,
-    PrrrpError, Quintic, ScalarTrajectory, Sinusoid,
+    PrrrpError, Quintic, Reflected, ScalarTrajectory, Sinusoid,
 };
 
 /// Fourth-order central differences of q: errors ~ h⁴·q⁽⁵⁾/30 plus rounding ~ ε·|q|/h.
@@ -190,4 +190,88 @@ fn joint_trajectories_route_each_joint() {
     assert_eq!(sampled.t, vec![0.0, 0.5, 1.0, 1.5, 2.0]);
     assert_eq!(sampled.q[4], traj.eval(2.0).q);
     assert!(sample_trajectory(&traj, 0.0, 0.0, 5).is_err());
+}
+
+/// A rest-to-rest 5-joint trajectory on [0, 2] s: sinusoids with q̇ = 0 at both ends and
+/// piecewise quintics through a moving via-point.
+fn rest_to_rest(end_speed: f64) -> ExcitationTrajectory<3> {
+    let s = |o: f64, a: f64| Sinusoid {
+        offset: o,
+        amplitude: a,
+        omega: PI,
+        phase: PI / 2.0,
+    };
+    let rq = |v: f64| {
+        PiecewiseQuintic::new(
+            [0.0, 1.1, 2.0],
+            [v, 0.3 - v, -v],
+            [0.0, 0.7 * v, end_speed],
+            [0.0, -0.5, 0.0],
+        )
+        .unwrap()
+    };
+    ExcitationTrajectory {
+        prismatic: [s(0.1, 0.02), s(0.05, 0.01)],
+        revolute: [rq(1.0), rq(-0.6), rq(0.4)],
+    }
+}
+
+/// The reflected trajectory equals the inner one on [0, D], is the time mirror on
+/// [D, 2D], is periodic with 2D, and is C² across every turn.
+#[test]
+fn reflected_trajectory_is_c2_across_turns() {
+    let inner = rest_to_rest(0.0);
+    let r = Reflected::new(inner).unwrap();
+    assert_eq!(r.half_period(), 2.0);
+    assert_eq!(r.end_time(), None);
+    for t in [0.0, 0.3, 1.1, 1.999] {
+        assert_eq!(r.eval(t), inner.eval(t));
+        let (a, b) = (r.eval(4.0 - t), inner.eval(t));
+        assert!((a.q - b.q).amax() < 1e-12 && (a.qd + b.qd).amax() < 1e-12);
+        assert!((a.qdd - b.qdd).amax() < 1e-12);
+        assert!((r.eval(t + 8.0).q - b.q).amax() < 1e-12);
+    }
+    // C²: q, q̇, q̈ have the same limits from both sides of every turn (ε·jerk apart);
+    // the jerk changes sign there, so C³ is not claimed.
+    let eps = 1e-7;
+    for turn in [2.0, 4.0, 6.0, 10.0] {
+        let (a, b) = (r.eval(turn - eps), r.eval(turn + eps));
+        assert!((a.q - b.q).amax() < 1e-9, "q at {turn}");
+        assert!(
+            (a.qd - b.qd).amax() < 1e-6,
+            "q̇ at {turn}: {} vs {}",
+            a.qd,
+            b.qd
+        );
+        assert!(
+            (a.qdd - b.qdd).amax() < 1e-5,
+            "q̈ at {turn}: {} vs {}",
+            a.qdd,
+            b.qdd
+        );
+        // and q̇ is the derivative of q across the turn (central difference, O(h²)).
+        let h = 1e-5;
+        let d1 = (r.eval(turn + h).q - r.eval(turn - h).q) / (2.0 * h);
+        assert!((r.eval(turn).qd - d1).amax() < 1e-8, "q̇ at {turn}");
+    }
+}
+
+/// Only a trajectory with an end, at rest at both ends, is reflected.
+#[test]
+fn reflected_refuses_trajectories_not_at_rest() {
+    let moving = rest_to_rest(0.2);
+    assert!(matches!(
+        Reflected::new(moving),
+        Err(PrrrpError::InvalidParameter { .. })
+    ));
+    let endless = [Sinusoid {
+        offset: 0.0,
+        amplitude: 0.1,
+        omega: 1.0,
+        phase: PI / 2.0,
+    }; 5];
+    assert!(matches!(
+        Reflected::new(endless),
+        Err(PrrrpError::InvalidParameter { .. })
+    ));
 }

@@ -257,6 +257,12 @@ class Excitation:
         """(q, qd, qdd): (5,) each for a scalar t (s), (N, 5) each for t of shape (N,)."""
     def sample(self, t: _ArrayLike) -> _Triple:
         """Same as `eval`."""
+    def reflected(self) -> Excitation:
+        """The same excitation played forward and backward in turn, defined for every
+        t ≥ 0 (period 2·duration; C² at every turn since it starts and ends at rest): the
+        reference of a recording longer than one excitation. `duration` stays one pass."""
+    @property
+    def is_reflected(self) -> bool: ...
 
 class SinusoidReference:
     """q_i(t) = offset_i + amplitude_i·sin(omega_i·t + phase_i); each argument (5,)."""

@@ -61,6 +61,35 @@ def test_simulation_does_not_run_past_the_excitation():
         prrrp.simulate_closed_loop(exc, end + 2.0)
 
 
+def test_a_longer_recording_plays_the_excitation_forward_and_backward():
+    """`Excitation.reflected()` (what `prrrp simulate --duration` longer than the excitation
+    follows): the same motion mirrored in time, so the tracked arm stays within the limits
+    the excitation was designed for and is tracked as well as on the first pass."""
+    exc = prrrp.optimise_excitation(max_evaluations=400, restarts=0)
+    end = exc.duration
+    ref = exc.reflected()
+    assert ref.is_reflected
+    assert not exc.is_reflected
+    assert ref.duration == end
+    t = np.linspace(0.0, end, 101)
+    q, qd, qdd = exc.eval(t)
+    q2, qd2, qdd2 = ref.eval(2 * end - t)
+    assert np.allclose(q2, q, atol=1e-12)
+    assert np.allclose(qd2, -qd, atol=1e-12)
+    assert np.allclose(qdd2, qdd, atol=1e-12)
+    zero = np.zeros(5)
+    rec = prrrp.simulate_closed_loop(ref, 3 * end, q_noise=zero, tau_noise=zero)
+    qs = np.asarray(rec["q"])
+    assert len(qs) == round(3 * end / 0.02) + 1
+    lim = prrrp.joint_limits()
+    assert np.all(qs <= np.asarray(lim["q_max"]) + 1e-3)
+    assert np.all(qs >= np.asarray(lim["q_min"]) - 1e-3)
+    # The closed loop tracks the reflected reference as well as the first pass.
+    err = np.abs(qs - np.asarray(rec["q_ref"])).max(axis=0)
+    first = np.abs(qs[: len(t)] - np.asarray(rec["q_ref"])[: len(t)]).max(axis=0)
+    assert np.all(err <= 10 * first + 1e-9)
+
+
 @pytest.mark.parametrize(
     "call",
     [

@@ -120,7 +120,8 @@ pub use motion::simulation::{
 };
 pub use motion::trajectory::{
     sample_trajectory, DynTrajectory, ExcitationTrajectory, FourierSeries, JointTrajectory,
-    PiecewiseQuintic, Quintic, SampledTrajectory, ScalarTrajectory, Sinusoid, TrajectoryPoint,
+    PiecewiseQuintic, Quintic, Reflected, SampledTrajectory, ScalarTrajectory, Sinusoid,
+    TrajectoryPoint, REFLECTED_REST_TOLERANCE,
 };
 pub use paper::sensitivity::{sensitivity, SensitivityConfig, SensitivityReport};
 pub use paper::study::{

@@ -57,7 +57,8 @@ def add_parser(sub: Any) -> None:
         type=float,
         default=None,
         metavar="S",
-        help="simulated time, s (default: the excitation's period, 10 s)",
+        help="simulated time, s (default: the excitation's duration, 10 s; longer: the "
+        "excitation is played forward and backward in turn, see Excitation.reflected)",
     )
     simulate_robot.add_arguments(p)
     p.set_defaults(func=run)
@@ -70,6 +71,16 @@ def _noise(scale: float) -> tuple[Any, Any]:
         scale * np.asarray(DEFAULT_Q_NOISE, dtype=float),
         scale * np.asarray(DEFAULT_TAU_NOISE, dtype=float),
     )
+
+
+def reference_for(excitation: Any, duration: float) -> Any:
+    """The reference a recording of ``duration`` s follows: the excitation itself, or, for a
+    recording longer than it, the excitation played forward and backward in turn (it
+    starts and ends at rest, so the reflection is C² and stays within the same limits;
+    a longer recording sees the same motion again rather than a gentler one)."""
+    if duration > excitation.duration * (1 + 1e-9):
+        return excitation.reflected()
+    return excitation
 
 
 def run(args: argparse.Namespace) -> int:
@@ -92,7 +103,11 @@ def run(args: argparse.Namespace) -> int:
     duration = args.duration if args.duration is not None else attr(excitation, "duration", 10.0)
     q_noise, tau_noise = _noise(args.noise)
     rec = prrrp.simulate_closed_loop(
-        excitation, duration, q_noise=q_noise, tau_noise=tau_noise, seed=args.seed
+        reference_for(excitation, duration),
+        duration,
+        q_noise=q_noise,
+        tau_noise=tau_noise,
+        seed=args.seed,
     )
     text = csvio.format_measurements(rec["t"], rec["q_measured"], rec["tau_measured"])
     csvio.write_text_atomic(out, text)

@@ -262,6 +262,8 @@ where
     candidate: OVector<f64, S>,
     x_prior: OVector<f64, S>,
     p_prior: OMatrix<f64, S, S>,
+    /// max_j (H·P·Hᵀ)_jj / R_j of the last gain: how much the update cancels.
+    prior_to_noise: f64,
 }
 
 impl<N: Dim, P: Dim, S: Dim> Buffers<N, P, S>
@@ -292,6 +294,7 @@ where
             candidate: OVector::zeros_generic(s, U1),
             x_prior: OVector::zeros_generic(s, U1),
             p_prior: OMatrix::zeros_generic(s, s),
+            prior_to_noise: 0.0,
         }
     }
 }
@@ -683,10 +686,12 @@ where
         let (n, s) = (self.n(), self.x.nrows());
         let r = if velocity { &self.r_vel } else { &self.r_pos };
         let b = &mut self.buf;
+        b.prior_to_noise = 0.0;
         for j in 0..n {
             for i in 0..n {
                 b.sz[(i, j)] = self.p[(o + i, o + j)];
             }
+            b.prior_to_noise = b.prior_to_noise.max(b.sz[(j, j)] / r[j]);
             b.sz[(j, j)] += r[j];
         }
         if !cholesky(b.sz.as_slice(), n, b.chol.as_mut_slice()) {
@@ -717,14 +722,16 @@ where
             b.damped_k.copy_from(&b.k);
             b.damped_k *= alpha;
         }
-        if alpha == 1.0 && s > ACC_ROWS {
+        if alpha == 1.0 && s > ACC_ROWS && b.prior_to_noise <= RANK_N_MAX_PRIOR_TO_NOISE {
             // The optimal gain at a chain's size: P ← P − W·Wᵀ with W = P_·z·L⁻ᵀ (S_z =
             // L·Lᵀ), the symmetric rank-N form of P − K·S_z·Kᵀ, on the upper triangle: half
             // the multiply-adds of the Joseph form. Justified because K is not an
             // approximation here but P_·z·S_z⁻¹ formed from this same P in this step, so the
             // Joseph form's first-order insensitivity to gain errors buys nothing; the
             // rounding of the subtraction is ε·P_ii·(P_zz/R) at most (a few digits of 16
-            // for the largest prior-to-noise ratios the filter meets). Whole columns, yet
+            // for prior-to-noise ratios up to RANK_N_MAX_PRIOR_TO_NOISE; beyond, e.g. on
+            // exact data, the cancellation loses definiteness and the Joseph form below
+            // is used). Whole columns, yet
             // bit-for-bit symmetric: entry (i, j) and (j, i) sum the same exact products
             // W_im·W_jm in the same order, so no mirroring is needed. A damped gain keeps
             // the Joseph form below.
@@ -1150,6 +1157,14 @@ fn w_from_pz<const FMA: bool>(pzs: &[f64], linv: &[f64], ws: &mut [f64], n: usiz
         }
     }
 }
+
+/// Largest prior-to-noise ratio max_j (H·P·Hᵀ)_jj / R_j at which the covariance update
+/// uses the rank-N form P − W·Wᵀ. Its rounding grows with the ratio, and the entries it
+/// cancels are the correlated ones: on exact data (R at its floor, P₀ from a prior) 1e6
+/// still lost definiteness in `tests/identify_methods.rs`, 1e2 did not; the
+/// Joseph form keeps P positive definite past it, and the steady state of a filter is
+/// well below it.
+const RANK_N_MAX_PRIOR_TO_NOISE: f64 = 1e2;
 
 /// Rows and columns of the register tile of [`minus_w_wt`] and [`p_times_at_blocked`]: an
 /// 8×4 block of accumulators (eight AVX2 registers) reused over the whole inner sum, so

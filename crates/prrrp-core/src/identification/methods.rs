@@ -436,23 +436,38 @@ pub fn identify(
         least_squares(&model, &samples, &config)?
     };
     let mut standard: Option<Vec<f64>> = None;
+    // The least-squares covariance from the residuals (see `ls_covariance`).
+    let cov = match method {
+        Method::Ls(_) | Method::Wls(_) => {
+            let weights: Vec<f64> = match method {
+                Method::Wls(_) => ls.joint_variances.iter().map(|v| 1.0 / v).collect(),
+                _ => vec![1.0; n],
+            };
+            Some(ls_covariance(&model, &samples, &ls.lambda, &weights)?)
+        }
+        _ => None,
+    };
+    let sandwich_sigma: Vec<f64> = match cov.as_ref().and_then(|c| c.covariance.as_ref()) {
+        Some(c) => c.diagonal().iter().map(|v| v.max(0.0).sqrt()).collect(),
+        // A singular WᵀW cannot happen after a full-rank solve; keep the solver's own σ
+        // should round-off say otherwise.
+        None => ls.std_dev.iter().copied().collect(),
+    };
     let fit = match method {
         Method::Ls(s) | Method::Wls(s) => {
-            // σ² = ‖ρ‖²/(rows − B) assumes white residuals; those of low-pass filtered
-            // data are correlated over κ samples, which leaves ≈ rows/κ independent
-            // equations, so the variances are κ times larger.
-            let kappa = residual_correlation_time(&model, &samples, &ls.lambda)?;
+            let (covariance, variances, kappas) = match cov {
+                Some(c) => (c.covariance, c.variances, c.kappas),
+                None => (None, Vec::new(), Vec::new()),
+            };
             Fit {
                 beta: ls.lambda.clone(),
-                sigma: Some(ls.std_dev.iter().map(|v| v * kappa.sqrt()).collect()),
-                covariance: match method {
-                    Method::Ls(_) => ls_covariance(&model, &samples, ls.sigma2 * kappa)?
-                        .map(RawCovariance::Scaled),
-                    _ => None,
-                },
+                sigma: Some(sandwich_sigma),
+                covariance: covariance.map(RawCovariance::Scaled),
                 settings: json!({
                     "rank_tolerance": s.rank_tolerance,
-                    "correlation_time_samples": kappa,
+                    "covariance": "sandwich: per-joint residual variances and correlation times",
+                    "joint_residual_variances": variances,
+                    "correlation_time_samples": kappas,
                 }),
                 converged: true,
                 epochs: None,
@@ -626,30 +641,73 @@ fn ls_rms(ls: &crate::DynLeastSquaresReport) -> f64 {
     (ls.sigma2 * (rows - ls.lambda.len() as f64).max(0.0) / rows).sqrt()
 }
 
-/// Covariance σ̂²·(W_bᵀW_b)⁻¹ of the ordinary least-squares β̂ (the σ of the report is the
-/// root of its diagonal), or `None` when WᵀW is not numerically positive definite (then
-/// the solve reported its rank deficiency already). WᵀW is accumulated sample by sample
-/// (b×b), never the stacked W.
+/// Covariance of a (weighted) least-squares β̂ and what it was built from.
+struct LsCovariance {
+    covariance: Option<DMatrix<f64>>,
+    /// Residual variance of each joint's equations (units of τ_j²).
+    variances: Vec<f64>,
+    /// Correlation time κ_j ≥ 1 of each joint's residuals (samples).
+    kappas: Vec<f64>,
+}
+
+/// The covariance of β̂ = A⁻¹·Σ_j w_j·W_jᵀ·τ_j (A = Σ_j w_j·W_jᵀ·W_j, joint weights w_j: 1
+/// for least squares, 1/σ_j² for weighted) under what the residuals show: each joint's
+/// own variance s_j² and correlation time κ_j (samples, see `ekf_defaults`), i.e. the
+/// sandwich A⁻¹·(Σ_j w_j²·κ_j·s_j²·W_jᵀ·W_j)·A⁻¹. Why not σ̂²·(WᵀW)⁻¹: the joints of an
+/// arm differ in noise by decades (N on a prismatic base, mN·m at a wrist), and one pooled
+/// σ̂² made the wrist's σ tens of times larger than its error and the base's smaller;
+/// low-pass filtered data have residuals correlated over κ samples, leaving ≈ rows/κ
+/// independent equations. With white residuals of equal variance it is σ̂²·(WᵀW)⁻¹.
 fn ls_covariance(
     model: &DynChainBaseModel,
     samples: &DynSamples<'_>,
-    sigma2: f64,
-) -> Result<Option<DMatrix<f64>>> {
-    let (n, b) = (model.dof(), model.count());
+    beta: &DVector<f64>,
+    weights: &[f64],
+) -> Result<LsCovariance> {
+    let (n, b, m) = (model.dof(), model.count(), samples.len());
     let mut ws = model.workspace();
     let mut phi = DMatrix::zeros(n, b);
-    let mut wtw = DMatrix::zeros(b, b);
-    for (k, s) in samples.iter().enumerate() {
+    let mut grams = vec![DMatrix::<f64>::zeros(b, b); n];
+    let mut r = vec![0.0; n * m];
+    for (k, smp) in samples.iter().enumerate() {
         if k % 1024 == 0 {
             crate::interrupt::check("identify")?;
         }
-        model.regressor_into(&mut ws, s.q, s.qd, s.qdd, &mut phi)?;
-        wtw.gemm_tr(1.0, &phi, &phi, 1.0);
+        model.regressor_into(&mut ws, smp.q, smp.qd, smp.qdd, &mut phi)?;
+        for (j, g) in grams.iter_mut().enumerate() {
+            let row = phi.row(j);
+            g.ger(1.0, &row.transpose(), &row.transpose(), 1.0);
+        }
+        let res = smp.tau - &phi * beta;
+        r[k * n..(k + 1) * n].copy_from_slice(res.as_slice());
     }
-    Ok(wtw
+    // The residual degrees of freedom shared equally among the joints, as the solver does.
+    let dof = (m as f64 - b as f64 / n as f64).max(1.0);
+    let mut variances = Vec::with_capacity(n);
+    let mut kappas = Vec::with_capacity(n);
+    for j in 0..n {
+        let rj: Vec<f64> = (0..m).map(|k| r[k * n + j]).collect();
+        variances.push(rj.iter().map(|v| v * v).sum::<f64>() / dof);
+        kappas.push(super::ekf_defaults::correlation_time(&rj, 1));
+    }
+    let mut a = DMatrix::zeros(b, b);
+    let mut meat = DMatrix::zeros(b, b);
+    for j in 0..n {
+        a += &grams[j] * weights[j];
+        meat += &grams[j] * (weights[j] * weights[j] * kappas[j] * variances[j]);
+    }
+    let covariance = a
         .cholesky()
-        .map(|c| c.inverse() * sigma2)
-        .filter(|c| c.iter().all(|v| v.is_finite())))
+        .map(|c| {
+            let ai = c.inverse();
+            &ai * meat * &ai
+        })
+        .filter(|c| c.iter().all(|v| v.is_finite()));
+    Ok(LsCovariance {
+        covariance,
+        variances,
+        kappas,
+    })
 }
 
 /// Covariance (Σ_k Y_kᵀ·Σ⁻¹·Y_k)⁻¹ of the joint-variance weighted least-squares β̂ with
@@ -1034,6 +1092,8 @@ fn gradient(
     settings["final_step_size"] = json!(training.final_step);
     settings["final_rms_error"] = json!(training.rms.last().copied().unwrap_or(0.0));
     settings["parameter_tolerance"] = json!(s.parameter_tolerance);
+    // The scale of "no change" (the solver's pooled least-squares σ, see the module docs).
+    settings["stopping_scale"] = json!(sigma_ls);
     settings["error_tolerance"] = json!(s.error_tolerance);
     settings["final_parameter_change"] = json!(finite_or_null(training.parameter_change));
     settings["final_error_change"] = json!(finite_or_null(training.error_change));

@@ -437,6 +437,75 @@ impl<const K: usize> JointTrajectory for ExcitationTrajectory<K> {
     }
 }
 
+/// A rest-to-rest trajectory played forward and backward in turn, so that it is defined
+/// for every t ≥ 0: with D the inner trajectory's end, period 2D, q(t) = q_in(u) for
+/// u = t mod 2D ≤ D and q_in(2D − u) beyond (q̇ changes sign, q̈ does not). Why this and
+/// not repeating it: an excitation generally does not end where it starts, so a repetition
+/// jumps, whereas the reflection is twice continuously differentiable at every turn when
+/// the inner trajectory starts and ends at rest (q̇ = 0 there; q̈ is even under time
+/// reversal). A recording longer than one excitation is then the same excitation seen
+/// again, in the same joint ranges and within the same limits.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Reflected<T> {
+    inner: T,
+    end: f64,
+}
+
+/// Largest end speed of a [`Reflected`] trajectory, relative to its peak speed (the
+/// polynomials of an excitation reach rest to round-off; their sinusoids to ~1e-7).
+pub const REFLECTED_REST_TOLERANCE: f64 = 1e-4;
+
+impl<T: JointTrajectory> Reflected<T> {
+    /// Wraps `inner`, which must have a finite end D > 0 (s) and be at rest at t = 0 and
+    /// t = D (|q̇| ≤ [`REFLECTED_REST_TOLERANCE`] of its peak speed, checked on 1000 points).
+    ///
+    /// # Errors
+    /// [`PrrrpError::InvalidParameter`] for a trajectory without a finite end or not at
+    /// rest at its ends.
+    pub fn new(inner: T) -> Result<Self> {
+        let end = inner.end_time().unwrap_or(f64::NAN);
+        if !(end.is_finite() && end > 0.0) {
+            return Err(PrrrpError::InvalidParameter {
+                field: "end of the reflected trajectory, s".into(),
+                value: end,
+                reason: "must be finite and > 0: only a trajectory on [0, D] is reflected",
+            });
+        }
+        let peak = (0..=1000)
+            .map(|k| inner.eval(end * k as f64 / 1000.0).qd.amax())
+            .fold(0.0, f64::max);
+        let ends = inner.eval(0.0).qd.amax().max(inner.eval(end).qd.amax());
+        if ends > REFLECTED_REST_TOLERANCE * peak.max(f64::MIN_POSITIVE) {
+            return Err(PrrrpError::InvalidParameter {
+                field: "end speed of the reflected trajectory, rad/s or m/s".into(),
+                value: ends,
+                reason: "the trajectory must start and end at rest to be played backward \
+                         without a jump in velocity",
+            });
+        }
+        Ok(Self { inner, end })
+    }
+
+    /// The inner trajectory's end D (s): half the period.
+    pub fn half_period(&self) -> f64 {
+        self.end
+    }
+}
+
+impl<T: JointTrajectory> JointTrajectory for Reflected<T> {
+    #[inline]
+    fn eval(&self, t: f64) -> TrajectoryPoint {
+        let u = t.rem_euclid(2.0 * self.end);
+        if u <= self.end {
+            self.inner.eval(u)
+        } else {
+            let mut p = self.inner.eval(2.0 * self.end - u);
+            p.qd = -p.qd;
+            p
+        }
+    }
+}
+
 /// A trajectory sampled on a time grid: one [`Vec5`] per sample.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct SampledTrajectory {

@@ -102,10 +102,17 @@ fn simulate_closed_loop<'py>(
     let cfg = config(dt, substeps, kp, kd, q_noise, tau_noise, seed)?;
     let model = Robot::paper().model();
     let rec = if let Ok(e) = reference.extract::<PyRef<'_, Excitation>>() {
-        let traj = e.inner.trajectory;
-        interruptible(py, || {
-            core_closed(&model, &lam, &ctrl, &traj, duration, &cfg)
-        })?
+        if let Some(r) = e.reflected_trajectory() {
+            let traj = r.to_py(py)?;
+            interruptible(py, || {
+                core_closed(&model, &lam, &ctrl, &traj, duration, &cfg)
+            })?
+        } else {
+            let traj = e.inner.trajectory;
+            interruptible(py, || {
+                core_closed(&model, &lam, &ctrl, &traj, duration, &cfg)
+            })?
+        }
     } else if let Ok(s) = reference.extract::<PyRef<'_, SinusoidReference>>() {
         let traj = s.inner;
         interruptible(py, || {

@@ -4,8 +4,9 @@
 
 use nalgebra::SVector;
 use prrrp_core::{
-    optimise_excitation as core_optimise, ExcitationConfig, ExcitationResult, JointLimits,
-    JointTrajectory, PrrrpError, Robot, Sinusoid, Vec5, DEFAULT_EXCITATION_KNOTS, NDOF,
+    optimise_excitation as core_optimise, ExcitationConfig, ExcitationResult, ExcitationTrajectory,
+    JointLimits, JointTrajectory, PrrrpError, Reflected, Robot, Sinusoid, Vec5,
+    DEFAULT_EXCITATION_KNOTS, NDOF,
 };
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
@@ -100,6 +101,18 @@ pub(crate) struct Excitation {
     pub(crate) inner: Result,
     duration: f64,
     dt: f64,
+    /// Played forward and backward in turn beyond `duration` (see `reflected`).
+    pub(crate) reflected: bool,
+}
+
+impl Excitation {
+    /// The trajectory as simulations and `eval` see it: reflected or not.
+    pub(crate) fn reflected_trajectory(
+        &self,
+    ) -> Option<prrrp_core::Result<Reflected<ExcitationTrajectory<DEFAULT_EXCITATION_KNOTS>>>> {
+        self.reflected
+            .then(|| Reflected::new(self.inner.trajectory))
+    }
 }
 
 #[pymethods]
@@ -155,7 +168,10 @@ impl Excitation {
         py: Python<'py>,
         t: &Bound<'py, PyAny>,
     ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>, Bound<'py, PyAny>)> {
-        eval_at(py, &self.inner.trajectory, t)
+        match self.reflected_trajectory() {
+            Some(r) => eval_at(py, &r.to_py(py)?, t),
+            None => eval_at(py, &self.inner.trajectory, t),
+        }
     }
     /// Same as `eval`.
     fn sample<'py>(
@@ -163,12 +179,31 @@ impl Excitation {
         py: Python<'py>,
         t: &Bound<'py, PyAny>,
     ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>, Bound<'py, PyAny>)> {
-        eval_at(py, &self.inner.trajectory, t)
+        self.eval(py, t)
+    }
+    /// The same excitation played forward and backward in turn, defined for every t ≥ 0
+    /// (period 2·duration): a recording longer than one excitation sees it again, C² at
+    /// every turn since it starts and ends at rest, within the same limits. `duration`
+    /// stays that of one pass.
+    fn reflected(&self, py: Python<'_>) -> PyResult<Self> {
+        Reflected::new(self.inner.trajectory).to_py(py)?;
+        Ok(Self {
+            inner: self.inner,
+            duration: self.duration,
+            dt: self.dt,
+            reflected: true,
+        })
+    }
+    /// Whether this is the forward-and-backward form of `reflected()`.
+    #[getter]
+    fn is_reflected(&self) -> bool {
+        self.reflected
     }
     fn __repr__(&self) -> String {
         format!(
-            "<prrrp.Excitation duration={} s, dt={} s, cond {:.4} -> {:.4}, {} evaluations>",
+            "<prrrp.Excitation duration={} s{}, dt={} s, cond {:.4} -> {:.4}, {} evaluations>",
             self.duration,
+            if self.reflected { " (reflected)" } else { "" },
             self.dt,
             self.inner.cond_initial,
             self.inner.cond_final,
@@ -236,6 +271,7 @@ fn optimise_excitation(
         inner: result.to_py(py)?,
         duration,
         dt,
+        reflected: false,
     })
 }
 
