@@ -61,6 +61,7 @@ pub use data::{
     LOG_MAX_UPSAMPLING, LOG_UNIFORM_TOLERANCE,
 };
 pub use error::{PrrrpError, Result};
+pub use estimators::ParameterJacobian;
 pub use estimators::{
     base_feasibility, default_coulomb_scales, identify_physical, select_coulomb_scale,
     BaseFeasibility, CoulombScaleConfig, CoulombScaleReport, PhysicalConfig, PhysicalEstimate,
@@ -75,7 +76,6 @@ pub use estimators::{
     LeastSquaresConfig, LeastSquaresReport, LeastSquaresReportOf, PrrrpEkf, Rls, RlsConfig, RlsOf,
     Sample, SampleOf, Samples, SamplesOf, TrainingReport, PRRRP_EKF_STATES,
 };
-pub use estimators::ParameterJacobian;
 pub use identification::{
     identify, identify_least_squares, identify_robot, BaseDescription, EkfSettings, EkfStart,
     GradientSettings, IdentifiedModel, LsSettings, Method, PhysicalSettings, Predictor,

@@ -362,7 +362,9 @@ fn parse_method(
     method: &str,
     settings: Option<&Bound<'_, PyDict>>,
 ) -> PyResult<prrrp_core::Method> {
-    use prrrp_core::{AdalineRule, Discretisation, EkfMeasurement, EkfStart, Method, ParameterJacobian};
+    use prrrp_core::{
+        AdalineRule, Discretisation, EkfMeasurement, EkfStart, Method, ParameterJacobian,
+    };
     let mut m = Method::parse(method).to_py(py)?;
     let Some(settings) = settings else {
         return Ok(m);

@@ -798,9 +798,9 @@ where
             // q̈ at the start of the interval, then the state half a period on, where the
             // derivatives (and the q̈ that moves the state) are taken.
             let h = self.config.dt;
-            result = self
-                .model
-                .forward_dynamics_into(ws, &b.q, &b.v, tau, &b.lam, &mut b.qdd_start);
+            result =
+                self.model
+                    .forward_dynamics_into(ws, &b.q, &b.v, tau, &b.lam, &mut b.qdd_start);
             for i in 0..n {
                 let a = b.qdd_start[i];
                 b.q[i] += 0.5 * h * b.v[i] + 0.125 * h * h * a;
@@ -817,9 +817,8 @@ where
                 self.model
                     .inverse_dynamics_into(ws, &b.q, &b.v, qdd, &b.lam, &mut b.tau_lin)
                     .and_then(|()| {
-                        self.model.forward_derivatives_into(
-                            ws, &b.q, &b.v, &b.tau_lin, &b.lam, &mut b.fd,
-                        )
+                        self.model
+                            .forward_derivatives_into(ws, &b.q, &b.v, &b.tau_lin, &b.lam, &mut b.fd)
                     })
                     .and_then(|()| {
                         self.model
@@ -831,15 +830,15 @@ where
             }
         });
         result.map_err(|e| match e {
-                PrrrpError::NotPositiveDefinite { .. } => PrrrpError::Diverged {
-                    what: "extended Kalman filter",
-                    at: self.samples,
-                    hint: "M(q, λ̂) is not positive definite: the parameter estimate left the \
+            PrrrpError::NotPositiveDefinite { .. } => PrrrpError::Diverged {
+                what: "extended Kalman filter",
+                at: self.samples,
+                hint: "M(q, λ̂) is not positive definite: the parameter estimate left the \
                            physical region; start from a better λ0, lower the initial \
                            parameter uncertainty or raise the measurement noise",
-                },
-                other => other,
-            })
+            },
+            other => other,
+        })
     }
 
     /// Time update with the derivatives in the buffers: x ← f(x, τ), P ← F·P·Fᵀ + Q.

@@ -26,11 +26,11 @@ pub use coulomb_scale::{
     default_coulomb_scales, select_coulomb_scale, CoulombScaleConfig, CoulombScaleReport,
     COULOMB_SCALE_GRID, COULOMB_SCALE_RANGE, MAX_COULOMB_CANDIDATES,
 };
+pub use ekf::ParameterJacobian;
 pub use ekf::{
     Discretisation, DynEkf, Ekf, EkfAllocator, EkfConfig, EkfMeasurement, EkfOf, PrrrpEkf,
     PRRRP_EKF_STATES,
 };
-pub use ekf::ParameterJacobian;
 pub(crate) use estimator::with_row;
 pub use estimator::{Estimator, TrainingReport};
 pub use hopfield::{DynHopfield, Hopfield, HopfieldConfig, HopfieldOf};

@@ -323,8 +323,8 @@ pub struct EkfSettings {
     /// (a relative or absolute floor mixes kg, kg·m and kg·m²): a 10 % diagonal prior
     /// let poorly excited small parameters wander out of the physical region in the first
     /// second of gentle data. The data then count 1/w² twice (the prior's information is
-    /// 1/w² of theirs), which narrows the reported σ by ≤ 1/(2w²) ≈ 6 %. `0` or a start
-    /// other than least squares keeps the diagonal prior.
+    /// 1/w² of theirs), so the reported covariance is multiplied by 1 + 1/w². `0` or a
+    /// start other than least squares keeps the diagonal prior.
     pub least_squares_prior_width: f64,
     /// Multiply the reported parameter covariance by the correlation time κ ≥ 1 (samples)
     /// of the least-squares torque residuals (default `true`): the filter assumes white
@@ -650,20 +650,19 @@ struct LsCovariance {
     kappas: Vec<f64>,
 }
 
-/// The covariance of β̂ = A⁻¹·Σ_j w_j·W_jᵀ·τ_j (A = Σ_j w_j·W_jᵀ·W_j, joint weights w_j: 1
-/// for least squares, 1/σ_j² for weighted) under what the residuals show: each joint's
-/// own variance s_j² and correlation time κ_j (samples, see `ekf_defaults`), i.e. the
-/// sandwich A⁻¹·(Σ_j w_j²·κ_j·s_j²·W_jᵀ·W_j)·A⁻¹. Why not σ̂²·(WᵀW)⁻¹: the joints of an
-/// arm differ in noise by decades (N on a prismatic base, mN·m at a wrist), and one pooled
-/// σ̂² made the wrist's σ tens of times larger than its error and the base's smaller;
-/// low-pass filtered data have residuals correlated over κ samples, leaving ≈ rows/κ
-/// independent equations. With white residuals of equal variance it is σ̂²·(WᵀW)⁻¹.
-fn ls_covariance(
+/// Per-joint Gram matrices W_jᵀ·W_j of the base regressor, and the variance s_j² and
+/// correlation time κ_j (samples) of each joint's residuals τ_j − W_j·β.
+struct JointMoments {
+    grams: Vec<DMatrix<f64>>,
+    variances: Vec<f64>,
+    kappas: Vec<f64>,
+}
+
+fn joint_moments(
     model: &DynChainBaseModel,
     samples: &DynSamples<'_>,
     beta: &DVector<f64>,
-    weights: &[f64],
-) -> Result<LsCovariance> {
+) -> Result<JointMoments> {
     let (n, b, m) = (model.dof(), model.count(), samples.len());
     let mut ws = model.workspace();
     let mut phi = DMatrix::zeros(n, b);
@@ -690,6 +689,33 @@ fn ls_covariance(
         variances.push(rj.iter().map(|v| v * v).sum::<f64>() / dof);
         kappas.push(super::ekf_defaults::correlation_time(&rj, 1));
     }
+    Ok(JointMoments {
+        grams,
+        variances,
+        kappas,
+    })
+}
+
+/// The covariance of β̂ = A⁻¹·Σ_j w_j·W_jᵀ·τ_j (A = Σ_j w_j·W_jᵀ·W_j, joint weights w_j: 1
+/// for least squares, 1/σ_j² for weighted) under what the residuals show: each joint's
+/// own variance s_j² and correlation time κ_j (samples, see `ekf_defaults`), i.e. the
+/// sandwich A⁻¹·(Σ_j w_j²·κ_j·s_j²·W_jᵀ·W_j)·A⁻¹. Why not σ̂²·(WᵀW)⁻¹: the joints of an
+/// arm differ in noise by decades (N on a prismatic base, mN·m at a wrist), and one pooled
+/// σ̂² made the wrist's σ tens of times larger than its error and the base's smaller;
+/// low-pass filtered data have residuals correlated over κ samples, leaving ≈ rows/κ
+/// independent equations. With white residuals of equal variance it is σ̂²·(WᵀW)⁻¹.
+fn ls_covariance(
+    model: &DynChainBaseModel,
+    samples: &DynSamples<'_>,
+    beta: &DVector<f64>,
+    weights: &[f64],
+) -> Result<LsCovariance> {
+    let (n, b) = (model.dof(), model.count());
+    let JointMoments {
+        grams,
+        variances,
+        kappas,
+    } = joint_moments(model, samples, beta)?;
     let mut a = DMatrix::zeros(b, b);
     let mut meat = DMatrix::zeros(b, b);
     for j in 0..n {
@@ -740,28 +766,6 @@ fn weighted_covariance(
         .cholesky()
         .map(|c| c.inverse())
         .filter(|c| c.iter().all(|v| v.is_finite())))
-}
-
-/// Correlation time κ ≥ 1 (samples) of the torque residuals τ − Y_b·β over the data
-/// (see the module `ekf_defaults`).
-fn residual_correlation_time(
-    model: &DynChainBaseModel,
-    samples: &DynSamples<'_>,
-    beta: &DVector<f64>,
-) -> Result<f64> {
-    let (n, b) = (model.dof(), model.count());
-    let mut r = vec![0.0; n * samples.len()];
-    let mut ws = model.workspace();
-    let mut phi = DMatrix::zeros(n, b);
-    for (k, smp) in samples.iter().enumerate() {
-        if k % 1024 == 0 {
-            crate::interrupt::check("identify")?;
-        }
-        model.regressor_into(&mut ws, smp.q, smp.qd, smp.qdd, &mut phi)?;
-        let res = smp.tau - &phi * beta;
-        r[k * n..(k + 1) * n].copy_from_slice(res.as_slice());
-    }
-    Ok(super::ekf_defaults::correlation_time(&r, n))
 }
 
 /// Sum of squared residuals and the per-joint RMS.
@@ -1183,7 +1187,8 @@ fn ekf(
     if w > 0.0 && matches!(s.initial, EkfStart::LeastSquares) {
         if let Some(cov) = weighted_covariance(model, samples, joint_var)? {
             let mut p0 = est.covariance().clone();
-            p0.view_mut((2 * n, 2 * n), (b, b)).copy_from(&(cov * (w * w)));
+            p0.view_mut((2 * n, 2 * n), (b, b))
+                .copy_from(&(cov * (w * w)));
             // Exactly symmetric, as `set_initial_covariance` requires.
             let p0 = (&p0 + p0.transpose()) * 0.5;
             if est.set_initial_covariance(&p0).is_ok() {
@@ -1284,12 +1289,35 @@ fn ekf(
             row: None,
         });
     }
-    let kappa = if s.correlation_correction {
-        residual_correlation_time(model, samples, beta_ls)?
+    // The filter's P_λ is the inverse of the information it assumed: white torque noise
+    // of the variances σ_j² of Q. The residuals of its estimate show each joint's actual
+    // variance s_j² and correlation time κ_j, so the reported covariance is the sandwich
+    // P_λ·(Σ_j κ_j·s_j²/σ_j⁴·W_jᵀW_j)·P_λ (for white residuals of the assumed variances
+    // ≈ P_λ, as the filter's information is ≈ Σ_j W_jᵀW_j/σ_j²).
+    let p_lambda = est.covariance().view((2 * n, 2 * n), (b, b)).clone_owned();
+    let (cov, kappas) = if s.correlation_correction {
+        let mom = joint_moments(model, samples, &est.estimate().clone())?;
+        let mut meat = DMatrix::zeros(b, b);
+        for j in 0..n {
+            // A joint without residual (exact data) adds no noise.
+            if !(joint_var[j] > 0.0 && mom.variances[j].is_finite()) {
+                continue;
+            }
+            let w = 1.0 / joint_var[j];
+            meat += &mom.grams[j] * (w * w * mom.kappas[j] * mom.variances[j]);
+        }
+        let c = &p_lambda * meat * &p_lambda;
+        ((&c + c.transpose()) * 0.5, mom.kappas)
     } else {
-        1.0
+        (p_lambda, vec![1.0; n])
     };
-    let cov = est.covariance().view((2 * n, 2 * n), (b, b)).clone_owned() * kappa;
+    // The least-squares prior took its information, 1/w² of theirs, from the same data:
+    // remove that double count from the reported covariance.
+    let cov = if prior == "least_squares" {
+        cov * (1.0 + 1.0 / (w * w))
+    } else {
+        cov
+    };
     let c = &cfg;
     Ok(Fit {
         beta,
@@ -1318,7 +1346,7 @@ fn ekf(
             "correlation_correction": s.correlation_correction,
             "least_squares_prior_width": w,
             "prior": prior,
-            "correlation_time_samples": kappa,
+            "correlation_time_samples": kappas,
             "process_position_noise": c.process_position_noise,
             "process_velocity_noise": c.process_velocity_noise,
             "process_parameter_noise": c.process_parameter_noise,
