@@ -919,7 +919,12 @@ def identify(
     `measurement`, `discretisation`, the noise settings of `Ekf` (a given `position_noise`
     or `velocity_noise` replaces the one from the data), `noise_from_data` (R from the data's
     third differences, default False), `process_noise_at_estimate` (default True),
-    `correlation_correction` (default True); physical `prior`
+    `correlation_correction` (default True: a sandwich covariance with each joint's
+    residual variance and correlation time), `parameter_jacobian` ("predicted" or
+    "data_acceleration", the default: the Jacobian linearised at the data's q̈, free of the
+    input-noise bias), `least_squares_prior_width` (default 3: P0 of β is 3² times the
+    weighted least-squares covariance; 0 for the diagonal prior); `discretisation` of
+    ekf also takes "midpoint" (its default); physical `prior`
     (standard parameters π0, e.g. `robot.parameters`; default a 1 kg body per link),
     `prior_weight` (≥ 0, default 0: the prior only fixes what the data do not see). The
     model records the settings used, including the values chosen from the data.

@@ -1298,12 +1298,12 @@ fn ekf(
     let (cov, kappas) = if s.correlation_correction {
         let mom = joint_moments(model, samples, &est.estimate().clone())?;
         let mut meat = DMatrix::zeros(b, b);
-        for j in 0..n {
+        for (j, &var) in joint_var.iter().enumerate().take(n) {
             // A joint without residual (exact data) adds no noise.
-            if !(joint_var[j] > 0.0 && mom.variances[j].is_finite()) {
+            if !(var > 0.0 && mom.variances[j].is_finite()) {
                 continue;
             }
-            let w = 1.0 / joint_var[j];
+            let w = 1.0 / var;
             meat += &mom.grams[j] * (w * w * mom.kappas[j] * mom.variances[j]);
         }
         let c = &p_lambda * meat * &p_lambda;
