@@ -492,14 +492,34 @@ pub fn identify(
             ls.std_dev.as_slice(),
             ls_rms(&ls),
         )?,
-        Method::Ekf(s) => ekf(
-            &model,
-            data,
-            &samples,
-            s,
-            &ls.lambda,
-            ls.joint_variances.as_slice(),
-        )?,
+        Method::Ekf(s) => {
+            let run = |s: &EkfSettings| {
+                ekf(
+                    &model,
+                    data,
+                    &samples,
+                    s,
+                    &ls.lambda,
+                    ls.joint_variances.as_slice(),
+                )
+            };
+            match run(s) {
+                // The midpoint state is extrapolated half a period with the start's q̈; on
+                // a λ̂ near the edge of the physical region M can lose definiteness there
+                // first (seen on a 7-joint arm at 100 Hz). The second-order update, whose
+                // bias is O(h) instead of O(h²), is then used and the settings say so.
+                Err(PrrrpError::Diverged { .. })
+                    if s.config.discretisation == Discretisation::Midpoint =>
+                {
+                    let mut fallback = s.clone();
+                    fallback.config.discretisation = Discretisation::SecondOrder;
+                    let mut fit = run(&fallback)?;
+                    fit.settings["midpoint_diverged"] = json!(true);
+                    fit
+                }
+                r => r?,
+            }
+        }
         Method::Physical(s) => {
             let config = crate::PhysicalConfig {
                 prior: s.prior.clone(),
