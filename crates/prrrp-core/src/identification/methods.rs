@@ -506,9 +506,10 @@ pub fn identify(
             match run(s) {
                 // The midpoint state is extrapolated half a period with the start's q̈; on
                 // a λ̂ near the edge of the physical region M can lose definiteness there
-                // first (seen on a 7-joint arm at 100 Hz). The second-order update, whose
+                // first, or the covariance lose definiteness (seen on 7-joint arms at
+                // 100 Hz, not understood yet). The second-order update, whose
                 // bias is O(h) instead of O(h²), is then used and the settings say so.
-                Err(PrrrpError::Diverged { .. })
+                Err(PrrrpError::Diverged { .. } | PrrrpError::NotPositiveDefinite { .. })
                     if s.config.discretisation == Discretisation::Midpoint =>
                 {
                     let mut fallback = s.clone();
