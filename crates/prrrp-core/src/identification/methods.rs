@@ -45,8 +45,11 @@
 //! residuals in samples (low-pass filtered data leave ≈ rows/κ independent equations;
 //! κ = 1 for white residuals); RLS without forgetting is exactly least squares
 //! regularised by ‖γ‖²/δ, so σ̂²·D·P·D is the covariance of β̂ with σ̂² from its
-//! residual; the EKF reports the parameter block of its covariance times the same κ
-//! (the filter assumes white noise); Adaline and
+//! residual; the EKF (Jacobian at the data's q̈, midpoint discretisation, prior 3² times
+//! the weighted least-squares covariance) reports the sandwich P_λ·(Σ_j κ_j·s_j²/σ_j⁴·
+//! W_jᵀW_j)·P_λ of its covariance with each joint's residual variance s_j² and
+//! correlation time κ_j (the filter assumes white noise of variances σ_j²), times
+//! 1 + 1/3² for the prior's reuse of the data; Adaline and
 //! the Hopfield network give none.
 
 use nalgebra::{DMatrix, DVector, Dyn};
