@@ -13,6 +13,7 @@ METHODS: tuple[str, ...] = ("least_squares", "adaline", "hopfield", "ekf")
 #: Human-readable method names for tables and legends.
 METHOD_LABELS: dict[str, str] = {
     "least_squares": "Least squares",
+    "weighted_least_squares": "Weighted LS",
     "adaline": "Adaline",
     "hopfield": "Hopfield",
     "ekf": "EKF",

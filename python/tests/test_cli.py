@@ -353,6 +353,36 @@ def test_simulate_identify_round_trip(tmp_path: Path, capsys: pytest.CaptureFixt
     assert np.all(np.asarray(v["torque_rms"]) < 3 * np.asarray(cli.DEFAULT_TAU_NOISE))
 
 
+@needs_simulation
+def test_identify_defaults_to_joint_weighted_least_squares(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Without --method the paper's arm gets least squares weighted by each joint's
+    residual noise; `all` runs it first, then the paper's four. With F1's noise in N and the
+    wrist's in N·m (the default sensor model at 3×), weighting is the best linear unbiased
+    estimate: each σ_i is at most the ordinary fit's (Gauss–Markov), both estimates cover
+    the truth within 4σ, and the weighted one is within 2 %."""
+    data, out, out_all = tmp_path / "d.csv", tmp_path / "w.json", tmp_path / "all.json"
+    code, _, err = run(["simulate", "--out", str(data), "--seed", "5", "--noise", "3"], capsys)
+    assert code == 0, err
+    code, stdout, err = run(["identify", str(data), "--out", str(out)], capsys)
+    assert code == 0, err
+    assert "Weighted LS" in stdout
+    (wls,) = json.loads(out.read_text())["estimates"]
+    assert wls["method"] == "weighted_least_squares"
+    code, _, err = run(["identify", str(data), "--method", "all", "--out", str(out_all)], capsys)
+    assert code == 0, err
+    estimates = json.loads(out_all.read_text())["estimates"]
+    assert [e["method"] for e in estimates] == ["weighted_least_squares", *paper.METHODS]
+    ols = estimates[1]
+    truth = prrrp.Robot.paper().base_parameters()
+    for e in (wls, ols):
+        assert np.all(np.abs(np.asarray(e["lambda"]) - truth) <= 4 * np.asarray(e["std"]))
+    np.testing.assert_allclose(wls["lambda"], truth, rtol=0.02)
+    # 5 % slack: both σ are themselves estimated from the residuals.
+    assert np.all(np.asarray(wls["std"]) <= 1.05 * np.asarray(ols["std"]))
+
+
 def test_simulate_longer_than_the_excitation(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

@@ -99,7 +99,7 @@ def test_identify_any_robot_bad_input(tmp_path: Path, truth, capsys):
     assert cli.main(argv) == cli.EXIT_USAGE
     assert "missing columns 'q6', 'q7'" in capsys.readouterr().err
     assert not (tmp_path / "o").exists()
-    assert cli.main(["identify", str(puma), "--method", "wls"]) == cli.EXIT_USAGE
+    assert cli.main(["identify", str(puma), "--method", "rls"]) == cli.EXIT_USAGE
     assert "needs --robot" in capsys.readouterr().err
 
 

@@ -26,9 +26,17 @@ from prrrp.cli.common import (
 )
 
 #: Methods of the paper's arm (without --robot).
-PAPER_METHODS = ("ls", "adaline", "hopfield", "ekf", "all")
+PAPER_METHODS = ("wls", "ls", "adaline", "hopfield", "ekf", "all")
 METHOD_CHOICES = (*workflow.METHODS, "all")
-METHOD_KEYS = {"ls": "least_squares", "adaline": "adaline", "hopfield": "hopfield", "ekf": "ekf"}
+METHOD_KEYS = {
+    "wls": "weighted_least_squares",
+    "ls": "least_squares",
+    "adaline": "adaline",
+    "hopfield": "hopfield",
+    "ekf": "ekf",
+}
+#: What ``--method all`` runs on the paper's arm: the default, then the paper's four.
+PAPER_ALL = ("weighted_least_squares", *paper.METHODS)
 #: The method names of ``prrrp.identify`` by result key.
 METHOD_NAMES = {v: k for k, v in METHOD_KEYS.items()}
 
@@ -50,10 +58,11 @@ def add_parser(sub: Any) -> None:
     p.add_argument(
         "--method",
         choices=METHOD_CHOICES,
-        default="ls",
-        help="ls = least squares (with σ and cond(W)), wls = weighted, rls, adaline, "
-        "hopfield, ekf, physical (physically consistent), or all (default: ls; the paper's "
-        "arm: ls, adaline, hopfield, ekf, all)",
+        default=workflow.DEFAULT_METHOD,
+        help="wls = least squares with each joint weighted by its residual noise (the "
+        "default), ls = ordinary least squares (the paper's), rls, adaline, hopfield, ekf, "
+        "physical (physically consistent), or all (the paper's arm: wls, ls, adaline, "
+        "hopfield, ekf, all); least squares print σ and cond(W)",
     )
     p.add_argument("--validate", metavar="VAL.csv", help="validation measurement file")
     p.add_argument(
@@ -151,7 +160,7 @@ def _identify(method: str, data: dict[str, Any], path: str) -> dict[str, Any]:
         std = np.sqrt(np.maximum(np.diag(t @ np.asarray(cov) @ t.T), 0.0))
         out["std"] = std.tolist()
         out["rsd_percent"] = (100.0 * std / np.abs(lam)).tolist()
-    if method == "ls":
+    if method in ("ls", "wls"):
         n = len(data["t"])
         rms = np.asarray(model.residual_rms)
         out["cond"] = model.cond
@@ -237,7 +246,10 @@ def _print_estimates(estimates: list[dict[str, Any]], truth: np.ndarray) -> None
             )
     for e in estimates:
         if e.get("cond") is not None:
-            print(f"cond(W) = {e['cond']:.4g}; residual variance σ² = {e['sigma2']:.4g}")
+            print(
+                f"{_label(e)}: cond(W) = {e['cond']:.4g}; "
+                f"torque residual variance σ² = {e['sigma2']:.4g}"
+            )
 
 
 def run(args: argparse.Namespace) -> int:
@@ -252,7 +264,7 @@ def run(args: argparse.Namespace) -> int:
         check_output_file(out)
     data = _load(args.data)
     val = _load(args.validate) if args.validate else None
-    methods = list(paper.METHODS) if args.method == "all" else [METHOD_KEYS[args.method]]
+    methods = list(PAPER_ALL) if args.method == "all" else [METHOD_KEYS[args.method]]
     methods = [METHOD_NAMES[m] for m in methods]
     progress = Progress()
     estimates: list[dict[str, Any]] = []
