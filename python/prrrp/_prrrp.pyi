@@ -913,9 +913,11 @@ def identify(
     Settings (keywords; an unknown one is a TypeError naming the valid ones): all methods
     `rank_tolerance`; rls `forgetting`, `initial_covariance`, `scale_columns`; adaline
     `rule`, `step_size` (0, 2), `learning_rate` (delta rule; unstable → error),
-    `max_epochs`, `halvings`, `parameter_tolerance`, `error_tolerance`, `scale_columns`;
-    hopfield `step_size`, `bound`, `max_epochs`, `halvings`, `parameter_tolerance`,
-    `error_tolerance`, `scale_columns`; ekf `initial` ("ls", "prior" or β0), `dt`,
+    `max_epochs`, `halvings`, `parameter_tolerance`, `error_tolerance`, `scale_columns`,
+    `whiten` (default True: the network runs on parameters whose regressor columns are
+    orthogonal, so that it converges in tens of epochs whatever cond(W)); hopfield
+    `step_size`, `bound`, `max_epochs`, `halvings`, `parameter_tolerance`,
+    `error_tolerance`, `scale_columns`, `whiten`; ekf `initial` ("ls", "prior" or β0), `dt`,
     `measurement`, `discretisation`, the noise settings of `Ekf` (a given `position_noise`
     or `velocity_noise` replaces the one from the data), `noise_from_data` (R from the data's
     third differences, default False), `process_noise_at_estimate` (default True),

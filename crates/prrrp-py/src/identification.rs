@@ -319,6 +319,7 @@ fn valid_keys(method: &str) -> &'static [&'static str] {
             "parameter_tolerance",
             "error_tolerance",
             "scale_columns",
+            "whiten",
         ],
         "hopfield" => &[
             "rank_tolerance",
@@ -329,6 +330,7 @@ fn valid_keys(method: &str) -> &'static [&'static str] {
             "parameter_tolerance",
             "error_tolerance",
             "scale_columns",
+            "whiten",
         ],
         _ => &[
             "rank_tolerance",
@@ -423,6 +425,7 @@ fn parse_method(
                 "halvings" => s.halvings = u()?,
                 "parameter_tolerance" => s.parameter_tolerance = f()?,
                 "error_tolerance" => s.error_tolerance = f()?,
+                "whiten" => s.whiten = v.extract()?,
                 _ => s.scale_columns = v.extract()?,
             },
             (Method::Ekf(s), k) => {
