@@ -51,6 +51,14 @@ const MAX_VARIANCE_PASSES: usize = 20;
 /// QR, which loses only cond·ε.
 const NORMAL_EQUATIONS_MAX_COND: f64 = 1e4;
 
+/// Largest condition number for which the normal equations' solution is kept without the
+/// refinement step (dimensionless). Its error ≈ cond²·ε is then ≤ 1e2²·2.2e-16 ≈ 2e-12 in
+/// the scaled norm, QR's accuracy at cond ≈ 1e4 and six decades below any parameter's
+/// statistical uncertainty; exciting data of the paper's arm have cond 5–50. Skipping the
+/// refinement saves a pass over W (its residual and Wᵀρ) and a triangular solve. (With
+/// cond(W_s) ≤ √P·cond(W) for the unit-diagonal scaling, the bound is 2e-11 for P = 8.)
+const UNREFINED_MAX_COND: f64 = 1e2;
+
 /// Settings of [`least_squares`] and [`weighted_least_squares`].
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct LeastSquaresConfig {
@@ -358,8 +366,9 @@ impl LeastSquares {
     /// diagonal scaling of van der Sluis), and Cholesky-factored, G_s = L·Lᵀ.
     ///
     /// Accuracy: the Cholesky solve has relative error ≈ cond(W_s)²·ε in the scaled
-    /// norm (cond(W_s) ≤ √P·cond(W), in practice below cond(W)); one step of refinement
-    /// with the exactly recomputed residual brings it to about cond(W)·ε, as QR. The
+    /// norm (cond(W_s) ≤ √P·cond(W), in practice below cond(W)); above cond(W) =
+    /// [`UNREFINED_MAX_COND`] one step of refinement with the exactly recomputed residual
+    /// brings it to about cond(W)·ε, as QR (below, cond²·ε ≤ 2e-11 already is). The
     /// residuals are never taken from τᵀτ − 2λ̂ᵀWᵀτ + λ̂ᵀGλ̂, which cancels catastrophically
     /// for a near-perfect fit. R = Lᵀ·D⁻¹ satisfies RᵀR = G + E with ‖E‖ ≲ P²·ε·‖G‖
     /// (Cholesky backward error), so by Weyl's inequality each computed σ_i² is W's to
@@ -423,10 +432,10 @@ impl LeastSquares {
         {
             return None;
         }
-        // λ = D·μ with G_s·μ = D·Wᵀy, then one step of iterative refinement with the exact
-        // residual (δ from G·δ = Wᵀρ): it takes the error from cond²·ε·(scaled) to about
-        // QR's cond·ε, which the chain's small parameters need (1e-8 relative), for two
-        // more passes over W at matrix-vector cost.
+        // λ = D·μ with G_s·μ = D·Wᵀy, then, above cond(W) = UNREFINED_MAX_COND, one step
+        // of iterative refinement with the exact residual (δ from G·δ = Wᵀρ): it takes the
+        // error from cond²·ε·(scaled) to about QR's cond·ε, which the chain's small
+        // parameters need (1e-8 relative), for one more pass over W at matrix-vector cost.
         let solve = |v: &mut Mat<f64>| {
             for (k, &dk) in d.iter().enumerate() {
                 v[(k, 0)] *= dk;
@@ -440,19 +449,21 @@ impl LeastSquares {
         let mut lam = wty;
         solve(&mut lam);
         self.resid.resize_with(nj * n, 1, |_, _| 0.0);
-        let mut delta = Mat::<f64>::zeros(p, 1);
-        residual(
-            &self.w,
-            &self.y,
-            masks,
-            n,
-            &mut runs_buf,
-            &lam,
-            &mut self.resid,
-            Some(&mut delta),
-        );
-        solve(&mut delta);
-        lam += &delta;
+        if smax > UNREFINED_MAX_COND * smin {
+            let mut delta = Mat::<f64>::zeros(p, 1);
+            residual(
+                &self.w,
+                &self.y,
+                masks,
+                n,
+                &mut runs_buf,
+                &lam,
+                &mut self.resid,
+                Some(&mut delta),
+            );
+            solve(&mut delta);
+            lam += &delta;
+        }
         residual(
             &self.w,
             &self.y,

@@ -55,7 +55,9 @@ where
     /// Whether q, q̇, q̈ and τ are all finite (the inverse-model estimators need them all).
     #[inline]
     pub fn is_finite(&self) -> bool {
-        all_finite(self.q) && all_finite(self.qd) && all_finite(self.qdd) && all_finite(self.tau)
+        let zero = |v: &OVector<f64, N>| v.iter().fold(0.0, |acc, &x| acc + (x - x));
+        // As `all_finite`, over the four vectors with one branch.
+        zero(self.q) + zero(self.qd) + zero(self.qdd) + zero(self.tau) == 0.0
     }
 
     /// The [`PrrrpError::NonFinite`] naming the first non-finite part, if any.
@@ -117,7 +119,10 @@ pub(crate) fn all_finite<N: Dim>(v: &OVector<f64, N>) -> bool
 where
     DefaultAllocator: Allocator<N>,
 {
-    v.iter().all(|x| x.is_finite())
+    // x − x is 0 for a finite x and NaN for NaN or ±∞, and a sum with a NaN stays NaN:
+    // one branch per vector instead of one per entry (the check runs on every sample of
+    // every estimator).
+    v.iter().fold(0.0, |acc, &x| acc + (x - x)) == 0.0
 }
 
 /// A series of samples: four equally long slices q, q̇, q̈, τ (row k is sample k).
