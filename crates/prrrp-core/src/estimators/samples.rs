@@ -55,7 +55,7 @@ where
     /// Whether q, q̇, q̈ and τ are all finite (the inverse-model estimators need them all).
     #[inline]
     pub fn is_finite(&self) -> bool {
-        let zero = |v: &OVector<f64, N>| v.iter().fold(0.0, |acc, &x| acc + (x - x));
+        let zero = |v: &OVector<f64, N>| v.iter().fold(0.0, |acc, &x| acc + nan_unless_finite(x));
         // As `all_finite`, over the four vectors with one branch.
         zero(self.q) + zero(self.qd) + zero(self.qdd) + zero(self.tau) == 0.0
     }
@@ -122,7 +122,14 @@ where
     // x − x is 0 for a finite x and NaN for NaN or ±∞, and a sum with a NaN stays NaN:
     // one branch per vector instead of one per entry (the check runs on every sample of
     // every estimator).
-    v.iter().fold(0.0, |acc, &x| acc + (x - x)) == 0.0
+    v.iter().fold(0.0, |acc, &x| acc + nan_unless_finite(x)) == 0.0
+}
+
+/// 0 for a finite `x`, NaN for NaN or ±∞ (x − x).
+#[inline(always)]
+#[allow(clippy::eq_op)]
+fn nan_unless_finite(x: f64) -> f64 {
+    x - x
 }
 
 /// A series of samples: four equally long slices q, q̇, q̈, τ (row k is sample k).
