@@ -142,15 +142,13 @@ def check(results: list[dict[str, Any]], methods: tuple[str, ...]) -> None:
 #:   and backward, as `prrrp simulate --duration 30` does) barely helps λ5, whose error
 #:   comes with the filtered q̈ noise (errors in variables) rather than averaging out;
 #:   Adaline and Hopfield, which converge to least squares, share it;
-#: - Hopfield at 50 Hz on 10 s (441 samples): on some seeds the stopping rule is not met
-#:   within 3000 epochs (reported as not converged; λ̂ is within 2.2 % nevertheless);
 #: The EKF is no longer among them: its Jacobian is linearised at the data's q̈ (the
 #: torque noise of its input no longer enters its regressor), it is discretised at the
 #: interval's midpoint, and it reports a sandwich covariance (see `identify`).
 KNOWN = {
     "ls": "50 Hz, 3× noise: λ5 noise-limited above 2 % on some seeds (within 3σ)",
     "adaline": "converges to least squares and shares its noise-limited λ5 error",
-    "hopfield": "shares the LS λ5 error; not converged in 3000 epochs at 50 Hz / 10 s",
+    "hopfield": "converges to least squares and shares its noise-limited λ5 error",
 }
 
 
