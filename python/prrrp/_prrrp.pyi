@@ -899,8 +899,8 @@ def identify(
     step's fixed point (the change still to come, extrapolated geometrically, below
     `parameter_tolerance` (1e-5; changes below 1 % of least squares' σ count as none) and
     the relative change of the epoch's equation error below `error_tolerance` (1e-6)) the
-    step halves (at most `halvings`, 20, times) until the move between consecutive steps'
-    fixed points (the step's bias) is below `parameter_tolerance`, within `max_epochs`
+    step is cut by powers of 2 (at most `halvings`, 20, in all) until the step's bias,
+    from the move between consecutive steps' fixed points, is below `parameter_tolerance`, within `max_epochs`
     (3000); `converged` and `epochs`
     say how it ended; Adaline's default rule is the delta rule, whose fixed point is least
     squares; no σ); "ekf" (starts from the least-squares β̂, dt from the time stamps,

@@ -21,15 +21,17 @@
 //!   (stable for μ < 2, since one row's update contracts the error by 1 − γ_lr·‖x_i‖²),
 //!   the normalised rule's step μ directly, the Hopfield gain μ/max_k‖Φ_k‖_F² per sample
 //!   (λmax(ΦᵀΦ) ≤ ‖Φ‖_F²). They train in epochs over the data from γ = 0 at a fixed step
-//!   until the epoch map's fixed point is reached, then halve the step, up to `halvings`
-//!   times, until the **stopping rule** holds: at the fixed point of the current step
+//!   until the epoch map's fixed point is reached, then cut the step by powers of 2 (at
+//!   most `halvings` halvings in all), until the **stopping rule** holds: at the fixed point of the current step
 //!   (the change still to come, extrapolated geometrically from the last two epochs'
 //!   changes, below `parameter_tolerance`, and the relative change of the RMS equation
 //!   error e below `error_tolerance`) the move from the previous step's fixed point is
-//!   below `parameter_tolerance`; or `max_epochs` (then [`IdentifiedModel::converged`] is
+//!   below `parameter_tolerance` once scaled to the bias left (below); or `max_epochs` (then [`IdentifiedModel::converged`] is
 //!   false). Why: one epoch at a fixed step μ is a contraction whose fixed point is off
 //!   least squares by a bias ∝ μ (measured on the paper's arm: it halves with each
-//!   halving), so the move between consecutive steps' fixed points is the bias left; and
+//!   halving), so the move between the fixed points of steps μ₀ > μ, B·(μ₀ − μ), gives
+//!   the bias left, B·μ, and the halvings that bring it below the tolerance are taken at
+//!   once (the next fixed point checks that prediction); and
 //!   the contraction in the poorly excited directions is only ≈ 1 − μ·λmin(W_bᵀW_b)/
 //!   max‖x‖² per epoch (cond² of the scaled W_b, ≈ 100–250 there), which made plain
 //!   epochs at the final step μ/256 need 600–3000 epochs at 50 Hz. Each epoch therefore
@@ -39,8 +41,8 @@
 //!   known): the networks and their per-sample updates are unchanged, only the state an
 //!   epoch starts from is extrapolated, and every reported estimate is the network's own
 //!   state after a plain epoch. A fixed point is then reached in ≈ 4–10 epochs at any
-//!   step, so 15–20 halvings cost 50–80 epochs (paper's arm: ≈ 10 ms at 50 Hz / 10 s,
-//!   ≈ 0.6–0.9 s at 1000 Hz / 30 s). A mixed state outside the Hopfield box (−c, c) is
+//!   step, and 3–4 step sizes are visited (paper's arm: 15–40 epochs in all, a few ms at
+//!   50 Hz / 10 s, ≈ 0.2–0.4 s at 1000 Hz / 30 s). A mixed state outside the Hopfield box (−c, c) is
 //!   replaced by the epoch's output. Adaline's default is the delta rule, whose fixed
 //!   point as the step shrinks is ordinary least squares (the normalised rule's is least
 //!   squares weighted by 1/‖x‖²); so is the Hopfield network's. Column scaling (Jacobi)
@@ -245,10 +247,11 @@ pub struct GradientSettings {
     /// A run that reaches it without meeting the tolerances below is reported as not
     /// converged ([`IdentifiedModel::converged`] = false), not as a result.
     pub max_epochs: usize,
-    /// Most step halvings (default `20`: a final step μ·2⁻²⁰). The step halves at each
-    /// fixed point whose move from the previous step's fixed point (the bias still left,
-    /// see [`identify`]) is not below `parameter_tolerance`; a run that uses them all
-    /// without meeting it is reported as not converged.
+    /// Most step halvings in all (default `20`: a final step no smaller than μ·2⁻²⁰). At
+    /// each fixed point whose bias still left (from its move from the previous step's
+    /// fixed point, see [`identify`]) is not below `parameter_tolerance`, the step is cut
+    /// by the power of 2 predicted to bring it there; a run that uses them all without
+    /// meeting it is reported as not converged.
     pub halvings: usize,
     /// Tolerance on the relative change of the estimate still to come (dimensionless,
     /// default `1e-5`): the change per epoch δ = max_j |γ_j − γ_j⁻| / max(|γ_j|,
@@ -936,8 +939,9 @@ fn relative_change(g: &DVector<f64>, prev: &DVector<f64>, sigma: &[f64], tol: f6
 /// the fixed point is). The fixed point of a step is reached when that remaining change
 /// is below `parameter_tolerance` and the relative change of e below `error_tolerance`.
 /// Its bias is ∝ μ, so the move from the previous step's fixed point estimates it: below
-/// `parameter_tolerance` the run has converged, otherwise μ halves (at most `halvings`
-/// times; then `converged = false`). Exact data: converged once floor and e are both
+/// `parameter_tolerance` the run has converged, otherwise μ is cut by the power of 2
+/// that the linear bias predicts to suffice (at least one halving, at most `halvings` in
+/// all; then `converged = false`). Exact data: converged once floor and e are both
 /// below 1e-9 of the RMS torque. `max_epochs` caps the run (`converged = false`).
 /// `make(μ, γ₀)` builds an estimator, `epoch` trains it once over the data.
 #[allow(clippy::too_many_arguments)]
@@ -972,8 +976,8 @@ fn anneal<E: Estimator<Dyn, Dyn>>(
     let (mut dgs, mut dfs): (Vec<DVector<f64>>, Vec<DVector<f64>>) = (Vec::new(), Vec::new());
     let mut prev_e = f64::NAN;
     let mut prev_step = f64::INFINITY;
-    // The fixed point of the previous step size, once one has been reached.
-    let mut level: Option<DVector<f64>> = None;
+    // The fixed point of the previous step size and that step, once reached.
+    let mut level: Option<(DVector<f64>, f64)> = None;
     let (mut converged, mut dg, mut de) = (false, f64::INFINITY, f64::INFINITY);
     let mut bias = f64::INFINITY;
     while rms.len() < s.max_epochs {
@@ -1022,10 +1026,14 @@ fn anneal<E: Estimator<Dyn, Dyn>>(
         let at_fixed_point = dg < s.parameter_tolerance && de < s.error_tolerance;
         if at_fixed_point {
             // Its bias is B·μ to first order (measured on the paper's arm: it halves with
-            // each halving), so the move from the previous step's fixed point, B·2μ − B·μ,
-            // is what this fixed point is still off.
-            if let Some(l) = &level {
-                bias = relative_change(&gx, l, sigma, s.parameter_tolerance);
+            // each halving), so the move from the previous step μ₀'s fixed point,
+            // B·(μ₀ − μ), times μ/(μ₀ − μ) is what this fixed point is still off.
+            let mut cut = 1;
+            if let Some((l, mu_prev)) = &level {
+                bias = relative_change(&gx, l, sigma, s.parameter_tolerance) * mu / (mu_prev - mu);
+                // The halvings that bring B·μ below the tolerance, at once (the next
+                // fixed point checks the prediction).
+                cut = (bias / s.parameter_tolerance).log2().ceil().max(1.0) as usize;
             }
             if bias < s.parameter_tolerance {
                 converged = true;
@@ -1034,9 +1042,10 @@ fn anneal<E: Estimator<Dyn, Dyn>>(
             if halvings == s.halvings {
                 break;
             }
-            halvings += 1;
-            mu *= 0.5;
-            level = Some(gx.clone());
+            let cut = cut.min(s.halvings - halvings);
+            level = Some((gx.clone(), mu));
+            halvings += cut;
+            mu *= 0.5f64.powi(cut as i32);
             next = gx;
             last = None;
             dgs.clear();
