@@ -899,7 +899,7 @@ def identify(
     step's fixed point (the change still to come, extrapolated geometrically, below
     `parameter_tolerance` (1e-5; changes below 1 % of least squares' σ count as none) and
     the relative change of the epoch's equation error below `error_tolerance` (1e-6)) the
-    step is cut by powers of 2 (at most `halvings`, 20, in all) until the step's bias,
+    step is cut by powers of 2 (at most `halvings`, 24, in all) until the step's bias,
     from the move between consecutive steps' fixed points, is below `parameter_tolerance`, within `max_epochs`
     (3000); `converged` and `epochs`
     say how it ended; Adaline's default rule is the delta rule, whose fixed point is least
