@@ -900,8 +900,8 @@ def identify(
     `parameter_tolerance` (1e-5; changes below 1 % of least squares' σ count as none) and
     the relative change of the epoch's equation error below `error_tolerance` (1e-6)) the
     step is cut by powers of 2 (at most `halvings`, 24, in all) until the step's bias,
-    from the move between consecutive steps' fixed points, is below `parameter_tolerance`, within `max_epochs`
-    (3000); `converged` and `epochs`
+    from the move between consecutive steps' fixed points, is below `parameter_tolerance`,
+    within `max_epochs` (3000); `converged` and `epochs`
     say how it ended; Adaline's default rule is the delta rule, whose fixed point is least
     squares; no σ); "ekf" (starts from the least-squares β̂, dt from the time stamps,
     positions and velocities measured; process noise from the least-squares residual
