@@ -64,10 +64,13 @@ fn gradient_methods_converge_to_least_squares() {
             m.converged, m.epochs
         );
         assert!(m.converged, "{name} did not converge: {}", m.settings);
-        assert!(m.epochs.unwrap() < 3000);
-        // The fixed point at the final step differs from least squares by O(μ): a
-        // converged run sits well within least squares' own uncertainty of it.
-        assert!(worst < 1.0, "{name}: {worst}");
+        // Anderson-mixed epochs reach each step's fixed point in a few epochs (plain
+        // epochs needed 600–3000 here).
+        assert!(m.epochs.unwrap() < 300, "{name}: {:?} epochs", m.epochs);
+        // The fixed point at the final step differs from least squares by O(μ), and the
+        // run stops once the halvings move it by less than 1 % of σ (or 1e-5 relative):
+        // a converged run sits a small fraction of least squares' own σ from it.
+        assert!(worst < 0.2, "{name}: {worst}");
     }
 }
 
@@ -90,6 +93,21 @@ fn the_epoch_cap_is_reported_as_not_converged() {
         let back = IdentifiedModel::from_json(&model.to_json().unwrap()).unwrap();
         assert!(!back.converged);
         assert_eq!(back.epochs, Some(2));
+    }
+    // Too few halvings for the step's bias to fall below the tolerance: not converged.
+    for m in [
+        Method::Adaline(GradientSettings {
+            halvings: 1,
+            ..GradientSettings::adaline()
+        }),
+        Method::Hopfield(GradientSettings {
+            halvings: 1,
+            ..GradientSettings::hopfield()
+        }),
+    ] {
+        let model = run(&d, &m);
+        assert!(!model.converged, "{}", model.settings);
+        assert!(model.epochs.unwrap() < GradientSettings::adaline().max_epochs);
     }
     // Bad tolerances are typed errors.
     let bad = Method::Adaline(GradientSettings {

@@ -894,12 +894,14 @@ def identify(
 
     Methods: "ls" / "wls" (ordinary / weighted least squares, σ from the residual); "rls"
     (one pass on the column-equilibrated model, σ from σ̂²·P when `forgetting` = 1);
-    "adaline" / "hopfield" (epochs over the data from β = 0, step from the data, halved
-    near the least-squares residual floor, until the stopping rule holds: the change of
-    the estimate still to come, extrapolated geometrically from the last two epochs, below
-    `parameter_tolerance` (1e-5; changes below 1 % of least squares' σ count as none)
-    and the relative change of the epoch's equation error
-    below `error_tolerance` (1e-6), within `max_epochs` (3000); `converged` and `epochs`
+    "adaline" / "hopfield" (epochs over the data from β = 0, step from the data, each
+    epoch starting from the Anderson mixing of the previous epochs' outputs; at each
+    step's fixed point (the change still to come, extrapolated geometrically, below
+    `parameter_tolerance` (1e-5; changes below 1 % of least squares' σ count as none) and
+    the relative change of the epoch's equation error below `error_tolerance` (1e-6)) the
+    step is cut by powers of 2 (at most `halvings`, 24, in all) until the step's bias,
+    from the move between consecutive steps' fixed points, is below `parameter_tolerance`,
+    within `max_epochs` (3000); `converged` and `epochs`
     say how it ended; Adaline's default rule is the delta rule, whose fixed point is least
     squares; no σ); "ekf" (starts from the least-squares β̂, dt from the time stamps,
     positions and velocities measured; process noise from the least-squares residual

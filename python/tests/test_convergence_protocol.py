@@ -144,8 +144,8 @@ def check(results: list[dict[str, Any]], methods: tuple[str, ...]) -> None:
 #: command line's default) is 2–2.6 % off on one λ (the wrist inertia λ5) at 50 Hz with 3×
 #: noise on some seeds, within 2σ of its σ: the prismatic joint's 0.5 N noise enters the
 #: shared parameters unweighted; it is held to the 5 % of every method, and Adaline and
-#: Hopfield, which converge to it, share its error. The gradient methods run on whitened
-#: parameters (`DynScaledModel::whitened`) and converge in ≤ 150 epochs everywhere.
+#: Hopfield, which converge to it, share its error. The gradient methods (whitened
+#: parameters, Anderson-mixed epochs) converge everywhere.
 KNOWN: dict[str, str] = {}
 
 

@@ -20,23 +20,39 @@
 //!   delta rule's learning rate γ_lr = μ/max_i‖x_i‖² over the scaled regressor rows x_i
 //!   (stable for μ < 2, since one row's update contracts the error by 1 − γ_lr·‖x_i‖²),
 //!   the normalised rule's step μ directly, the Hopfield gain μ/max_k‖Φ_k‖_F² per sample
-//!   (λmax(ΦᵀΦ) ≤ ‖Φ‖_F²). They train in epochs over the data from γ = 0 with a step
-//!   that halves once the a-priori RMS equation error e comes within e² < (1 + μ)·floor²
-//!   of the least-squares residual floor (noise then dominates the update and a smaller
-//!   step averages it), up to `halvings` times, until the **stopping rule** holds: the
-//!   change of the estimate still to come, extrapolated geometrically from the last two
-//!   epochs' changes, below `parameter_tolerance` and the relative change of e below
-//!   `error_tolerance`, or `max_epochs` (then [`IdentifiedModel::converged`] is false).
-//!   Adaline's default is the delta rule, whose fixed point as the step shrinks is
-//!   ordinary least squares (the normalised rule's is least squares weighted by 1/‖x‖²);
-//!   so is the Hopfield network's. Their error in a direction of parameter space decays
-//!   at a rate set by that direction's eigenvalue of W_bᵀW_b, so on the equilibrated
-//!   model they need ≈ cond(W_b·D)² epochs: 10⁴ on a gentle trajectory of the paper's arm
-//!   (cond ≈ 120; Adaline 16 % and Hopfield 23 % off after 3000). By default they
-//!   therefore run on whitened parameters ([`DynScaledModel::whitened`], β = D·T·γ with
-//!   orthogonal unit-RMS regressor columns: every direction decays alike), which moves
-//!   neither fixed point; 14–150 epochs on the convergence protocol of issue 16 and on
-//!   that trajectory (`whiten = false` restores the equilibrated model);
+//!   (λmax(ΦᵀΦ) ≤ ‖Φ‖_F²). They train in epochs over the data from γ = 0 at a fixed step
+//!   until the epoch map's fixed point is reached, then cut the step by powers of 2 (at
+//!   most `halvings` halvings in all), until the **stopping rule** holds: at the fixed point of the current step
+//!   (the change still to come, extrapolated geometrically from the last two epochs'
+//!   changes, below `parameter_tolerance`, and the relative change of the RMS equation
+//!   error e below `error_tolerance`) the move from the previous step's fixed point is
+//!   below `parameter_tolerance` once scaled to the bias left (below); or `max_epochs` (then [`IdentifiedModel::converged`] is
+//!   false). Why: one epoch at a fixed step μ is a contraction whose fixed point is off
+//!   least squares by a bias ∝ μ (measured on the paper's arm: it halves with each
+//!   halving), so the move between the fixed points of steps μ₀ > μ, B·(μ₀ − μ), gives
+//!   the bias left, B·μ, and the halvings that bring it below the tolerance are taken at
+//!   once (the next fixed point checks that prediction; only a single halving confirms
+//!   convergence); and
+//!   the contraction in the poorly excited directions is only ≈ 1 − μ·λmin(W_bᵀW_b)/
+//!   max‖x‖² per epoch (cond² of the scaled W_b, ≈ 100–250 there), which made plain
+//!   epochs at the final step μ/256 need 600–3000 epochs at 50 Hz. Each epoch therefore
+//!   starts from the **Anderson mixing** of the last ≤ B epochs' outputs (the
+//!   combination whose residual E(γ) − γ is least; for an epoch map that is affine, as
+//!   Adaline's is at a fixed step, it is the map's fixed point once B + 1 epochs are
+//!   known): the networks and their per-sample updates are unchanged, only the state an
+//!   epoch starts from is extrapolated, and every reported estimate is the network's own
+//!   state after a plain epoch. A fixed point is then reached in ≈ 4–10 epochs at any
+//!   step, and 4–6 step sizes are visited (paper's arm, issue 16's protocol: 26–47
+//!   epochs in all, ≈ 7–11 ms at 50 Hz / 10 s, ≈ 0.4–0.6 s at 1000 Hz / 30 s). A mixed state outside the Hopfield box (−c, c) is
+//!   replaced by the epoch's output. Adaline's default is the delta rule, whose fixed
+//!   point as the step shrinks is ordinary least squares (the normalised rule's is least
+//!   squares weighted by 1/‖x‖²); so is the Hopfield network's. The contraction rate
+//!   in a direction of parameter space is set by that direction's eigenvalue of W_bᵀW_b,
+//!   so by default the networks run on whitened parameters ([`DynScaledModel::whitened`],
+//!   β = D·T·γ with orthogonal unit-RMS regressor columns: every direction contracts
+//!   alike), which moves neither fixed point: on a gentle trajectory of the paper's arm
+//!   (cond(W_b·D) ≈ 120) plain epochs on the equilibrated model had left Adaline 16 % and
+//!   Hopfield 23 % off after 3000 epochs (`whiten = false` restores that model);
 //! - the EKF starts from the least-squares β̂ (the accelerations it does not need are in
 //!   the data set anyway) with a relative prior uncertainty, dt from the time stamps, and
 //!   measures positions and velocities; it holds the interval's mean torque. R is the
@@ -236,9 +252,11 @@ pub struct GradientSettings {
     /// A run that reaches it without meeting the tolerances below is reported as not
     /// converged ([`IdentifiedModel::converged`] = false), not as a result.
     pub max_epochs: usize,
-    /// Most step halvings (default `8`: a final step μ/256). The step halves whenever the
-    /// epoch's a-priori RMS equation error e comes within e² < (1 + μ)·floor² of the
-    /// least-squares residual floor (see [`identify`]).
+    /// Most step halvings in all (default `24`: a final step no smaller than μ·2⁻²⁴). At
+    /// each fixed point whose bias still left (from its move from the previous step's
+    /// fixed point, see [`identify`]) is not below `parameter_tolerance`, the step is cut
+    /// by the power of 2 predicted to bring it there; a run that uses them all without
+    /// meeting it is reported as not converged.
     pub halvings: usize,
     /// Tolerance on the relative change of the estimate still to come (dimensionless,
     /// default `1e-5`): the change per epoch δ = max_j |γ_j − γ_j⁻| / max(|γ_j|,
@@ -269,7 +287,7 @@ impl GradientSettings {
             learning_rate: None,
             bound: None,
             max_epochs: 3000,
-            halvings: 8,
+            halvings: 24,
             parameter_tolerance: 1e-5,
             error_tolerance: 1e-6,
             scale_columns: true,
@@ -900,6 +918,9 @@ struct Training {
     /// The last epoch's relative changes of the estimate and of the equation error.
     parameter_change: f64,
     error_change: f64,
+    /// The estimated remaining step-size bias of the last fixed point (relative, as
+    /// [`relative_change`]).
+    bias: f64,
 }
 
 /// Relative change of the estimate from `prev` to `g`: max_j |g_j − prev_j| / s_j with
@@ -921,22 +942,19 @@ fn relative_change(g: &DVector<f64>, prev: &DVector<f64>, sigma: &[f64], tol: f6
 
 /// Trains over epochs with step μ (dimensionless) until the stopping rule holds.
 ///
-/// Step schedule: the least-squares residual RMS `floor` is the smallest equation error
-/// any β reaches on these data. While the epoch's a-priori RMS error e is well above it,
-/// the step stays (a smaller one would only slow the descent); once e² < (1 + μ)·floor²,
-/// what remains is mostly the noise the step injects (the misadjustment of normalised LMS
-/// is ≈ μ/(2 − μ) < μ), so μ halves, at most `halvings` times.
-///
-/// Stopping rule: with the data presented in a fixed order, one epoch is a contraction
-/// with a fixed point for a fixed μ, so the estimate's change per epoch δ_k
-/// ([`relative_change`]) shrinks geometrically with a ratio r = δ_k/δ_k−1, and
-/// δ_k·r/(1 − r) bounds what is left to move (a small δ_k alone is not enough: a small
-/// step moves little per epoch however far the fixed point is). Training has converged
-/// when, on an epoch without a halving, that remaining change is below
-/// `parameter_tolerance` and the relative change of e below `error_tolerance`; or when floor and e are both
-/// below 1e-9 of the RMS torque (exact data). `max_epochs` caps the run, which then reports
-/// `converged = false`. `make(μ, γ₀)` builds an estimator, `epoch` trains it once over
-/// the data.
+/// Each epoch starts from the Anderson mixing of the previous epochs at the same step
+/// (see [`identify`]); the change δ_k between the iterates an epoch starts from
+/// ([`relative_change`]) shrinks geometrically (superlinearly once the history spans the
+/// parameters) with a ratio r = δ_k/δ_k−1, and δ_k·r/(1 − r) bounds what is left to move
+/// (a small δ_k alone is not enough: a small step moves little per epoch however far
+/// the fixed point is). The fixed point of a step is reached when that remaining change
+/// is below `parameter_tolerance` and the relative change of e below `error_tolerance`.
+/// Its bias is ∝ μ, so the move from the previous step's fixed point estimates it: below
+/// `parameter_tolerance` the run has converged, otherwise μ is cut by the power of 2
+/// that the linear bias predicts to suffice (at least one halving, at most `halvings` in
+/// all; then `converged = false`); only the move over a single halving confirms. Exact data: converged once floor and e are both
+/// below 1e-9 of the RMS torque. `max_epochs` caps the run (`converged = false`).
+/// `make(μ, γ₀)` builds an estimator, `epoch` trains it once over the data.
 #[allow(clippy::too_many_arguments)]
 fn anneal<E: Estimator<Dyn, Dyn>>(
     s: &GradientSettings,
@@ -962,15 +980,42 @@ fn anneal<E: Estimator<Dyn, Dyn>>(
     let mut est = make(mu, DVector::zeros(p))?;
     let mut rms = Vec::with_capacity(s.max_epochs.min(4096));
     let mut halvings = 0;
-    let mut prev = est.estimate().clone();
+    // The iterate x each epoch starts from, and the history of the Anderson mixing:
+    // differences of the epochs' outputs E(x) and of their residuals f = E(x) − x.
+    let mut x = est.estimate().clone();
+    let mut last: Option<(DVector<f64>, DVector<f64>)> = None;
+    let (mut dgs, mut dfs): (Vec<DVector<f64>>, Vec<DVector<f64>>) = (Vec::new(), Vec::new());
     let mut prev_e = f64::NAN;
     let mut prev_step = f64::INFINITY;
+    // The fixed point of the previous step size and that step, once reached.
+    let mut level: Option<(DVector<f64>, f64)> = None;
+    let mut last_cut = 0;
     let (mut converged, mut dg, mut de) = (false, f64::INFINITY, f64::INFINITY);
+    let mut bias = f64::INFINITY;
     while rms.len() < s.max_epochs {
         let e = epoch(&mut est)?;
         rms.push(e);
-        let g = est.estimate();
-        let step = relative_change(g, &prev, sigma, s.parameter_tolerance);
+        let gx = est.estimate().clone();
+        let f = &gx - &x;
+        if let Some((g0, f0)) = &last {
+            dgs.push(&gx - g0);
+            dfs.push(&f - f0);
+            if dfs.len() > p {
+                dgs.remove(0);
+                dfs.remove(0);
+            }
+        }
+        // Anderson mixing: the combination of the recent epochs whose residual is least
+        // (for an affine epoch map with a full history, its fixed point).
+        let mut next = gx.clone();
+        if !dfs.is_empty() {
+            let df = DMatrix::from_columns(&dfs);
+            if let Ok(c) = df.svd(true, true).solve(&f, 1e-12 * f.amax().max(1e-300)) {
+                next -= DMatrix::from_columns(&dgs) * c;
+            }
+        }
+        last = Some((gx.clone(), f));
+        let step = relative_change(&next, &x, sigma, s.parameter_tolerance);
         // Geometric extrapolation: with a contraction ratio r = δ_k/δ_k−1 < 1 the estimate
         // still has Σ_{i≥1} δ_k·rⁱ = δ_k·r/(1 − r) to move; r ≥ 1 is no convergence yet.
         let ratio = step / prev_step;
@@ -981,33 +1026,70 @@ fn anneal<E: Estimator<Dyn, Dyn>>(
         };
         prev_step = step;
         de = (e - prev_e).abs() / e.max(f64::MIN_POSITIVE);
-        prev.copy_from(g);
         prev_e = e;
         // Exact data (a zero floor): nothing is left to learn once e is at round-off.
         // With noise, the a-priori error of a moving estimate can dip below the floor
         // of a fixed one, so e ≤ floor is no convergence test there.
         if floor <= 1e-9 * tau_rms && e <= 1e-9 * tau_rms {
             converged = true;
+            bias = 0.0;
             break;
         }
-        if halvings < s.halvings && e * e < (1.0 + mu) * floor * floor {
-            halvings += 1;
-            mu *= 0.5;
-            est = make(mu, prev.clone())?;
+        let at_fixed_point = dg < s.parameter_tolerance && de < s.error_tolerance;
+        if at_fixed_point {
+            // Its bias is B·μ to first order (measured on the paper's arm: it halves with
+            // each halving), so the move from the previous step μ₀'s fixed point,
+            // B·(μ₀ − μ), times μ/(μ₀ − μ) is what this fixed point is still off.
+            let mut cut = 1;
+            if let Some((l, mu_prev)) = &level {
+                bias = relative_change(&gx, l, sigma, s.parameter_tolerance) * mu / (mu_prev - mu);
+                // The halvings that bring B·μ below the tolerance, at once (the next
+                // fixed point checks the prediction).
+                cut = (bias / s.parameter_tolerance).log2().ceil().max(1.0) as usize;
+            }
+            // Only a single halving confirms: over a longer cut the bias need not be
+            // linear yet (at 1000 Hz it first falls more slowly), and a small move there
+            // was seen to hide 0.3 σ of bias.
+            if bias < s.parameter_tolerance && last_cut == 1 {
+                converged = true;
+                break;
+            }
+            if halvings == s.halvings {
+                break;
+            }
+            let cut = cut.min(s.halvings - halvings);
+            last_cut = cut;
+            level = Some((gx.clone(), mu));
+            halvings += cut;
+            mu *= 0.5f64.powi(cut as i32);
+            next = gx;
+            last = None;
+            dgs.clear();
+            dfs.clear();
             // The next epoch's change is that of a new step: not a convergence test.
             prev_e = f64::NAN;
             prev_step = f64::INFINITY;
-            continue;
         }
-        if dg < s.parameter_tolerance && de < s.error_tolerance {
-            converged = true;
-            break;
-        }
+        // A mixed iterate the network cannot start from (outside the Hopfield box) is
+        // replaced by the epoch's own output.
+        est = match make(mu, next.clone()) {
+            Ok(est) => {
+                x = next;
+                est
+            }
+            Err(_) => {
+                x = last.as_ref().map_or(next, |(g, _)| g.clone());
+                dgs.clear();
+                dfs.clear();
+                make(mu, x.clone())?
+            }
+        };
     }
     Ok((
         est.estimate().clone(),
         Training {
             epochs: rms.len(),
+            bias,
             halvings,
             final_step: mu,
             rms,
@@ -1149,6 +1231,7 @@ fn gradient(
     settings["error_tolerance"] = json!(s.error_tolerance);
     settings["final_parameter_change"] = json!(finite_or_null(training.parameter_change));
     settings["final_error_change"] = json!(finite_or_null(training.error_change));
+    settings["step_bias"] = json!(finite_or_null(training.bias));
     Ok(Fit {
         beta: sm.to_model(&gamma),
         sigma: None,
