@@ -79,7 +79,12 @@ impl<const D: usize> Samples<D> {
                 }
             }
         }
-        if let Some(k) = data.iter().position(|v| !v.iter().all(|x| x.is_finite())) {
+        let flat = data.iter().flat_map(|v| v.iter().copied());
+        if !all_finite(flat) {
+            let k = data
+                .iter()
+                .position(|v| !v.iter().all(|x| x.is_finite()))
+                .unwrap_or(0);
             return Err(to_pyerr(
                 py,
                 &PrrrpError::NonFinite {
@@ -462,7 +467,7 @@ impl DynSamples {
             [_, d] if d == dim => true,
             _ => return Err(shape_error(py, name, expected, fmt_shape(&shape))),
         };
-        if dim > 0 {
+        if dim > 0 && !all_finite(data.iter().copied()) {
             if let Some(k) = data
                 .chunks_exact(dim)
                 .position(|v| !v.iter().all(|x| x.is_finite()))
@@ -585,3 +590,11 @@ macro_rules! uint_extract {
 }
 uint_extract!(u64, "2**64");
 uint_extract!(usize, "2**64");
+
+/// Whether every value is finite, with one branch for the whole array (x − x is 0 for a
+/// finite x and NaN otherwise, and a NaN survives the sum); the row of a non-finite value
+/// is looked up only when there is one.
+#[allow(clippy::eq_op)]
+fn all_finite(values: impl Iterator<Item = f64>) -> bool {
+    values.fold(0.0, |acc, x| acc + (x - x)) == 0.0
+}
