@@ -5,7 +5,8 @@
 - batch inverse dynamics: `prrrp.Robot.paper().inverse_dynamics` on N states against a
   loop of `pin.rnea` on the same states (the Pinocchio model of python/tests);
 - the EKF step at the chain7 size: filterpy's ExtendedKalmanFilter (benches/filterpy_ekf.py),
-  if filterpy is installed; prrrp's own is the criterion bench `chain7_ekf_step`.
+  if filterpy is installed (the `bench` extra), beside the median criterion recorded for
+  `chain7_ekf_step` in target/criterion (the benches run just before this script).
 
 Medians of repeated timings. It reports and never fails on timing; it exits non-zero only on
 an error (e.g. the results of prrrp and its peer disagree). numpy's BLAS honours
@@ -19,6 +20,7 @@ from __future__ import annotations
 
 import argparse
 import importlib.util
+import json
 import statistics
 import sys
 import timeit
@@ -144,7 +146,7 @@ def main() -> int:
             (
                 "EKF step, 78 states, 7 measurements",
                 "prrrp: criterion chain7_ekf_step",
-                float("nan"),
+                criterion_median("chain7_ekf_step"),
                 "filterpy ExtendedKalmanFilter",
                 t_fp,
             )
@@ -157,6 +159,17 @@ def main() -> int:
         fa = "-" if ta != ta else fmt(ta)
         print(f"{case:40s} {fa:>12s} {fmt(tb):>12s} {ratio:>10.1f}×  ({a} | {b})")
     return 0
+
+
+def criterion_median(bench: str) -> float:
+    """The median (s) criterion recorded for `bench` in this checkout's target folder (the
+    benches that `.ci/run` runs just before this script), or NaN when it has not run."""
+    path = Path(__file__).resolve().parent.parent / "target" / "criterion" / bench / "new"
+    try:
+        estimates = json.loads((path / "estimates.json").read_text())
+        return float(estimates["median"]["point_estimate"]) * 1e-9
+    except (OSError, KeyError, TypeError, ValueError):
+        return float("nan")
 
 
 def fmt(t: float) -> str:
