@@ -74,19 +74,18 @@ fn gradient_methods_converge_to_least_squares() {
     }
 }
 
+/// Adaline and the Hopfield network, each with its defaults changed by `f`.
+fn gradient_methods(f: impl Fn(GradientSettings) -> GradientSettings) -> [Method; 2] {
+    [
+        Method::Adaline(f(GradientSettings::adaline())),
+        Method::Hopfield(f(GradientSettings::hopfield())),
+    ]
+}
+
 #[test]
 fn the_epoch_cap_is_reported_as_not_converged() {
     let d = data(4);
-    for m in [
-        Method::Adaline(GradientSettings {
-            max_epochs: 2,
-            ..GradientSettings::adaline()
-        }),
-        Method::Hopfield(GradientSettings {
-            max_epochs: 2,
-            ..GradientSettings::hopfield()
-        }),
-    ] {
+    for m in gradient_methods(|s| GradientSettings { max_epochs: 2, ..s }) {
         let model = run(&d, &m);
         assert!(!model.converged);
         assert_eq!(model.epochs, Some(2));
@@ -95,16 +94,7 @@ fn the_epoch_cap_is_reported_as_not_converged() {
         assert_eq!(back.epochs, Some(2));
     }
     // Too few halvings for the step's bias to fall below the tolerance: not converged.
-    for m in [
-        Method::Adaline(GradientSettings {
-            halvings: 1,
-            ..GradientSettings::adaline()
-        }),
-        Method::Hopfield(GradientSettings {
-            halvings: 1,
-            ..GradientSettings::hopfield()
-        }),
-    ] {
+    for m in gradient_methods(|s| GradientSettings { halvings: 1, ..s }) {
         let model = run(&d, &m);
         assert!(!model.converged, "{}", model.settings);
         assert!(model.epochs.unwrap() < GradientSettings::adaline().max_epochs);

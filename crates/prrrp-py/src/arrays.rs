@@ -594,8 +594,7 @@ uint_extract!(usize, "2**64");
 
 /// Whether every value is finite, with one branch for the whole array (x − x is 0 for a
 /// finite x and NaN otherwise, and a NaN survives the sum); the row of a non-finite value
-/// is looked up only when there is one.
-/// Eight partial sums, so that the loop vectorises.
+/// is looked up only when there is one. Eight partial sums, so that the loop vectorises.
 #[allow(clippy::eq_op)]
 fn all_finite(values: &[f64]) -> bool {
     let mut acc = [0.0f64; 8];

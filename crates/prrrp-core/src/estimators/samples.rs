@@ -55,9 +55,9 @@ where
     /// Whether q, q̇, q̈ and τ are all finite (the inverse-model estimators need them all).
     #[inline]
     pub fn is_finite(&self) -> bool {
-        let zero = |v: &OVector<f64, N>| v.iter().fold(0.0, |acc, &x| acc + nan_unless_finite(x));
         // As `all_finite`, over the four vectors with one branch.
-        zero(self.q) + zero(self.qd) + zero(self.qdd) + zero(self.tau) == 0.0
+        finite_sum(self.q) + finite_sum(self.qd) + finite_sum(self.qdd) + finite_sum(self.tau)
+            == 0.0
     }
 
     /// The [`PrrrpError::NonFinite`] naming the first non-finite part, if any.
@@ -122,14 +122,17 @@ where
     // x − x is 0 for a finite x and NaN for NaN or ±∞, and a sum with a NaN stays NaN:
     // one branch per vector instead of one per entry (the check runs on every sample of
     // every estimator).
-    v.iter().fold(0.0, |acc, &x| acc + nan_unless_finite(x)) == 0.0
+    finite_sum(v) == 0.0
 }
 
-/// 0 for a finite `x`, NaN for NaN or ±∞ (x − x).
+/// Σ (x − x) over `v`: 0 when every entry is finite, NaN otherwise.
 #[inline(always)]
 #[allow(clippy::eq_op)]
-fn nan_unless_finite(x: f64) -> f64 {
-    x - x
+fn finite_sum<N: Dim>(v: &OVector<f64, N>) -> f64
+where
+    DefaultAllocator: Allocator<N>,
+{
+    v.iter().fold(0.0, |acc, &x| acc + (x - x))
 }
 
 /// A series of samples: four equally long slices q, q̇, q̈, τ (row k is sample k).

@@ -833,12 +833,16 @@ fn residuals(predicted: &[f64], tau: &[f64], n: usize) -> (f64, Vec<f64>) {
     (sse, per.iter().map(|s| (s / samples).sqrt()).collect())
 }
 
+/// The model the online methods run on: whitened, equilibrated or as it is.
 fn scaled(
     model: &DynChainBaseModel,
     samples: &DynSamples<'_>,
     equilibrate: bool,
+    whiten: bool,
 ) -> Result<DynScaledModel<DynChainBaseModel>> {
-    if equilibrate {
+    if whiten {
+        DynScaledModel::whitened(model.clone(), samples)
+    } else if equilibrate {
         DynScaledModel::equilibrated(model.clone(), samples)
     } else {
         DynScaledModel::new(model.clone(), DVector::repeat(model.count(), 1.0))
@@ -846,7 +850,7 @@ fn scaled(
 }
 
 fn rls(model: &DynChainBaseModel, samples: &DynSamples<'_>, s: &RlsSettings) -> Result<Fit> {
-    let sm = scaled(model, samples, s.scale_columns)?;
+    let sm = scaled(model, samples, s.scale_columns, false)?;
     let cfg = RlsConfig {
         forgetting: s.forgetting,
         initial_covariance: s.initial_covariance,
@@ -1109,11 +1113,7 @@ fn gradient(
     sigma_ls: &[f64],
     floor: f64,
 ) -> Result<Fit> {
-    let sm = if s.whiten {
-        DynScaledModel::whitened(model.clone(), samples)?
-    } else {
-        scaled(model, samples, s.scale_columns)?
-    };
+    let sm = scaled(model, samples, s.scale_columns, s.whiten)?;
     // Least squares' σ in the network's parameters γ (for the stopping rule): D⁻¹·σ_β
     // for γ = D⁻¹·β; for whitened γ, whose regressor Γ has ΓᵀΓ = rows·1, Cov(γ̂) =
     // σ²·(ΓᵀΓ)⁻¹ = σ²/rows·1 with σ the residual RMS `floor`.
