@@ -161,5 +161,6 @@ def run_study(
 ) -> dict[str, Any]:
     """Runs the paper's whole study (excitation, simulation, the four estimators,
     validation, sensitivity) on the paper robot and returns the parsed JSON result
-    (schema_version 1). `progress(stage, done, total)` is called from Rust."""
+    (schema_version 1). `progress(stage, done, total)` is called on the calling thread
+    while the study runs; an exception it raises stops the study and is raised."""
     return json.loads(run_study_json(seed, progress))

@@ -1141,11 +1141,14 @@ def sensitivity(
     substeps: int = 20,
     kp: _ArrayLike | None = None,
     kd: _ArrayLike | None = None,
+    progress: Callable[[int, int], object] | None = None,
 ) -> _Sensitivity:
     """Sensitivity of the simulated robot to each λ_i (paper Table 6, Fig. 8): λ_i scaled by
     `points` factors in [1 − range, 1 + range] (0 < range < 1), the others nominal (default
     Table 3), each run tracking `reference` under the nominal controller without noise.
-    threads = 0 uses every core. Runs in Rust with the GIL released."""
+    threads = 0 uses every core. Runs in Rust with the GIL released; `progress(done,
+    total)` is called on the calling thread while it runs, and an exception it raises stops
+    the sweep and is raised."""
 
 # --- simulation and validation of any chain -----------------------------------------------
 

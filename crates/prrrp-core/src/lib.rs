@@ -81,7 +81,7 @@ pub use identification::{
     GradientSettings, IdentifiedModel, LsSettings, Method, PhysicalSettings, Predictor,
     RlsSettings, METHOD_NAMES, MODEL_SCHEMA_VERSION,
 };
-pub use interrupt::{check_count, clear_stop, request_stop, stop_requested, MAX_SAMPLES};
+pub use interrupt::{check_count, clear_stop, request_stop, stop_requested, StopFlag, MAX_SAMPLES};
 pub use models::chain::{
     com_and_inertia, inertial_parameters, is_physically_consistent, transform_inertial_parameters,
     BaseOptions, BaseParameters, ChainBaseModel, ChainDescription, ChainMeta, DhConvention,
