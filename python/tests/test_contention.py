@@ -148,3 +148,40 @@ def test_reproduce_answers_a_signal_within_a_second(tmp_path: Path, sig, code) -
     assert took < 1.0, f"took {took:.2f} s to stop"
     # Nothing half-written: no output folder, no staging folder left behind.
     assert sorted(p.name for p in tmp_path.iterdir()) == []
+
+
+def test_ctrl_c_stops_only_the_call_of_the_thread_it_reaches() -> None:
+    # Ctrl-C reaches the main thread's call; a call running in another thread finishes.
+    script = textwrap.dedent(
+        """
+        import threading
+        import prrrp
+
+        other = {}
+        def background():
+            other["result"] = prrrp.sensitivity(points=5, duration=20.0, threads=1)
+        thread = threading.Thread(target=background)
+        thread.start()
+        print("started", flush=True)
+        try:
+            prrrp.sensitivity(points=11, duration=60.0, threads=1)
+            print("main finished", flush=True)
+        except KeyboardInterrupt:
+            print("main interrupted", flush=True)
+        thread.join()
+        print("other", "finished" if "result" in other else "lost", flush=True)
+        """
+    )
+    child = subprocess.Popen(
+        [sys.executable, "-c", script], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
+    )
+    try:
+        assert child.stdout.readline().strip() == "started"
+        time.sleep(1.0)
+        child.send_signal(signal.SIGINT)
+        out, err = child.communicate(timeout=120)
+    finally:
+        child.kill()
+    assert child.returncode == 0, (out, err)
+    assert "main interrupted" in out, (out, err)
+    assert "other finished" in out, (out, err)
