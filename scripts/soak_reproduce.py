@@ -55,8 +55,11 @@ def main() -> int:
                     code = None
                 took = time.monotonic() - t0
                 leftovers = [p.name for p in Path(tmp).iterdir() if p.name.startswith(".int")]
-                # A run that finished before the signal is fine (exit 0 and a full folder).
-                ok = (code == 130 and took < 1.0 and not out.exists() and not leftovers) or (
+                # A run that finished before the signal is fine (exit 0 and a full folder);
+                # one interrupted while Python still imports dies of the signal (-2, which a
+                # shell reports as 130, like our exit code).
+                stopped = code in (130, -signal.SIGINT) and took < 1.0
+                ok = (stopped and not out.exists() and not leftovers) or (
                     code == 0 and (out / "results.json").is_file()
                 )
                 failures += not ok
