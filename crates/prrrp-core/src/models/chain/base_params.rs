@@ -196,6 +196,7 @@ pub(crate) fn analyse(view: &ChainView<'_>, opts: &BaseOptions) -> Result<BasePa
         });
     }
     let n = view.dof();
+    super::check_dof("chain joints", n)?;
     let p = n * (10 + view.friction.columns_per_joint());
     let samples = if opts.samples == 0 {
         (4 * p).div_ceil(n).max(20)
@@ -256,6 +257,7 @@ pub(crate) fn analyse(view: &ChainView<'_>, opts: &BaseOptions) -> Result<BasePa
     let ws = Mat::from_fn(w.nrows(), nonzero.len(), |i, c| {
         w[(i, nonzero[c])] / norms[nonzero[c]]
     });
+    crate::interrupt::check("base-parameter analysis")?;
     let qr = ws.col_piv_qr();
     let r = qr.R();
     let (perm, _) = qr.P().arrays();
@@ -274,7 +276,8 @@ pub(crate) fn analyse(view: &ChainView<'_>, opts: &BaseOptions) -> Result<BasePa
         pos
     };
     let order: Vec<usize> = preference_order(n, p).filter_map(|j| position[j]).collect();
-    let mut kept = greedy_independent(&ws, &order, tol);
+    crate::interrupt::check("base-parameter analysis")?;
+    let mut kept = greedy_independent(&ws, &order, tol)?;
     if kept.len() != b {
         kept = perm[..b].to_vec();
     }
@@ -286,6 +289,7 @@ pub(crate) fn analyse(view: &ChainView<'_>, opts: &BaseOptions) -> Result<BasePa
     // Ŵ_d = Ŵ_i·X̂ (exact up to round-off), then K_d = X̂ scaled back to SI.
     let ws_i = Mat::from_fn(ws.nrows(), b, |i, r| ws[(i, kept[r])]);
     let ws_d = Mat::from_fn(ws.nrows(), dep_cols.len(), |i, c| ws[(i, dep_cols[c])]);
+    crate::interrupt::check("base-parameter analysis")?;
     let x = if b > 0 && !dep_cols.is_empty() {
         ws_i.qr().solve_lstsq(&ws_d)
     } else {
@@ -341,11 +345,13 @@ fn preference_order(n: usize, p: usize) -> impl Iterator<Item = usize> {
 
 /// Greedy column selection: keeps a (unit-norm) column if its distance to the span of
 /// the columns kept before it exceeds `tol` (Gram–Schmidt with re-orthogonalisation).
-fn greedy_independent(w: &Mat<f64>, order: &[usize], tol: f64) -> Vec<usize> {
+fn greedy_independent(w: &Mat<f64>, order: &[usize], tol: f64) -> Result<Vec<usize>> {
     let rows = w.nrows();
     let mut basis: Vec<Vec<f64>> = Vec::new();
     let mut kept = Vec::new();
     for &c in order {
+        // O(rows·b) per column: as long as the QR for large chains, so it polls for a stop.
+        crate::interrupt::check("base-parameter analysis")?;
         let mut v: Vec<f64> = (0..rows).map(|i| w[(i, c)]).collect();
         for _ in 0..2 {
             for q in &basis {
@@ -362,7 +368,7 @@ fn greedy_independent(w: &Mat<f64>, order: &[usize], tol: f64) -> Vec<usize> {
             kept.push(c);
         }
     }
-    kept
+    Ok(kept)
 }
 
 fn random_position(rng: &mut SplitMix64, g: &JointGeom) -> f64 {
