@@ -499,7 +499,12 @@ fn urdf_errors_name_file_and_element() {
     // Several candidate tips: both finger links listed.
     assert_error_names(
         DynChain::from_urdf_str(&text, &default),
-        &["<string>", "finger_left", "finger_right"],
+        &[
+            "<string>",
+            "--tip LINK (Python: tip=)",
+            "Candidates, best first: `link3` (the arm's end, where they branch), `finger_left`",
+            "finger_right",
+        ],
     );
     // Malformed XML.
     assert_error_names(

@@ -155,11 +155,35 @@ impl BaseParameters {
         if self.dof != dof || self.friction.enabled() != friction.enabled() {
             return Err(PrrrpError::ShapeMismatch {
                 what: "base parameters".into(),
-                expected: format!("an analysis of this chain ({dof} joints, {friction:?})"),
-                got: format!("an analysis of {} joints, {:?}", self.dof, self.friction),
+                expected: format!(
+                    "an analysis of this chain ({dof} joints, friction {})",
+                    friction_text(friction)
+                ),
+                got: format!(
+                    "an analysis of {} joints, friction {}",
+                    self.dof,
+                    friction_text(&self.friction)
+                ),
             });
         }
         Ok(())
+    }
+}
+
+/// The enabled friction terms as a user writes them (`viscous+coulomb`, `none`).
+fn friction_text(f: &FrictionModel) -> String {
+    let terms: Vec<&str> = [
+        (f.viscous, "viscous"),
+        (f.coulomb, "coulomb"),
+        (f.offset, "offset"),
+    ]
+    .into_iter()
+    .filter_map(|(on, name)| on.then_some(name))
+    .collect();
+    if terms.is_empty() {
+        "none".into()
+    } else {
+        terms.join("+")
     }
 }
 
@@ -190,7 +214,7 @@ pub(crate) fn analyse(view: &ChainView<'_>, opts: &BaseOptions) -> Result<BasePa
     let tol = opts.rank_tolerance;
     if !(tol.is_finite() && tol > 0.0 && tol < 1.0) {
         return Err(PrrrpError::InvalidParameter {
-            field: "BaseOptions::rank_tolerance".into(),
+            field: "rank_tolerance (base-parameter analysis)".into(),
             value: tol,
             reason: "must be in (0, 1); the default is 1e-8",
         });
@@ -207,7 +231,7 @@ pub(crate) fn analyse(view: &ChainView<'_>, opts: &BaseOptions) -> Result<BasePa
     let entries = n as f64 * samples as f64 * p as f64;
     if entries > MAX_MATRIX_ENTRIES || samples > crate::interrupt::MAX_SAMPLES {
         return Err(PrrrpError::InvalidParameter {
-            field: "BaseOptions::samples".into(),
+            field: "samples (base-parameter analysis)".into(),
             value: samples as f64,
             reason: "the stacked regressor would exceed MAX_MATRIX_ENTRIES (2.5e8 doubles, \
                      2 GB) or MAX_SAMPLES: use fewer samples (0 = automatic, 4 rows per \

@@ -248,8 +248,7 @@ impl<'r> Tree<'r> {
                 }
                 let arm_end = (movable_above[branch] > 0).then(|| {
                     format!(
-                        "`{}` (the arm's end, where the movable joints branch; the joints \
-                         below it are then locked at zero), or ",
+                        "`{}` (the arm's end, where they branch), ",
                         self.link_name(branch)
                     )
                 });
@@ -257,10 +256,10 @@ impl<'r> Tree<'r> {
                     file,
                     "tip",
                     format!(
-                        "the movable joints below `{}` branch, so the chain's last link must be \
-                         chosen with --tip LINK (Python: tip=); candidates: {}{} (branch ends, \
-                         the end of the longest movable chain first; the other branches are \
-                         locked at zero)",
+                        "the movable joints below `{}` branch: choose the chain's last link \
+                         with --tip LINK (Python: tip=). Candidates, best first: {}{} \
+                         (branch ends, the longest movable chain first); the joints off the \
+                         chosen chain are locked at zero",
                         self.link_name(base),
                         arm_end.unwrap_or_default(),
                         names(tips.iter().map(|&l| self.link_name(l)))
