@@ -1340,3 +1340,87 @@ fn whole_file_errors_name_no_element() {
     );
     assert!(!shown.contains("`file`"), "{shown}");
 }
+
+mod properties {
+    use super::*;
+    use proptest::prelude::*;
+
+    proptest! {
+        #![proptest_config(ProptestConfig { cases: 64, ..ProptestConfig::default() })]
+
+        /// Whatever the names and however far the links reach, `to_urdf` writes a file
+        /// that reads back to the same names and placements, or refuses with a typed error.
+        #[test]
+        fn to_urdf_reads_back_or_refuses(
+            link in ".{0,10}",
+            joint in ".{0,10}",
+            reach in prop_oneof![-1e3..1e3f64, Just(1e154), Just(-1.5e308), Just(1.5e308)],
+            mass in prop_oneof![0.1..10.0f64, Just(0.0), Just(1e-310)],
+        ) {
+            let puma = SerialChain::puma560().to_dyn();
+            let mut meta = puma.meta().clone();
+            meta.links[3] = link.clone();
+            meta.joints[1].name = joint.clone();
+            let mut joints = puma.joints().to_vec();
+            joints[4].placement.translation.vector.x = reach;
+            let mut inertial = puma.inertial().to_vec();
+            inertial[5] = [mass, 0.01, 0.0, 0.0, 0.1, 0.0, 0.1, 0.0, 0.0, 0.1];
+            let chain = DynChain::from_joints(joints)
+                .unwrap()
+                .with_inertial(inertial)
+                .unwrap()
+                .with_meta(meta)
+                .unwrap();
+            match chain.to_urdf(None) {
+                Ok(xml) => {
+                    let back = DynChain::from_urdf_str(&xml, &UrdfOptions::default()).unwrap();
+                    prop_assert_eq!(&back.meta().links, &chain.meta().links);
+                    prop_assert_eq!(back.joint_names(), chain.joint_names());
+                    // Same dynamics (placements are re-expressed for standard DH).
+                    let (q, qd, qdd) = ([0.3, -0.2, 0.5, 0.1, -0.4, 0.2], [0.5; 6], [-1.0; 6]);
+                    let want = chain.inverse_dynamics(&q, &qd, &qdd).unwrap();
+                    let got = back.inverse_dynamics(&q, &qd, &qdd).unwrap();
+                    // (A 1e154 m reach overflows the dynamics themselves.)
+                    prop_assume!(want.iter().all(|t| t.is_finite()));
+                    let scale = want.iter().fold(1.0f64, |m, t| m.max(t.abs()));
+                    for (g, w) in got.iter().zip(&want) {
+                        prop_assert!((g - w).abs() <= 1e-9 * scale, "{got:?} vs {want:?}");
+                    }
+                }
+                Err(e) => prop_assert!(matches!(e, PrrrpError::InvalidParameter { .. }), "{e}"),
+            }
+        }
+
+        /// Any quaternion: a finite, non-zero one is read as its rotation, any other is a
+        /// typed error naming it.
+        #[test]
+        fn urdf_quaternions(
+            q in prop::array::uniform4(prop_oneof![
+                -2.0..2.0f64, Just(0.0), Just(f64::NAN), Just(f64::INFINITY), Just(1e300)
+            ]),
+        ) {
+            let text = format!("{} {} {} {}", q[0], q[1], q[2], q[3]);
+            let xml = format!(
+                r#"<robot name="q" version="1.1"><link name="a"/><link name="b"/>
+                   <joint name="j" type="continuous"><parent link="a"/><child link="b"/>
+                   <origin quat_xyzw="{text}"/><axis xyz="0 0 1"/></joint></robot>"#
+            );
+            let norm = q.iter().map(|v| v * v).sum::<f64>().sqrt();
+            match DynChain::from_urdf_str(&xml, &UrdfOptions::default()) {
+                Ok(chain) => {
+                    prop_assert!(norm.is_finite() && norm > 1e-6, "{text} accepted");
+                    let r = chain.joints()[0].placement.rotation;
+                    let want = UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(
+                        q[3], q[0], q[1], q[2],
+                    ));
+                    prop_assert!(r.angle_to(&want) < 1e-9, "{text}: {r:?}");
+                }
+                Err(PrrrpError::RobotFile { element, .. }) => {
+                    prop_assert!(!(norm.is_finite() && norm > 1e-6), "{text} refused");
+                    prop_assert_eq!(element, "joint[j]/origin/quat_xyzw");
+                }
+                Err(e) => prop_assert!(false, "{e:?}"),
+            }
+        }
+    }
+}
