@@ -123,10 +123,8 @@ fn ur5_like_wrist_tracks_with_hard_coulomb_friction() {
     )
     .unwrap();
     let mut worst = vec![0.0f64; n];
-    for k in 0..rec.len() {
-        for j in 0..n {
-            worst[j] = worst[j].max((rec.q[k * n + j] - rec.q_ref[k * n + j]).abs());
-        }
+    for (i, (q, r)) in rec.q.iter().zip(&rec.q_ref).enumerate() {
+        worst[i % n] = worst[i % n].max((q - r).abs());
     }
     // Was 6.2 rad on the wrist (joint 6) and 0.1–0.5 rad on joints 4–5. What is left is
     // the controller's zero-order hold and the brief sticking at reversals.

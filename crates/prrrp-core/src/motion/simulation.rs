@@ -725,9 +725,9 @@ impl StickSlip {
         a: &mut [f64],
     ) -> Result<()> {
         self.stuck.clear();
-        for j in 0..qd.len() {
-            self.mode[j] = if self.fc[j] > 0.0 { sgn(qd[j]) } else { 0.0 };
-            if self.fc[j] > 0.0 && qd[j] == 0.0 {
+        for (j, &v) in qd.iter().enumerate() {
+            self.mode[j] = if self.fc[j] > 0.0 { sgn(v) } else { 0.0 };
+            if self.fc[j] > 0.0 && v == 0.0 {
                 self.stuck.push(j);
             }
         }
