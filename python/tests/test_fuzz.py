@@ -187,9 +187,59 @@ URDF_PIECES = st.sampled_from(
 )
 
 
-@given(pieces=st.lists(URDF_PIECES, max_size=8))
-def test_urdf_structures(pieces):
-    holds_contract(lambda: prrrp.SerialChain.from_urdf("".join(pieces)))
+HOSTILE_URDF_PIECES = st.sampled_from(
+    [
+        '<robot name="r" version="1.1">',
+        '<joint name="c" type="revolute"><parent link="b"/><child link="a"/>'
+        '<axis xyz="0 0 1"/></joint>',
+        '<origin xyz="0 0 0" quat_xyzw="nan nan nan nan"/>',
+        '<origin quat_xyzw="0 0 0 0"/>',
+        '<origin quat_xyzw="0 0 0.7071067811865476 0.7071067811865476"/>',
+        "<x>" * 70,
+        "</x>" * 70,
+        "<x>" * 20 + "</x>" * 20,
+        '<origin xyz="inf 0 0"/>',
+    ]
+)
+
+
+@given(
+    pieces=st.lists(URDF_PIECES | HOSTILE_URDF_PIECES, max_size=8),
+    base=st.sampled_from([None, "a", "b", "c"]),
+    tip=st.sampled_from([None, "a", "b", "c"]),
+)
+def test_urdf_structures(pieces, base, tip):
+    # Cycles through --base, deep nesting, NaN or zero quaternions: a chain or a typed
+    # error, never a hang, an abort or a stack overflow.
+    holds_contract(lambda: prrrp.SerialChain.from_urdf("".join(pieces), base=base, tip=tip))
+
+
+NAMES = st.text(min_size=0, max_size=12)
+
+
+@given(link=NAMES, joint=NAMES, robot=NAMES)
+def test_urdf_names_round_trip(link, joint, robot):
+    """Any name a URDF can hold survives read → to_urdf → read; any other is refused by
+    one of the two with a typed error, never written into a file that does not read."""
+    from xml.sax.saxutils import quoteattr
+
+    xml = (
+        f'<robot name={quoteattr(robot)}><link name="base"/><link name={quoteattr(link)}/>'
+        f'<joint name={quoteattr(joint)} type="continuous"><parent link="base"/>'
+        f'<child link={quoteattr(link)}/><axis xyz="0 0 1"/></joint></robot>'
+    )
+    try:
+        chain = prrrp.SerialChain.from_urdf(xml)
+    except prrrp.PrrrpError:
+        return
+    try:
+        text = chain.to_urdf()
+    except prrrp.PrrrpError:
+        return
+    back = prrrp.SerialChain.from_urdf(text)
+    assert back.joint_names == chain.joint_names
+    assert back.link_names == chain.link_names
+    assert back.name == chain.name
 
 
 @given(body=st.binary(max_size=600))

@@ -88,7 +88,7 @@ pub use models::chain::{
     DhDescription, DynBaseWorkspace, DynChain, DynChainBaseModel, DynWorkspace, FrictionModel,
     Joint, JointDescription, JointInfo, JointLimit, JointType, PoseDescription, SerialChain,
     AXIS_UNIT_TOLERANCE, CHAIN_SCHEMA_VERSION, FRICTION_PARAMETER_NAMES, INERTIAL_PARAMETER_NAMES,
-    LINK_PARAMS, MAX_MATRIX_ENTRIES, PHYSICAL_TOLERANCE,
+    LINK_PARAMS, MAX_DOF, MAX_MATRIX_ENTRIES, PHYSICAL_TOLERANCE,
 };
 pub use models::chain::{
     pseudo_inertia, pseudo_inertia_to_parameters, standard_from_base, FeasibilityReport,
@@ -99,7 +99,9 @@ pub use models::prrrp::dynamics::{MassCholesky, PrrrpModel};
 pub use models::prrrp::regressor::{condition_number, observation_matrix, singular_values};
 pub use models::prrrp::robot::{DhRow, JointKind, Robot, STANDARD_GRAVITY};
 pub use models::prrrp::types::{Lambda, Mat5, Regressor, Vec5, NDOF, NPARAM};
-pub use models::robot_files::{UrdfOptions, MAX_ROBOT_FILE_BYTES};
+pub use models::robot_files::{
+    UrdfOptions, MAX_ROBOT_FILE_BYTES, MAX_URDF_DEPTH, MAX_URDF_ELEMENTS,
+};
 pub use models::scaled::{DynScaledModel, DynScaledWorkspace, ScaledModel};
 pub use models::{ForwardDerivatives, ForwardDerivativesOf, LinearDynamics, LinearModel};
 pub use motion::chain_excitation::{

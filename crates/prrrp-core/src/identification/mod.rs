@@ -175,6 +175,17 @@ impl IdentifiedModel {
         let n = self.robot.joints.len();
         let b = self.base.independent.len();
         let p = self.base.standard_names.len();
+        // Sizes first, before any product of them is formed or allocated (an 8000-joint
+        // file would otherwise ask for a p × p covariance of 10¹⁰ values).
+        crate::models::chain::check_dof("robot.joints", n)?;
+        let most = n * (crate::LINK_PARAMS + 3);
+        if p > most || b > p {
+            return Err(PrrrpError::ShapeMismatch {
+                what: "base (standard_names, independent)".into(),
+                expected: format!("at most {most} standard and as many base parameters"),
+                got: format!("{p} standard, {b} base parameters"),
+            });
+        }
         let shape = |what: &str, want: usize, got: usize| -> Result<()> {
             if want == got {
                 Ok(())

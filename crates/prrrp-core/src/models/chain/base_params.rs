@@ -155,11 +155,35 @@ impl BaseParameters {
         if self.dof != dof || self.friction.enabled() != friction.enabled() {
             return Err(PrrrpError::ShapeMismatch {
                 what: "base parameters".into(),
-                expected: format!("an analysis of this chain ({dof} joints, {friction:?})"),
-                got: format!("an analysis of {} joints, {:?}", self.dof, self.friction),
+                expected: format!(
+                    "an analysis of this chain ({dof} joints, friction {})",
+                    friction_text(friction)
+                ),
+                got: format!(
+                    "an analysis of {} joints, friction {}",
+                    self.dof,
+                    friction_text(&self.friction)
+                ),
             });
         }
         Ok(())
+    }
+}
+
+/// The enabled friction terms as a user writes them (`viscous+coulomb`, `none`).
+fn friction_text(f: &FrictionModel) -> String {
+    let terms: Vec<&str> = [
+        (f.viscous, "viscous"),
+        (f.coulomb, "coulomb"),
+        (f.offset, "offset"),
+    ]
+    .into_iter()
+    .filter_map(|(on, name)| on.then_some(name))
+    .collect();
+    if terms.is_empty() {
+        "none".into()
+    } else {
+        terms.join("+")
     }
 }
 
@@ -190,12 +214,13 @@ pub(crate) fn analyse(view: &ChainView<'_>, opts: &BaseOptions) -> Result<BasePa
     let tol = opts.rank_tolerance;
     if !(tol.is_finite() && tol > 0.0 && tol < 1.0) {
         return Err(PrrrpError::InvalidParameter {
-            field: "BaseOptions::rank_tolerance".into(),
+            field: "rank_tolerance (base-parameter analysis)".into(),
             value: tol,
             reason: "must be in (0, 1); the default is 1e-8",
         });
     }
     let n = view.dof();
+    super::check_dof("chain joints", n)?;
     let p = n * (10 + view.friction.columns_per_joint());
     let samples = if opts.samples == 0 {
         (4 * p).div_ceil(n).max(20)
@@ -206,7 +231,7 @@ pub(crate) fn analyse(view: &ChainView<'_>, opts: &BaseOptions) -> Result<BasePa
     let entries = n as f64 * samples as f64 * p as f64;
     if entries > MAX_MATRIX_ENTRIES || samples > crate::interrupt::MAX_SAMPLES {
         return Err(PrrrpError::InvalidParameter {
-            field: "BaseOptions::samples".into(),
+            field: "samples (base-parameter analysis)".into(),
             value: samples as f64,
             reason: "the stacked regressor would exceed MAX_MATRIX_ENTRIES (2.5e8 doubles, \
                      2 GB) or MAX_SAMPLES: use fewer samples (0 = automatic, 4 rows per \
@@ -256,6 +281,7 @@ pub(crate) fn analyse(view: &ChainView<'_>, opts: &BaseOptions) -> Result<BasePa
     let ws = Mat::from_fn(w.nrows(), nonzero.len(), |i, c| {
         w[(i, nonzero[c])] / norms[nonzero[c]]
     });
+    crate::interrupt::check("base-parameter analysis")?;
     let qr = ws.col_piv_qr();
     let r = qr.R();
     let (perm, _) = qr.P().arrays();
@@ -274,7 +300,8 @@ pub(crate) fn analyse(view: &ChainView<'_>, opts: &BaseOptions) -> Result<BasePa
         pos
     };
     let order: Vec<usize> = preference_order(n, p).filter_map(|j| position[j]).collect();
-    let mut kept = greedy_independent(&ws, &order, tol);
+    crate::interrupt::check("base-parameter analysis")?;
+    let mut kept = greedy_independent(&ws, &order, tol)?;
     if kept.len() != b {
         kept = perm[..b].to_vec();
     }
@@ -286,6 +313,7 @@ pub(crate) fn analyse(view: &ChainView<'_>, opts: &BaseOptions) -> Result<BasePa
     // Ŵ_d = Ŵ_i·X̂ (exact up to round-off), then K_d = X̂ scaled back to SI.
     let ws_i = Mat::from_fn(ws.nrows(), b, |i, r| ws[(i, kept[r])]);
     let ws_d = Mat::from_fn(ws.nrows(), dep_cols.len(), |i, c| ws[(i, dep_cols[c])]);
+    crate::interrupt::check("base-parameter analysis")?;
     let x = if b > 0 && !dep_cols.is_empty() {
         ws_i.qr().solve_lstsq(&ws_d)
     } else {
@@ -341,11 +369,13 @@ fn preference_order(n: usize, p: usize) -> impl Iterator<Item = usize> {
 
 /// Greedy column selection: keeps a (unit-norm) column if its distance to the span of
 /// the columns kept before it exceeds `tol` (Gram–Schmidt with re-orthogonalisation).
-fn greedy_independent(w: &Mat<f64>, order: &[usize], tol: f64) -> Vec<usize> {
+fn greedy_independent(w: &Mat<f64>, order: &[usize], tol: f64) -> Result<Vec<usize>> {
     let rows = w.nrows();
     let mut basis: Vec<Vec<f64>> = Vec::new();
     let mut kept = Vec::new();
     for &c in order {
+        // O(rows·b) per column: as long as the QR for large chains, so it polls for a stop.
+        crate::interrupt::check("base-parameter analysis")?;
         let mut v: Vec<f64> = (0..rows).map(|i| w[(i, c)]).collect();
         for _ in 0..2 {
             for q in &basis {
@@ -362,7 +392,7 @@ fn greedy_independent(w: &Mat<f64>, order: &[usize], tol: f64) -> Vec<usize> {
             kept.push(c);
         }
     }
-    kept
+    Ok(kept)
 }
 
 fn random_position(rng: &mut SplitMix64, g: &JointGeom) -> f64 {

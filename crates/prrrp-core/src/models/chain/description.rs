@@ -188,7 +188,8 @@ impl DynChain {
     /// # Errors
     /// [`PrrrpError::InvalidParameter`] for an unknown schema version, joint type,
     /// convention or friction term, a non-unit quaternion or axis, non-finite values;
-    /// [`PrrrpError::ShapeMismatch`] when the per-joint lists differ in length.
+    /// [`PrrrpError::ShapeMismatch`] when the per-joint lists differ in length or there are
+    /// more than [`crate::MAX_DOF`] joints.
     pub fn from_description(d: &ChainDescription) -> Result<DynChain> {
         if d.schema_version != CHAIN_SCHEMA_VERSION {
             return Err(PrrrpError::InvalidParameter {
@@ -197,6 +198,8 @@ impl DynChain {
                 reason: "unknown chain description version (this prrrp reads version 1)",
             });
         }
+        // Before anything is built: every later size (regressor, covariance) grows with it.
+        super::check_dof("joints", d.joints.len())?;
         let mut joints = Vec::with_capacity(d.joints.len());
         let mut infos = Vec::with_capacity(d.joints.len());
         for (i, j) in d.joints.iter().enumerate() {

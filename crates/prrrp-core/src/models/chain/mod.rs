@@ -29,6 +29,7 @@ mod workspace;
 
 pub use base_model::ChainBaseModel;
 pub use base_params::{BaseOptions, BaseParameters, MAX_MATRIX_ENTRIES};
+pub(crate) use crba::{cholesky_in_place, cholesky_solve};
 pub use description::{
     ChainDescription, DhDescription, JointDescription, PoseDescription, CHAIN_SCHEMA_VERSION,
 };
@@ -45,6 +46,6 @@ pub use inertia::{
 };
 pub use joint::{Joint, JointType, AXIS_UNIT_TOLERANCE};
 pub use meta::{ChainMeta, JointInfo, JointLimit};
-pub(crate) use serial_chain::flat_samples;
-pub use serial_chain::{DynChain, SerialChain, PHYSICAL_TOLERANCE};
+pub(crate) use serial_chain::{check_dof, flat_samples};
+pub use serial_chain::{DynChain, SerialChain, MAX_DOF, PHYSICAL_TOLERANCE};
 pub use workspace::DynWorkspace;

@@ -15,6 +15,9 @@
 mod toml_file;
 mod urdf;
 mod urdf_export;
+mod xml_scan;
+
+pub use xml_scan::{MAX_URDF_DEPTH, MAX_URDF_ELEMENTS};
 
 use std::path::Path;
 

@@ -8,7 +8,7 @@ use toml::{Table, Value};
 use super::file_error;
 use crate::error::Result;
 use crate::models::chain::{
-    ChainMeta, DhConvention, DynChain, FrictionModel, JointInfo, JointLimit,
+    ChainMeta, DhConvention, DynChain, FrictionModel, JointInfo, JointLimit, MAX_DOF,
 };
 use crate::models::prrrp::robot::{DhRow, JointKind, STANDARD_GRAVITY};
 
@@ -288,6 +288,16 @@ pub(super) fn chain_from_toml(text: &str, file: &str) -> Result<DynChain> {
             ))
         }
     };
+    if tables.len() > MAX_DOF {
+        return Err(ctx.err(
+            "joint",
+            format!(
+                "{} [[joint]] tables, more than MAX_DOF = {MAX_DOF}; a serial chain has a few \
+                 dozen joints at most",
+                tables.len()
+            ),
+        ));
+    }
     let mut specs = Vec::with_capacity(tables.len());
     for (i, v) in tables.iter().enumerate() {
         let Some(t) = v.as_table() else {
