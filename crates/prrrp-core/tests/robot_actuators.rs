@@ -308,3 +308,48 @@ fn urdf_export_writes_the_armature_and_reads_it_back() {
     assert!(xml.contains("TOML robot file keeps them"));
     assert!(DynChain::from_urdf_str(&xml, &tip("link3")).is_ok());
 }
+
+#[test]
+fn toml_with_urdf_round_trips_a_coupled_chain() {
+    let chain = DynChain::from_urdf_str(&three_joint_text(), &tip("link3"))
+        .unwrap()
+        .with_friction(
+            prrrp_core::FrictionModel {
+                coulomb_smoothing: 0.03,
+                ..prrrp_core::FrictionModel::all()
+            },
+            vec![[1.0, 2.0, 0.1], [0.5, 0.6, 0.0], [0.2, 0.3, -0.1]],
+        )
+        .unwrap()
+        .with_actuators(Actuators {
+            coupling: Some(vec![
+                vec![1.0, 0.0, 0.0],
+                vec![0.0, 1.0, 0.0],
+                vec![0.0, 0.5, 1.0],
+            ]),
+            armature: true,
+            armature_values: Some(vec![0.7, 0.2, 0.05]),
+            gear_ratios: Some(vec![100.0, 60.0, 30.0]),
+        })
+        .unwrap();
+    let dir = folder("round-trip");
+    std::fs::write(dir.join("robot.urdf"), chain.to_urdf(None).unwrap()).unwrap();
+    let toml = chain.to_toml_with_urdf("robot.urdf", None).unwrap();
+    std::fs::write(dir.join("robot.toml"), &toml).unwrap();
+    let back = DynChain::from_file(dir.join("robot.toml"), &UrdfOptions::default()).unwrap();
+    assert_eq!(back.actuators(), chain.actuators(), "{toml}");
+    assert_eq!(back.friction(), chain.friction());
+    assert_eq!(back.friction_params(), chain.friction_params());
+    for k in 0..5 {
+        let x = 0.3 * k as f64;
+        let (q, qd, qdd) = ([x, -x, 0.1 * x], [0.4, -0.7 + x, 0.2], [1.0, x, -0.5]);
+        let a = chain.inverse_dynamics(&q, &qd, &qdd).unwrap();
+        let b = back.inverse_dynamics(&q, &qd, &qdd).unwrap();
+        for j in 0..3 {
+            assert!(
+                (a[j] - b[j]).abs() < 1e-10 * a[j].abs().max(1.0),
+                "{a:?} vs {b:?}"
+            );
+        }
+    }
+}

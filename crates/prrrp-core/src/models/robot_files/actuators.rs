@@ -14,7 +14,11 @@
 //! armature_values = [...]   # optional, kg·m² (joint side), one per actuator
 //! gear_ratios = [...]       # optional, motor angle per joint-side angle
 //! friction = [[fv, fc, fo], ...]   # optional, per actuator (N·m·s/rad, N·m, N·m)
+//! coulomb_smoothing = 0.02  # optional, v_s of fc·tanh(q̇ₘ/v_s), rad/s (0 = sign)
 //! ```
+//!
+//! [`DynChain::to_toml_with_urdf`] writes such a file for a chain whose URDF is written
+//! next to it.
 
 use std::path::{Path, PathBuf};
 
@@ -27,12 +31,13 @@ use crate::models::chain::{DynChain, FrictionModel};
 use crate::models::prrrp::robot::STANDARD_GRAVITY;
 
 const URDF_KEYS: [&str; 6] = ["name", "urdf", "base", "tip", "gravity", "actuators"];
-const ACTUATOR_KEYS: [&str; 5] = [
+const ACTUATOR_KEYS: [&str; 6] = [
     "armature",
     "coupling",
     "armature_values",
     "gear_ratios",
     "friction",
+    "coulomb_smoothing",
 ];
 
 /// `base` and `tip` name URDF links: without `urdf` they are a mistake.
@@ -243,10 +248,118 @@ pub(super) fn apply_actuators(
             .collect::<Result<Vec<_>>>()?;
         chain = chain.with_friction(FrictionModel::all(), params)?;
     }
+    if let Some(v) = t.get("coulomb_smoothing") {
+        let key = "actuators.coulomb_smoothing";
+        let vs = ctx.number(v, key)?;
+        if vs < 0.0 {
+            return Err(ctx.err(key, format!("{vs} is negative; give v_s >= 0 rad/s")));
+        }
+        let model = FrictionModel {
+            coulomb_smoothing: vs,
+            ..chain.friction()
+        };
+        let params = chain.friction_params().to_vec();
+        chain = chain.with_friction(model, params)?;
+    }
     chain.with_actuators(act).map_err(|e| {
         ctx.err(
             "actuators",
             format!("{e} (the coupling must be square, finite and invertible)"),
         )
     })
+}
+
+impl DynChain {
+    /// A TOML robot file for this chain whose links are in the URDF `urdf` (a path
+    /// relative to the TOML file, e.g. the output of [`DynChain::to_urdf`] written next
+    /// to it): name, `urdf`, `base`, `tip`, `gravity` and an `[actuators]` table with the
+    /// coupling, armature, gear ratios and per-actuator friction (with its Coulomb speed
+    /// scale) — what URDF cannot hold. `parameters` (`None` = the chain's own, else
+    /// [`DynChain::num_params`] values) supplies the armature and friction values.
+    ///
+    /// # Errors
+    /// [`crate::PrrrpError::ShapeMismatch`] for parameters of the wrong length;
+    /// [`crate::PrrrpError::InvalidParameter`] for a non-finite value.
+    pub fn to_toml_with_urdf(&self, urdf: &str, parameters: Option<&[f64]>) -> Result<String> {
+        use std::fmt::Write;
+        let num = super::urdf_export::num;
+        let own = self.parameters();
+        let p = parameters.unwrap_or(&own);
+        if p.len() != self.num_params() {
+            return Err(crate::PrrrpError::ShapeMismatch {
+                what: "parameters".into(),
+                expected: format!(
+                    "{} values (the chain's standard parameters)",
+                    self.num_params()
+                ),
+                got: format!("{} values", p.len()),
+            });
+        }
+        if let Some(k) = p.iter().position(|x| !x.is_finite()) {
+            return Err(crate::PrrrpError::InvalidParameter {
+                field: format!("parameters[{k}]"),
+                value: p[k],
+                reason: "parameters written to a robot file must be finite",
+            });
+        }
+        let quote = |s: &str| {
+            let mut q = String::from('"');
+            for ch in s.chars() {
+                match ch {
+                    '"' => q.push_str("\\\""),
+                    '\\' => q.push_str("\\\\"),
+                    c if (c as u32) < 0x20 || c == '\u{7f}' => {
+                        let _ = write!(q, "\\u{:04X}", c as u32);
+                    }
+                    c => q.push(c),
+                }
+            }
+            q.push('"');
+            q
+        };
+        let list = |v: &[f64]| v.iter().map(|&x| num(x)).collect::<Vec<_>>().join(", ");
+        let meta = self.meta();
+        let n = self.dof();
+        let mut out = String::from(
+            "# Written by prrrp: links, joints and inertials are in the URDF, the drives here.\n",
+        );
+        let _ = writeln!(out, "name = {}", quote(&meta.name));
+        let _ = writeln!(out, "urdf = {}", quote(urdf));
+        let _ = writeln!(out, "base = {}", quote(&meta.base_link));
+        if let Some(tip) = meta.links.last() {
+            let _ = writeln!(out, "tip = {}", quote(tip));
+        }
+        let _ = writeln!(out, "gravity = [{}]", list(&self.gravity()));
+        out.push_str("\n[actuators]\n");
+        let act = self.actuators();
+        let layout = self.layout();
+        let block = |m: usize, kind: usize| {
+            let s = layout.slots[kind];
+            (s != usize::MAX).then(|| p[10 * n + layout.per * m + s])
+        };
+        let _ = writeln!(out, "armature = {}", act.armature);
+        if let Some(c) = &act.coupling {
+            let rows: Vec<String> = c.iter().map(|r| format!("[{}]", list(r))).collect();
+            let _ = writeln!(out, "coupling = [{}]", rows.join(", "));
+        }
+        if act.armature {
+            let ia: Vec<f64> = (0..n).map(|m| block(m, 3).unwrap_or(0.0)).collect();
+            let _ = writeln!(out, "armature_values = [{}]", list(&ia));
+        }
+        if let Some(r) = &act.gear_ratios {
+            let _ = writeln!(out, "gear_ratios = [{}]", list(r));
+        }
+        let f = self.friction();
+        if f.viscous || f.coulomb || f.offset {
+            let rows: Vec<String> = (0..n)
+                .map(|m| {
+                    let v: Vec<f64> = (0..3).map(|k| block(m, k).unwrap_or(0.0)).collect();
+                    format!("[{}]", list(&v))
+                })
+                .collect();
+            let _ = writeln!(out, "friction = [{}]", rows.join(", "));
+            let _ = writeln!(out, "coulomb_smoothing = {}", num(f.coulomb_smoothing));
+        }
+        Ok(out)
+    }
 }
