@@ -79,7 +79,7 @@ pub const COUPLING_CONDITION_LIMIT: f64 = 1e-10;
 #[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
 pub struct Actuators {
     /// The coupling matrix C as n rows of n entries: actuator m's joint-side velocity is
-    /// Σⱼ C[m][j]·q̇ⱼ (dimensionless for rotary joints). `None` = the identity.
+    /// Σⱼ `C[m][j]`·q̇ⱼ (dimensionless for rotary joints). `None` = the identity.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub coupling: Option<Vec<Vec<f64>>>,
     /// Whether each actuator has a rotor-inertia (armature) term Iaₘ·q̈ₘ, identified as one

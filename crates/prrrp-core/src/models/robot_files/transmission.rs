@@ -19,7 +19,9 @@
 //! split as G = diag(r)·C with each row of C scaled so that its largest entry is 1: the
 //! gear ratios r and the coupling C
 //! in joint-side units. A rotor inertia J becomes the joint-side armature Ia = J·r². The
-//! gear ratios are kept only when every chain joint's transmission gives a reduction.
+//! gear ratios are kept only when every chain joint's transmission gives a reduction;
+//! transmissions that only say "reduction 1" everywhere (a common placeholder) leave the
+//! default actuators.
 //! Transmissions of joints off the chain, and of types not listed, are ignored.
 
 use quick_xml::events::{BytesStart, Event};
@@ -349,6 +351,11 @@ pub(super) fn actuators_from_urdf(xml: &str, file: &str, chain: &DynChain) -> Re
     }
     let identity = (0..n).all(|m| (0..n).all(|j| coupling[m][j] == if m == j { 1.0 } else { 0.0 }));
     let armature = rotor.iter().any(Option::is_some);
+    // Many ROS descriptions (the UR5's among them) state a reduction of 1 for every joint
+    // as a placeholder of a joint-side hardware interface: nothing to model.
+    if identity && !armature && ratios.iter().all(|&r| r == 1.0) {
+        return Ok(Actuators::default());
+    }
     let act = Actuators {
         coupling: (!identity).then_some(coupling),
         armature,
