@@ -438,3 +438,32 @@ def test_readme_geared_arm_file_loads(tmp_path):
     assert np.array_equal(act["coupling"], COUPLING)
     assert np.array_equal(act["gear_ratios"], np.full(6, 100.0))
     assert robot.num_params == 6 * (10 + 1)
+
+
+def test_current_columns_are_checked(tmp_path):
+    robot = prrrp.SerialChain.from_urdf(UR5)
+    t = np.arange(40) * 0.01
+    q = np.zeros((40, 6))
+    both = tmp_path / "both.csv"
+    _write_csv(both, t, q, {"tau": q, "i": q})
+    with pytest.raises(ValueError, match="give one"):
+        prrrp.read_measurements(both, robot)
+    currents = tmp_path / "currents.csv"
+    _write_csv(currents, t, q, {"i": np.ones((40, 6))})
+    with pytest.raises(ValueError, match="drive-gains"):
+        prrrp.read_measurements(currents, robot)
+    raw = prrrp.read_measurements(currents, robot, drive_gains=[2.0, 2, 2, 2, 2, 3])
+    assert np.allclose(raw["tau"], [2.0, 2, 2, 2, 2, 3])
+    torques = tmp_path / "torques.csv"
+    _write_csv(torques, t, q, {"tau": q})
+    with pytest.raises(ValueError, match="not motor currents"):
+        prrrp.read_measurements(torques, robot, drive_gains=[1.0] * 6)
+    with pytest.raises(ValueError, match="6 actuators"):
+        prrrp.drives.parse_gains("1,2,3", 6)
+    with pytest.raises(ValueError, match="non-zero"):
+        prrrp.drives.parse_gains("1,2,3,4,5,0", 6)
+    # The paper's fixed format has no current columns.
+    five = tmp_path / "five.csv"
+    _write_csv(five, t, np.zeros((40, 5)), {"i": np.zeros((40, 5))})
+    with pytest.raises(ValueError, match="unknown column 'i1'"):
+        prrrp.csvio.read_measurements(five)
