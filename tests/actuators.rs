@@ -317,3 +317,71 @@ fn bad_couplings_are_clear_errors() {
         assert!(e.contains(want), "{bad}: {e}");
     }
 }
+
+#[test]
+fn identified_models_carry_the_actuators_and_version_1_files_load() {
+    use prrrp_core::IdentifiedModel;
+    let chain = coupled_puma(Some(wrist_coupling()));
+    let base = chain.base_parameters(&BaseOptions::default()).unwrap();
+    let beta = base.base_values(&chain.parameters()).unwrap();
+    let b = beta.len();
+    let model = IdentifiedModel::new(
+        &chain,
+        &base,
+        beta.clone(),
+        Some(vec![1e-3; b]),
+        None,
+        Some(10.0),
+        vec![0.0; 6],
+        "ls",
+        serde_json::Value::Null,
+        serde_json::Value::Null,
+    )
+    .unwrap();
+    // Motor 6 moves joints 5 and 6; its Ia6 is a base parameter on its own with its σ.
+    let a6 = &model.actuators[5];
+    assert_eq!(a6.joints, ["joint5", "joint6"]);
+    let ia6 = a6.terms.iter().find(|t| t.name == "Ia6").unwrap();
+    assert!(ia6.alone);
+    assert_eq!((ia6.value, ia6.sigma), (Some(ARMATURE[5]), Some(1e-3)));
+    let ia1 = &model.actuators[0].terms[3];
+    assert!(!ia1.alone && ia1.combination.as_deref().unwrap().contains("Ia1"));
+    let text = model.to_json().unwrap();
+    let back = IdentifiedModel::from_json(&text).unwrap();
+    let [q, qd, qdd] = trajectory(0.4);
+    assert_eq!(
+        back.predict(&q, &qd, &qdd).unwrap(),
+        model.predict(&q, &qd, &qdd).unwrap()
+    );
+    let want = chain.inverse_dynamics(&q, &qd, &qdd).unwrap();
+    let got = back.predict(&q, &qd, &qdd).unwrap();
+    for j in 0..6 {
+        assert!((got[j] - want[j]).abs() < 1e-9 * want[j].abs().max(1.0));
+    }
+    // A version-1 file (no actuators anywhere) still loads and predicts.
+    let plain = SerialChain::puma560().to_dyn();
+    let base = plain.base_parameters(&BaseOptions::default()).unwrap();
+    let beta = base.base_values(&plain.parameters()).unwrap();
+    let v2 = IdentifiedModel::new(
+        &plain,
+        &base,
+        beta,
+        None,
+        None,
+        None,
+        vec![0.0; 6],
+        "ls",
+        serde_json::Value::Null,
+        serde_json::Value::Null,
+    )
+    .unwrap();
+    let mut v: serde_json::Value = serde_json::from_str(&v2.to_json().unwrap()).unwrap();
+    v["schema_version"] = 1.into();
+    v["robot"]["schema_version"] = 1.into();
+    assert!(v.get("actuators").is_none() && v["robot"].get("actuators").is_none());
+    let old = IdentifiedModel::from_json(&v.to_string()).unwrap();
+    assert_eq!(
+        old.predict(&q, &qd, &qdd).unwrap(),
+        v2.predict(&q, &qd, &qdd).unwrap()
+    );
+}
