@@ -635,7 +635,27 @@ class SerialChain:
         ```
 
         Unknown keys are an error naming them; a `friction` row enables viscous, Coulomb and
-        offset terms (overridden by the `friction` argument)."""
+        offset terms (overridden by the `friction` argument).
+
+        A TOML file may instead take its links from a URDF and declare its drives:
+
+        ```toml
+        name = "tx40"
+        urdf = "tx40.urdf"      # relative to the TOML file; exclusive with [[joint]]
+        base = "base_link"      # optional; `base`/`tip` arguments override them
+        tip = "tool0"
+        [actuators]             # also allowed in a [[joint]] file
+        armature = true         # one rotor inertia Ia per actuator, identified
+        coupling = [[1,0,0,0,0,0],[0,1,0,0,0,0],[0,0,1,0,0,0],
+                    [0,0,0,1,0,0],[0,0,0,0,1,0],[0,0,0,0,1,1]]   # q̇ₘ = C·q̇
+        armature_values = [...] # optional, kg·m² joint side (needs armature = true)
+        gear_ratios = [...]     # optional, motor angle per joint angle (motor-side logs)
+        friction = [[fv, fc, fo], ...]   # optional, per actuator
+        coulomb_smoothing = 0.02         # optional, rad/s
+        ```
+
+        URDF `<transmission>` elements (Simple, Differential, FourBarLinkage; Drake's
+        rotor inertia) are read into the same actuators; see `with_actuators`."""
     def to_urdf(self, parameters: _ArrayLike | None = None) -> str:
         """A URDF of this chain with the standard parameters `parameters` (P,) (default:
         `parameters`): kinematics as loaded, each link's inertial about its centre of mass.
@@ -650,7 +670,47 @@ class SerialChain:
         coulomb_smoothing: float = 0.0,
     ) -> SerialChain:
         """The same chain with another friction model (terms as in the constructor),
-        per-joint [fv, fc, fo] (n, 3) (default zeros) and the smooth-sign scale (rad/s)."""
+        per-joint [fv, fc, fo] (n, 3) (default zeros) and the smooth-sign scale (rad/s).
+        With coupled actuators the rows are per actuator (friction on C·q̇)."""
+    def with_actuators(
+        self,
+        *,
+        coupling: _ArrayLike | None = None,
+        armature: bool | None = None,
+        armature_values: _ArrayLike | None = None,
+        gear_ratios: _ArrayLike | None = None,
+    ) -> SerialChain:
+        """The same chain with other actuators (arguments left None keep the chain's).
+
+        n actuators drive the n joints with joint-side velocities q̇ₘ = C·q̇ (`coupling`, an
+        invertible (n, n) matrix; the identity is one geared motor per joint, a row
+        [0, 0, 0, 0, 1, 1] a sixth motor turning with q̇5 + q̇6). Each actuator has friction
+        (the chain's friction model, acting on q̇ₘ) and, with `armature`, a reflected rotor
+        inertia Iaₘ (kg·m², joint side; `armature_values` (n,) its values, default 0),
+        identified as one more parameter per actuator (`Ia1..Ian`). Their torques reach
+        the joints through Cᵀ: τ = M·q̈ + C(q,q̇)·q̇ + G + Cᵀ·(diag(Ia)·C·q̈ + f(C·q̇)).
+        `gear_ratios` (n,) (motor angle per joint-side angle) only map motor-side logs
+        (`joint_positions_from_motor`). A singular, non-square or non-finite coupling
+        raises InvalidParameterError / ShapeMismatchError."""
+    @property
+    def actuators(self) -> dict[str, Any]:
+        """'coupling' ((n, n) or None = identity), 'armature' (bool), 'armature_values'
+        ((n,) kg·m² or None), 'gear_ratios' ((n,) or None)."""
+    def joint_torques_from_currents(self, current: _ArrayLike, gains: _ArrayLike) -> _F64:
+        """Joint torques τ = Cᵀ·(K∘i) (N·m, N) from motor currents `current` (A), (n,) or
+        (N, n), with joint-side drive gains `gains` (n,) N·m/A (torque constant × gear
+        ratio)."""
+    def joint_positions_from_motor(self, theta: _ArrayLike) -> _F64:
+        """Joint positions q = C⁻¹·(θ/r) from motor angles θ (rad, motor side), (n,) or
+        (N, n); needs `gear_ratios`. Also maps motor velocities/accelerations."""
+    def joint_torques_from_motor(self, tau_motor: _ArrayLike) -> _F64:
+        """Joint torques τ = Cᵀ·(r∘τ_motor) (N·m, N) from motor-side torques (N·m), (n,)
+        or (N, n); needs `gear_ratios`."""
+    def to_toml(self, urdf: str, parameters: _ArrayLike | None = None) -> str:
+        """A TOML robot file of this chain whose links are in the URDF `urdf` (a path
+        relative to the TOML file, e.g. `to_urdf`'s output next to it), with the drives
+        URDF cannot hold ([actuators]: coupling, armature values, gear ratios, per-actuator
+        friction); `parameters` (P,) default to the chain's own."""
     @property
     def name(self) -> str:
         """The robot's name from its file ('robot' otherwise)."""
@@ -862,6 +922,13 @@ class IdentifiedModel:
     def settings(self) -> dict[str, Any]: ...
     @property
     def preprocessing(self) -> dict[str, Any]: ...
+    @property
+    def actuators(self) -> list[dict[str, Any]]:
+        """Per actuator: 'actuator' (1-based), 'joints' it moves, and 'terms' (fv, fc, fo,
+        Ia as the robot has them), each a dict with 'name' (e.g. 'Ia6'), 'base_index' (the
+        base parameter it is identified in, None if unidentifiable), 'combination', 'alone'
+        (the base parameter is this term alone), 'value' (its β̂), 'sigma', 'standard'
+        (physically consistent value, method "physical"). Empty without actuator terms."""
     def __reduce__(self) -> tuple[Any, ...]: ...
 
 def identified_model_from_parts(

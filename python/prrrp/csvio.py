@@ -9,6 +9,8 @@ joints (N = 5 for the paper's arm, :func:`read_measurements`; any N, :func:`read
 - ``q1..qN``: joint positions, m (prismatic) or rad (revolute) — for the paper's arm
   [d1, θ2, θ3, θ4, d5];
 - ``tau1..tauN``: generalised forces, N or N·m — for the paper's arm [F1, τ2, τ3, τ4, F5];
+  a log of any robot (:func:`read_table` with ``real_log``) may give motor currents
+  ``i1..iN`` (A) instead, converted with drive gains (``prrrp.drives``);
 - optional ``qd1..qdN`` (m/s, rad/s) and ``qdd1..qddN`` (m/s², rad/s²): when both are given
   they are used as they are; otherwise velocities and accelerations are obtained by the
   preprocessing (zero-phase low-pass filter and differentiation). A real log may give
@@ -51,7 +53,10 @@ class InputError(ValueError):
 
 def _expected(n: int | None = NDOF) -> str:
     k = "N" if n is None else str(n)
-    return f"expected t, q1..q{k}, tau1..tau{k} and optionally qd1..qd{k}, qdd1..qdd{k}"
+    return (
+        f"expected t, q1..q{k}, tau1..tau{k} (or motor currents i1..i{k}) and optionally "
+        f"qd1..qd{k}, qdd1..qdd{k}"
+    )
 
 
 def columns(n: int) -> dict[str, tuple[str, ...]]:
@@ -61,6 +66,7 @@ def columns(n: int) -> dict[str, tuple[str, ...]]:
         "tau": tuple(f"tau{i}" for i in range(1, n + 1)),
         "qd": tuple(f"qd{i}" for i in range(1, n + 1)),
         "qdd": tuple(f"qdd{i}" for i in range(1, n + 1)),
+        "i": tuple(f"i{i}" for i in range(1, n + 1)),
     }
 
 
@@ -104,7 +110,9 @@ def read_table(
     """Reads a measurement CSV file of ``dof`` joints (None: as many as the header has).
 
     Returns a dict with ``t`` (S,), ``q`` and ``tau`` (S, N) and, when present in the file,
-    ``qd`` and ``qdd`` (S, N). With ``real_log`` the file is a raw log for
+    ``qd`` and ``qdd`` (S, N). With ``real_log`` a file may give motor currents ``i1..iN``
+    (A) instead of torques: the result then has ``current`` (S, N) and no ``tau``. With
+    ``real_log`` the file is a raw log for
     ``prrrp.preprocess_log``: time stamps may repeat (it drops the repeats), and measured
     velocities ``qd`` may come without ``qdd``. Raises InputError (one-line message naming the
     file, row and column) for a missing/misspelt column, a non-numeric or non-finite cell,
@@ -146,10 +154,15 @@ def _read(path: Path, dof: int | None, real_log: bool, need_tau: bool) -> dict[s
     n = _dof_of(path, header) if dof is None else dof
     groups = columns(n)
     required = ("t", *groups["q"], *groups["tau"])
-    every = (*required, *groups["qd"], *groups["qdd"])
-    has_tau = need_tau or any(c in seen for c in groups["tau"])
+    every = (*required, *groups["qd"], *groups["qdd"], *(groups["i"] if real_log else ()))
+    has_current = real_log and any(c in seen for c in groups["i"])
+    has_tau = (need_tau and not has_current) or any(c in seen for c in groups["tau"])
+    if has_current and has_tau:
+        raise InputError(
+            f"{path}: both joint torques tau1..tau{n} and motor currents i1..i{n}; give one"
+        )
     if not has_tau:
-        required = ("t", *groups["q"])
+        required = ("t", *groups["q"], *(groups["i"] if has_current else ()))
     missing = [c for c in required if c not in seen]
     for name in header:
         if name not in every:
@@ -219,9 +232,15 @@ def _read(path: Path, dof: int | None, real_log: bool, need_tau: bool) -> dict[s
             f"{path}: time {what} at data row {k + 1} (t = {t[k]:g} s after {t[k - 1]:g} s)"
         )
     out = {"t": t.copy()}
-    for key, present in (("q", True), ("tau", has_tau), ("qd", has_qd), ("qdd", has_qdd)):
+    for key, present in (
+        ("q", True),
+        ("tau", has_tau),
+        ("qd", has_qd),
+        ("qdd", has_qdd),
+        ("i", has_current),
+    ):
         if present:
-            out[key] = np.column_stack([col[c] for c in groups[key]])
+            out["current" if key == "i" else key] = np.column_stack([col[c] for c in groups[key]])
     return out
 
 

@@ -6,7 +6,8 @@ The friction curve of joint j plots the friction torque the model identified,
 fv·q̇ + fc·tanh(q̇/v_s) + fo (the exact sign when v_s = 0), over the data's
 *residual-corrected* points τ_j − τ̂_rigid,j: the measured torque minus the model's
 rigid-body part, i.e. the friction the data shows. A model that fits puts the curve
-through the cloud.
+through the cloud. With coupled actuators (``SerialChain.actuators``) the curves are per
+actuator over its velocity (C·q̇)ₘ, the points C⁻ᵀ·(τ − τ̂_rigid).
 """
 
 from __future__ import annotations
@@ -125,6 +126,14 @@ def write_figures(
         rigid = _predict_with(model, beta_rigid, data)
         points = np.asarray(data.tau) - rigid
         qd = np.asarray(data.qd)
+        coupling = model.robot.actuators["coupling"]
+        titles = joints
+        if coupling is not None:
+            # Per actuator: its velocity C·q̇ and its friction C⁻ᵀ·(τ − τ̂_rigid).
+            c = np.asarray(coupling)
+            qd = qd @ c.T
+            points = np.linalg.solve(c.T, points.T).T
+            titles = [f"actuator {m + 1}" for m in range(n)]
         fig, axes = plt.subplots(rows, cols, figsize=(4.2 * cols, 2.8 * rows), squeeze=False)
         for j in range(n):
             ax = axes[j // cols][j % cols]
@@ -133,8 +142,9 @@ def write_figures(
             grid = np.linspace(-span, span, 401)
             curve = friction_torque(friction[j : j + 1], grid[:, None], v_s)[:, 0]
             ax.plot(grid, curve, "r", lw=1.2, label="model")
-            ax.set_title(joints[j], fontsize=9)
-            ax.set_xlabel("q̇ (rad/s, m/s)")
+            ax.set_title(titles[j], fontsize=9)
+            ax.set_xlabel("q̇ (rad/s, m/s)" if coupling is None else "(C·q̇)ₘ (rad/s, m/s)")
+            ax.set_ylabel("friction (N·m, N)")
         for j in range(n, rows * cols):
             axes[j // cols][j % cols].axis("off")
         axes[0][0].legend(fontsize=7)
@@ -227,6 +237,7 @@ def render(
         )
     lines += _table(["β", "combination", "value (SI)", "σ", "%σ"], rows)
     lines.append("")
+    lines += _actuator_lines(model)
     if coulomb is not None:
         lines += ["## Coulomb speed scale", ""]
         if coulomb.get("note"):
@@ -267,6 +278,63 @@ def render(
         lines += [f"- `{name}`: {caption}" for name, caption in figures]
         lines.append("")
     return "\n".join(lines)
+
+
+def _actuator_lines(model: IdentifiedModel) -> list[str]:
+    """The "Actuators" section: coupling, and each actuator's friction and rotor inertia
+    with σ (none when the robot has no actuator terms)."""
+    acts = model.actuators
+    act = model.robot.actuators
+    if not acts and act["coupling"] is None:
+        return []
+    lines = ["## Actuators", ""]
+    if act["coupling"] is not None:
+        lines.append(
+            "Coupled actuators: velocities q̇ₘ = C·q̇ (joint-side units), their torques reach "
+            "the joints through Cᵀ. C ="
+        )
+        lines.append("")
+        lines += ["    " + "  ".join(f"{x:8.4g}" for x in row) for row in act["coupling"]]
+        lines.append("")
+    if act["gear_ratios"] is not None:
+        lines.append(
+            "Gear ratios (motor angle per joint-side angle): "
+            + ", ".join(_g(r) for r in act["gear_ratios"])
+        )
+        lines.append("")
+    if acts:
+        lines.append(
+            "Per actuator: friction on its velocity (fv N·m·s/rad, fc and fo N·m; N·s/m, N "
+            "for a prismatic joint) and Ia, its rotor inertia reflected to the joint side "
+            "(kg·m²). A term the data see only together with link parameters is given with "
+            "that base parameter's value (its combination)."
+        )
+        lines.append("")
+        rows = []
+        for a in acts:
+            for t in a["terms"]:
+                if t["base_index"] is None:
+                    how = "not identifiable"
+                elif t["alone"]:
+                    how = "alone"
+                else:
+                    how = f"`{t['combination']}`"
+                rows.append(
+                    [
+                        str(a["actuator"]),
+                        ", ".join(a["joints"]),
+                        t["name"],
+                        _g(t["value"], 5),
+                        _g(t["sigma"], 3),
+                        how,
+                        _g(t["standard"], 5),
+                    ]
+                )
+        lines += _table(
+            ["actuator", "moves", "term", "value (SI)", "σ", "identified as", "physical π"], rows
+        )
+        lines.append("")
+    return lines
 
 
 def write_report(

@@ -51,14 +51,19 @@ def load_robot(
     tip: str | None = None,
     friction: str | list[str] | None = None,
     coulomb_scale: float = 0.0,
+    armature: bool | None = None,
 ) -> SerialChain:
     """A robot from a ``.urdf`` (the chain from link ``base`` to link ``tip``) or ``.toml``
     file, with the friction terms to identify (``"viscous+coulomb+offset"``, a list of
-    them, or None for the file's own) and the Coulomb speed scale (rad/s; 0 = exact sign)."""
+    them, or None for the file's own), the Coulomb speed scale (rad/s; 0 = exact sign) and
+    whether to identify one rotor inertia (armature) per actuator (None: as the file says;
+    see ``SerialChain.with_actuators``)."""
     robot = SerialChain.from_file(path, base=base, tip=tip)
     if friction is not None:
         terms = friction if isinstance(friction, str) else "+".join(friction)
         robot = robot.with_friction(terms or None, None, coulomb_smoothing=coulomb_scale)
+    if armature is not None:
+        robot = robot.with_actuators(armature=armature)
     return robot
 
 
@@ -104,6 +109,7 @@ def identify_measurements(
     *,
     coulomb_scale: str | float = "auto",
     preprocessing: dict[str, Any] | None = None,
+    drives: dict[str, Any] | None = None,
     **settings: Any,
 ) -> Identification:
     """Identifies ``robot`` from measurements (``prrrp.read_measurements``'s dict, or a
@@ -113,8 +119,9 @@ def identify_measurements(
     ``SerialChain.coulomb_scale``; a number: that scale, 0 = exact sign), then
     ``prrrp.identify(robot, data, method, **settings)`` (default :data:`DEFAULT_METHOD`,
     joint-weighted least squares). The model records the
-    preprocessing settings and report and the speed-scale search, so ``prrrp predict``
-    can treat new logs the same way."""
+    preprocessing settings and report and the speed-scale search (and ``drives``, how
+    currents or motor-side data were converted: ``prrrp.drives.record``), so ``prrrp
+    predict`` can treat new logs the same way."""
     preprocessing = {k: v for k, v in (preprocessing or {}).items() if v is not None}
     unknown = sorted(set(preprocessing) - set(PREPROCESS_KEYS))
     if unknown:
@@ -136,6 +143,8 @@ def identify_measurements(
             raise ValueError(f"coulomb_scale must be finite and >= 0 rad/s, got {v_s}")
         robot = with_coulomb_scale(robot, v_s)
     record = {"settings": preprocessing, "report": log_report, "coulomb_scale": coulomb}
+    if drives:
+        record["drives"] = drives
     model = identify(robot, data, method, preprocessing=record, **settings)
     return Identification(model, data, log_report, coulomb)
 

@@ -81,6 +81,7 @@ pub use identification::{
     GradientSettings, IdentifiedModel, LsSettings, Method, PhysicalSettings, Predictor,
     RlsSettings, METHOD_NAMES, MODEL_SCHEMA_VERSION,
 };
+pub use identification::{ActuatorEstimate, TermEstimate};
 pub use interrupt::{check_count, clear_stop, request_stop, stop_requested, StopFlag, MAX_SAMPLES};
 pub use models::chain::{
     com_and_inertia, inertial_parameters, is_physically_consistent, transform_inertial_parameters,
@@ -94,6 +95,7 @@ pub use models::chain::{
     pseudo_inertia, pseudo_inertia_to_parameters, standard_from_base, FeasibilityReport,
     JointFrictionFeasibility, LinkFeasibility,
 };
+pub use models::chain::{Actuators, ACTUATOR_PARAMETER_NAMES, COUPLING_CONDITION_LIMIT};
 pub use models::prrrp::derivatives::InverseDerivatives;
 pub use models::prrrp::dynamics::{MassCholesky, PrrrpModel};
 pub use models::prrrp::regressor::{condition_number, observation_matrix, singular_values};

@@ -56,7 +56,7 @@ impl PyIdentifiedModel {
         Self::from_json(py, &text)
     }
 
-    /// The model as JSON text (schema version 1).
+    /// The model as JSON text (schema version 2).
     fn to_json(&self, py: Python<'_>) -> PyResult<String> {
         self.inner.to_json().to_py(py)
     }
@@ -213,6 +213,16 @@ impl PyIdentifiedModel {
     #[getter]
     fn preprocessing<'py>(&self, py: Python<'py>) -> Out<'py> {
         json_to_py(py, &self.inner.preprocessing)
+    }
+
+    /// Each actuator's identified terms (friction, armature) with the base parameter they
+    /// are identified in, β̂ and σ: a list of dicts (see `_prrrp.pyi`); empty without
+    /// actuator terms.
+    #[getter]
+    fn actuators<'py>(&self, py: Python<'py>) -> Out<'py> {
+        let v = serde_json::to_value(self.inner.actuator_estimates())
+            .map_err(|e| pyo3::exceptions::PyRuntimeError::new_err(e.to_string()))?;
+        json_to_py(py, &v)
     }
 
     /// Pickle support through the JSON text.

@@ -9,7 +9,7 @@ from pathlib import Path
 from typing import Any
 
 import prrrp
-from prrrp import bags, model_report, outdir, workflow
+from prrrp import bags, drives, model_report, outdir, workflow
 from prrrp.cli.common import (
     EXIT_OK,
     CliError,
@@ -40,6 +40,24 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         help="speed scale v_s (rad/s) of the smooth Coulomb term fc·tanh(q̇/v_s): auto = "
         "chosen from the data by cross-validation, 0 = exact sign (default: auto)",
     )
+    g.add_argument(
+        "--armature",
+        action="store_true",
+        help="identify one rotor inertia (armature) per actuator: Ia·q̈ₘ through the coupling "
+        "of the robot file's [actuators] (default: as the robot file says)",
+    )
+    g.add_argument(
+        "--drive-gains",
+        metavar="K1,...,KN",
+        help="the log has motor currents i1..iN (A): joint-side drive gains, N·m/A per actuator "
+        "(torque constant × gear ratio); torques are Cᵀ·(K∘i)",
+    )
+    g.add_argument(
+        "--motor-side",
+        action="store_true",
+        help="the log's positions and torques are motor-side: mapped to the joints through the "
+        "gear_ratios and coupling of the robot file's [actuators]",
+    )
     g.add_argument("--cutoff", type=float, metavar="HZ", help="low-pass cut-off of the log, Hz")
     g.add_argument("--rate", type=float, metavar="HZ", help="resampling rate of the log, Hz")
     g.add_argument("--decimate", type=float, metavar="HZ", help="output rate after filtering")
@@ -67,14 +85,20 @@ def run(args: argparse.Namespace) -> int:
         raise CliError("--out DIR is required with --robot (the model, report and figures)")
     out = Path(args.out)
     robot = workflow.load_robot(
-        args.robot, base=args.base, tip=args.tip, friction=friction_terms(args.friction)
+        args.robot,
+        base=args.base,
+        tip=args.tip,
+        friction=friction_terms(args.friction),
+        armature=True if args.armature else None,
     )
     scale = _coulomb_scale(args.coulomb_scale)
     pre = {"cutoff_hz": args.cutoff, "rate_hz": args.rate, "decimate_to_hz": args.decimate}
-    raw = read_measurements(args.data, robot, topic=args.topic)
+    gains = None if args.drive_gains is None else drives.parse_gains(args.drive_gains, robot.dof)
+    conversion = {"drive_gains": gains, "motor_side": args.motor_side}
+    raw = read_measurements(args.data, robot, topic=args.topic, **conversion)
     val = None
     if args.validate:
-        val_raw = read_measurements(args.validate, robot, topic=args.topic)
+        val_raw = read_measurements(args.validate, robot, topic=args.topic, **conversion)
         val, _ = measurements_to_dataset(val_raw, pre)
     methods = list(workflow.METHODS) if args.method == "all" else [args.method]
     progress = Progress()
@@ -85,7 +109,12 @@ def run(args: argparse.Namespace) -> int:
             progress("identify", k, len(methods))
             try:
                 runs[method] = workflow.identify_measurements(
-                    robot, raw, method, coulomb_scale=scale, preprocessing=pre
+                    robot,
+                    raw,
+                    method,
+                    coulomb_scale=scale,
+                    preprocessing=pre,
+                    drives=drives.record(gains, args.motor_side),
                 )
             except (prrrp.PrrrpError, ValueError) as e:
                 if len(methods) == 1:
@@ -114,6 +143,14 @@ def run(args: argparse.Namespace) -> int:
         if physical is not None:
             (tmp / "robot.urdf").write_text(physical.model.to_urdf(), encoding="utf-8")
             written.append(tmp / "robot.urdf")
+            identified = physical.model.robot
+            act = identified.actuators
+            if act["coupling"] is not None or act["armature"] or act["gear_ratios"] is not None:
+                # What URDF cannot hold (a coupling, per-actuator friction) goes to a TOML
+                # robot file that takes its links from robot.urdf.
+                text = identified.to_toml("robot.urdf", physical.model.standard_parameters)
+                (tmp / "robot.toml").write_text(text, encoding="utf-8")
+                written.append(tmp / "robot.toml")
             if physical is not main:
                 report_dir = tmp / "physical"
                 report_dir.mkdir()

@@ -9,7 +9,7 @@ from typing import Any
 import numpy as np
 
 import prrrp
-from prrrp import bags, csvio
+from prrrp import bags, csvio, drives
 from prrrp.cli.common import (
     EXIT_OK,
     CliError,
@@ -51,7 +51,7 @@ def predict_file(
     ``tau`` (S, N) and, when the file has measured torques, ``measured`` (S, N) on the same
     time grid (after the model's preprocessing when the file has no q̇, q̈)."""
     robot = model.robot
-    raw = read_measurements(path, robot, topic=topic, need_tau=False)
+    raw = read_measurements(path, robot, topic=topic, need_tau=False, **drives.recorded(model))
     measured = "tau" in raw
     if not measured:
         raw["tau"] = np.zeros_like(raw["q"])

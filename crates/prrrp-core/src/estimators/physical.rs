@@ -210,8 +210,6 @@ pub struct BaseFeasibility {
 /// bias β towards the prior (a maximum a posteriori estimate).
 #[derive(Debug, Clone)]
 pub struct PhysicalProblem {
-    dof: usize,
-    friction: FrictionModel,
     base: BaseParameters,
     /// Data in compact form: ‖Λ^{1/2}(Wπ − τ)‖² = ‖a·π − z‖² + r0sq.
     a: DMatrix<f64>,
@@ -350,8 +348,6 @@ impl PhysicalProblem {
         let z = DVector::from_fn(k, |i, _| r[(i, p)]);
         let r0sq = if m > p { r[(p, p)] * r[(p, p)] } else { 0.0 };
         Ok(Self {
-            dof: n,
-            friction: base.friction,
             base,
             a,
             z,
@@ -421,7 +417,7 @@ impl PhysicalProblem {
     /// [`PrrrpError::Interrupted`] on [`crate::request_stop`].
     pub fn solve(&self, config: &PhysicalConfig) -> Result<PhysicalEstimate> {
         config.validate()?;
-        let layout = Layout::new(self.dof, self.friction);
+        let layout = Layout::of(&self.base);
         let anchor = layout.anchor(config.prior.as_deref())?;
         let (pi, iterations, _) = interior_point(
             &layout,
@@ -444,7 +440,7 @@ impl PhysicalProblem {
         } else {
             f64::INFINITY
         };
-        let feasibility = FeasibilityReport::new(&pi, self.dof, &self.friction)?;
+        let feasibility = feasibility_of(&pi, &self.base)?;
         Ok(PhysicalEstimate {
             parameters: pi,
             base,
@@ -546,7 +542,7 @@ pub fn base_feasibility(
         .collect();
     let a = DMatrix::from_fn(b, p, |r, j| base.map[(r, j)] / s[r]);
     let z = DVector::from_fn(b, |r, _| beta[r] / s[r]);
-    let layout = Layout::new(base.dof, base.friction);
+    let layout = Layout::of(base);
     let anchor = layout.anchor(config.prior.as_deref())?;
     // A yes/no question with a mismatch to report: 1e-7 of the objective is accuracy
     // enough, and saves the slow last digits of boundary optima.
@@ -571,7 +567,7 @@ pub fn base_feasibility(
         .iter()
         .zip(&s)
         .fold(0.0f64, |m, (d, s)| m.max(d.abs() / s));
-    let report = FeasibilityReport::new(&pi, base.dof, &base.friction)?;
+    let report = feasibility_of(&pi, base)?;
     Ok(BaseFeasibility {
         feasible: max_relative_mismatch <= BASE_FEASIBILITY_TOLERANCE,
         parameters: pi,
@@ -629,7 +625,29 @@ const EIGEN_FLOOR: f64 = 1e-4;
 /// Factor by which the barrier weight t shrinks between centering steps.
 const BARRIER_SHRINK: f64 = 10.0;
 
+/// Feasibility of π in the layout of the analysis `base` (actuator terms included).
+fn feasibility_of(pi: &[f64], base: &BaseParameters) -> Result<FeasibilityReport> {
+    FeasibilityReport::with_armature(pi, base.dof, &base.friction, base.armature)
+}
+
 impl Layout {
+    /// The layout of the analysis `base`: its friction terms and, per actuator, a rotor
+    /// inertia Ia ≥ 0 when the chain has an armature term.
+    fn of(base: &BaseParameters) -> Self {
+        let mut l = Self::new(base.dof, base.friction);
+        if base.armature {
+            let per = base.friction.columns_per_joint();
+            let mut kinds = Vec::with_capacity(l.friction.len() + base.dof);
+            for m in 0..base.dof {
+                kinds.extend_from_slice(&l.friction[per * m..per * (m + 1)]);
+                kinds.push(FrictionParam::NonNegative);
+            }
+            l.friction = kinds;
+            l.p = base.dof * LINK_PARAMS + l.friction.len();
+        }
+        l
+    }
+
     fn new(dof: usize, model: FrictionModel) -> Self {
         let mut friction = Vec::new();
         for _ in 0..dof {

@@ -646,6 +646,7 @@ pub fn identify(
         );
         out.sigma = Some(sigma);
     }
+    out.actuators = out.actuator_estimates();
     out.validate()?;
     Ok(out)
 }

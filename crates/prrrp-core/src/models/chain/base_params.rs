@@ -23,6 +23,7 @@
 use faer::linalg::solvers::SolveLstsq;
 use faer::Mat;
 
+use super::actuators::ActuatorLayout;
 use super::friction::FrictionModel;
 use super::joint::JointGeom;
 use super::rnea::{ChainView, LinkState};
@@ -65,8 +66,11 @@ impl Default for BaseOptions {
 pub struct BaseParameters {
     /// Number of joints of the analysed chain.
     pub dof: usize,
-    /// Friction model of the analysed chain (it fixes the parameter layout).
+    /// Friction model of the analysed chain (with `armature` it fixes the parameter
+    /// layout).
     pub friction: FrictionModel,
+    /// Whether the analysed chain's actuators have armature columns (`Ia1 … Ian`).
+    pub armature: bool,
     /// Names of the standard parameters (length p).
     pub names: Vec<String>,
     /// Standard parameters kept as base parameters, increasing (length b); base
@@ -148,42 +152,42 @@ impl BaseParameters {
         }))
     }
 
-    pub(crate) fn check_layout(&self, dof: usize, friction: &FrictionModel) -> Result<()> {
+    /// Where the actuator parameters of the analysed chain sit.
+    pub(crate) fn layout(&self) -> ActuatorLayout {
+        ActuatorLayout::new(&self.friction, self.armature)
+    }
+
+    pub(crate) fn check_layout(&self, dof: usize, layout: &ActuatorLayout) -> Result<()> {
         // The Coulomb speed scale changes a column's values, not which columns exist or
         // which combinations are identifiable, so one analysis serves every v_s (the
         // Coulomb speed-scale search relies on it).
-        if self.dof != dof || self.friction.enabled() != friction.enabled() {
+        if self.dof != dof || self.layout() != *layout {
+            let terms = |l: &ActuatorLayout| {
+                let on: Vec<&str> = ["viscous", "coulomb", "offset", "armature"]
+                    .into_iter()
+                    .zip(l.enabled())
+                    .filter_map(|(t, on)| on.then_some(t))
+                    .collect();
+                if on.is_empty() {
+                    "none".to_string()
+                } else {
+                    on.join("+")
+                }
+            };
             return Err(PrrrpError::ShapeMismatch {
                 what: "base parameters".into(),
                 expected: format!(
-                    "an analysis of this chain ({dof} joints, friction {})",
-                    friction_text(friction)
+                    "an analysis of this chain ({dof} joints, actuator terms [{}])",
+                    terms(layout)
                 ),
                 got: format!(
-                    "an analysis of {} joints, friction {}",
+                    "an analysis of {} joints, actuator terms [{}]",
                     self.dof,
-                    friction_text(&self.friction)
+                    terms(&self.layout())
                 ),
             });
         }
         Ok(())
-    }
-}
-
-/// The enabled friction terms as a user writes them (`viscous+coulomb`, `none`).
-fn friction_text(f: &FrictionModel) -> String {
-    let terms: Vec<&str> = [
-        (f.viscous, "viscous"),
-        (f.coulomb, "coulomb"),
-        (f.offset, "offset"),
-    ]
-    .into_iter()
-    .filter_map(|(on, name)| on.then_some(name))
-    .collect();
-    if terms.is_empty() {
-        "none".into()
-    } else {
-        terms.join("+")
     }
 }
 
@@ -221,7 +225,8 @@ pub(crate) fn analyse(view: &ChainView<'_>, opts: &BaseOptions) -> Result<BasePa
     }
     let n = view.dof();
     super::check_dof("chain joints", n)?;
-    let p = n * (10 + view.friction.columns_per_joint());
+    let layout = view.layout();
+    let p = n * (10 + layout.per);
     let samples = if opts.samples == 0 {
         (4 * p).div_ceil(n).max(20)
     } else {
@@ -338,13 +343,14 @@ pub(crate) fn analyse(view: &ChainView<'_>, opts: &BaseOptions) -> Result<BasePa
         .copied()
         .filter(|&j| (0..b).all(|r| map[(r, j)] == 0.0))
         .collect();
-    let names = parameter_names(n, &view.friction);
+    let names = parameter_names(n, &layout);
     let combinations = (0..b)
         .map(|r| combination(&names, (0..p).map(|j| map[(r, j)])))
         .collect();
     Ok(BaseParameters {
         dof: n,
         friction: view.friction,
+        armature: view.armature.is_some(),
         names,
         independent,
         dependent,
@@ -360,7 +366,9 @@ pub(crate) fn analyse(view: &ChainView<'_>, opts: &BaseOptions) -> Result<BasePa
 /// outwards, and within a link the inertia entries, then the first moments, then the mass
 /// — so that, as in Khalil's regrouping rules, the mass and first moments of a link are
 /// folded into the parameters of the links before it, and each base parameter is named
-/// after the earliest parameter it contains. Friction terms come last.
+/// after the earliest parameter it contains. Actuator terms (friction, armature) come
+/// last: an armature that moves with one joint only, such as the first joint's about a
+/// fixed vertical axis, is folded into that link's inertia (`Izz1 + Ia1`).
 fn preference_order(n: usize, p: usize) -> impl Iterator<Item = usize> {
     (0..n)
         .flat_map(|i| [4, 5, 6, 7, 8, 9, 1, 2, 3, 0].map(|k| 10 * i + k))
@@ -476,7 +484,7 @@ impl<const N: usize> SerialChain<N> {
         qd: &[nalgebra::SVector<f64, N>],
         qdd: &[nalgebra::SVector<f64, N>],
     ) -> Result<Mat<f64>> {
-        base.check_layout(N, &self.friction())?;
+        base.check_layout(N, &self.layout())?;
         base.select_columns(&self.observation_matrix(q, qd, qdd)?)
     }
 }
@@ -502,7 +510,7 @@ impl DynChain {
         qd: &[f64],
         qdd: &[f64],
     ) -> Result<Mat<f64>> {
-        base.check_layout(self.dof(), &self.friction())?;
+        base.check_layout(self.dof(), &self.layout())?;
         base.select_columns(&self.observation_matrix(q, qd, qdd)?)
     }
 }

@@ -8,6 +8,7 @@
 //! [`DynChain`] (size known at run time). [`SerialChain::paper`] is the PRRRP arm of the
 //! paper as a chain; it reproduces the closed-form [`crate::PrrrpModel`].
 
+mod actuators;
 mod base_model;
 mod base_params;
 mod crba;
@@ -27,6 +28,7 @@ mod robots;
 mod serial_chain;
 mod workspace;
 
+pub use actuators::{Actuators, ACTUATOR_PARAMETER_NAMES, COUPLING_CONDITION_LIMIT};
 pub use base_model::ChainBaseModel;
 pub use base_params::{BaseOptions, BaseParameters, MAX_MATRIX_ENTRIES};
 pub(crate) use crba::{cholesky_in_place, cholesky_solve};

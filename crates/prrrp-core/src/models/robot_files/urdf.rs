@@ -638,8 +638,13 @@ pub(super) fn chain_from_urdf(xml: &str, file: &str, opts: &UrdfOptions) -> Resu
         joints: infos,
         locked_joints: locked,
     };
-    DynChain::from_joints(joints)?
+    let chain = DynChain::from_joints(joints)?
         .with_inertial(inertial)?
         .with_gravity(opts.gravity.unwrap_or([0.0, 0.0, -STANDARD_GRAVITY]))?
-        .with_meta(meta)
+        .with_meta(meta)?;
+    let actuators = super::transmission::actuators_from_urdf(xml, file, &chain)?;
+    if actuators.is_default() {
+        return Ok(chain);
+    }
+    chain.with_actuators(actuators)
 }

@@ -9,7 +9,7 @@ use crate::models::chain::{transform_inertial_parameters, DynChain, JointType, L
 
 /// Shortest text that reads back to the same `f64` (Rust's `Debug` is round-trip exact);
 /// −0 is written as 0, which no reader treats differently.
-fn num(x: f64) -> String {
+pub(super) fn num(x: f64) -> String {
     let x = if x == 0.0 { 0.0 } else { x };
     format!("{x:?}")
 }
@@ -21,7 +21,7 @@ fn vec3(v: &Vector3<f64>) -> String {
 /// Escapes a name for a double-quoted XML attribute. Tab, newline and carriage return
 /// are written as character references, which survive the attribute-value normalisation
 /// of XML readers (a literal one would be read back as a space).
-fn attr(s: &str) -> String {
+pub(super) fn attr(s: &str) -> String {
     let mut out = String::with_capacity(s.len());
     for ch in s.chars() {
         match ch {
@@ -237,30 +237,33 @@ pub(super) fn chain_to_urdf(c: &DynChain, parameters: Option<&[f64]>) -> Result<
         });
     }
     // Each joint's [fv, fc] when the chain models them: from `params` when they follow
-    // the inertials, else the chain's own.
-    let per_joint = model.columns_per_joint();
-    let friction: Option<Vec<[f64; 2]>> = (model.viscous || model.coulomb).then(|| {
-        (0..n)
-            .map(|j| {
-                let own = c.friction_params()[j];
-                if params.len() == c.num_params() {
-                    let block = &params[LINK_PARAMS * n + per_joint * j..];
-                    let fv = if model.viscous { block[0] } else { 0.0 };
-                    let fc = if model.coulomb {
-                        block[usize::from(model.viscous)]
+    // the inertials, else the chain's own. Friction of coupled actuators acts on C·q̇, not
+    // on a joint: URDF cannot say so and the TOML robot file keeps it.
+    let per_joint = c.layout().per;
+    let coupled = c.actuators().coupling.is_some() && !c.actuators().is_default_coupling();
+    let friction: Option<Vec<[f64; 2]>> =
+        (!coupled && (model.viscous || model.coulomb)).then(|| {
+            (0..n)
+                .map(|j| {
+                    let own = c.friction_params()[j];
+                    if params.len() == c.num_params() {
+                        let block = &params[LINK_PARAMS * n + per_joint * j..];
+                        let fv = if model.viscous { block[0] } else { 0.0 };
+                        let fc = if model.coulomb {
+                            block[usize::from(model.viscous)]
+                        } else {
+                            0.0
+                        };
+                        [fv, fc]
                     } else {
-                        0.0
-                    };
-                    [fv, fc]
-                } else {
-                    [
-                        if model.viscous { own[0] } else { 0.0 },
-                        if model.coulomb { own[1] } else { 0.0 },
-                    ]
-                }
-            })
-            .collect()
-    });
+                        [
+                            if model.viscous { own[0] } else { 0.0 },
+                            if model.coulomb { own[1] } else { 0.0 },
+                        ]
+                    }
+                })
+                .collect()
+        });
 
     check_names(c)?;
     let meta = c.meta();
@@ -385,6 +388,7 @@ pub(super) fn chain_to_urdf(c: &DynChain, parameters: Option<&[f64]>) -> Result<
             );
         }
     }
+    super::transmission::write_transmissions(c, params, &mut out);
     out.push_str("</robot>\n");
     Ok(out)
 }
