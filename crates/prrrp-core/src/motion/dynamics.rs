@@ -79,7 +79,10 @@ pub trait Dynamics {
 /// The full chain: its own inertial parameters and friction ([`DynChain::friction`]).
 /// A Coulomb term with the exact sign (`coulomb_smoothing` = 0) is reported by
 /// [`Dynamics::exact_coulomb_into`] for joints with fc > 0 (a negative fc, which only an
-/// unconstrained identification gives, is left in the dynamics as it is).
+/// unconstrained identification gives, is left in the dynamics as it is) whose actuator
+/// drives that joint alone; the friction of a coupled actuator (a wrist motor turning
+/// with q5 + q6) stays in the dynamics with its exact sign, so simulate such an arm with
+/// a smoothed sign (`coulomb_smoothing` > 0).
 impl Dynamics for DynChain {
     type Workspace = DynWorkspace;
 
@@ -121,8 +124,18 @@ impl Dynamics for DynChain {
         if !(f.coulomb && f.coulomb_smoothing == 0.0) {
             return false;
         }
-        for (o, p) in fc.iter_mut().zip(self.friction_params()) {
-            *o = p[1].max(0.0);
+        let coupling = self.actuators().coupling.as_deref();
+        for (m, (o, p)) in fc.iter_mut().zip(self.friction_params()).enumerate() {
+            // Stick–slip events are per joint: an actuator coupled to several joints
+            // (a row of C other than e_m) keeps its exact sign in the dynamics.
+            let own_joint = match coupling {
+                None => true,
+                Some(c) => c[m]
+                    .iter()
+                    .enumerate()
+                    .all(|(j, &x)| x == if j == m { 1.0 } else { 0.0 }),
+            };
+            *o = if own_joint { p[1].max(0.0) } else { 0.0 };
         }
         fc.iter().any(|&x| x > 0.0)
     }
