@@ -275,7 +275,7 @@ impl IdentifiedModel {
         // Sizes first, before any product of them is formed or allocated (an 8000-joint
         // file would otherwise ask for a p × p covariance of 10¹⁰ values).
         crate::models::chain::check_dof("robot.joints", n)?;
-        let most = n * (crate::LINK_PARAMS + 3);
+        let most = n * (crate::LINK_PARAMS + crate::models::chain::ACTUATOR_PARAMETER_NAMES.len());
         if p > most || b > p {
             return Err(PrrrpError::ShapeMismatch {
                 what: "base (standard_names, independent)".into(),
