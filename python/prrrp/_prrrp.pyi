@@ -797,11 +797,17 @@ class IdentifiedModel:
     and saves to / loads from JSON, so a saved model needs neither the robot file nor the
     data."""
 
+    MAX_FILE_BYTES: Final[int]
+    """Largest model file `load` reads (256 MiB)."""
     @staticmethod
     def from_json(text: str) -> IdentifiedModel: ...
     @staticmethod
     def load(path: str | os.PathLike[str]) -> IdentifiedModel:
-        """A model from a file written by `save`."""
+        """A model from a file written by `save`. The path must be a regular file of at
+        most MAX_FILE_BYTES, checked before it is opened (a FIFO or /dev/zero is refused,
+        never read); a missing, unreadable, oversized or malformed file is an
+        InvalidParameterError with `.file`, `.what` (path, size, content) and `.message`, whose
+        message names the file and, for bad JSON, the line, column and what is wrong."""
     def to_json(self) -> str: ...
     def save(self, path: str | os.PathLike[str]) -> None:
         """Writes the model as JSON, atomically (a temporary file moved into place)."""

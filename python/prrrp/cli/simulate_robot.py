@@ -14,13 +14,22 @@ from prrrp.cli.common import EXIT_OK, CliError, check_output_file
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     g = p.add_argument_group("any robot (with --robot)")
-    g.add_argument("--robot", metavar="ROBOT", help="robot file (.urdf or .toml)")
-    g.add_argument("--base", metavar="LINK", help="URDF: first link of the chain")
-    g.add_argument("--tip", metavar="LINK", help="URDF: last link of the chain")
+    g.add_argument(
+        "--robot", metavar="ROBOT", help="robot file (.urdf or .toml) (default: the paper's arm)"
+    )
+    g.add_argument(
+        "--base", metavar="LINK", help="URDF: first link of the chain (default: the root link)"
+    )
+    g.add_argument(
+        "--tip",
+        metavar="LINK",
+        help="URDF: last link of the chain (default: the end of the movable joints)",
+    )
     g.add_argument(
         "--trajectory",
         metavar="TRAJ.csv",
-        help="reference t, q1..qN, qd1..qdN, qdd1..qddN (from `prrrp excite`)",
+        help="reference t, q1..qN, qd1..qdN, qdd1..qddN (from `prrrp excite`); required with "
+        "--robot (default: none)",
     )
 
 
@@ -41,7 +50,9 @@ def run(args: argparse.Namespace) -> int:
         if "prrrp" in type(e).__module__:
             raise
         raise CliError(f"{args.trajectory}: {e}") from None
-    csvio.write_text_atomic(out, csvio.format_measurements(rec["t"], rec["q"], rec["tau"]))
+    groups = csvio.columns(robot.dof)
+    table = np.column_stack([rec["t"], rec["q"], rec["tau"]])
+    csvio.write_table_atomic(out, ["t", *groups["q"], *groups["tau"]], table)
     err = np.abs(rec["q_true"] - traj["q"][: len(rec["t"])]).max()
     print(
         f"results in {out} ({len(rec['t'])} samples of {robot.name}, {robot.dof} joints; "
