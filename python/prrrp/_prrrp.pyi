@@ -1302,7 +1302,10 @@ def validate_model(
     eqs. 45–47). `model` is an IdentifiedModel (τ̂ = Y_b·β̂), or a SerialChain with its
     own parameters, or a SerialChain with base parameters `beta` in the analysis `base`
     (default the chain's `base_parameters()`). Raises ShapeMismatchError if data's joint
-    count is not the model's."""
+    count is not the model's. The reference is data.tau as given: for a Dataset made by
+    `preprocess_log` that is the low-passed torque, not the measurement; score a log with
+    `prrrp.prediction.prepare(raw, settings)` instead (against the measured torque at the
+    log's rows)."""
 
 def design_excitation(
     robot: SerialChain,
