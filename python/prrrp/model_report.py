@@ -275,18 +275,27 @@ def prediction_section(model: IdentifiedModel, tables: Sequence[tuple[str, LogGr
 
 
 def comparison_section(
-    runs: Sequence[dict[str, Any]], joints: Sequence[str], main: str, figure: str | None
+    runs: Sequence[dict[str, Any]],
+    joints: Sequence[str],
+    main: str,
+    figure: str | None,
+    default: str = "wls",
 ) -> list[str]:
     """The "Methods compared" section of ``--method all``: one row per method (its
     ``method``, ``status``, ``error``, ``converged``, ``epochs``, ``seconds``,
-    ``identification`` and ``validation`` error tables, None where not run)."""
+    ``identification`` and ``validation`` error tables, None where not run); ``main`` is
+    the method of model.json, ``default`` the default method."""
     held_out = any(r.get("validation") is not None for r in runs)
+    which = (
+        "the default method"
+        if main == default
+        else f"the default, {default}, failed: the first method that succeeded"
+    )
     lines = [
         "## Methods compared",
         "",
-        f"`model.json` is the {main} model (the default method"
-        + ("" if main == "wls" else ", or the first that succeeded")
-        + "); every method's model is in `model-<method>.json`. Torque error per joint, % of "
+        f"`model.json` is the {main} model ({which}); every method's model is in "
+        "`model-<method>.json`. Torque error per joint, % of "
         "the measured torque's RMS"
         + (", on the held-out validation data" if held_out else ", on the identification data")
         + "; time is the identification's wall time (preprocessing and the Coulomb "

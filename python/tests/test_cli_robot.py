@@ -276,3 +276,19 @@ def test_chain_options_without_a_urdf_are_usage_errors(tmp_path: Path, capsys):
         err = capsys.readouterr().err
         assert message in err, (argv, err)
         assert len(err.strip().splitlines()) == 1
+
+
+def test_comparison_section_names_the_model_json_method():
+    from prrrp import model_report
+
+    errors = {"percent": [1.0, 2.0]}
+    rows = [
+        {"method": "ls", "status": "ok", "converged": True, "epochs": None, "seconds": 0.1,
+         "error": None, "identification": errors, "validation": None},
+        {"method": "wls", "status": "failed", "converged": None, "epochs": None,
+         "seconds": 0.2, "error": "boom", "identification": None, "validation": None},
+    ]  # fmt: skip
+    text = "\n".join(model_report.comparison_section(rows, ["a", "b"], "ls", None, "wls"))
+    assert "`model.json` is the ls model (the default, wls, failed" in text
+    assert "| wls | failed: boom |" in text
+    assert "| ls | ok | yes | – | 0.1 | 1 | 2 |" in text

@@ -158,7 +158,7 @@ def run(args: argparse.Namespace) -> int:
             model_report.comparison_figure(table, joints, tmp / "methods.png")
             figures.append(("methods.png", "Torque error per joint and method"))
             comparison = model_report.comparison_section(
-                table, joints, main.model.method, "methods.png"
+                table, joints, main.model.method, "methods.png", default
             )
         written += model_report.write_report(
             main.model,
@@ -264,4 +264,6 @@ def _summary(
         if r["status"] != "ok":
             print(f"{r['method']}: failed: {r['error']}")
     if len(table) > 1:
-        print(f"model.json is the {main.model.method} model")
+        default = workflow.DEFAULT_METHOD
+        why = "" if main.model.method == default else f" (the default, {default}, failed)"
+        print(f"model.json is the {main.model.method} model{why}")
