@@ -27,17 +27,21 @@ fn run_study_json(
     };
     let robot = Robot::paper();
     let callback_error: Mutex<Option<PyErr>> = Mutex::new(None);
+    let slot = || match callback_error.lock() {
+        Ok(g) => g,
+        Err(p) => p.into_inner(),
+    };
     let report = |stage: &str, done: usize, total: usize| {
         let Some(cb) = progress.as_ref() else { return };
+        if slot().is_some() {
+            return;
+        }
+        // The callback runs without the lock held: a worker that held it while calling
+        // Python waited for the GIL that another worker, attached and waiting for the
+        // lock, kept: `prrrp reproduce` and the study tests hung (futex deadlock).
         Python::attach(|py| {
-            let mut slot = match callback_error.lock() {
-                Ok(g) => g,
-                Err(p) => p.into_inner(),
-            };
-            if slot.is_none() {
-                if let Err(e) = cb.call1(py, (stage, done, total)) {
-                    *slot = Some(e);
-                }
+            if let Err(e) = cb.call1(py, (stage, done, total)) {
+                slot().get_or_insert(e);
             }
         });
     };
