@@ -857,11 +857,17 @@ class IdentifiedModel:
     and saves to / loads from JSON, so a saved model needs neither the robot file nor the
     data."""
 
+    MAX_FILE_BYTES: Final[int]
+    """Largest model file `load` reads (256 MiB)."""
     @staticmethod
     def from_json(text: str) -> IdentifiedModel: ...
     @staticmethod
     def load(path: str | os.PathLike[str]) -> IdentifiedModel:
-        """A model from a file written by `save`."""
+        """A model from a file written by `save`. The path must be a regular file of at
+        most MAX_FILE_BYTES, checked before it is opened (a FIFO or /dev/zero is refused,
+        never read); a missing, unreadable, oversized or malformed file is an
+        InvalidParameterError with `.file`, `.what` (path, size, content) and `.message`, whose
+        message names the file and, for bad JSON, the line, column and what is wrong."""
     def to_json(self) -> str: ...
     def save(self, path: str | os.PathLike[str]) -> None:
         """Writes the model as JSON, atomically (a temporary file moved into place)."""
@@ -1366,7 +1372,10 @@ def validate_model(
     eqs. 45–47). `model` is an IdentifiedModel (τ̂ = Y_b·β̂), or a SerialChain with its
     own parameters, or a SerialChain with base parameters `beta` in the analysis `base`
     (default the chain's `base_parameters()`). Raises ShapeMismatchError if data's joint
-    count is not the model's."""
+    count is not the model's. The reference is data.tau as given: for a Dataset made by
+    `preprocess_log` that is the low-passed torque, not the measurement; score a log with
+    `prrrp.prediction.prepare(raw, settings)` instead (against the measured torque at the
+    log's rows)."""
 
 def design_excitation(
     robot: SerialChain,
