@@ -421,7 +421,12 @@ fn bad_input_is_a_typed_error() {
             ..PhysicalConfig::default()
         },
         PhysicalConfig {
+            divergence_weight: -1.0,
+            ..PhysicalConfig::default()
+        },
+        PhysicalConfig {
             regularisation: 0.0,
+            divergence_weight: 0.0,
             ..PhysicalConfig::default()
         },
         PhysicalConfig {

@@ -929,8 +929,12 @@ def identify(
     input-noise bias), `least_squares_prior_width` (default 3: P0 of β is 3² times the
     weighted least-squares covariance; 0 for the diagonal prior); `discretisation` of
     ekf also takes "midpoint" (its default); physical `prior`
-    (standard parameters π0, e.g. `robot.parameters`; default a 1 kg body per link),
-    `prior_weight` (≥ 0, default 0: the prior only fixes what the data do not see). The
+    (standard parameters π0; default the robot's own, `robot.parameters`: a URDF's
+    inertials), `divergence_weight` (γ ≥ 0, default 10: the log-det divergence of each
+    link's pseudo-inertia from the prior's, in units of the data's χ², holds at the prior
+    what the data do not determine without biasing what they do), `prior_weight` (≥ 0,
+    default 0: an extra ridge towards π0), `weighted` (default True: each joint weighted
+    by 1/σ_j² as wls estimates it; False: unit weights). The
     model records the settings used, including the values chosen from the data.
     Errors: ShapeMismatchError (joint count), TooFewSamplesError, RankDeficientError (data
     that do not excite every base parameter), InvalidParameterError (unknown method, a

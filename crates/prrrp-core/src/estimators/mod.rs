@@ -40,7 +40,7 @@ pub use least_squares::{
 };
 pub use physical::{
     base_feasibility, identify_physical, BaseFeasibility, PhysicalConfig, PhysicalEstimate,
-    PhysicalProblem, BASE_FEASIBILITY_TOLERANCE, BASE_MISMATCH_FLOOR,
+    PhysicalProblem, BASE_FEASIBILITY_TOLERANCE, BASE_MISMATCH_FLOOR, DEFAULT_DIVERGENCE_WEIGHT,
 };
 pub use rls::{DynRls, Rls, RlsConfig, RlsOf};
 pub use samples::{DynSample, DynSamples, Sample, SampleOf, Samples, SamplesOf};
