@@ -753,15 +753,21 @@ class SerialChain:
         candidates: _ArrayLike | None = None,
         folds: int = 4,
         refine: bool = True,
+        max_widenings: int = 2,
     ) -> dict[str, Any]:
         """Chooses the speed scale v_s (rad/s, m/s) of this chain's smooth Coulomb friction
         fc·tanh(q̇/v_s) from `data` (the chain must have a Coulomb term): for each candidate
         (default 0 = the exact sign, and 16 log-spaced values over 1e-3..0.3) least squares
         on the base parameters is scored by `folds`-fold cross-validation over contiguous
-        blocks of samples, and the best grid point is refined by a parabola in log v_s.
-        Returns {"chosen", "candidates", "cv_rms" (N·m, N; None where singular),
-        "reversals" (speed sign changes per joint), "note" (why the chain's own scale was
-        kept when the data cannot decide: no speed reversal, a flat curve)}. Apply it with
+        blocks of samples; an optimum on the edge of the candidates widens the range by a
+        decade on that side (at most `max_widenings` times), and the best grid point is
+        refined by a parabola in log v_s. Returns {"chosen", "candidates", "cv_rms" (N·m,
+        N; None where singular), "reversals" (speed sign changes per joint), "identifiable"
+        (False for data without a speed reversal or with a cross-validation curve flat to
+        0.1 %, where the chain's own scale is kept, and for an optimum still on an edge
+        after the widenings, where the best candidate is chosen), "note" (why not
+        identifiable; None otherwise), "widenings", "range" (smallest and largest positive
+        candidate scored)}. Apply it with
         `with_friction(..., coulomb_smoothing=report["chosen"])`."""
     def base_parameters(
         self, *, samples: int = 0, seed: int = 0x5EED_BA5E, rank_tolerance: float = 1e-8

@@ -293,6 +293,28 @@ def _g(x: Any, digits: int = 4) -> str:
     return "–" if not np.isfinite(x) else f"{x:.{digits}g}"
 
 
+def _coulomb_summary(coulomb: dict[str, Any]) -> list[str]:
+    """What the Coulomb speed-scale search decided (``SerialChain.coulomb_scale``'s dict),
+    in a few lines for the report: the choice, whether the data identify it, the range."""
+    v_s = _g(coulomb["chosen"])
+    searched = ""
+    lo, hi = coulomb.get("range") or (None, None)
+    if lo and hi:
+        widened = coulomb.get("widenings", 0)
+        searched = f" Searched v_s = 0 and {_g(lo, 3)}..{_g(hi, 3)} rad/s" + (
+            f" (widened {widened}× by a decade: the optimum sat on an edge)." if widened else "."
+        )
+    if coulomb.get("identifiable", not coulomb.get("note")):
+        head = f"Chosen v_s = {v_s} rad/s by cross-validated least squares."
+    else:
+        head = f"**v_s = {v_s} rad/s is not identified by these data**: {coulomb.get('note')}."
+    return [
+        head + searched,
+        "",
+        "Cross-validated torque RMS (N·m, N) of least squares per candidate (lower is better):",
+    ]
+
+
 def render(
     model: IdentifiedModel,
     data: Dataset,
@@ -353,13 +375,7 @@ def render(
     lines.append("")
     if coulomb is not None:
         lines += ["## Coulomb speed scale", ""]
-        if coulomb.get("note"):
-            lines.append(f"Kept v_s = {_g(coulomb['chosen'])} rad/s: {coulomb['note']}.")
-        else:
-            lines.append(
-                f"Chosen v_s = {_g(coulomb['chosen'])} rad/s by cross-validated least squares "
-                "(lower is better):"
-            )
+        lines += _coulomb_summary(coulomb)
         lines.append("")
         order = np.argsort(coulomb["candidates"])
         lines += _table(
