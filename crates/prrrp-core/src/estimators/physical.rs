@@ -26,14 +26,18 @@ pub const BASE_MISMATCH_FLOOR: f64 = 1e-3;
 /// χ²). For small departures D(J‖J₀) ≈ ½‖J₀^{-1/2}(J − J₀)J₀^{-1/2}‖²_F, so the prior
 /// term γ·D is a Gaussian prior of relative width √(2/γ) on each link's pseudo-inertia,
 /// in the link's own measure: ≈ 45 % at γ = 10, the agreement to expect of a robot
-/// file's CAD inertials with the built arm. A direction the data determine to a relative
-/// σ is pulled towards the prior by a fraction ≈ (γ/2)·σ² of its distance from it: a base
-/// parameter known to 5 % moves by ≈ 1 % of that distance, a fraction of its σ. On
+/// file's CAD inertials with the built arm. The fit is then the maximum a posteriori
+/// estimate: a direction the data determine to a relative σ is pulled towards the prior by
+/// a fraction ≈ (γ/2)·σ² of its distance from it (a base parameter known to 5 % by ≈ 1 %).
+/// With a prior 20 % off every link of a 7-joint arm, no base parameter moved more than
+/// 0.31 of its σ from least squares (0.53 σ with a prior 50 % off), as the Gaussian MAP
+/// predicts (tests/physical.rs). On
 /// simulated logs of the Panda, UR5 and Kinova Gen2 of example-robot-data (inertials
 /// perturbed by 25 % in mass, 2 cm in COM, 30 % in second moments; two joints barely
-/// moving) γ = 1 let a link's mass run to 12–26 times the file's where γ = 10 kept every
-/// mass within 0.28–1.9 times, with held-out torque errors within 0.3 % of weighted least
-/// squares' or better (docs/physical-prior.md).
+/// moving) γ = 1 let a link's mass run to 14 times the file's; γ = 10 kept every Panda and
+/// UR5 mass within 0.46–1.9 times (one light Kinova wrist link fell to 0.28) with held-out
+/// torque errors within 0.2 % of weighted least squares' or better; γ ≥ 30 began to cost
+/// held-out accuracy (up to 2.3 %). See docs/physical-prior.md.
 pub const DEFAULT_DIVERGENCE_WEIGHT: f64 = 10.0;
 
 /// Floor of the residual variance σ̂² that scales the divergence weight, relative to the
@@ -261,9 +265,9 @@ pub struct BaseFeasibility {
 /// the unconstrained least squares on the same weighted data), so that
 /// [`PhysicalConfig::divergence_weight`] γ counts in units of χ². A direction the data
 /// determine with relative uncertainty σ is pulled towards the prior by a fraction
-/// ≈ (γ/2)·σ² of its distance from it (negligible for well-determined base parameters), a
-/// direction they do not see stays at the prior, and one in between is the maximum a
-/// posteriori compromise (see [`DEFAULT_DIVERGENCE_WEIGHT`]). Prior links flatter than
+/// ≈ (γ/2)·σ² of its distance from it (a fraction of its σ for well-determined base
+/// parameters), a direction they do not see stays at the prior, and one in between is the
+/// maximum a posteriori compromise (see [`DEFAULT_DIVERGENCE_WEIGHT`]). Prior links flatter than
 /// any casting are thickened first (second moments about the centre of mass raised to
 /// 10⁻³ of the largest: at least ≈ 3 % as thick as long). With the prior itself feasible
 /// (and not that flat) and the data exact, the whole π₀ is returned. Without a prior, π₀
