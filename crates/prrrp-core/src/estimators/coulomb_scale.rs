@@ -261,7 +261,7 @@ pub fn select_coulomb_scale(
              identified; kept the default"
                 .to_string(),
         )
-    } else if spread <= COULOMB_SCALE_FLAT || !(z > COULOMB_SCALE_MIN_Z) {
+    } else if spread <= COULOMB_SCALE_FLAT || z.is_nan() || z <= COULOMB_SCALE_MIN_Z {
         Some(format!(
             "the cross-validated torque error changes by only {} % over v_s = 0 and \
              {}..{} rad/s, and no candidate is worse than the best by more than {} \
@@ -381,9 +381,11 @@ impl Scored {
                 let d: Vec<f64> = c.iter().zip(b).map(|(x, y)| x - y).collect();
                 let mean = d.iter().sum::<f64>() / f;
                 let var = d.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (f - 1.0);
+                // Worse by the same amount in every fold: certainly worse (+∞); the best
+                // itself or a copy of it: 0/0, left out.
                 mean / (var.sqrt() / f.sqrt())
             })
-            .filter(|z| z.is_finite())
+            .filter(|z| !z.is_nan())
             .fold(0.0f64, f64::max)
     }
 
