@@ -118,6 +118,130 @@ def _shade_edges(ax: Any, grid: LogGrid) -> None:
         ax.axvspan(inside[-1], t[-1], color="0.85", lw=0)
 
 
+#: A link whose identified mass is outside [1/MASS_FACTOR, MASS_FACTOR] times its robot
+#: file's is flagged: CAD masses of arm links are within tens of percent of the built
+#: links (cables, motors and covers moved between links make up to ≈ 2×); beyond 3× the
+#: identified body is not that link but a direction the data do not constrain, or an
+#: unmodelled load (a tool, a payload).
+MASS_FACTOR = 3.0
+#: A link whose rotational inertia about its centre of mass (the trace of I_c) is outside
+#: [1/INERTIA_FACTOR, INERTIA_FACTOR] times the file's is flagged: I ~ m·r², so this is the
+#: mass bound compounded with a √3 change of size.
+INERTIA_FACTOR = 9.0
+
+
+def prior_comparison(model: IdentifiedModel) -> list[dict[str, Any]] | None:
+    """Each link of a physically consistent model (method "physical") against its prior
+    (the robot file's inertials unless the identification was given another ``prior``):
+    identified and prior mass (kg) and their ratio, the shift of the centre of mass (m),
+    the prior's radius of gyration about its centre of mass r_g = √(tr I_c / 2m) (m, the
+    RMS distance of its mass from the centre of mass), the ratio of tr I_c, and ``flags``
+    naming what departs far: ``mass`` (ratio outside 1/3..3, :data:`MASS_FACTOR`), ``com``
+    (a shift larger than r_g: the centre of mass left the bulk of the prior body),
+    ``inertia`` (ratio outside 1/9..9, :data:`INERTIA_FACTOR`). None for models without
+    standard parameters."""
+    est = model.standard_parameters
+    if est is None:
+        return None
+    prior_setting = (model.settings or {}).get("prior")
+    if isinstance(prior_setting, list):
+        prior = np.asarray(prior_setting, dtype=float)
+    else:
+        prior = np.asarray(model.robot.parameters, dtype=float)
+    robot = model.robot
+    now = robot.feasibility(np.asarray(est))["links"]
+    before = robot.feasibility(prior)["links"]
+    rows = []
+    for a, b in zip(now, before, strict=True):
+        m, m0 = float(a["mass"]), float(b["mass"])
+        ratio = m / m0 if m0 > 0 else float("nan")
+        shift = r_g = inertia_ratio = float("nan")
+        if a["com"] is not None and b["com"] is not None:
+            shift = float(np.linalg.norm(np.subtract(a["com"], b["com"])))
+        if b["principal_moments"] is not None and m0 > 0:
+            tr0 = float(np.sum(b["principal_moments"]))
+            r_g = float(np.sqrt(max(tr0, 0.0) / (2 * m0)))
+            if a["principal_moments"] is not None and tr0 > 0:
+                inertia_ratio = float(np.sum(a["principal_moments"])) / tr0
+        flags = []
+        if not (1 / MASS_FACTOR <= ratio <= MASS_FACTOR):
+            flags.append("mass")
+        if shift > r_g:
+            flags.append("com")
+        if not (1 / INERTIA_FACTOR <= inertia_ratio <= INERTIA_FACTOR):
+            flags.append("inertia")
+        rows.append(
+            {
+                "link": a["link"],
+                "mass": m,
+                "prior_mass": m0,
+                "mass_ratio": ratio,
+                "com_shift": shift,
+                "prior_radius_of_gyration": r_g,
+                "inertia_ratio": inertia_ratio,
+                "flags": flags,
+            }
+        )
+    return rows
+
+
+def _prior_section(model: IdentifiedModel) -> list[str]:
+    """The report's "Links against the prior" section (empty without standard parameters)."""
+    rows = prior_comparison(model)
+    if rows is None:
+        return []
+    lines = [
+        "## Links against the prior",
+        "",
+        "Each identified link beside the robot file's (the prior the fit is held to where "
+        "the data do not decide; see the settings' divergence_weight). Flagged: a mass "
+        f"outside 1/{MASS_FACTOR:g}..{MASS_FACTOR:g}× the file's (CAD masses are within tens "
+        "of percent of the built link; beyond 3× it is not that link but a direction the "
+        "data do not constrain, or an unmodelled load), a centre of mass moved further than "
+        "the prior body's radius of gyration r_g (out of the bulk of its mass), a rotational "
+        f"inertia about it outside 1/{INERTIA_FACTOR:g}..{INERTIA_FACTOR:g}× (the mass bound "
+        "with a √3 change of size).",
+        "",
+    ]
+    lines += _table(
+        [
+            "link",
+            "mass (kg)",
+            "prior (kg)",
+            "ratio",
+            "COM shift (m)",
+            "prior r_g (m)",
+            "tr I_c ratio",
+            "flag",
+        ],
+        [
+            [
+                r["link"],
+                _g(r["mass"]),
+                _g(r["prior_mass"]),
+                _g(r["mass_ratio"], 3),
+                _g(r["com_shift"], 3),
+                _g(r["prior_radius_of_gyration"], 3),
+                _g(r["inertia_ratio"], 3),
+                ", ".join(r["flags"]).upper() or "–",
+            ]
+            for r in rows
+        ],
+    )
+    flagged = [r["link"] for r in rows if r["flags"]]
+    lines.append("")
+    if flagged:
+        lines.append(
+            f"**Far from the prior: {', '.join(flagged)}.** Check the data excite these links "
+            "(prrrp excite), the robot file (a tool or payload missing from it), or raise "
+            "divergence_weight to hold them nearer the file."
+        )
+    else:
+        lines.append("Every link is within these bounds of its prior.")
+    lines.append("")
+    return lines
+
+
 def write_figures(
     model: IdentifiedModel,
     data: DataLike,
@@ -362,6 +486,28 @@ def comparison_figure(runs: Sequence[dict[str, Any]], joints: Sequence[str], pat
     _save(fig, path)
 
 
+def _coulomb_summary(coulomb: dict[str, Any]) -> list[str]:
+    """What the Coulomb speed-scale search decided (``SerialChain.coulomb_scale``'s dict),
+    in a few lines for the report: the choice, whether the data identify it, the range."""
+    v_s = _g(coulomb["chosen"])
+    searched = ""
+    lo, hi = coulomb.get("range") or (None, None)
+    if lo and hi:
+        widened = coulomb.get("widenings", 0)
+        searched = f" Searched v_s = 0 and {_g(lo, 3)}..{_g(hi, 3)} rad/s" + (
+            f" (widened {widened}× by a decade: the optimum sat on an edge)." if widened else "."
+        )
+    if coulomb.get("identifiable", not coulomb.get("note")):
+        head = f"Chosen v_s = {v_s} rad/s by cross-validated least squares."
+    else:
+        head = f"**v_s = {v_s} rad/s is not identified by these data**: {coulomb.get('note')}."
+    return [
+        head + searched,
+        "",
+        "Cross-validated torque RMS (N·m, N) of least squares per candidate (lower is better):",
+    ]
+
+
 def render(
     model: IdentifiedModel,
     data: DataLike,
@@ -420,13 +566,7 @@ def render(
     lines += _actuator_lines(model)
     if coulomb is not None:
         lines += ["## Coulomb speed scale", ""]
-        if coulomb.get("note"):
-            lines.append(f"Kept v_s = {_g(coulomb['chosen'])} rad/s: {coulomb['note']}.")
-        else:
-            lines.append(
-                f"Chosen v_s = {_g(coulomb['chosen'])} rad/s by cross-validated least squares "
-                "(lower is better):"
-            )
+        lines += _coulomb_summary(coulomb)
         lines.append("")
         order = np.argsort(coulomb["candidates"])
         lines += _table(
@@ -436,16 +576,23 @@ def render(
         lines.append("")
     if feasibility is None and model.standard_parameters is not None:
         st = model.settings
+        weighting = (
+            "each joint weighted by 1/σ_j² as wls estimates σ_j"
+            if st.get("weighted")
+            else "unweighted"
+        )
         feasibility = (
             "The estimate is a set of rigid bodies (every link's pseudo-inertia positive "
             "semidefinite, fv, fc >= 0): non-physical links "
             f"{st.get('non_physical_links') or 'none'}; its residual is "
             f"{_g(st.get('residual_increase_percent'), 3)} % above the unconstrained least "
-            f"squares' ({st.get('iterations')} barrier Newton steps). `robot.urdf` carries "
-            "its inertials."
+            f"squares' ({st.get('iterations')} barrier Newton steps; {weighting}; held to "
+            f"the prior with divergence_weight {_g(st.get('divergence_weight'))}). "
+            "`robot.urdf` carries its inertials."
         )
     if feasibility is not None:
         lines += ["## Physical feasibility", "", str(feasibility), ""]
+        lines += _prior_section(model)
     lines += ["## Preprocessing", ""]
     if log_report:
         for k, v in log_report.items():

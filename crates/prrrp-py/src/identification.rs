@@ -413,7 +413,13 @@ fn identified_model_from_parts(
 fn valid_keys(method: &str) -> &'static [&'static str] {
     match method {
         "ls" | "wls" => &["rank_tolerance"],
-        "physical" => &["rank_tolerance", "prior", "prior_weight"],
+        "physical" => &[
+            "rank_tolerance",
+            "prior",
+            "prior_weight",
+            "divergence_weight",
+            "weighted",
+        ],
         "rls" => &[
             "rank_tolerance",
             "forgetting",
@@ -511,6 +517,8 @@ fn parse_method(
             (Method::Ekf(s), "rank_tolerance") => s.rank_tolerance = f()?,
             (Method::Physical(s), "rank_tolerance") => s.rank_tolerance = f()?,
             (Method::Physical(s), "prior_weight") => s.prior_weight = f()?,
+            (Method::Physical(s), "divergence_weight") => s.divergence_weight = f()?,
+            (Method::Physical(s), "weighted") => s.weighted = v.extract()?,
             (Method::Physical(s), "prior") => {
                 s.prior = if v.is_none() {
                     None

@@ -273,9 +273,10 @@ def _summary(
     print(f"{robot.name}: {robot.dof} joints, {len(d)} samples over {d.duration:.3g} s")
     if main.coulomb is not None:
         note = main.coulomb.get("note")
+        identified = main.coulomb.get("identifiable", not note)
         print(
             f"Coulomb speed scale v_s = {main.coulomb['chosen']:.4g} rad/s"
-            + (f" ({note})" if note else " (chosen by cross-validation)")
+            + (" (chosen by cross-validation)" if identified else f": NOT IDENTIFIABLE: {note}")
         )
     which, grid = ("validation", val) if val is not None else ("identification", fit)
     header = ["method", "converged", "time (s)", *list(robot.joint_names)]
