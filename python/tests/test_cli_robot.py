@@ -265,11 +265,11 @@ def test_chain_options_without_a_urdf_are_usage_errors(tmp_path: Path, capsys):
         csvio.format_measurements(np.arange(50) * 0.01, np.zeros((50, 5)), np.zeros((50, 5)))
     )
     cases = [
-        (["identify", str(data), "--tip", "x"], "--tip need --robot"),
-        (["identify", str(data), "--cutoff", "5"], "--cutoff apply to --robot"),
+        (["identify", str(data), "--tip", "x"], "--tip needs --robot"),
+        (["identify", str(data), "--cutoff", "5"], "--cutoff applies to --robot"),
         (["excite", "--robot", "arm.toml", "--base", "b", "--out", "t.csv"], "not one"),
-        (["benchmark", "--tip", "x", "--out", str(tmp_path / "b")], "--tip need --robot"),
-        (["simulate", "--out", str(tmp_path / "s.csv"), "--base", "x"], "--base need"),
+        (["benchmark", "--tip", "x", "--out", str(tmp_path / "b")], "--tip needs --robot"),
+        (["simulate", "--out", str(tmp_path / "s.csv"), "--base", "x"], "--base needs"),
     ]
     for argv, message in cases:
         assert cli.main(argv) == cli.EXIT_USAGE, argv

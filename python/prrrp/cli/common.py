@@ -172,10 +172,12 @@ def check_chain_options(args: argparse.Namespace) -> None:
         return
     robot = getattr(args, "robot", None)
     if not robot:
-        raise CliError(f"{' and '.join(given)} need --robot ROBOT.urdf (they pick its chain)")
+        verb = "need" if len(given) > 1 else "needs"
+        raise CliError(f"{' and '.join(given)} {verb} --robot ROBOT.urdf (they pick its chain)")
     if not str(robot).lower().endswith(".urdf"):
         raise CliError(
-            f"{' and '.join(given)} apply to a URDF robot file; {robot} is not one (a TOML "
+            f"{' and '.join(given)} {'apply' if len(given) > 1 else 'applies'} to a URDF robot "
+            f"file; {robot} is not one (a TOML "
             "file describes its chain itself)"
         )
 

@@ -300,7 +300,8 @@ def run(args: argparse.Namespace) -> int:
     ]
     if robot_only:
         raise CliError(
-            f"{' and '.join(robot_only)} apply to --robot ROBOT (the paper's arm is "
+            f"{' and '.join(robot_only)} {'apply' if len(robot_only) > 1 else 'applies'} to "
+            "--robot ROBOT (the paper's arm is "
             "preprocessed at its own 5 Hz and has no friction terms)"
         )
     if args.method not in PAPER_METHODS:
