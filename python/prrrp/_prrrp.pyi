@@ -5,6 +5,7 @@ qdd, tau) have shape (5,) for one sample or (N, 5) for a batch; λ (`lam`) has s
 (N, 8). Single samples broadcast against batches. Outputs get a leading N for a batch.
 """
 
+import builtins
 import os
 from collections.abc import Callable, Iterator, Mapping
 from typing import Any, Final, Literal, TypedDict, overload
@@ -1091,7 +1092,7 @@ class Dataset:
         """t[-1] − t[0], s."""
     def slice(self, start: int, stop: int) -> Dataset:
         """Samples start..stop as a new data set (TooFewSamplesError below 8)."""
-    def __getitem__(self, key: slice) -> Dataset:
+    def __getitem__(self, key: builtins.slice) -> Dataset:
         """Contiguous slices only (step 1)."""
     def __len__(self) -> int: ...
     def to_dict(self) -> _Dataset: ...
