@@ -84,7 +84,14 @@ from prrrp._prrrp import (
 )
 from prrrp.measurements import measurements_to_dataset, read_measurements
 from prrrp.montecarlo import benchmark
-from prrrp.workflow import Identification, excite, identify_measurements, load_robot, simulate
+from prrrp.workflow import (
+    Identification,
+    TrackingError,
+    excite,
+    identify_measurements,
+    load_robot,
+    simulate,
+)
 
 __all__ = [
     "NDOF",
@@ -119,6 +126,7 @@ __all__ = [
     "ShapeMismatchError",
     "SinusoidReference",
     "TooFewSamplesError",
+    "TrackingError",
     "__version__",
     "agreement_index",
     "benchmark",

@@ -46,6 +46,30 @@ METHODS = ("ls", "wls", "rls", "adaline", "hopfield", "ekf", "physical")
 #: ordinary least squares, as their σ_i predict (docs/protocol-table.md).
 DEFAULT_METHOD = "wls"
 
+#: Largest |q − q_ref| (rad or m) :func:`simulate` accepts anywhere in a run by default.
+MAX_TRACKING_ERROR = 0.01
+
+
+class TrackingError(RuntimeError):
+    """A simulated robot strayed from its reference further than the bound: ``error``
+    (rad or m) on joint ``joint`` (0-based, named ``joint_name``) at time ``t`` (s)."""
+
+    def __init__(
+        self, error: float, joint: int, joint_name: str, t: float, bound: float, robot: str
+    ) -> None:
+        self.error, self.joint, self.joint_name, self.t, self.bound = (
+            error,
+            joint,
+            joint_name,
+            t,
+            bound,
+        )
+        super().__init__(
+            f"the simulated {robot} strays {error:.3g} rad or m from the trajectory (joint "
+            f"{joint + 1}, {joint_name}, at t = {t:g} s), more than the bound {bound:g}. "
+            "Check the trajectory against the robot's limits and its inertials and friction"
+        )
+
 
 def load_robot(
     path: str | os.PathLike[str],
@@ -341,13 +365,26 @@ def simulate(
     noise: float = 1.0,
     seed: int = 0,
     substeps: int = 10,
+    max_tracking_error: float | None = MAX_TRACKING_ERROR,
 ) -> dict[str, np.ndarray]:
     """``robot`` (its file's inertials and friction) tracking ``trajectory`` (``t``, ``q``,
     ``qd``, ``qdd`` at a uniform rate) in closed loop, with sensor noise ``noise`` times
     :data:`DEFAULT_Q_NOISE` / :data:`DEFAULT_TAU_NOISE` (0: none). Returns the measurements
-    ``t``, ``q``, ``tau`` and the truth ``q_true``, ``qd_true``, ``qdd_true``, ``tau_true``."""
+    ``t``, ``q``, ``tau``, the truth ``q_true``, ``qd_true``, ``qdd_true``, ``tau_true`` and
+    ``tracking_error`` (each joint's largest |q_true − q_ref|, rad or m).
+
+    The simulated controller is computed torque with the robot's own model, friction
+    compensated from the reference velocity. A run that strays further than
+    ``max_tracking_error`` (rad or m; None: no bound) from its reference raises
+    :class:`TrackingError`: its data would not be the trajectory that was asked for."""
     if not (math.isfinite(noise) and noise >= 0):
         raise ValueError(f"noise must be a finite number >= 0, got {noise}")
+    if max_tracking_error is not None and not (
+        math.isfinite(max_tracking_error) and max_tracking_error > 0
+    ):
+        raise ValueError(
+            f"max_tracking_error must be a positive number or None, got {max_tracking_error}"
+        )
     t = np.asarray(trajectory["t"], dtype=float)
     if t.ndim != 1 or len(t) < 2:
         raise ValueError("the trajectory needs at least two time stamps")
@@ -366,12 +403,25 @@ def simulate(
         tau_noise=noise * DEFAULT_TAU_NOISE,
         seed=seed,
     )
+    q_true = np.asarray(rec.q)
+    errors = np.abs(q_true - np.asarray(trajectory["q"], dtype=float)[: len(q_true)])
+    if max_tracking_error is not None and not errors.max() <= max_tracking_error:
+        k, j = np.unravel_index(np.argmax(errors), errors.shape)
+        raise TrackingError(
+            float(errors[k, j]),
+            int(j),
+            robot.joint_names[j],
+            float(rec.t[k] + t[0]),
+            max_tracking_error,
+            robot.name,
+        )
     return {
         "t": np.asarray(rec.t) + t[0],
         "q": np.asarray(rec.q_measured),
         "tau": np.asarray(rec.tau_measured),
-        "q_true": np.asarray(rec.q),
+        "q_true": q_true,
         "qd_true": np.asarray(rec.qd),
         "qdd_true": np.asarray(rec.qdd),
         "tau_true": np.asarray(rec.tau),
+        "tracking_error": errors.max(axis=0),
     }

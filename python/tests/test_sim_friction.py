@@ -126,3 +126,24 @@ def test_simulate_command_refuses_a_run_beyond_its_bound(tmp_path, capsys, monke
     assert not (tmp_path / "tight.csv").exists()
     assert cli.main([*robot, "--out", "x.csv", "--max-tracking-error", "-1"]) == 2
     assert "positive" in capsys.readouterr().err
+
+
+def test_simulate_function_holds_the_same_bound():
+    # The Python API refuses what the command refuses, and says where the run strayed.
+    t = np.arange(0, 501) * 0.01
+    q, qd, qdd = fourier(6).eval(t)
+    robot = prrrp.load_robot(str(UR5_LIKE))
+    traj = {"t": t, "q": q, "qd": qd, "qdd": qdd}
+    rec = prrrp.simulate(robot, traj, noise=0.0)
+    assert rec["tracking_error"].shape == (6,)
+    assert np.allclose(rec["tracking_error"], np.abs(rec["q_true"] - q).max(axis=0))
+    assert rec["tracking_error"].max() <= prrrp.workflow.MAX_TRACKING_ERROR
+    bound = 0.5 * rec["tracking_error"].max()
+    with pytest.raises(prrrp.TrackingError) as caught:
+        prrrp.simulate(robot, traj, noise=0.0, max_tracking_error=bound)
+    worst = int(np.argmax(rec["tracking_error"]))
+    assert caught.value.joint == worst
+    assert caught.value.error == pytest.approx(rec["tracking_error"][worst])
+    assert prrrp.simulate(robot, traj, noise=0.0, max_tracking_error=None)["t"].shape == t.shape
+    with pytest.raises(ValueError, match="max_tracking_error"):
+        prrrp.simulate(robot, traj, max_tracking_error=float("nan"))

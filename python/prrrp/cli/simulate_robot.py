@@ -16,7 +16,7 @@ from prrrp.cli.common import EXIT_FAILED, EXIT_OK, CliError, check_output_file
 #: hold, brief sticking at reversals under Coulomb friction): 3.7e-3 rad on a UR5-like arm
 #: with a 1.5e-4 kg·m² wrist and 0.4 N·m of Coulomb friction, below 5e-3 on the Panda.
 #: A run off by more does not follow its trajectory and its data would mislead.
-MAX_TRACKING_ERROR = 0.01
+MAX_TRACKING_ERROR = workflow.MAX_TRACKING_ERROR
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -65,22 +65,22 @@ def run(args: argparse.Namespace) -> int:
     if "qd" not in traj or "qdd" not in traj:
         raise CliError(f"{args.trajectory}: a trajectory needs qd1..qdN and qdd1..qddN columns")
     try:
-        rec = workflow.simulate(robot, traj, noise=args.noise, seed=args.seed)
+        rec = workflow.simulate(
+            robot, traj, noise=args.noise, seed=args.seed, max_tracking_error=bound
+        )
+    except workflow.TrackingError as e:
+        raise CliError(
+            f"the simulated {robot.name} strays {e.error:.3g} rad or m from the trajectory "
+            f"(joint {e.joint + 1}, {e.joint_name}, at t = {e.t:g} s), more than "
+            f"--max-tracking-error {bound:g}; no data written. Check the trajectory against "
+            "the robot's limits and its inertials and friction",
+            EXIT_FAILED,
+        ) from None
     except ValueError as e:
         if "prrrp" in type(e).__module__:
             raise
         raise CliError(f"{args.trajectory}: {e}") from None
-    errors = np.abs(rec["q_true"] - traj["q"][: len(rec["t"])])
-    err = errors.max()
-    if not err <= bound:
-        k, j = np.unravel_index(np.argmax(errors), errors.shape)
-        raise CliError(
-            f"the simulated {robot.name} strays {err:.3g} rad or m from the trajectory "
-            f"(joint {j + 1}, {robot.joint_names[j]}, at t = {rec['t'][k]:g} s), more than "
-            f"--max-tracking-error {bound:g}; no data written. Check the trajectory against "
-            "the robot's limits and its inertials and friction",
-            EXIT_FAILED,
-        )
+    err = rec["tracking_error"].max()
     groups = csvio.columns(robot.dof)
     table = np.column_stack([rec["t"], rec["q"], rec["tau"]])
     csvio.write_table_atomic(out, ["t", *groups["q"], *groups["tau"]], table)
