@@ -6,10 +6,11 @@ from __future__ import annotations
 import argparse
 import math
 import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from prrrp import bags, drives, model_report, outdir, prediction, workflow
+from prrrp import bags, drawing, drives, model_report, outdir, prediction, workflow
 from prrrp.cli.common import (
     EXIT_FAILED,
     EXIT_OK,
@@ -135,6 +136,26 @@ def run(args: argparse.Namespace) -> int:
         else None
     )
     methods = list(workflow.METHODS) if args.method == "all" else [args.method]
+    # matplotlib's import (longer than drawing the figures) runs while the identification,
+    # which releases the GIL, computes.
+    drawing.preload()
+    try:
+        return _identify(args, out, robot, raw, val_raw, methods, scale, pre, record)
+    finally:
+        drawing.wait_preload()
+
+
+def _identify(
+    args: argparse.Namespace,
+    out: Path,
+    robot: Any,
+    raw: dict[str, Any],
+    val_raw: dict[str, Any] | None,
+    methods: list[str],
+    scale: str | float,
+    pre: dict[str, Any],
+    record: dict[str, Any] | None,
+) -> int:
     progress = Progress()
     try:
         if len(methods) == 1:
@@ -184,9 +205,13 @@ def run(args: argparse.Namespace) -> int:
             sources["validation"] = str(args.validate)
         comparison: list[str] = []
         figures: list[tuple[str, str]] = []
+        # Every text file first, then the figures: model.json and report.md never wait.
+        drawings: list[Callable[[], object]] = []
         if len(methods) > 1:
             joints = list(robot.joint_names)
-            model_report.comparison_figure(table, joints, tmp / "methods.png")
+            drawings.append(
+                lambda: model_report.comparison_figure(table, joints, tmp / "methods.png")
+            )
             figures.append(("methods.png", "Torque error per joint and method"))
             comparison = model_report.comparison_section(
                 table, joints, main.model.method, "methods.png", default
@@ -201,6 +226,7 @@ def run(args: argparse.Namespace) -> int:
             sources=sources,
             comparison=comparison,
             figures=figures,
+            drawings=drawings,
         )
         physical = runs.get("physical")
         if physical is not None:
@@ -225,7 +251,10 @@ def run(args: argparse.Namespace) -> int:
                     log_report=physical.log_report,
                     coulomb=physical.coulomb,
                     sources=sources,
+                    drawings=drawings,
                 )
+        for draw in drawings:
+            draw()
         return written
 
     written = outdir.write_dir(out, build)
