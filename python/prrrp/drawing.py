@@ -70,6 +70,7 @@ def figure(
     wspace: float = 0.85,
     hspace: float = 0.85,
     sharex: bool = False,
+    label_offset: float | None = None,
 ) -> tuple[Any, np.ndarray]:
     """A figure of ``rows`` × ``cols`` panels of ``panel`` = (width, height) inches each,
     with fixed margins in inches: ``left`` (y tick labels and label), ``bottom`` (x tick
@@ -100,7 +101,7 @@ def figure(
         },
     )
     for ax in axes.flat:
-        ax.tick_params(labelsize=8)
+        ax.tick_params(which="both", labelsize=8)
         # Few ticks: each label is a text to lay out, and more crowd a small panel.
         ax.locator_params(nbins=4)
         # Titles and axis labels at fixed places in the margins: placed automatically,
@@ -108,7 +109,8 @@ def figure(
         ax.title.set_y(1.0)
         ax._autotitlepos = False
         ax.xaxis.set_label_coords(0.5, -LABEL_X_DROP / ph)
-        ax.yaxis.set_label_coords(-LABEL_Y_OFFSET / pw, 0.5)
+        offset = LABEL_Y_OFFSET if label_offset is None else label_offset
+        ax.yaxis.set_label_coords(-offset / pw, 0.5)
     return fig, axes
 
 

@@ -313,3 +313,47 @@ def test_identifying_in_python_does_not_import_matplotlib():
         """
     )
     assert "matplotlib" not in loaded
+
+
+# ------------------------------------------------------------------- paper's study
+
+
+def test_study_figures_labelled_and_showing_what_they_say(tmp_path, monkeypatch):
+    from test_cli import fake_results
+
+    from prrrp import paper, plots
+
+    saved = {}
+    monkeypatch.setattr(drawing, "save", lambda fig, path: saved.setdefault(Path(path).name, fig))
+    results = fake_results()
+    plots.write_all(results, tmp_path)
+    assert set(saved) == set(plots.FIGURES)
+    for name, fig in saved.items():
+        for ax in (a for a in fig.axes if a.axison):
+            assert UNIT.search(ax.get_ylabel()) or "(" in ax.get_ylabel(), (name, ax)
+        # Legends sit in the figure's margin, never on a panel.
+        assert all(ax.get_legend() is None for ax in fig.axes) or name == "lambda_bars.png"
+    # Fig. 7: each method's position error against the truth, per joint.
+    val = results["validation"]
+    q_true = np.asarray(val["q_true"])
+    fig7 = saved["fig7_validation.png"]
+    for j, ax in enumerate(fig7.axes):
+        drawn = {ln.get_label(): ln.get_ydata() for ln in ax.get_lines()}
+        for m in val["methods"]:
+            error = np.asarray(m["q"])[:, j] - q_true[:, j]
+            assert np.allclose(drawn[paper.METHOD_LABELS[m["method"]]], error), (j, m)
+    # Fig. 8: λ8's +50 % variation is non-physical (None): marked, not dropped silently;
+    # the unvaried model's RMS of exactly 0 is not put on the log axis.
+    fig8 = saved["fig8_sensitivity.png"]
+    panel8 = fig8.axes[7]
+    marks = [ln for ln in panel8.get_lines() if ln.get_label() == "non-physical λ (skipped)"]
+    assert len(marks) == 1
+    assert np.allclose(marks[0].get_xdata(), [50.0])
+    fig8.canvas.draw()
+    for ax in fig8.axes:
+        assert ax.get_yscale() == "log"
+        labels = [t.get_text() for t in ax.get_yticklabels() if t.get_text()]
+        assert labels
+        assert not any(re.fullmatch(r"\$?(\\mathdefault\{)?0\}?\$?", s) for s in labels), labels
+    # Fig. 5's time axis says it is the estimator's time over passes of the data.
+    assert "estimation time (s)" in saved["fig5_hopfield.png"]._supxlabel.get_text()
