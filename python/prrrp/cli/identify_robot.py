@@ -187,7 +187,7 @@ def _identify(
     main = runs.get(default) or next(iter(runs.values()))
     settings = main.model.preprocessing.get("settings") or {}
     # Prepared once: every method is scored on the same rows of the same logs.
-    fit_grid = prediction.prepare(raw, settings)
+    fit_grid = prediction.prepare(raw, settings, identified=(main.data, main.log_report))
     val_grid = prediction.prepare(val_raw, settings) if val_raw is not None else None
     table = _comparison_rows(method_runs, fit_grid, val_grid)
 
