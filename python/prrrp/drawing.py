@@ -8,14 +8,16 @@ Agg canvas, never pyplot's global state, so nothing is left open between figures
 
 A line of S samples drawn into P pixel columns (S ≫ P) shows, per column, only the span
 from its smallest to its largest value: :func:`envelope` keeps those two samples per
-column (in time order) and the image is the same to the pixel. A cloud of points shows
-which pixels are covered: :func:`thin_points` keeps one point per covered pixel cell.
+column (in time order), so every column spans the same pixels as with all the samples.
+A cloud of points shows which pixels are covered: :func:`thin_points` keeps one point per
+covered pixel cell.
 Layout is fixed in inches (room for tick labels, axis labels and titles) instead of
 measured by ``tight_layout``, which draws every text twice to find its size.
 """
 
 from __future__ import annotations
 
+import importlib
 import os
 import threading
 from collections.abc import Sequence
@@ -35,11 +37,9 @@ _preload: threading.Thread | None = None
 
 
 def _import() -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.backends.backend_agg
-    import matplotlib.figure
+    # Agg canvases directly: pyplot's backend (a notebook's, a user's) is left alone.
+    for name in ("matplotlib.figure", "matplotlib.backends.backend_agg"):
+        importlib.import_module(name)
 
 
 def preload() -> None:

@@ -357,3 +357,32 @@ def test_study_figures_labelled_and_showing_what_they_say(tmp_path, monkeypatch)
         assert not any(re.fullmatch(r"\$?(\\mathdefault\{)?0\}?\$?", s) for s in labels), labels
     # Fig. 5's time axis says it is the estimator's time over passes of the data.
     assert "estimation time (s)" in saved["fig5_hopfield.png"]._supxlabel.get_text()
+
+
+def test_drawing_leaves_the_users_pyplot_backend_alone():
+    """A notebook's backend stays what it was after a report (figures on Agg canvases)."""
+    proc = subprocess.run(
+        [
+            sys.executable,
+            "-c",
+            textwrap.dedent(
+                """
+                import tempfile
+                from pathlib import Path
+                import matplotlib
+                matplotlib.use("svg")
+                from prrrp import drawing
+                fig, axes = drawing.figure(1, 2)
+                axes[0, 0].plot([0, 1], [0, 1])
+                with tempfile.TemporaryDirectory() as d:
+                    drawing.save(fig, Path(d) / "a.png")
+                    assert (Path(d) / "a.png").read_bytes()[:4] == b"\\x89PNG"
+                print(matplotlib.get_backend())
+                """
+            ),
+        ],
+        capture_output=True,
+        text=True,
+        check=True,
+    )
+    assert proc.stdout.strip() == "svg"
