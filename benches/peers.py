@@ -282,7 +282,7 @@ def end_to_end(short: bool) -> list[tuple[str, float, float]]:
         )
         if not short:
             runs = [
-                _run([*ident, "--method", "all", "--out", str(folder / f"all{k}")])
+                _run([*ident, "--method", "all", "--out", str(folder / f"all{k}")], "all")
                 for k in range(3)
             ]
             rows.append(("identify --method all, same log", statistics.median(runs), math.nan))
