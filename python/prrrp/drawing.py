@@ -52,8 +52,8 @@ def preload() -> None:
 
 
 def wait_preload() -> None:
-    """Joins the :func:`preload` thread, if any (before the interpreter exits, so that no
-    thread is left inside an import)."""
+    """Joins the :func:`preload` thread, if any: :func:`figure` does before drawing. A
+    caller that stops early does not wait (the thread is a daemon)."""
     if _preload is not None:
         _preload.join()
 

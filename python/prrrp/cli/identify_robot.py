@@ -137,12 +137,10 @@ def run(args: argparse.Namespace) -> int:
     )
     methods = list(workflow.METHODS) if args.method == "all" else [args.method]
     # matplotlib's import (longer than drawing the figures) runs while the identification,
-    # which releases the GIL, computes.
+    # which releases the GIL, computes; the figures wait for it, a failed or interrupted
+    # run does not (Ctrl-C answers at once).
     drawing.preload()
-    try:
-        return _identify(args, out, robot, raw, val_raw, methods, scale, pre, record)
-    finally:
-        drawing.wait_preload()
+    return _identify(args, out, robot, raw, val_raw, methods, scale, pre, record)
 
 
 def _identify(
