@@ -140,20 +140,6 @@ def run(args: argparse.Namespace) -> int:
     # which releases the GIL, computes; the figures wait for it, a failed or interrupted
     # run does not (Ctrl-C answers at once).
     drawing.preload()
-    return _identify(args, out, robot, raw, val_raw, methods, scale, pre, record)
-
-
-def _identify(
-    args: argparse.Namespace,
-    out: Path,
-    robot: Any,
-    raw: dict[str, Any],
-    val_raw: dict[str, Any] | None,
-    methods: list[str],
-    scale: str | float,
-    pre: dict[str, Any],
-    record: dict[str, Any] | None,
-) -> int:
     progress = Progress()
     try:
         if len(methods) == 1:
