@@ -8,6 +8,13 @@
   if filterpy is installed (the `bench` extra), beside the median criterion recorded for
   `chain7_ekf_step` in target/criterion (the benches run just before this script).
 
+- end to end on one log (`--e2e`, on by default): the `prrrp identify` command (model.json,
+  report.md, figures) against a FIGAROH-style numpy + scipy + Pinocchio least-squares
+  pipeline (benches/figaroh_style.py) on the same 40 s, 6-joint, 500 Hz log of a UR5-like
+  arm (tests/data/ur5_like_friction.toml, made here with `prrrp excite` and `simulate`),
+  each a fresh process, run alternately; without --short also `--method all` and a 5 kHz,
+  25 000-row log (prrrp alone).
+
 Medians of repeated timings. It reports and never fails on timing; it exits non-zero only on
 an error (e.g. the results of prrrp and its peer disagree). numpy's BLAS honours
 OPENBLAS_CORETYPE / OPENBLAS_L2_SIZE, which this machine sets for other software and which
@@ -21,8 +28,14 @@ from __future__ import annotations
 import argparse
 import importlib.util
 import json
+import math
+import os
+import resource
 import statistics
+import subprocess
 import sys
+import tempfile
+import time
 import timeit
 from pathlib import Path
 
@@ -76,6 +89,7 @@ def blas_kernel() -> str:
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--short", action="store_true", help="fewer repetitions (CI)")
+    ap.add_argument("--no-e2e", action="store_true", help="skip the end-to-end comparison")
     args = ap.parse_args()
     rep = 5 if args.short else 15
     rows: list[tuple[str, str, float, str, float]] = []
@@ -152,13 +166,131 @@ def main() -> int:
             )
         )
 
+    e2e = end_to_end(short=args.short) if not args.no_e2e else []
+
     print(f"numpy {np.__version__}, BLAS: {blas_kernel()}")
     print(f"{'case':40s} {'prrrp':>12s} {'peer':>12s} {'peer/prrrp':>11s}  (prrrp | peer)")
     for case, a, ta, b, tb in rows:
         ratio = tb / ta if ta == ta else float("nan")
         fa = "-" if ta != ta else fmt(ta)
         print(f"{case:40s} {fa:>12s} {fmt(tb):>12s} {ratio:>10.1f}×  ({a} | {b})")
+    if e2e:
+        print(f"end to end, wall time of a fresh process (median of runs); {machine()}")
+        for case, ta, tb in e2e:
+            peer = "-" if tb != tb else fmt(tb)
+            ratio = "" if tb != tb else f"{tb / ta:10.2f}×"
+            print(f"{case:58s} {fmt(ta):>9s} {peer:>9s} {ratio}")
+        cpu = ", ".join(f"{k} {statistics.median(v):.3g} s" for k, v in CPU.items())
+        print(f"CPU time (user + system) per process, medians: {cpu}")
     return 0
+
+
+#: The robot of the end-to-end comparison.
+UR5_LIKE = HERE.parent / "tests" / "data" / "ur5_like_friction.toml"
+
+
+def machine() -> str:
+    """CPU model, core count and load average: the numbers are only meaningful with them."""
+    model = "unknown CPU"
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                model = line.split(":", 1)[1].strip()
+                break
+    except OSError:
+        pass
+    load = ", ".join(f"{x:.1f}" for x in os.getloadavg()) if hasattr(os, "getloadavg") else "?"
+    return f"{model}, {os.cpu_count()} cores, load average {load}"
+
+
+#: CPU seconds (user + system) of each process _run ran, by argv[1:3]: on a loaded machine
+#: the wall time measures the load as much as the program.
+CPU: dict[str, list[float]] = {}
+
+
+def _run(argv: list[str], key: str | None = None) -> float:
+    """Wall time of one fresh process running argv (s), its CPU time kept in CPU[key];
+    raises if it fails."""
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    t0 = time.perf_counter()
+    proc = subprocess.run(argv, capture_output=True, text=True, check=False)
+    took = time.perf_counter() - t0
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    if proc.returncode != 0:
+        raise RuntimeError(f"{' '.join(argv)} failed: {proc.stderr.strip()[-500:]}")
+    if key is not None:
+        cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+        CPU.setdefault(key, []).append(cpu)
+    return took
+
+
+def _log(prrrp_cmd: list[str], folder: Path, name: str, seconds: float, rate: float) -> Path:
+    """A simulated log of the UR5-like arm (excitation designed for it), seeded."""
+    traj, log = folder / f"{name}-traj.csv", folder / f"{name}.csv"
+    robot = ["--robot", str(UR5_LIKE)]
+    _run(
+        [
+            *prrrp_cmd,
+            "excite",
+            *robot,
+            "--duration",
+            f"{seconds:g}",
+            "--rate",
+            f"{rate:g}",
+            "--out",
+            str(traj),
+            "--evaluations",
+            "300",
+        ]
+    )
+    _run([*prrrp_cmd, "simulate", *robot, "--trajectory", str(traj), "--out", str(log)])
+    return log
+
+
+def end_to_end(short: bool) -> list[tuple[str, float, float]]:
+    """(case, prrrp median s, peer median s or NaN) for each end-to-end case."""
+    try:
+        import figaroh_style  # noqa: F401  (needs pinocchio and scipy)
+    except ImportError as e:
+        print(f"FIGAROH-style peer not available ({e}); skipping end to end", file=sys.stderr)
+        return []
+    exe = Path(sys.executable)
+    prrrp_cmd = (
+        [str(exe.with_name("prrrp"))]
+        if exe.with_name("prrrp").exists()
+        else [str(exe), "-m", "prrrp"]
+    )
+    peer_cmd = [str(exe), str(HERE / "figaroh_style.py")]
+    rounds = 2 if short else 5
+    rows = []
+    with tempfile.TemporaryDirectory() as tmp:
+        folder = Path(tmp)
+        urdf = folder / "ur5_like.urdf"
+        urdf.write_text(prrrp.SerialChain.from_file(str(UR5_LIKE)).to_urdf())
+        log = _log(prrrp_cmd, folder, "ur5-40s-500hz", 40.0, 500.0)
+        ident = [*prrrp_cmd, "identify", str(log), "--robot", str(UR5_LIKE)]
+        ours, theirs = [], []
+        for k in range(rounds):  # alternately, so that both see the same load
+            ours.append(_run([*ident, "--out", str(folder / f"out{k}")], "prrrp"))
+            theirs.append(_run([*peer_cmd, str(log), str(urdf)], "peer"))
+        rows.append(
+            (
+                "identify, 40 s 6-joint 500 Hz log (report, figures)",
+                statistics.median(ours),
+                statistics.median(theirs),
+            )
+        )
+        if not short:
+            runs = [
+                _run([*ident, "--method", "all", "--out", str(folder / f"all{k}")], "all")
+                for k in range(3)
+            ]
+            rows.append(("identify --method all, same log", statistics.median(runs), math.nan))
+            fast = _log(prrrp_cmd, folder, "ur5-5s-5khz", 5.0, 5000.0)
+            cmd = [*prrrp_cmd, "identify", str(fast), "--robot", str(UR5_LIKE)]
+            runs = [_run([*cmd, "--out", str(folder / f"fast{k}")], "5khz") for k in range(rounds)]
+            rows.append(("identify, 5 kHz log, 25 000 rows", statistics.median(runs), math.nan))
+    return rows
 
 
 def criterion_median(bench: str) -> float:

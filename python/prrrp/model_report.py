@@ -19,7 +19,7 @@ actuator over its velocity (C·q̇)ₘ, the points C⁻ᵀ·(τ − τ̂_rigid).
 from __future__ import annotations
 
 import os
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -29,21 +29,6 @@ from prrrp._prrrp import Dataset, IdentifiedModel
 from prrrp.prediction import LogGrid, _at_rows, prepare, recorded_settings
 
 FRICTION_TERMS = ("fv", "fc", "fo")
-
-
-def _pyplot() -> Any:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
-
-
-def _save(fig: Any, path: Path) -> None:
-    fig.tight_layout()
-    fig.savefig(path, dpi=100, format="png")
-    _pyplot().close(fig)
 
 
 def _grid(n: int) -> tuple[int, int]:
@@ -242,72 +227,86 @@ def _prior_section(model: IdentifiedModel) -> list[str]:
     return lines
 
 
+def _units(model: IdentifiedModel) -> tuple[list[str], list[str]]:
+    """Per joint: the unit of its generalised force (N·m, N) and of its velocity."""
+    prismatic = [t == "P" for t in model.robot.joint_types]
+    return (["N" if p else "N·m" for p in prismatic], ["m/s" if p else "rad/s" for p in prismatic])
+
+
+#: (file name, caption template) of the report's figures, in the order they are drawn;
+#: ``{which}`` is the data they show ("identification" or "validation").
+FIGURE_CAPTIONS: dict[str, str] = {
+    "torque.png": "Measured and predicted joint torques on the {which} data (grey spans: the "
+    "filter's edge transient, not scored)",
+    "residual.png": "Histogram of the torque residual, measured − predicted, per joint "
+    "({which} data, scored rows)",
+    "friction.png": "Friction torque vs speed per joint: the identified model over the "
+    "measured torque minus the model's rigid-body part",
+}
+
+
+def figure_list(model: IdentifiedModel, validation: bool = False) -> list[tuple[str, str]]:
+    """The (file name, caption) pairs :func:`write_figures` writes for ``model``, known
+    before any is drawn (the report links them)."""
+    which = "validation" if validation else "identification"
+    names = ["torque.png", "residual.png"]
+    if friction_split(model)[1].any():
+        names.append("friction.png")
+    return [(name, FIGURE_CAPTIONS[name].format(which=which)) for name in names]
+
+
 def write_figures(
     model: IdentifiedModel,
     data: DataLike,
     directory: Path,
     validation: DataLike | None = None,
 ) -> list[tuple[str, str]]:
-    """Writes the figures; returns (file name, caption) pairs."""
-    plt = _pyplot()
+    """Writes the figures of :func:`figure_list`; returns their (file name, caption)
+    pairs."""
+    from prrrp import drawing
+
     joints = list(model.robot.joint_names)
+    force_units, speed_units = _units(model)
     n = len(joints)
     rows, cols = _grid(n)
-    out: list[tuple[str, str]] = []
     fit = as_grid(data, model)
-
     check = as_grid(validation, model) if validation is not None else fit
-    which = "validation" if validation is not None else "identification"
     pred = check.predict(model)
     t = check.t
     cutoff = (check.report or {}).get("cutoff_hz")
-    fig, axes = plt.subplots(rows, cols, figsize=(4.2 * cols, 2.6 * rows), squeeze=False)
+
+    fig, axes = drawing.figure(rows, cols, top=0.7)
     for j in range(n):
         ax = axes[j // cols][j % cols]
         _shade_edges(ax, check)
-        ax.plot(t, check.measured[:, j], lw=0.6, color="0.55", label="measured")
+        drawing.lines(ax, t, check.measured[:, j], lw=0.6, color="0.55", label="measured")
         if check.filtered is not None:
-            ax.plot(
+            drawing.lines(
+                ax,
                 t,
                 check.filtered[:, j],
                 lw=0.8,
                 color="tab:blue",
                 label=f"measured, low-passed at {cutoff:.3g} Hz (fitted)",
             )
-        ax.plot(t, pred[:, j], lw=0.8, ls="--", color="tab:red", label="predicted")
+        drawing.lines(ax, t, pred[:, j], lw=0.8, ls="--", color="tab:red", label="predicted")
         ax.set_title(joints[j], fontsize=9)
-        ax.set_xlabel("t (s)")
-        ax.set_ylabel("torque (N·m, N)", fontsize=8)
-    for j in range(n, rows * cols):
-        axes[j // cols][j % cols].axis("off")
-    axes[0][0].legend(fontsize=6)
-    _save(fig, directory / "torque.png")
-    out.append(
-        (
-            "torque.png",
-            f"Measured and predicted joint torques on the {which} data (grey spans: the "
-            "filter's edge transient, not scored)",
-        )
-    )
+        ax.set_xlabel("time (s)", fontsize=8)
+        ax.set_ylabel(f"torque ({force_units[j]})", fontsize=8)
+    _blank(axes, n, cols)
+    # Above the panels, never over the data.
+    handles, labels = axes[0][0].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="upper center", ncol=3, fontsize=8, frameon=False)
+    drawing.save(fig, directory / "torque.png")
 
     k = check.scored
     resid = check.measured[k] - pred[k]
-    fig, axes = plt.subplots(rows, cols, figsize=(4.2 * cols, 2.4 * rows), squeeze=False)
+    fig, axes = drawing.figure(rows, cols)
     for j in range(n):
         ax = axes[j // cols][j % cols]
-        ax.hist(resid[:, j], bins=40)
-        ax.set_title(f"{joints[j]}: RMS {_rms(resid[:, j]):.3g}", fontsize=9)
-        ax.set_xlabel("measured − predicted (N·m, N)", fontsize=8)
-    for j in range(n, rows * cols):
-        axes[j // cols][j % cols].axis("off")
-    _save(fig, directory / "residual.png")
-    out.append(
-        (
-            "residual.png",
-            f"Histogram of the torque residual, measured − predicted, per joint ({which} "
-            "data, scored rows)",
-        )
-    )
+        _histogram(ax, resid[:, j], force_units[j], joints[j])
+    _blank(axes, n, cols)
+    drawing.save(fig, directory / "residual.png")
 
     friction, mask = friction_split(model)
     if mask.any():
@@ -326,29 +325,62 @@ def write_figures(
             qd = qd @ c.T
             points = np.linalg.solve(c.T, points.T).T
             titles = [f"actuator {m + 1}" for m in range(n)]
-        fig, axes = plt.subplots(rows, cols, figsize=(4.2 * cols, 2.8 * rows), squeeze=False)
+        fig, axes = drawing.figure(rows, cols, panel=(3.6, 2.1))
         for j in range(n):
             ax = axes[j // cols][j % cols]
-            ax.plot(qd[:, j], points[:, j], ".", ms=1.5, alpha=0.4, label="data")
+            keep = drawing.thin_points(qd[:, j], points[:, j], drawing.pixels(ax))
+            ax.plot(qd[keep, j], points[keep, j], ".", ms=1.5, alpha=0.4, label="data")
             span = max(float(np.abs(qd[:, j]).max()), 1e-6)
             grid = np.linspace(-span, span, 401)
             curve = friction_torque(friction[j : j + 1], grid[:, None], v_s)[:, 0]
             ax.plot(grid, curve, "r", lw=1.2, label="model")
             ax.set_title(titles[j], fontsize=9)
-            ax.set_xlabel("q̇ (rad/s, m/s)" if coupling is None else "(C·q̇)ₘ (rad/s, m/s)")
-            ax.set_ylabel("friction torque (N·m, N)", fontsize=8)
-        for j in range(n, rows * cols):
-            axes[j // cols][j % cols].axis("off")
-        axes[0][0].legend(fontsize=7)
-        _save(fig, directory / "friction.png")
-        out.append(
-            (
-                "friction.png",
-                "Friction torque vs speed per joint: the identified model over the measured "
-                "torque minus the model's rigid-body part",
-            )
-        )
-    return out
+            if coupling is None:
+                ax.set_xlabel(f"joint velocity q̇ ({speed_units[j]})", fontsize=8)
+                ax.set_ylabel(f"friction torque ({force_units[j]})", fontsize=8)
+            else:
+                ax.set_xlabel("actuator velocity (C·q̇)ₘ (rad/s or m/s)", fontsize=8)
+                ax.set_ylabel("friction torque (N·m or N)", fontsize=8)
+        _blank(axes, n, cols)
+        axes[0][0].legend(fontsize=7, loc="upper left", markerscale=4)
+        drawing.save(fig, directory / "friction.png")
+    return figure_list(model, validation is not None)
+
+
+def _blank(axes: Any, n: int, cols: int) -> None:
+    """Hides the panels after the n-th."""
+    for j in range(n, axes.size):
+        axes[j // cols][j % cols].axis("off")
+
+
+#: Bins of the residual histograms.
+HIST_BINS = 50
+#: The residual histograms span this central share of the rows (widened by a tenth): a few
+#: rows far out (a torque spike, the filter's settling) would otherwise squeeze the bulk
+#: into one bin. The rows outside are counted in the panel's title.
+HIST_SHARE = 0.99
+
+
+def _histogram(ax: Any, r: np.ndarray, unit: str, joint: str) -> None:
+    """One joint's residual histogram: counts per bin over the central rows."""
+    r = r[np.isfinite(r)]
+    title = f"{joint}: RMS {_g(_rms(r), 3)} {unit}"
+    if len(r) == 0:
+        ax.set_title(title, fontsize=9)
+        return
+    tail = (1 - HIST_SHARE) / 2
+    lo, hi = np.quantile(r, [tail, 1 - tail])
+    pad = 0.1 * (hi - lo) if hi > lo else max(abs(hi), 1e-12)
+    lo, hi = lo - pad, hi + pad
+    counts, edges = np.histogram(r, bins=HIST_BINS, range=(lo, hi))
+    # One artist for all the bars (ax.hist makes one patch per bar).
+    ax.stairs(counts, edges, fill=True, color="tab:blue")
+    outside = len(r) - int(counts.sum())
+    if outside:
+        title += f" ({outside} rows off scale)"
+    ax.set_title(title, fontsize=9)
+    ax.set_xlabel(f"measured − predicted torque ({unit})", fontsize=8)
+    ax.set_ylabel("rows per bin", fontsize=8)
 
 
 def _with_beta(model: IdentifiedModel, beta: np.ndarray) -> IdentifiedModel:
@@ -370,6 +402,38 @@ def _g(x: Any, digits: int = 4) -> str:
         return str(x)  # a hand-edited record: shown, not computed with
     x = float(x)
     return "–" if not np.isfinite(x) else f"{x:.{digits}g}"
+
+
+#: Significant digits of a measured quantity in a report record (e.g. the log's median
+#: rate, a largest gap): a clock's jitter is far above 1e-6 of its rate.
+RECORD_DIGITS = 6
+
+
+def _record_value(v: Any) -> str:
+    """A preprocessing record's value for the report: floats to :data:`RECORD_DIGITS`
+    significant digits (500.0000000000551 Hz → 500), the rest as they are."""
+    if isinstance(v, float):
+        return _g(v, RECORD_DIGITS)
+    return str(v)
+
+
+def _with_sigma(x: Any, sigma: Any, digits: int = 6) -> str:
+    """``x`` to the decimal place of the second significant digit of its standard
+    deviation ``sigma`` (the digits σ supports; at least one significant digit of x);
+    ``digits`` significant digits when there is no finite σ > 0."""
+    if x is None or isinstance(x, str | bool) or not isinstance(x, int | float | np.number):
+        return _g(x)
+    x = float(x)
+    if not np.isfinite(x):
+        return "–"
+    if sigma is None or not np.isfinite(sigma) or not sigma > 0:
+        return _g(x, digits)
+    # Decimal place of σ's second significant digit; kept when x is smaller than σ.
+    place = int(np.floor(np.log10(float(sigma)))) - 1
+    if x != 0 and int(np.floor(np.log10(abs(x)))) < place:
+        return _g(x, 1)
+    decimals = max(-place, 0)
+    return f"{round(x, -place):.{decimals}f}"
 
 
 def _error_rows(joints: Sequence[str], p: dict[str, Any]) -> list[list[str]]:
@@ -466,11 +530,15 @@ def comparison_section(
 def comparison_figure(runs: Sequence[dict[str, Any]], joints: Sequence[str], path: Path) -> None:
     """Bars of the torque error per joint (% of the measured torque's RMS), one bar per
     method that succeeded, on the held-out data when there is some."""
-    plt = _pyplot()
+    from prrrp import drawing
+
     ok = [r for r in runs if r["status"] == "ok"]
     held_out = any(r.get("validation") is not None for r in ok)
     key = "validation" if held_out else "identification"
-    fig, ax = plt.subplots(figsize=(1.5 + 0.9 * len(joints) * max(len(ok), 1) / 3, 3.4))
+    width_in = 0.9 + 0.3 * len(joints) * max(len(ok), 1)
+    # Legend on the right, outside the bars; room below for the slanted joint names.
+    fig, axes = drawing.figure(1, 1, panel=(width_in, 2.6), bottom=1.1, right=2.0, top=0.4)
+    ax = axes[0][0]
     width = 0.8 / max(len(ok), 1)
     x = np.arange(len(joints))
     for k, r in enumerate(ok):
@@ -478,12 +546,13 @@ def comparison_figure(runs: Sequence[dict[str, Any]], joints: Sequence[str], pat
         label = r["method"] + ("" if r["converged"] else " (not converged)")
         ax.bar(x + (k - (len(ok) - 1) / 2) * width, values, width, label=label)
     ax.set_xticks(x)
-    ax.set_xticklabels(joints, rotation=30, fontsize=8)
-    ax.set_ylabel("torque error (% of measured RMS)")
+    ax.set_xticklabels(joints, rotation=30, ha="right", fontsize=8)
+    ax.set_xlabel("joint", fontsize=8)
+    ax.set_ylabel("torque error (% of measured RMS)", fontsize=8)
     ax.set_title("held-out validation data" if held_out else "identification data", fontsize=9)
     ax.grid(True, axis="y", alpha=0.3)
-    ax.legend(fontsize=7)
-    _save(fig, path)
+    ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.02, 1.0), frameon=False)
+    drawing.save(fig, path)
 
 
 def _coulomb_summary(coulomb: dict[str, Any]) -> list[str]:
@@ -556,8 +625,8 @@ def render(
             [
                 name,
                 f"`{combo}`",
-                _g(model.beta[i], 6),
-                _g(None if sigma is None else sigma[i], 3),
+                _with_sigma(model.beta[i], None if sigma is None else sigma[i]),
+                _g(None if sigma is None else sigma[i], 2),
                 _g(None if rsd is None else rsd[i], 3),
             ]
         )
@@ -596,14 +665,14 @@ def render(
     lines += ["## Preprocessing", ""]
     if log_report:
         for k, v in log_report.items():
-            lines.append(f"- {k}: {v}")
+            lines.append(f"- {k}: {_record_value(v)}")
     else:
         lines.append("- none: velocities and accelerations were given in the data")
     lines.append("")
     if figures:
         lines += ["## Figures", ""]
-        lines += [f"- `{name}`: {caption}" for name, caption in figures]
-        lines.append("")
+        for name, caption in figures:
+            lines += [f"{caption} (`{name}`):", "", f"![{caption}]({name})", ""]
     return "\n".join(lines)
 
 
@@ -651,8 +720,8 @@ def _actuator_lines(model: IdentifiedModel) -> list[str]:
                         str(a["actuator"]),
                         ", ".join(a["joints"]),
                         t["name"],
-                        _g(t["value"], 5),
-                        _g(t["sigma"], 3),
+                        _with_sigma(t["value"], t["sigma"], 5),
+                        _g(t["sigma"], 2),
                         how,
                         _g(t["standard"], 5),
                     ]
@@ -668,20 +737,34 @@ def write_report(
     model: IdentifiedModel,
     directory: str | os.PathLike[str],
     data: DataLike,
+    *,
+    drawings: list[Callable[[], object]] | None = None,
     **kwargs: Any,
 ) -> list[Path]:
-    """Writes ``report.md`` and the figures into ``directory`` (which must exist; callers
-    that want all-or-nothing output build it with :func:`prrrp.outdir.write_dir`).
-    ``data`` and ``validation``: the measurements as read (scored at their rows), a
-    :class:`~prrrp.prediction.LogGrid` or a ``Dataset`` (scored against its own τ).
-    Keyword arguments as :func:`render`. Returns the written paths."""
+    """Writes ``report.md`` and then the figures it links into ``directory`` (which must
+    exist; callers that want all-or-nothing output build it with
+    :func:`prrrp.outdir.write_dir`). ``data`` and ``validation``: the measurements as read
+    (scored at their rows), a :class:`~prrrp.prediction.LogGrid` or a ``Dataset`` (scored
+    against its own τ). With ``drawings`` (a list) the figures are not drawn: a call that
+    draws them is appended, for a caller that writes all its text first. Other keyword
+    arguments as :func:`render`. Returns the paths written (or to be drawn)."""
     d = Path(directory)
     data = as_grid(data, model)
     if kwargs.get("validation") is not None:
         kwargs["validation"] = as_grid(kwargs["validation"], model)
-    figures = list(kwargs.pop("figures", ()))
-    figures += write_figures(model, data, d, kwargs.get("validation"))
+    validation = kwargs.get("validation")
+    own = figure_list(model, validation is not None)
+    figures = [*kwargs.pop("figures", ()), *own]
+    # The report first: it never waits for the figures it links.
     (d / "report.md").write_text(render(model, data, figures=figures, **kwargs), "utf-8")
+
+    def draw() -> None:
+        write_figures(model, data, d, validation)
+
+    if drawings is None:
+        draw()
+    else:
+        drawings.append(draw)
     return [d / "report.md", *(d / name for name, _ in figures)]
 
 

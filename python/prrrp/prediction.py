@@ -60,6 +60,11 @@ class LogGrid:
     #: "log" (measurements as read: scored against the measured torque) or "dataset" (a
     #: ready Dataset: scored against its own τ, whatever made it).
     source: str = "log"
+    #: Predictions already made on this grid, by model (an IdentifiedModel is immutable):
+    #: the report and the method comparison ask for the same model's several times.
+    _predicted: dict[int, tuple[IdentifiedModel, np.ndarray]] = dataclasses.field(
+        default_factory=dict, repr=False, compare=False
+    )
 
     @property
     def scored(self) -> np.ndarray:
@@ -74,9 +79,13 @@ class LogGrid:
 
     def predict(self, model: IdentifiedModel) -> np.ndarray:
         """``model``'s torque at every row of the log, (S, n) N·m or N."""
-        p = self.processed
-        tau = np.asarray(model.predict(p.q, p.qd, p.qdd))
-        return _at_rows(np.asarray(p.t), tau, self.t)
+        hit = self._predicted.get(id(model))
+        if hit is None or hit[0] is not model:
+            p = self.processed
+            tau = np.asarray(model.predict(p.q, p.qd, p.qdd))
+            hit = (model, _at_rows(np.asarray(p.t), tau, self.t))
+            self._predicted[id(model)] = hit
+        return hit[1].copy()
 
     def errors(self, predicted: np.ndarray) -> dict[str, Any]:
         """Per joint over the scored rows: ``rms`` of measured − predicted (N·m, N),
@@ -147,12 +156,17 @@ def _repeats(t: np.ndarray) -> np.ndarray:
 
 
 def prepare(
-    raw: Mapping[str, np.ndarray] | Dataset, settings: Mapping[str, Any] | None = None
+    raw: Mapping[str, np.ndarray] | Dataset,
+    settings: Mapping[str, Any] | None = None,
+    *,
+    identified: tuple[Dataset, dict[str, Any] | None] | None = None,
 ) -> LogGrid:
     """A measured log (``prrrp.read_measurements``'s dict) prepared for predictions at its
     rows, with the preprocessing ``settings`` of identification (keys of
     ``prrrp.preprocess_log``; None/missing = its defaults). A ``Dataset`` is taken as it is
-    (its rows and its τ are then what is scored). Raises what the preprocessing raises."""
+    (its rows and its τ are then what is scored). ``identified``: the (data set, report)
+    identification made from this log with these settings, not made again. Raises what
+    the preprocessing raises."""
     if isinstance(raw, Dataset):
         t = np.asarray(raw.t)
         none = np.zeros(len(t), dtype=bool)
@@ -163,7 +177,10 @@ def prepare(
     tau = measured if measured is not None else np.zeros_like(np.asarray(raw["q"]))
     log = {**raw, "tau": tau}
     settings = {k: v for k, v in dict(settings or {}).items() if k in PREPROCESS_KEYS}
-    data, report = measurements_to_dataset(log, settings)
+    if identified is not None:
+        data, report = identified
+    else:
+        data, report = measurements_to_dataset(log, settings)
     if report is None:  # q̇ and q̈ given: evaluated at the rows as they are
         none = np.zeros(len(t), dtype=bool)
         return LogGrid(t, measured, None, none, _repeats(t), data, data, None)

@@ -233,12 +233,16 @@ def identify_methods(
     progress: Callable[[int, int], object] | None = None,
     **settings: Any,
 ) -> list[MethodRun]:
-    """:func:`identify_measurements` with several methods on one preprocessing and one
-    Coulomb speed-scale search (what ``prrrp identify --method all`` compares). A method
+    """:func:`identify_measurements` with several methods on one preprocessing, one
+    Coulomb speed-scale search and one base analysis (what ``prrrp identify --method all``
+    compares). A method
     that fails (a PrrrpError or ValueError: diverged, rank deficient, ...) is
     returned with its error and does not stop the others; errors of the shared
     preprocessing are raised."""
     prepared = _prepare(robot, raw, coulomb_scale, preprocessing, drives)
+    if isinstance(prepared.robot, SerialChain) and settings.get("base") is None:
+        # One base analysis for every method: the same base parameters to compare.
+        settings["base"] = prepared.robot.base_parameters()
     runs = []
     for k, method in enumerate(methods):
         if progress is not None:

@@ -6,10 +6,11 @@ from __future__ import annotations
 import argparse
 import math
 import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from prrrp import bags, drives, model_report, outdir, prediction, workflow
+from prrrp import bags, drawing, drives, model_report, outdir, prediction, workflow
 from prrrp.cli.common import (
     EXIT_FAILED,
     EXIT_OK,
@@ -135,6 +136,10 @@ def run(args: argparse.Namespace) -> int:
         else None
     )
     methods = list(workflow.METHODS) if args.method == "all" else [args.method]
+    # matplotlib's import (longer than drawing the figures) runs while the identification,
+    # which releases the GIL, computes; the figures wait for it, a failed or interrupted
+    # run does not (Ctrl-C answers at once).
+    drawing.preload()
     progress = Progress()
     try:
         if len(methods) == 1:
@@ -166,7 +171,7 @@ def run(args: argparse.Namespace) -> int:
     main = runs.get(default) or next(iter(runs.values()))
     settings = main.model.preprocessing.get("settings") or {}
     # Prepared once: every method is scored on the same rows of the same logs.
-    fit_grid = prediction.prepare(raw, settings)
+    fit_grid = prediction.prepare(raw, settings, identified=(main.data, main.log_report))
     val_grid = prediction.prepare(val_raw, settings) if val_raw is not None else None
     table = _comparison_rows(method_runs, fit_grid, val_grid)
 
@@ -184,9 +189,13 @@ def run(args: argparse.Namespace) -> int:
             sources["validation"] = str(args.validate)
         comparison: list[str] = []
         figures: list[tuple[str, str]] = []
+        # Every text file first, then the figures: model.json and report.md never wait.
+        drawings: list[Callable[[], object]] = []
         if len(methods) > 1:
             joints = list(robot.joint_names)
-            model_report.comparison_figure(table, joints, tmp / "methods.png")
+            drawings.append(
+                lambda: model_report.comparison_figure(table, joints, tmp / "methods.png")
+            )
             figures.append(("methods.png", "Torque error per joint and method"))
             comparison = model_report.comparison_section(
                 table, joints, main.model.method, "methods.png", default
@@ -201,6 +210,7 @@ def run(args: argparse.Namespace) -> int:
             sources=sources,
             comparison=comparison,
             figures=figures,
+            drawings=drawings,
         )
         physical = runs.get("physical")
         if physical is not None:
@@ -225,7 +235,10 @@ def run(args: argparse.Namespace) -> int:
                     log_report=physical.log_report,
                     coulomb=physical.coulomb,
                     sources=sources,
+                    drawings=drawings,
                 )
+        for draw in drawings:
+            draw()
         return written
 
     written = outdir.write_dir(out, build)

@@ -40,7 +40,7 @@ def add_parser(sub: Any) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from prrrp import outdir, plots, report
+    from prrrp import drawing, outdir, plots, report
 
     if not hasattr(prrrp, "run_study"):
         raise CliError("this build of prrrp has no run_study (reinstall the package)", EXIT_FAILED)
@@ -58,6 +58,9 @@ def run(args: argparse.Namespace) -> int:
         (tmp / "report.md").write_text(report.render(results), encoding="utf-8")
         return results, plots.write_all(results, tmp)
 
+    # matplotlib's import runs while the study (which releases the GIL) computes; the
+    # figures wait for it, an interrupted or failed run does not.
+    drawing.preload()
     results, figures = outdir.write_dir(out, build)
     total = (results.get("timings_s") or {}).get("total")
     took = f" ({total:.1f} s)" if isinstance(total, int | float) else ""

@@ -25,7 +25,7 @@ import json
 import os
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from prrrp.montecarlo.cases import (
     COLUMNS,
@@ -36,7 +36,24 @@ from prrrp.montecarlo.cases import (
     grid,
     run_case,
 )
-from prrrp.montecarlo.runner import DEFAULT_TIMEOUT, RunStats, WorkerStartError, run_cases
+
+if TYPE_CHECKING:
+    from prrrp.montecarlo import runner
+
+# The runner (concurrent.futures, multiprocessing) is imported when a benchmark runs, not
+# by `import prrrp` or `prrrp --help`; its names are here all the same (__getattr__).
+_RUNNER_NAMES = ("RunStats", "WorkerStartError", "run_cases")
+#: Default per-case timeout, s (the runner's DEFAULT_TIMEOUT).
+DEFAULT_TIMEOUT = 300.0
+
+
+def __getattr__(name: str) -> Any:
+    if name in _RUNNER_NAMES:
+        from prrrp.montecarlo import runner
+
+        return getattr(runner, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
 
 __all__ = [
     "COLUMNS",
@@ -60,7 +77,7 @@ class BenchmarkResult:
 
     rows: list[dict[str, Any]]
     config: dict[str, Any]
-    stats: RunStats
+    stats: runner.RunStats
     #: Figures the last :meth:`save` could not draw (name → error); the results were
     #: written all the same.
     figure_errors: dict[str, str] = dataclasses.field(default_factory=dict)
@@ -188,6 +205,8 @@ def benchmark(
         duration=duration,
         excitation_evaluations=excitation_evaluations,
     )
+    from prrrp.montecarlo.runner import run_cases
+
     rows, stats = run_cases(
         cases, executor, workers=workers, timeout=timeout, retries=retries, progress=progress
     )

@@ -37,10 +37,12 @@ from collections.abc import Callable, Sequence
 from typing import Any
 
 from prrrp._prrrp import PrrrpError
+
+# DEFAULT_TIMEOUT (per case, s) is defined beside prrrp.benchmark, which is imported without
+# this module.
+from prrrp.montecarlo import DEFAULT_TIMEOUT
 from prrrp.montecarlo.cases import Case, failed_rows, ping, run_case
 
-#: Default per-case timeout, s.
-DEFAULT_TIMEOUT = 300.0
 #: How long the executor may take to run its first task, s.
 DEFAULT_START_TIMEOUT = 120.0
 

@@ -1,0 +1,388 @@
+"""The report's figures: traces reduced to what the image shows keep every pixel column's
+extremes (against the raw data), every panel has axis labels with quantity and unit,
+report.md embeds the figures it is written before, numbers are rounded to what σ
+supports, and matplotlib is imported only to draw."""
+
+from __future__ import annotations
+
+import itertools
+import re
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import prrrp
+from prrrp import drawing, model_report
+
+# ------------------------------------------------------------------------- reduction
+
+
+def column_extremes(x, y, columns):
+    """Per pixel column of [x0, x1]: (min, max) of y over the samples in it (a loop over
+    the columns, independent of drawing.envelope's sort)."""
+    edges = x[0] + (x[-1] - x[0]) * np.arange(columns + 1) / columns
+    out = {}
+    for c in range(columns):
+        last = c == columns - 1
+        inside = (x >= edges[c]) & ((x <= edges[c + 1]) if last else (x < edges[c + 1]))
+        if inside.any():
+            v = y[inside]
+            out[c] = (np.min(v), np.max(v)) if np.isnan(v).all() else (np.nanmin(v), np.nanmax(v))
+    return out
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_envelope_keeps_each_columns_min_and_max(seed):
+    rng = np.random.default_rng(seed)
+    n = 20_000
+    # A jittery clock with repeated stamps, a random walk, spikes one sample wide.
+    x = np.cumsum(rng.choice([0.0, 0.001, 0.002], n, p=[0.05, 0.9, 0.05]))
+    y = np.cumsum(rng.normal(size=n))
+    y[rng.integers(0, n, 30)] += rng.normal(0, 200, 30)
+    columns = 300
+    xs, ys = drawing.envelope(x, y, columns)
+    assert len(xs) <= 2 * columns + 2 < n / 10
+    assert np.all(np.diff(xs) >= 0)  # still in time order
+    assert xs[0] == x[0]
+    assert xs[-1] == x[-1]
+    raw = column_extremes(x, y, columns)
+    kept = column_extremes_at(x, xs, ys, columns)
+    assert raw.keys() == kept.keys()
+    for c, (lo, hi) in raw.items():
+        assert kept[c] == (lo, hi), c
+    # Every kept point is a sample of the input.
+    pairs = set(zip(x.tolist(), y.tolist(), strict=True))
+    assert all(p in pairs for p in zip(xs.tolist(), ys.tolist(), strict=True))
+
+
+def column_extremes_at(x_full, xs, ys, columns):
+    """column_extremes of the reduced points, in the pixel columns of the full x range."""
+    edges = x_full[0] + (x_full[-1] - x_full[0]) * np.arange(columns + 1) / columns
+    out = {}
+    for c in range(columns):
+        last = c == columns - 1
+        inside = (xs >= edges[c]) & ((xs <= edges[c + 1]) if last else (xs < edges[c + 1]))
+        if inside.any():
+            v = ys[inside]
+            out[c] = (np.min(v), np.max(v)) if np.isnan(v).all() else (np.nanmin(v), np.nanmax(v))
+    return out
+
+
+def test_envelope_of_several_lines_and_nans():
+    rng = np.random.default_rng(5)
+    x = np.linspace(0, 10, 5001)
+    y = rng.normal(size=(5001, 3))
+    y[100:300, 1] = np.nan  # a gap in one line
+    xs, ys = drawing.envelope(x, y, 100)
+    for j in range(3):
+        raw = column_extremes(x, y[:, j], 100)
+        kept = column_extremes_at(x, xs, ys[:, j], 100)
+        for c, extremes in raw.items():
+            # An all-NaN column (the gap) stays NaN: the line stays broken there.
+            assert np.array_equal(kept[c], extremes, equal_nan=True), (j, c)
+
+
+def test_short_lines_are_drawn_as_they_are():
+    x, y = np.arange(50.0), np.arange(50.0) ** 2
+    xs, ys = drawing.envelope(x, y, 100)
+    assert np.array_equal(xs, x)
+    assert np.array_equal(ys, y)
+
+
+def test_thin_points_cover_every_pixel_the_cloud_covers():
+    rng = np.random.default_rng(3)
+    x, y = rng.normal(size=50_000), rng.normal(size=50_000) ** 3
+    size = (200, 120)
+    keep = drawing.thin_points(x, y, size)
+    assert len(keep) < len(x) / 3
+
+    def cells(i):
+        """Pixel cells of points i in a plot of the data's range with 5 % margins."""
+        out = []
+        for v, n in ((x, size[0]), (y, size[1])):
+            lo, hi = v.min() - 0.05 * np.ptp(v), v.max() + 0.05 * np.ptp(v)
+            out.append(np.floor((v[i] - lo) / (hi - lo) * n).astype(int).tolist())
+        return set(zip(*out, strict=True))
+
+    # Every pixel the cloud covers still has a point.
+    assert cells(np.arange(len(x))) == cells(keep)
+    for v in (x, y):
+        assert v[keep].min() == v.min()
+        assert v[keep].max() == v.max()
+
+
+# --------------------------------------------------------------------------- figures
+
+FRICTION = np.array(
+    [[5.0, 8.0, 0.3], [0.4, 0.9, 0.02], [0.3, 0.7, 0.0], [0.2, 0.5, 0.0], [3.0, 6.0, 0.1]]
+)
+
+
+@pytest.fixture(scope="module")
+def run():
+    """The paper's arm (prismatic d1, d5; revolute θ2..θ4) with friction, identified from
+    a 6 s multi-sine log at 200 Hz with sensor noise."""
+    truth = prrrp.SerialChain.paper().with_friction(
+        "viscous+coulomb+offset", FRICTION, coulomb_smoothing=0.02
+    )
+    rng = np.random.default_rng(7)
+    t = np.arange(0.0, 6.0, 0.005)
+    w = 2 * np.pi * 0.5 * np.arange(1, 4)
+    a = rng.normal(0, 0.3, (5, 3)) / np.arange(1, 4)
+    a[[0, 4]] *= 0.1  # the prismatic joints move centimetres
+    s, c = np.sin(np.outer(t, w)), np.cos(np.outer(t, w))
+    q, qd, qdd = s @ a.T + 0.3, (c * w) @ a.T, -(s * w**2) @ a.T
+    tau = truth.inverse_dynamics(q, qd, qdd) + rng.normal(0, 0.05, q.shape)
+    raw = {"t": t, "q": q, "tau": tau}
+    robot = prrrp.SerialChain.paper().with_friction("viscous+coulomb+offset", None)
+    return prrrp.identify_measurements(robot, raw, "wls", coulomb_scale=0.02)
+
+
+UNIT = re.compile(r"\((N·m|N|rad/s|m/s|s)\)$")
+
+
+def test_every_panel_has_labels_with_units(run, tmp_path, monkeypatch):
+    saved = {}
+    real_save = drawing.save
+
+    def keep(fig, path):
+        saved[Path(path).name] = fig
+        real_save(fig, path)
+
+    monkeypatch.setattr(drawing, "save", keep)
+    figures = model_report.write_figures(run.model, run.raw, tmp_path)
+    assert [name for name, _ in figures] == ["torque.png", "residual.png", "friction.png"]
+    assert set(saved) == {name for name, _ in figures}
+    types = run.model.robot.joint_types
+    for name, fig in saved.items():
+        panels = [ax for ax in fig.axes if ax.axison]
+        assert len(panels) == 5, name
+        for ax, kind in zip(panels, types, strict=True):
+            x, y = ax.get_xlabel(), ax.get_ylabel()
+            assert UNIT.search(x), (name, x)
+            assert UNIT.search(y) or y == "rows per bin", (name, y)
+            force = "N" if kind == "P" else "N·m"
+            assert f"({force})" in (y if name != "residual.png" else x), (name, kind, x, y)
+        assert (tmp_path / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_no_tick_labels_overlap(run, tmp_path, monkeypatch):
+    """Within each axis the tick labels do not overlap, nor do a panel's labels and title
+    reach into another panel."""
+    saved = []
+    monkeypatch.setattr(drawing, "save", lambda fig, path: saved.append(fig))
+    model_report.write_figures(run.model, run.raw, tmp_path)
+    for fig in saved:
+        renderer = fig.canvas.get_renderer()
+        fig.draw(renderer)
+        boxes = []
+        for ax in (a for a in fig.axes if a.axison):
+            for axis in (ax.xaxis, ax.yaxis):
+                texts = [t for t in axis.get_ticklabels() if t.get_visible() and t.get_text()]
+                ext = sorted(
+                    (t.get_window_extent(renderer) for t in texts),
+                    key=lambda b: (b.x0, b.y0),
+                )
+                for a, b in itertools.pairwise(ext):
+                    assert not a.overlaps(b), (a, b)
+            boxes.append(ax.get_tightbbox(renderer))
+        for i, a in enumerate(boxes):
+            for b in boxes[i + 1 :]:
+                assert not a.overlaps(b), (a, b)
+
+
+def test_report_is_written_first_and_embeds_its_figures(run, tmp_path, monkeypatch):
+    seen = []
+    real_save = drawing.save
+
+    def check(fig, path):
+        # report.md is on disk before any figure is drawn.
+        seen.append((Path(path).name, (tmp_path / "report.md").is_file()))
+        real_save(fig, path)
+
+    monkeypatch.setattr(drawing, "save", check)
+    written = run.report(tmp_path)
+    assert seen
+    assert all(first for _, first in seen)
+    text = (tmp_path / "report.md").read_text()
+    linked = re.findall(r"!\[[^\]]*\]\(([^)]+)\)", text)
+    assert linked == ["torque.png", "residual.png", "friction.png"]
+    for name in linked:
+        assert (tmp_path / name).is_file()
+    assert {p.name for p in written} == {"report.md", *linked}
+
+
+def test_report_defers_figures_to_the_caller(run, tmp_path):
+    drawings = []
+    model_report.write_report(run.model, tmp_path, run.raw, drawings=drawings)
+    assert (tmp_path / "report.md").is_file()
+    assert not list(tmp_path.glob("*.png"))
+    for draw in drawings:
+        draw()
+    assert sorted(p.name for p in tmp_path.glob("*.png")) == [
+        "friction.png",
+        "residual.png",
+        "torque.png",
+    ]
+
+
+# -------------------------------------------------------------------------- rounding
+
+
+@pytest.mark.parametrize(
+    ("x", "sigma", "text"),
+    [
+        (1.99388, 0.00509, "1.9939"),
+        (-2.41194, 0.00439, "-2.4119"),
+        (-0.000215232, 0.000591, "-0.00022"),
+        (1234.56, 12.0, "1235"),
+        (1234.56, 120.0, "1230"),
+        (0.5, float("nan"), "0.5"),
+        (3.14159265, None, "3.14159"),
+        (-8.6e-06, 0.00136, "-9e-06"),
+    ],
+)
+def test_values_are_rounded_to_their_sigma(x, sigma, text):
+    assert model_report._with_sigma(x, sigma) == text
+
+
+def test_report_rounds_what_the_log_record_measured(run):
+    text = model_report.render(run.model, run.raw, log_report={"median_rate_hz": 100.0000000002})
+    assert "- median_rate_hz: 100\n" in text
+    # Every base parameter value has no more decimals than its σ's second digit.
+    rows = [ln.split(" | ") for ln in text.splitlines() if ln.startswith("| ") and "`" in ln]
+    assert rows
+    for r in rows:
+        value, sigma = r[2], r[3]
+        if sigma == "–" or "e" in value or "e" in sigma:
+            continue
+        decimals = len(value.split(".")[1]) if "." in value else 0
+        sd = float(sigma)
+        assert decimals <= max(1 - int(np.floor(np.log10(sd))), 0), (value, sigma)
+
+
+# ------------------------------------------------------------------------ laziness
+
+
+def modules_after(code: str) -> set[str]:
+    """Top-level modules imported by a fresh interpreter running ``code``."""
+    script = textwrap.dedent(code) + textwrap.dedent(
+        """
+        import sys
+        print(" ".join(sorted({m.split(".")[0] for m in sys.modules})))
+        """
+    )
+    proc = subprocess.run(
+        [sys.executable, "-c", script], capture_output=True, text=True, check=True
+    )
+    return set(proc.stdout.split())
+
+
+HEAVY = {"matplotlib", "PIL", "tqdm", "rosbags", "multiprocessing", "concurrent"}
+
+
+def test_help_imports_nothing_heavy():
+    loaded = modules_after(
+        """
+        import contextlib, io
+        from prrrp.cli import main
+        with contextlib.redirect_stdout(io.StringIO()), contextlib.suppress(SystemExit):
+            main(["--help"])
+        with contextlib.redirect_stdout(io.StringIO()), contextlib.suppress(SystemExit):
+            main(["identify", "--help"])
+        """
+    )
+    assert "prrrp" in loaded
+    assert not loaded & HEAVY, loaded & HEAVY
+
+
+def test_identifying_in_python_does_not_import_matplotlib():
+    loaded = modules_after(
+        """
+        import numpy as np, prrrp
+        robot = prrrp.SerialChain.paper()
+        t = np.arange(0, 4, 0.01)
+        q = 0.3 + 0.2 * np.sin(np.outer(t, np.arange(1, 6)))
+        tau = robot.inverse_dynamics(q, np.gradient(q, t, axis=0),
+                                     np.gradient(np.gradient(q, t, axis=0), t, axis=0))
+        prrrp.identify_measurements(robot, {"t": t, "q": q, "tau": tau}, "ls")
+        """
+    )
+    assert "matplotlib" not in loaded
+
+
+# ------------------------------------------------------------------- paper's study
+
+
+def test_study_figures_labelled_and_showing_what_they_say(tmp_path, monkeypatch):
+    from test_cli import fake_results
+
+    from prrrp import paper, plots
+
+    saved = {}
+    monkeypatch.setattr(drawing, "save", lambda fig, path: saved.setdefault(Path(path).name, fig))
+    results = fake_results()
+    plots.write_all(results, tmp_path)
+    assert set(saved) == set(plots.FIGURES)
+    for name, fig in saved.items():
+        for ax in (a for a in fig.axes if a.axison):
+            assert UNIT.search(ax.get_ylabel()) or "(" in ax.get_ylabel(), (name, ax)
+        # Legends sit in the figure's margin, never on a panel.
+        assert all(ax.get_legend() is None for ax in fig.axes) or name == "lambda_bars.png"
+    # Fig. 7: each method's position error against the truth, per joint.
+    val = results["validation"]
+    q_true = np.asarray(val["q_true"])
+    fig7 = saved["fig7_validation.png"]
+    for j, ax in enumerate(fig7.axes):
+        drawn = {ln.get_label(): ln.get_ydata() for ln in ax.get_lines()}
+        for m in val["methods"]:
+            error = np.asarray(m["q"])[:, j] - q_true[:, j]
+            assert np.allclose(drawn[paper.METHOD_LABELS[m["method"]]], error), (j, m)
+    # Fig. 8: λ8's +50 % variation is non-physical (None): marked, not dropped silently;
+    # the unvaried model's RMS of exactly 0 is not put on the log axis.
+    fig8 = saved["fig8_sensitivity.png"]
+    panel8 = fig8.axes[7]
+    marks = [ln for ln in panel8.get_lines() if ln.get_label() == "non-physical λ (skipped)"]
+    assert len(marks) == 1
+    assert np.allclose(marks[0].get_xdata(), [50.0])
+    fig8.canvas.draw()
+    for ax in fig8.axes:
+        assert ax.get_yscale() == "log"
+        labels = [t.get_text() for t in ax.get_yticklabels() if t.get_text()]
+        assert labels
+        assert not any(re.fullmatch(r"\$?(\\mathdefault\{)?0\}?\$?", s) for s in labels), labels
+    # Fig. 5's time axis says it is the estimator's time over passes of the data.
+    assert "estimation time (s)" in saved["fig5_hopfield.png"]._supxlabel.get_text()
+
+
+def test_drawing_leaves_the_users_pyplot_backend_alone():
+    """A notebook's backend stays what it was after a report (figures on Agg canvases)."""
+    proc = subprocess.run(
+        [
+            sys.executable,
+            "-c",
+            textwrap.dedent(
+                """
+                import tempfile
+                from pathlib import Path
+                import matplotlib
+                matplotlib.use("svg")
+                from prrrp import drawing
+                fig, axes = drawing.figure(1, 2)
+                axes[0, 0].plot([0, 1], [0, 1])
+                with tempfile.TemporaryDirectory() as d:
+                    drawing.save(fig, Path(d) / "a.png")
+                    assert (Path(d) / "a.png").read_bytes()[:4] == b"\\x89PNG"
+                print(matplotlib.get_backend())
+                """
+            ),
+        ],
+        capture_output=True,
+        text=True,
+        check=True,
+    )
+    assert proc.stdout.strip() == "svg"

@@ -1,0 +1,94 @@
+"""`--method all` (workflow.identify_methods) prepares once what every method shares: the
+preprocessing, the Coulomb speed-scale search and the base analysis; the report scores
+each model on one prepared grid, predicting each model once."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import prrrp
+from prrrp import prediction, workflow
+
+FRICTION = np.array(
+    [[5.0, 8.0, 0.3], [0.4, 0.9, 0.02], [0.3, 0.7, 0.0], [0.2, 0.5, 0.0], [3.0, 6.0, 0.1]]
+)
+
+
+@pytest.fixture(scope="module")
+def log():
+    truth = prrrp.SerialChain.paper().with_friction(
+        "viscous+coulomb+offset", FRICTION, coulomb_smoothing=0.02
+    )
+    rng = np.random.default_rng(11)
+    t = np.arange(0.0, 6.0, 0.005)
+    w = 2 * np.pi * 0.5 * np.arange(1, 4)
+    a = rng.normal(0, 0.3, (5, 3)) / np.arange(1, 4)
+    a[[0, 4]] *= 0.1
+    s, c = np.sin(np.outer(t, w)), np.cos(np.outer(t, w))
+    q, qd, qdd = s @ a.T + 0.3, (c * w) @ a.T, -(s * w**2) @ a.T
+    tau = truth.inverse_dynamics(q, qd, qdd) + rng.normal(0, 0.05, q.shape)
+    robot = prrrp.SerialChain.paper().with_friction("viscous+coulomb+offset", None)
+    return robot, {"t": t, "q": q, "tau": tau}
+
+
+def test_every_method_gets_one_preprocessing_and_one_base_analysis(log, monkeypatch):
+    robot, raw = log
+    seen = []
+    real = workflow.identify
+
+    def spy(chain, data, method, **kwargs):
+        seen.append((chain, data, kwargs.get("base"), kwargs.get("preprocessing")))
+        return real(chain, data, method, **kwargs)
+
+    calls = {"preprocess": 0, "scale": 0}
+    real_to_dataset = workflow.measurements_to_dataset
+
+    def count(*args, **kwargs):
+        calls["preprocess"] += 1
+        return real_to_dataset(*args, **kwargs)
+
+    monkeypatch.setattr(workflow, "identify", spy)
+    monkeypatch.setattr(workflow, "measurements_to_dataset", count)
+    runs = workflow.identify_methods(robot, raw, ["ls", "wls", "rls"])
+    assert [r.error for r in runs] == [None] * 3
+    assert calls["preprocess"] == 1
+    chains, datas, bases, records = zip(*seen, strict=True)
+    assert all(c is chains[0] for c in chains)  # one Coulomb speed scale
+    assert all(d is datas[0] for d in datas)
+    assert all(r is records[0] for r in records)
+    assert all(b is bases[0] for b in bases)
+    assert isinstance(bases[0], prrrp.BaseParameters)
+    # The shared analysis is the robot's own: the models agree with one identified alone.
+    alone = workflow.identify_measurements(robot, raw, "wls")
+    assert list(runs[1].result.model.base_names) == list(alone.model.base_names)
+    assert np.allclose(runs[1].result.model.beta, alone.model.beta, rtol=1e-10, atol=1e-12)
+
+
+def test_scoring_grid_reuses_the_identification_data(log):
+    robot, raw = log
+    run = workflow.identify_measurements(robot, raw, "wls", coulomb_scale=0.02)
+    settings = run.model.preprocessing["settings"]
+    fresh = prediction.prepare(raw, settings)
+    reused = prediction.prepare(raw, settings, identified=(run.data, run.log_report))
+    assert reused.data is run.data
+    a, b = fresh.errors(fresh.predict(run.model)), reused.errors(reused.predict(run.model))
+    for key in ("rms", "tau_rms", "percent", "filtered_rms"):
+        assert np.array_equal(a[key], b[key]), key
+    assert np.array_equal(fresh.edge, reused.edge)
+
+
+def test_a_cached_prediction_is_the_models_and_the_callers_own(log):
+    robot, raw = log
+    ls = workflow.identify_measurements(robot, raw, "ls", coulomb_scale=0.02).model
+    wls = workflow.identify_measurements(robot, raw, "wls", coulomb_scale=0.02).model
+    grid = prediction.prepare(raw, ls.preprocessing["settings"])
+    first = grid.predict(ls)
+    first[:] = np.nan  # the caller may write into what it got
+    again = grid.predict(ls)
+    assert np.isfinite(again).all()
+    p = grid.processed
+    direct = np.asarray(ls.predict(p.q, p.qd, p.qdd))
+    assert np.allclose(again, prediction._at_rows(np.asarray(p.t), direct, grid.t))
+    # Another model on the same grid: its own prediction, not the cached one.
+    assert not np.array_equal(grid.predict(wls), again)
