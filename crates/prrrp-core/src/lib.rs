@@ -82,6 +82,10 @@ pub use identification::{
     RlsSettings, METHOD_NAMES, MODEL_SCHEMA_VERSION,
 };
 pub use identification::{ActuatorEstimate, TermEstimate};
+pub use models::payload::{
+    is_physical as is_physical_payload, project_physical, Payload, PayloadIdentifiable,
+    PayloadThresholds,
+};
 pub use interrupt::{check_count, clear_stop, request_stop, stop_requested, StopFlag, MAX_SAMPLES};
 pub use models::chain::{
     com_and_inertia, inertial_parameters, is_physically_consistent, transform_inertial_parameters,
