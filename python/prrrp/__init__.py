@@ -61,6 +61,7 @@ from prrrp._prrrp import (
     error_indices,
     identified_model_from_parts,
     identify,
+    identify_drive_gains,
     joint_limits,
     least_squares,
     observation_matrix,
@@ -83,6 +84,7 @@ from prrrp._prrrp import (
     validate_model,
 )
 from prrrp.measurements import measurements_to_dataset, read_measurements
+from prrrp import payload
 from prrrp.montecarlo import benchmark
 from prrrp.workflow import Identification, excite, identify_measurements, load_robot, simulate
 
@@ -128,6 +130,7 @@ __all__ = [
     "excite",
     "identified_model_from_parts",
     "identify",
+    "identify_drive_gains",
     "identify_measurements",
     "joint_limits",
     "least_squares",
@@ -135,6 +138,7 @@ __all__ = [
     "measurements_to_dataset",
     "observation_matrix",
     "optimise_excitation",
+    "payload",
     "preprocess",
     "preprocess_log",
     "read_measurements",
