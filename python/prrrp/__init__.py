@@ -22,6 +22,7 @@ import json
 from collections.abc import Callable
 from typing import Any
 
+from prrrp import payload
 from prrrp._prrrp import (
     NDOF,
     NPARAM,
@@ -84,7 +85,6 @@ from prrrp._prrrp import (
     validate_model,
 )
 from prrrp.measurements import measurements_to_dataset, read_measurements
-from prrrp import payload
 from prrrp.montecarlo import benchmark
 from prrrp.workflow import Identification, excite, identify_measurements, load_robot, simulate
 

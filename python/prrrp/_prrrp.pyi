@@ -5,6 +5,7 @@ qdd, tau) have shape (5,) for one sample or (N, 5) for a batch; λ (`lam`) has s
 (N, 8). Single samples broadcast against batches. Outputs get a leading N for a batch.
 """
 
+import builtins
 import os
 from collections.abc import Callable, Iterator, Mapping
 from typing import Any, Final, Literal, TypedDict, overload
@@ -813,15 +814,21 @@ class SerialChain:
         candidates: _ArrayLike | None = None,
         folds: int = 4,
         refine: bool = True,
+        max_widenings: int = 2,
     ) -> dict[str, Any]:
         """Chooses the speed scale v_s (rad/s, m/s) of this chain's smooth Coulomb friction
         fc·tanh(q̇/v_s) from `data` (the chain must have a Coulomb term): for each candidate
         (default 0 = the exact sign, and 16 log-spaced values over 1e-3..0.3) least squares
         on the base parameters is scored by `folds`-fold cross-validation over contiguous
-        blocks of samples, and the best grid point is refined by a parabola in log v_s.
-        Returns {"chosen", "candidates", "cv_rms" (N·m, N; None where singular),
-        "reversals" (speed sign changes per joint), "note" (why the chain's own scale was
-        kept when the data cannot decide: no speed reversal, a flat curve)}. Apply it with
+        blocks of samples; an optimum on the edge of the candidates widens the range by a
+        decade on that side (at most `max_widenings` times), and the best grid point is
+        refined by a parabola in log v_s. Returns {"chosen", "candidates", "cv_rms" (N·m,
+        N; None where singular), "reversals" (speed sign changes per joint), "identifiable"
+        (False for data without a speed reversal or with a cross-validation curve flat to
+        0.1 %, where the chain's own scale is kept, and for an optimum still on an edge
+        after the widenings, where the best candidate is chosen), "note" (why not
+        identifiable; None otherwise), "widenings", "range" (smallest and largest positive
+        candidate scored)}. Apply it with
         `with_friction(..., coulomb_smoothing=report["chosen"])`."""
     def base_parameters(
         self, *, samples: int = 0, seed: int = 0x5EED_BA5E, rank_tolerance: float = 1e-8
@@ -857,11 +864,17 @@ class IdentifiedModel:
     and saves to / loads from JSON, so a saved model needs neither the robot file nor the
     data."""
 
+    MAX_FILE_BYTES: Final[int]
+    """Largest model file `load` reads (256 MiB)."""
     @staticmethod
     def from_json(text: str) -> IdentifiedModel: ...
     @staticmethod
     def load(path: str | os.PathLike[str]) -> IdentifiedModel:
-        """A model from a file written by `save`."""
+        """A model from a file written by `save`. The path must be a regular file of at
+        most MAX_FILE_BYTES, checked before it is opened (a FIFO or /dev/zero is refused,
+        never read); a missing, unreadable, oversized or malformed file is an
+        InvalidParameterError with `.file`, `.what` (path, size, content) and `.message`, whose
+        message names the file and, for bad JSON, the line, column and what is wrong."""
     def to_json(self) -> str: ...
     def save(self, path: str | os.PathLike[str]) -> None:
         """Writes the model as JSON, atomically (a temporary file moved into place)."""
@@ -1050,8 +1063,12 @@ def identify(
     input-noise bias), `least_squares_prior_width` (default 3: P0 of β is 3² times the
     weighted least-squares covariance; 0 for the diagonal prior); `discretisation` of
     ekf also takes "midpoint" (its default); physical `prior`
-    (standard parameters π0, e.g. `robot.parameters`; default a 1 kg body per link),
-    `prior_weight` (≥ 0, default 0: the prior only fixes what the data do not see). The
+    (standard parameters π0; default the robot's own, `robot.parameters`: a URDF's
+    inertials), `divergence_weight` (γ ≥ 0, default 10: the log-det divergence of each
+    link's pseudo-inertia from the prior's, in units of the data's χ², holds at the prior
+    what the data do not determine without biasing what they do), `prior_weight` (≥ 0,
+    default 0: an extra ridge towards π0), `weighted` (default True: each joint weighted
+    by 1/σ_j² as wls estimates it; False: unit weights). The
     model records the settings used, including the values chosen from the data.
     Errors: ShapeMismatchError (joint count), TooFewSamplesError, RankDeficientError (data
     that do not excite every base parameter), InvalidParameterError (unknown method, a
@@ -1129,7 +1146,7 @@ class Dataset:
         """t[-1] − t[0], s."""
     def slice(self, start: int, stop: int) -> Dataset:
         """Samples start..stop as a new data set (TooFewSamplesError below 8)."""
-    def __getitem__(self, key: slice) -> Dataset:
+    def __getitem__(self, key: builtins.slice) -> Dataset:
         """Contiguous slices only (step 1)."""
     def __len__(self) -> int: ...
     def to_dict(self) -> _Dataset: ...
@@ -1420,7 +1437,10 @@ def validate_model(
     eqs. 45–47). `model` is an IdentifiedModel (τ̂ = Y_b·β̂), or a SerialChain with its
     own parameters, or a SerialChain with base parameters `beta` in the analysis `base`
     (default the chain's `base_parameters()`). Raises ShapeMismatchError if data's joint
-    count is not the model's."""
+    count is not the model's. The reference is data.tau as given: for a Dataset made by
+    `preprocess_log` that is the low-passed torque, not the measurement; score a log with
+    `prrrp.prediction.prepare(raw, settings)` instead (against the measured torque at the
+    log's rows)."""
 
 def design_excitation(
     robot: SerialChain,

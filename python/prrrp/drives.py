@@ -70,7 +70,8 @@ def _gains_from_file(text: str, n: int) -> list[float]:
         values = values.get("values")
     if not isinstance(values, list):
         raise InputError(
-            f"--drive-gains: {text} holds no drive gains (a list, drive_gains or drive_gains.values)"
+            f"--drive-gains: {text} holds no drive gains (a list, drive_gains or "
+            "drive_gains.values)"
         )
     return parse_gains(",".join(str(v) for v in values), n)
 

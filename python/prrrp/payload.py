@@ -189,7 +189,8 @@ def write_report(
         f"{1000 * ident.get('thresholds', {}).get('com_tolerance_m', 0.01):.3g} mm (centre of "
         "mass). σ from the unconstrained least-squares fit (per-joint residual variances and "
         "correlation times); where it was not physical, the fit was projected onto the "
-        "rigid bodies (pseudo-inertia ⪰ 0)" + (" — it was here." if ident.get("projected") else "."),
+        "rigid bodies (pseudo-inertia ⪰ 0)"
+        + (" — it was here." if ident.get("projected") else "."),
         "",
         "## Torque the arm model does not explain",
         "",

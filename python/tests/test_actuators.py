@@ -416,9 +416,36 @@ def test_current_and_motor_side_logs_through_the_command_line(geared, capsys):
     )
     printed = capsys.readouterr().out
     assert "torque-prediction error per joint" in printed
-    predicted = np.loadtxt(tmp / "tau.csv", delimiter=",", skiprows=1)[:, 1:]
+    # t, tau1..tauN, edge: the log has q̇ and q̈, so no row is in a filter transient.
+    table = np.loadtxt(tmp / "tau.csv", delimiter=",", skiprows=1)
+    predicted, edge = table[:, 1:-1], table[:, -1]
+    assert not edge.any()
     _, q, qd, qdd, _ = geared["test"]
     assert np.allclose(predicted, model.predict(q, qd, qdd), rtol=1e-9, atol=1e-9)
+    # A raw recording: motor angles and currents only. predict differentiates it itself
+    # and writes a row per input row; away from the filter's edges its torques score
+    # against the measured torque (currents × gains, joint side) at the noise level.
+    t, q, _, _, tau = geared["test"]
+    current = np.linalg.solve(COUPLING.T, tau.T).T / gains
+    _write_csv(tmp / "raw.csv", t, (q @ COUPLING.T) * ratios, {"i": current})
+    code = main(
+        [
+            "predict",
+            str(out / "model.json"),
+            str(tmp / "raw.csv"),
+            "--out",
+            str(tmp / "raw-tau.csv"),
+        ]
+    )
+    assert code == 0, capsys.readouterr().err
+    capsys.readouterr()
+    table = np.loadtxt(tmp / "raw-tau.csv", delimiter=",", skiprows=1)
+    assert table.shape[0] == len(t)
+    assert np.allclose(table[:, 0], t)
+    inner = table[:, -1] == 0
+    assert inner.sum() > 0.8 * len(t)
+    rms = np.sqrt(np.mean((table[inner, 1:-1] - tau[inner]) ** 2, axis=0))
+    assert np.all(rms < 1.5 * TAU_NOISE), rms / TAU_NOISE
 
 
 def test_readme_geared_arm_file_loads(tmp_path):

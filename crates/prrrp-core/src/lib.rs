@@ -65,8 +65,9 @@ pub use estimators::ParameterJacobian;
 pub use estimators::{
     base_feasibility, default_coulomb_scales, identify_physical, select_coulomb_scale,
     BaseFeasibility, CoulombScaleConfig, CoulombScaleReport, PhysicalConfig, PhysicalEstimate,
-    PhysicalProblem, BASE_FEASIBILITY_TOLERANCE, BASE_MISMATCH_FLOOR, COULOMB_SCALE_GRID,
-    COULOMB_SCALE_RANGE, MAX_COULOMB_CANDIDATES,
+    PhysicalProblem, BASE_FEASIBILITY_TOLERANCE, BASE_MISMATCH_FLOOR, COULOMB_SCALE_FLAT,
+    COULOMB_SCALE_GRID, COULOMB_SCALE_MAX_WIDENINGS, COULOMB_SCALE_MIN_Z, COULOMB_SCALE_RANGE,
+    DEFAULT_DIVERGENCE_WEIGHT, MAX_COULOMB_CANDIDATES,
 };
 pub use estimators::{
     least_squares, weighted_least_squares, Adaline, AdalineConfig, AdalineOf, AdalineRule,

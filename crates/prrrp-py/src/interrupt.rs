@@ -21,9 +21,11 @@ use pyo3::prelude::*;
 /// How often the waiting thread looks for signals and delivers progress.
 const POLL: Duration = Duration::from_millis(40);
 
-/// Reports kept between two deliveries; a stage repeating the last one overwrites it, so
-/// this bounds only the number of distinct stages in one slice.
-const MAX_PENDING: usize = 64;
+/// Reports kept between two deliveries. Every report is delivered, in order, unless more
+/// than this many arrive within one slice: then a report of the same stage as the last
+/// one replaces it (the callback still sees each stage's latest count), so the buffer
+/// grows past this only by the number of stage changes.
+const MAX_PENDING: usize = 4096;
 
 /// Progress reports of a running computation, written by its (worker) threads and read by
 /// the waiting thread. Holds no Python object.
@@ -42,8 +44,7 @@ struct Report {
 }
 
 impl Progress {
-    /// Records that `stage` has `done` of `total` steps; a later report of the same stage
-    /// replaces it before delivery (a callback sees the latest count of each stage).
+    /// Records that `stage` has `done` of `total` steps (see [`MAX_PENDING`]).
     pub(crate) fn report(&self, stage: &str, done: usize, total: usize) {
         self.report_value(stage, done, total, f64::NAN);
     }
@@ -51,29 +52,21 @@ impl Progress {
     /// [`Progress::report`] with a value for [`Callback::CountsValue`].
     pub(crate) fn report_value(&self, stage: &str, done: usize, total: usize, value: f64) {
         let mut pending = self.pending.lock().unwrap_or_else(|p| p.into_inner());
-        let full = pending.len() >= MAX_PENDING;
-        match pending.last_mut() {
-            Some(last) if last.stage == stage => {
+        if pending.len() >= MAX_PENDING {
+            if let Some(last) = pending.last_mut().filter(|l| l.stage == stage) {
                 // Workers may report out of order; keep the furthest count.
                 if done >= last.done {
                     (last.done, last.total, last.value) = (done, total, value);
                 }
+                return;
             }
-            Some(last) if full => {
-                *last = Report {
-                    stage: stage.into(),
-                    done,
-                    total,
-                    value,
-                }
-            }
-            _ => pending.push(Report {
-                stage: stage.into(),
-                done,
-                total,
-                value,
-            }),
         }
+        pending.push(Report {
+            stage: stage.into(),
+            done,
+            total,
+            value,
+        });
     }
 
     fn take(&self) -> Vec<Report> {

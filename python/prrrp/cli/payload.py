@@ -29,9 +29,7 @@ def add_parser(sub: Any) -> None:
         "payload, for `prrrp predict`), DIR/report.md and DIR/explained_torque.png.",
     )
     p.add_argument("data", metavar="LOADED", help="run with the payload (CSV or ROS 2 bag)")
-    p.add_argument(
-        "--model", required=True, metavar="ARM.json", help="the arm's identified model"
-    )
+    p.add_argument("--model", required=True, metavar="ARM.json", help="the arm's identified model")
     p.add_argument(
         "--mass", type=float, metavar="KG", help="the payload's known mass: only fit the rest"
     )
@@ -40,9 +38,7 @@ def add_parser(sub: Any) -> None:
         metavar="LINK",
         help="the chain link that carries the payload (default: the last link)",
     )
-    p.add_argument(
-        "--out", required=True, type=nonempty_path, metavar="DIR", help="output folder"
-    )
+    p.add_argument("--out", required=True, type=nonempty_path, metavar="DIR", help="output folder")
     p.add_argument(
         "--topic",
         default=bags.DEFAULT_TOPIC,

@@ -21,13 +21,22 @@ MAX_TRACKING_ERROR = 0.01
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     g = p.add_argument_group("any robot (with --robot)")
-    g.add_argument("--robot", metavar="ROBOT", help="robot file (.urdf or .toml)")
-    g.add_argument("--base", metavar="LINK", help="URDF: first link of the chain")
-    g.add_argument("--tip", metavar="LINK", help="URDF: last link of the chain")
+    g.add_argument(
+        "--robot", metavar="ROBOT", help="robot file (.urdf or .toml) (default: the paper's arm)"
+    )
+    g.add_argument(
+        "--base", metavar="LINK", help="URDF: first link of the chain (default: the root link)"
+    )
+    g.add_argument(
+        "--tip",
+        metavar="LINK",
+        help="URDF: last link of the chain (default: the end of the movable joints)",
+    )
     g.add_argument(
         "--trajectory",
         metavar="TRAJ.csv",
-        help="reference t, q1..qN, qd1..qdN, qdd1..qddN (from `prrrp excite`)",
+        help="reference t, q1..qN, qd1..qdN, qdd1..qddN (from `prrrp excite`); required with "
+        "--robot (default: none)",
     )
     g.add_argument(
         "--max-tracking-error",
@@ -72,7 +81,9 @@ def run(args: argparse.Namespace) -> int:
             "the robot's limits and its inertials and friction",
             EXIT_FAILED,
         )
-    csvio.write_text_atomic(out, csvio.format_measurements(rec["t"], rec["q"], rec["tau"]))
+    groups = csvio.columns(robot.dof)
+    table = np.column_stack([rec["t"], rec["q"], rec["tau"]])
+    csvio.write_table_atomic(out, ["t", *groups["q"], *groups["tau"]], table)
     print(
         f"results in {out} ({len(rec['t'])} samples of {robot.name}, {robot.dof} joints; "
         f"largest tracking error {err:.2e} rad or m, bound {bound:g}; noise x{args.noise:g})"

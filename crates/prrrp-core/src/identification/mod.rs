@@ -309,7 +309,7 @@ impl IdentifiedModel {
         // file would otherwise ask for a p × p covariance of 10¹⁰ values).
         crate::models::chain::check_dof("robot.joints", n)?;
         // Per joint: 10 inertial parameters and the actuator terms (fv, fc, fo, Ia).
-        let most = n * (crate::LINK_PARAMS + crate::ACTUATOR_PARAMETER_NAMES.len());
+        let most = n * (crate::LINK_PARAMS + crate::models::chain::ACTUATOR_PARAMETER_NAMES.len());
         if p > most || b > p {
             return Err(PrrrpError::ShapeMismatch {
                 what: "base (standard_names, independent)".into(),

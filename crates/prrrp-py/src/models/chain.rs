@@ -894,7 +894,10 @@ impl PySerialChain {
 
     /// The Coulomb speed scale v_s chosen from `data` by cross-validated least squares
     /// (see `_prrrp.pyi`); a dict (the core's `CoulombScaleReport`).
-    #[pyo3(signature = (data, *, candidates=None, folds=UInt(4), refine=true))]
+    #[pyo3(signature = (
+        data, *, candidates=None, folds=UInt(4), refine=true,
+        max_widenings=UInt(prrrp_core::COULOMB_SCALE_MAX_WIDENINGS)
+    ))]
     fn coulomb_scale<'py>(
         &self,
         py: Python<'py>,
@@ -902,12 +905,14 @@ impl PySerialChain {
         candidates: Option<Vec<f64>>,
         folds: UInt<usize>,
         refine: bool,
+        max_widenings: UInt<usize>,
     ) -> PyResult<Bound<'py, PyAny>> {
         let base = self.default_base(py)?.clone();
         let config = prrrp_core::CoulombScaleConfig {
             candidates,
             folds: folds.0,
             refine,
+            max_widenings: max_widenings.0,
         };
         let report = interruptible(py, || {
             prrrp_core::select_coulomb_scale(&self.inner, &base, &data.inner, &config)
