@@ -179,11 +179,13 @@ impl Normal {
         let (u, vt) = (svd.u.unwrap(), svd.v_t.unwrap());
         let mut pinv = DMatrix::zeros(k, k);
         let mut dropped = Vec::new();
+        let mut null_scaled = Vec::new();
         for (s, sv) in svd.singular_values.iter().enumerate() {
             if *sv > tol * top && *sv > 0.0 {
                 pinv += vt.row(s).transpose() * u.column(s).transpose() / *sv;
             } else {
                 let v: DVector<f64> = vt.row(s).transpose();
+                null_scaled.push(v.clone());
                 let v = DVector::from_fn(k, |r, _| v[r] / d[r]);
                 dropped.push(&v / v.norm().max(1e-300));
             }
@@ -200,6 +202,7 @@ impl Normal {
             x,
             inv,
             dropped,
+            null_scaled,
             cond: top / cond,
         }
     }
@@ -225,7 +228,25 @@ struct Solved {
     x: DVector<f64>,
     inv: DMatrix<f64>,
     dropped: Vec<DVector<f64>>,
+    /// The dropped directions as orthonormal vectors in the column-equilibrated
+    /// coordinates (where every unknown has the same information scale).
+    null_scaled: Vec<DVector<f64>>,
     cond: f64,
+}
+
+impl Solved {
+    /// Whether unknown `c` is not determined by the data: its unit vector has more than
+    /// 0.1 of its length in the dropped subspace (equilibrated coordinates), so the data
+    /// cannot tell it apart from a combination of the others. Its σ from the
+    /// pseudo-inverse is then meaningless (the dropped directions get none).
+    fn undetermined(&self, c: usize) -> bool {
+        self.null_scaled
+            .iter()
+            .map(|v| v[c] * v[c])
+            .sum::<f64>()
+            .sqrt()
+            > 0.1
+    }
 }
 
 /// Directions of the equilibrated normal matrix below this fraction of the largest
@@ -435,7 +456,7 @@ pub fn identify_payload(
     let cov = acc.covariance(&w, &fit.inv, &var, &kap);
     // The mass must be seen: a payload that never moved against gravity or accelerated
     // has no identifiable mass, and then nothing else is.
-    if settings.mass.is_none() && fit.dropped.iter().any(|v| v[0].abs() > 0.1) {
+    if settings.mass.is_none() && fit.undetermined(0) {
         return Err(PrrrpError::RankDeficient {
             rank: k - fit.dropped.len(),
             params: k,
@@ -521,6 +542,11 @@ pub fn identify_payload(
     };
     payload.mass_given = settings.mass.is_some();
     payload.classify(&settings.thresholds);
+    let mut undetermined = [false; LINK_PARAMS];
+    for c in 0..np {
+        undetermined[first + c] = fit.undetermined(c);
+    }
+    flag_undetermined(&mut payload, &undetermined);
     payload.identification = json!({
         "method": "joint-weighted least squares on the torque the arm model does not explain",
         "refit": refit.iter().map(|&b| model.base.combinations[b].clone()).collect::<Vec<_>>(),
@@ -558,6 +584,23 @@ pub fn identify_payload(
     out.residual_rms = residual_rms(&out, data)?;
     out.actuators = out.actuator_estimates();
     Ok(out)
+}
+
+/// Flags as not identifiable the payload quantities that depend on a parameter the data do
+/// not determine (`undetermined[k]` for π_k; the pseudo-inverse gives such directions no
+/// σ, so the σ test alone would pass them): the mass on m; a centre-of-mass coordinate on
+/// m and m·c_k; an entry of the inertia about the centre of mass, I_C = I_O − S(h)ᵀS(h)/m
+/// with h = m·c, on m, h and the same entry of I_O.
+fn flag_undetermined(p: &mut Payload, undetermined: &[bool; LINK_PARAMS]) {
+    let m = undetermined[0] && !p.mass_given;
+    let h = undetermined[1] || undetermined[2] || undetermined[3];
+    p.identifiable.mass &= !m;
+    for k in 0..3 {
+        p.identifiable.com[k] &= !(m || undetermined[1 + k]);
+    }
+    for k in 0..6 {
+        p.identifiable.inertia[k] &= !(m || h || undetermined[4 + k]);
+    }
 }
 
 fn check_shapes(model: &IdentifiedModel, chain: &DynChain, data: &DynDataset) -> Result<()> {
@@ -728,9 +771,7 @@ pub fn identify_drive_gains(
     let x = &fit.x;
     let gains: Vec<f64> = (0..n).map(|m| x[m]).collect();
     let gsig: Vec<f64> = (0..n).map(|m| cov[(m, m)].max(0.0).sqrt()).collect();
-    let undetermined: Vec<bool> = (0..n)
-        .map(|m| fit.dropped.iter().any(|v| v[m].abs() > 0.1))
-        .collect();
+    let undetermined: Vec<bool> = (0..n).map(|m| fit.undetermined(m)).collect();
     if undetermined.iter().all(|u| *u) {
         return Err(PrrrpError::RankDeficient {
             rank: k - fit.dropped.len(),
@@ -834,6 +875,11 @@ pub fn identify_drive_gains(
     let mut payload = Payload::from_parameters(&link, l, pi, Some(pcov))?;
     payload.mass_given = true;
     payload.classify(&settings.thresholds);
+    let mut undetermined = [false; LINK_PARAMS];
+    for c in 0..9 {
+        undetermined[1 + c] = fit.undetermined(off + c);
+    }
+    flag_undetermined(&mut payload, &undetermined);
     payload.identification = json!({
         "method": "with the drive gains (instrumental variables)",
         "projected": projected,
