@@ -370,7 +370,8 @@ fn inverse_variances(var: &[f64]) -> Vec<f64> {
 /// torque the arm model does not explain, by joint-weighted least squares, with the arm's
 /// friction terms re-fitted (see [`PayloadSettings`]); a non-physical fit is projected
 /// onto the physical set (J ⪰ 0) in the fit's own metric, so the cost in fit is the least.
-/// σ of each quantity from the sandwich covariance of the unconstrained fit; each is
+/// σ of each quantity from the sandwich covariance of the unconstrained fit plus the arm
+/// model's own uncertainty carried through (its covariance, or its σ); each is
 /// flagged determined or not ([`Payload::identifiable`]).
 ///
 /// Returns the arm + payload model: `model` with the re-fitted friction, the payload and
@@ -453,7 +454,48 @@ pub fn identify_payload(
     let fit = acc.solve(&w, &prior, RANK_TOLERANCE);
     let var = acc.variances(&fit.x);
     let kap = kappas(n, k, data.len(), &fit.x, &mut fill)?;
-    let cov = acc.covariance(&w, &fit.inv, &var, &kap);
+    let mut cov = acc.covariance(&w, &fit.inv, &var, &kap);
+    // The arm model is itself an estimate: its error in the base parameters held fixed
+    // moves the payload by dx/dβ = −M⁺·Σ w_j A_jᵀ·Y_j,fixed. Without this term σ would
+    // say how well the loaded run fits, not how well the payload is known.
+    let arm_cov = arm_covariance(model, &fixed);
+    if let Some(cb) = &arm_cov {
+        let mut ws = chain.workspace();
+        let mut yf = vec![0.0; n * p];
+        let mut cross = DMatrix::<f64>::zeros(k, fixed.len());
+        let (mut a, mut z, mut y) = (
+            DMatrix::zeros(n, k),
+            DMatrix::zeros(n, k),
+            DVector::zeros(n),
+        );
+        for s in 0..data.len() {
+            if s % 1024 == 0 {
+                crate::interrupt::check("payload identification")?;
+            }
+            fill(s, &mut a, &mut z, &mut y)?;
+            let r = n * s..n * s + n;
+            chain.regressor_row_major_into(
+                &mut ws,
+                &data.q()[r.clone()],
+                &data.qd()[r.clone()],
+                &data.qdd()[r],
+                &mut yf,
+            )?;
+            for i in 0..n {
+                let row = &yf[i * p..(i + 1) * p];
+                for (c, &b) in fixed.iter().enumerate() {
+                    let v = w[i] * row[indep[b]];
+                    if v != 0.0 {
+                        for r in 0..k {
+                            cross[(r, c)] += a[(i, r)] * v;
+                        }
+                    }
+                }
+            }
+        }
+        let g = -(&fit.inv * cross);
+        cov += &g * cb * g.transpose();
+    }
     // The mass must be seen: a payload that never moved against gravity or accelerated
     // has no identifiable mass, and then nothing else is.
     if settings.mass.is_none() && fit.undetermined(0) {
@@ -554,6 +596,7 @@ pub fn identify_payload(
         "unconstrained_parameters": pi_hat,
         "cond": fit.cond,
         "undetermined_directions": fit.dropped.len(),
+        "arm_uncertainty_included": arm_cov.is_some(),
         "samples": data.len(),
         "joint_residual_variances": var,
         "correlation_time_samples": kap,
@@ -601,6 +644,24 @@ fn flag_undetermined(p: &mut Payload, undetermined: &[bool; LINK_PARAMS]) {
     for k in 0..6 {
         p.identifiable.inertia[k] &= !(m || h || undetermined[4 + k]);
     }
+}
+
+/// Covariance of the arm model's base parameters `rows` (its full covariance, or its σ²
+/// on the diagonal when only those were kept), `None` when the model has neither.
+fn arm_covariance(model: &IdentifiedModel, rows: &[usize]) -> Option<DMatrix<f64>> {
+    let b = model.beta.len();
+    let f = rows.len();
+    if let Some(c) = model.covariance.as_ref().filter(|c| c.len() == b * b) {
+        return Some(DMatrix::from_fn(f, f, |r, q| c[rows[r] * b + rows[q]]));
+    }
+    let s = model.sigma.as_ref().filter(|s| s.len() == b)?;
+    Some(DMatrix::from_fn(f, f, |r, q| {
+        if r == q {
+            s[rows[r]] * s[rows[r]]
+        } else {
+            0.0
+        }
+    }))
 }
 
 fn check_shapes(model: &IdentifiedModel, chain: &DynChain, data: &DynDataset) -> Result<()> {
