@@ -258,3 +258,40 @@ def test_payload_and_drive_gains_through_the_command_line(tmp_path, capsys):
         )
         assert code == 2
         assert "did not determine" in capsys.readouterr().err
+
+
+def test_readme_payload_tour_runs_as_written(tmp_path):
+    """The README's "Payload" shell block, run by bash in a folder holding the logs it
+    names (the UR10 stand-in's runs), with the installed `prrrp` on PATH."""
+    import os
+    import re
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    readme = Path(__file__).resolve().parents[2] / "README.md"
+    text = readme.read_text(encoding="utf-8")
+    section = text[text.index("## Payload") :]
+    block = re.search(r"```bash\n(.*?)```", section, re.S).group(1)
+    assert "prrrp payload" in block
+    assert "--payload-run" in block
+    u, lo = ur.run(1, None, 10, duration=20.0), ur.run(2, ur.MOUNTINGS["A"], 20, duration=20.0)
+    _write(tmp_path / "unloaded.csv", u, {"tau": u["tau"]})
+    _write(tmp_path / "loaded.csv", lo, {"tau": lo["tau"]})
+    uc, lc = ur.run(4, None, 40, duration=20.0), ur.run(4, ur.MOUNTINGS["A"], 41, duration=20.0)
+    _write(tmp_path / "unloaded_i.csv", uc, {"i": ur.currents(uc["tau_true"], 0.05, 42)})
+    _write(tmp_path / "loaded_i.csv", lc, {"i": ur.currents(lc["tau_true"], 0.05, 43)})
+    env = dict(os.environ)
+    env["PATH"] = str(Path(sys.executable).parent) + os.pathsep + env.get("PATH", "")
+    run = subprocess.run(
+        ["bash", "-e", "-c", block],
+        cwd=tmp_path,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
+    assert run.returncode == 0, run.stderr
+    for name in ("tool/payload.json", "tool/report.md", "tool-known-mass/model.json", "tau.csv"):
+        assert (tmp_path / name).is_file(), name
+    assert json.loads((tmp_path / "gains/model.json").read_text())["drive_gains"]["values"]

@@ -26,7 +26,8 @@ pub use methods::{
 /// Version 2: the robot may carry actuators (coupling, armature; chain schema 2) and the
 /// model lists its actuator estimates ([`IdentifiedModel::actuators`]). Version 3: an
 /// optional payload ([`IdentifiedModel::payload`]) whose torques predictions add, and
-/// identified drive gains ([`IdentifiedModel::drive_gains`]). Versions 1 and 2 still load.
+/// identified drive gains ([`IdentifiedModel::drive_gains`]); a model with neither is
+/// still written as version 2. Versions 1 and 2 still load.
 pub const MODEL_SCHEMA_VERSION: u32 = 3;
 
 /// The base-parameter analysis a model was identified in: which standard parameters are
@@ -471,7 +472,14 @@ impl IdentifiedModel {
     /// [`PrrrpError::NonFinite`] if a value is not finite (JSON has no NaN).
     pub fn to_json(&self) -> Result<String> {
         let mut out = self.clone();
-        out.schema_version = MODEL_SCHEMA_VERSION;
+        // Version 3 only where its fields are used: a reader of version 2 would ignore a
+        // payload and predict the bare arm, so it must refuse such a file, but it reads a
+        // plain model as well as ever.
+        out.schema_version = if out.payload.is_some() || out.drive_gains.is_some() {
+            MODEL_SCHEMA_VERSION
+        } else {
+            2
+        };
         out.actuators = self.actuator_estimates();
         if let Some(p) = out.payload.as_mut() {
             p.derive();

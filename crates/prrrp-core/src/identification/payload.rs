@@ -301,18 +301,17 @@ fn friction_rows(model: &IdentifiedModel) -> Vec<usize> {
         .collect()
 }
 
+/// Fills one sample's rows: (sample, A (n × k), instruments Z (n × k), y (n)).
+type RowFill<'a> =
+    dyn FnMut(usize, &mut DMatrix<f64>, &mut DMatrix<f64>, &mut DVector<f64>) -> Result<()> + 'a;
+
 /// Per-joint residual correlation times of A·x − y over the samples `fill` gives.
 fn kappas(
     n: usize,
     k: usize,
     samples: usize,
     x: &DVector<f64>,
-    fill: &mut dyn FnMut(
-        usize,
-        &mut DMatrix<f64>,
-        &mut DMatrix<f64>,
-        &mut DVector<f64>,
-    ) -> Result<()>,
+    fill: &mut RowFill<'_>,
 ) -> Result<Vec<f64>> {
     let (mut a, mut z, mut y) = (
         DMatrix::zeros(n, k),
@@ -330,17 +329,7 @@ fn kappas(
     Ok(r.iter().map(|rj| correlation_time(rj, 1)).collect())
 }
 
-fn accumulate(
-    n: usize,
-    k: usize,
-    samples: usize,
-    fill: &mut dyn FnMut(
-        usize,
-        &mut DMatrix<f64>,
-        &mut DMatrix<f64>,
-        &mut DVector<f64>,
-    ) -> Result<()>,
-) -> Result<Normal> {
+fn accumulate(n: usize, k: usize, samples: usize, fill: &mut RowFill<'_>) -> Result<Normal> {
     let mut acc = Normal::new(n, k);
     let (mut a, mut z, mut y) = (
         DMatrix::zeros(n, k),
