@@ -76,13 +76,15 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         help="identify the drive gains (Gautier & Briot): DATA and LOADED are current logs "
         "(i1..iN) of the same trajectory without and with a payload of --payload-mass at the "
         "tip; writes the gains with σ into model.json (instrumental variables, unbiased by "
-        "the currents' noise), the arm in N·m and DIR/payload.json",
+        "the currents' noise), the arm in N·m and DIR/payload.json (default: none, the "
+        "gains are given or the log has torques)",
     )
     g.add_argument(
         "--payload-mass",
         type=float,
         metavar="KG",
-        help="the known mass of the payload of --payload-run (kg)",
+        help="the known mass of the payload of --payload-run (kg) (default: none; required "
+        "with --payload-run)",
     )
     g.add_argument(
         "--motor-side",

@@ -31,7 +31,11 @@ def add_parser(sub: Any) -> None:
     p.add_argument("data", metavar="LOADED", help="run with the payload (CSV or ROS 2 bag)")
     p.add_argument("--model", required=True, metavar="ARM.json", help="the arm's identified model")
     p.add_argument(
-        "--mass", type=float, metavar="KG", help="the payload's known mass: only fit the rest"
+        "--mass",
+        type=float,
+        metavar="KG",
+        help="the payload's known mass (kg): only fit the centre of mass and the inertia "
+        "(default: none, the mass is fitted too)",
     )
     p.add_argument(
         "--tip",
