@@ -89,8 +89,10 @@ fn payload_of_exact_data_is_recovered_and_predicts() {
         .fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
     assert!(worst < 1e-6, "{worst}");
     // A given mass: the rest is fitted, the mass is the one given.
-    let mut s = PayloadSettings::default();
-    s.mass = Some(2.8);
+    let s = PayloadSettings {
+        mass: Some(2.8),
+        ..Default::default()
+    };
     let fixed = identify_payload(&arm, &loaded, &s).unwrap();
     let p = fixed.payload.unwrap();
     assert_eq!(p.parameters[0], 2.8);
@@ -113,8 +115,10 @@ fn a_different_trajectory_and_drifted_friction_are_absorbed() {
     let p = model.payload.as_ref().unwrap();
     assert!((p.mass - 2.8).abs() < 1e-6, "{}", p.mass);
     // Without re-fitting friction the drift stays unexplained.
-    let mut s = PayloadSettings::default();
-    s.refit_friction = false;
+    let s = PayloadSettings {
+        refit_friction: false,
+        ..Default::default()
+    };
     let stale = identify_payload(&arm, &loaded, &s).unwrap();
     let worst = |r: &[f64]| r.iter().fold(0.0f64, |a, b| a.max(*b));
     assert!(
@@ -135,14 +139,18 @@ fn no_motion_and_bad_settings_are_typed_errors() {
     let chain = puma();
     let arm = arm_model(&chain, &run(&chain, 600, 0.0));
     let loaded = run(&loaded_chain(&chain, &truth()), 600, 0.0);
-    let mut s = PayloadSettings::default();
-    s.mass = Some(-1.0);
+    let s = PayloadSettings {
+        mass: Some(-1.0),
+        ..Default::default()
+    };
     assert!(matches!(
         identify_payload(&arm, &loaded, &s),
         Err(PrrrpError::InvalidParameter { .. })
     ));
-    let mut s = PayloadSettings::default();
-    s.link = Some(N);
+    let s = PayloadSettings {
+        link: Some(N),
+        ..Default::default()
+    };
     assert!(identify_payload(&arm, &loaded, &s).is_err());
     // The arm at rest in one pose: the payload's mass is not seen apart from its moments.
     let rest = {

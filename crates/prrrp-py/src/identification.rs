@@ -371,6 +371,7 @@ impl PyIdentifiedModel {
     /// the last).
     #[pyo3(signature = (data, mass=None, *, tip=None, refit_friction=true,
         max_relative_sigma=0.1, com_tolerance=0.01))]
+    #[allow(clippy::too_many_arguments)]
     fn identify_payload(
         &self,
         py: Python<'_>,
