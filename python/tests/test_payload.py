@@ -203,6 +203,14 @@ def test_payload_and_drive_gains_through_the_command_line(tmp_path, capsys):
     bad = ["payload", str(tmp_path / "loaded.csv"), "--model", str(arm_dir / "model.json")]
     assert main([*bad, "--mass", "-2", "--out", str(tmp_path / "bad")]) == 2
     assert not (tmp_path / "bad").exists()
+    assert main([*bad, "--tip", "no_such_link", "--out", str(tmp_path / "bad")]) == 2
+    assert "no_such_link" in capsys.readouterr().err
+    assert not (tmp_path / "bad").exists()
+    # --tip naming the last link is the default.
+    assert main([*bad, "--tip", "wrist_3_link", "--out", str(tmp_path / "tip")]) == 0
+    capsys.readouterr()
+    named = json.loads((tmp_path / "tip" / "payload.json").read_text())
+    assert named["parameters"] == doc["parameters"]
 
     # Drive gains: current logs i1..i6 of one trajectory with and without the payload.
     uc, lc = ur.run(4, None, 40, duration=30.0), ur.run(4, ur.MOUNTINGS["A"], 41, duration=30.0)

@@ -39,6 +39,8 @@ def add_parser(sub: Any) -> None:
     )
     p.add_argument(
         "--tip",
+        # Not `tip`: that name is the URDF chain option every command checks against --robot.
+        dest="payload_tip",
         metavar="LINK",
         help="the chain link that carries the payload (default: the last link)",
     )
@@ -62,7 +64,7 @@ def run(args: argparse.Namespace) -> int:
         arm = arm.without_payload()
     raw = read_measurements(args.data, arm.robot, topic=args.topic, **drives.recorded(arm))
     data = payloads.to_dataset(arm, raw)
-    loaded = arm.identify_payload(data, args.mass, tip=args.tip)
+    loaded = arm.identify_payload(data, args.mass, tip=args.payload_tip)
     payload = loaded.payload
     out = Path(args.out)
 
