@@ -22,6 +22,7 @@ import json
 from collections.abc import Callable
 from typing import Any
 
+from prrrp import payload
 from prrrp._prrrp import (
     NDOF,
     NPARAM,
@@ -61,6 +62,7 @@ from prrrp._prrrp import (
     error_indices,
     identified_model_from_parts,
     identify,
+    identify_drive_gains,
     joint_limits,
     least_squares,
     observation_matrix,
@@ -136,6 +138,7 @@ __all__ = [
     "excite",
     "identified_model_from_parts",
     "identify",
+    "identify_drive_gains",
     "identify_measurements",
     "joint_limits",
     "least_squares",
@@ -143,6 +146,7 @@ __all__ = [
     "measurements_to_dataset",
     "observation_matrix",
     "optimise_excitation",
+    "payload",
     "preprocess",
     "preprocess_log",
     "read_measurements",

@@ -942,7 +942,61 @@ class IdentifiedModel:
         base parameter it is identified in, None if unidentifiable), 'combination', 'alone'
         (the base parameter is this term alone), 'value' (its β̂), 'sigma', 'standard'
         (physically consistent value, method "physical"). Empty without actuator terms."""
+    @property
+    def payload(self) -> dict[str, Any] | None:
+        """The payload the model carries, or None: 'link', 'link_index' (0-based),
+        'parameters' (10: m, m·c, inertia about the link origin; kg, kg·m, kg·m²),
+        'covariance' (100, row-major), 'mass' (kg), 'com' (m, link frame), 'inertia'
+        ([Ixx, Ixy, Iyy, Ixz, Iyz, Izz] about the COM, kg·m²), their σ ('mass_sigma',
+        'com_sigma', 'inertia_sigma'), 'identifiable' ({'mass', 'com', 'inertia'} flags),
+        'mass_given' and 'identification' (how). Predictions add its torques."""
+    @property
+    def drive_gains(self) -> dict[str, Any] | None:
+        """Identified drive gains, or None: 'values' and 'sigma' (N·m/A per actuator),
+        'identifiable' (bools), 'identification' (method, the naive least-squares gains)."""
+    def payload_json(self) -> str | None:
+        """The payload as the JSON text of payload.json, or None."""
+    def identify_payload(
+        self,
+        data: Dataset,
+        mass: float | None = None,
+        *,
+        tip: str | int | None = None,
+        refit_friction: bool = True,
+        max_relative_sigma: float = 0.1,
+        com_tolerance: float = 0.01,
+    ) -> IdentifiedModel:
+        """The arm + payload model from `data`, a run with a payload (torques in this
+        model's units): the payload's 10 inertial parameters at the link `tip` (name or
+        0-based index; default the last) fitted to the torque this model does not explain,
+        by joint-weighted least squares with the friction terms re-fitted
+        (`refit_friction`), projected onto the rigid bodies (m > 0, pseudo-inertia ⪰ 0)
+        when the fit is not physical. `mass` (kg) fixes a known mass. Each quantity is
+        'identifiable' when σ ≤ `max_relative_sigma` × the mass (mass) or × ½·tr(I_C)
+        (inertia), or σ ≤ `com_tolerance` m (COM). Raises RankDeficientError when the run
+        does not determine the mass, InvalidParameterError when it shows no payload."""
+    def without_payload(self) -> IdentifiedModel:
+        """This model without its payload (the bare arm)."""
     def __reduce__(self) -> tuple[Any, ...]: ...
+
+def identify_drive_gains(
+    model: IdentifiedModel,
+    unloaded: Dataset,
+    loaded: Dataset,
+    mass: float,
+    *,
+    tip: str | int | None = None,
+    iterations: int = 3,
+    refit_friction: bool = True,
+    max_relative_sigma: float = 0.05,
+) -> tuple[IdentifiedModel, dict[str, Any], list[float]]:
+    """Drive gains by Gautier & Briot's protocol: `unloaded` and `loaded` hold motor currents
+    (A) in their torque columns, of runs without and with a payload of `mass` kg at `tip`;
+    `model` gives the robot and base analysis (e.g. the unloaded run identified in current
+    units). Instrumental variables (`iterations` ≥ 1; 0 = naive least squares with the
+    currents in the regressor, biased by their noise). Returns the arm in torque units with
+    'drive_gains' (σ; a gain with σ > `max_relative_sigma` of it is flagged not
+    identifiable), the payload dict and the naive least-squares gains."""
 
 def identified_model_from_parts(
     robot: SerialChain,

@@ -12,8 +12,10 @@ angles and torques through the robot's gear ratios and coupling (``SerialChain.a
 
 from __future__ import annotations
 
+import json
 import math
 from collections.abc import Sequence
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -23,7 +25,11 @@ from prrrp.csvio import InputError
 
 
 def parse_gains(text: str, n: int) -> list[float]:
-    """``--drive-gains K1,...,KN`` as N finite, non-zero numbers (N·m/A)."""
+    """``--drive-gains K1,...,KN`` as N finite, non-zero numbers (N·m/A), or a JSON file
+    holding them: a ``model.json`` with identified ``drive_gains`` (``prrrp identify
+    --payload-run``), an object ``{"drive_gains": [...]}`` or a list."""
+    if text.strip().endswith(".json") or Path(text).is_file():
+        return _gains_from_file(text, n)
     parts = [p.strip() for p in text.split(",") if p.strip()]
     try:
         gains = [float(p) for p in parts]
@@ -42,6 +48,34 @@ def parse_gains(text: str, n: int) -> list[float]:
     return gains
 
 
+def _gains_from_file(text: str, n: int) -> list[float]:
+    path = Path(text)
+    try:
+        doc = json.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise InputError(f"--drive-gains: {text}: no such file") from None
+    except (OSError, ValueError) as e:
+        raise InputError(f"--drive-gains: {text} is not a readable JSON file ({e})") from None
+    values: Any = doc
+    if isinstance(values, dict):
+        values = values.get("drive_gains", values.get("values"))
+    if isinstance(values, dict):
+        flags = values.get("identifiable") or []
+        bad = [k + 1 for k, ok in enumerate(flags) if not ok]
+        if bad:
+            raise InputError(
+                f"--drive-gains: {text} says the data did not determine the gains of actuators "
+                f"{bad}; give all gains as K1,...,K{n} (N·m/A)"
+            )
+        values = values.get("values")
+    if not isinstance(values, list):
+        raise InputError(
+            f"--drive-gains: {text} holds no drive gains (a list, drive_gains or "
+            "drive_gains.values)"
+        )
+    return parse_gains(",".join(str(v) for v in values), n)
+
+
 def to_joint_side(
     raw: dict[str, np.ndarray],
     robot: SerialChain,
@@ -50,12 +84,14 @@ def to_joint_side(
     motor_side: bool = False,
     source: str = "the log",
     strict: bool = True,
+    currents: bool = False,
 ) -> dict[str, np.ndarray]:
     """``raw`` (``prrrp.read_measurements``' dict) on the joint side of ``robot``: motor-side
     positions, velocities, accelerations and torques mapped when ``motor_side``, motor
     currents (key ``current``) turned into torques with ``drive_gains``. Raises InputError
     when currents come without gains (or, if ``strict``, gains with a log of torques), or
-    ``motor_side`` without the robot's gear ratios."""
+    ``motor_side`` without the robot's gear ratios. With ``currents`` the log must hold
+    currents and they are kept as they are, in ``tau`` (A), for identifying the gains."""
     out = dict(raw)
     n = robot.dof
     if motor_side:
@@ -69,6 +105,14 @@ def to_joint_side(
                 out[key] = np.asarray(robot.joint_positions_from_motor(out[key]))
         if "tau" in out:
             out["tau"] = np.asarray(robot.joint_torques_from_motor(out["tau"]))
+    if currents:
+        if "current" not in out:
+            raise InputError(
+                f"{source} has no motor currents i1..i{n}: identifying drive gains needs current "
+                "logs of both runs"
+            )
+        out["tau"] = out.pop("current")
+        return out
     if "current" in out:
         if drive_gains is None:
             raise InputError(
@@ -97,12 +141,19 @@ def record(drive_gains: Sequence[float] | None, motor_side: bool) -> dict[str, A
 
 
 def recorded(model: Any) -> dict[str, Any]:
-    """The keyword arguments of :func:`to_joint_side` an identified model recorded."""
+    """The keyword arguments of :func:`to_joint_side` an identified model recorded: the
+    gains it was given, or else those it identified (``model.drive_gains``)."""
     pre = getattr(model, "preprocessing", None)
     drives = pre.get("drives") if isinstance(pre, dict) else None
+    identified = getattr(model, "drive_gains", None)
     if not isinstance(drives, dict):
+        if isinstance(identified, dict):
+            return {"drive_gains": identified["values"], "motor_side": False}
         return {}
+    gains = drives.get("drive_gains")
+    if gains is None and isinstance(identified, dict):
+        gains = identified["values"]
     return {
-        "drive_gains": drives.get("drive_gains"),
+        "drive_gains": gains,
         "motor_side": bool(drives.get("motor_side", False)),
     }

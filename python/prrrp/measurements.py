@@ -39,6 +39,7 @@ def read_measurements(
     need_tau: bool = True,
     drive_gains: list[float] | None = None,
     motor_side: bool = False,
+    currents: bool = False,
 ) -> dict[str, np.ndarray]:
     """Joint measurements of ``robot`` from ``path``: a CSV file (``t, q1..qN, tau1..tauN``,
     optional ``qd1..qdN``, ``qdd1..qddN``; SI units; N from the robot, or from the header
@@ -54,7 +55,8 @@ def read_measurements(
     Geared arms (see ``prrrp.drives``): a CSV file may give motor currents ``i1..iN`` (A)
     instead of torques, converted with ``drive_gains`` (N·m/A per actuator, joint side);
     with ``motor_side`` the positions, velocities and torques are motor-side and mapped
-    through the robot's gear ratios and coupling. Both need ``robot``.
+    through the robot's gear ratios and coupling. Both need ``robot``. With ``currents`` the
+    currents are kept unconverted in ``tau`` (A), to identify the gains from.
     """
     if bags.is_bag(path):
         if robot is None:
@@ -77,6 +79,7 @@ def read_measurements(
         motor_side=motor_side,
         source=str(path),
         strict=need_tau,
+        currents=currents,
     )
 
 

@@ -82,6 +82,10 @@ pub use identification::{
     GradientSettings, IdentifiedModel, LsSettings, Method, PhysicalSettings, Predictor,
     RlsSettings, METHOD_NAMES, MODEL_SCHEMA_VERSION,
 };
+pub use identification::{
+    identify_drive_gains, identify_payload, DriveGainSettings, DriveGains, DriveGainsFit,
+    PayloadSettings,
+};
 pub use identification::{ActuatorEstimate, TermEstimate};
 pub use interrupt::{check_count, clear_stop, request_stop, stop_requested, StopFlag, MAX_SAMPLES};
 pub use models::chain::{
@@ -97,6 +101,10 @@ pub use models::chain::{
     JointFrictionFeasibility, LinkFeasibility,
 };
 pub use models::chain::{Actuators, ACTUATOR_PARAMETER_NAMES, COUPLING_CONDITION_LIMIT};
+pub use models::payload::{
+    is_physical as is_physical_payload, project_physical, Payload, PayloadIdentifiable,
+    PayloadThresholds,
+};
 pub use models::prrrp::derivatives::InverseDerivatives;
 pub use models::prrrp::dynamics::{MassCholesky, PrrrpModel};
 pub use models::prrrp::regressor::{condition_number, observation_matrix, singular_values};

@@ -326,6 +326,84 @@ impl PyIdentifiedModel {
         json_to_py(py, &v)
     }
 
+    /// The payload the model carries (mass, com, inertia about the COM, their σ,
+    /// `identifiable` flags, the 10 parameters and their covariance; a dict in the JSON
+    /// layout of `payload.json`), or None for the bare arm.
+    #[getter]
+    fn payload<'py>(&self, py: Python<'py>) -> Out<'py> {
+        match &self.inner.payload {
+            Some(p) => {
+                let v = serde_json::to_value(p)
+                    .map_err(|e| pyo3::exceptions::PyValueError::new_err(e.to_string()))?;
+                json_to_py(py, &v)
+            }
+            None => Ok(py.None().into_bound(py)),
+        }
+    }
+
+    /// Drive gains identified with the model (`values`, `sigma` in N·m/A, `identifiable`,
+    /// `identification`), or None.
+    #[getter]
+    fn drive_gains<'py>(&self, py: Python<'py>) -> Out<'py> {
+        match &self.inner.drive_gains {
+            Some(g) => {
+                let v = serde_json::to_value(g)
+                    .map_err(|e| pyo3::exceptions::PyValueError::new_err(e.to_string()))?;
+                json_to_py(py, &v)
+            }
+            None => Ok(py.None().into_bound(py)),
+        }
+    }
+
+    /// The payload as the JSON text of `payload.json`, or None.
+    fn payload_json(&self, py: Python<'_>) -> PyResult<Option<String>> {
+        self.inner
+            .payload
+            .as_ref()
+            .map(|p| p.to_json())
+            .transpose()
+            .to_py(py)
+    }
+
+    /// The arm + payload model identified from `data` (a `Dataset` of a run with the
+    /// payload, torques as the model's): see `prrrp_core::identify_payload`. `mass` (kg)
+    /// fixes a known mass; `tip` names (or indexes, 0-based) the carrying link (default:
+    /// the last).
+    #[pyo3(signature = (data, mass=None, *, tip=None, refit_friction=true,
+        max_relative_sigma=0.1, com_tolerance=0.01))]
+    #[allow(clippy::too_many_arguments)]
+    fn identify_payload(
+        &self,
+        py: Python<'_>,
+        data: &crate::data::dataset::PyDataset,
+        mass: Option<f64>,
+        tip: Option<&Bound<'_, PyAny>>,
+        refit_friction: bool,
+        max_relative_sigma: f64,
+        com_tolerance: f64,
+    ) -> PyResult<Self> {
+        let link = link_index(py, &self.inner, tip)?;
+        let settings = prrrp_core::PayloadSettings {
+            link,
+            mass,
+            refit_friction,
+            thresholds: thresholds(py, max_relative_sigma, com_tolerance)?,
+        };
+        let model = &self.inner;
+        let inner = crate::interrupt::interruptible(py, || {
+            prrrp_core::identify_payload(model, &data.inner, &settings)
+        })?
+        .to_py(py)?;
+        Ok(Self { inner })
+    }
+
+    /// The model with its payload removed (the bare arm).
+    fn without_payload(&self) -> Self {
+        let mut inner = self.inner.clone();
+        inner.payload = None;
+        Self { inner }
+    }
+
     /// Pickle support through the JSON text.
     fn __reduce__<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, pyo3::types::PyTuple>> {
         let rebuild = py.get_type::<PyIdentifiedModel>().getattr("from_json")?;
@@ -701,8 +779,98 @@ fn identify(
     Ok(PyIdentifiedModel { inner })
 }
 
+fn thresholds(
+    py: Python<'_>,
+    max_relative_sigma: f64,
+    com_tolerance: f64,
+) -> PyResult<prrrp_core::PayloadThresholds> {
+    for (field, v) in [
+        ("max_relative_sigma", max_relative_sigma),
+        ("com_tolerance", com_tolerance),
+    ] {
+        if !(v.is_finite() && v > 0.0) {
+            return Err(to_pyerr(
+                py,
+                &prrrp_core::PrrrpError::InvalidParameter {
+                    field: field.into(),
+                    value: v,
+                    reason: "must be finite and > 0",
+                },
+            ));
+        }
+    }
+    Ok(prrrp_core::PayloadThresholds {
+        max_relative_sigma,
+        com_tolerance,
+    })
+}
+
+/// The carrying link from a name or a 0-based index (None: the tip).
+fn link_index(
+    py: Python<'_>,
+    model: &IdentifiedModel,
+    tip: Option<&Bound<'_, PyAny>>,
+) -> PyResult<Option<usize>> {
+    let Some(tip) = tip else {
+        return Ok(None);
+    };
+    let links: Vec<String> = model.robot.joints.iter().map(|j| j.link.clone()).collect();
+    if let Ok(name) = tip.extract::<String>() {
+        return match links.iter().position(|l| *l == name) {
+            Some(i) => Ok(Some(i)),
+            None => Err(to_pyerr(
+                py,
+                &prrrp_core::PrrrpError::InvalidParameter {
+                    field: format!("tip '{name}' (links: {})", links.join(", ")),
+                    value: f64::NAN,
+                    reason: "is not a link of the model's chain; name one of its links",
+                },
+            )),
+        };
+    }
+    let i: usize = tip.extract()?;
+    Ok(Some(i))
+}
+
+/// Drive gains, the arm and the payload from current logs of an unloaded and a loaded
+/// run (see `_prrrp.pyi`).
+#[pyfunction]
+#[pyo3(signature = (model, unloaded, loaded, mass, *, tip=None, iterations=3,
+    refit_friction=true, max_relative_sigma=0.05))]
+#[allow(clippy::too_many_arguments)]
+fn identify_drive_gains<'py>(
+    py: Python<'py>,
+    model: &PyIdentifiedModel,
+    unloaded: &crate::data::dataset::PyDataset,
+    loaded: &crate::data::dataset::PyDataset,
+    mass: f64,
+    tip: Option<&Bound<'py, PyAny>>,
+    iterations: usize,
+    refit_friction: bool,
+    max_relative_sigma: f64,
+) -> PyResult<Bound<'py, pyo3::types::PyTuple>> {
+    let link = link_index(py, &model.inner, tip)?;
+    let mut settings = prrrp_core::DriveGainSettings::new(mass);
+    settings.link = link;
+    settings.iterations = iterations;
+    settings.refit_friction = refit_friction;
+    settings.max_relative_sigma = thresholds(py, max_relative_sigma, 0.01)?.max_relative_sigma;
+    let inner = &model.inner;
+    let fit = crate::interrupt::interruptible(py, || {
+        prrrp_core::identify_drive_gains(inner, &unloaded.inner, &loaded.inner, &settings)
+    })?
+    .to_py(py)?;
+    let v = serde_json::to_value(&fit.payload)
+        .map_err(|e| pyo3::exceptions::PyValueError::new_err(e.to_string()))?;
+    let payload = json_to_py(py, &v)?;
+    let arm = Bound::new(py, PyIdentifiedModel { inner: fit.model })?;
+    let naive = pyo3::types::PyList::new(py, fit.naive_gains)?;
+    pyo3::types::PyTuple::new(py, [arm.into_any(), payload, naive.into_any()])
+}
+
 pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyIdentifiedModel>()?;
+    m.add_function(wrap_pyfunction!(identify_drive_gains, m)?)?;
     m.add_function(wrap_pyfunction!(identify, m)?)?;
     m.add_function(wrap_pyfunction!(identified_model_from_parts, m)?)?;
     Ok(())

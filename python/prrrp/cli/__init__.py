@@ -18,6 +18,9 @@ Any robot (a ``.urdf`` with ``--base``/``--tip`` links, or a ``.toml`` robot fil
 - ``prrrp identify DATA --robot ROBOT --out DIR``: model.json, report.md and figures from a CSV
   or a ROS 2 bag (:mod:`prrrp.cli.identify_robot`);
 - ``prrrp predict MODEL.json DATA --out tau.csv``: a saved model's torques for recorded states.
+- ``prrrp payload LOADED --model ARM.json [--mass KG] --out DIR``: the payload an identified arm
+  carries (:mod:`prrrp.cli.payload`); ``prrrp identify UNLOADED --robot R --payload-run LOADED
+  --payload-mass KG --out DIR``: drive gains from current logs and a payload of known mass.
 
 - ``prrrp benchmark [--robot ROBOT] --methods ls,rls --noise 1,3 --rates 50,100 --seeds N
   [--workers K | --dask ADDRESS] --out DIR``: a Monte-Carlo benchmark of the estimators
@@ -37,7 +40,7 @@ from collections.abc import Sequence
 from typing import Any
 
 import prrrp
-from prrrp.cli import benchmark, excite, identify, predict, reproduce, simulate
+from prrrp.cli import benchmark, excite, identify, payload, predict, reproduce, simulate
 from prrrp.cli.common import (
     EXIT_FAILED,
     EXIT_INTERRUPTED,
@@ -64,7 +67,7 @@ __all__ = [
 ]
 
 #: One module per command, each with ``add_parser(subparsers)`` and ``run(args) -> int``.
-COMMANDS = (reproduce, excite, simulate, identify, predict, benchmark)
+COMMANDS = (reproduce, excite, simulate, identify, predict, payload, benchmark)
 
 
 def build_parser() -> argparse.ArgumentParser:

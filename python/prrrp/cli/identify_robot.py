@@ -4,13 +4,18 @@ log (CSV or ROS 2 bag) → ``DIR/model.json``, ``DIR/report.md`` and figures."""
 from __future__ import annotations
 
 import argparse
+import json
 import math
 import time
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
+import prrrp
 from prrrp import bags, drawing, drives, model_report, outdir, prediction, workflow
+from prrrp import payload as payloads
 from prrrp.cli.common import (
     EXIT_FAILED,
     EXIT_OK,
@@ -19,7 +24,7 @@ from prrrp.cli.common import (
     friction_terms,
     print_table,
 )
-from prrrp.measurements import read_measurements
+from prrrp.measurements import measurements_to_dataset, read_measurements
 
 #: The core's default cut-off (DEFAULT_LOG_CUTOFF_HZ), Hz, before the cap at a tenth of the
 #: output rate.
@@ -61,10 +66,26 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     )
     g.add_argument(
         "--drive-gains",
-        metavar="K1,...,KN",
+        metavar="K1,...,KN|FILE.json",
         help="the log has motor currents i1..iN (A): joint-side drive gains, N·m/A per actuator "
-        "(torque constant × gear ratio); torques are Cᵀ·(K∘i) (default: none, the log has "
-        "torques tau1..tauN)",
+        "(torque constant × gear ratio), or a JSON file with them (a model.json of "
+        "--payload-run); torques are Cᵀ·(K∘i) (default: none, the log has torques tau1..tauN)",
+    )
+    g.add_argument(
+        "--payload-run",
+        metavar="LOADED",
+        help="identify the drive gains (Gautier & Briot): DATA and LOADED are current logs "
+        "(i1..iN) of the same trajectory without and with a payload of --payload-mass at the "
+        "tip; writes the gains with σ into model.json (instrumental variables, unbiased by "
+        "the currents' noise), the arm in N·m and DIR/payload.json (default: none, the "
+        "gains are given or the log has torques)",
+    )
+    g.add_argument(
+        "--payload-mass",
+        type=float,
+        metavar="KG",
+        help="the known mass of the payload of --payload-run (kg) (default: none; required "
+        "with --payload-run)",
     )
     g.add_argument(
         "--motor-side",
@@ -126,6 +147,8 @@ def run(args: argparse.Namespace) -> int:
     )
     scale = _coulomb_scale(args.coulomb_scale)
     pre = {"cutoff_hz": args.cutoff, "rate_hz": args.rate, "decimate_to_hz": args.decimate}
+    if args.payload_run or args.payload_mass is not None:
+        return _run_drive_gains(args, robot, scale, pre, out)
     gains = None if args.drive_gains is None else drives.parse_gains(args.drive_gains, robot.dof)
     conversion = {"drive_gains": gains, "motor_side": args.motor_side}
     record = drives.record(gains, args.motor_side)
@@ -245,6 +268,100 @@ def run(args: argparse.Namespace) -> int:
     _summary(main, table, fit_grid, val_grid)
     names = "model-<method>.json, model.json" if len(methods) > 1 else "model.json"
     print(f"results in {out}/ ({len(written)} files: {names}, report.md, figures)")
+    return EXIT_OK
+
+
+def _run_drive_gains(
+    args: argparse.Namespace,
+    robot: Any,
+    scale: str | float,
+    pre: dict[str, Any],
+    out: Path,
+) -> int:
+    """``--payload-run``: drive gains, arm and payload from two current logs."""
+    if not args.payload_run or args.payload_mass is None:
+        raise CliError("--payload-run LOADED and --payload-mass KG go together")
+    mass = args.payload_mass
+    if not (math.isfinite(mass) and mass > 0):
+        raise CliError(f"--payload-mass must be a positive number of kg, got {mass}")
+    if args.drive_gains is not None:
+        raise CliError("--payload-run identifies the drive gains: drop --drive-gains")
+    if args.method not in (workflow.DEFAULT_METHOD, "wls"):
+        raise CliError(
+            "--payload-run has its own estimator (instrumental variables): drop --method"
+        )
+    conversion = {"motor_side": args.motor_side, "currents": True}
+    raw_u = read_measurements(args.data, robot, topic=args.topic, **conversion)
+    raw_l = read_measurements(args.payload_run, robot, topic=args.topic, **conversion)
+    progress = Progress()
+    try:
+        progress("identify", 0, 2)
+        # The unloaded run in current units: the Coulomb speed scale and the base analysis.
+        start = workflow.identify_measurements(
+            robot,
+            raw_u,
+            "wls",
+            coulomb_scale=scale,
+            preprocessing=pre,
+            drives={"drive_gains": None, "motor_side": bool(args.motor_side), "identified": True},
+        )
+        loaded, _ = measurements_to_dataset(raw_l, pre)
+        progress("identify", 1, 2)
+        arm, payload, _naive = payloads.drive_gains(start.model, start.data, loaded, mass)
+        progress("identify", 2, 2)
+    finally:
+        progress.close()
+    gains = arm.drive_gains
+    d = start.data
+    tau = arm.robot.joint_torques_from_currents(np.asarray(d.tau), np.asarray(gains["values"]))
+    data = prrrp.Dataset(d.t, d.q, d.qd, d.qdd, np.asarray(tau))
+    run = workflow.Identification(arm, data, start.log_report, start.coulomb)
+    joints = list(arm.robot.joint_names)
+
+    def build(tmp: Path) -> list[Path]:
+        arm.save(tmp / "model.json")
+        (tmp / "payload.json").write_text(
+            json.dumps(payload, indent=1, allow_nan=False) + "\n", encoding="utf-8"
+        )
+        sources = {
+            "robot": str(args.robot),
+            "unloaded run": str(args.data),
+            "loaded run": str(args.payload_run),
+        }
+        written = [tmp / "model.json", tmp / "payload.json"]
+        written += run.report(tmp, sources=sources)
+        lines = [
+            "",
+            f"## Drive gains (payload of {mass:g} kg)",
+            "",
+            *payloads.gain_lines(gains, joints),
+            "",
+            "Instrumental variables (the currents instrumented by those the model predicts "
+            "from the positions); the naive least squares, with the noisy currents in the "
+            "regressor, is biased towards smaller gains. A gain is identifiable when σ is at "
+            f"most {100 * arm.settings.get('max_relative_sigma', 0.05):.3g} % of it.",
+            "",
+        ]
+        with (tmp / "report.md").open("a", encoding="utf-8") as f:
+            f.write("\n".join(lines))
+        return written
+
+    written = outdir.write_dir(out, build)
+    rows = []
+    for j, name in enumerate(joints):
+        ok = gains["identifiable"][j]
+        value = f"{gains['values'][j]:.4g}" if ok else "not identifiable"
+        rows.append([name, value, f"{gains['sigma'][j]:.2g}"])
+    print(f"drive gains (N·m/A) from {args.data} and {args.payload_run} ({mass:g} kg payload):")
+    print_table(["actuator of", "K", "σ"], rows)
+    bad = [joints[j] for j, ok in enumerate(gains["identifiable"]) if not ok]
+    if bad:
+        print(
+            f"warning: the runs do not determine the gains of {', '.join(bad)} (σ above the "
+            "threshold; e.g. an axis the payload's weight never loads): the model's torques "
+            "there are in doubt; give them with --drive-gains if known"
+        )
+    print(f"results in {out}/ ({len(written)} files: model.json, payload.json, report.md)")
     return EXIT_OK
 
 

@@ -8,9 +8,15 @@ use serde::{Deserialize, Serialize};
 
 use crate::error::{PrrrpError, Result};
 use crate::models::chain::{BaseParameters, ChainDescription, DynChain, DynWorkspace};
+use crate::models::payload::Payload;
 
 mod ekf_defaults;
 mod methods;
+mod payload;
+pub use payload::{
+    identify_drive_gains, identify_payload, DriveGainSettings, DriveGainsFit, PayloadSettings,
+};
+
 pub use methods::{
     identify, identify_robot, EkfSettings, EkfStart, GradientSettings, LsSettings, Method,
     PhysicalSettings, RlsSettings, METHOD_NAMES,
@@ -18,9 +24,11 @@ pub use methods::{
 
 /// Version of the [`IdentifiedModel`] JSON layout; bumped on any incompatible change.
 /// Version 2: the robot may carry actuators (coupling, armature; chain schema 2) and the
-/// model lists its actuator estimates ([`IdentifiedModel::actuators`]). Version 1 files
-/// still load.
-pub const MODEL_SCHEMA_VERSION: u32 = 2;
+/// model lists its actuator estimates ([`IdentifiedModel::actuators`]). Version 3: an
+/// optional payload ([`IdentifiedModel::payload`]) whose torques predictions add, and
+/// identified drive gains ([`IdentifiedModel::drive_gains`]); a model with neither is
+/// still written as version 2. Versions 1 and 2 still load.
+pub const MODEL_SCHEMA_VERSION: u32 = 3;
 
 /// The base-parameter analysis a model was identified in: which standard parameters are
 /// the base columns and how the others fold into them.
@@ -100,6 +108,30 @@ pub struct IdentifiedModel {
     /// Written for the reader of the JSON; recomputed on load.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub actuators: Vec<ActuatorEstimate>,
+    /// A payload carried by the arm (schema 3): its torques Y[:, carrying link]·π are added
+    /// to every prediction. `None` for the bare arm.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub payload: Option<Payload>,
+    /// Drive gains identified with the model (schema 3; N·m/A or N/A per actuator,
+    /// joint side), with σ and whether the data determine each.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub drive_gains: Option<DriveGains>,
+}
+
+/// Drive gains K (τ = Cᵀ·(K∘i)) identified from motor currents
+/// ([`identify_drive_gains`]).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct DriveGains {
+    /// One gain per actuator (N·m/A, or N/A for a prismatic joint).
+    pub values: Vec<f64>,
+    /// σ of each gain (same units).
+    pub sigma: Vec<f64>,
+    /// Whether the data determine each gain (σ at most `max_relative_sigma` of it); a gain
+    /// the data do not determine is the estimate's value, not to be trusted.
+    pub identifiable: Vec<bool>,
+    /// How they were identified (method, settings, the naive least-squares values beside).
+    #[serde(default)]
+    pub identification: serde_json::Value,
 }
 
 fn converged_default() -> bool {
@@ -183,6 +215,8 @@ impl IdentifiedModel {
             converged: true,
             epochs: None,
             actuators: Vec::new(),
+            payload: None,
+            drive_gains: None,
         };
         model.validate()?;
         let mut model = model;
@@ -266,7 +300,7 @@ impl IdentifiedModel {
             return Err(PrrrpError::InvalidParameter {
                 field: "schema_version".into(),
                 value: self.schema_version as f64,
-                reason: "unknown model version (this prrrp reads versions 1 and 2)",
+                reason: "unknown model version (this prrrp reads versions 1 to 3)",
             });
         }
         let n = self.robot.joints.len();
@@ -275,6 +309,7 @@ impl IdentifiedModel {
         // Sizes first, before any product of them is formed or allocated (an 8000-joint
         // file would otherwise ask for a p × p covariance of 10¹⁰ values).
         crate::models::chain::check_dof("robot.joints", n)?;
+        // Per joint: 10 inertial parameters and the actuator terms (fv, fc, fo, Ia).
         let most = n * (crate::LINK_PARAMS + crate::models::chain::ACTUATOR_PARAMETER_NAMES.len());
         if p > most || b > p {
             return Err(PrrrpError::ShapeMismatch {
@@ -333,6 +368,27 @@ impl IdentifiedModel {
                 got: format!("index {j}"),
             });
         }
+        if let Some(pl) = &self.payload {
+            pl.validate()?;
+            if pl.link_index >= n {
+                return Err(PrrrpError::ShapeMismatch {
+                    what: "payload.link_index".into(),
+                    expected: format!("a link of the robot (below {n})"),
+                    got: format!("{}", pl.link_index),
+                });
+            }
+        }
+        if let Some(g) = &self.drive_gains {
+            shape("drive_gains.values (one per actuator)", n, g.values.len())?;
+            shape("drive_gains.sigma (one per actuator)", n, g.sigma.len())?;
+            shape("drive_gains.identifiable", n, g.identifiable.len())?;
+            if let Some(row) = g.values.iter().chain(&g.sigma).position(|x| !x.is_finite()) {
+                return Err(PrrrpError::NonFinite {
+                    what: "drive_gains".into(),
+                    row: Some(row),
+                });
+            }
+        }
         for (name, v) in [("beta", &self.beta), ("residual_rms", &self.residual_rms)] {
             if let Some(row) = v.iter().position(|x| !x.is_finite()) {
                 return Err(PrrrpError::NonFinite {
@@ -369,6 +425,15 @@ impl IdentifiedModel {
         }
         let ws = chain.workspace();
         let y = vec![0.0; chain.dof() * chain.num_params()];
+        if let Some(pl) = &self.payload {
+            if pl.link_index >= chain.dof() {
+                return Err(PrrrpError::ShapeMismatch {
+                    what: "payload.link_index".into(),
+                    expected: format!("a link of the robot (below {})", chain.dof()),
+                    got: format!("{}", pl.link_index),
+                });
+            }
+        }
         Ok(Predictor {
             model: self,
             chain,
@@ -407,8 +472,18 @@ impl IdentifiedModel {
     /// [`PrrrpError::NonFinite`] if a value is not finite (JSON has no NaN).
     pub fn to_json(&self) -> Result<String> {
         let mut out = self.clone();
-        out.schema_version = MODEL_SCHEMA_VERSION;
+        // Version 3 only where its fields are used: a reader of version 2 would ignore a
+        // payload and predict the bare arm, so it must refuse such a file, but it reads a
+        // plain model as well as ever.
+        out.schema_version = if out.payload.is_some() || out.drive_gains.is_some() {
+            MODEL_SCHEMA_VERSION
+        } else {
+            2
+        };
         out.actuators = self.actuator_estimates();
+        if let Some(p) = out.payload.as_mut() {
+            p.derive();
+        }
         serde_json::to_string_pretty(&out).map_err(|_| PrrrpError::NonFinite {
             what: "identified model (JSON has no NaN or infinity)".into(),
             row: None,
@@ -429,6 +504,9 @@ impl IdentifiedModel {
         m.validate()?;
         m.chain()?;
         m.actuators = m.actuator_estimates();
+        if let Some(p) = m.payload.as_mut() {
+            p.derive();
+        }
         Ok(m)
     }
 }
@@ -480,6 +558,7 @@ impl Predictor<'_> {
             });
         }
         let base = &self.model.base.independent;
+        let payload = self.model.payload.as_ref();
         for (i, t) in tau.iter_mut().enumerate() {
             let row = &self.y[i * p..(i + 1) * p];
             *t = base
@@ -487,6 +566,10 @@ impl Predictor<'_> {
                 .zip(&self.model.beta)
                 .map(|(&j, b)| row[j] * b)
                 .sum();
+            if let Some(pl) = payload {
+                // The link index was checked against the chain when the predictor was built.
+                *t += pl.torque_from_regressor_row(row).unwrap_or(0.0);
+            }
         }
         Ok(())
     }

@@ -11,6 +11,7 @@
 //! TOML files) and [`scaled`] (column-scaled views the gradient estimators train on).
 
 pub(crate) mod chain;
+pub(crate) mod payload;
 pub(crate) mod prrrp;
 pub(crate) mod robot_files;
 pub(crate) mod scaled;
