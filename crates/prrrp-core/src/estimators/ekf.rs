@@ -553,6 +553,11 @@ where
         Ok(())
     }
 
+    /// The settings (with the period of [`EkfOf::set_dt`]).
+    pub fn config(&self) -> &EkfConfig {
+        &self.config
+    }
+
     /// The state x = [q, q̇, λ] predicted for the next sample.
     pub fn state(&self) -> &OVector<f64, S> {
         &self.x
@@ -624,6 +629,71 @@ where
         let (_, pd) = self.model.dims();
         check_lambda0(anchor, self.n(), pd.value())?;
         self.anchor = Some(anchor.clone());
+        Ok(())
+    }
+
+    /// Sets the period h of the next prediction, s (a log's time stamps need not be
+    /// uniform). Allocation-free.
+    ///
+    /// # Errors
+    /// [`PrrrpError::InvalidParameter`] for a non-positive or non-finite h.
+    pub fn set_dt(&mut self, dt: f64) -> Result<()> {
+        if !(dt.is_finite() && dt > 0.0) {
+            return Err(PrrrpError::InvalidParameter {
+                field: "dt".into(),
+                value: dt,
+                reason: "must be finite and > 0",
+            });
+        }
+        self.config.dt = dt;
+        Ok(())
+    }
+
+    /// Scales the parameter block of P by the congruence P ← D·P·D, D = diag(1 (q, q̇),
+    /// `d` (λ)), d ≥ 0: the parameter covariance P_λλ by d_i·d_j, their covariance with
+    /// q and q̇ by d_i; P stays positive semidefinite. Opens the parameters after a
+    /// detected change of the dynamics. Allocation-free.
+    ///
+    /// # Errors
+    /// [`PrrrpError::ShapeMismatch`] for a `d` without one entry per parameter,
+    /// [`PrrrpError::InvalidParameter`] for a negative or non-finite entry.
+    pub fn scale_parameter_covariance(&mut self, d: &OVector<f64, P>) -> Result<()> {
+        let (o, s) = (2 * self.n(), self.x.nrows());
+        if d.nrows() != s - o {
+            return Err(size_error(
+                "parameter scale",
+                format!("{} entries", s - o),
+                format!("{} entries", d.nrows()),
+            ));
+        }
+        if let Some(&v) = d.iter().find(|v| !(v.is_finite() && **v >= 0.0)) {
+            return Err(PrrrpError::InvalidParameter {
+                field: "parameter scale".into(),
+                value: v,
+                reason: "must be finite and >= 0",
+            });
+        }
+        let f = |i: usize| if i < o { 1.0 } else { d[i - o] };
+        for j in 0..s {
+            let fj = f(j);
+            for i in 0..s {
+                self.p[(i, j)] *= f(i) * fj;
+            }
+        }
+        Ok(())
+    }
+
+    /// Replaces the parameter part λ̂ of the state (e.g. by its projection onto a
+    /// constraint set such as the rigid bodies); P is kept. Allocation-free.
+    ///
+    /// # Errors
+    /// [`PrrrpError::ShapeMismatch`] / [`PrrrpError::InvalidParameter`] as for λ₀.
+    pub fn set_parameter_estimate(&mut self, lambda: &OVector<f64, P>) -> Result<()> {
+        let (_, pd) = self.model.dims();
+        check_lambda0(lambda, self.n(), pd.value())?;
+        let n = self.n();
+        self.x.as_mut_slice()[2 * n..].copy_from_slice(lambda.as_slice());
+        self.lambda.copy_from(lambda);
         Ok(())
     }
 
