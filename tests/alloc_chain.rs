@@ -6,7 +6,10 @@ use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
 
 use prrrp_core::nalgebra::{SMatrix, SVector};
-use prrrp_core::{BaseOptions, DynChain, FrictionModel, LinearDynamics, SerialChain, UrdfOptions};
+use prrrp_core::{
+    Actuators, BaseOptions, DynChain, FrictionModel, LinearDynamics, LinearModel, SerialChain,
+    UrdfOptions,
+};
 
 struct Counting;
 
@@ -142,4 +145,82 @@ fn urdf_chain_does_not_allocate() {
     });
     std::hint::black_box(sink);
     assert_eq!(n, 0);
+}
+
+/// Coupled actuators with rotor inertias (issue 26): the actuator terms run inside the same
+/// per-sample kernels, fixed-size and run-time, and the base models; still no allocation.
+#[test]
+fn coupled_actuators_do_not_allocate() {
+    let mut c = vec![vec![0.0; 6]; 6];
+    for (i, r) in c.iter_mut().enumerate() {
+        r[i] = 1.0;
+    }
+    c[5][4] = 1.0;
+    let smooth = FrictionModel {
+        coulomb_smoothing: 0.02,
+        ..FrictionModel::all()
+    };
+    let chain = SerialChain::puma560()
+        .to_dyn()
+        .with_friction(smooth, vec![[0.5, 0.2, 0.01]; 6])
+        .expect("valid")
+        .with_actuators(Actuators {
+            coupling: Some(c),
+            armature: true,
+            armature_values: Some(vec![1.0, 1.2, 0.5, 0.05, 0.04, 0.03]),
+            gear_ratios: None,
+        })
+        .expect("valid");
+    let fixed = chain.to_fixed::<6>().expect("6 joints");
+    let base = chain
+        .base_parameters(&BaseOptions::default())
+        .expect("analysis");
+    let model = chain.base_model(&base).expect("model");
+    let beta = model.chain_base_values().clone();
+    let mut mws = model.workspace();
+    let (nd, bd) = model.dims();
+    let mut phi = prrrp_core::nalgebra::DMatrix::zeros(nd.0, bd.0);
+    let mut out = prrrp_core::nalgebra::DVector::zeros(6);
+    let mut der = prrrp_core::ForwardDerivativesOf::zeros(nd, bd);
+    let mut ws = chain.workspace();
+    let (mut tau, mut back) = ([0.0; 6], [0.0; 6]);
+    let mut full = vec![0.0; 6 * fixed.num_params()];
+    let mut sink = 0.0;
+    let states: Vec<[prrrp_core::nalgebra::DVector<f64>; 3]> = (0..21)
+        .map(|k| {
+            let [q, qd, qdd] = state::<6>(k);
+            [q, qd, qdd].map(|v| prrrp_core::nalgebra::DVector::from_column_slice(v.as_slice()))
+        })
+        .collect();
+    let n_fixed = count(|k| {
+        let [q, qd, qdd] = state::<6>(k);
+        let t = fixed.inverse_dynamics(&q, &qd, &qdd);
+        let fd = fixed.forward_dynamics(&q, &qd, &t).expect("PD");
+        fixed
+            .regressor_full_into(&q, &qd, &qdd, &mut full)
+            .expect("size");
+        let (qs, qds, qdds) = (q.as_slice(), qd.as_slice(), qdd.as_slice());
+        chain
+            .inverse_dynamics_into(&mut ws, qs, qds, qdds, &mut tau)
+            .expect("sizes");
+        chain
+            .forward_dynamics_into(&mut ws, qs, qds, &tau, &mut back)
+            .expect("PD");
+        sink += t[0] + fd[1] + full[3] + tau[2] + back[0];
+    });
+    let n_model = count(|k| {
+        let [q, qd, qdd] = &states[k];
+        model
+            .regressor_into(&mut mws, q, qd, qdd, &mut phi)
+            .expect("sizes");
+        model
+            .inverse_dynamics_into(&mut mws, q, qd, qdd, &beta, &mut out)
+            .expect("sizes");
+        model
+            .forward_derivatives_into(&mut mws, q, qd, &out, &beta, &mut der)
+            .expect("PD");
+        sink += phi[(1, 2)] + out[0] + der.dqdd_dqd[(4, 5)];
+    });
+    std::hint::black_box(sink);
+    assert_eq!((n_fixed, n_model), (0, 0));
 }

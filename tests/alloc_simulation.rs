@@ -94,6 +94,49 @@ fn closed_loop_step_of_a_dyn_chain_does_not_allocate() {
 }
 
 #[test]
+fn stick_slip_steps_do_not_allocate() {
+    // Coulomb friction with the exact sign: mode tests, hold torques and event cuts.
+    let chain = prrrp_core::DynChain::from_toml_file(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/tests/data/ur5_like_friction.toml"
+    ))
+    .unwrap();
+    let reference = reference();
+    let mut ctrl = DynComputedTorque::new(&chain, &[400.0; 6], &[40.0; 6]).unwrap();
+    let mut rk = Rk4Integrator::new(&chain);
+    let (mut q_r, mut qd_r, mut qdd_r) = (vec![0.0; 6], vec![0.0; 6], vec![0.0; 6]);
+    reference.eval_into(0.0, &mut q_r, &mut qd_r, &mut qdd_r);
+    let (mut q, mut qd) = (q_r.clone(), qd_r.clone());
+    let (mut tau, mut qdd) = (vec![0.0; 6], vec![0.0; 6]);
+    let h = 1e-3;
+    let (mut stuck, mut cuts) = (0, 0);
+    let before = allocations();
+    for k in 0..6000 {
+        let t = h * k as f64;
+        reference.eval_into(t, &mut q_r, &mut qd_r, &mut qdd_r);
+        ctrl.torque_into((&q_r, &qd_r, &qdd_r), &q, &qd, &mut tau)
+            .unwrap();
+        rk.acceleration_into(&q, &qd, &tau, &mut qdd).unwrap();
+        let was: [f64; 6] = std::array::from_fn(|j| qd[j]);
+        rk.step(&mut q, &mut qd, &tau, h).unwrap();
+        stuck += qd.iter().filter(|&&v| v == 0.0).count();
+        cuts += (0..6)
+            .filter(|&j| was[j] * qd[j] < 0.0 || (was[j] != 0.0 && qd[j] == 0.0))
+            .count();
+    }
+    let n = allocations() - before;
+    assert_eq!(
+        n, 0,
+        "{n} allocations in 6000 stick-slip control + RK4 steps"
+    );
+    // The run did reverse joints and hold some at rest (the event code ran).
+    assert!(
+        cuts > 0 && stuck > 0,
+        "{cuts} reversals, {stuck} stuck steps"
+    );
+}
+
+#[test]
 fn whole_simulation_allocations_do_not_grow_with_length() {
     let chain = chain();
     let reference = reference();

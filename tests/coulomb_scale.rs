@@ -10,7 +10,7 @@
 
 use prrrp_core::{
     identify_least_squares, select_coulomb_scale, BaseOptions, CoulombScaleConfig, DynChain,
-    DynDataset, FrictionModel, LeastSquaresConfig, PrrrpError, SerialChain,
+    DynDataset, FrictionModel, LeastSquaresConfig, PrrrpError, SerialChain, COULOMB_SCALE_RANGE,
 };
 use rand::rngs::ChaCha8Rng;
 use rand::SeedableRng;
@@ -125,7 +125,7 @@ fn the_speed_scale_is_found_and_pays_off() {
         let report =
             select_coulomb_scale(&est, &base, &train, &CoulombScaleConfig::default()).unwrap();
         let took = started.elapsed();
-        assert!(report.note.is_none(), "{report:?}");
+        assert!(report.note.is_none() && report.identifiable, "{report:?}");
         if truth_vs == 0.0 {
             assert_eq!(report.chosen, 0.0, "{report:?}");
         } else {
@@ -161,6 +161,71 @@ fn the_speed_scale_is_found_and_pays_off() {
     }
 }
 
+/// Scales above the default range (0.3 rad/s) are found after widening it; a scale the
+/// data cannot see (far above their speeds, or no Coulomb friction at all) is reported as
+/// not identifiable instead of printed as a result.
+#[test]
+fn edges_widen_the_search_or_say_the_scale_is_not_identifiable() {
+    let est = chain(0.0);
+    let base = est.base_parameters(&BaseOptions::default()).unwrap();
+    let search = |truth: &DynChain, seed: u64, config: &CoulombScaleConfig| {
+        let d = data(truth, seed, 20.0, NOISE);
+        select_coulomb_scale(&est, &base, &d, config).unwrap()
+    };
+    let defaults = CoulombScaleConfig::default();
+
+    // 0.6 rad/s: twice the default range's top.
+    let r = search(&chain(0.6), 31, &defaults);
+    assert!(r.identifiable && r.note.is_none(), "{r:?}");
+    assert!(r.widenings >= 1 && r.range[1] > 0.6, "{r:?}");
+    assert!((0.3..=1.2).contains(&r.chosen), "{r:?}");
+    println!(
+        "v_s truth 0.6: chosen {:.3} after {} widening(s), range {:?}",
+        r.chosen, r.widenings, r.range
+    );
+    // Without widening the optimum sits on the top edge, and the report says so.
+    let fixed = CoulombScaleConfig {
+        max_widenings: 0,
+        ..Default::default()
+    };
+    let r = search(&chain(0.6), 31, &fixed);
+    assert!(!r.identifiable, "{r:?}");
+    assert_eq!(r.chosen, COULOMB_SCALE_RANGE.1);
+    assert!(
+        r.note.as_deref().unwrap().contains("top of the search"),
+        "{r:?}"
+    );
+
+    // 20 rad/s on data whose speeds stay below ≈ 2 rad/s: fc·tanh(q̇/v_s) is a viscous
+    // term there, whatever v_s above a few rad/s.
+    let r = search(&chain(20.0), 32, &defaults);
+    assert!(!r.identifiable, "{r:?}");
+    assert!(r.note.is_some(), "{r:?}");
+    assert!(r.widenings <= defaults.max_widenings);
+    println!("v_s truth 20: {}", r.note.as_deref().unwrap());
+
+    // No Coulomb friction in the data: every scale predicts alike.
+    let frictionless = SerialChain::puma560()
+        .to_dyn()
+        .with_friction(
+            FrictionModel {
+                coulomb_smoothing: 0.02,
+                ..FrictionModel::all()
+            },
+            vec![[0.5, 0.0, 0.05]; N],
+        )
+        .unwrap();
+    let r = search(&frictionless, 33, &CoulombScaleConfig::default());
+    let est_default = chain(0.0).friction().coulomb_smoothing;
+    assert!(!r.identifiable, "{r:?}");
+    assert_eq!(r.chosen, est_default, "the chain's own scale is kept");
+    assert!(
+        r.note.as_deref().unwrap().contains("do not identify"),
+        "{r:?}"
+    );
+    println!("no Coulomb friction: {}", r.note.as_deref().unwrap());
+}
+
 #[test]
 fn data_without_reversals_keep_the_default_and_say_so() {
     let truth = chain(0.02);
@@ -181,6 +246,7 @@ fn data_without_reversals_keep_the_default_and_say_so() {
     let base = est.base_parameters(&BaseOptions::default()).unwrap();
     let r = select_coulomb_scale(&est, &base, &d, &CoulombScaleConfig::default()).unwrap();
     assert_eq!(r.chosen, 0.03);
+    assert!(!r.identifiable);
     assert!(
         r.note.as_deref().unwrap().contains("no joint reverses"),
         "{r:?}"

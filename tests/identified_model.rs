@@ -101,3 +101,29 @@ fn inconsistent_parts_are_typed_errors() {
     let [q, qd, qdd] = states(6, 2);
     assert!(model.predict(&q[..7], &qd[..7], &qdd[..7]).is_err());
 }
+
+#[test]
+fn a_model_with_thousands_of_joints_is_refused_when_read() {
+    // An 8000-joint model.json aborted `prrrp predict` (allocations of p² values); it must
+    // be a typed error when read, before anything of its size is built. The per-joint
+    // lists are grown consistently, so only the joint count is wrong.
+    let model = exact_model(&puma());
+    let mut v: serde_json::Value = serde_json::from_str(&model.to_json().unwrap()).unwrap();
+    let grow = |v: &mut serde_json::Value, n: usize| {
+        let first = v.as_array().unwrap()[0].clone();
+        *v = serde_json::Value::Array(vec![first; n]);
+    };
+    let n = 8000;
+    for key in ["joints", "inertial", "friction_params"] {
+        grow(&mut v["robot"][key], n);
+    }
+    v["robot"]["dh"] = serde_json::Value::Null;
+    grow(&mut v["residual_rms"], n);
+    match IdentifiedModel::from_json(&v.to_string()) {
+        Err(PrrrpError::ShapeMismatch { what, expected, .. }) => {
+            assert!(what.contains("joints"), "{what}");
+            assert!(expected.contains("MAX_DOF"), "{expected}");
+        }
+        other => panic!("expected a joint-count error, got {other:?}"),
+    }
+}

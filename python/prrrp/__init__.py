@@ -84,7 +84,14 @@ from prrrp._prrrp import (
 )
 from prrrp.measurements import measurements_to_dataset, read_measurements
 from prrrp.montecarlo import benchmark
-from prrrp.workflow import Identification, excite, identify_measurements, load_robot, simulate
+from prrrp.workflow import (
+    Identification,
+    TrackingError,
+    excite,
+    identify_measurements,
+    load_robot,
+    simulate,
+)
 
 __all__ = [
     "NDOF",
@@ -119,6 +126,7 @@ __all__ = [
     "ShapeMismatchError",
     "SinusoidReference",
     "TooFewSamplesError",
+    "TrackingError",
     "__version__",
     "agreement_index",
     "benchmark",
@@ -161,5 +169,6 @@ def run_study(
 ) -> dict[str, Any]:
     """Runs the paper's whole study (excitation, simulation, the four estimators,
     validation, sensitivity) on the paper robot and returns the parsed JSON result
-    (schema_version 1). `progress(stage, done, total)` is called from Rust."""
+    (schema_version 1). `progress(stage, done, total)` is called on the calling thread
+    while the study runs; an exception it raises stops the study and is raised."""
     return json.loads(run_study_json(seed, progress))

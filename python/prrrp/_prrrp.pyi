@@ -5,6 +5,7 @@ qdd, tau) have shape (5,) for one sample or (N, 5) for a batch; λ (`lam`) has s
 (N, 8). Single samples broadcast against batches. Outputs get a leading N for a batch.
 """
 
+import builtins
 import os
 from collections.abc import Callable, Iterator, Mapping
 from typing import Any, Final, Literal, TypedDict, overload
@@ -635,7 +636,27 @@ class SerialChain:
         ```
 
         Unknown keys are an error naming them; a `friction` row enables viscous, Coulomb and
-        offset terms (overridden by the `friction` argument)."""
+        offset terms (overridden by the `friction` argument).
+
+        A TOML file may instead take its links from a URDF and declare its drives:
+
+        ```toml
+        name = "tx40"
+        urdf = "tx40.urdf"      # relative to the TOML file; exclusive with [[joint]]
+        base = "base_link"      # optional; `base`/`tip` arguments override them
+        tip = "tool0"
+        [actuators]             # also allowed in a [[joint]] file
+        armature = true         # one rotor inertia Ia per actuator, identified
+        coupling = [[1,0,0,0,0,0],[0,1,0,0,0,0],[0,0,1,0,0,0],
+                    [0,0,0,1,0,0],[0,0,0,0,1,0],[0,0,0,0,1,1]]   # q̇ₘ = C·q̇
+        armature_values = [...] # optional, kg·m² joint side (needs armature = true)
+        gear_ratios = [...]     # optional, motor angle per joint angle (motor-side logs)
+        friction = [[fv, fc, fo], ...]   # optional, per actuator
+        coulomb_smoothing = 0.02         # optional, rad/s
+        ```
+
+        URDF `<transmission>` elements (Simple, Differential, FourBarLinkage; Drake's
+        rotor inertia) are read into the same actuators; see `with_actuators`."""
     def to_urdf(self, parameters: _ArrayLike | None = None) -> str:
         """A URDF of this chain with the standard parameters `parameters` (P,) (default:
         `parameters`): kinematics as loaded, each link's inertial about its centre of mass.
@@ -650,7 +671,47 @@ class SerialChain:
         coulomb_smoothing: float = 0.0,
     ) -> SerialChain:
         """The same chain with another friction model (terms as in the constructor),
-        per-joint [fv, fc, fo] (n, 3) (default zeros) and the smooth-sign scale (rad/s)."""
+        per-joint [fv, fc, fo] (n, 3) (default zeros) and the smooth-sign scale (rad/s).
+        With coupled actuators the rows are per actuator (friction on C·q̇)."""
+    def with_actuators(
+        self,
+        *,
+        coupling: _ArrayLike | None = None,
+        armature: bool | None = None,
+        armature_values: _ArrayLike | None = None,
+        gear_ratios: _ArrayLike | None = None,
+    ) -> SerialChain:
+        """The same chain with other actuators (arguments left None keep the chain's).
+
+        n actuators drive the n joints with joint-side velocities q̇ₘ = C·q̇ (`coupling`, an
+        invertible (n, n) matrix; the identity is one geared motor per joint, a row
+        [0, 0, 0, 0, 1, 1] a sixth motor turning with q̇5 + q̇6). Each actuator has friction
+        (the chain's friction model, acting on q̇ₘ) and, with `armature`, a reflected rotor
+        inertia Iaₘ (kg·m², joint side; `armature_values` (n,) its values, default 0),
+        identified as one more parameter per actuator (`Ia1..Ian`). Their torques reach
+        the joints through Cᵀ: τ = M·q̈ + C(q,q̇)·q̇ + G + Cᵀ·(diag(Ia)·C·q̈ + f(C·q̇)).
+        `gear_ratios` (n,) (motor angle per joint-side angle) only map motor-side logs
+        (`joint_positions_from_motor`). A singular, non-square or non-finite coupling
+        raises InvalidParameterError / ShapeMismatchError."""
+    @property
+    def actuators(self) -> dict[str, Any]:
+        """'coupling' ((n, n) or None = identity), 'armature' (bool), 'armature_values'
+        ((n,) kg·m² or None), 'gear_ratios' ((n,) or None)."""
+    def joint_torques_from_currents(self, current: _ArrayLike, gains: _ArrayLike) -> _F64:
+        """Joint torques τ = Cᵀ·(K∘i) (N·m, N) from motor currents `current` (A), (n,) or
+        (N, n), with joint-side drive gains `gains` (n,) N·m/A (torque constant × gear
+        ratio)."""
+    def joint_positions_from_motor(self, theta: _ArrayLike) -> _F64:
+        """Joint positions q = C⁻¹·(θ/r) from motor angles θ (rad, motor side), (n,) or
+        (N, n); needs `gear_ratios`. Also maps motor velocities/accelerations."""
+    def joint_torques_from_motor(self, tau_motor: _ArrayLike) -> _F64:
+        """Joint torques τ = Cᵀ·(r∘τ_motor) (N·m, N) from motor-side torques (N·m), (n,)
+        or (N, n); needs `gear_ratios`."""
+    def to_toml(self, urdf: str, parameters: _ArrayLike | None = None) -> str:
+        """A TOML robot file of this chain whose links are in the URDF `urdf` (a path
+        relative to the TOML file, e.g. `to_urdf`'s output next to it), with the drives
+        URDF cannot hold ([actuators]: coupling, armature values, gear ratios, per-actuator
+        friction); `parameters` (P,) default to the chain's own."""
     @property
     def name(self) -> str:
         """The robot's name from its file ('robot' otherwise)."""
@@ -753,15 +814,21 @@ class SerialChain:
         candidates: _ArrayLike | None = None,
         folds: int = 4,
         refine: bool = True,
+        max_widenings: int = 2,
     ) -> dict[str, Any]:
         """Chooses the speed scale v_s (rad/s, m/s) of this chain's smooth Coulomb friction
         fc·tanh(q̇/v_s) from `data` (the chain must have a Coulomb term): for each candidate
         (default 0 = the exact sign, and 16 log-spaced values over 1e-3..0.3) least squares
         on the base parameters is scored by `folds`-fold cross-validation over contiguous
-        blocks of samples, and the best grid point is refined by a parabola in log v_s.
-        Returns {"chosen", "candidates", "cv_rms" (N·m, N; None where singular),
-        "reversals" (speed sign changes per joint), "note" (why the chain's own scale was
-        kept when the data cannot decide: no speed reversal, a flat curve)}. Apply it with
+        blocks of samples; an optimum on the edge of the candidates widens the range by a
+        decade on that side (at most `max_widenings` times), and the best grid point is
+        refined by a parabola in log v_s. Returns {"chosen", "candidates", "cv_rms" (N·m,
+        N; None where singular), "reversals" (speed sign changes per joint), "identifiable"
+        (False for data without a speed reversal or with a cross-validation curve flat to
+        0.1 %, where the chain's own scale is kept, and for an optimum still on an edge
+        after the widenings, where the best candidate is chosen), "note" (why not
+        identifiable; None otherwise), "widenings", "range" (smallest and largest positive
+        candidate scored)}. Apply it with
         `with_friction(..., coulomb_smoothing=report["chosen"])`."""
     def base_parameters(
         self, *, samples: int = 0, seed: int = 0x5EED_BA5E, rank_tolerance: float = 1e-8
@@ -797,11 +864,17 @@ class IdentifiedModel:
     and saves to / loads from JSON, so a saved model needs neither the robot file nor the
     data."""
 
+    MAX_FILE_BYTES: Final[int]
+    """Largest model file `load` reads (256 MiB)."""
     @staticmethod
     def from_json(text: str) -> IdentifiedModel: ...
     @staticmethod
     def load(path: str | os.PathLike[str]) -> IdentifiedModel:
-        """A model from a file written by `save`."""
+        """A model from a file written by `save`. The path must be a regular file of at
+        most MAX_FILE_BYTES, checked before it is opened (a FIFO or /dev/zero is refused,
+        never read); a missing, unreadable, oversized or malformed file is an
+        InvalidParameterError with `.file`, `.what` (path, size, content) and `.message`, whose
+        message names the file and, for bad JSON, the line, column and what is wrong."""
     def to_json(self) -> str: ...
     def save(self, path: str | os.PathLike[str]) -> None:
         """Writes the model as JSON, atomically (a temporary file moved into place)."""
@@ -862,6 +935,13 @@ class IdentifiedModel:
     def settings(self) -> dict[str, Any]: ...
     @property
     def preprocessing(self) -> dict[str, Any]: ...
+    @property
+    def actuators(self) -> list[dict[str, Any]]:
+        """Per actuator: 'actuator' (1-based), 'joints' it moves, and 'terms' (fv, fc, fo,
+        Ia as the robot has them), each a dict with 'name' (e.g. 'Ia6'), 'base_index' (the
+        base parameter it is identified in, None if unidentifiable), 'combination', 'alone'
+        (the base parameter is this term alone), 'value' (its β̂), 'sigma', 'standard'
+        (physically consistent value, method "physical"). Empty without actuator terms."""
     def __reduce__(self) -> tuple[Any, ...]: ...
 
 def identified_model_from_parts(
@@ -929,8 +1009,12 @@ def identify(
     input-noise bias), `least_squares_prior_width` (default 3: P0 of β is 3² times the
     weighted least-squares covariance; 0 for the diagonal prior); `discretisation` of
     ekf also takes "midpoint" (its default); physical `prior`
-    (standard parameters π0, e.g. `robot.parameters`; default a 1 kg body per link),
-    `prior_weight` (≥ 0, default 0: the prior only fixes what the data do not see). The
+    (standard parameters π0; default the robot's own, `robot.parameters`: a URDF's
+    inertials), `divergence_weight` (γ ≥ 0, default 10: the log-det divergence of each
+    link's pseudo-inertia from the prior's, in units of the data's χ², holds at the prior
+    what the data do not determine without biasing what they do), `prior_weight` (≥ 0,
+    default 0: an extra ridge towards π0), `weighted` (default True: each joint weighted
+    by 1/σ_j² as wls estimates it; False: unit weights). The
     model records the settings used, including the values chosen from the data.
     Errors: ShapeMismatchError (joint count), TooFewSamplesError, RankDeficientError (data
     that do not excite every base parameter), InvalidParameterError (unknown method, a
@@ -1008,7 +1092,7 @@ class Dataset:
         """t[-1] − t[0], s."""
     def slice(self, start: int, stop: int) -> Dataset:
         """Samples start..stop as a new data set (TooFewSamplesError below 8)."""
-    def __getitem__(self, key: slice) -> Dataset:
+    def __getitem__(self, key: builtins.slice) -> Dataset:
         """Contiguous slices only (step 1)."""
     def __len__(self) -> int: ...
     def to_dict(self) -> _Dataset: ...
@@ -1141,11 +1225,14 @@ def sensitivity(
     substeps: int = 20,
     kp: _ArrayLike | None = None,
     kd: _ArrayLike | None = None,
+    progress: Callable[[int, int], object] | None = None,
 ) -> _Sensitivity:
     """Sensitivity of the simulated robot to each λ_i (paper Table 6, Fig. 8): λ_i scaled by
     `points` factors in [1 − range, 1 + range] (0 < range < 1), the others nominal (default
     Table 3), each run tracking `reference` under the nominal controller without noise.
-    threads = 0 uses every core. Runs in Rust with the GIL released."""
+    threads = 0 uses every core. Runs in Rust with the GIL released; `progress(done,
+    total)` is called on the calling thread while it runs, and an exception it raises stops
+    the sweep and is raised."""
 
 # --- simulation and validation of any chain -----------------------------------------------
 
@@ -1296,7 +1383,10 @@ def validate_model(
     eqs. 45–47). `model` is an IdentifiedModel (τ̂ = Y_b·β̂), or a SerialChain with its
     own parameters, or a SerialChain with base parameters `beta` in the analysis `base`
     (default the chain's `base_parameters()`). Raises ShapeMismatchError if data's joint
-    count is not the model's."""
+    count is not the model's. The reference is data.tau as given: for a Dataset made by
+    `preprocess_log` that is the low-passed torque, not the measurement; score a log with
+    `prrrp.prediction.prepare(raw, settings)` instead (against the measured torque at the
+    log's rows)."""
 
 def design_excitation(
     robot: SerialChain,

@@ -92,12 +92,23 @@ def read_joint_states(
             msg = reader.deserialize(raw, conn.msgtype)
             names = tuple(msg.name)
             if names not in index:
-                index[names] = _match(p, names, joint_names, k)
+                index[names] = _match(p, topic, names, joint_names, k)
             cols = index[names]
+            where = f"{p}: message {k} on '{topic}'"
+            if len(msg.position) != len(names):
+                raise InputError(
+                    f"{where} has {len(msg.position)} positions for {len(names)} joint names; "
+                    "a JointState message gives one position per name"
+                )
             if len(msg.effort) != len(names):
                 raise InputError(
-                    f"{p}: message {k} on '{topic}' has {len(msg.effort)} efforts for "
+                    f"{where} has {len(msg.effort)} efforts for "
                     f"{len(names)} joints; identification needs measured joint torques"
+                )
+            if len(msg.velocity) not in (0, len(names)):
+                raise InputError(
+                    f"{where} has {len(msg.velocity)} velocities for {len(names)} joint "
+                    "names; a JointState message gives one per name or none"
                 )
             sec = msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec
             t.append(sec if sec > 0 else 1e-9 * stamp_ns)
@@ -119,12 +130,23 @@ def read_joint_states(
     return out
 
 
-def _match(path: Path, names: tuple[str, ...], joints: list[str], k: int) -> np.ndarray:
+def _match(path: Path, topic: str, names: tuple[str, ...], joints: list[str], k: int) -> np.ndarray:
+    """Columns of the robot's joints in a message naming ``names``; a name given twice is
+    an error (which of its values is the joint's would be a guess)."""
+    seen: set[str] = set()
+    for name in names:
+        if name in seen:
+            raise InputError(
+                f"{path}: message {k} on '{topic}' names joint '{name}' twice; each joint "
+                "must appear once per JointState message"
+            )
+        seen.add(name)
     where = {n: i for i, n in enumerate(names)}
     missing = [j for j in joints if j not in where]
     if missing:
         raise InputError(
-            f"{path}: message {k} does not name the robot's joint(s) {', '.join(missing)} "
+            f"{path}: message {k} on '{topic}' does not name the robot's joint(s) "
+            f"{', '.join(missing)} "
             f"(it names {', '.join(names) or 'none'})"
         )
     return np.asarray([where[j] for j in joints], dtype=int)

@@ -9,6 +9,8 @@ joints (N = 5 for the paper's arm, :func:`read_measurements`; any N, :func:`read
 - ``q1..qN``: joint positions, m (prismatic) or rad (revolute) — for the paper's arm
   [d1, θ2, θ3, θ4, d5];
 - ``tau1..tauN``: generalised forces, N or N·m — for the paper's arm [F1, τ2, τ3, τ4, F5];
+  a log of any robot (:func:`read_table` with ``real_log``) may give motor currents
+  ``i1..iN`` (A) instead, converted with drive gains (``prrrp.drives``);
 - optional ``qd1..qdN`` (m/s, rad/s) and ``qdd1..qddN`` (m/s², rad/s²): when both are given
   they are used as they are; otherwise velocities and accelerations are obtained by the
   preprocessing (zero-phase low-pass filter and differentiation). A real log may give
@@ -26,8 +28,9 @@ import difflib
 import math
 import os
 import tempfile
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -51,7 +54,10 @@ class InputError(ValueError):
 
 def _expected(n: int | None = NDOF) -> str:
     k = "N" if n is None else str(n)
-    return f"expected t, q1..q{k}, tau1..tau{k} and optionally qd1..qd{k}, qdd1..qdd{k}"
+    return (
+        f"expected t, q1..q{k}, tau1..tau{k} (or motor currents i1..i{k}) and optionally "
+        f"qd1..qd{k}, qdd1..qdd{k}"
+    )
 
 
 def columns(n: int) -> dict[str, tuple[str, ...]]:
@@ -61,6 +67,7 @@ def columns(n: int) -> dict[str, tuple[str, ...]]:
         "tau": tuple(f"tau{i}" for i in range(1, n + 1)),
         "qd": tuple(f"qd{i}" for i in range(1, n + 1)),
         "qdd": tuple(f"qdd{i}" for i in range(1, n + 1)),
+        "i": tuple(f"i{i}" for i in range(1, n + 1)),
     }
 
 
@@ -104,7 +111,9 @@ def read_table(
     """Reads a measurement CSV file of ``dof`` joints (None: as many as the header has).
 
     Returns a dict with ``t`` (S,), ``q`` and ``tau`` (S, N) and, when present in the file,
-    ``qd`` and ``qdd`` (S, N). With ``real_log`` the file is a raw log for
+    ``qd`` and ``qdd`` (S, N). With ``real_log`` a file may give motor currents ``i1..iN``
+    (A) instead of torques: the result then has ``current`` (S, N) and no ``tau``. With
+    ``real_log`` the file is a raw log for
     ``prrrp.preprocess_log``: time stamps may repeat (it drops the repeats), and measured
     velocities ``qd`` may come without ``qdd``. Raises InputError (one-line message naming the
     file, row and column) for a missing/misspelt column, a non-numeric or non-finite cell,
@@ -146,10 +155,15 @@ def _read(path: Path, dof: int | None, real_log: bool, need_tau: bool) -> dict[s
     n = _dof_of(path, header) if dof is None else dof
     groups = columns(n)
     required = ("t", *groups["q"], *groups["tau"])
-    every = (*required, *groups["qd"], *groups["qdd"])
-    has_tau = need_tau or any(c in seen for c in groups["tau"])
+    every = (*required, *groups["qd"], *groups["qdd"], *(groups["i"] if real_log else ()))
+    has_current = real_log and any(c in seen for c in groups["i"])
+    has_tau = (need_tau and not has_current) or any(c in seen for c in groups["tau"])
+    if has_current and has_tau:
+        raise InputError(
+            f"{path}: both joint torques tau1..tau{n} and motor currents i1..i{n}; give one"
+        )
     if not has_tau:
-        required = ("t", *groups["q"])
+        required = ("t", *groups["q"], *(groups["i"] if has_current else ()))
     missing = [c for c in required if c not in seen]
     for name in header:
         if name not in every:
@@ -181,33 +195,10 @@ def _read(path: Path, dof: int | None, real_log: bool, need_tau: bool) -> dict[s
                     f"{path}: missing column '{name}' (give all of {group[0]}..{group[-1]} or none)"
                 )
 
-    values: list[list[float]] = []
-    for lineno, line in rows:
-        cells = next(csv.reader([line]))
-        if len(cells) != len(header):
-            raise InputError(
-                f"{path}: line {lineno} has {len(cells)} cells, the header "
-                f"(line {header_lineno}) has {len(header)}"
-            )
-        row: list[float] = []
-        for name, cell in zip(header, cells, strict=True):
-            try:
-                x = float(cell)
-            except ValueError:
-                raise InputError(
-                    f"{path}: line {lineno}, column '{name}': '{cell.strip()}' is not a number"
-                ) from None
-            if not math.isfinite(x):
-                raise InputError(
-                    f"{path}: line {lineno}, column '{name}': {cell.strip()} is not finite"
-                )
-            row.append(x)
-        values.append(row)
-
-    n = len(values)
+    table = _numbers(path, rows, header, header_lineno)
+    n = len(table)
     if n < MIN_SAMPLES:
         raise InputError(f"{path}: too few samples ({n}); at least {MIN_SAMPLES} are needed")
-    table = np.asarray(values, dtype=np.float64)
     col = {name: table[:, j] for j, name in enumerate(header)}
     t = col["t"]
     steps = np.diff(t)
@@ -219,9 +210,99 @@ def _read(path: Path, dof: int | None, real_log: bool, need_tau: bool) -> dict[s
             f"{path}: time {what} at data row {k + 1} (t = {t[k]:g} s after {t[k - 1]:g} s)"
         )
     out = {"t": t.copy()}
-    for key, present in (("q", True), ("tau", has_tau), ("qd", has_qd), ("qdd", has_qdd)):
+    for key, present in (
+        ("q", True),
+        ("tau", has_tau),
+        ("qd", has_qd),
+        ("qdd", has_qdd),
+        ("i", has_current),
+    ):
         if present:
-            out[key] = np.column_stack([col[c] for c in groups[key]])
+            out["current" if key == "i" else key] = np.column_stack([col[c] for c in groups[key]])
+    return out
+
+
+#: Lines parsed per block by :func:`_numbers`: large enough that numpy does the work,
+#: small enough that the block's Python strings (≈ 60 bytes per cell) stay about 2 MB.
+CHUNK_LINES = 2048
+
+
+def _numbers(
+    path: Path, rows: Iterator[tuple[int, str]], header: list[str], header_lineno: int
+) -> np.ndarray:
+    """The data lines as one float64 array (rows × columns), parsed block by block into a
+    growing array: memory is the numbers' 8 bytes each (the array is sized from the file
+    size and the first block's line length, and grows by half when short) plus one block
+    of text, not Python lists of floats (≈ 28× the file's size)."""
+    width = len(header)
+    size = path.stat().st_size
+    table = np.empty((0, width))
+    count = 0
+    chunk: list[str] = []
+    linenos: list[int] = []
+
+    def flush() -> None:
+        nonlocal table, count
+        if any('"' in line for line in chunk):  # quoted cells: the csv module, line by line
+            cells = [next(csv.reader([line])) for line in chunk]
+        else:
+            cells = [line.rstrip("\r\n").split(",") for line in chunk]
+        for lineno, row in zip(linenos, cells, strict=True):
+            if len(row) != width:
+                raise InputError(
+                    f"{path}: line {lineno} has {len(row)} cells, the header "
+                    f"(line {header_lineno}) has {width}"
+                )
+        try:
+            block = np.array(cells, dtype=np.float64).reshape(len(cells), width)
+        except ValueError:
+            block = None
+        if block is None or not np.isfinite(block).all():
+            block = _parse_slowly(path, header, linenos, cells)
+        if count + len(block) > len(table):
+            if count == 0:
+                # Rows in the file, from the length of the lines seen so far (+5 %).
+                line_bytes = max(sum(len(x) for x in chunk) / len(chunk), 1.0)
+                guess = int(1.05 * size / line_bytes) + 1
+            else:
+                guess = len(table) + len(table) // 2
+            grown = np.empty((max(guess, count + len(block)), width))
+            grown[:count] = table[:count]
+            table = grown
+        table[count : count + len(block)] = block
+        count += len(block)
+        chunk.clear()
+        linenos.clear()
+
+    for lineno, line in rows:
+        chunk.append(line)
+        linenos.append(lineno)
+        if len(chunk) == CHUNK_LINES:
+            flush()
+    if chunk:
+        flush()
+    return table[:count]
+
+
+def _parse_slowly(
+    path: Path, header: list[str], linenos: list[int], cells: list[list[str]]
+) -> np.ndarray:
+    """A block cell by cell with Python's float(): the InputError of its first cell that
+    is not a finite number (line and column named), or the block."""
+    out = np.empty((len(cells), len(header)))
+    for i, (lineno, row) in enumerate(zip(linenos, cells, strict=True)):
+        for j, (name, cell) in enumerate(zip(header, row, strict=True)):
+            try:
+                x = float(cell)
+            except ValueError:
+                raise InputError(
+                    f"{path}: line {lineno}, column '{name}': '{cell.strip()}' is not a number"
+                ) from None
+            if not math.isfinite(x):
+                raise InputError(
+                    f"{path}: line {lineno}, column '{name}': {cell.strip()} is not finite"
+                )
+            out[i, j] = x
     return out
 
 
@@ -251,13 +332,48 @@ def format_table(names: list[str], table: np.ndarray) -> str:
     return "\n".join(lines) + "\n"
 
 
+#: Rows formatted at a time by :func:`write_table`.
+WRITE_CHUNK_ROWS = 10_000
+
+
+def write_table(
+    f: Any, names: Sequence[str], table: np.ndarray, integer_columns: Sequence[str] = ()
+) -> None:
+    """Writes the CSV of :func:`format_table` to the text file ``f`` block by block
+    (memory: one block of text, not the whole file's); ``integer_columns`` are written
+    as integers."""
+    table = np.asarray(table, dtype=np.float64)
+    ints = [k for k, name in enumerate(names) if name in integer_columns]
+    f.write(",".join(names) + "\n")
+    for start in range(0, len(table), WRITE_CHUNK_ROWS):
+        block = table[start : start + WRITE_CHUNK_ROWS].tolist()
+        for row in block:
+            for k in ints:
+                row[k] = int(row[k])
+        f.write("".join(",".join(map(repr, row)) + "\n" for row in block))
+
+
+def write_table_atomic(
+    path: str | os.PathLike[str],
+    names: Sequence[str],
+    table: np.ndarray,
+    integer_columns: Sequence[str] = (),
+) -> None:
+    """:func:`write_table` into ``path`` through :func:`atomic_path`."""
+    with atomic_path(path) as tmp, tmp.open("w", encoding="utf-8") as f:
+        write_table(f, names, table, integer_columns)
+
+
 @contextlib.contextmanager
 def atomic_path(path: str | os.PathLike[str]) -> Iterator[Path]:
     """Yields a temporary path next to ``path``; on success it replaces ``path`` at once.
 
     On an exception the temporary file is removed and an existing ``path`` is left as it was.
+    A symbolic link is followed: its target is replaced and the link kept.
     """
     path = Path(path)
+    if path.is_symlink():
+        path = Path(os.path.realpath(path))
     parent = path.parent if str(path.parent) else Path(".")
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=parent)
     os.close(fd)

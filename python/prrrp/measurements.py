@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-from prrrp import bags, csvio
+from prrrp import bags, csvio, drives
 from prrrp._prrrp import Dataset, SerialChain, preprocess_log
 
 #: Settings of ``prrrp.preprocess_log`` that a preprocessing record may carry (and that
@@ -37,6 +37,8 @@ def read_measurements(
     *,
     topic: str = bags.DEFAULT_TOPIC,
     need_tau: bool = True,
+    drive_gains: list[float] | None = None,
+    motor_side: bool = False,
 ) -> dict[str, np.ndarray]:
     """Joint measurements of ``robot`` from ``path``: a CSV file (``t, q1..qN, tau1..tauN``,
     optional ``qd1..qdN``, ``qdd1..qddN``; SI units; N from the robot, or from the header
@@ -48,13 +50,33 @@ def read_measurements(
     column, a NaN, a missing topic or joint raise ``prrrp.csvio.InputError`` (a
     ``ValueError``) with a one-line message. Without ``need_tau`` a CSV file may lack the
     torque columns (the result then has no ``tau``).
+
+    Geared arms (see ``prrrp.drives``): a CSV file may give motor currents ``i1..iN`` (A)
+    instead of torques, converted with ``drive_gains`` (N·m/A per actuator, joint side);
+    with ``motor_side`` the positions, velocities and torques are motor-side and mapped
+    through the robot's gear ratios and coupling. Both need ``robot``.
     """
     if bags.is_bag(path):
         if robot is None:
             raise csvio.InputError(f"{path}: reading a bag needs the robot (its joint names)")
-        return bags.read_joint_states(path, list(robot.joint_names), topic)
-    return csvio.read_table(
-        path, None if robot is None else robot.dof, real_log=True, need_tau=need_tau
+        raw = bags.read_joint_states(path, list(robot.joint_names), topic)
+    else:
+        raw = csvio.read_table(
+            path, None if robot is None else robot.dof, real_log=True, need_tau=need_tau
+        )
+    if robot is None:
+        if "current" in raw or drive_gains is not None or motor_side:
+            raise csvio.InputError(f"{path}: converting drive data needs the robot")
+        return raw
+    # A log read for prediction (need_tau False) may hold torques where the model was
+    # identified from currents: the recorded gains are then simply unused.
+    return drives.to_joint_side(
+        raw,
+        robot,
+        drive_gains=drive_gains,
+        motor_side=motor_side,
+        source=str(path),
+        strict=need_tau,
     )
 
 

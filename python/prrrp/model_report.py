@@ -2,23 +2,31 @@
 prediction per joint, residual histograms, friction curves), written by
 ``prrrp identify --robot ... --out DIR`` and :func:`write_report`.
 
+Every torque error is against the torque **as measured**, at the rows it was measured
+(:mod:`prrrp.prediction`): the model is evaluated on the processed signals and its
+prediction mapped back to the log's time stamps; the low-passed torque that identification
+fits is shown beside it, labelled, never in its place. Rows in the filter's edge transient
+and repeated time stamps are counted and left out of the errors.
+
 The friction curve of joint j plots the friction torque the model identified,
 fv·q̇ + fc·tanh(q̇/v_s) + fo (the exact sign when v_s = 0), over the data's
 *residual-corrected* points τ_j − τ̂_rigid,j: the measured torque minus the model's
 rigid-body part, i.e. the friction the data shows. A model that fits puts the curve
-through the cloud.
+through the cloud. With coupled actuators (``SerialChain.actuators``) the curves are per
+actuator over its velocity (C·q̇)ₘ, the points C⁻ᵀ·(τ − τ̂_rigid).
 """
 
 from __future__ import annotations
 
 import os
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from prrrp._prrrp import Dataset, IdentifiedModel
+from prrrp.prediction import LogGrid, _at_rows, prepare, recorded_settings
 
 FRICTION_TERMS = ("fv", "fc", "fo")
 
@@ -71,17 +79,174 @@ def _rms(x: np.ndarray) -> np.ndarray:
     return np.sqrt(np.mean(np.asarray(x) ** 2, axis=0))
 
 
-def prediction_table(model: IdentifiedModel, data: Dataset) -> dict[str, np.ndarray]:
-    """Per joint: RMS of the prediction error (N·m, N), RMS of the measured torque, and the
-    error as % of it."""
-    err = np.asarray(model.predict(data.q, data.qd, data.qdd)) - np.asarray(data.tau)
-    rms, ref = _rms(err), _rms(data.tau)
-    pct = np.where(ref > 0, 100 * rms / np.where(ref > 0, ref, 1), np.nan)
-    return {"rms": rms, "tau_rms": ref, "percent": pct}
+#: What the report and the command line accept as data: the measurements as read
+#: (``prrrp.read_measurements``'s dict: scored at their rows), a prepared
+#: :class:`~prrrp.prediction.LogGrid`, or a ready ``Dataset`` (scored against its own τ).
+DataLike = Mapping[str, np.ndarray] | LogGrid | Dataset
+
+
+def as_grid(data: DataLike, model: IdentifiedModel) -> LogGrid:
+    """``data`` prepared for predictions at its rows with ``model``'s recorded
+    preprocessing settings."""
+    if isinstance(data, LogGrid):
+        return data
+    if isinstance(data, Dataset):
+        return prepare(data)
+    return prepare(data, recorded_settings(model))
+
+
+def prediction_table(model: IdentifiedModel, data: DataLike) -> dict[str, Any]:
+    """Per joint over the scored rows of ``data``: RMS of the prediction error against the
+    measured torque (N·m, N), RMS of the measured torque, and the error as % of it; with
+    the figures against the low-passed torque beside them and the rows scored
+    (:meth:`prrrp.prediction.LogGrid.errors`)."""
+    grid = as_grid(data, model)
+    return grid.errors(grid.predict(model))
+
+
+def _shade_edges(ax: Any, grid: LogGrid) -> None:
+    """Grey spans over the rows in the filter's edge transient (not scored)."""
+    if not grid.edge.any():
+        return
+    t = grid.t
+    inside = t[~grid.edge]
+    if len(inside) == 0:
+        return
+    if t[0] < inside[0]:
+        ax.axvspan(t[0], inside[0], color="0.85", lw=0)
+    if t[-1] > inside[-1]:
+        ax.axvspan(inside[-1], t[-1], color="0.85", lw=0)
+
+
+#: A link whose identified mass is outside [1/MASS_FACTOR, MASS_FACTOR] times its robot
+#: file's is flagged: CAD masses of arm links are within tens of percent of the built
+#: links (cables, motors and covers moved between links make up to ≈ 2×); beyond 3× the
+#: identified body is not that link but a direction the data do not constrain, or an
+#: unmodelled load (a tool, a payload).
+MASS_FACTOR = 3.0
+#: A link whose rotational inertia about its centre of mass (the trace of I_c) is outside
+#: [1/INERTIA_FACTOR, INERTIA_FACTOR] times the file's is flagged: I ~ m·r², so this is the
+#: mass bound compounded with a √3 change of size.
+INERTIA_FACTOR = 9.0
+
+
+def prior_comparison(model: IdentifiedModel) -> list[dict[str, Any]] | None:
+    """Each link of a physically consistent model (method "physical") against its prior
+    (the robot file's inertials unless the identification was given another ``prior``):
+    identified and prior mass (kg) and their ratio, the shift of the centre of mass (m),
+    the prior's radius of gyration about its centre of mass r_g = √(tr I_c / 2m) (m, the
+    RMS distance of its mass from the centre of mass), the ratio of tr I_c, and ``flags``
+    naming what departs far: ``mass`` (ratio outside 1/3..3, :data:`MASS_FACTOR`), ``com``
+    (a shift larger than r_g: the centre of mass left the bulk of the prior body),
+    ``inertia`` (ratio outside 1/9..9, :data:`INERTIA_FACTOR`). None for models without
+    standard parameters."""
+    est = model.standard_parameters
+    if est is None:
+        return None
+    prior_setting = (model.settings or {}).get("prior")
+    if isinstance(prior_setting, list):
+        prior = np.asarray(prior_setting, dtype=float)
+    else:
+        prior = np.asarray(model.robot.parameters, dtype=float)
+    robot = model.robot
+    now = robot.feasibility(np.asarray(est))["links"]
+    before = robot.feasibility(prior)["links"]
+    rows = []
+    for a, b in zip(now, before, strict=True):
+        m, m0 = float(a["mass"]), float(b["mass"])
+        ratio = m / m0 if m0 > 0 else float("nan")
+        shift = r_g = inertia_ratio = float("nan")
+        if a["com"] is not None and b["com"] is not None:
+            shift = float(np.linalg.norm(np.subtract(a["com"], b["com"])))
+        if b["principal_moments"] is not None and m0 > 0:
+            tr0 = float(np.sum(b["principal_moments"]))
+            r_g = float(np.sqrt(max(tr0, 0.0) / (2 * m0)))
+            if a["principal_moments"] is not None and tr0 > 0:
+                inertia_ratio = float(np.sum(a["principal_moments"])) / tr0
+        flags = []
+        if not (1 / MASS_FACTOR <= ratio <= MASS_FACTOR):
+            flags.append("mass")
+        if shift > r_g:
+            flags.append("com")
+        if not (1 / INERTIA_FACTOR <= inertia_ratio <= INERTIA_FACTOR):
+            flags.append("inertia")
+        rows.append(
+            {
+                "link": a["link"],
+                "mass": m,
+                "prior_mass": m0,
+                "mass_ratio": ratio,
+                "com_shift": shift,
+                "prior_radius_of_gyration": r_g,
+                "inertia_ratio": inertia_ratio,
+                "flags": flags,
+            }
+        )
+    return rows
+
+
+def _prior_section(model: IdentifiedModel) -> list[str]:
+    """The report's "Links against the prior" section (empty without standard parameters)."""
+    rows = prior_comparison(model)
+    if rows is None:
+        return []
+    lines = [
+        "## Links against the prior",
+        "",
+        "Each identified link beside the robot file's (the prior the fit is held to where "
+        "the data do not decide; see the settings' divergence_weight). Flagged: a mass "
+        f"outside 1/{MASS_FACTOR:g}..{MASS_FACTOR:g}× the file's (CAD masses are within tens "
+        "of percent of the built link; beyond 3× it is not that link but a direction the "
+        "data do not constrain, or an unmodelled load), a centre of mass moved further than "
+        "the prior body's radius of gyration r_g (out of the bulk of its mass), a rotational "
+        f"inertia about it outside 1/{INERTIA_FACTOR:g}..{INERTIA_FACTOR:g}× (the mass bound "
+        "with a √3 change of size).",
+        "",
+    ]
+    lines += _table(
+        [
+            "link",
+            "mass (kg)",
+            "prior (kg)",
+            "ratio",
+            "COM shift (m)",
+            "prior r_g (m)",
+            "tr I_c ratio",
+            "flag",
+        ],
+        [
+            [
+                r["link"],
+                _g(r["mass"]),
+                _g(r["prior_mass"]),
+                _g(r["mass_ratio"], 3),
+                _g(r["com_shift"], 3),
+                _g(r["prior_radius_of_gyration"], 3),
+                _g(r["inertia_ratio"], 3),
+                ", ".join(r["flags"]).upper() or "–",
+            ]
+            for r in rows
+        ],
+    )
+    flagged = [r["link"] for r in rows if r["flags"]]
+    lines.append("")
+    if flagged:
+        lines.append(
+            f"**Far from the prior: {', '.join(flagged)}.** Check the data excite these links "
+            "(prrrp excite), the robot file (a tool or payload missing from it), or raise "
+            "divergence_weight to hold them nearer the file."
+        )
+    else:
+        lines.append("Every link is within these bounds of its prior.")
+    lines.append("")
+    return lines
 
 
 def write_figures(
-    model: IdentifiedModel, data: Dataset, directory: Path, validation: Dataset | None = None
+    model: IdentifiedModel,
+    data: DataLike,
+    directory: Path,
+    validation: DataLike | None = None,
 ) -> list[tuple[str, str]]:
     """Writes the figures; returns (file name, caption) pairs."""
     plt = _pyplot()
@@ -89,42 +254,78 @@ def write_figures(
     n = len(joints)
     rows, cols = _grid(n)
     out: list[tuple[str, str]] = []
+    fit = as_grid(data, model)
 
-    check = validation if validation is not None else data
+    check = as_grid(validation, model) if validation is not None else fit
     which = "validation" if validation is not None else "identification"
-    pred = np.asarray(model.predict(check.q, check.qd, check.qdd))
-    t = np.asarray(check.t)
+    pred = check.predict(model)
+    t = check.t
+    cutoff = (check.report or {}).get("cutoff_hz")
     fig, axes = plt.subplots(rows, cols, figsize=(4.2 * cols, 2.6 * rows), squeeze=False)
     for j in range(n):
         ax = axes[j // cols][j % cols]
-        ax.plot(t, check.tau[:, j], lw=0.8, label="measured")
-        ax.plot(t, pred[:, j], lw=0.8, ls="--", label="predicted")
+        _shade_edges(ax, check)
+        ax.plot(t, check.measured[:, j], lw=0.6, color="0.55", label="measured")
+        if check.filtered is not None:
+            ax.plot(
+                t,
+                check.filtered[:, j],
+                lw=0.8,
+                color="tab:blue",
+                label=f"measured, low-passed at {cutoff:.3g} Hz (fitted)",
+            )
+        ax.plot(t, pred[:, j], lw=0.8, ls="--", color="tab:red", label="predicted")
         ax.set_title(joints[j], fontsize=9)
         ax.set_xlabel("t (s)")
+        ax.set_ylabel("torque (N·m, N)", fontsize=8)
     for j in range(n, rows * cols):
         axes[j // cols][j % cols].axis("off")
-    axes[0][0].legend(fontsize=7)
+    axes[0][0].legend(fontsize=6)
     _save(fig, directory / "torque.png")
-    out.append(("torque.png", f"Measured and predicted joint torques on the {which} data"))
+    out.append(
+        (
+            "torque.png",
+            f"Measured and predicted joint torques on the {which} data (grey spans: the "
+            "filter's edge transient, not scored)",
+        )
+    )
 
-    resid = np.asarray(check.tau) - pred
+    k = check.scored
+    resid = check.measured[k] - pred[k]
     fig, axes = plt.subplots(rows, cols, figsize=(4.2 * cols, 2.4 * rows), squeeze=False)
     for j in range(n):
         ax = axes[j // cols][j % cols]
         ax.hist(resid[:, j], bins=40)
         ax.set_title(f"{joints[j]}: RMS {_rms(resid[:, j]):.3g}", fontsize=9)
+        ax.set_xlabel("measured − predicted (N·m, N)", fontsize=8)
     for j in range(n, rows * cols):
         axes[j // cols][j % cols].axis("off")
     _save(fig, directory / "residual.png")
-    out.append(("residual.png", f"Histogram of the torque residual per joint ({which} data)"))
+    out.append(
+        (
+            "residual.png",
+            f"Histogram of the torque residual, measured − predicted, per joint ({which} "
+            "data, scored rows)",
+        )
+    )
 
     friction, mask = friction_split(model)
     if mask.any():
         v_s = float(model.robot.coulomb_smoothing)
         beta_rigid = np.where(mask, 0.0, model.beta)
-        rigid = _predict_with(model, beta_rigid, data)
-        points = np.asarray(data.tau) - rigid
-        qd = np.asarray(data.qd)
+        k = fit.scored
+        rigid = fit.predict(_with_beta(model, beta_rigid))[k]
+        points = fit.measured[k] - rigid
+        p = fit.processed
+        qd = _at_rows(np.asarray(p.t), np.asarray(p.qd), fit.t)[k]
+        coupling = model.robot.actuators["coupling"]
+        titles = joints
+        if coupling is not None:
+            # Per actuator: its velocity C·q̇ and its friction C⁻ᵀ·(τ − τ̂_rigid).
+            c = np.asarray(coupling)
+            qd = qd @ c.T
+            points = np.linalg.solve(c.T, points.T).T
+            titles = [f"actuator {m + 1}" for m in range(n)]
         fig, axes = plt.subplots(rows, cols, figsize=(4.2 * cols, 2.8 * rows), squeeze=False)
         for j in range(n):
             ax = axes[j // cols][j % cols]
@@ -133,8 +334,9 @@ def write_figures(
             grid = np.linspace(-span, span, 401)
             curve = friction_torque(friction[j : j + 1], grid[:, None], v_s)[:, 0]
             ax.plot(grid, curve, "r", lw=1.2, label="model")
-            ax.set_title(joints[j], fontsize=9)
-            ax.set_xlabel("q̇ (rad/s, m/s)")
+            ax.set_title(titles[j], fontsize=9)
+            ax.set_xlabel("q̇ (rad/s, m/s)" if coupling is None else "(C·q̇)ₘ (rad/s, m/s)")
+            ax.set_ylabel("friction torque (N·m, N)", fontsize=8)
         for j in range(n, rows * cols):
             axes[j // cols][j % cols].axis("off")
         axes[0][0].legend(fontsize=7)
@@ -149,11 +351,10 @@ def write_figures(
     return out
 
 
-def _predict_with(model: IdentifiedModel, beta: np.ndarray, data: Dataset) -> np.ndarray:
+def _with_beta(model: IdentifiedModel, beta: np.ndarray) -> IdentifiedModel:
     from prrrp._prrrp import identified_model_from_parts
 
-    other = identified_model_from_parts(model.robot, beta)
-    return np.asarray(other.predict(data.q, data.qd, data.qdd))
+    return identified_model_from_parts(model.robot, beta)
 
 
 def _table(header: Sequence[str], rows: Sequence[Sequence[str]]) -> list[str]:
@@ -165,52 +366,187 @@ def _table(header: Sequence[str], rows: Sequence[Sequence[str]]) -> list[str]:
 def _g(x: Any, digits: int = 4) -> str:
     if x is None:
         return "–"
+    if isinstance(x, str | bool) or not isinstance(x, int | float | np.number):
+        return str(x)  # a hand-edited record: shown, not computed with
     x = float(x)
     return "–" if not np.isfinite(x) else f"{x:.{digits}g}"
 
 
+def _error_rows(joints: Sequence[str], p: dict[str, Any]) -> list[list[str]]:
+    rows = []
+    for i, j in enumerate(joints):
+        row = [j, _g(p["rms"][i]), _g(p["tau_rms"][i]), _g(p["percent"][i], 3)]
+        if p["filtered_percent"] is not None:
+            row.append(_g(p["filtered_percent"][i], 3))
+        rows.append(row)
+    return rows
+
+
+def prediction_section(model: IdentifiedModel, tables: Sequence[tuple[str, LogGrid]]) -> list[str]:
+    """The "Torque prediction" tables (markdown lines) of ``model`` on each labelled grid."""
+    joints = list(model.robot.joint_names)
+    lines = [
+        "## Torque prediction",
+        "",
+        "Errors against the torque as measured, at the rows it was measured (the model "
+        "evaluated on the processed signals, mapped back to the log's time stamps). The last "
+        "column, for reference only, scores against the low-passed torque the "
+        "identification fitted: it moves with the cut-off and flatters every model.",
+        "",
+    ]
+    for label, grid in tables:
+        p = grid.errors(grid.predict(model))
+        lines.append(f"On the {label}: {grid.describe()}.")
+        lines.append("")
+        header = ["joint", "error RMS (N·m, N)", "measured torque RMS", "error % of measured"]
+        if p["filtered_percent"] is not None:
+            cutoff = (grid.report or {}).get("cutoff_hz")
+            header.append(f"error % vs low-passed at {_g(cutoff, 3)} Hz (reference only)")
+        lines += _table(header, _error_rows(joints, p))
+        lines.append("")
+    return lines
+
+
+def comparison_section(
+    runs: Sequence[dict[str, Any]],
+    joints: Sequence[str],
+    main: str,
+    figure: str | None,
+    default: str = "wls",
+) -> list[str]:
+    """The "Methods compared" section of ``--method all``: one row per method (its
+    ``method``, ``status``, ``error``, ``converged``, ``epochs``, ``seconds``,
+    ``identification`` and ``validation`` error tables, None where not run); ``main`` is
+    the method of model.json, ``default`` the default method."""
+    held_out = any(r.get("validation") is not None for r in runs)
+    which = (
+        "the default method"
+        if main == default
+        else f"the default, {default}, failed: the first method that succeeded"
+    )
+    lines = [
+        "## Methods compared",
+        "",
+        f"`model.json` is the {main} model ({which}); every method's model is in "
+        "`model-<method>.json`. Torque error per joint, % of "
+        "the measured torque's RMS"
+        + (", on the held-out validation data" if held_out else ", on the identification data")
+        + "; time is the identification's wall time (preprocessing and the Coulomb "
+        "speed-scale search are shared and not counted).",
+        "",
+    ]
+    header = ["method", "status", "converged", "epochs", "time (s)"]
+    header += [f"{j} (held out)" for j in joints] if held_out else []
+    header += [f"{j} (identification)" for j in joints]
+    rows = []
+    for r in runs:
+        if r["status"] != "ok":
+            blank = ["–"] * (len(header) - 5)
+            rows.append([r["method"], f"failed: {r['error']}", "–", "–", _g(r["seconds"], 3)])
+            rows[-1] += blank
+            continue
+        row = [
+            r["method"],
+            "ok",
+            "yes" if r["converged"] else "**NO**",
+            "–" if r["epochs"] is None else str(r["epochs"]),
+            _g(r["seconds"], 3),
+        ]
+        if held_out:
+            row += [_g(x, 3) for x in r["validation"]["percent"]]
+        row += [_g(x, 3) for x in r["identification"]["percent"]]
+        rows.append(row)
+    lines += _table(header, rows)
+    lines.append("")
+    if figure:
+        lines += [f"![torque error per joint and method]({figure})", ""]
+    return lines
+
+
+def comparison_figure(runs: Sequence[dict[str, Any]], joints: Sequence[str], path: Path) -> None:
+    """Bars of the torque error per joint (% of the measured torque's RMS), one bar per
+    method that succeeded, on the held-out data when there is some."""
+    plt = _pyplot()
+    ok = [r for r in runs if r["status"] == "ok"]
+    held_out = any(r.get("validation") is not None for r in ok)
+    key = "validation" if held_out else "identification"
+    fig, ax = plt.subplots(figsize=(1.5 + 0.9 * len(joints) * max(len(ok), 1) / 3, 3.4))
+    width = 0.8 / max(len(ok), 1)
+    x = np.arange(len(joints))
+    for k, r in enumerate(ok):
+        values = np.asarray(r[key]["percent"], dtype=float)
+        label = r["method"] + ("" if r["converged"] else " (not converged)")
+        ax.bar(x + (k - (len(ok) - 1) / 2) * width, values, width, label=label)
+    ax.set_xticks(x)
+    ax.set_xticklabels(joints, rotation=30, fontsize=8)
+    ax.set_ylabel("torque error (% of measured RMS)")
+    ax.set_title("held-out validation data" if held_out else "identification data", fontsize=9)
+    ax.grid(True, axis="y", alpha=0.3)
+    ax.legend(fontsize=7)
+    _save(fig, path)
+
+
+def _coulomb_summary(coulomb: dict[str, Any]) -> list[str]:
+    """What the Coulomb speed-scale search decided (``SerialChain.coulomb_scale``'s dict),
+    in a few lines for the report: the choice, whether the data identify it, the range."""
+    v_s = _g(coulomb["chosen"])
+    searched = ""
+    lo, hi = coulomb.get("range") or (None, None)
+    if lo and hi:
+        widened = coulomb.get("widenings", 0)
+        searched = f" Searched v_s = 0 and {_g(lo, 3)}..{_g(hi, 3)} rad/s" + (
+            f" (widened {widened}× by a decade: the optimum sat on an edge)." if widened else "."
+        )
+    if coulomb.get("identifiable", not coulomb.get("note")):
+        head = f"Chosen v_s = {v_s} rad/s by cross-validated least squares."
+    else:
+        head = f"**v_s = {v_s} rad/s is not identified by these data**: {coulomb.get('note')}."
+    return [
+        head + searched,
+        "",
+        "Cross-validated torque RMS (N·m, N) of least squares per candidate (lower is better):",
+    ]
+
+
 def render(
     model: IdentifiedModel,
-    data: Dataset,
+    data: DataLike,
     *,
     figures: Sequence[tuple[str, str]] = (),
-    validation: Dataset | None = None,
+    validation: DataLike | None = None,
     log_report: dict[str, Any] | None = None,
     coulomb: dict[str, Any] | None = None,
     feasibility: Any = None,
     sources: dict[str, str] | None = None,
+    comparison: Sequence[str] = (),
 ) -> str:
-    """The markdown report."""
+    """The markdown report (``comparison``: the lines of :func:`comparison_section`,
+    placed before this model's details)."""
     robot = model.robot
     joints = list(robot.joint_names)
-    lines = [f"# Identified model of {robot.name} ({model.method})", ""]
+    fit = as_grid(data, model)
+    title = f"# Identified model of {robot.name} ({model.method})"
+    if comparison:
+        title = f"# Identified models of {robot.name}: methods compared"
+    lines = [title, ""]
     for k, v in (sources or {}).items():
         lines.append(f"- {k}: `{v}`")
+    d = fit.data
     lines += [
         f"- joints: {robot.dof} ({', '.join(joints)})",
         f"- friction: {', '.join(robot.friction) or 'none'}; Coulomb speed scale v_s = "
         f"{_g(robot.coulomb_smoothing)} rad/s (0 = exact sign)",
-        f"- identification samples: {len(data)} over {data.duration:.3g} s",
+        f"- identification samples: {len(d)} over {d.duration:.3g} s (after preprocessing)",
         f"- base parameters: {len(model.beta)}; cond(W_b) = {_g(model.cond)}",
         "",
-        "## Torque prediction",
-        "",
     ]
-    tables = [("identification data", data)]
+    if comparison:
+        lines += list(comparison)
+        lines += [f"## The {model.method} model (`model.json`)", ""]
+    tables = [("identification data", fit)]
     if validation is not None:
-        tables.append(("validation data", validation))
-    for label, d in tables:
-        p = prediction_table(model, d)
-        lines.append(f"On the {label} ({len(d)} samples):")
-        lines.append("")
-        lines += _table(
-            ["joint", "error RMS (N·m, N)", "torque RMS", "error % of torque RMS"],
-            [
-                [j, _g(p["rms"][i]), _g(p["tau_rms"][i]), _g(p["percent"][i], 3)]
-                for i, j in enumerate(joints)
-            ],
-        )
-        lines.append("")
+        tables.append(("validation data", as_grid(validation, model)))
+    lines += prediction_section(model, tables)
     lines += ["## Base parameters", ""]
     sigma = model.sigma
     rsd = model.rsd_percent
@@ -227,15 +563,10 @@ def render(
         )
     lines += _table(["β", "combination", "value (SI)", "σ", "%σ"], rows)
     lines.append("")
+    lines += _actuator_lines(model)
     if coulomb is not None:
         lines += ["## Coulomb speed scale", ""]
-        if coulomb.get("note"):
-            lines.append(f"Kept v_s = {_g(coulomb['chosen'])} rad/s: {coulomb['note']}.")
-        else:
-            lines.append(
-                f"Chosen v_s = {_g(coulomb['chosen'])} rad/s by cross-validated least squares "
-                "(lower is better):"
-            )
+        lines += _coulomb_summary(coulomb)
         lines.append("")
         order = np.argsort(coulomb["candidates"])
         lines += _table(
@@ -245,16 +576,23 @@ def render(
         lines.append("")
     if feasibility is None and model.standard_parameters is not None:
         st = model.settings
+        weighting = (
+            "each joint weighted by 1/σ_j² as wls estimates σ_j"
+            if st.get("weighted")
+            else "unweighted"
+        )
         feasibility = (
             "The estimate is a set of rigid bodies (every link's pseudo-inertia positive "
             "semidefinite, fv, fc >= 0): non-physical links "
             f"{st.get('non_physical_links') or 'none'}; its residual is "
             f"{_g(st.get('residual_increase_percent'), 3)} % above the unconstrained least "
-            f"squares' ({st.get('iterations')} barrier Newton steps). `robot.urdf` carries "
-            "its inertials."
+            f"squares' ({st.get('iterations')} barrier Newton steps; {weighting}; held to "
+            f"the prior with divergence_weight {_g(st.get('divergence_weight'))}). "
+            "`robot.urdf` carries its inertials."
         )
     if feasibility is not None:
         lines += ["## Physical feasibility", "", str(feasibility), ""]
+        lines += _prior_section(model)
     lines += ["## Preprocessing", ""]
     if log_report:
         for k, v in log_report.items():
@@ -269,17 +607,80 @@ def render(
     return "\n".join(lines)
 
 
+def _actuator_lines(model: IdentifiedModel) -> list[str]:
+    """The "Actuators" section: coupling, and each actuator's friction and rotor inertia
+    with σ (none when the robot has no actuator terms)."""
+    acts = model.actuators
+    act = model.robot.actuators
+    if not acts and act["coupling"] is None:
+        return []
+    lines = ["## Actuators", ""]
+    if act["coupling"] is not None:
+        lines.append(
+            "Coupled actuators: velocities q̇ₘ = C·q̇ (joint-side units), their torques reach "
+            "the joints through Cᵀ. C ="
+        )
+        lines.append("")
+        lines += ["    " + "  ".join(f"{x:8.4g}" for x in row) for row in act["coupling"]]
+        lines.append("")
+    if act["gear_ratios"] is not None:
+        lines.append(
+            "Gear ratios (motor angle per joint-side angle): "
+            + ", ".join(_g(r) for r in act["gear_ratios"])
+        )
+        lines.append("")
+    if acts:
+        lines.append(
+            "Per actuator: friction on its velocity (fv N·m·s/rad, fc and fo N·m; N·s/m, N "
+            "for a prismatic joint) and Ia, its rotor inertia reflected to the joint side "
+            "(kg·m²). A term the data see only together with link parameters is given with "
+            "that base parameter's value (its combination)."
+        )
+        lines.append("")
+        rows = []
+        for a in acts:
+            for t in a["terms"]:
+                if t["base_index"] is None:
+                    how = "not identifiable"
+                elif t["alone"]:
+                    how = "alone"
+                else:
+                    how = f"`{t['combination']}`"
+                rows.append(
+                    [
+                        str(a["actuator"]),
+                        ", ".join(a["joints"]),
+                        t["name"],
+                        _g(t["value"], 5),
+                        _g(t["sigma"], 3),
+                        how,
+                        _g(t["standard"], 5),
+                    ]
+                )
+        lines += _table(
+            ["actuator", "moves", "term", "value (SI)", "σ", "identified as", "physical π"], rows
+        )
+        lines.append("")
+    return lines
+
+
 def write_report(
     model: IdentifiedModel,
     directory: str | os.PathLike[str],
-    data: Dataset,
+    data: DataLike,
     **kwargs: Any,
 ) -> list[Path]:
     """Writes ``report.md`` and the figures into ``directory`` (which must exist; callers
     that want all-or-nothing output build it with :func:`prrrp.outdir.write_dir`).
+    ``data`` and ``validation``: the measurements as read (scored at their rows), a
+    :class:`~prrrp.prediction.LogGrid` or a ``Dataset`` (scored against its own τ).
     Keyword arguments as :func:`render`. Returns the written paths."""
     d = Path(directory)
-    figures = write_figures(model, data, d, kwargs.get("validation"))
+    data = as_grid(data, model)
+    if kwargs.get("validation") is not None:
+        kwargs["validation"] = as_grid(kwargs["validation"], model)
+    figures = list(kwargs.pop("figures", ()))
+    figures += write_figures(model, data, d, kwargs.get("validation"))
     (d / "report.md").write_text(render(model, data, figures=figures, **kwargs), "utf-8")
     return [d / "report.md", *(d / name for name, _ in figures)]
 
@@ -287,8 +688,8 @@ def write_report(
 def write_report_dir(
     model: IdentifiedModel,
     directory: str | os.PathLike[str],
-    data: Dataset,
-    validation: Dataset | None = None,
+    data: DataLike,
+    validation: DataLike | None = None,
 ) -> list[Path]:
     """``IdentifiedModel.report``: :func:`write_report` into ``directory``, built aside and
     swapped in whole (:func:`prrrp.outdir.write_dir`), with the preprocessing and Coulomb
@@ -298,6 +699,8 @@ def write_report_dir(
     pre = model.preprocessing if isinstance(model.preprocessing, dict) else {}
     log_report = pre.get("report") if isinstance(pre.get("report"), dict) else None
     coulomb = pre.get("coulomb_scale") if isinstance(pre.get("coulomb_scale"), dict) else None
+    if coulomb is not None:
+        _check_coulomb_record(coulomb)
 
     def build(tmp: Path) -> list[Path]:
         written = write_report(
@@ -306,3 +709,21 @@ def write_report_dir(
         return [Path(directory) / p.name for p in written]
 
     return outdir.write_dir(Path(directory), build)
+
+
+def _check_coulomb_record(c: dict[str, Any]) -> None:
+    """A model's Coulomb speed-scale record (hand-edited model.json files reach here):
+    ``chosen`` a number, ``candidates`` and ``cv_rms`` lists of numbers of one length;
+    raises ValueError naming what is wrong."""
+
+    def number(x: Any) -> bool:
+        return isinstance(x, int | float) and not isinstance(x, bool)
+
+    where = "the model's preprocessing 'coulomb_scale' record"
+    if not number(c.get("chosen")):
+        raise ValueError(f"{where}: 'chosen' is {c.get('chosen')!r}, not a number (rad/s)")
+    lists = [c.get("candidates"), c.get("cv_rms")]
+    if not all(isinstance(v, list) and all(number(x) for x in v) for v in lists):
+        raise ValueError(f"{where}: 'candidates' and 'cv_rms' must be lists of numbers")
+    if len(lists[0]) != len(lists[1]):
+        raise ValueError(f"{where}: 'candidates' and 'cv_rms' differ in length")

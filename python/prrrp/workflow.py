@@ -13,7 +13,8 @@ from __future__ import annotations
 import dataclasses
 import math
 import os
-from collections.abc import Callable
+import time
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -23,6 +24,8 @@ from prrrp import model_report
 from prrrp._prrrp import (
     Dataset,
     IdentifiedModel,
+    InvalidInputError,
+    PrrrpError,
     SerialChain,
     design_excitation,
     identify,
@@ -43,6 +46,30 @@ METHODS = ("ls", "wls", "rls", "adaline", "hopfield", "ekf", "physical")
 #: ordinary least squares, as their σ_i predict (docs/protocol-table.md).
 DEFAULT_METHOD = "wls"
 
+#: Largest |q − q_ref| (rad or m) :func:`simulate` accepts anywhere in a run by default.
+MAX_TRACKING_ERROR = 0.01
+
+
+class TrackingError(RuntimeError):
+    """A simulated robot strayed from its reference further than the bound: ``error``
+    (rad or m) on joint ``joint`` (0-based, named ``joint_name``) at time ``t`` (s)."""
+
+    def __init__(
+        self, error: float, joint: int, joint_name: str, t: float, bound: float, robot: str
+    ) -> None:
+        self.error, self.joint, self.joint_name, self.t, self.bound = (
+            error,
+            joint,
+            joint_name,
+            t,
+            bound,
+        )
+        super().__init__(
+            f"the simulated {robot} strays {error:.3g} rad or m from the trajectory (joint "
+            f"{joint + 1}, {joint_name}, at t = {t:g} s), more than the bound {bound:g}. "
+            "Check the trajectory against the robot's limits and its inertials and friction"
+        )
+
 
 def load_robot(
     path: str | os.PathLike[str],
@@ -51,39 +78,48 @@ def load_robot(
     tip: str | None = None,
     friction: str | list[str] | None = None,
     coulomb_scale: float = 0.0,
+    armature: bool | None = None,
 ) -> SerialChain:
     """A robot from a ``.urdf`` (the chain from link ``base`` to link ``tip``) or ``.toml``
     file, with the friction terms to identify (``"viscous+coulomb+offset"``, a list of
-    them, or None for the file's own) and the Coulomb speed scale (rad/s; 0 = exact sign)."""
+    them, or None for the file's own), the Coulomb speed scale (rad/s; 0 = exact sign) and
+    whether to identify one rotor inertia (armature) per actuator (None: as the file says;
+    see ``SerialChain.with_actuators``)."""
     robot = SerialChain.from_file(path, base=base, tip=tip)
     if friction is not None:
         terms = friction if isinstance(friction, str) else "+".join(friction)
         robot = robot.with_friction(terms or None, None, coulomb_smoothing=coulomb_scale)
+    if armature is not None:
+        robot = robot.with_actuators(armature=armature)
     return robot
 
 
 @dataclasses.dataclass
 class Identification:
     """The result of :func:`identify_measurements`: the model, the data set it was
-    identified from, what the preprocessing did (None when q̇, q̈ were given) and the
-    Coulomb speed-scale search (None when not run)."""
+    identified from, what the preprocessing did (None when q̇, q̈ were given), the
+    Coulomb speed-scale search (None when not run) and the measurements as read (None
+    when a ready Dataset was given), which the report scores the model against."""
 
     model: IdentifiedModel
     data: Dataset
     log_report: dict[str, Any] | None
     coulomb: dict[str, Any] | None
+    raw: dict[str, np.ndarray] | None = None
 
     def report(
         self,
         directory: str | os.PathLike[str],
-        validation: Dataset | None = None,
+        validation: Any = None,
         **kwargs: Any,
     ) -> list[Path]:
-        """Writes ``report.md`` and the figures into the existing folder ``directory``."""
+        """Writes ``report.md`` and the figures into the existing folder ``directory``.
+        ``validation``: measurements as read (``prrrp.read_measurements``: scored against
+        the measured torque at their rows) or a Dataset (scored against its own τ)."""
         return model_report.write_report(
             self.model,
             directory,
-            self.data,
+            self.raw if self.raw is not None else self.data,
             validation=validation,
             log_report=self.log_report,
             coulomb=self.coulomb,
@@ -104,6 +140,7 @@ def identify_measurements(
     *,
     coulomb_scale: str | float = "auto",
     preprocessing: dict[str, Any] | None = None,
+    drives: dict[str, Any] | None = None,
     **settings: Any,
 ) -> Identification:
     """Identifies ``robot`` from measurements (``prrrp.read_measurements``'s dict, or a
@@ -113,8 +150,40 @@ def identify_measurements(
     ``SerialChain.coulomb_scale``; a number: that scale, 0 = exact sign), then
     ``prrrp.identify(robot, data, method, **settings)`` (default :data:`DEFAULT_METHOD`,
     joint-weighted least squares). The model records the
-    preprocessing settings and report and the speed-scale search, so ``prrrp predict``
-    can treat new logs the same way."""
+    preprocessing settings and report and the speed-scale search (and ``drives``, how
+    currents or motor-side data were converted: ``prrrp.drives.record``), so ``prrrp
+    predict`` can treat new logs the same way."""
+    prepared = _prepare(robot, raw, coulomb_scale, preprocessing, drives)
+    model = identify(
+        prepared.robot, prepared.data, method, preprocessing=prepared.record, **settings
+    )
+    return prepared.result(model)
+
+
+@dataclasses.dataclass
+class _Prepared:
+    """What every method identifies from: the robot with its Coulomb speed scale, the data
+    set, and the record the model keeps."""
+
+    robot: SerialChain
+    data: Dataset
+    log_report: dict[str, Any] | None
+    coulomb: dict[str, Any] | None
+    record: dict[str, Any]
+    raw: dict[str, np.ndarray] | None
+
+    def result(self, model: IdentifiedModel) -> Identification:
+        return Identification(model, self.data, self.log_report, self.coulomb, self.raw)
+
+
+def _prepare(
+    robot: SerialChain,
+    raw: dict[str, np.ndarray] | Dataset,
+    coulomb_scale: str | float,
+    preprocessing: dict[str, Any] | None,
+    drives: dict[str, Any] | None = None,
+) -> _Prepared:
+    """The preprocessing and Coulomb speed scale of :func:`identify_measurements`."""
     preprocessing = {k: v for k, v in (preprocessing or {}).items() if v is not None}
     unknown = sorted(set(preprocessing) - set(PREPROCESS_KEYS))
     if unknown:
@@ -136,8 +205,96 @@ def identify_measurements(
             raise ValueError(f"coulomb_scale must be finite and >= 0 rad/s, got {v_s}")
         robot = with_coulomb_scale(robot, v_s)
     record = {"settings": preprocessing, "report": log_report, "coulomb_scale": coulomb}
-    model = identify(robot, data, method, preprocessing=record, **settings)
-    return Identification(model, data, log_report, coulomb)
+    if drives:
+        record["drives"] = drives
+    kept = None if isinstance(raw, Dataset) else raw
+    return _Prepared(robot, data, log_report, coulomb, record, kept)
+
+
+@dataclasses.dataclass
+class MethodRun:
+    """One method of :func:`identify_methods`: its result (None when it failed), the
+    error's first line (None when it succeeded) and the identification's wall time, s."""
+
+    method: str
+    result: Identification | None
+    error: str | None
+    seconds: float
+
+
+def identify_methods(
+    robot: SerialChain,
+    raw: dict[str, np.ndarray] | Dataset,
+    methods: Sequence[str] = METHODS,
+    *,
+    coulomb_scale: str | float = "auto",
+    preprocessing: dict[str, Any] | None = None,
+    drives: dict[str, Any] | None = None,
+    progress: Callable[[int, int], object] | None = None,
+    **settings: Any,
+) -> list[MethodRun]:
+    """:func:`identify_measurements` with several methods on one preprocessing and one
+    Coulomb speed-scale search (what ``prrrp identify --method all`` compares). A method
+    that fails (a PrrrpError or ValueError: diverged, rank deficient, ...) is
+    returned with its error and does not stop the others; errors of the shared
+    preprocessing are raised."""
+    prepared = _prepare(robot, raw, coulomb_scale, preprocessing, drives)
+    runs = []
+    for k, method in enumerate(methods):
+        if progress is not None:
+            progress(k, len(methods))
+        t0 = time.perf_counter()
+        try:
+            model = identify(
+                prepared.robot, prepared.data, method, preprocessing=prepared.record, **settings
+            )
+        except (PrrrpError, ValueError) as e:
+            text = (str(e).strip() or type(e).__name__).splitlines()[0]
+            runs.append(MethodRun(method, None, text, time.perf_counter() - t0))
+        else:
+            seconds = time.perf_counter() - t0
+            runs.append(MethodRun(method, prepared.result(model), None, seconds))
+    if progress is not None:
+        progress(len(methods), len(methods))
+    return runs
+
+
+#: Most samples :func:`excite` makes (the core's MAX_SAMPLES).
+MAX_SAMPLES = 10_000_000
+#: Share of the available memory a result's arrays may take (the caller's own copies,
+#: e.g. a table for a CSV file, need about as much again).
+MEMORY_SHARE = 0.4
+
+
+def available_memory() -> int | None:
+    """Bytes of memory available to a new allocation (Linux ``MemAvailable``; elsewhere
+    the free physical pages), or None when the system does not say."""
+    try:
+        with open("/proc/meminfo", encoding="ascii") as f:
+            for line in f:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        pass
+    try:
+        return os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+    except (ValueError, OSError, AttributeError):
+        return None
+
+
+def check_memory(samples: int, joints: int, columns: int, lower: str) -> None:
+    """Raises InvalidInputError, before anything is allocated, when ``samples`` rows of
+    ``columns`` float64 values would take more than :data:`MEMORY_SHARE` of the available
+    memory; the message says how much and what to lower (``lower``)."""
+    need = samples * columns * 8
+    available = available_memory()
+    if available is None or need <= MEMORY_SHARE * available:
+        return
+    raise InvalidInputError(
+        f"{samples:.3g} samples × {joints} joints need about {need / 2**30:.3g} GiB for the "
+        f"trajectory's arrays (t, q, q̇, q̈), more than {MEMORY_SHARE:.0%} of the "
+        f"{available / 2**30:.3g} GiB of memory available: lower the {lower}"
+    )
 
 
 #: Default sensor noise of :func:`simulate` (standard deviations, scaled by ``noise``):
@@ -162,7 +319,10 @@ def excite(
     """An exciting trajectory of ``robot`` (see ``prrrp.design_excitation``) sampled at
     ``rate`` Hz over ``duration`` s, which must be a whole number of periods of
     ``base_frequency`` (default 1/duration: one period) so that it ends at rest. Returns
-    the design's dict plus ``t``, ``q``, ``qd``, ``qdd`` (SI units)."""
+    the design's dict plus ``t``, ``q``, ``qd``, ``qdd`` (SI units). Sizes are checked
+    before the design starts: more than :data:`MAX_SAMPLES` samples, or arrays that would
+    not fit in the available memory (:func:`check_memory`), are an InvalidInputError
+    saying what to lower."""
     if not (math.isfinite(duration) and duration > 0):
         raise ValueError(f"duration must be a positive number of seconds, got {duration}")
     if not (math.isfinite(rate) and rate > 0):
@@ -175,9 +335,13 @@ def excite(
             f"duration {duration} s is not a whole number of periods of {f0} Hz "
             "(the trajectory would not end at rest)"
         )
-    if duration * rate > 1e7:
-        raise ValueError(f"{duration * rate:.3g} samples asked for; at most 10^7 (MAX_SAMPLES)")
+    if duration * rate > MAX_SAMPLES:
+        raise InvalidInputError(
+            f"rate {rate:g} Hz × duration {duration:g} s = {duration * rate:.3g} samples; at "
+            f"most {MAX_SAMPLES:.0e} (MAX_SAMPLES): lower the rate or the duration"
+        )
     samples = round(duration * rate) + 1
+    check_memory(samples, robot.dof, 1 + 3 * robot.dof, "rate or duration")
     out = design_excitation(
         robot,
         harmonics=harmonics,
@@ -201,13 +365,26 @@ def simulate(
     noise: float = 1.0,
     seed: int = 0,
     substeps: int = 10,
+    max_tracking_error: float | None = MAX_TRACKING_ERROR,
 ) -> dict[str, np.ndarray]:
     """``robot`` (its file's inertials and friction) tracking ``trajectory`` (``t``, ``q``,
     ``qd``, ``qdd`` at a uniform rate) in closed loop, with sensor noise ``noise`` times
     :data:`DEFAULT_Q_NOISE` / :data:`DEFAULT_TAU_NOISE` (0: none). Returns the measurements
-    ``t``, ``q``, ``tau`` and the truth ``q_true``, ``qd_true``, ``qdd_true``, ``tau_true``."""
+    ``t``, ``q``, ``tau``, the truth ``q_true``, ``qd_true``, ``qdd_true``, ``tau_true`` and
+    ``tracking_error`` (each joint's largest |q_true − q_ref|, rad or m).
+
+    The simulated controller is computed torque with the robot's own model, friction
+    compensated from the reference velocity. A run that strays further than
+    ``max_tracking_error`` (rad or m; None: no bound) from its reference raises
+    :class:`TrackingError`: its data would not be the trajectory that was asked for."""
     if not (math.isfinite(noise) and noise >= 0):
         raise ValueError(f"noise must be a finite number >= 0, got {noise}")
+    if max_tracking_error is not None and not (
+        math.isfinite(max_tracking_error) and max_tracking_error > 0
+    ):
+        raise ValueError(
+            f"max_tracking_error must be a positive number or None, got {max_tracking_error}"
+        )
     t = np.asarray(trajectory["t"], dtype=float)
     if t.ndim != 1 or len(t) < 2:
         raise ValueError("the trajectory needs at least two time stamps")
@@ -226,12 +403,25 @@ def simulate(
         tau_noise=noise * DEFAULT_TAU_NOISE,
         seed=seed,
     )
+    q_true = np.asarray(rec.q)
+    errors = np.abs(q_true - np.asarray(trajectory["q"], dtype=float)[: len(q_true)])
+    if max_tracking_error is not None and not errors.max() <= max_tracking_error:
+        k, j = np.unravel_index(np.argmax(errors), errors.shape)
+        raise TrackingError(
+            float(errors[k, j]),
+            int(j),
+            robot.joint_names[j],
+            float(rec.t[k] + t[0]),
+            max_tracking_error,
+            robot.name,
+        )
     return {
         "t": np.asarray(rec.t) + t[0],
         "q": np.asarray(rec.q_measured),
         "tau": np.asarray(rec.tau_measured),
-        "q_true": np.asarray(rec.q),
+        "q_true": q_true,
         "qd_true": np.asarray(rec.qd),
         "qdd_true": np.asarray(rec.qdd),
         "tau_true": np.asarray(rec.tau),
+        "tracking_error": errors.max(axis=0),
     }

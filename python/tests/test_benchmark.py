@@ -334,3 +334,133 @@ def test_cli_ctrl_c_exits_130_without_output(tmp_path: Path) -> None:
     assert "interrupted" in err
     assert not out.exists()
     assert not [p for p in tmp_path.iterdir() if p.name.startswith(".b.")]
+
+
+# ----------------------------------------------------------------- results before figures
+
+
+def _tiny(**kwargs):
+    return prrrp.benchmark(
+        seeds=2, methods="ls", workers=1, progress=False, excitation_evaluations=60, **kwargs
+    )
+
+
+def test_a_failing_figure_keeps_the_results(tmp_path: Path, monkeypatch) -> None:
+    """Issue 25: a benchmark ended after 258 s with nothing written because one figure
+    failed. The results are written first; the figure's failure is reported."""
+    from prrrp.montecarlo import report
+
+    result = _tiny()
+
+    def broken(rows, path):
+        raise FileNotFoundError(2, "No such file or directory", str(path))
+
+    monkeypatch.setattr(report, "errors_by_noise", broken)
+    out = tmp_path / "bench"
+    result.save(out)
+    assert set(result.figure_errors) == {"errors_by_noise.png"}
+    table = list(csv.DictReader((out / "results.csv").open()))
+    assert len(table) == 2
+    assert json.loads((out / "results.json").read_text())["rows"] == json.loads(
+        json.dumps(result.rows)
+    )
+    text = (out / "report.md").read_text()
+    assert "`errors_by_noise.png` could not be drawn (FileNotFoundError" in text
+    assert not (out / "errors_by_noise.png").exists()
+    assert (out / "errors_vs_rate.png").is_file()
+
+
+def test_cli_reports_a_failing_figure_and_exits_0(tmp_path: Path, monkeypatch, capsys) -> None:
+    from prrrp.montecarlo import report
+
+    def broken(rows, path):
+        raise RuntimeError("the backend broke")
+
+    monkeypatch.setattr(report, "time_per_method", broken)
+    out = tmp_path / "b"
+    argv = ["benchmark", "--methods", "ls", "--seeds", "1", "--workers", "1"]
+    code = main([*argv, "--excitation-evaluations", "60", "--out", str(out)])
+    assert code == 0
+    assert "figure time_per_method.png could not be drawn (RuntimeError: the backend broke)" in (
+        capsys.readouterr().err
+    )
+    assert (out / "results.csv").is_file()
+
+
+def test_cli_rescues_the_results_when_out_cannot_be_written(
+    tmp_path: Path, monkeypatch, capsys
+) -> None:
+    from prrrp import outdir
+
+    def refuse(out, build):
+        raise PermissionError(13, "Permission denied", str(out))
+
+    monkeypatch.setattr(outdir, "write_dir", refuse)
+    monkeypatch.chdir(tmp_path)
+    argv = ["benchmark", "--methods", "ls", "--seeds", "1", "--workers", "1"]
+    code = main([*argv, "--excitation-evaluations", "60", "--out", "b"])
+    assert code == 1
+    err = capsys.readouterr().err
+    assert "could not be written there (Permission denied" in err
+    rescued = list(tmp_path.glob("b-results-*.json"))
+    assert len(rescued) == 1
+    assert str(rescued[0].name) in err
+    assert len(json.loads(rescued[0].read_text())["rows"]) == 1
+
+
+def test_cli_exits_1_when_every_case_failed(tmp_path: Path, monkeypatch, capsys) -> None:
+    """Every case's worker dies (the test hook): the results (all failed) are written, the
+    exit code says the run failed."""
+    import prrrp.montecarlo as mc
+
+    real_grid = mc.grid
+
+    def dying(*args, **kwargs):
+        return [dataclasses.replace(c, fault="exit") for c in real_grid(*args, **kwargs)]
+
+    monkeypatch.setattr(mc, "grid", dying)
+    out = tmp_path / "b"
+    argv = ["benchmark", "--methods", "ls", "--seeds", "1", "--workers", "1", "--out", str(out)]
+    assert main(argv) == 1
+    err = capsys.readouterr().err
+    assert "every case failed (1)" in err
+    rows = list(csv.DictReader((out / "results.csv").open()))
+    assert [r["status"] for r in rows] == ["failed"]
+
+
+def test_excitation_budget_is_a_grid_axis_with_its_effect_reported(tmp_path: Path) -> None:
+    result = prrrp.benchmark(
+        seeds=3,
+        methods="ls",
+        workers=2,
+        progress=False,
+        excitation_evaluations=[60, 300],
+    )
+    assert result.config["excitation_evaluations"] == [60, 300]
+    assert [r["excitation_evaluations"] for r in result.rows] == [60, 300] * 3
+    assert all(r["status"] == "ok" and r["excitation_cond"] >= 1 for r in result.rows)
+    result.save(tmp_path / "b")
+    text = (tmp_path / "b" / "report.md").read_text()
+    section = text[text.index("## Excitation budget") :]
+    for budget in (60, 300):
+        rows = [r for r in result.rows if r["excitation_evaluations"] == budget]
+        cond = np.median([r["excitation_cond"] for r in rows])
+        err = np.median([r["max_param_error_percent"] for r in rows])
+        assert f"| {budget} | {cond:.3g} | {err:.3g} |" in section
+    header = (tmp_path / "b" / "results.csv").read_text().splitlines()[0].split(",")
+    assert "excitation_evaluations" in header
+    assert "excitation_cond" in header
+
+
+def test_cli_excitation_evaluations_flag(tmp_path: Path, capsys) -> None:
+    """Too small a budget finds no feasible excitation: every case fails, the run says so
+    (exit 1) and the results name the error."""
+    out = tmp_path / "b"
+    argv = ["benchmark", "--methods", "ls", "--seeds", "1", "--workers", "1", "--out", str(out)]
+    assert main([*argv, "--excitation-evaluations", "5"]) == 1
+    assert "InfeasibleError" in capsys.readouterr().err
+    assert "| 5 |" in (out / "report.md").read_text()
+    with pytest.raises(SystemExit) as exit_info:  # argparse's own check
+        main([*argv, "--excitation-evaluations", "0"])
+    assert exit_info.value.code == 2
+    assert "must be at least 1" in capsys.readouterr().err

@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 import prrrp
+from prrrp import model_report
 
 ROBOTS = importlib.metadata.distribution("example-robot-data").locate_file(
     "cmeel.prefix/share/example-robot-data/robots"
@@ -57,3 +58,33 @@ def test_coulomb_scale_bad_input():
     viscous = chain.with_friction("viscous", FRICTION)
     with pytest.raises(prrrp.InvalidParameterError, match="Coulomb"):
         viscous.coulomb_scale(train)
+
+
+def test_a_scale_the_data_cannot_see_is_reported_not_identifiable():
+    # No Coulomb friction in the arm: every v_s predicts alike, and the report says so
+    # instead of presenting the chosen value as identified.
+    chain = panda(0.03).with_friction(
+        "viscous+coulomb+offset", FRICTION * [1, 0, 1], coulomb_smoothing=0.03
+    )
+    train = data(chain, 4, 20.0, 0.02)
+    report = panda(0.0).coulomb_scale(train)
+    assert report["identifiable"] is False
+    assert report["chosen"] == 0.0  # the chain's own scale is kept
+    assert "do not identify" in report["note"]
+    run = prrrp.identify_measurements(panda(0.0), train, coulomb_scale="auto")
+    text = model_report.render(run.model, train, coulomb=run.coulomb)
+    assert "is not identified by these data" in text
+
+
+def test_a_scale_above_the_default_range_widens_the_search():
+    truth = panda(0.6)
+    train = data(truth, 5, 20.0, 0.02)
+    report = panda(0.0).coulomb_scale(train)
+    assert report["identifiable"], report["note"]
+    assert report["widenings"] >= 1
+    assert report["range"][1] > 0.6
+    assert 0.3 <= report["chosen"] <= 1.2, report["chosen"]
+    fixed = panda(0.0).coulomb_scale(train, max_widenings=0)
+    assert fixed["identifiable"] is False
+    assert fixed["chosen"] == pytest.approx(0.3)
+    assert "top of the search" in fixed["note"]

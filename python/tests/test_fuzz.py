@@ -26,7 +26,7 @@ from hypothesis import HealthCheck, given, settings  # noqa: E402
 from hypothesis import strategies as st  # noqa: E402
 from hypothesis.extra import numpy as hnp  # noqa: E402
 
-from prrrp import csvio  # noqa: E402
+from prrrp import csvio, prediction  # noqa: E402
 
 settings.register_profile(
     "ci",
@@ -187,9 +187,59 @@ URDF_PIECES = st.sampled_from(
 )
 
 
-@given(pieces=st.lists(URDF_PIECES, max_size=8))
-def test_urdf_structures(pieces):
-    holds_contract(lambda: prrrp.SerialChain.from_urdf("".join(pieces)))
+HOSTILE_URDF_PIECES = st.sampled_from(
+    [
+        '<robot name="r" version="1.1">',
+        '<joint name="c" type="revolute"><parent link="b"/><child link="a"/>'
+        '<axis xyz="0 0 1"/></joint>',
+        '<origin xyz="0 0 0" quat_xyzw="nan nan nan nan"/>',
+        '<origin quat_xyzw="0 0 0 0"/>',
+        '<origin quat_xyzw="0 0 0.7071067811865476 0.7071067811865476"/>',
+        "<x>" * 70,
+        "</x>" * 70,
+        "<x>" * 20 + "</x>" * 20,
+        '<origin xyz="inf 0 0"/>',
+    ]
+)
+
+
+@given(
+    pieces=st.lists(URDF_PIECES | HOSTILE_URDF_PIECES, max_size=8),
+    base=st.sampled_from([None, "a", "b", "c"]),
+    tip=st.sampled_from([None, "a", "b", "c"]),
+)
+def test_urdf_structures(pieces, base, tip):
+    # Cycles through --base, deep nesting, NaN or zero quaternions: a chain or a typed
+    # error, never a hang, an abort or a stack overflow.
+    holds_contract(lambda: prrrp.SerialChain.from_urdf("".join(pieces), base=base, tip=tip))
+
+
+NAMES = st.text(min_size=0, max_size=12)
+
+
+@given(link=NAMES, joint=NAMES, robot=NAMES)
+def test_urdf_names_round_trip(link, joint, robot):
+    """Any name a URDF can hold survives read → to_urdf → read; any other is refused by
+    one of the two with a typed error, never written into a file that does not read."""
+    from xml.sax.saxutils import quoteattr
+
+    xml = (
+        f'<robot name={quoteattr(robot)}><link name="base"/><link name={quoteattr(link)}/>'
+        f'<joint name={quoteattr(joint)} type="continuous"><parent link="base"/>'
+        f'<child link={quoteattr(link)}/><axis xyz="0 0 1"/></joint></robot>'
+    )
+    try:
+        chain = prrrp.SerialChain.from_urdf(xml)
+    except prrrp.PrrrpError:
+        return
+    try:
+        text = chain.to_urdf()
+    except prrrp.PrrrpError:
+        return
+    back = prrrp.SerialChain.from_urdf(text)
+    assert back.joint_names == chain.joint_names
+    assert back.link_names == chain.link_names
+    assert back.name == chain.name
 
 
 @given(body=st.binary(max_size=600))
@@ -360,3 +410,216 @@ def test_estimator_classes(q, tau, kind, epochs, rate):
         return est.run(q, q, q, tau), est.parameter_std
 
     holds_contract(run)
+
+
+# ------------------------------------------------------------- issue 25: input surfaces
+
+JOINTS = list(SEVEN.joint_names)
+NAME = st.one_of(st.sampled_from([*JOINTS, "gripper"]), st.text(max_size=3))
+
+
+@st.composite
+def joint_states(draw):
+    """JointState messages that are often right and often not: names repeated or missing,
+    position/velocity/effort arrays of any length."""
+    count = draw(st.integers(0, 12))
+    messages = []
+    for k in range(count):
+        names = [*JOINTS] if draw(st.booleans()) else draw(st.lists(NAME, max_size=4))
+        n = len(names)
+        lengths = [
+            draw(st.one_of(st.just(n), st.integers(0, n + 2))) for _ in ("position", "velocity")
+        ]
+        effort = draw(st.one_of(st.just(n), st.integers(0, n + 2)))
+        value = draw(st.one_of(st.just(0.1 * k), FLOATS))
+        messages.append(
+            (
+                100.0 + 0.01 * k,
+                names,
+                np.full(lengths[0], value),
+                np.zeros(lengths[1]),
+                np.ones(effort),
+            )
+        )
+    return messages
+
+
+@given(messages=joint_states())
+@settings(suppress_health_check=[HealthCheck.function_scoped_fixture], max_examples=25)
+def test_bag_messages(tmp_path_factory, messages):
+    """A bag of malformed JointState messages: an InputError naming the bag, or
+    measurements with one finite row per message and the robot's joints."""
+    pytest.importorskip("rosbags")
+    from test_measurements import write_messages
+
+    bag = tmp_path_factory.mktemp("bag") / "bag"
+    write_messages(bag, messages)
+    try:
+        raw = prrrp.read_measurements(bag, SEVEN)
+    except csvio.InputError as e:
+        error = str(e)
+    else:
+        error = None
+    if error is not None:
+        assert str(bag) in error
+        return
+    assert len(raw["t"]) == len(messages)
+    for key in ("q", "tau"):
+        assert raw[key].shape == (len(messages), 2)
+        assert np.isfinite(raw[key]).all()
+    for _, names, position, velocity, effort in messages:
+        assert len(set(names)) == len(names)
+        assert len(position) == len(effort) == len(names)
+        assert len(velocity) in (0, len(names))
+
+
+@given(
+    table=hnp.arrays(
+        np.float64,
+        st.tuples(st.integers(20, 70), st.just(11)),
+        elements=st.floats(-1e6, 1e6, allow_nan=False, allow_infinity=False),
+    ),
+    chunk=st.integers(1, 9),
+    bad=st.one_of(st.none(), st.tuples(st.integers(0, 69), st.integers(1, 10))),
+)
+@settings(suppress_health_check=[HealthCheck.function_scoped_fixture])
+def test_csv_streaming_reader(tmp_path_factory, table, chunk, bad):
+    """The block-by-block reader equals numpy's reading of the same file at any block size,
+    and a bad cell's error names its line and column."""
+    import unittest.mock
+
+    table = table.copy()
+    table[:, 0] = np.arange(len(table)) * 0.01
+    lines = csvio.format_table(list(csvio.REQUIRED_COLUMNS), table).splitlines()
+    if bad is not None and bad[0] < len(table):
+        row, col = bad
+        cells = lines[row + 1].split(",")
+        cells[col] = "x1"
+        lines[row + 1] = ",".join(cells)
+    path = tmp_path_factory.mktemp("csv") / "data.csv"
+    path.write_text("\n".join(lines) + "\n")
+    error = None
+    with unittest.mock.patch.object(csvio, "CHUNK_LINES", chunk):
+        try:
+            data = csvio.read_measurements(path)
+        except csvio.InputError as e:
+            error = str(e)
+    if error is not None:
+        assert bad is not None
+        assert f"line {bad[0] + 2}, column '{csvio.REQUIRED_COLUMNS[bad[1]]}'" in error
+        return
+    assert bad is None or bad[0] >= len(table)
+    reference = np.loadtxt(path, delimiter=",", skiprows=1)
+    assert np.array_equal(data["t"], reference[:, 0])
+    assert np.array_equal(data["q"], reference[:, 1:6])
+    assert np.array_equal(data["tau"], reference[:, 6:11])
+
+
+JSON_VALUES = st.recursive(
+    st.one_of(
+        st.none(),
+        st.booleans(),
+        st.integers(-(2**70), 2**70),
+        st.floats(allow_nan=False, allow_infinity=False),
+        st.text(max_size=4),
+    ),
+    lambda inner: st.one_of(
+        st.lists(inner, max_size=3), st.dictionaries(st.text(max_size=3), inner, max_size=3)
+    ),
+    max_leaves=5,
+)
+
+
+def _model_document() -> dict:
+    t = np.arange(0, 4, 0.01)
+    q = np.column_stack([0.8 * np.sin(t), 0.6 * np.cos(1.3 * t)])
+    qd = np.column_stack([0.8 * np.cos(t), -0.78 * np.sin(1.3 * t)])
+    qdd = np.column_stack([-0.8 * np.sin(t), -1.014 * np.cos(1.3 * t)])
+    data = prrrp.Dataset(t, q, qd, qdd, SEVEN.inverse_dynamics(q, qd, qdd))
+    record = {"settings": {"cutoff_hz": 5.0}, "report": None, "coulomb_scale": None}
+    model = prrrp.identify(SEVEN, data, "ls", preprocessing=record)
+    import json
+
+    return json.loads(model.to_json())
+
+
+MODEL_DOC = _model_document()
+PATHS = [
+    ("preprocessing", "settings", "cutoff_hz"),
+    ("preprocessing", "settings", "order"),
+    ("preprocessing", "settings", "filter_torque"),
+    ("preprocessing", "settings", "rate_hz"),
+    ("preprocessing", "settings"),
+    ("preprocessing",),
+    ("settings", "epochs"),
+    ("settings",),
+    ("epochs",),
+    ("converged",),
+    ("cond",),
+    ("method",),
+]
+
+
+@given(where=st.sampled_from(PATHS), value=JSON_VALUES)
+@settings(suppress_health_check=[HealthCheck.function_scoped_fixture])
+def test_hand_edited_model_json(tmp_path_factory, where, value):
+    """A model.json with any JSON value at a setting: loading and `prrrp predict`'s
+    preparation end in a typed error (PrrrpError, or ValueError naming the setting) or a
+    prediction at every row of the log."""
+    import copy
+    import json
+
+    doc = copy.deepcopy(MODEL_DOC)
+    node = doc
+    for key in where[:-1]:
+        if not isinstance(node.get(key), dict):
+            node[key] = {}
+        node = node[key]
+    node[where[-1]] = value
+    folder = tmp_path_factory.mktemp("model")
+    path = folder / "model.json"
+    path.write_text(json.dumps(doc))
+    t = np.arange(0, 3, 0.01)
+    q = np.column_stack([np.sin(t), np.cos(t)])
+    raw = {"t": t, "q": q, "tau": SEVEN.inverse_dynamics(q, q, q)}
+    try:
+        model = prrrp.IdentifiedModel.load(path)
+        grid = prediction.prepare(raw, prediction.recorded_settings(model))
+        tau = grid.predict(model)
+    except (prrrp.PrrrpError, ValueError):
+        return
+    assert tau.shape == (len(t), 2)
+    assert np.isfinite(tau).all()
+
+
+@given(umask=st.integers(0, 0o777))
+@settings(suppress_health_check=[HealthCheck.function_scoped_fixture], max_examples=20)
+def test_output_folder_mode(tmp_path_factory, umask):
+    from prrrp import outdir
+
+    folder = tmp_path_factory.mktemp("out")
+    old = os.umask(umask & 0o077)  # the owner keeps rwx, or the test could not clean up
+    try:
+        outdir.write_dir(folder / "o", lambda tmp: (tmp / "a").write_text("1"))
+    finally:
+        os.umask(old)
+    assert (folder / "o").stat().st_mode & 0o777 == 0o777 & ~(umask & 0o077)
+
+
+@given(duration=FLOATS, rate=FLOATS)
+def test_excite_sizes(duration, rate):
+    """Any duration and rate: a typed error (refused before allocating when too large) or
+    a trajectory of rate × duration + 1 samples."""
+    from prrrp import workflow
+
+    samples = duration * rate
+    if math.isfinite(samples) and 1e5 < samples <= workflow.MAX_SAMPLES:
+        return  # accepted and large: right, but too slow and big for this property's budget
+    try:
+        out = workflow.excite(
+            SEVEN, duration, rate=rate, harmonics=1, max_evaluations=2, restarts=1
+        )
+    except (prrrp.PrrrpError, ValueError):
+        return
+    assert len(out["t"]) == round(duration * rate) + 1 <= workflow.MAX_SAMPLES + 1
+    assert np.isfinite(out["q"]).all()

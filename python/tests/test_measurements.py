@@ -118,6 +118,68 @@ def test_bag_joints_matched_by_name(tmp_path: Path, panda):
         prrrp.read_measurements(bag, puma)
 
 
+def write_messages(path: Path, messages, topic="/joint_states"):
+    """A bag of JointState messages given as (t, names, position, velocity, effort)."""
+    from rosbags.rosbag2 import Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    store = get_typestore(Stores.ROS2_HUMBLE)
+    js = store.types["sensor_msgs/msg/JointState"]
+    header = store.types["std_msgs/msg/Header"]
+    stamp = store.types["builtin_interfaces/msg/Time"]
+    with Writer(path, version=8) as writer:
+        conn = writer.add_connection(topic, js.__msgtype__, typestore=store)
+        for tk, names, position, velocity, effort in messages:
+            sec = int(tk)
+            msg = js(
+                header=header(stamp=stamp(sec=sec, nanosec=round((tk - sec) * 1e9)), frame_id=""),
+                name=list(names),
+                position=np.asarray(position, dtype=float),
+                velocity=np.asarray(velocity, dtype=float),
+                effort=np.asarray(effort, dtype=float),
+            )
+            writer.write(conn, round(tk * 1e9), store.serialize_cdr(msg, js.__msgtype__))
+
+
+@pytest.mark.parametrize(
+    ("fault", "message"),
+    [
+        ("short_position", r"message 2 on '/joint_states' has 6 positions for 7 joint names"),
+        ("long_position", r"message 2 on '/joint_states' has 8 positions for 7 joint names"),
+        ("short_velocity", r"message 2 on '/joint_states' has 3 velocities for 7 joint names"),
+        ("short_effort", r"message 2 on '/joint_states' has 6 efforts for 7 joints"),
+        ("twice", r"message 2 on '/joint_states' names joint 'panda_joint2' twice"),
+    ],
+)
+def test_malformed_bag_messages_are_typed_errors(tmp_path: Path, panda, fault, message):
+    """A JointState message whose arrays do not match its names (a bare IndexError before)
+    or that names a joint twice (silently accepted before) is an InputError naming the bag,
+    topic and message."""
+    pytest.importorskip("rosbags")
+    names = list(panda.joint_names)
+    messages = []
+    for k in range(30):
+        q, v, e = np.full(7, 0.1 * k), np.zeros(7), np.ones(7)
+        row = [100.0 + 0.01 * k, names, q, v, e]
+        if k == 2:
+            if fault == "short_position":
+                row[2] = q[:-1]
+            elif fault == "long_position":
+                row[2] = np.append(q, 0.0)
+            elif fault == "short_velocity":
+                row[3] = v[:3]
+            elif fault == "short_effort":
+                row[4] = e[:-1]
+            elif fault == "twice":
+                row[1] = [*names[:2], names[1], *names[3:]]
+        messages.append(tuple(row))
+    bag = tmp_path / "bag"
+    write_messages(bag, messages)
+    with pytest.raises(csvio.InputError, match=message) as info:
+        prrrp.read_measurements(bag, panda)
+    assert str(bag) in str(info.value)
+
+
 def test_predict_command(tmp_path: Path, panda, capsys):
     t, q, qd, qdd = motion(seconds=20.0, rate=100.0, seed=1)
     tau = panda.inverse_dynamics(q, qd, qdd)
@@ -136,19 +198,22 @@ def test_predict_command(tmp_path: Path, panda, capsys):
     out = tmp_path / "tau.csv"
     assert cli.main(["predict", str(model_path), str(full), "--out", str(out)]) == 0
     table = np.loadtxt(out, delimiter=",", skiprows=1)
-    assert out.read_text().splitlines()[0] == "t," + ",".join(f"tau{i}" for i in range(1, 8))
-    np.testing.assert_allclose(table[:, 1:], tau2, atol=1e-6 * np.abs(tau2).max())
+    header = "t," + ",".join(f"tau{i}" for i in range(1, 8)) + ",edge"
+    assert out.read_text().splitlines()[0] == header
+    np.testing.assert_allclose(table[:, 1:8], tau2, atol=1e-6 * np.abs(tau2).max())
+    assert not table[:, 8].any()  # given states: no filter, no edge
     assert "torque-prediction error" in capsys.readouterr().out
     # Positions only: derived with the model's recorded preprocessing (6 Hz cut-off).
     bare = tmp_path / "bare.csv"
     bare.write_text(csvio.format_measurements(t2, q2, tau2))
     assert cli.main(["predict", str(model_path), str(bare), "--out", str(out)]) == 0
     table = np.loadtxt(out, delimiter=",", skiprows=1)
-    k = np.searchsorted(t2, table[:, 0])
-    err = np.sqrt(((table[:, 1:] - tau2[k]) ** 2).mean(axis=0))
+    assert np.array_equal(table[:, 0], t2)  # every row, at its time stamp
+    inside = table[:, 8] == 0
+    err = np.sqrt(((table[inside, 1:8] - tau2[inside]) ** 2).mean(axis=0))
     assert (err < 0.05 * np.sqrt((tau2**2).mean(axis=0))).all(), err
     # Bad input: one line on stderr, exit 2, nothing written.
     out.unlink()
     assert cli.main(["predict", str(full), str(full), "--out", str(out)]) == cli.EXIT_USAGE
-    assert "not an identified model" in capsys.readouterr().err
+    assert "not a usable identified model" in capsys.readouterr().err
     assert not out.exists()

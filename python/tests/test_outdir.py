@@ -99,3 +99,93 @@ def test_sigterm_during_reproduce_leaves_the_old_results(tmp_path: Path) -> None
     assert child.returncode == 128 + signal.SIGTERM
     assert snapshot(out) == before
     assert leftovers(tmp_path) == []
+
+
+# A process that builds an output folder and waits for a file before finishing.
+_SLOW_BUILD = """
+import sys, time
+from pathlib import Path
+from prrrp import outdir
+out, go = Path(sys.argv[1]), Path(sys.argv[2])
+def build(tmp):
+    (tmp / "started").write_text("1")
+    print("building", flush=True)
+    while not go.exists():
+        time.sleep(0.02)
+    (tmp / "result.txt").write_text("slow run")
+outdir.write_dir(out, build)
+print("done", flush=True)
+"""
+
+
+def _slow_run(tmp_path: Path, out: Path) -> tuple[subprocess.Popen, Path]:
+    go = tmp_path / "go"
+    child = subprocess.Popen(
+        [sys.executable, "-c", _SLOW_BUILD, str(out), str(go)],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    assert child.stdout.readline().strip() == "building"
+    return child, go
+
+
+def test_a_second_run_does_not_remove_a_live_runs_staging_folder(tmp_path: Path, capsys) -> None:
+    """The cause of a benchmark losing its results to "errors_by_noise.png: no such file or
+    directory": a second run into the same --out removed the first's staging folder as a
+    leftover. Staging folders are locked while their run lives."""
+    out = tmp_path / "big"
+    child, go = _slow_run(tmp_path, out)
+    try:
+        outdir.write_dir(out, fill({"fast.txt": "fast run"}))
+        go.write_text("1")
+        stdout, stderr = child.communicate(timeout=60)
+    finally:
+        child.kill()
+    assert child.returncode == 0, stderr
+    assert stdout.strip() == "done"
+    assert "another prrrp run is writing" in capsys.readouterr().err
+    # The run that finished last replaced the folder whole.
+    assert (out / "result.txt").read_text() == "slow run"
+    assert leftovers(tmp_path) == []
+
+
+def test_staging_folder_of_a_sigkilled_run_is_removed_and_reported(tmp_path: Path, capsys) -> None:
+    out = tmp_path / "out"
+    child, _ = _slow_run(tmp_path, out)
+    child.send_signal(signal.SIGKILL)
+    child.communicate(timeout=30)
+    assert len(leftovers(tmp_path)) == 1
+    outdir.write_dir(out, fill({"a.txt": "1"}))
+    err = capsys.readouterr().err
+    assert "removed 1 staging folder" in err
+    assert "killed" in err
+    assert leftovers(tmp_path) == []
+    assert set(snapshot(out)) == {"a.txt", outdir.MARKER}
+
+
+@pytest.mark.parametrize("umask", [0o022, 0o077, 0o002])
+def test_output_folder_honours_the_umask(tmp_path: Path, umask: int) -> None:
+    old = os.umask(umask)
+    try:
+        outdir.write_dir(tmp_path / "out", fill({"a.txt": "1"}))
+        reference = tmp_path / "mkdir"
+        reference.mkdir()
+    finally:
+        os.umask(old)
+    mode = (tmp_path / "out").stat().st_mode & 0o777
+    assert mode == 0o777 & ~umask
+    assert mode == reference.stat().st_mode & 0o777
+
+
+def test_a_symlinked_out_is_followed_and_kept(tmp_path: Path) -> None:
+    target = tmp_path / "real"
+    link = tmp_path / "link"
+    link.symlink_to(target)  # dangling at first: the first run creates the target
+    for text in ("1", "2"):
+        outdir.write_dir(link, fill({"a.txt": text}))
+        assert link.is_symlink()
+        assert os.readlink(link) == str(target)
+        assert (target / "a.txt").read_text() == text
+    assert leftovers(tmp_path) == []
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["link", "real"]

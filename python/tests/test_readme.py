@@ -50,3 +50,45 @@ def test_your_robot_tour_runs_as_written(tmp_path):
     for name in ("traj.csv", "data.csv", "val.csv", "tau.csv", "panda-id/model.json"):
         assert (tmp_path / name).is_file(), name
     assert "torque-prediction error" in run.stdout
+
+
+def test_benchmark_example_runs_as_a_saved_script(tmp_path):
+    """The README's Python benchmark example, saved as a script and run as one: the
+    process pool's workers import the script, which the `__main__` guard makes safe."""
+    import subprocess
+    import sys
+
+    block = next(b for b in python_blocks() if "prrrp.benchmark(" in b)
+    assert 'if __name__ == "__main__":' in block
+    script = tmp_path / "bench.py"
+    script.write_text(block)
+    run = subprocess.run(
+        [sys.executable, str(script)],
+        cwd=tmp_path,
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
+    assert run.returncode == 0, run.stderr
+    rate, error = run.stdout.split()
+    assert float(rate) > 0
+    assert float(error) > 0
+
+
+def test_an_unguarded_benchmark_script_is_told_what_to_do(tmp_path):
+    """The same script without the guard: a WorkerStartError (not an input error) whose
+    message names the fix."""
+    import subprocess
+    import sys
+
+    script = tmp_path / "bench.py"
+    script.write_text(
+        "import prrrp\nprrrp.benchmark(seeds=1, methods='ls', workers=1, progress=False)\n"
+    )
+    run = subprocess.run(
+        [sys.executable, str(script)], cwd=tmp_path, capture_output=True, text=True, timeout=300
+    )
+    assert run.returncode != 0
+    last = run.stderr.strip().splitlines()[-1]
+    assert last.startswith("prrrp.montecarlo.runner.WorkerStartError"), last
+    assert 'if __name__ == "__main__":' in last

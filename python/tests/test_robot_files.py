@@ -181,7 +181,14 @@ def test_limits_come_from_the_file():
 def test_panda_without_tip_lists_the_candidate_tips():
     with pytest.raises(prrrp.PrrrpError, match="leftfinger") as e:
         prrrp.SerialChain.from_urdf(urdf_path("panda"))
-    assert "rightfinger" in str(e.value)
+    text = str(e.value)
+    assert "rightfinger" in text
+    # The arm's end (where the fingers branch) is proposed first, in CLI and Python terms.
+    assert text.index("`panda_hand`") < text.index("`panda_leftfinger`")
+    assert "--tip LINK (Python: tip=)" in text
+    assert "UrdfOptions" not in text
+    chain = prrrp.SerialChain.from_urdf(urdf_path("panda"), tip="panda_hand")
+    assert chain.dof == 7
 
 
 PANDA_DH = {

@@ -189,7 +189,14 @@ impl fmt::Display for PrrrpError {
                 file,
                 element,
                 message,
-            } => write!(f, "robot file {file}, `{element}`: {message}"),
+            } => {
+                // Problems of the whole file name no element.
+                if element == "file" || element.is_empty() {
+                    write!(f, "robot file {file}: {message}")
+                } else {
+                    write!(f, "robot file {file}, `{element}`: {message}")
+                }
+            }
         }
     }
 }

@@ -1,17 +1,29 @@
 //! Cooperative interruption and size bounds of long computations.
 //!
-//! Long loops (simulation, excitation optimisation, sensitivity grids, the study) poll a
-//! process-wide stop flag and return [`PrrrpError::Interrupted`] once it is raised, leaving
-//! no partial result. A host raises it with [`request_stop`] — the Python bindings do so
-//! when Ctrl-C arrives while a computation runs — and lowers it with [`clear_stop`]. Every
-//! size a caller asks for (samples of a simulation, grid points, random states) is checked
-//! against [`MAX_SAMPLES`] before anything is allocated.
+//! Long loops (simulation, excitation optimisation, sensitivity grids, the study) poll for a
+//! stop and return [`PrrrpError::Interrupted`] once one is requested, leaving no partial
+//! result. Two flags are polled:
+//! - a **per-call** [`StopFlag`]: [`StopFlag::run`] makes it the current thread's flag for
+//!   the duration of a call, and the worker threads prrrp spawns inherit it, so raising it
+//!   stops that call and nothing else (the Python bindings give every call its own, so
+//!   Ctrl-C in one thread does not interrupt a computation running in another);
+//! - the **process-wide** flag of [`request_stop`] / [`clear_stop`], which stops every
+//!   computation of the process (for hosts that want exactly that).
+//!
+//! Every size a caller asks for (samples of a simulation, grid points, random states) is
+//! checked against [`MAX_SAMPLES`] before anything is allocated.
 
+use std::cell::RefCell;
 use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
 
 use crate::error::{PrrrpError, Result};
 
 static STOP: AtomicBool = AtomicBool::new(false);
+
+thread_local! {
+    static CURRENT: RefCell<Option<StopFlag>> = const { RefCell::new(None) };
+}
 
 /// Asks every running prrrp computation of this process to stop at its next check.
 pub fn request_stop() {
@@ -23,13 +35,75 @@ pub fn clear_stop() {
     STOP.store(false, Ordering::Relaxed);
 }
 
-/// Whether a stop has been requested.
+/// Whether a stop has been requested for the computation running on this thread: the
+/// process-wide flag of [`request_stop`] or this thread's [`StopFlag`].
 pub fn stop_requested() -> bool {
     STOP.load(Ordering::Relaxed)
+        || CURRENT.with(|c| c.borrow().as_ref().is_some_and(StopFlag::is_raised))
 }
 
-/// `Err(Interrupted)` once a stop has been requested; loops call it every iteration (one
-/// relaxed atomic load, about a nanosecond).
+/// A stop flag for one call (see the module docs): cheap to clone (the clones share the
+/// flag), raised from any thread.
+///
+/// ```
+/// use prrrp_core::StopFlag;
+///
+/// let flag = StopFlag::new();
+/// let seen = flag.run(|| prrrp_core::stop_requested());
+/// assert!(!seen);
+/// flag.raise();
+/// assert!(flag.run(prrrp_core::stop_requested));
+/// assert!(!prrrp_core::stop_requested()); // other calls are not affected
+/// ```
+#[derive(Debug, Clone, Default)]
+pub struct StopFlag(Arc<AtomicBool>);
+
+impl StopFlag {
+    /// A lowered flag.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Asks the call running under this flag (and its worker threads) to stop at its next
+    /// check.
+    pub fn raise(&self) {
+        self.0.store(true, Ordering::Relaxed);
+    }
+
+    /// Whether [`StopFlag::raise`] was called.
+    pub fn is_raised(&self) -> bool {
+        self.0.load(Ordering::Relaxed)
+    }
+
+    /// Runs `f` with this flag as the current thread's stop flag (restored afterwards, also
+    /// when `f` panics).
+    pub fn run<R>(&self, f: impl FnOnce() -> R) -> R {
+        within(Some(self.clone()), f)
+    }
+}
+
+/// The current thread's [`StopFlag`], for handing to worker threads ([`within`]).
+pub(crate) fn current() -> Option<StopFlag> {
+    CURRENT.with(|c| c.borrow().clone())
+}
+
+/// Runs `f` with `flag` as the current thread's stop flag; worker threads spawned by a
+/// computation call this with the spawning thread's [`current`] flag.
+pub(crate) fn within<R>(flag: Option<StopFlag>, f: impl FnOnce() -> R) -> R {
+    struct Restore(Option<StopFlag>);
+    impl Drop for Restore {
+        fn drop(&mut self) {
+            let previous = self.0.take();
+            CURRENT.with(|c| *c.borrow_mut() = previous);
+        }
+    }
+    let previous = CURRENT.with(|c| std::mem::replace(&mut *c.borrow_mut(), flag));
+    let _restore = Restore(previous);
+    f()
+}
+
+/// `Err(Interrupted)` once a stop has been requested; loops call it every iteration (an
+/// atomic load and a thread-local read, a few nanoseconds).
 #[inline]
 pub(crate) fn check(what: &'static str) -> Result<()> {
     if stop_requested() {

@@ -66,8 +66,9 @@ pub use estimators::ParameterJacobian;
 pub use estimators::{
     base_feasibility, default_coulomb_scales, identify_physical, select_coulomb_scale,
     BaseFeasibility, CoulombScaleConfig, CoulombScaleReport, PhysicalConfig, PhysicalEstimate,
-    PhysicalProblem, BASE_FEASIBILITY_TOLERANCE, BASE_MISMATCH_FLOOR, COULOMB_SCALE_GRID,
-    COULOMB_SCALE_RANGE, MAX_COULOMB_CANDIDATES,
+    PhysicalProblem, BASE_FEASIBILITY_TOLERANCE, BASE_MISMATCH_FLOOR, COULOMB_SCALE_FLAT,
+    COULOMB_SCALE_GRID, COULOMB_SCALE_MAX_WIDENINGS, COULOMB_SCALE_MIN_Z, COULOMB_SCALE_RANGE,
+    DEFAULT_DIVERGENCE_WEIGHT, MAX_COULOMB_CANDIDATES,
 };
 pub use estimators::{
     least_squares, weighted_least_squares, Adaline, AdalineConfig, AdalineOf, AdalineRule,
@@ -82,25 +83,29 @@ pub use identification::{
     GradientSettings, IdentifiedModel, LsSettings, Method, PhysicalSettings, Predictor,
     RlsSettings, METHOD_NAMES, MODEL_SCHEMA_VERSION,
 };
-pub use interrupt::{check_count, clear_stop, request_stop, stop_requested, MAX_SAMPLES};
+pub use identification::{ActuatorEstimate, TermEstimate};
+pub use interrupt::{check_count, clear_stop, request_stop, stop_requested, StopFlag, MAX_SAMPLES};
 pub use models::chain::{
     com_and_inertia, inertial_parameters, is_physically_consistent, transform_inertial_parameters,
     BaseOptions, BaseParameters, ChainBaseModel, ChainDescription, ChainMeta, DhConvention,
     DhDescription, DynBaseWorkspace, DynChain, DynChainBaseModel, DynWorkspace, FrictionModel,
     Joint, JointDescription, JointInfo, JointLimit, JointType, PoseDescription, SerialChain,
     AXIS_UNIT_TOLERANCE, CHAIN_SCHEMA_VERSION, FRICTION_PARAMETER_NAMES, INERTIAL_PARAMETER_NAMES,
-    LINK_PARAMS, MAX_MATRIX_ENTRIES, PHYSICAL_TOLERANCE,
+    LINK_PARAMS, MAX_DOF, MAX_MATRIX_ENTRIES, PHYSICAL_TOLERANCE,
 };
 pub use models::chain::{
     pseudo_inertia, pseudo_inertia_to_parameters, standard_from_base, FeasibilityReport,
     JointFrictionFeasibility, LinkFeasibility,
 };
+pub use models::chain::{Actuators, ACTUATOR_PARAMETER_NAMES, COUPLING_CONDITION_LIMIT};
 pub use models::prrrp::derivatives::InverseDerivatives;
 pub use models::prrrp::dynamics::{MassCholesky, PrrrpModel};
 pub use models::prrrp::regressor::{condition_number, observation_matrix, singular_values};
 pub use models::prrrp::robot::{DhRow, JointKind, Robot, STANDARD_GRAVITY};
 pub use models::prrrp::types::{Lambda, Mat5, Regressor, Vec5, NDOF, NPARAM};
-pub use models::robot_files::{UrdfOptions, MAX_ROBOT_FILE_BYTES};
+pub use models::robot_files::{
+    UrdfOptions, MAX_ROBOT_FILE_BYTES, MAX_URDF_DEPTH, MAX_URDF_ELEMENTS,
+};
 pub use models::scaled::{DynScaledModel, DynScaledWorkspace, ScaledModel};
 pub use models::{ForwardDerivatives, ForwardDerivativesOf, LinearDynamics, LinearModel};
 pub use motion::chain_excitation::{

@@ -499,7 +499,12 @@ fn urdf_errors_name_file_and_element() {
     // Several candidate tips: both finger links listed.
     assert_error_names(
         DynChain::from_urdf_str(&text, &default),
-        &["<string>", "finger_left", "finger_right"],
+        &[
+            "<string>",
+            "--tip LINK (Python: tip=)",
+            "Candidates, best first: `link3` (the arm's end, where they branch), `finger_left`",
+            "finger_right",
+        ],
     );
     // Malformed XML.
     assert_error_names(
@@ -1054,4 +1059,368 @@ fn export_is_accurate_near_pitch_half_pi() {
 fn endless_file_is_refused() {
     let e = DynChain::from_urdf_file("/dev/zero", &UrdfOptions::default()).unwrap_err();
     assert!(e.to_string().contains("larger than"), "{e}");
+}
+
+// ---------------------------------------------------------------------------------------
+// Hostile files (issue 25, item 6): each ends in a typed error or the right chain.
+
+#[test]
+fn joint_cycle_through_the_base_is_refused() {
+    // a → b → a: no root; with --base inside the cycle the walk from it must stop.
+    let xml = r#"<robot name="loop">
+        <link name="a"/><link name="b"/>
+        <joint name="ab" type="revolute"><parent link="a"/><child link="b"/>
+          <axis xyz="0 0 1"/><limit lower="-1" upper="1" effort="1" velocity="1"/></joint>
+        <joint name="ba" type="revolute"><parent link="b"/><child link="a"/>
+          <axis xyz="0 0 1"/><limit lower="-1" upper="1" effort="1" velocity="1"/></joint>
+      </robot>"#;
+    for (base, tip) in [("a", Some("b")), ("b", Some("a")), ("a", None)] {
+        let opts = UrdfOptions {
+            base: Some(base.into()),
+            tip: tip.map(Into::into),
+            gravity: None,
+        };
+        assert_error_names(DynChain::from_urdf_str(xml, &opts), &["cycle"]);
+    }
+}
+
+#[test]
+fn deeply_nested_xml_is_refused_before_urdf_rs_recurses() {
+    // 30 000 levels overflowed urdf-rs's stack (SIGSEGV).
+    let depth = 30_000;
+    let xml = format!(
+        "<robot name=\"deep\"><link name=\"a\"/>{}{}</robot>",
+        "<x>".repeat(depth),
+        "</x>".repeat(depth)
+    );
+    let (_, element, message) =
+        robot_file_error(DynChain::from_urdf_str(&xml, &UrdfOptions::default()));
+    assert_eq!(element, "robot");
+    assert!(message.contains("MAX_URDF_DEPTH"), "{message}");
+    // A URDF at the limit still reads.
+    let ok = format!(
+        "<robot name=\"deep\"><link name=\"a\"/><link name=\"b\">{}{}</link>\
+         <joint name=\"j\" type=\"revolute\"><parent link=\"a\"/><child link=\"b\"/>\
+         <axis xyz=\"0 0 1\"/><limit lower=\"-1\" upper=\"1\" effort=\"1\" velocity=\"1\"/>\
+         </joint></robot>",
+        "<x>".repeat(prrrp_core::MAX_URDF_DEPTH - 2),
+        "</x>".repeat(prrrp_core::MAX_URDF_DEPTH - 2)
+    );
+    assert_eq!(
+        DynChain::from_urdf_str(&ok, &UrdfOptions::default())
+            .unwrap()
+            .dof(),
+        1
+    );
+}
+
+#[test]
+fn too_many_xml_elements_are_refused() {
+    let xml = format!(
+        "<robot name=\"many\"><link name=\"a\"/>{}</robot>",
+        "<x/>".repeat(prrrp_core::MAX_URDF_ELEMENTS)
+    );
+    let (_, _, message) = robot_file_error(DynChain::from_urdf_str(&xml, &UrdfOptions::default()));
+    assert!(message.contains("MAX_URDF_ELEMENTS"), "{message}");
+}
+
+/// A revolute joint `base → arm` with `locked` further revolute joints hanging from `arm`,
+/// each with a 1 kg point mass at x = 0.1 m.
+fn many_locked_xml(locked: usize) -> String {
+    let mut xml = String::from(
+        r#"<robot name="comb"><link name="base"/><link name="arm"/>
+           <joint name="j" type="revolute"><parent link="base"/><child link="arm"/>
+           <axis xyz="0 0 1"/><limit lower="-1" upper="1" effort="1" velocity="1"/></joint>"#,
+    );
+    for i in 0..locked {
+        xml.push_str(&format!(
+            "<link name=\"t{i}\"><inertial><origin xyz=\"0.1 0 0\"/><mass value=\"1\"/>\
+             <inertia ixx=\"0\" ixy=\"0\" ixz=\"0\" iyy=\"0\" iyz=\"0\" izz=\"0\"/></inertial>\
+             </link><joint name=\"l{i}\" type=\"revolute\"><parent link=\"arm\"/>\
+             <child link=\"t{i}\"/><axis xyz=\"1 0 0\"/>\
+             <limit lower=\"-1\" upper=\"1\" effort=\"1\" velocity=\"1\"/></joint>"
+        ));
+    }
+    xml.push_str("</robot>");
+    xml
+}
+
+#[test]
+fn many_locked_joints_merge_in_linear_time() {
+    // 120 000 locked joints hung (quadratic sorting); 4 000 (40 000 elements, below
+    // MAX_URDF_ELEMENTS) is a real test of the same code path, and the result is checked.
+    let locked = 4_000;
+    let chain = DynChain::from_urdf_str(&many_locked_xml(locked), &tip("arm")).unwrap();
+    let meta = chain.meta();
+    assert_eq!(meta.locked_joints.len(), locked);
+    assert!(meta
+        .locked_joints
+        .iter()
+        .enumerate()
+        .all(|(i, name)| *name == format!("l{i}")));
+    // All point masses merged into the arm: m = N kg, first moment N·0.1 kg·m along x.
+    let p = chain.inertial()[0];
+    assert_eq!(p[0], locked as f64);
+    assert!((p[1] - 0.1 * locked as f64).abs() < 1e-9 * locked as f64);
+    // The file of issue 25 (120 000 locked joints, 480 000 elements) is refused at once.
+    let (_, _, message) = robot_file_error(DynChain::from_urdf_str(
+        &many_locked_xml(120_000),
+        &tip("arm"),
+    ));
+    assert!(message.contains("MAX_URDF_ELEMENTS"), "{message}");
+}
+
+fn dh_toml(joints: usize) -> String {
+    let mut s = String::from("convention = \"modified\"\n");
+    for _ in 0..joints {
+        s.push_str(
+            "[[joint]]\ntype = \"revolute\"\na = 0.1\nalpha = 0.3\nd = 0.1\ntheta = 0\n\
+             inertial = [1, 0, 0, 0, 0.1, 0, 0.1, 0, 0, 0.1]\n",
+        );
+    }
+    s
+}
+
+#[test]
+fn joint_counts_beyond_max_dof_are_refused_before_work() {
+    let max = prrrp_core::MAX_DOF;
+    assert_eq!(DynChain::from_toml_str(&dh_toml(max)).unwrap().dof(), max);
+    // The 300-joint TOML of issue 25 hung in the base-parameter analysis.
+    let (_, element, message) = robot_file_error(DynChain::from_toml_str(&dh_toml(300)));
+    assert_eq!(element, "joint");
+    assert!(message.contains("MAX_DOF"), "{message}");
+    // A URDF chain of MAX_DOF + 1 movable joints.
+    let mut xml = String::from("<robot name=\"snake\"><link name=\"l0\"/>");
+    for i in 1..=max + 1 {
+        xml.push_str(&format!(
+            "<link name=\"l{i}\"/><joint name=\"j{i}\" type=\"continuous\">\
+             <parent link=\"l{}\"/><child link=\"l{i}\"/><origin xyz=\"0.1 0 0\"/>\
+             <axis xyz=\"0 0 1\"/></joint>",
+            i - 1
+        ));
+    }
+    xml.push_str("</robot>");
+    let (_, _, message) = robot_file_error(DynChain::from_urdf_str(&xml, &UrdfOptions::default()));
+    assert!(message.contains("MAX_DOF"), "{message}");
+    // A description (saved model) with too many joints, before anything is built.
+    let mut d = SerialChain::puma560().to_dyn().description();
+    let j = d.joints[0].clone();
+    d.joints = vec![j; 8000];
+    d.dh = None;
+    assert!(matches!(
+        DynChain::from_description(&d),
+        Err(PrrrpError::ShapeMismatch { .. })
+    ));
+}
+
+#[test]
+fn nan_or_zero_quaternions_are_refused() {
+    let with_quat = |version: &str, quat: &str| {
+        format!(
+            r#"<robot name="q" version="{version}"><link name="a"/><link name="b"/>
+               <joint name="j" type="revolute"><parent link="a"/><child link="b"/>
+               <origin xyz="0 0 0.1" quat_xyzw="{quat}"/><axis xyz="0 0 1"/>
+               <limit lower="-1" upper="1" effort="1" velocity="1"/></joint></robot>"#
+        )
+    };
+    for bad in ["nan nan nan nan", "0 0 0 0", "inf 0 0 1", "0 0 NaN 1"] {
+        let (_, element, message) = robot_file_error(DynChain::from_urdf_str(
+            &with_quat("1.1", bad),
+            &UrdfOptions::default(),
+        ));
+        assert_eq!(element, "joint[j]/origin/quat_xyzw", "{bad}");
+        assert!(message.contains("not a rotation"), "{bad}: {message}");
+    }
+    // A unit quaternion reads, as the rotation it is (90° about z).
+    let chain = DynChain::from_urdf_str(
+        &with_quat("1.1", "0 0 0.7071067811865476 0.7071067811865476"),
+        &UrdfOptions::default(),
+    )
+    .unwrap();
+    let r = chain.joints()[0].placement.rotation;
+    assert!((r.angle() - FRAC_PI_2).abs() < 1e-12);
+    // URDF 1.0 ignores quat_xyzw, as urdfdom does.
+    assert!(DynChain::from_urdf_str(
+        &with_quat("1.0", "nan nan nan nan"),
+        &UrdfOptions::default()
+    )
+    .is_ok());
+    // Non-finite xyz and rpy are named too.
+    let inf_xyz = with_quat("1.1", "0 0 0 1").replace("xyz=\"0 0 0.1\"", "xyz=\"inf 0 0\"");
+    assert_error_names(
+        DynChain::from_urdf_str(&inf_xyz, &UrdfOptions::default()),
+        &["joint[j]/origin/xyz", "\"inf 0 0\""],
+    );
+}
+
+#[test]
+fn to_urdf_refuses_what_it_cannot_write() {
+    // A placement that overflows when composed with the previous link frame.
+    let mut a = Joint::new(JointType::Revolute, Isometry3::identity(), Vector3::z());
+    a.link_frame = Isometry3::translation(1.5e308, 0.0, 0.0);
+    let b = Joint::new(
+        JointType::Revolute,
+        Isometry3::translation(1.5e308, 0.0, 0.0),
+        Vector3::z(),
+    );
+    let chain = DynChain::from_joints(vec![a, b])
+        .unwrap()
+        .with_inertial(vec![[1.0, 0.0, 0.0, 0.0, 0.1, 0.0, 0.1, 0.0, 0.0, 0.1]; 2])
+        .unwrap();
+    let err = chain.to_urdf(None).unwrap_err();
+    assert!(matches!(err, PrrrpError::InvalidParameter { .. }), "{err}");
+    assert!(err.to_string().contains("NaN or infinite"), "{err}");
+
+    // A centre of mass at infinity: a subnormal mass with a first moment.
+    let puma = SerialChain::puma560().to_dyn();
+    let mut p = puma.inertial().to_vec();
+    p[2] = [1e-310, 1.0, 0.0, 0.0, 0.1, 0.0, 0.1, 0.0, 0.0, 0.1];
+    let err = puma.with_inertial(p).unwrap().to_urdf(None).unwrap_err();
+    assert!(err.to_string().contains("link 3"), "{err}");
+}
+
+#[test]
+fn to_urdf_names_round_trip_or_are_refused() {
+    let puma = SerialChain::puma560().to_dyn();
+    let mut meta = puma.meta().clone();
+    let names = [
+        "a&b",
+        "<shoulder>",
+        "quote\"d",
+        "apos'trophe",
+        "tab\there",
+        "new\nline",
+        "ünïcödé",
+    ];
+    for (i, name) in names.iter().take(6).enumerate() {
+        meta.links[i] = format!("link {name}");
+        meta.joints[i].name = format!("joint {name}");
+    }
+    meta.base_link = names[6].into();
+    meta.name = "robot & <co>".into();
+    let chain = puma.clone().with_meta(meta.clone()).unwrap();
+    let back =
+        DynChain::from_urdf_str(&chain.to_urdf(None).unwrap(), &UrdfOptions::default()).unwrap();
+    assert_eq!(back.meta().links, meta.links);
+    assert_eq!(back.joint_names(), chain.joint_names());
+    assert_eq!(back.meta().base_link, meta.base_link);
+    assert_eq!(back.meta().name, meta.name);
+    // What XML cannot hold, or URDF cannot tell apart, is an error, not a broken file.
+    let mut bad = meta.clone();
+    bad.links[1] = "bell\u{7}".into();
+    let err = puma
+        .clone()
+        .with_meta(bad)
+        .unwrap()
+        .to_urdf(None)
+        .unwrap_err();
+    assert!(err.to_string().contains("meta.links[1]"), "{err}");
+    let mut dup = meta.clone();
+    dup.links[4] = dup.links[2].clone();
+    let err = puma
+        .clone()
+        .with_meta(dup)
+        .unwrap()
+        .to_urdf(None)
+        .unwrap_err();
+    assert!(err.to_string().contains("unique"), "{err}");
+    let mut empty = meta;
+    empty.joints[0].name = String::new();
+    assert!(puma.with_meta(empty).unwrap().to_urdf(None).is_err());
+}
+
+#[test]
+fn whole_file_errors_name_no_element() {
+    let shown = DynChain::from_file("robot.xml", &UrdfOptions::default())
+        .unwrap_err()
+        .to_string();
+    assert!(
+        shown.starts_with("robot file robot.xml: unknown"),
+        "{shown}"
+    );
+    assert!(!shown.contains("`file`"), "{shown}");
+}
+
+mod properties {
+    use super::*;
+    use proptest::prelude::*;
+
+    proptest! {
+        #![proptest_config(ProptestConfig { cases: 64, ..ProptestConfig::default() })]
+
+        /// Whatever the names and however far the links reach, `to_urdf` writes a file
+        /// that reads back to the same names and placements, or refuses with a typed error.
+        #[test]
+        fn to_urdf_reads_back_or_refuses(
+            link in ".{0,10}",
+            joint in ".{0,10}",
+            reach in prop_oneof![-1e3..1e3f64, Just(1e154), Just(-1.5e308), Just(1.5e308)],
+            mass in prop_oneof![0.1..10.0f64, Just(0.0), Just(1e-310)],
+        ) {
+            let puma = SerialChain::puma560().to_dyn();
+            let mut meta = puma.meta().clone();
+            meta.links[3] = link.clone();
+            meta.joints[1].name = joint.clone();
+            let mut joints = puma.joints().to_vec();
+            joints[4].placement.translation.vector.x = reach;
+            let mut inertial = puma.inertial().to_vec();
+            inertial[5] = [mass, 0.01, 0.0, 0.0, 0.1, 0.0, 0.1, 0.0, 0.0, 0.1];
+            let chain = DynChain::from_joints(joints)
+                .unwrap()
+                .with_inertial(inertial)
+                .unwrap()
+                .with_meta(meta)
+                .unwrap();
+            match chain.to_urdf(None) {
+                Ok(xml) => {
+                    let back = DynChain::from_urdf_str(&xml, &UrdfOptions::default()).unwrap();
+                    prop_assert_eq!(&back.meta().links, &chain.meta().links);
+                    prop_assert_eq!(back.joint_names(), chain.joint_names());
+                    // Same dynamics (placements are re-expressed for standard DH).
+                    let (q, qd, qdd) = ([0.3, -0.2, 0.5, 0.1, -0.4, 0.2], [0.5; 6], [-1.0; 6]);
+                    let want = chain.inverse_dynamics(&q, &qd, &qdd).unwrap();
+                    let got = back.inverse_dynamics(&q, &qd, &qdd).unwrap();
+                    // (A 1e154 m reach overflows the dynamics themselves.)
+                    prop_assume!(want.iter().all(|t| t.is_finite()));
+                    let scale = want.iter().fold(1.0f64, |m, t| m.max(t.abs()));
+                    for (g, w) in got.iter().zip(&want) {
+                        prop_assert!((g - w).abs() <= 1e-9 * scale, "{got:?} vs {want:?}");
+                    }
+                }
+                Err(e) => prop_assert!(matches!(e, PrrrpError::InvalidParameter { .. }), "{e}"),
+            }
+        }
+
+        /// Any quaternion: a finite, non-zero one is read as its rotation, any other is a
+        /// typed error naming it.
+        #[test]
+        fn urdf_quaternions(
+            q in prop::array::uniform4(prop_oneof![
+                -2.0..2.0f64, Just(0.0), Just(f64::NAN), Just(f64::INFINITY), Just(1e300)
+            ]),
+        ) {
+            let text = format!("{} {} {} {}", q[0], q[1], q[2], q[3]);
+            let xml = format!(
+                r#"<robot name="q" version="1.1"><link name="a"/><link name="b"/>
+                   <joint name="j" type="continuous"><parent link="a"/><child link="b"/>
+                   <origin quat_xyzw="{text}"/><axis xyz="0 0 1"/></joint></robot>"#
+            );
+            let norm = q.iter().map(|v| v * v).sum::<f64>().sqrt();
+            match DynChain::from_urdf_str(&xml, &UrdfOptions::default()) {
+                Ok(chain) => {
+                    prop_assert!(norm.is_finite() && norm > 1e-6, "{text} accepted");
+                    let r = chain.joints()[0].placement.rotation;
+                    let want = UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(
+                        q[3], q[0], q[1], q[2],
+                    ));
+                    prop_assert!(r.angle_to(&want) < 1e-9, "{text}: {r:?}");
+                }
+                Err(PrrrpError::RobotFile { element, .. }) => {
+                    prop_assert!(!(norm.is_finite() && norm > 1e-6), "{text} refused");
+                    prop_assert_eq!(element, "joint[j]/origin/quat_xyzw");
+                }
+                Err(e) => prop_assert!(false, "{e:?}"),
+            }
+        }
+    }
 }

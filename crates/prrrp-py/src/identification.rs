@@ -1,17 +1,99 @@
 //! `prrrp.IdentifiedModel`: an identification result for any robot that predicts joint
 //! torques on its own and saves to / loads from JSON (`docs/model-schema.md`).
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
-use prrrp_core::IdentifiedModel;
+use prrrp_core::{IdentifiedModel, PrrrpError};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
 use crate::arrays::{batch_len, map_samples_with, to_array, DynSamples};
-use crate::errors::{to_pyerr, ToPyResult};
+use crate::errors::{to_pyerr, Exc, ToPyResult};
 use crate::models::chain::PySerialChain;
 
 type Out<'py> = PyResult<Bound<'py, PyAny>>;
+
+/// Largest model file `IdentifiedModel.load` reads, bytes (256 MiB). A model of a 7-joint
+/// arm is ~30 kB; one of 100 joints with its full covariance ~40 MB. The bound keeps
+/// `/dev/zero` or a mistaken log from exhausting memory before the parser can complain.
+pub(crate) const MAX_MODEL_FILE_BYTES: u64 = 256 << 20;
+
+/// The text of a model file: a regular file (checked with `stat` before opening, since
+/// opening a FIFO blocks) of at most [`MAX_MODEL_FILE_BYTES`]. Errors: (what, message).
+fn read_model_file(path: &Path) -> Result<String, (&'static str, String)> {
+    use std::io::Read;
+    let meta = std::fs::metadata(path).map_err(|e| {
+        (
+            "path",
+            format!("cannot read the model file ({e}); check the path"),
+        )
+    })?;
+    if !meta.is_file() {
+        let kind = if meta.is_dir() {
+            "a folder"
+        } else {
+            "not a regular file (a pipe, socket or device)"
+        };
+        return Err((
+            "path",
+            format!("{kind}; give a model.json written by IdentifiedModel.save"),
+        ));
+    }
+    if meta.len() > MAX_MODEL_FILE_BYTES {
+        return Err((
+            "size",
+            format!(
+                "{} bytes is more than the {MAX_MODEL_FILE_BYTES} bytes a model file may have; \
+                 check the path",
+                meta.len()
+            ),
+        ));
+    }
+    let file = std::fs::File::open(path).map_err(|e| {
+        (
+            "path",
+            format!("cannot read the model file ({e}); check the path"),
+        )
+    })?;
+    let mut text = String::new();
+    // One byte past the bound tells a file that grew since the stat from one that fits.
+    let n = file
+        .take(MAX_MODEL_FILE_BYTES + 1)
+        .read_to_string(&mut text)
+        .map_err(|e| {
+            (
+                "content",
+                format!("cannot read the model file as UTF-8 text ({e})"),
+            )
+        })?;
+    if n as u64 > MAX_MODEL_FILE_BYTES {
+        return Err((
+            "size",
+            format!("more than the {MAX_MODEL_FILE_BYTES} bytes a model file may have"),
+        ));
+    }
+    Ok(text)
+}
+
+/// An `InvalidParameterError` (as every bad model file has been) about a model file, with
+/// `.file`, `.what` (path, size, content) and `.message` attributes besides the class's
+/// `.field` (`model file`), `.value` (NaN) and `.reason` (the message), and the message
+/// `FILE: MESSAGE`.
+fn file_error(py: Python<'_>, file: &str, what: &str, message: String) -> PyErr {
+    let mut attrs: Vec<(&str, Bound<'_, PyAny>)> = [
+        ("file", file.to_string()),
+        ("what", what.to_string()),
+        ("message", message.clone()),
+        ("field", "model file".to_string()),
+        ("reason", message.clone()),
+    ]
+    .into_iter()
+    .filter_map(|(k, v)| v.into_pyobject(py).ok().map(|o| (k, o.into_any())))
+    .collect();
+    let Ok(nan) = f64::NAN.into_pyobject(py);
+    attrs.push(("value", nan.into_any()));
+    Exc::InvalidParameter.new_err(py, format!("{file}: {message}"), &attrs)
+}
 
 /// See the class documentation in `_prrrp.pyi`.
 #[pyclass(module = "prrrp", name = "IdentifiedModel", frozen)]
@@ -40,23 +122,42 @@ impl PyIdentifiedModel {
         Ok(Self { inner })
     }
 
-    /// A model from a JSON file written by `save`.
+    /// Largest model file `load` reads, bytes.
+    #[classattr]
+    const MAX_FILE_BYTES: u64 = MAX_MODEL_FILE_BYTES;
+
+    /// A model from a JSON file written by `save`. The path must name a regular file of
+    /// at most `MAX_FILE_BYTES`, checked before it is opened (a FIFO would block the
+    /// open, /dev/zero would never end).
     #[staticmethod]
     fn load(py: Python<'_>, path: PathBuf) -> PyResult<Self> {
-        let text = std::fs::read_to_string(&path).map_err(|e| {
-            to_pyerr(
-                py,
-                &prrrp_core::PrrrpError::InvalidParameter {
-                    field: format!("model file {} ({e})", path.display()),
-                    value: f64::NAN,
-                    reason: "cannot be read; check the path",
-                },
-            )
-        })?;
-        Self::from_json(py, &text)
+        let shown = path.display().to_string();
+        let text = py
+            .detach(|| read_model_file(&path))
+            .map_err(|(what, message)| file_error(py, &shown, what, message))?;
+        let inner = py.detach(|| IdentifiedModel::from_json(&text));
+        match inner {
+            Ok(inner) => Ok(Self { inner }),
+            // The core names the line and column; serde's message says what is wrong there
+            // (e.g. `invalid type: string "ten", expected usize`).
+            Err(PrrrpError::InvalidParameter { field, .. }) if field.starts_with("model JSON") => {
+                let detail = serde_json::from_str::<IdentifiedModel>(&text)
+                    .err()
+                    .map_or_else(|| field.clone(), |e| e.to_string());
+                Err(file_error(
+                    py,
+                    &shown,
+                    "content",
+                    format!(
+                        "not a prrrp model file ({detail}); write it with IdentifiedModel.save"
+                    ),
+                ))
+            }
+            Err(e) => Err(to_pyerr(py, &e)),
+        }
     }
 
-    /// The model as JSON text (schema version 1).
+    /// The model as JSON text (schema version 2).
     fn to_json(&self, py: Python<'_>) -> PyResult<String> {
         self.inner.to_json().to_py(py)
     }
@@ -215,6 +316,16 @@ impl PyIdentifiedModel {
         json_to_py(py, &self.inner.preprocessing)
     }
 
+    /// Each actuator's identified terms (friction, armature) with the base parameter they
+    /// are identified in, β̂ and σ: a list of dicts (see `_prrrp.pyi`); empty without
+    /// actuator terms.
+    #[getter]
+    fn actuators<'py>(&self, py: Python<'py>) -> Out<'py> {
+        let v = serde_json::to_value(self.inner.actuator_estimates())
+            .map_err(|e| pyo3::exceptions::PyRuntimeError::new_err(e.to_string()))?;
+        json_to_py(py, &v)
+    }
+
     /// Pickle support through the JSON text.
     fn __reduce__<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, pyo3::types::PyTuple>> {
         let rebuild = py.get_type::<PyIdentifiedModel>().getattr("from_json")?;
@@ -302,7 +413,13 @@ fn identified_model_from_parts(
 fn valid_keys(method: &str) -> &'static [&'static str] {
     match method {
         "ls" | "wls" => &["rank_tolerance"],
-        "physical" => &["rank_tolerance", "prior", "prior_weight"],
+        "physical" => &[
+            "rank_tolerance",
+            "prior",
+            "prior_weight",
+            "divergence_weight",
+            "weighted",
+        ],
         "rls" => &[
             "rank_tolerance",
             "forgetting",
@@ -400,6 +517,8 @@ fn parse_method(
             (Method::Ekf(s), "rank_tolerance") => s.rank_tolerance = f()?,
             (Method::Physical(s), "rank_tolerance") => s.rank_tolerance = f()?,
             (Method::Physical(s), "prior_weight") => s.prior_weight = f()?,
+            (Method::Physical(s), "divergence_weight") => s.divergence_weight = f()?,
+            (Method::Physical(s), "weighted") => s.weighted = v.extract()?,
             (Method::Physical(s), "prior") => {
                 s.prior = if v.is_none() {
                     None

@@ -45,8 +45,9 @@ from prrrp.cli.common import (
     EXIT_USAGE,
     CliError,
     Parser,
+    check_chain_options,
+    describe,
     error,
-    first_line,
 )
 from prrrp.cli.simulate import DEFAULT_Q_NOISE, DEFAULT_TAU_NOISE
 
@@ -102,6 +103,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     with contextlib.suppress(ValueError):  # not the main thread: keep the default
         signal.signal(signal.SIGTERM, _on_sigterm)
     try:
+        check_chain_options(args)
         return int(args.func(args))
     except CliError as e:
         error(str(e))
@@ -115,12 +117,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     except prrrp.RankDeficientError as e:
         error(
             f"the data does not excite every parameter (rank deficient, cond(W) = "
-            f"{getattr(e, 'cond', float('inf')):.3g}): {first_line(e)}"
+            f"{getattr(e, 'cond', float('inf')):.3g}): {describe(e)}"
         )
         return EXIT_USAGE
     except (prrrp.InvalidInputError, ValueError) as e:
-        error(first_line(e))
+        error(describe(e))
         return EXIT_USAGE
     except prrrp.PrrrpError as e:
-        error(first_line(e))
+        error(describe(e))
         return EXIT_FAILED

@@ -10,7 +10,7 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
-from prrrp.cli.common import EXIT_OK, CliError, nonempty_path
+from prrrp.cli.common import EXIT_FAILED, EXIT_OK, CliError, error, nonempty_path
 
 
 def _floats(what: str) -> Any:
@@ -26,6 +26,21 @@ def _floats(what: str) -> Any:
         return values
 
     return parse
+
+
+def _positive_ints(text: str) -> list[int]:
+    try:
+        values = [int(x) for x in text.split(",") if x.strip()]
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"not a comma-separated list of integers: {text!r}"
+        ) from None
+    if not values:
+        raise argparse.ArgumentTypeError("no value given")
+    bad = [v for v in values if v < 1]
+    if bad:
+        raise argparse.ArgumentTypeError(f"must be at least 1, got {bad[0]}")
+    return values
 
 
 def _positive_int(text: str) -> int:
@@ -52,10 +67,16 @@ def add_parser(sub: Any) -> None:
         "A case whose worker dies or times out is retried once, then recorded as failed.",
     )
     p.add_argument(
-        "--robot", metavar="ROBOT", help="robot file (.urdf or .toml); default: the paper's arm"
+        "--robot", metavar="ROBOT", help="robot file (.urdf or .toml) (default: the paper's arm)"
     )
-    p.add_argument("--base", metavar="LINK", help="URDF: first link of the chain")
-    p.add_argument("--tip", metavar="LINK", help="URDF: last link of the chain")
+    p.add_argument(
+        "--base", metavar="LINK", help="URDF: first link of the chain (default: the root link)"
+    )
+    p.add_argument(
+        "--tip",
+        metavar="LINK",
+        help="URDF: last link of the chain (default: the end of the movable joints)",
+    )
     p.add_argument(
         "--methods",
         default=",".join(DEFAULT_METHODS),
@@ -83,6 +104,14 @@ def add_parser(sub: Any) -> None:
         "--duration", type=float, default=10.0, help="excitation length per case, s (default: 10)"
     )
     p.add_argument(
+        "--excitation-evaluations",
+        type=_positive_ints,
+        default=[300],
+        metavar="N[,N...]",
+        help="cost evaluations of the excitation optimiser per case; several (e.g. 50,300) "
+        "add a grid axis and the report compares the errors per budget (default: 300)",
+    )
+    p.add_argument(
         "--timeout",
         type=float,
         default=300.0,
@@ -98,7 +127,7 @@ def add_parser(sub: Any) -> None:
         "--dask",
         metavar="ADDRESS",
         help="run on the Dask cluster at ADDRESS (tcp://host:8786; needs "
-        "`pip install prrrp[cluster]`)",
+        "`pip install prrrp[cluster]`) (default: none, a local process pool)",
     )
     p.add_argument(
         "--out",
@@ -133,7 +162,7 @@ def run(args: argparse.Namespace) -> int:
 
     out = Path(args.out)
     # Refuse an unusable --out before hours of computation, not after.
-    outdir._check(out.absolute())
+    outdir.check(out)
     with contextlib.ExitStack() as stack:
         executor = stack.enter_context(_dask_executor(args.dask)) if args.dask else None
         result = prrrp.benchmark(
@@ -146,14 +175,25 @@ def run(args: argparse.Namespace) -> int:
             workers=args.workers,
             timeout=args.timeout,
             duration=args.duration,
+            excitation_evaluations=args.excitation_evaluations,
             base=args.base,
             tip=args.tip,
         )
-    result.save(out)
+    try:
+        result.save(out)
+    except (OSError, outdir.OutputDirError) as e:
+        rescue = _rescue(result, out)
+        raise CliError(
+            f"--out {out}: the results could not be written there ({_oserror(e)}); "
+            + (f"they are in {rescue}" if rescue else "and no rescue file could be written"),
+            code=EXIT_FAILED,
+        ) from None
     stats = result.stats
+    budgets = len(result.config["excitation_evaluations"]) > 1
     print(
-        f"{'method':>9} {'noise':>6} {'rate':>6} {'ok':>4} {'failed':>6} "
-        f"{'max param err %':>16} {'torque err %':>13}"
+        f"{'method':>9} {'noise':>6} {'rate':>6} "
+        + (f"{'evals':>6} " if budgets else "")
+        + f"{'ok':>4} {'failed':>6} {'max param err %':>16} {'torque err %':>13}"
     )
     for s in report.summary(result.rows):
 
@@ -162,7 +202,9 @@ def run(args: argparse.Namespace) -> int:
             return "-" if v is None else f"{v:.3g}"
 
         print(
-            f"{s['method']:>9} {s['noise']:>6g} {s['rate']:>6g} {s['ok']:>4} {s['failed']:>6} "
+            f"{s['method']:>9} {s['noise']:>6g} {s['rate']:>6g} "
+            + (f"{s['excitation_evaluations']:>6} " if budgets else "")
+            + f"{s['ok']:>4} {s['failed']:>6} "
             f"{cell('max_param_error_percent'):>16} {cell('torque_rms_relative_percent'):>13}"
         )
     print(
@@ -170,4 +212,32 @@ def run(args: argparse.Namespace) -> int:
         f"{stats.failed_cases} failed, {stats.elapsed_s:.1f} s, "
         f"{stats.cases_per_second:.2f} cases/s on {stats.engine})"
     )
+    for name, e in result.figure_errors.items():
+        error(f"figure {name} could not be drawn ({e}); the results are complete")
+    if stats.failed_cases == stats.cases:
+        errors = sorted({r["error"] for r in result.rows if r.get("error")})
+        raise CliError(
+            f"every case failed ({stats.cases}); first error: {errors[0] if errors else '?'} "
+            f"(all errors in {out}/report.md)",
+            code=EXIT_FAILED,
+        )
     return EXIT_OK
+
+
+def _oserror(e: Exception) -> str:
+    if isinstance(e, OSError):
+        return f"{e.strerror or e}" + (f": {e.filename}" if e.filename else "")
+    return str(e)
+
+
+def _rescue(result: Any, out: Path) -> Path | None:
+    """Writes results.json where it can (beside --out, else the temporary folder) so that
+    a run's computation is not lost to an unwritable --out; returns where, or None."""
+    import os
+    import tempfile
+
+    name = f"{out.name or 'benchmark'}-results-{os.getpid()}.json"
+    for folder in (out.absolute().parent, Path.cwd(), Path(tempfile.gettempdir())):
+        with contextlib.suppress(OSError):
+            return result.save_results(folder / name)
+    return None

@@ -148,6 +148,40 @@ def first_line(e: BaseException) -> str:
     return text.splitlines()[0]
 
 
+def describe(e: BaseException) -> str:
+    """An error as one line a command-line user reads: a robot file's error as
+    ``FILE: [ELEMENT: ]MESSAGE``, the library's `code` quotes as plain 'quotes'."""
+    file, element, message = (getattr(e, k, None) for k in ("file", "element", "message"))
+    if isinstance(file, str) and isinstance(message, str):
+        where = f"{file}: " + (f"{element}: " if element and element != "file" else "")
+        return where + message.strip().splitlines()[0]
+    return first_line(e).replace("`", "'")
+
+
+def options(values: Sequence[str]) -> str:
+    """``a, b or c``: a list of choices as a message says it (not a Python tuple)."""
+    values = list(values)
+    return values[0] if len(values) == 1 else ", ".join(values[:-1]) + " or " + values[-1]
+
+
+def check_chain_options(args: argparse.Namespace) -> None:
+    """``--base``/``--tip`` pick the chain of a URDF: without a ``--robot`` URDF they are
+    a usage error, not silently ignored."""
+    given = [f"--{k}" for k in ("base", "tip") if getattr(args, k, None) is not None]
+    if not given:
+        return
+    robot = getattr(args, "robot", None)
+    if not robot:
+        verb = "need" if len(given) > 1 else "needs"
+        raise CliError(f"{' and '.join(given)} {verb} --robot ROBOT.urdf (they pick its chain)")
+    if not str(robot).lower().endswith(".urdf"):
+        raise CliError(
+            f"{' and '.join(given)} {'apply' if len(given) > 1 else 'applies'} to a URDF robot "
+            f"file; {robot} is not one (a TOML "
+            "file describes its chain itself)"
+        )
+
+
 def error(message: str) -> None:
     print(f"prrrp: error: {message}", file=sys.stderr)
 

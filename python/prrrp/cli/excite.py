@@ -18,6 +18,7 @@ from prrrp.cli.common import (
     check_output_file,
     friction_terms,
     nonempty_path,
+    options,
     print_table,
     seed,
 )
@@ -35,14 +36,22 @@ def add_parser(sub: Any) -> None:
         "limits of the robot file, and writes t, q1..qN, qd1..qdN, qdd1..qddN (SI units).",
     )
     p.add_argument("--robot", required=True, metavar="ROBOT", help="robot file (.urdf, .toml)")
-    p.add_argument("--base", metavar="LINK", help="URDF: first link of the chain")
-    p.add_argument("--tip", metavar="LINK", help="URDF: last link of the chain")
+    p.add_argument(
+        "--base", metavar="LINK", help="URDF: first link of the chain (default: the root link)"
+    )
+    p.add_argument(
+        "--tip",
+        metavar="LINK",
+        help="URDF: last link of the chain (default: the end of the movable joints)",
+    )
     p.add_argument(
         "--out", required=True, type=nonempty_path, metavar="TRAJ.csv", help="CSV file to write"
     )
-    p.add_argument("--duration", type=float, default=10.0, metavar="S", help="seconds (10)")
-    p.add_argument("--seed", type=seed, default=0, help="seed of the random shapes (0)")
-    p.add_argument("--harmonics", type=int, default=5, metavar="K", help="per joint (5)")
+    p.add_argument(
+        "--duration", type=float, default=10.0, metavar="S", help="seconds (default: 10)"
+    )
+    p.add_argument("--seed", type=seed, default=0, help="seed of the random shapes (default: 0)")
+    p.add_argument("--harmonics", type=int, default=5, metavar="K", help="per joint (default: 5)")
     p.add_argument(
         "--base-freq",
         type=float,
@@ -51,21 +60,28 @@ def add_parser(sub: Any) -> None:
         help="base frequency; the duration must be a whole number of its periods "
         "(default: 1/duration)",
     )
-    p.add_argument("--rate", type=float, default=100.0, metavar="HZ", help="samples/s (100)")
+    p.add_argument(
+        "--rate", type=float, default=100.0, metavar="HZ", help="samples/s (default: 100)"
+    )
     p.add_argument(
         "--friction",
         metavar="TERMS",
         default="viscous,coulomb,offset",
-        help="friction columns of W_b: viscous, coulomb, offset or none (all three)",
+        help="friction columns of W_b: viscous, coulomb, offset or none "
+        "(default: viscous,coulomb,offset)",
     )
     p.add_argument(
         "--limits",
         metavar="K=V,...",
         help="override the file's limits for every joint, e.g. velocity=2,acceleration=8 "
-        "(keys: lower, upper in rad/m; velocity; acceleration)",
+        "(keys: lower, upper in rad/m; velocity; acceleration) (default: the file's)",
     )
     p.add_argument(
-        "--evaluations", type=int, default=2000, metavar="N", help="cost evaluations (2000)"
+        "--evaluations",
+        type=int,
+        default=2000,
+        metavar="N",
+        help="cost evaluations (default: 2000)",
     )
     p.set_defaults(func=run)
 
@@ -78,7 +94,7 @@ def _limits(text: str | None, n: int) -> dict[str, np.ndarray] | None:
         key, sep, value = item.partition("=")
         key = key.strip()
         if not sep or key not in LIMIT_KEYS:
-            raise CliError(f"--limits: '{item}' is not KEY=VALUE with KEY in {LIMIT_KEYS}")
+            raise CliError(f"--limits: '{item}' is not KEY=VALUE with KEY {options(LIMIT_KEYS)}")
         try:
             v = float(value)
         except ValueError:
@@ -89,6 +105,33 @@ def _limits(text: str | None, n: int) -> dict[str, np.ndarray] | None:
     return out
 
 
+#: Bytes per number of the CSV text written (a full-precision float and its comma).
+CSV_BYTES_PER_VALUE = 22
+
+
+def _check_size(duration: float, rate: float, n: int) -> None:
+    """Refuses, before the (slow) design, a trajectory whose arrays would not fit in memory
+    or whose CSV prrrp could not read back."""
+    samples = duration * rate
+    if not (math.isfinite(samples) and samples > 0):
+        return  # workflow.excite says what is wrong with the numbers
+    if samples > workflow.MAX_SAMPLES:
+        raise CliError(
+            f"--rate {rate:g} Hz × --duration {duration:g} s = {samples:.3g} samples; at most "
+            f"{workflow.MAX_SAMPLES:.0e}: lower --rate or --duration"
+        )
+    columns = 1 + 3 * n
+    text = samples * columns * CSV_BYTES_PER_VALUE
+    if text > csvio.MAX_FILE_BYTES:
+        raise CliError(
+            f"--rate {rate:g} Hz × --duration {duration:g} s = {samples:.3g} samples × {n} "
+            f"joints make a CSV of about {text / 2**30:.3g} GiB, more than the "
+            f"{csvio.MAX_FILE_BYTES / 2**30:.3g} GiB prrrp reads back: lower --rate or --duration"
+        )
+    # The arrays, and the table the CSV is written from: twice the trajectory's size.
+    workflow.check_memory(round(samples) + 1, n, 2 * columns, "--rate or --duration")
+
+
 def run(args: argparse.Namespace) -> int:
     out = Path(args.out)
     check_output_file(out)
@@ -96,6 +139,7 @@ def run(args: argparse.Namespace) -> int:
         args.robot, base=args.base, tip=args.tip, friction=friction_terms(args.friction)
     )
     limits = _limits(args.limits, robot.dof)
+    _check_size(args.duration, args.rate, robot.dof)
     progress = Progress()
     try:
         design = workflow.excite(
@@ -118,7 +162,7 @@ def run(args: argparse.Namespace) -> int:
     groups = csvio.columns(robot.dof)
     names = ["t", *groups["q"], *groups["qd"], *groups["qdd"]]
     table = np.column_stack([design["t"], design["q"], design["qd"], design["qdd"]])
-    csvio.write_text_atomic(out, csvio.format_table(names, table))
+    csvio.write_table_atomic(out, names, table)
     print(
         f"cond(W_b) {design['cond_initial']:.4g} -> {design['cond_final']:.4g} "
         f"({design['evaluations']} evaluations); limit usage per joint:"

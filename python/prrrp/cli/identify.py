@@ -22,6 +22,7 @@ from prrrp.cli.common import (
     dump_json,
     first_line,
     nonempty_path,
+    options,
     print_table,
 )
 
@@ -59,28 +60,40 @@ def add_parser(sub: Any) -> None:
         "--method",
         choices=METHOD_CHOICES,
         default=workflow.DEFAULT_METHOD,
-        help="wls = least squares with each joint weighted by its residual noise (the "
-        "default), ls = ordinary least squares (the paper's), rls, adaline, hopfield, ekf, "
-        "physical (physically consistent), or all (the paper's arm: wls, ls, adaline, "
-        "hopfield, ekf, all); least squares print σ and cond(W)",
+        help="wls = least squares with each joint weighted by its residual noise, ls = "
+        "ordinary least squares (the paper's), rls = recursive least squares, adaline = "
+        "linear network (delta rule), hopfield = recurrent network, ekf = extended Kalman "
+        "filter, physical = physically consistent (every link "
+        "a rigid body; needs --robot, as rls does), or all = every method compared (with "
+        "--robot: model-<method>.json each, model.json the default's; the paper's arm: wls, "
+        "ls, adaline, hopfield, ekf); least squares print σ and cond(W) "
+        f"(default: {workflow.DEFAULT_METHOD})",
     )
-    p.add_argument("--validate", metavar="VAL.csv", help="validation measurement file")
+    p.add_argument(
+        "--validate",
+        metavar="VAL.csv",
+        help="validation measurement file: each model's torque error against its measured "
+        "torque (default: none)",
+    )
     p.add_argument(
         "--out",
         type=nonempty_path,
         metavar="RESULTS.json|DIR",
-        help="the paper's arm: write the estimates as JSON; with --robot: the output folder "
-        "(built aside and swapped in whole)",
+        help="the paper's arm: write the estimates as JSON (default: print only); with "
+        "--robot: the output folder, required (built aside and swapped in whole; a symbolic "
+        "link is followed and kept)",
     )
     identify_robot.add_arguments(p)
     p.set_defaults(func=run)
 
 
 def _load(path: str) -> dict[str, Any]:
-    """Reads a measurement file and preprocesses it when q̇, q̈ are absent."""
+    """Reads a measurement file and preprocesses it when q̇, q̈ are absent; keeps the
+    measured time stamps and torque (``raw_t``, ``raw_tau``) that validation scores
+    against."""
     raw = csvio.read_measurements(path)
     if "qd" in raw:
-        return {**raw, "preprocessed": False}
+        return {**raw, "preprocessed": False, "raw_t": raw["t"], "raw_tau": raw["tau"]}
     try:
         data = prrrp.preprocess(raw["t"], raw["q"], raw["tau"])
     except prrrp.TooFewSamplesError as e:
@@ -95,6 +108,8 @@ def _load(path: str) -> dict[str, Any]:
         "qdd": np.asarray(attr(data, "qdd")),
         "tau": np.asarray(attr(data, "tau")),
         "preprocessed": True,
+        "raw_t": raw["t"],
+        "raw_tau": raw["tau"],
     }
 
 
@@ -185,13 +200,21 @@ def _estimate(method: str, data: dict[str, Any], path: str) -> dict[str, Any]:
 
 
 def _validate(estimates: list[dict[str, Any]], data: dict[str, Any]) -> list[dict[str, Any]]:
-    """Torque prediction on validation data: τ̂ = Φ(q, q̇, q̈)·λ̂ against the measured τ."""
+    """Torque prediction on validation data: τ̂ = Φ(q, q̇, q̈)·λ̂ on the (processed) states,
+    mapped to the measured rows, against the torque as measured there (never the low-passed
+    torque the preprocessing makes). Rows in the filter's edge transient (outside the
+    processed span) are not scored: :func:`_scored_rows`."""
     phi = prrrp.regressor(data["q"], data["qd"], data["qdd"])
-    tau = np.asarray(data["tau"])
+    rows = _scored_rows(data)
+    t_rows, tau = data["raw_t"][rows], data["raw_tau"][rows]
     tau_rms = np.sqrt(np.mean(tau**2, axis=0))
     out = []
     for e in estimates:
-        err = phi @ np.asarray(e["lambda"], dtype=float) - tau
+        pred = phi @ np.asarray(e["lambda"], dtype=float)
+        at_rows = np.column_stack(
+            [np.interp(t_rows, data["t"], pred[:, j]) for j in range(pred.shape[1])]
+        )
+        err = at_rows - tau
         rms = np.sqrt(np.mean(err**2, axis=0))
         rel = np.where(tau_rms > 0, 100.0 * rms / np.where(tau_rms > 0, tau_rms, 1.0), np.nan)
         out.append(
@@ -199,9 +222,18 @@ def _validate(estimates: list[dict[str, Any]], data: dict[str, Any]) -> list[dic
                 "method": e["method"],
                 "torque_rms": rms.tolist(),
                 "torque_relative_percent": rel.tolist(),
+                "rows_scored": int(rows.sum()),
+                "rows": len(rows),
             }
         )
     return out
+
+
+def _scored_rows(data: dict[str, Any]) -> np.ndarray:
+    """The measured rows a prediction is scored at: those within the processed data's time
+    span (the preprocessing trims the filter's edge transient at each end)."""
+    t = data["raw_t"]
+    return (t >= data["t"][0]) & (t <= data["t"][-1])
 
 
 def _label(e: dict[str, Any]) -> str:
@@ -255,9 +287,26 @@ def _print_estimates(estimates: list[dict[str, Any]], truth: np.ndarray) -> None
 def run(args: argparse.Namespace) -> int:
     if args.robot:
         return identify_robot.run(args)
+    robot_only = [
+        f"--{name.replace('_', '-')}"
+        for name, default in (
+            ("cutoff", None),
+            ("rate", None),
+            ("decimate", None),
+            ("friction", "viscous,coulomb,offset"),
+            ("coulomb_scale", "auto"),
+        )
+        if getattr(args, name) != default
+    ]
+    if robot_only:
+        raise CliError(
+            f"{' and '.join(robot_only)} {'apply' if len(robot_only) > 1 else 'applies'} to "
+            "--robot ROBOT (the paper's arm is "
+            "preprocessed at its own 5 Hz and has no friction terms)"
+        )
     if args.method not in PAPER_METHODS:
         raise CliError(
-            f"--method {args.method} needs --robot (the paper's arm has {PAPER_METHODS})"
+            f"--method {args.method} needs --robot (the paper's arm has {options(PAPER_METHODS)})"
         )
     out = Path(args.out) if args.out else None
     if out is not None:
@@ -284,7 +333,13 @@ def run(args: argparse.Namespace) -> int:
     validation = None
     if val is not None:
         validation = _validate(estimates, val)
-        print(f"\nvalidation on {args.validate}: torque-prediction RMS per joint")
+        scored = _scored_rows(val)
+        edge = "" if scored.all() else f"; {int((~scored).sum())} in the filter's edge transient"
+        print(
+            f"\nvalidation on {args.validate}: torque-prediction error per joint against the "
+            f"measured torque (RMS, and % of the measured torque's RMS; {int(scored.sum())} of "
+            f"{len(scored)} rows scored{edge})"
+        )
         header = [
             "method",
             *(f"{j} ({u})" for j, u in zip(paper.FORCES, paper.FORCE_UNITS, strict=True)),
@@ -292,7 +347,10 @@ def run(args: argparse.Namespace) -> int:
         rows = [
             [
                 paper.METHOD_LABELS.get(v["method"], v["method"]),
-                *(f"{x:.4g}" for x in v["torque_rms"]),
+                *(
+                    f"{x:.4g} ({p:.3g}%)"
+                    for x, p in zip(v["torque_rms"], v["torque_relative_percent"], strict=True)
+                ),
             ]
             for v in validation
         ]

@@ -5,27 +5,39 @@ from __future__ import annotations
 
 import argparse
 import math
+import time
 from pathlib import Path
 from typing import Any
 
-import prrrp
-from prrrp import bags, model_report, outdir, workflow
+from prrrp import bags, drives, model_report, outdir, prediction, workflow
 from prrrp.cli.common import (
+    EXIT_FAILED,
     EXIT_OK,
     CliError,
     Progress,
-    first_line,
     friction_terms,
     print_table,
 )
-from prrrp.measurements import measurements_to_dataset, read_measurements
+from prrrp.measurements import read_measurements
+
+#: The core's default cut-off (DEFAULT_LOG_CUTOFF_HZ), Hz, before the cap at a tenth of the
+#: output rate.
+DEFAULT_CUTOFF_HZ = 10.0
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     g = p.add_argument_group("any robot (with --robot)")
-    g.add_argument("--robot", metavar="ROBOT", help="robot file (.urdf or .toml)")
-    g.add_argument("--base", metavar="LINK", help="URDF: first link of the chain (default: root)")
-    g.add_argument("--tip", metavar="LINK", help="URDF: last link of the chain")
+    g.add_argument(
+        "--robot", metavar="ROBOT", help="robot file (.urdf or .toml) (default: the paper's arm)"
+    )
+    g.add_argument(
+        "--base", metavar="LINK", help="URDF: first link of the chain (default: the root link)"
+    )
+    g.add_argument(
+        "--tip",
+        metavar="LINK",
+        help="URDF: last link of the chain (default: the end of the movable joints)",
+    )
     g.add_argument(
         "--friction",
         metavar="TERMS",
@@ -40,9 +52,46 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         help="speed scale v_s (rad/s) of the smooth Coulomb term fc·tanh(q̇/v_s): auto = "
         "chosen from the data by cross-validation, 0 = exact sign (default: auto)",
     )
-    g.add_argument("--cutoff", type=float, metavar="HZ", help="low-pass cut-off of the log, Hz")
-    g.add_argument("--rate", type=float, metavar="HZ", help="resampling rate of the log, Hz")
-    g.add_argument("--decimate", type=float, metavar="HZ", help="output rate after filtering")
+    g.add_argument(
+        "--armature",
+        action="store_true",
+        help="identify one rotor inertia (armature) per actuator: Ia·q̈ₘ through the coupling "
+        "of the robot file's [actuators] (default: as the robot file says)",
+    )
+    g.add_argument(
+        "--drive-gains",
+        metavar="K1,...,KN",
+        help="the log has motor currents i1..iN (A): joint-side drive gains, N·m/A per actuator "
+        "(torque constant × gear ratio); torques are Cᵀ·(K∘i) (default: none, the log has "
+        "torques tau1..tauN)",
+    )
+    g.add_argument(
+        "--motor-side",
+        action="store_true",
+        help="the log's positions and torques are motor-side: mapped to the joints through the "
+        "gear_ratios and coupling of the robot file's [actuators] (default: joint side)",
+    )
+    g.add_argument(
+        "--cutoff",
+        type=float,
+        metavar="HZ",
+        help="low-pass cut-off of the log, Hz; shapes the signals identification fits, "
+        "never the torque errors (scored against the measured torque) (default: "
+        f"min({DEFAULT_CUTOFF_HZ:g} Hz, output rate/10))",
+    )
+    g.add_argument(
+        "--rate",
+        type=float,
+        metavar="HZ",
+        help="resampling rate of the log, Hz (default: the log's median rate, or the "
+        "smallest whole multiple of --decimate at or above it)",
+    )
+    g.add_argument(
+        "--decimate",
+        type=float,
+        metavar="HZ",
+        help="output rate after filtering, Hz (default: none, every resampled sample kept)",
+    )
     g.add_argument(
         "--topic",
         default=bags.DEFAULT_TOPIC,
@@ -66,101 +115,195 @@ def run(args: argparse.Namespace) -> int:
     if not args.out:
         raise CliError("--out DIR is required with --robot (the model, report and figures)")
     out = Path(args.out)
+    outdir.check(out)
     robot = workflow.load_robot(
-        args.robot, base=args.base, tip=args.tip, friction=friction_terms(args.friction)
+        args.robot,
+        base=args.base,
+        tip=args.tip,
+        friction=friction_terms(args.friction),
+        armature=True if args.armature else None,
     )
     scale = _coulomb_scale(args.coulomb_scale)
     pre = {"cutoff_hz": args.cutoff, "rate_hz": args.rate, "decimate_to_hz": args.decimate}
-    raw = read_measurements(args.data, robot, topic=args.topic)
-    val = None
-    if args.validate:
-        val_raw = read_measurements(args.validate, robot, topic=args.topic)
-        val, _ = measurements_to_dataset(val_raw, pre)
+    gains = None if args.drive_gains is None else drives.parse_gains(args.drive_gains, robot.dof)
+    conversion = {"drive_gains": gains, "motor_side": args.motor_side}
+    record = drives.record(gains, args.motor_side)
+    raw = read_measurements(args.data, robot, topic=args.topic, **conversion)
+    val_raw = (
+        read_measurements(args.validate, robot, topic=args.topic, **conversion)
+        if args.validate
+        else None
+    )
     methods = list(workflow.METHODS) if args.method == "all" else [args.method]
     progress = Progress()
-    runs: dict[str, workflow.Identification] = {}
-    failures: dict[str, str] = {}
     try:
-        for k, method in enumerate(methods):
-            progress("identify", k, len(methods))
-            try:
-                runs[method] = workflow.identify_measurements(
-                    robot, raw, method, coulomb_scale=scale, preprocessing=pre
-                )
-            except (prrrp.PrrrpError, ValueError) as e:
-                if len(methods) == 1:
-                    raise
-                failures[method] = first_line(e)
-        progress("identify", len(methods), len(methods))
+        if len(methods) == 1:
+            # One method asked for: its failure is the command's (typed, with its exit code).
+            t0 = time.perf_counter()
+            result = workflow.identify_measurements(
+                robot, raw, methods[0], coulomb_scale=scale, preprocessing=pre, drives=record
+            )
+            method_runs = [workflow.MethodRun(methods[0], result, None, time.perf_counter() - t0)]
+        else:
+            method_runs = workflow.identify_methods(
+                robot,
+                raw,
+                methods,
+                coulomb_scale=scale,
+                preprocessing=pre,
+                drives=record,
+                progress=lambda k, total: progress("identify", k, total),
+            )
     finally:
         progress.close()
+    runs = {r.method: r.result for r in method_runs if r.result is not None}
     if not runs:
-        raise CliError("; ".join(f"{m}: {e}" for m, e in failures.items()))
-    main = runs.get("ls") or next(iter(runs.values()))
+        raise CliError(
+            "every method failed: " + "; ".join(f"{r.method}: {r.error}" for r in method_runs),
+            code=EXIT_FAILED,
+        )
+    default = workflow.DEFAULT_METHOD
+    main = runs.get(default) or next(iter(runs.values()))
+    settings = main.model.preprocessing.get("settings") or {}
+    # Prepared once: every method is scored on the same rows of the same logs.
+    fit_grid = prediction.prepare(raw, settings)
+    val_grid = prediction.prepare(val_raw, settings) if val_raw is not None else None
+    table = _comparison_rows(method_runs, fit_grid, val_grid)
 
     def build(tmp: Path) -> list[Path]:
         written = []
         for method, r in runs.items():
-            name = "model.json" if len(runs) == 1 else f"model-{method}.json"
+            name = "model.json" if len(methods) == 1 else f"model-{method}.json"
             r.model.save(tmp / name)
             written.append(tmp / name)
-        if len(runs) > 1:
+        if len(methods) > 1:
             main.model.save(tmp / "model.json")
+            written.append(tmp / "model.json")
         sources = {"robot": str(args.robot), "data": str(args.data)}
         if args.validate:
             sources["validation"] = str(args.validate)
-        written += main.report(tmp, validation=val, sources=sources)
+        comparison: list[str] = []
+        figures: list[tuple[str, str]] = []
+        if len(methods) > 1:
+            joints = list(robot.joint_names)
+            model_report.comparison_figure(table, joints, tmp / "methods.png")
+            figures.append(("methods.png", "Torque error per joint and method"))
+            comparison = model_report.comparison_section(
+                table, joints, main.model.method, "methods.png", default
+            )
+        written += model_report.write_report(
+            main.model,
+            tmp,
+            fit_grid,
+            validation=val_grid,
+            log_report=main.log_report,
+            coulomb=main.coulomb,
+            sources=sources,
+            comparison=comparison,
+            figures=figures,
+        )
         physical = runs.get("physical")
         if physical is not None:
             (tmp / "robot.urdf").write_text(physical.model.to_urdf(), encoding="utf-8")
             written.append(tmp / "robot.urdf")
+            identified = physical.model.robot
+            act = identified.actuators
+            if act["coupling"] is not None or act["armature"] or act["gear_ratios"] is not None:
+                # What URDF cannot hold (a coupling, per-actuator friction) goes to a TOML
+                # robot file that takes its links from robot.urdf.
+                text = identified.to_toml("robot.urdf", physical.model.standard_parameters)
+                (tmp / "robot.toml").write_text(text, encoding="utf-8")
+                written.append(tmp / "robot.toml")
             if physical is not main:
                 report_dir = tmp / "physical"
                 report_dir.mkdir()
-                written += physical.report(report_dir, validation=val, sources=sources)
+                written += model_report.write_report(
+                    physical.model,
+                    report_dir,
+                    fit_grid,
+                    validation=val_grid,
+                    log_report=physical.log_report,
+                    coulomb=physical.coulomb,
+                    sources=sources,
+                )
         return written
 
     written = outdir.write_dir(out, build)
-    _summary(main, runs, failures, val)
-    print(f"results in {out}/ ({len(written)} files: model.json, report.md, figures)")
+    _summary(main, table, fit_grid, val_grid)
+    names = "model-<method>.json, model.json" if len(methods) > 1 else "model.json"
+    print(f"results in {out}/ ({len(written)} files: {names}, report.md, figures)")
     return EXIT_OK
 
 
-def _converged(model: Any) -> str:
+def _comparison_rows(
+    method_runs: list[workflow.MethodRun],
+    fit: prediction.LogGrid,
+    val: prediction.LogGrid | None,
+) -> list[dict[str, Any]]:
+    """One row per method: status, convergence, time and its error tables."""
+    rows = []
+    for r in method_runs:
+        row: dict[str, Any] = {"method": r.method, "seconds": r.seconds, "error": r.error}
+        if r.result is None:
+            row.update(status="failed", converged=None, epochs=None)
+            row.update(identification=None, validation=None)
+        else:
+            model = r.result.model
+            row.update(status="ok", converged=bool(model.converged), epochs=model.epochs)
+            row["identification"] = fit.errors(fit.predict(model))
+            row["validation"] = val.errors(val.predict(model)) if val is not None else None
+        rows.append(row)
+    return rows
+
+
+def _converged(row: dict[str, Any]) -> str:
     """'yes' (with the epochs of the gradient methods) or 'NO' for the summary table."""
-    epochs = f" ({model.epochs} epochs)" if model.epochs is not None else ""
-    return ("yes" if model.converged else "NO") + epochs
+    epochs = f" ({row['epochs']} epochs)" if row["epochs"] is not None else ""
+    return ("yes" if row["converged"] else "NO") + epochs
 
 
 def _summary(
     main: workflow.Identification,
-    runs: dict[str, workflow.Identification],
-    failures: dict[str, str],
-    val: Any,
+    table: list[dict[str, Any]],
+    fit: prediction.LogGrid,
+    val: prediction.LogGrid | None,
 ) -> None:
     robot = main.model.robot
     d = main.data
     print(f"{robot.name}: {robot.dof} joints, {len(d)} samples over {d.duration:.3g} s")
     if main.coulomb is not None:
         note = main.coulomb.get("note")
+        identified = main.coulomb.get("identifiable", not note)
         print(
             f"Coulomb speed scale v_s = {main.coulomb['chosen']:.4g} rad/s"
-            + (f" ({note})" if note else " (chosen by cross-validation)")
+            + (" (chosen by cross-validation)" if identified else f": NOT IDENTIFIABLE: {note}")
         )
-    check = val if val is not None else d
-    which = "validation" if val is not None else "identification"
-    header = ["method", "converged", *list(robot.joint_names)]
+    which, grid = ("validation", val) if val is not None else ("identification", fit)
+    header = ["method", "converged", "time (s)", *list(robot.joint_names)]
     rows = []
-    for method, r in runs.items():
-        p = model_report.prediction_table(r.model, check)
-        rows.append([method, _converged(r.model), *(f"{x:.3g}%" for x in p["percent"])])
-    print(f"torque-prediction error on the {which} data (% of RMS torque):")
+    for r in table:
+        if r["status"] != "ok":
+            continue
+        errors = r[which]
+        rows.append(
+            [r["method"], _converged(r), f"{r['seconds']:.3g}"]
+            + [f"{x:.3g}%" for x in errors["percent"]]
+        )
+    print(
+        f"torque-prediction error on the {which} data, % of the measured torque's RMS "
+        f"({grid.describe()}):"
+    )
     print_table(header, rows)
-    for method, r in runs.items():
-        if not r.model.converged:
+    for r in table:
+        if r["status"] == "ok" and not r["converged"]:
             print(
-                f"warning: {method} did not meet its stopping rule within {r.model.epochs} "
-                "epochs; its model is not at the method's optimum (raise max_epochs or use ls)"
+                f"warning: {r['method']} did not meet its stopping rule within {r['epochs']} "
+                "epochs; its model is not at the method's optimum (raise max_epochs or use wls)"
             )
-    for method, e in failures.items():
-        print(f"{method}: failed: {e}")
+    for r in table:
+        if r["status"] != "ok":
+            print(f"{r['method']}: failed: {r['error']}")
+    if len(table) > 1:
+        default = workflow.DEFAULT_METHOD
+        why = "" if main.model.method == default else f" (the default, {default}, failed)"
+        print(f"model.json is the {main.model.method} model{why}")

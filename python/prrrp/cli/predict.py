@@ -1,4 +1,4 @@
-"""``prrrp predict``: an identified model's joint torques for the states of a measurement file."""
+"""``prrrp predict``: an identified model's joint torques at every row of a measurement file."""
 
 from __future__ import annotations
 
@@ -9,15 +9,16 @@ from typing import Any
 import numpy as np
 
 import prrrp
-from prrrp import bags, csvio
+from prrrp import bags, csvio, drives, prediction
 from prrrp.cli.common import (
     EXIT_OK,
     CliError,
     check_output_file,
+    describe,
     nonempty_path,
     print_table,
 )
-from prrrp.measurements import measurements_to_dataset, read_measurements
+from prrrp.measurements import read_measurements
 
 
 def add_parser(sub: Any) -> None:
@@ -25,11 +26,15 @@ def add_parser(sub: Any) -> None:
         "predict",
         help="joint torques of an identified model for recorded states",
         description="Loads MODEL.json (written by `prrrp identify --robot ... --out DIR`) and "
-        "writes the model's joint torques for the states of DATA (a CSV file t, q1..qN and "
-        "optionally tau1..tauN, qd1..qdN, qdd1..qddN, or a ROS 2 bag) as t, tau1..tauN. When "
-        "DATA has qd and qdd columns they are used as given; otherwise they are derived with "
-        "the model's recorded preprocessing. When DATA has measured torques, prints the "
-        "per-joint RMS error.",
+        "writes the model's joint torques at every row of DATA (a CSV file t, q1..qN and "
+        "optionally tau1..tauN, qd1..qdN, qdd1..qddN, or a ROS 2 bag) as t, tau1..tauN, edge: "
+        "the time stamps of DATA, row for row. When DATA has qd and qdd columns they are used "
+        "as given; otherwise the log is processed with the model's recorded preprocessing, "
+        "the model is evaluated on the processed signals and its torque interpolated to each "
+        "row's time stamp; rows in the filter's edge transient (a few cut-off periods at each "
+        "end) are predicted from signals the filter has not settled on and marked edge = 1. "
+        "When DATA has measured torques, prints the per-joint RMS error against them (edge "
+        "rows and repeated time stamps left out, and counted).",
     )
     p.add_argument("model", metavar="MODEL.json", help="identified model")
     p.add_argument("data", metavar="DATA", help="measurement CSV file or ROS 2 bag")
@@ -46,53 +51,56 @@ def add_parser(sub: Any) -> None:
 
 def predict_file(
     model: prrrp.IdentifiedModel, path: str, topic: str = bags.DEFAULT_TOPIC
-) -> dict[str, np.ndarray]:
-    """The torques ``model`` predicts for the states recorded in ``path``: ``t`` (S,),
-    ``tau`` (S, N) and, when the file has measured torques, ``measured`` (S, N) on the same
-    time grid (after the model's preprocessing when the file has no q̇, q̈)."""
+) -> prediction.LogGrid:
+    """The log at ``path`` prepared with ``model``'s recorded preprocessing for predictions
+    at its rows (:mod:`prrrp.prediction`); ``.predict(model)`` gives the torques."""
     robot = model.robot
-    raw = read_measurements(path, robot, topic=topic, need_tau=False)
-    measured = "tau" in raw
-    if not measured:
-        raw["tau"] = np.zeros_like(raw["q"])
-    data, _ = measurements_to_dataset(raw, _recorded_settings(model))
-    tau = np.asarray(model.predict(data.q, data.qd, data.qdd))
-    out = {"t": np.asarray(data.t), "tau": tau}
-    if measured:
-        out["measured"] = np.asarray(data.tau)
-    return out
+    raw = read_measurements(path, robot, topic=topic, need_tau=False, **drives.recorded(model))
+    return prediction.prepare(raw, prediction.recorded_settings(model))
 
 
-def _recorded_settings(model: prrrp.IdentifiedModel) -> dict[str, Any]:
-    pre = model.preprocessing or {}
-    settings = pre.get("settings") if isinstance(pre, dict) else None
-    return settings if isinstance(settings, dict) else {}
+def load_model(path: str) -> prrrp.IdentifiedModel:
+    """``IdentifiedModel.load`` with its errors as one-line CLI errors."""
+    try:
+        model = prrrp.IdentifiedModel.load(path)
+    except prrrp.PrrrpError as e:
+        raise CliError(f"{path}: not a usable identified model: {describe(e)}") from None
+    try:
+        prediction.recorded_settings(model)
+    except ValueError as e:
+        raise CliError(f"{path}: {e}") from None
+    return model
 
 
 def run(args: argparse.Namespace) -> int:
     out = Path(args.out)
     check_output_file(out)
-    try:
-        model = prrrp.IdentifiedModel.load(args.model)
-    except prrrp.PrrrpError as e:
-        raise CliError(f"{args.model}: not an identified model ({e})") from None
-    pred = predict_file(model, args.data, args.topic)
-    n = pred["tau"].shape[1]
-    names = ["t", *csvio.columns(n)["tau"]]
-    table = np.column_stack([pred["t"], pred["tau"]])
-    csvio.write_text_atomic(out, csvio.format_table(names, table))
-    if "measured" not in pred:
-        print(f"{len(table)} samples; torques in {out}")
+    model = load_model(args.model)
+    grid = predict_file(model, args.data, args.topic)
+    tau = grid.predict(model)
+    n = tau.shape[1]
+    names = ["t", *csvio.columns(n)["tau"], "edge"]
+    table = np.column_stack([grid.t, tau, grid.edge.astype(float)])
+    csvio.write_table_atomic(out, names, table, integer_columns=("edge",))
+    edges = int(grid.edge.sum())
+    note = ""
+    if edges:
+        note = (
+            f"; {edges} rows in the filter's edge transient (the first and last "
+            f"{grid.report['trim_s']:.3g} s) are predicted from unsettled filter output "
+            "(edge = 1)"
+        )
+    if grid.measured is None:
+        print(f"{len(table)} rows (every row of {args.data}){note}; torques in {out}")
         return EXIT_OK
-    err = pred["tau"] - pred["measured"]
-    rms = np.sqrt(np.mean(err**2, axis=0))
-    ref = np.sqrt(np.mean(pred["measured"] ** 2, axis=0))
+    errors = grid.errors(tau)
     joints = list(model.robot.joint_names)
-    print(f"{len(table)} samples of {args.data}: torque-prediction error per joint")
+    print(f"{len(table)} rows (every row of {args.data}){note}")
+    print(f"torque-prediction error per joint against the measured torque ({grid.describe()}):")
     rows = [
-        [j, f"{r:.4g}", f"{100 * r / f:.3g}" if f > 0 else "-"]
-        for j, r, f in zip(joints, rms, ref, strict=True)
+        [j, f"{r:.4g}", f"{p:.3g}" if np.isfinite(p) else "-"]
+        for j, r, p in zip(joints, errors["rms"], errors["percent"], strict=True)
     ]
-    print_table(["joint", "RMS (N·m, N)", "% of RMS τ"], rows)
+    print_table(["joint", "RMS (N·m, N)", "% of measured RMS"], rows)
     print(f"torques in {out}")
     return EXIT_OK

@@ -21,6 +21,7 @@ Modules: :mod:`~prrrp.montecarlo.cases` (the grid, one case),
 from __future__ import annotations
 
 import dataclasses
+import json
 import os
 from collections.abc import Callable
 from pathlib import Path
@@ -35,7 +36,7 @@ from prrrp.montecarlo.cases import (
     grid,
     run_case,
 )
-from prrrp.montecarlo.runner import DEFAULT_TIMEOUT, RunStats, run_cases
+from prrrp.montecarlo.runner import DEFAULT_TIMEOUT, RunStats, WorkerStartError, run_cases
 
 __all__ = [
     "COLUMNS",
@@ -43,6 +44,7 @@ __all__ = [
     "METHODS",
     "BenchmarkResult",
     "Case",
+    "WorkerStartError",
     "benchmark",
     "converged",
     "grid",
@@ -59,6 +61,9 @@ class BenchmarkResult:
     rows: list[dict[str, Any]]
     config: dict[str, Any]
     stats: RunStats
+    #: Figures the last :meth:`save` could not draw (name → error); the results were
+    #: written all the same.
+    figure_errors: dict[str, str] = dataclasses.field(default_factory=dict)
 
     def summary(self) -> list[dict[str, Any]]:
         """Per method × noise × rate: medians and 90th percentiles of the errors."""
@@ -83,17 +88,29 @@ class BenchmarkResult:
     def save(self, directory: str | os.PathLike[str]) -> list[Path]:
         """Writes results.csv, results.json, report.md and the figures into ``directory``,
         built aside and swapped in whole (an existing folder must be empty or an earlier
-        prrrp output). Returns the written paths."""
+        prrrp output). Returns the written paths. A figure that cannot be drawn is named
+        in report.md and in :attr:`figure_errors`; the rest is written all the same."""
         from prrrp import outdir
         from prrrp.montecarlo import report
 
         document = self.to_dict()
-        target = Path(directory).absolute()
+        target = outdir.resolve(directory)
 
         def build(tmp: Path) -> list[Path]:
-            return [target / p.relative_to(tmp) for p in report.write(document, tmp)]
+            paths, self.figure_errors = report.write_all(document, tmp)
+            return [target / p.relative_to(tmp) for p in paths]
 
         return outdir.write_dir(directory, build)
+
+    def save_results(self, path: str | os.PathLike[str]) -> Path:
+        """Writes results.json alone to ``path`` (atomically): the rescue when the output
+        folder cannot be written."""
+        from prrrp import csvio
+        from prrrp.cli.common import json_default
+
+        text = json.dumps(self.to_dict(), indent=1, default=json_default) + "\n"
+        csvio.write_text_atomic(path, text)
+        return Path(path)
 
 
 def _robot(robot: Any, base: str | None, tip: str | None) -> tuple[str | None, str]:
@@ -132,7 +149,7 @@ def benchmark(
     timeout: float = DEFAULT_TIMEOUT,
     retries: int = 1,
     duration: float = 10.0,
-    excitation_evaluations: int = 300,
+    excitation_evaluations: Any = 300,
     base: str | None = None,
     tip: str | None = None,
     progress: bool | Callable[[int, int, int], object] | None = None,
@@ -145,7 +162,9 @@ def benchmark(
     of the default sensor noise (paper's arm: 1e-5 m / 1e-4 rad on positions, 0.5 N, 0.03,
     0.015, 0.007 N·m, 0.05 N on the forces; other robots: 1e-4 rad or m, 0.05 N·m or N).
     ``rates``: sampling rates (Hz). ``seeds``: a count N (0..N−1) or a list of seeds.
-    Each case simulates ``duration`` s of excitation.
+    Each case simulates ``duration`` s of excitation, designed by an optimiser with a
+    budget of ``excitation_evaluations`` cost evaluations (one number, or several to
+    compare: the report then gives the errors per budget).
 
     Execution: ``executor`` None runs a process pool of ``workers`` (default every core);
     otherwise any ``concurrent.futures.Executor`` or a ``distributed.Client``. Results are
@@ -156,8 +175,9 @@ def benchmark(
     failed)``.
 
     Raises InvalidInputError for unknown methods, an empty grid, bad values, or an
-    executor that cannot run a task. On a process pool the calling script needs the
-    usual ``if __name__ == "__main__":`` guard."""
+    executor given that cannot run a task; :class:`WorkerStartError` (a PrrrpError and
+    RuntimeError, its message whole) when the own process pool cannot start. On a process
+    pool the calling script needs the usual ``if __name__ == "__main__":`` guard."""
     robot_json, robot_name = _robot(robot, base, tip)
     cases = grid(
         methods,
@@ -179,7 +199,7 @@ def benchmark(
         "rates": sorted({c.rate for c in cases}),
         "seeds": sorted({c.seed for c in cases}),
         "duration": first.duration,
-        "excitation_evaluations": first.excitation_evaluations,
+        "excitation_evaluations": sorted({c.excitation_evaluations for c in cases}),
         "timeout_s": timeout,
         "retries": retries,
     }

@@ -33,6 +33,7 @@ COLUMNS = (
     "seed",
     "noise",
     "rate",
+    "excitation_evaluations",
     "method",
     "status",
     "max_param_error_percent",
@@ -43,6 +44,7 @@ COLUMNS = (
     "epochs",
     "seconds",
     "samples",
+    "excitation_cond",
     "attempts",
     "error",
 )
@@ -83,9 +85,10 @@ class Case:
     fault: str | None = None
 
     @property
-    def key(self) -> tuple[int, float, float]:
-        """(seed, noise, rate): what identifies the case in the results."""
-        return (self.seed, self.noise, self.rate)
+    def key(self) -> tuple[int, float, float, int]:
+        """(seed, noise, rate, excitation evaluations): what identifies the case in the
+        results."""
+        return (self.seed, self.noise, self.rate, self.excitation_evaluations)
 
 
 def _invalid(message: str) -> Exception:
@@ -114,13 +117,17 @@ def grid(
     *,
     robot_json: str | None = None,
     duration: float = 10.0,
-    excitation_evaluations: int = 300,
+    excitation_evaluations: Any = 300,
 ) -> list[Case]:
-    """The cases of a benchmark, seed-major: every seed × noise scale × rate. ``seeds`` is
-    a count N (seeds 0..N−1) or a sequence of seeds (integers in [0, 2³²)). Methods may be a
-    list or a comma-separated string. Raises InvalidInputError for unknown methods (naming
-    the valid ones), an empty axis, negative or non-finite noise, rates that are not
-    positive, an absurd case size or grid size."""
+    """The cases of a benchmark, seed-major: every seed × noise scale × rate × excitation
+    budget. ``seeds`` is a count N (seeds 0..N−1) or a sequence of seeds (integers in
+    [0, 2³²)). Methods may be a list or a comma-separated string.
+    ``excitation_evaluations``: the excitation optimiser's budget per case (cost
+    evaluations), one number or several (the report then shows its effect on the errors;
+    a seed starts every budget's search from the same point, so the comparison is
+    paired). Raises InvalidInputError for unknown methods (naming the valid ones), an
+    empty axis, negative or non-finite noise, rates that are not positive, a budget below
+    1, an absurd case size or grid size."""
     if isinstance(methods, str):
         methods = [m.strip() for m in methods.split(",") if m.strip()]
     method_list = _unique(methods, "methods", str)
@@ -155,9 +162,8 @@ def grid(
             f"{too_long[0]:g} Hz × {duration:g} s gives under 50 samples; "
             "raise the rate or the duration"
         )
-    if not (isinstance(excitation_evaluations, int) and excitation_evaluations >= 1):
-        raise _invalid(f"excitation_evaluations must be >= 1, got {excitation_evaluations}")
-    count = len(seed_list) * len(noise_list) * len(rate_list)
+    budgets = _unique(excitation_evaluations, "excitation evaluations", _budget)
+    count = len(seed_list) * len(noise_list) * len(rate_list) * len(budgets)
     if count > MAX_CASES:
         raise _invalid(f"{count} cases is more than {MAX_CASES}")
     return [
@@ -168,12 +174,21 @@ def grid(
             methods=method_list,
             robot_json=robot_json,
             duration=float(duration),
-            excitation_evaluations=excitation_evaluations,
+            excitation_evaluations=e,
         )
         for s in seed_list
         for n in noise_list
         for r in rate_list
+        for e in budgets
     ]
+
+
+def _budget(value: Any) -> int:
+    if isinstance(value, bool) or not isinstance(value, int | np.integer):
+        raise TypeError(f"must be integers >= 1, got {value!r}")
+    if value < 1:
+        raise ValueError(f"must be >= 1, got {value}")
+    return int(value)
 
 
 def _seed(value: Any) -> int:
@@ -242,8 +257,9 @@ def parameter_errors(estimate: np.ndarray, truth: np.ndarray) -> dict[str, float
     }
 
 
-def _paper_data(case: Case) -> tuple[Any, Any, Any]:
-    """Identification data and validation data set of the paper's arm."""
+def _paper_data(case: Case) -> tuple[Any, Any, Any, float]:
+    """Identification data, validation data set of the paper's arm and cond(W) of the
+    optimised excitation."""
     import prrrp
 
     robot = prrrp.Robot.paper()
@@ -271,11 +287,12 @@ def _paper_data(case: Case) -> tuple[Any, Any, Any]:
     t = np.arange(round(case.duration * case.rate) + 1) / case.rate
     q, qd, qdd = other.eval(t)
     validation = prrrp.Dataset(t, q, qd, qdd, robot.inverse_dynamics(q, qd, qdd))
-    return robot, data, validation
+    return robot, data, validation, float(exc.cond_final)
 
 
-def _chain_data(case: Case) -> tuple[Any, Any, Any]:
-    """Identification data and validation data set of a robot from a file."""
+def _chain_data(case: Case) -> tuple[Any, Any, Any, float]:
+    """Identification data, validation data set of a robot from a file and cond(W_b) of
+    the optimised excitation."""
     import prrrp
     from prrrp import workflow
 
@@ -309,12 +326,13 @@ def _chain_data(case: Case) -> tuple[Any, Any, Any]:
     )
     tau = chain.inverse_dynamics(other["q"], other["qd"], other["qdd"])
     validation = prrrp.Dataset(other["t"], other["q"], other["qd"], other["qdd"], tau)
-    return chain, data, validation
+    return chain, data, validation, float(design["cond_final"])
 
 
 def _row(case: Case, method: str, **values: Any) -> dict[str, Any]:
     row: dict[str, Any] = dict.fromkeys(COLUMNS)
     row.update(seed=case.seed, noise=case.noise, rate=case.rate, method=method)
+    row["excitation_evaluations"] = case.excitation_evaluations
     row["attempts"] = case.attempt + 1
     row.update(values)
     return row
@@ -343,9 +361,9 @@ def run_case(case: Case) -> list[dict[str, Any]]:
 
     try:
         if case.robot_json is None:
-            robot, data, validation = _paper_data(case)
+            robot, data, validation, cond = _paper_data(case)
         else:
-            robot, data, validation = _chain_data(case)
+            robot, data, validation, cond = _chain_data(case)
         names, truth = _truth(case.robot_json)
     except Exception as e:  # the case cannot run; the benchmark goes on
         return failed_rows(case, _describe(e))
@@ -374,6 +392,7 @@ def run_case(case: Case) -> list[dict[str, Any]]:
                     epochs=epochs(model),
                     seconds=seconds,
                     samples=len(data),
+                    excitation_cond=cond,
                 )
             )
         except Exception as e:
@@ -384,6 +403,7 @@ def run_case(case: Case) -> list[dict[str, Any]]:
                     status="failed",
                     seconds=time.perf_counter() - t0,
                     samples=len(data),
+                    excitation_cond=cond,
                     error=_describe(e),
                 )
             )

@@ -4,6 +4,7 @@ and rate), ``report.md`` and its figures."""
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import io
 import json
@@ -42,31 +43,43 @@ def _ordered_methods(rows: Sequence[dict[str, Any]]) -> list[str]:
 
 
 def _values(rows: Sequence[dict[str, Any]], column: str) -> np.ndarray:
-    vals = [r[column] for r in rows if r["status"] == "ok" and r[column] is not None]
+    vals = [r[column] for r in rows if r["status"] == "ok" and r.get(column) is not None]
     return np.asarray(vals, dtype=float)
 
 
+def _budget(row: dict[str, Any]) -> Any:
+    return row.get("excitation_evaluations")
+
+
 def summary(rows: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
-    """Per method × noise × rate: cases ok and failed, fraction converged, median and
-    90th percentile of each error column, median seconds."""
+    """Per method × noise × rate × excitation budget: cases ok and failed, fraction
+    converged, median and 90th percentile of each error column, median seconds and median
+    cond(W) of the excitation."""
     out = []
     noises = sorted({r["noise"] for r in rows})
     rates = sorted({r["rate"] for r in rows})
+    budgets = sorted({_budget(r) for r in rows}, key=lambda b: -1 if b is None else b)
     for method in _ordered_methods(rows):
         for noise in noises:
-            for rate in rates:
+            for rate, budget in ((r, b) for r in rates for b in budgets):
                 group = [
                     r
                     for r in rows
-                    if r["method"] == method and r["noise"] == noise and r["rate"] == rate
+                    if r["method"] == method
+                    and r["noise"] == noise
+                    and r["rate"] == rate
+                    and _budget(r) == budget
                 ]
                 if not group:
                     continue
                 ok = [r for r in group if r["status"] == "ok"]
+                conds = _values(group, "excitation_cond")
                 entry: dict[str, Any] = {
                     "method": method,
                     "noise": noise,
                     "rate": rate,
+                    "excitation_evaluations": budget,
+                    "excitation_cond_median": float(np.median(conds)) if len(conds) else None,
                     "ok": len(ok),
                     "failed": len(group) - len(ok),
                     "converged_fraction": (
@@ -111,16 +124,29 @@ def _fmt(x: Any, digits: int = 3) -> str:
     return str(x)
 
 
-def render(document: dict[str, Any], figures: Sequence[str]) -> str:
-    """report.md from the results.json document."""
+def _budgets(config: dict[str, Any]) -> list[int]:
+    b = config.get("excitation_evaluations", [])
+    return list(b) if isinstance(b, list | tuple) else [b]
+
+
+def render(
+    document: dict[str, Any],
+    figures: Sequence[str],
+    failed_figures: dict[str, str] | None = None,
+) -> str:
+    """report.md from the results.json document (``failed_figures``: name → error of the
+    figures that could not be drawn)."""
     config, stats = document["config"], document["stats"]
+    budgets = _budgets(config)
     lines = [
         "# Monte-Carlo estimator benchmark",
         "",
         f"Robot: **{config['robot']}**. Methods: {', '.join(config['methods'])}. "
         f"Noise scales: {', '.join(_fmt(n) for n in config['noise'])} × the default sensor "
         f"noise. Sampling rates: {', '.join(_fmt(r) for r in config['rates'])} Hz. "
-        f"Seeds: {len(config['seeds'])}. Excitation: {config['duration']:g} s.",
+        f"Seeds: {len(config['seeds'])}. Excitation: {config['duration']:g} s, optimised "
+        f"with a budget of {', '.join(str(b) for b in budgets)} cost evaluations per case "
+        "(`--excitation-evaluations`).",
         "",
         f"{stats['cases']} cases on {stats['engine']} ({stats['parallelism']} in parallel): "
         f"{stats['elapsed_s']:.1f} s, {stats['cases_per_second']:.2f} cases/s; "
@@ -135,9 +161,9 @@ def render(document: dict[str, Any], figures: Sequence[str]) -> str:
         "are left out of the relative ones). Torque error: 100·‖τ − τ̂‖/‖τ‖ per joint, "
         "averaged over the joints. Values: median (90th percentile).",
         "",
-        "| method | noise | rate (Hz) | ok | failed | converged | max param err % | "
-        "param err norm % | torque err % | seconds |",
-        "|---|---|---|---|---|---|---|---|---|---|",
+        "| method | noise | rate (Hz) | excitation evals | ok | failed | converged | "
+        "max param err % | param err norm % | torque err % | seconds |",
+        "|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for s in document["summary"]:
 
@@ -146,20 +172,86 @@ def render(document: dict[str, Any], figures: Sequence[str]) -> str:
 
         conv = s["converged_fraction"]
         lines.append(
-            f"| {s['method']} | {_fmt(s['noise'])} | {_fmt(s['rate'])} | {s['ok']} | "
+            f"| {s['method']} | {_fmt(s['noise'])} | {_fmt(s['rate'])} | "
+            f"{_fmt(s.get('excitation_evaluations'))} | {s['ok']} | "
             f"{s['failed']} | {'–' if conv is None else f'{100 * conv:.0f} %'} | "
             f"{both('max_param_error_percent')} | {both('param_error_norm_percent')} | "
             f"{both('torque_rms_relative_percent')} | {_fmt(s['seconds_median'], 2)} |"
         )
+    lines += ["", *excitation_section(document)]
     errors = sorted({r["error"] for r in document["rows"] if r["status"] == "failed"})
     if errors:
         lines += ["", "Failures (distinct errors):", ""]
         lines += [f"- {e}" for e in errors[:20]]
-    if figures:
+    if figures or failed_figures:
         lines += ["", "## Figures", ""]
         for name in figures:
             lines += [f"![{FIGURES[name]}]({name})", "", f"*{FIGURES[name]}.*", ""]
+        for name, error in (failed_figures or {}).items():
+            lines += [
+                f"- `{name}` could not be drawn ({error}); the numbers above and in "
+                "results.csv / results.json are complete.",
+                "",
+            ]
     return "\n".join(lines).rstrip() + "\n"
+
+
+def excitation_section(document: dict[str, Any]) -> list[str]:
+    """What the excitation optimiser's budget buys: cond(W) of the designed excitation and
+    the median errors per budget (over every method, noise and rate, the cases paired by
+    seed); with one budget, how the errors go with the cond(W) each case reached."""
+    rows = [r for r in document["rows"] if r["status"] == "ok"]
+    budgets = sorted({_budget(r) for r in rows if _budget(r) is not None})
+    if not rows or not budgets:
+        return []
+    lines = ["## Excitation budget", ""]
+    if len(budgets) > 1:
+        lines += [
+            "Medians over every method, noise and rate (each seed starts every budget's "
+            "search from the same point, so the budgets are compared case for case):",
+            "",
+            "| excitation evals | cond(W) of the excitation | max param err % | torque err % |",
+            "|---|---|---|---|",
+        ]
+        for b in budgets:
+            group = [r for r in rows if _budget(r) == b]
+            lines.append(
+                f"| {b} | {_fmt(_median(group, 'excitation_cond'))} | "
+                f"{_fmt(_median(group, 'max_param_error_percent'))} | "
+                f"{_fmt(_median(group, 'torque_rms_relative_percent'))} |"
+            )
+        return [*lines, ""]
+    conds = _values(rows, "excitation_cond")
+    if len(conds) < 4:
+        return []
+    cut = float(np.median(conds))
+    better = [
+        r for r in rows if r.get("excitation_cond") is not None and r["excitation_cond"] <= cut
+    ]
+    worse = [r for r in rows if r.get("excitation_cond") is not None and r["excitation_cond"] > cut]
+    lines += [
+        f"One budget ({budgets[0]} evaluations) was run; its cases reached cond(W) "
+        f"{_fmt(float(np.min(conds)))}..{_fmt(float(np.max(conds)))} (median {_fmt(cut)}). "
+        "Median errors of the cases below and above that median show what a better "
+        "excitation is worth here; to measure the budget itself, give several, e.g. "
+        f"`--excitation-evaluations 50,{budgets[0]}`.",
+        "",
+        "| cases | cond(W) | max param err % | torque err % |",
+        "|---|---|---|---|",
+        f"| better-conditioned half | ≤ {_fmt(cut)} | "
+        f"{_fmt(_median(better, 'max_param_error_percent'))} | "
+        f"{_fmt(_median(better, 'torque_rms_relative_percent'))} |",
+        f"| worse-conditioned half | > {_fmt(cut)} | "
+        f"{_fmt(_median(worse, 'max_param_error_percent'))} | "
+        f"{_fmt(_median(worse, 'torque_rms_relative_percent'))} |",
+        "",
+    ]
+    return lines
+
+
+def _median(rows: Sequence[dict[str, Any]], column: str) -> float | None:
+    v = _values(rows, column)
+    return float(np.median(v)) if len(v) else None
 
 
 # ---------------------------------------------------------------------------------- figures
@@ -277,8 +369,17 @@ def time_per_method(rows: Sequence[dict[str, Any]], path: str | os.PathLike[str]
 
 
 def write(document: dict[str, Any], directory: str | os.PathLike[str]) -> list[Path]:
-    """Writes results.csv, results.json, report.md and the figures into the existing folder
-    ``directory``; returns the paths written."""
+    """:func:`write_all` without the failed figures; returns the paths written."""
+    return write_all(document, directory)[0]
+
+
+def write_all(
+    document: dict[str, Any], directory: str | os.PathLike[str]
+) -> tuple[list[Path], dict[str, str]]:
+    """Writes results.csv and results.json first, then the figures and report.md, into the
+    existing folder ``directory``. Returns the paths written and the figures that could
+    not be drawn (name → error): such a figure is reported in report.md and does not stop
+    the rest, since the results are what the computation bought."""
     from prrrp.cli.common import json_default
 
     directory = Path(directory)
@@ -289,13 +390,21 @@ def write(document: dict[str, Any], directory: str | os.PathLike[str]) -> list[P
         json.dump(document, f, indent=1, default=json_default)
         f.write("\n")
     figures = []
+    failed: dict[str, str] = {}
     if any(r["status"] == "ok" for r in rows):
         for name, writer in (
             ("errors_by_noise.png", errors_by_noise),
             ("errors_vs_rate.png", errors_vs_rate),
             ("time_per_method.png", time_per_method),
         ):
-            writer(rows, directory / name)
-            figures.append(name)
-    (directory / "report.md").write_text(render(document, figures), encoding="utf-8")
-    return [*paths, directory / "report.md", *(directory / f for f in figures)]
+            try:
+                writer(rows, directory / name)
+            except Exception as e:  # a figure is not worth the results
+                text = str(e).strip().splitlines()
+                failed[name] = f"{type(e).__name__}: {text[0]}" if text else type(e).__name__
+                with contextlib.suppress(OSError):
+                    (directory / name).unlink()
+            else:
+                figures.append(name)
+    (directory / "report.md").write_text(render(document, figures, failed), encoding="utf-8")
+    return [*paths, directory / "report.md", *(directory / f for f in figures)], failed

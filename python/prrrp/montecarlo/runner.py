@@ -36,6 +36,7 @@ import time
 from collections.abc import Callable, Sequence
 from typing import Any
 
+from prrrp._prrrp import PrrrpError
 from prrrp.montecarlo.cases import Case, failed_rows, ping, run_case
 
 #: Default per-case timeout, s.
@@ -163,6 +164,19 @@ class _Bar:
             self.bar.close()
 
 
+class WorkerStartError(PrrrpError, RuntimeError):
+    """The benchmark's own process pool could not start its workers: not bad input but
+    the environment (a script without the ``if __name__ == "__main__":`` guard, a sandbox
+    that forbids processes, no memory). The message is whole."""
+
+
+_MAIN_GUARD_HINT = (
+    "Each worker process starts by importing the calling script (Python's forkserver and "
+    "spawn start methods), so a script that calls prrrp.benchmark at its top level starts "
+    'the benchmark again in every worker: put the call under `if __name__ == "__main__":`.'
+)
+
+
 def _check_started(engine: _Engine, start_timeout: float) -> None:
     try:
         engine.executor.submit(ping).result(timeout=start_timeout)
@@ -172,7 +186,16 @@ def _check_started(engine: _Engine, start_timeout: float) -> None:
             "(no workers? check the cluster)"
         ) from None
     except Exception as e:
-        raise _invalid(f"the executor {engine.name} failed to start: {_describe(e)}") from None
+        if not engine.owned:
+            raise _invalid(f"the executor {engine.name} failed to start: {_describe(e)}") from e
+        main = sys.modules.get("__main__")
+        script = getattr(main, "__file__", None)
+        hint = f" {_MAIN_GUARD_HINT}" if script else ""
+        whole = f"{type(e).__name__}: {str(e).strip()}" if str(e).strip() else type(e).__name__
+        raise WorkerStartError(
+            f"the {engine.name} could not start its workers ({whole}).{hint} The workers' "
+            "own error, if any, is printed above on stderr."
+        ) from e
 
 
 def _describe(e: BaseException) -> str:
@@ -201,7 +224,7 @@ def run_cases(
     if not cases:
         raise _invalid("empty grid: no cases to run")
     if len({case.key for case in cases}) != len(cases):
-        raise _invalid("the grid repeats a case (same seed, noise and rate)")
+        raise _invalid("the grid repeats a case (same seed, noise, rate and excitation budget)")
     if not (timeout > 0):
         raise _invalid(f"timeout must be a positive number of seconds, got {timeout}")
     if not (isinstance(retries, int) and retries >= 0):
@@ -213,7 +236,7 @@ def run_cases(
     try:
         _check_started(engine, start_timeout)
         bar = _Bar(progress, len(cases))
-        results: dict[tuple[int, float, float], list[dict[str, Any]]] = {}
+        results: dict[tuple[int, float, float, int], list[dict[str, Any]]] = {}
         fresh = collections.deque(cases)
         isolated: collections.deque[Case] = collections.deque()  # run one at a time
         retried = 0

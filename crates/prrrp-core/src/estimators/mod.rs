@@ -24,7 +24,8 @@ mod samples;
 pub use adaline::{Adaline, AdalineConfig, AdalineOf, AdalineRule, DynAdaline};
 pub use coulomb_scale::{
     default_coulomb_scales, select_coulomb_scale, CoulombScaleConfig, CoulombScaleReport,
-    COULOMB_SCALE_GRID, COULOMB_SCALE_RANGE, MAX_COULOMB_CANDIDATES,
+    COULOMB_SCALE_FLAT, COULOMB_SCALE_GRID, COULOMB_SCALE_MAX_WIDENINGS, COULOMB_SCALE_MIN_Z,
+    COULOMB_SCALE_RANGE, MAX_COULOMB_CANDIDATES,
 };
 pub use ekf::ParameterJacobian;
 pub use ekf::{
@@ -40,7 +41,7 @@ pub use least_squares::{
 };
 pub use physical::{
     base_feasibility, identify_physical, BaseFeasibility, PhysicalConfig, PhysicalEstimate,
-    PhysicalProblem, BASE_FEASIBILITY_TOLERANCE, BASE_MISMATCH_FLOOR,
+    PhysicalProblem, BASE_FEASIBILITY_TOLERANCE, BASE_MISMATCH_FLOOR, DEFAULT_DIVERGENCE_WEIGHT,
 };
 pub use rls::{DynRls, Forgetting, Rls, RlsConfig, RlsOf};
 pub(crate) use samples::len_mismatch;

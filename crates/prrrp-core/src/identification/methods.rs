@@ -112,16 +112,36 @@ pub enum Method {
 }
 
 /// Settings of [`Method::Physical`].
-#[derive(Debug, Clone, PartialEq, Default)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct PhysicalSettings {
-    /// Prior standard parameters π₀ (e.g. the robot file's, [`DynChain::parameters`]);
-    /// `None`: the estimator's default body per link (see [`crate::PhysicalConfig`]).
+    /// Prior standard parameters π₀; `None` (default): the robot's own,
+    /// [`DynChain::parameters`] (a URDF's inertials, a TOML file's `inertial` and
+    /// `friction`), the values a user has before identifying.
     pub prior: Option<Vec<f64>>,
-    /// Weight of the prior, ≥ 0 (default 0: the prior only holds the directions the data
-    /// do not see); see [`crate::PhysicalConfig::prior_weight`].
+    /// Weight of the ridge term towards the prior, ≥ 0 (default 0); see
+    /// [`crate::PhysicalConfig::prior_weight`].
     pub prior_weight: f64,
+    /// Weight γ ≥ 0 of the geometric prior, in units of the data's χ² (default
+    /// [`crate::DEFAULT_DIVERGENCE_WEIGHT`]); see
+    /// [`crate::PhysicalConfig::divergence_weight`].
+    pub divergence_weight: f64,
+    /// Weigh each joint's equations by 1/σ_j², σ_j² the residual variances that
+    /// [`Method::Wls`] estimates (default `true`), as `wls` does; `false`: unit weights.
+    pub weighted: bool,
     /// Rank tolerance of the least-squares solve made for cond(W_b) (default 1e-10).
     pub rank_tolerance: f64,
+}
+
+impl Default for PhysicalSettings {
+    fn default() -> Self {
+        Self {
+            prior: None,
+            prior_weight: 0.0,
+            divergence_weight: crate::DEFAULT_DIVERGENCE_WEIGHT,
+            weighted: true,
+            rank_tolerance: LsSettings::default().rank_tolerance,
+        }
+    }
 }
 
 /// The names [`Method::parse`] accepts, in the order of [`Method`].
@@ -140,10 +160,7 @@ impl Method {
             "adaline" => Self::Adaline(GradientSettings::adaline()),
             "hopfield" => Self::Hopfield(GradientSettings::hopfield()),
             "ekf" => Self::Ekf(EkfSettings::default()),
-            "physical" => Self::Physical(PhysicalSettings {
-                rank_tolerance: LsSettings::default().rank_tolerance,
-                ..Default::default()
-            }),
+            "physical" => Self::Physical(PhysicalSettings::default()),
             _ => {
                 return Err(PrrrpError::InvalidParameter {
                     field: format!("method {name:?}"),
@@ -478,8 +495,14 @@ pub fn identify(
     let config = LeastSquaresConfig {
         rank_tolerance: method.rank_tolerance(),
     };
-    // The EKF starts from the weighted fit (see `EkfStart::LeastSquares`).
-    let ls = if let Method::Wls(_) | Method::Ekf(_) = method {
+    // The physical fit takes its joint weights from the same weighted solve as wls; the
+    // EKF starts from the weighted fit (see `EkfStart::LeastSquares`).
+    let weighted = match method {
+        Method::Wls(_) | Method::Ekf(_) => true,
+        Method::Physical(s) => s.weighted,
+        _ => false,
+    };
+    let ls = if weighted {
         weighted_least_squares(&model, &samples, DynJointNoise::Estimated, &config)?
     } else {
         least_squares(&model, &samples, &config)?
@@ -572,9 +595,27 @@ pub fn identify(
             }
         }
         Method::Physical(s) => {
+            let joint_weights: Option<Vec<f64>> = s
+                .weighted
+                .then(|| ls.joint_variances.iter().map(|v| 1.0 / v).collect());
+            // One unit of χ² for the divergence: the weighted residual variance of the
+            // least-squares fit times the residuals' correlation time, so that a low-pass
+            // filtered log's rows/κ independent equations are what the prior is weighed
+            // against (as `ls_covariance` counts them for σ).
+            let moments = joint_moments(&model, &samples, &ls.lambda)?;
+            let unit = (0..n)
+                .map(|j| {
+                    let w = joint_weights.as_ref().map_or(1.0, |w| w[j]);
+                    w * moments.variances[j] * moments.kappas[j]
+                })
+                .sum::<f64>()
+                / n as f64;
             let config = crate::PhysicalConfig {
-                prior: s.prior.clone(),
+                prior: Some(s.prior.clone().unwrap_or_else(|| chain.parameters())),
                 prior_weight: s.prior_weight,
+                divergence_weight: s.divergence_weight,
+                noise_variance: (unit.is_finite() && unit > 0.0).then_some(unit),
+                joint_weights: joint_weights.clone(),
                 ..Default::default()
             };
             let est = crate::identify_physical(
@@ -599,8 +640,16 @@ pub fn identify(
                 sigma: None,
                 covariance: None,
                 settings: json!({
-                    "prior": s.prior.is_some(),
+                    "prior": match &s.prior {
+                        None => json!("robot"),
+                        Some(p) => json!(p),
+                    },
                     "prior_weight": s.prior_weight,
+                    "divergence_weight": s.divergence_weight,
+                    "residual_variance": est.residual_variance,
+                    "correlation_time_samples": moments.kappas,
+                    "weighted": s.weighted,
+                    "joint_weights": joint_weights,
                     "rank_tolerance": s.rank_tolerance,
                     "iterations": est.iterations,
                     "residual_increase_percent": est.residual_increase_percent,
@@ -663,6 +712,7 @@ pub fn identify(
         );
         out.sigma = Some(sigma);
     }
+    out.actuators = out.actuator_estimates();
     out.validate()?;
     Ok(out)
 }

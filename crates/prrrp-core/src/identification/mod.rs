@@ -17,7 +17,10 @@ pub use methods::{
 };
 
 /// Version of the [`IdentifiedModel`] JSON layout; bumped on any incompatible change.
-pub const MODEL_SCHEMA_VERSION: u32 = 1;
+/// Version 2: the robot may carry actuators (coupling, armature; chain schema 2) and the
+/// model lists its actuator estimates ([`IdentifiedModel::actuators`]). Version 1 files
+/// still load.
+pub const MODEL_SCHEMA_VERSION: u32 = 2;
 
 /// The base-parameter analysis a model was identified in: which standard parameters are
 /// the base columns and how the others fold into them.
@@ -77,7 +80,7 @@ pub struct IdentifiedModel {
     /// What the preprocessing did (free-form JSON object: rows dropped, rate, cut-off …).
     pub preprocessing: serde_json::Value,
     /// Physically consistent standard parameters π (the robot's layout: 10 inertial per
-    /// link, then friction) with K·π = β̂, where the method gives them (`"physical"`);
+    /// link, then the actuator terms) with K·π = β̂, where the method gives them (`"physical"`);
     /// they make [`IdentifiedModel::to_urdf`] possible. Optional in the JSON (schema v1).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub standard: Option<Vec<f64>>,
@@ -92,10 +95,50 @@ pub struct IdentifiedModel {
     /// Epochs (passes over the data) the gradient methods trained; `None` for the others.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub epochs: Option<usize>,
+    /// Each actuator's identified terms (friction, armature) with σ, read off β̂ and σ by
+    /// [`IdentifiedModel::actuator_estimates`] (schema 2; empty without actuator terms).
+    /// Written for the reader of the JSON; recomputed on load.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub actuators: Vec<ActuatorEstimate>,
 }
 
 fn converged_default() -> bool {
     true
+}
+
+/// One actuator term (`fv3`, `Ia6`, …) of an identified model.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct TermEstimate {
+    /// The standard parameter's name, e.g. `Ia6` (units: fv N·m·s/rad or N·s/m, fc and fo
+    /// N·m or N, Ia kg·m² or kg, joint side).
+    pub name: String,
+    /// Index of the base parameter the term is identified in; `None` when the data
+    /// cannot see it (an unidentifiable term).
+    pub base_index: Option<usize>,
+    /// That base parameter's combination: the term's own name when it is identified on
+    /// its own, else e.g. `Izz1 + Ia1` (an armature that turns with one link only is
+    /// inseparable from the link's inertia).
+    pub combination: Option<String>,
+    /// Whether the term is a base parameter on its own, so that `value` is the term.
+    pub alone: bool,
+    /// β̂ of that base parameter.
+    pub value: Option<f64>,
+    /// Its standard deviation, where the method gives one.
+    pub sigma: Option<f64>,
+    /// The term's physically consistent standard value, where the method gives standard
+    /// parameters (`"physical"`).
+    pub standard: Option<f64>,
+}
+
+/// The identified terms of one actuator ([`IdentifiedModel::actuators`]).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ActuatorEstimate {
+    /// Actuator number, 1-based.
+    pub actuator: usize,
+    /// The joints it moves (those with a non-zero coupling coefficient).
+    pub joints: Vec<String>,
+    /// Its terms among viscous, Coulomb, offset friction and armature, in that order.
+    pub terms: Vec<TermEstimate>,
 }
 
 impl IdentifiedModel {
@@ -139,9 +182,63 @@ impl IdentifiedModel {
             standard: None,
             converged: true,
             epochs: None,
+            actuators: Vec::new(),
         };
         model.validate()?;
+        let mut model = model;
+        model.actuators = model.actuator_estimates();
         Ok(model)
+    }
+
+    /// Each actuator's terms (friction and armature, the parameters after the 10·n
+    /// inertial ones) with the base parameter they are identified in, its β̂ and σ (see
+    /// [`TermEstimate`]). Empty when the robot has no actuator terms.
+    pub fn actuator_estimates(&self) -> Vec<ActuatorEstimate> {
+        let n = self.robot.joints.len();
+        let names = &self.base.standard_names;
+        let p = names.len();
+        let b = self.base.independent.len();
+        if n == 0 || p <= 10 * n || (p - 10 * n) % n != 0 || self.base.map.len() != b * p {
+            return Vec::new();
+        }
+        let per = (p - 10 * n) / n;
+        let coupling = self
+            .robot
+            .actuators
+            .as_ref()
+            .map(|a| a.coupling_row_major(n))
+            .unwrap_or_else(|| crate::Actuators::default().coupling_row_major(n));
+        let map = |r: usize, j: usize| self.base.map[r * p + j];
+        (0..n)
+            .map(|m| {
+                let terms = (0..per)
+                    .map(|s| {
+                        let j = 10 * n + per * m + s;
+                        let rows: Vec<usize> = (0..b).filter(|&r| map(r, j) != 0.0).collect();
+                        let own = self.base.independent.iter().position(|&i| i == j);
+                        let r = own.or_else(|| (rows.len() == 1).then(|| rows[0]));
+                        let alone = r.is_some_and(|r| (0..p).all(|k| k == j || map(r, k) == 0.0));
+                        TermEstimate {
+                            name: names[j].clone(),
+                            base_index: r,
+                            combination: r.map(|r| self.base.combinations[r].clone()),
+                            alone,
+                            value: r.and_then(|r| self.beta.get(r).copied()),
+                            sigma: r.and_then(|r| self.sigma.as_ref()?.get(r).copied()),
+                            standard: self.standard.as_ref().and_then(|s| s.get(j).copied()),
+                        }
+                    })
+                    .collect();
+                ActuatorEstimate {
+                    actuator: m + 1,
+                    joints: (0..n)
+                        .filter(|&j| coupling[m * n + j] != 0.0)
+                        .map(|j| self.robot.joints[j].name.clone())
+                        .collect(),
+                    terms,
+                }
+            })
+            .collect()
     }
 
     /// A URDF of the robot with the identified inertials: the standard parameters π of a
@@ -165,16 +262,27 @@ impl IdentifiedModel {
     }
 
     fn validate(&self) -> Result<()> {
-        if self.schema_version != MODEL_SCHEMA_VERSION {
+        if !(1..=MODEL_SCHEMA_VERSION).contains(&self.schema_version) {
             return Err(PrrrpError::InvalidParameter {
                 field: "schema_version".into(),
                 value: self.schema_version as f64,
-                reason: "unknown model version (this prrrp reads version 1)",
+                reason: "unknown model version (this prrrp reads versions 1 and 2)",
             });
         }
         let n = self.robot.joints.len();
         let b = self.base.independent.len();
         let p = self.base.standard_names.len();
+        // Sizes first, before any product of them is formed or allocated (an 8000-joint
+        // file would otherwise ask for a p × p covariance of 10¹⁰ values).
+        crate::models::chain::check_dof("robot.joints", n)?;
+        let most = n * (crate::LINK_PARAMS + crate::models::chain::ACTUATOR_PARAMETER_NAMES.len());
+        if p > most || b > p {
+            return Err(PrrrpError::ShapeMismatch {
+                what: "base (standard_names, independent)".into(),
+                expected: format!("at most {most} standard and as many base parameters"),
+                got: format!("{p} standard, {b} base parameters"),
+            });
+        }
         let shape = |what: &str, want: usize, got: usize| -> Result<()> {
             if want == got {
                 Ok(())
@@ -298,7 +406,10 @@ impl IdentifiedModel {
     /// # Errors
     /// [`PrrrpError::NonFinite`] if a value is not finite (JSON has no NaN).
     pub fn to_json(&self) -> Result<String> {
-        serde_json::to_string_pretty(self).map_err(|_| PrrrpError::NonFinite {
+        let mut out = self.clone();
+        out.schema_version = MODEL_SCHEMA_VERSION;
+        out.actuators = self.actuator_estimates();
+        serde_json::to_string_pretty(&out).map_err(|_| PrrrpError::NonFinite {
             what: "identified model (JSON has no NaN or infinity)".into(),
             row: None,
         })
@@ -310,13 +421,14 @@ impl IdentifiedModel {
     /// [`PrrrpError::InvalidParameter`] naming the JSON problem, and the errors of
     /// [`IdentifiedModel::new`].
     pub fn from_json(text: &str) -> Result<Self> {
-        let m: Self = serde_json::from_str(text).map_err(|e| PrrrpError::InvalidParameter {
+        let mut m: Self = serde_json::from_str(text).map_err(|e| PrrrpError::InvalidParameter {
             field: format!("model JSON (line {}, column {})", e.line(), e.column()),
             value: f64::NAN,
             reason: "not a prrrp model file; write it with IdentifiedModel::to_json",
         })?;
         m.validate()?;
         m.chain()?;
+        m.actuators = m.actuator_estimates();
         Ok(m)
     }
 }

@@ -59,11 +59,30 @@ pub trait Dynamics {
         tau: &[f64],
         qdd: &mut [f64],
     ) -> Result<()>;
+
+    /// The magnitudes fc_j ≥ 0 (N, N·m) of the Coulomb terms fc_j·sgn(q̇_j) **with the
+    /// exact sign** (sgn(0) = 0) that the two dynamics above include, into `fc` (n
+    /// entries, 0 for joints without one); returns whether any is nonzero. The default
+    /// has none.
+    ///
+    /// The exact sign is a set-valued law at q̇_j = 0 (a joint at rest sticks while the
+    /// other forces stay within ±fc_j): the simulators' integrator ([`crate::Rk4Integrator`])
+    /// treats these terms by stick–slip event handling, and [`crate::DynComputedTorque`]
+    /// compensates them from the reference velocity, which neither can do without knowing
+    /// them.
+    fn exact_coulomb_into(&self, fc: &mut [f64]) -> bool {
+        fc.fill(0.0);
+        false
+    }
 }
 
-/// The full chain: its own inertial parameters and friction ([`DynChain::friction`],
-/// Coulomb term smoothed by `coulomb_smoothing` when it is > 0, which an integrator
-/// needs: the exact sign makes q̈ jump wherever a joint reverses).
+/// The full chain: its own inertial parameters and friction ([`DynChain::friction`]).
+/// A Coulomb term with the exact sign (`coulomb_smoothing` = 0) is reported by
+/// [`Dynamics::exact_coulomb_into`] for joints with fc > 0 (a negative fc, which only an
+/// unconstrained identification gives, is left in the dynamics as it is) whose actuator
+/// drives that joint alone; the friction of a coupled actuator (a wrist motor turning
+/// with q5 + q6) stays in the dynamics with its exact sign, so simulate such an arm with
+/// a smoothed sign (`coulomb_smoothing` > 0).
 impl Dynamics for DynChain {
     type Workspace = DynWorkspace;
 
@@ -97,6 +116,28 @@ impl Dynamics for DynChain {
         qdd: &mut [f64],
     ) -> Result<()> {
         DynChain::forward_dynamics_into(self, ws, q, qd, tau, qdd)
+    }
+
+    fn exact_coulomb_into(&self, fc: &mut [f64]) -> bool {
+        fc.fill(0.0);
+        let f = self.friction();
+        if !(f.coulomb && f.coulomb_smoothing == 0.0) {
+            return false;
+        }
+        let coupling = self.actuators().coupling.as_deref();
+        for (m, (o, p)) in fc.iter_mut().zip(self.friction_params()).enumerate() {
+            // Stick–slip events are per joint: an actuator coupled to several joints
+            // (a row of C other than e_m) keeps its exact sign in the dynamics.
+            let own_joint = match coupling {
+                None => true,
+                Some(c) => c[m]
+                    .iter()
+                    .enumerate()
+                    .all(|(j, &x)| x == if j == m { 1.0 } else { 0.0 }),
+            };
+            *o = if own_joint { p[1].max(0.0) } else { 0.0 };
+        }
+        fc.iter().any(|&x| x > 0.0)
     }
 }
 

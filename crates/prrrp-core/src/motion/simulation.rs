@@ -21,6 +21,7 @@ use crate::data::dataset::Dataset;
 use crate::data::preprocess::{preprocess, PreprocessConfig};
 use crate::data::{preprocess_log, DynDataset, LogConfig, LogReport};
 use crate::error::{PrrrpError, Result};
+use crate::models::chain::{cholesky_in_place, cholesky_solve};
 use crate::models::prrrp::dynamics::PrrrpModel;
 use crate::models::prrrp::types::{Lambda, Vec5, NDOF};
 use crate::motion::dynamics::{Dynamics, ParameterisedModel};
@@ -310,7 +311,16 @@ impl ComputedTorque {
 /// Computed-torque control of a robot with n joints through any [`Dynamics`] model of it
 /// (the controller's model: the true robot, an identified one, a deliberately wrong one):
 /// τ = ID_ctrl(q, q̇, q̈_r + Kd·(q̇_r − q̇) + Kp·(q_r − q)), friction compensation
-/// included when the controller's model has friction. Buffers are sized once by
+/// included when the controller's model has friction.
+///
+/// Coulomb terms with the exact sign ([`Dynamics::exact_coulomb_into`]) are compensated
+/// as feed-forward from the **reference** velocity, fc_j·sgn(q̇_r,j), the usual practice
+/// (Armstrong-Hélouvry et al. 1994): compensating at the measured velocity is a relay fed
+/// back through a one-step delay, which chatters about q̇ = 0, and a joint held at rest
+/// gets no compensation at all, so the PD loop alone must build up fc_j of torque — an
+/// error of fc_j/(M_jj·kp): 6.7 rad for a 1.5e-4 kg·m² wrist with fc = 0.4 N·m at
+/// kp = 400 s⁻². Smoothed Coulomb terms and the others are evaluated at the measured
+/// state. Buffers are sized once by
 /// [`DynComputedTorque::new`]; [`DynComputedTorque::torque_into`] allocates nothing.
 #[derive(Debug, Clone)]
 pub struct DynComputedTorque<'c, C: Dynamics + ?Sized> {
@@ -319,6 +329,8 @@ pub struct DynComputedTorque<'c, C: Dynamics + ?Sized> {
     kp: Vec<f64>,
     kd: Vec<f64>,
     v: Vec<f64>,
+    /// The controller model's exact Coulomb magnitudes (all 0: none).
+    fc: Vec<f64>,
 }
 
 impl<'c, C: Dynamics + ?Sized> DynComputedTorque<'c, C> {
@@ -339,12 +351,15 @@ impl<'c, C: Dynamics + ?Sized> DynComputedTorque<'c, C> {
                 });
             }
         }
+        let mut fc = vec![0.0; n];
+        controller.exact_coulomb_into(&mut fc);
         Ok(Self {
             controller,
             ws: controller.workspace(),
             kp: kp.to_vec(),
             kd: kd.to_vec(),
             v: vec![0.0; n],
+            fc,
         })
     }
 
@@ -373,7 +388,14 @@ impl<'c, C: Dynamics + ?Sized> DynComputedTorque<'c, C> {
         }
         pd_acceleration(&self.kp, &self.kd, reference, q, qd, &mut self.v);
         self.controller
-            .inverse_dynamics_into(&mut self.ws, q, qd, &self.v, tau)
+            .inverse_dynamics_into(&mut self.ws, q, qd, &self.v, tau)?;
+        // Exact Coulomb terms are compensated at the reference velocity's sign.
+        for j in 0..n {
+            if self.fc[j] > 0.0 {
+                tau[j] += self.fc[j] * (sgn(reference.1[j]) - sgn(qd[j]));
+            }
+        }
+        Ok(())
     }
 }
 
@@ -424,6 +446,22 @@ pub fn rk4_step_into<D: Dynamics + ?Sized>(
             got: format!("{} entries", scratch.len()),
         });
     }
+    rk4_core(scratch, q, qd, h, |q, qd, a| {
+        plant.forward_dynamics_into(ws, q, qd, tau, a)
+    })
+}
+
+/// The classical Runge–Kutta step of q̈ = `accel`(q, q̇) over `h`, on slices of one
+/// length n (checked by the callers) with 5·n scratch values.
+#[inline]
+fn rk4_core(
+    scratch: &mut [f64],
+    q: &mut [f64],
+    qd: &mut [f64],
+    h: f64,
+    mut accel: impl FnMut(&[f64], &[f64], &mut [f64]) -> Result<()>,
+) -> Result<()> {
+    let n = q.len();
     let (a, rest) = scratch.split_at_mut(n);
     let (sa, rest) = rest.split_at_mut(n);
     let (qs, rest) = rest.split_at_mut(n);
@@ -447,7 +485,7 @@ pub fn rk4_step_into<D: Dynamics + ?Sized>(
     };
     // Stage sums are accumulated in the order (x1 + 2·x2) + 2·x3 + x4 of the textbook
     // formula, so the result does not depend on how the stages are stored.
-    plant.forward_dynamics_into(ws, q, qd, tau, a)?;
+    accel(q, qd, a)?;
     for j in 0..n {
         sa[j] = a[j];
         qs[j] = q[j] + half * qd[j];
@@ -455,7 +493,7 @@ pub fn rk4_step_into<D: Dynamics + ?Sized>(
         sq[j] = qd[j] + 2.0 * v[j];
     }
     stage_diverged(qs, v)?;
-    plant.forward_dynamics_into(ws, qs, v, tau, a)?;
+    accel(qs, v, a)?;
     for j in 0..n {
         sa[j] += 2.0 * a[j];
         qs[j] = q[j] + half * v[j];
@@ -463,7 +501,7 @@ pub fn rk4_step_into<D: Dynamics + ?Sized>(
         sq[j] += 2.0 * v[j];
     }
     stage_diverged(qs, v)?;
-    plant.forward_dynamics_into(ws, qs, v, tau, a)?;
+    accel(qs, v, a)?;
     for j in 0..n {
         sa[j] += 2.0 * a[j];
         qs[j] = q[j] + h * v[j];
@@ -471,7 +509,7 @@ pub fn rk4_step_into<D: Dynamics + ?Sized>(
         sq[j] += v[j];
     }
     stage_diverged(qs, v)?;
-    plant.forward_dynamics_into(ws, qs, v, tau, a)?;
+    accel(qs, v, a)?;
     for j in 0..n {
         sa[j] += a[j];
         q[j] += sixth * sq[j];
@@ -513,34 +551,313 @@ pub fn rk4_step(
 
 /// RK4 integration of one [`Dynamics`] with its buffers sized once
 /// ([`Rk4Integrator::new`]); [`Rk4Integrator::step`] allocates nothing.
+///
+/// # Coulomb friction with the exact sign
+///
+/// A plant whose [`Dynamics::exact_coulomb_into`] reports Coulomb terms fc_j·sgn(q̇_j) is
+/// integrated as the set-valued law those terms are (stick–slip, as in Karnopp's and
+/// Leine's event-driven treatment), not as a jump that RK4 would step across:
+/// - A joint with q̇_j ≠ 0 slips: its Coulomb torque is fc_j·sgn(q̇_j), **frozen over the
+///   step**, so that every RK4 stage sees the same smooth right-hand side.
+/// - Where a slipping joint's velocity reaches zero inside a step, the step is cut there
+///   (the crossing time is found by regula falsi on the RK4 solution to 1e-10 of the step)
+///   and the joint's velocity set to exactly 0.
+/// - A joint at q̇_j = 0 sticks (q̈_j = 0, its friction the torque that holds it) while
+///   that torque stays within ±fc_j; past it, it slips towards the net force. Several
+///   joints at rest are held together; the most overloaded is released first. The test
+///   runs at the start of every step and after every cut: the controller's torque, which
+///   is what usually breaks a joint loose, only changes there.
+///
+/// The step then stays fourth order between events, and the friction torque never
+/// chatters: no smoothing width to choose, whatever the joint's inertia (a 1.5e-4 kg·m²
+/// wrist with fc = 0.4 N·m is a slope of 10⁷ s⁻¹ for a smoothed sign of 0.01 rad/s width,
+/// beyond any explicit step). At most 4·n + 4 cuts are made in one step; the rest of
+/// such a step keeps its modes (no real motion comes near that).
 #[derive(Debug, Clone)]
 pub struct Rk4Integrator<'p, P: Dynamics + ?Sized> {
     plant: &'p P,
     ws: P::Workspace,
     scratch: Vec<f64>,
+    stick: Option<StickSlip>,
+}
+
+/// Buffers and modes of the stick–slip treatment (see [`Rk4Integrator`]).
+#[derive(Debug, Clone)]
+struct StickSlip {
+    /// Exact Coulomb magnitude per joint (0: none).
+    fc: Vec<f64>,
+    /// Frozen sign of each joint's Coulomb torque: ±1 slipping, 0 stuck or none.
+    mode: Vec<f64>,
+    /// Stuck joints, in joint order.
+    stuck: Vec<usize>,
+    tau_eff: Vec<f64>,
+    /// M⁻¹ columns of the stuck joints (n each).
+    cols: Vec<f64>,
+    /// (M⁻¹) restricted to the stuck joints, then its Cholesky factor.
+    gram: Vec<f64>,
+    /// The friction torques that hold the stuck joints.
+    hold: Vec<f64>,
+    /// The state at the start of the current (sub)step and the velocity at its end.
+    q0: Vec<f64>,
+    qd0: Vec<f64>,
+    qd1: Vec<f64>,
+}
+
+#[inline(always)]
+fn sgn(x: f64) -> f64 {
+    if x > 0.0 {
+        1.0
+    } else if x < 0.0 {
+        -1.0
+    } else {
+        0.0
+    }
+}
+
+impl StickSlip {
+    fn new(fc: Vec<f64>) -> Self {
+        let n = fc.len();
+        Self {
+            fc,
+            mode: vec![0.0; n],
+            stuck: Vec::with_capacity(n),
+            tau_eff: vec![0.0; n],
+            cols: vec![0.0; n * n],
+            gram: vec![0.0; n * n],
+            hold: vec![0.0; n],
+            q0: vec![0.0; n],
+            qd0: vec![0.0; n],
+            qd1: vec![0.0; n],
+        }
+    }
+
+    /// q̈ in the frozen modes at a (stage) state. The plant's dynamics apply
+    /// fc_j·sgn(q̇_j) at the stage's own velocity; the torque is corrected so that the
+    /// frozen sign acts instead, and the stuck joints are held by their friction.
+    fn accel<P: Dynamics + ?Sized>(
+        &mut self,
+        plant: &P,
+        ws: &mut P::Workspace,
+        q: &[f64],
+        qd: &[f64],
+        tau: &[f64],
+        a: &mut [f64],
+    ) -> Result<()> {
+        self.free_accel(plant, ws, q, qd, tau, a)?;
+        if self.stuck.is_empty() {
+            return Ok(());
+        }
+        self.hold_torques(plant, ws, q, qd, a)?;
+        let n = a.len();
+        for (c, &h) in self.hold[..self.stuck.len()].iter().enumerate() {
+            for (x, m) in a.iter_mut().zip(&self.cols[c * n..(c + 1) * n]) {
+                *x -= m * h;
+            }
+        }
+        for &j in &self.stuck {
+            a[j] = 0.0;
+        }
+        Ok(())
+    }
+
+    /// q̈ with the slipping joints' frozen signs and no friction on the stuck ones.
+    fn free_accel<P: Dynamics + ?Sized>(
+        &mut self,
+        plant: &P,
+        ws: &mut P::Workspace,
+        q: &[f64],
+        qd: &[f64],
+        tau: &[f64],
+        a: &mut [f64],
+    ) -> Result<()> {
+        for j in 0..tau.len() {
+            self.tau_eff[j] = tau[j] + self.fc[j] * (sgn(qd[j]) - self.mode[j]);
+        }
+        plant.forward_dynamics_into(ws, q, qd, &self.tau_eff, a)
+    }
+
+    /// The friction torques τ_h that keep the stuck joints S at rest, from the free
+    /// acceleration `a0`: (M⁻¹)_SS·τ_h = a0_S, with the columns M⁻¹·e_j from the forward
+    /// dynamics (affine in τ). Fills `cols` and `hold`.
+    fn hold_torques<P: Dynamics + ?Sized>(
+        &mut self,
+        plant: &P,
+        ws: &mut P::Workspace,
+        q: &[f64],
+        qd: &[f64],
+        a0: &[f64],
+    ) -> Result<()> {
+        let n = a0.len();
+        let k = self.stuck.len();
+        for (c, &j) in self.stuck.iter().enumerate() {
+            // A unit of the joint's own friction scale keeps the difference well above
+            // the round-off of a0.
+            let unit = self.fc[j].max(1.0);
+            self.tau_eff[j] += unit;
+            let col = &mut self.cols[c * n..(c + 1) * n];
+            plant.forward_dynamics_into(ws, q, qd, &self.tau_eff, col)?;
+            self.tau_eff[j] -= unit;
+            for (x, a) in col.iter_mut().zip(a0) {
+                *x = (*x - a) / unit;
+            }
+        }
+        for (r, &i) in self.stuck.iter().enumerate() {
+            for c in 0..k {
+                self.gram[r + k * c] = self.cols[c * n + i];
+            }
+            self.hold[r] = a0[i];
+        }
+        cholesky_in_place(&mut self.gram[..k * k], k)?;
+        cholesky_solve(&self.gram[..k * k], k, &mut self.hold[..k]);
+        Ok(())
+    }
+
+    /// The modes at the start of a step: slipping joints take their velocity's sign;
+    /// joints at rest stick unless holding them needs more than fc_j, in which case the
+    /// most overloaded one slips towards its net force, and the rest are tested again.
+    fn set_modes<P: Dynamics + ?Sized>(
+        &mut self,
+        plant: &P,
+        ws: &mut P::Workspace,
+        q: &[f64],
+        qd: &[f64],
+        tau: &[f64],
+        a: &mut [f64],
+    ) -> Result<()> {
+        self.stuck.clear();
+        for (j, &v) in qd.iter().enumerate() {
+            self.mode[j] = if self.fc[j] > 0.0 { sgn(v) } else { 0.0 };
+            if self.fc[j] > 0.0 && v == 0.0 {
+                self.stuck.push(j);
+            }
+        }
+        while !self.stuck.is_empty() {
+            self.free_accel(plant, ws, q, qd, tau, a)?;
+            self.hold_torques(plant, ws, q, qd, a)?;
+            let mut worst: Option<(usize, f64)> = None;
+            for (r, &j) in self.stuck.iter().enumerate() {
+                let load = self.hold[r].abs() / self.fc[j];
+                if load > 1.0 && worst.map_or(true, |(_, w)| load > w) {
+                    worst = Some((r, load));
+                }
+            }
+            let Some((r, _)) = worst else { break };
+            let j = self.stuck.remove(r);
+            self.mode[j] = sgn(self.hold[r]);
+        }
+        Ok(())
+    }
 }
 
 impl<'p, P: Dynamics + ?Sized> Rk4Integrator<'p, P> {
-    /// Buffers for `plant`.
+    /// Buffers for `plant` (and for its stick–slip treatment when it has Coulomb terms
+    /// with the exact sign).
     pub fn new(plant: &'p P) -> Self {
+        let n = plant.dof();
+        let mut fc = vec![0.0; n];
+        let stick = plant
+            .exact_coulomb_into(&mut fc)
+            .then(|| StickSlip::new(fc));
         Self {
             plant,
             ws: plant.workspace(),
-            scratch: vec![0.0; RK4_SCRATCH_PER_JOINT * plant.dof()],
+            scratch: vec![0.0; RK4_SCRATCH_PER_JOINT * n],
+            stick,
         }
     }
 
     /// One RK4 step of length `h` (s) under the torque `tau` held constant, updating
-    /// (q, q̇) in place. See [`rk4_step_into`].
+    /// (q, q̇) in place: [`rk4_step_into`], with the stick–slip events of exact Coulomb
+    /// terms handled as the type's docs say.
     ///
     /// # Errors
     /// As [`rk4_step_into`].
     #[inline]
     pub fn step(&mut self, q: &mut [f64], qd: &mut [f64], tau: &[f64], h: f64) -> Result<()> {
-        rk4_step_into(self.plant, &mut self.ws, &mut self.scratch, q, qd, tau, h)
+        let Some(stick) = self.stick.as_mut() else {
+            return rk4_step_into(self.plant, &mut self.ws, &mut self.scratch, q, qd, tau, h);
+        };
+        let n = self.plant.dof();
+        check_joints("q", q.len(), n)?;
+        check_joints("qd", qd.len(), n)?;
+        check_joints("tau", tau.len(), n)?;
+        let (plant, ws, scratch) = (self.plant, &mut self.ws, &mut self.scratch);
+        let mut left = h;
+        for cut in 0..=4 * n + 4 {
+            stick.set_modes(plant, ws, q, qd, tau, &mut scratch[..n])?;
+            stick.q0.copy_from_slice(q);
+            stick.qd0.copy_from_slice(qd);
+            let mut run = |stick: &mut StickSlip, q: &mut [f64], qd: &mut [f64], dt: f64| {
+                q.copy_from_slice(&stick.q0);
+                qd.copy_from_slice(&stick.qd0);
+                rk4_core(scratch, q, qd, dt, |q, qd, a| {
+                    stick.accel(plant, ws, q, qd, tau, a)
+                })
+            };
+            run(stick, q, qd, left)?;
+            if cut == 4 * n + 4 {
+                break;
+            }
+            stick.qd1.copy_from_slice(qd);
+            // The earliest zero crossing of a joint that slipped from the start.
+            let mut first: Option<(usize, f64)> = None;
+            for j in 0..n {
+                let s = stick.mode[j];
+                if s == 0.0 || s * stick.qd0[j] <= 0.0 || s * stick.qd1[j] > 0.0 {
+                    continue;
+                }
+                let (mut lo, mut hi) = (0.0, left);
+                let (mut f_lo, mut f_hi) = (s * stick.qd0[j], s * stick.qd1[j]);
+                let mut side = 0i8;
+                for _ in 0..60 {
+                    if hi - lo <= 1e-10 * h {
+                        break;
+                    }
+                    // Illinois variant of regula falsi: halves the weight of an end that
+                    // stays, so convergence is superlinear from both sides.
+                    let mid = (lo * f_hi - hi * f_lo) / (f_hi - f_lo);
+                    let mid = if mid > lo && mid < hi {
+                        mid
+                    } else {
+                        0.5 * (lo + hi)
+                    };
+                    run(stick, q, qd, mid)?;
+                    let f = s * qd[j];
+                    if f > 0.0 {
+                        (lo, f_lo) = (mid, f);
+                        if side == 1 {
+                            f_hi *= 0.5;
+                        }
+                        side = 1;
+                    } else {
+                        (hi, f_hi) = (mid, f);
+                        if side == -1 {
+                            f_lo *= 0.5;
+                        }
+                        side = -1;
+                    }
+                }
+                if first.map_or(true, |(_, t)| hi < t) {
+                    first = Some((j, hi));
+                }
+            }
+            let Some((j, t)) = first else {
+                // `run` may have left a trial state: the full step is the answer.
+                run(stick, q, qd, left)?;
+                return Ok(());
+            };
+            run(stick, q, qd, t)?;
+            qd[j] = 0.0;
+            left -= t;
+            if left <= 1e-10 * h {
+                return Ok(());
+            }
+        }
+        Ok(())
     }
 
-    /// The acceleration q̈ = FD(q, q̇, τ) into `qdd`.
+    /// The acceleration q̈ = FD(q, q̇, τ) into `qdd`; with exact Coulomb terms, that of
+    /// the stick–slip modes at this state (a stuck joint's q̈ is 0).
     ///
     /// # Errors
     /// As [`Dynamics::forward_dynamics_into`].
@@ -552,8 +869,20 @@ impl<'p, P: Dynamics + ?Sized> Rk4Integrator<'p, P> {
         tau: &[f64],
         qdd: &mut [f64],
     ) -> Result<()> {
-        self.plant
-            .forward_dynamics_into(&mut self.ws, q, qd, tau, qdd)
+        match self.stick.as_mut() {
+            None => self
+                .plant
+                .forward_dynamics_into(&mut self.ws, q, qd, tau, qdd),
+            Some(stick) => {
+                let n = self.plant.dof();
+                check_joints("q", q.len(), n)?;
+                check_joints("qd", qd.len(), n)?;
+                check_joints("tau", tau.len(), n)?;
+                check_joints("qdd", qdd.len(), n)?;
+                stick.set_modes(self.plant, &mut self.ws, q, qd, tau, qdd)?;
+                stick.accel(self.plant, &mut self.ws, q, qd, tau, qdd)
+            }
+        }
     }
 }
 

@@ -1398,6 +1398,7 @@ pub(crate) fn base_of(model: &IdentifiedModel, chain: &DynChain) -> Result<BaseP
     Ok(BaseParameters {
         dof: chain.dof(),
         friction: chain.friction(),
+        armature: d.standard_names.iter().any(|s| s.starts_with("Ia")),
         names: d.standard_names.clone(),
         independent: d.independent.clone(),
         dependent,

@@ -131,21 +131,26 @@ pub fn sensitivity(
         }
     };
     type JobResult = (usize, Result<Option<[f64; NDOF]>>);
+    // Workers stop with the caller's stop flag.
+    let flag = crate::interrupt::current();
     let results: Vec<Vec<JobResult>> = std::thread::scope(|s| {
         let handles: Vec<_> = (0..threads)
             .map(|_| {
+                let flag = flag.clone();
                 s.spawn(|| {
-                    let mut mine = Vec::new();
-                    loop {
-                        let idx = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-                        if idx >= jobs.len() {
-                            break;
+                    crate::interrupt::within(flag, || {
+                        let mut mine = Vec::new();
+                        loop {
+                            let idx = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                            if idx >= jobs.len() {
+                                break;
+                            }
+                            mine.push((idx, run_job(jobs[idx])));
+                            let d = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
+                            progress(d, jobs.len());
                         }
-                        mine.push((idx, run_job(jobs[idx])));
-                        let d = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
-                        progress(d, jobs.len());
-                    }
-                    mine
+                        mine
+                    })
                 })
             })
             .collect();

@@ -372,21 +372,29 @@ pub fn run_study(
             4,
         )
     };
+    // Workers stop with the caller's stop flag.
+    let flag = crate::interrupt::current();
     let (ls, ad, hn, ekf) = std::thread::scope(|s| {
         let ls = s.spawn(|| {
-            let r = run_least_squares(&model, &data, &config.least_squares);
-            tick();
-            r
+            crate::interrupt::within(flag.clone(), || {
+                let r = run_least_squares(&model, &data, &config.least_squares);
+                tick();
+                r
+            })
         });
         let ad = s.spawn(|| {
-            let r = run_adaline(&model, &data, &lambda0, config);
-            tick();
-            r
+            crate::interrupt::within(flag.clone(), || {
+                let r = run_adaline(&model, &data, &lambda0, config);
+                tick();
+                r
+            })
         });
         let hn = s.spawn(|| {
-            let r = run_hopfield(&model, &data, &lambda0, config);
-            tick();
-            r
+            crate::interrupt::within(flag.clone(), || {
+                let r = run_hopfield(&model, &data, &lambda0, config);
+                tick();
+                r
+            })
         });
         let ekf = run_ekf(
             &model,

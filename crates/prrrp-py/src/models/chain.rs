@@ -7,8 +7,8 @@ use std::sync::OnceLock;
 
 use numpy::PyArray1;
 use prrrp_core::{
-    BaseOptions, BaseParameters, DhConvention, DhRow, DynChain, FrictionModel, JointKind,
-    SerialChain, UrdfOptions,
+    Actuators, BaseOptions, BaseParameters, DhConvention, DhRow, DynChain, FrictionModel,
+    JointKind, SerialChain, UrdfOptions,
 };
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyString, PyTuple};
@@ -200,6 +200,39 @@ impl PySerialChain {
         Ok(Self::wrap(chain))
     }
 
+    /// Applies a per-sample actuator map to an (n,) or (N, n) array.
+    fn joint_map<'py>(
+        &self,
+        py: Python<'py>,
+        obj: &Bound<'py, PyAny>,
+        name: &'static str,
+        f: impl FnOnce(&Actuators, usize, &[f64]) -> prrrp_core::Result<Vec<f64>>,
+    ) -> Out<'py> {
+        let n = self.inner.dof();
+        let (shape, data) = crate::arrays::any_array(obj, name, &format!("({n},) or (N, {n})"))?;
+        let batch = match *shape {
+            [d] if d == n => None,
+            [s, d] if d == n => Some(s),
+            _ => {
+                return Err(shape_error(
+                    py,
+                    name,
+                    format!("({n},) or (N, {n})"),
+                    crate::arrays::fmt_shape(&shape),
+                ))
+            }
+        };
+        if let Some(k) = data.iter().position(|x| !x.is_finite()) {
+            return Err(prrrp_core::PrrrpError::NonFinite {
+                what: name.into(),
+                row: Some(k / n),
+            })
+            .to_py(py);
+        }
+        let out = f(self.inner.actuators(), n, &data).to_py(py)?;
+        to_array(py, out, batch, &[n])
+    }
+
     pub(crate) fn default_base(&self, py: Python<'_>) -> PyResult<&BaseParameters> {
         if let Some(b) = self.base.get() {
             return Ok(b);
@@ -372,6 +405,125 @@ impl PySerialChain {
         };
         let chain = self.inner.clone().with_friction(model, params).to_py(py)?;
         Ok(Self::wrap(chain))
+    }
+
+    /// The same chain with other actuators (see `_prrrp.pyi`): arguments left None keep
+    /// the chain's own.
+    #[pyo3(signature = (*, coupling=None, armature=None, armature_values=None, gear_ratios=None))]
+    fn with_actuators(
+        &self,
+        py: Python<'_>,
+        coupling: Option<&Bound<'_, PyAny>>,
+        armature: Option<bool>,
+        armature_values: Option<&Bound<'_, PyAny>>,
+        gear_ratios: Option<&Bound<'_, PyAny>>,
+    ) -> PyResult<Self> {
+        let n = self.inner.dof();
+        let mut act = self.inner.actuators().clone();
+        if let Some(obj) = coupling {
+            let (_, flat) = matrix_rows(obj, "coupling", Some(n), n)?;
+            act.coupling = Some(flat.chunks_exact(n).map(<[f64]>::to_vec).collect());
+        }
+        if let Some(on) = armature {
+            act.armature = on;
+        }
+        if let Some(obj) = armature_values {
+            act.armature_values = Some(crate::arrays::vector(obj, "armature_values")?);
+        }
+        if let Some(obj) = gear_ratios {
+            act.gear_ratios = Some(crate::arrays::vector(obj, "gear_ratios")?);
+        }
+        let chain = self.inner.clone().with_actuators(act).to_py(py)?;
+        Ok(Self::wrap(chain))
+    }
+
+    /// The actuators: a dict with 'coupling' ((n, n) array or None = identity),
+    /// 'armature' (bool), 'armature_values' ((n,) kg·m² or None), 'gear_ratios' ((n,) or
+    /// None).
+    #[getter]
+    fn actuators<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let a = self.inner.actuators();
+        let n = self.inner.dof();
+        let d = PyDict::new(py);
+        let coupling = match &a.coupling {
+            Some(rows) => Some(to_array(
+                py,
+                rows.iter().flatten().copied().collect(),
+                Some(n),
+                &[n],
+            )?),
+            None => None,
+        };
+        d.set_item("coupling", coupling)?;
+        d.set_item("armature", a.armature)?;
+        d.set_item(
+            "armature_values",
+            a.armature_values
+                .as_ref()
+                .map(|v| PyArray1::from_slice(py, v)),
+        )?;
+        d.set_item(
+            "gear_ratios",
+            a.gear_ratios.as_ref().map(|v| PyArray1::from_slice(py, v)),
+        )?;
+        Ok(d)
+    }
+
+    /// Joint torques τ = Cᵀ·(K∘i) (N·m, N) from motor currents i (A), (n,) or (N, n), with
+    /// joint-side drive gains K (N·m/A), (n,).
+    fn joint_torques_from_currents<'py>(
+        &self,
+        py: Python<'py>,
+        current: &Bound<'py, PyAny>,
+        gains: &Bound<'py, PyAny>,
+    ) -> Out<'py> {
+        let k = crate::arrays::vector(gains, "gains")?;
+        self.joint_map(py, current, "current", |a, n, x| {
+            a.joint_torques_from_currents(n, x, &k)
+        })
+    }
+
+    /// Joint positions q = C⁻¹·(θ/r) (rad, m) from motor angles θ (rad, motor side), (n,)
+    /// or (N, n); needs the gear ratios. The same map takes motor velocities and
+    /// accelerations to the joint side.
+    fn joint_positions_from_motor<'py>(
+        &self,
+        py: Python<'py>,
+        theta: &Bound<'py, PyAny>,
+    ) -> Out<'py> {
+        self.joint_map(py, theta, "theta", |a, n, x| {
+            a.joint_positions_from_motor(n, x)
+        })
+    }
+
+    /// Joint torques τ = Cᵀ·(r∘τ_motor) (N·m, N) from motor-side torques (N·m), (n,) or
+    /// (N, n); needs the gear ratios.
+    fn joint_torques_from_motor<'py>(
+        &self,
+        py: Python<'py>,
+        tau_motor: &Bound<'py, PyAny>,
+    ) -> Out<'py> {
+        self.joint_map(py, tau_motor, "tau_motor", |a, n, x| {
+            a.joint_torques_from_motor(n, x)
+        })
+    }
+
+    /// A TOML robot file for this chain whose links are in the URDF at `urdf` (relative to
+    /// the TOML file), with the drives URDF cannot hold; `parameters` default to the
+    /// chain's own.
+    #[pyo3(signature = (urdf, parameters=None))]
+    fn to_toml(
+        &self,
+        py: Python<'_>,
+        urdf: &str,
+        parameters: Option<&Bound<'_, PyAny>>,
+    ) -> PyResult<String> {
+        let params = parameters
+            .map(|p| crate::arrays::vector(p, "parameters"))
+            .transpose()?;
+        self.inner
+            .to_toml_with_urdf(urdf, params.as_deref())
+            .to_py(py)
     }
 
     /// The robot's name (from its file; 'robot' otherwise).
@@ -703,7 +855,13 @@ impl PySerialChain {
             Some(p) => crate::arrays::vector(p, "parameters")?,
             None => c.parameters(),
         };
-        let report = prrrp_core::FeasibilityReport::new(&pi, c.dof(), &c.friction()).to_py(py)?;
+        let report = prrrp_core::FeasibilityReport::with_armature(
+            &pi,
+            c.dof(),
+            &c.friction(),
+            c.actuators().armature,
+        )
+        .to_py(py)?;
         feasibility_dict(py, c, &report)
     }
 
@@ -736,7 +894,10 @@ impl PySerialChain {
 
     /// The Coulomb speed scale v_s chosen from `data` by cross-validated least squares
     /// (see `_prrrp.pyi`); a dict (the core's `CoulombScaleReport`).
-    #[pyo3(signature = (data, *, candidates=None, folds=UInt(4), refine=true))]
+    #[pyo3(signature = (
+        data, *, candidates=None, folds=UInt(4), refine=true,
+        max_widenings=UInt(prrrp_core::COULOMB_SCALE_MAX_WIDENINGS)
+    ))]
     fn coulomb_scale<'py>(
         &self,
         py: Python<'py>,
@@ -744,12 +905,14 @@ impl PySerialChain {
         candidates: Option<Vec<f64>>,
         folds: UInt<usize>,
         refine: bool,
+        max_widenings: UInt<usize>,
     ) -> PyResult<Bound<'py, PyAny>> {
         let base = self.default_base(py)?.clone();
         let config = prrrp_core::CoulombScaleConfig {
             candidates,
             folds: folds.0,
             refine,
+            max_widenings: max_widenings.0,
         };
         let report = interruptible(py, || {
             prrrp_core::select_coulomb_scale(&self.inner, &base, &data.inner, &config)
@@ -790,12 +953,20 @@ impl PySerialChain {
     }
 
     fn __repr__(&self) -> String {
+        let a = self.inner.actuators();
         format!(
-            "SerialChain(dof={}, joint_types='{}', convention='{}', friction={:?}, num_params={})",
+            "SerialChain(dof={}, joint_types='{}', convention='{}', friction={:?}, \
+             coupled={}, armature={}, num_params={})",
             self.inner.dof(),
             self.joint_types(),
             self.convention().unwrap_or("none"),
             friction_names(&self.inner.friction()),
+            if a.is_default_coupling() {
+                "False"
+            } else {
+                "True"
+            },
+            if a.armature { "True" } else { "False" },
             self.inner.num_params()
         )
     }
@@ -1006,6 +1177,7 @@ fn feasibility_dict<'py>(
         d.set_item("joint", &c.meta().joints[j].name)?;
         d.set_item("viscous", f.viscous)?;
         d.set_item("coulomb", f.coulomb)?;
+        d.set_item("armature", f.armature)?;
         d.set_item("consistent", f.consistent)?;
         joints.append(d)?;
     }

@@ -7,7 +7,7 @@ use pyo3::types::PyDict;
 
 use crate::arrays::{to_array, vector, UInt};
 use crate::errors::{shape_error, ToPyResult};
-use crate::interrupt::interruptible;
+use crate::interrupt::{with_progress, Callback};
 use crate::models::chain::PySerialChain;
 
 /// Per-joint limits: the chain's own, with the keys of `overrides` (lower, upper,
@@ -78,23 +78,12 @@ fn design_excitation<'py>(
         restarts: restarts.0,
         max_evaluations: max_evaluations.0,
     };
-    let mut callback_error: Option<PyErr> = None;
-    let result = interruptible(py, || {
+    let callback = progress.as_ref().map(Callback::Counts);
+    let result = with_progress(py, callback, |report| {
         optimise_chain_excitation(chain, &base, Some(&lim), &config, |done, total| {
-            let Some(cb) = progress.as_ref() else { return };
-            if callback_error.is_some() {
-                return;
-            }
-            Python::attach(|py| {
-                if let Err(e) = cb.call1(py, (done, total)) {
-                    callback_error = Some(e);
-                }
-            });
+            report.report("excitation", done, total)
         })
     })?;
-    if let Some(e) = callback_error {
-        return Err(e);
-    }
     let e = result.to_py(py)?;
     let t = &e.trajectory;
     let (n, h) = (t.offsets().len(), t.harmonics());

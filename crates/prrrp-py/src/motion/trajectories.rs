@@ -13,7 +13,7 @@ use pyo3::types::PyDict;
 
 use crate::arrays::{any_array, fixed_or, fixed_vector, fmt_shape, rows_to_array, to_array, UInt};
 use crate::errors::{shape_error, to_pyerr, ToPyResult};
-use crate::interrupt::interruptible;
+use crate::interrupt::{with_progress, Callback};
 
 type Result = ExcitationResult<DEFAULT_EXCITATION_KNOTS>;
 
@@ -250,23 +250,12 @@ fn optimise_excitation(
         ..ExcitationConfig::default()
     };
     let model = Robot::paper().model();
-    let mut callback_error: Option<PyErr> = None;
-    let result = interruptible(py, || {
+    let callback = progress.as_ref().map(Callback::CountsValue);
+    let result = with_progress(py, callback, |report| {
         core_optimise::<DEFAULT_EXCITATION_KNOTS>(&model, &config, |p| {
-            let Some(cb) = progress.as_ref() else { return };
-            if callback_error.is_some() {
-                return;
-            }
-            Python::attach(|py| {
-                if let Err(e) = cb.call1(py, (p.evaluations, p.max_evaluations, p.best_cond)) {
-                    callback_error = Some(e);
-                }
-            });
+            report.report_value("excitation", p.evaluations, p.max_evaluations, p.best_cond)
         })
     })?;
-    if let Some(e) = callback_error {
-        return Err(e);
-    }
     Ok(Excitation {
         inner: result.to_py(py)?,
         duration,

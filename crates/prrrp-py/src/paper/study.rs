@@ -1,18 +1,16 @@
 //! The whole study of the paper (§5): `prrrp._prrrp.run_study_json`, wrapped by
 //! `prrrp.run_study` (python/prrrp/__init__.py), which parses the JSON into a dict.
 
-use std::sync::Mutex;
-
 use prrrp_core::{run_study, Robot, StudyConfig};
 use pyo3::prelude::*;
 
 use crate::arrays::UInt;
 use crate::errors::ToPyResult;
-use crate::interrupt::interruptible;
+use crate::interrupt::{with_progress, Callback};
 
 /// Runs the study with `seed` on the paper robot and returns its JSON (schema_version 1).
-/// `progress(stage, done, total)` is called from Rust (possibly from worker threads, with
-/// the GIL re-acquired); its first exception is re-raised when the study returns.
+/// `progress(stage, done, total)` is called on the calling thread while the study runs
+/// (see `interrupt`); its first exception stops the study and is raised.
 #[pyfunction]
 #[pyo3(signature = (seed=UInt(0), progress=None))]
 fn run_study_json(
@@ -26,31 +24,13 @@ fn run_study_json(
         ..StudyConfig::default()
     };
     let robot = Robot::paper();
-    let callback_error: Mutex<Option<PyErr>> = Mutex::new(None);
-    let report = |stage: &str, done: usize, total: usize| {
-        let Some(cb) = progress.as_ref() else { return };
-        Python::attach(|py| {
-            let mut slot = match callback_error.lock() {
-                Ok(g) => g,
-                Err(p) => p.into_inner(),
-            };
-            if slot.is_none() {
-                if let Err(e) = cb.call1(py, (stage, done, total)) {
-                    *slot = Some(e);
-                }
-            }
-        });
-    };
-    let result = interruptible(py, || {
-        run_study(&robot, &config, &report).and_then(|r| r.to_json())
+    let callback = progress.as_ref().map(Callback::Staged);
+    let result = with_progress(py, callback, |p| {
+        run_study(&robot, &config, &|stage, done, total| {
+            p.report(stage, done, total)
+        })
+        .and_then(|r| r.to_json())
     })?;
-    let err = match callback_error.into_inner() {
-        Ok(e) => e,
-        Err(p) => p.into_inner(),
-    };
-    if let Some(e) = err {
-        return Err(e);
-    }
     result.to_py(py)
 }
 

@@ -17,7 +17,7 @@ use crate::arrays::{fixed_or, fixed_vector, rows_to_array, to_array, vector, UIn
 use crate::data::dataset::{dataset_from, PyDataset};
 use crate::errors::{to_pyerr, ToPyResult};
 use crate::identification::PyIdentifiedModel;
-use crate::interrupt::interruptible;
+use crate::interrupt::{interruptible, with_progress, Callback};
 use crate::models::chain::{PyBaseParameters, PySerialChain};
 use crate::motion::simulation::{config as sim_config, record_dict};
 use crate::motion::trajectories::SinusoidReference;
@@ -180,7 +180,7 @@ fn torque_prediction<'py>(
 /// `_prrrp.pyi`. Non-physical variations are NaN in `rms` and False in `physical`.
 #[pyfunction]
 #[pyo3(signature = (*, nominal=None, range=0.5, points=UInt(11), threads=UInt(0), reference=None,
-    duration=10.0, dt=0.02, substeps=UInt(20), kp=None, kd=None))]
+    duration=10.0, dt=0.02, substeps=UInt(20), kp=None, kd=None, progress=None))]
 #[allow(clippy::too_many_arguments)]
 fn sensitivity<'py>(
     py: Python<'py>,
@@ -194,6 +194,7 @@ fn sensitivity<'py>(
     substeps: UInt<usize>,
     kp: Option<&Bound<'py, PyAny>>,
     kd: Option<&Bound<'py, PyAny>>,
+    progress: Option<Py<PyAny>>,
 ) -> PyResult<Bound<'py, PyDict>> {
     let points = points.0;
     let threads = threads.0;
@@ -209,8 +210,13 @@ fn sensitivity<'py>(
         threads,
     };
     let model = Robot::paper().model();
-    let r =
-        interruptible(py, || core_sensitivity(&model, &nominal, &cfg, &|_, _| {}))?.to_py(py)?;
+    let callback = progress.as_ref().map(Callback::Counts);
+    let r = with_progress(py, callback, |p| {
+        core_sensitivity(&model, &nominal, &cfg, &|done, total| {
+            p.report("sensitivity", done, total)
+        })
+    })?
+    .to_py(py)?;
     let k = r.factors.len();
     let mut rms = Vec::with_capacity(NPARAM * k * NDOF);
     let mut physical = Vec::with_capacity(NPARAM * k);

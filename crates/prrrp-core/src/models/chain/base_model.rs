@@ -3,10 +3,10 @@
 
 use nalgebra::{SMatrix, SVector};
 
+use super::actuators::ActuatorLayout;
 use super::base_params::BaseParameters;
 use super::crba::{cholesky_in_place, cholesky_solve, inverse_from_factor, minus_inverse_times};
 use super::derivatives::LinkTangent;
-use super::friction::FrictionModel;
 use super::regressor::RegressorSink;
 use super::rnea::{ChainView, LinkState};
 use super::serial_chain::SerialChain;
@@ -20,8 +20,8 @@ pub(super) const NONE: usize = usize::MAX;
 pub(super) enum Slot {
     /// Inertial parameter k of link i.
     Rigid(usize, usize),
-    /// Friction term `kind` (0 viscous, 1 Coulomb, 2 offset) of joint j.
-    Friction(usize, usize),
+    /// Actuator term `kind` (0 viscous, 1 Coulomb, 2 offset, 3 armature) of actuator m.
+    Actuator(usize, usize),
 }
 
 /// The dynamics of a [`SerialChain<N>`] parametrised by its `B` base parameters β
@@ -39,7 +39,7 @@ pub(super) enum Slot {
 pub struct ChainBaseModel<const N: usize, const B: usize> {
     chain: SerialChain<N>,
     rigid_map: [[usize; 10]; N],
-    friction_map: [[usize; 3]; N],
+    actuator_map: [[usize; 4]; N],
     slots: [Slot; B],
     beta: SVector<f64, B>,
 }
@@ -47,7 +47,7 @@ pub struct ChainBaseModel<const N: usize, const B: usize> {
 struct BaseSink<'a, const N: usize, const B: usize> {
     out: &'a mut SMatrix<f64, N, B>,
     rigid_map: &'a [[usize; 10]; N],
-    friction_map: &'a [[usize; 3]; N],
+    actuator_map: &'a [[usize; 4]; N],
 }
 
 impl<const N: usize, const B: usize> RegressorSink for BaseSink<'_, N, B> {
@@ -59,10 +59,10 @@ impl<const N: usize, const B: usize> RegressorSink for BaseSink<'_, N, B> {
         }
     }
     #[inline(always)]
-    fn friction(&mut self, joint: usize, kind: usize, v: f64) {
-        let c = self.friction_map[joint][kind];
+    fn actuator(&mut self, row: usize, act: usize, kind: usize, v: f64) {
+        let c = self.actuator_map[act][kind];
         if c != NONE {
-            self.out[(joint, c)] = v;
+            self.out[(row, c)] = v;
         }
     }
 }
@@ -78,7 +78,8 @@ impl<const N: usize> SerialChain<N> {
         &self,
         base: &BaseParameters,
     ) -> Result<ChainBaseModel<N, B>> {
-        base.check_layout(N, &self.friction())?;
+        let layout = self.layout();
+        base.check_layout(N, &layout)?;
         if base.count() != B {
             return Err(PrrrpError::ShapeMismatch {
                 what: "base parameter count B".into(),
@@ -87,13 +88,13 @@ impl<const N: usize> SerialChain<N> {
             });
         }
         let mut rigid_map = [[NONE; 10]; N];
-        let mut friction_map = [[NONE; 3]; N];
+        let mut actuator_map = [[NONE; 4]; N];
         let mut slots = [Slot::Rigid(0, 0); B];
         for (c, &idx) in base.independent.iter().enumerate() {
-            let slot = slot_of(idx, N, &self.friction());
+            let slot = slot_of(idx, N, &layout);
             match slot {
                 Slot::Rigid(i, k) => rigid_map[i][k] = c,
-                Slot::Friction(j, kind) => friction_map[j][kind] = c,
+                Slot::Actuator(j, kind) => actuator_map[j][kind] = c,
             }
             slots[c] = slot;
         }
@@ -101,7 +102,7 @@ impl<const N: usize> SerialChain<N> {
         Ok(ChainBaseModel {
             chain: *self,
             rigid_map,
-            friction_map,
+            actuator_map,
             slots,
             beta,
         })
@@ -120,25 +121,33 @@ impl<const N: usize, const B: usize> ChainBaseModel<N, B> {
         &self.chain
     }
 
-    /// Standard parameters of the equivalent chain with base parameters β.
+    /// Standard parameters of the equivalent chain with base parameters β: inertial,
+    /// friction and armature.
     #[inline(always)]
-    fn equivalent(&self, beta: &SVector<f64, B>) -> ([[f64; 10]; N], [[f64; 3]; N]) {
-        let mut rig = [[0.0; 10]; N];
-        let mut fr = [[0.0; 3]; N];
+    fn equivalent(&self, beta: &SVector<f64, B>) -> Equivalent<N> {
+        let mut e = Equivalent {
+            rig: [[0.0; 10]; N],
+            fr: [[0.0; 3]; N],
+            ia: [0.0; N],
+        };
         for (c, s) in self.slots.iter().enumerate() {
             match *s {
-                Slot::Rigid(i, k) => rig[i][k] = beta[c],
-                Slot::Friction(j, kind) => fr[j][kind] = beta[c],
+                Slot::Rigid(i, k) => e.rig[i][k] = beta[c],
+                Slot::Actuator(m, 3) => e.ia[m] = beta[c],
+                Slot::Actuator(m, kind) => e.fr[m][kind] = beta[c],
             }
         }
-        (rig, fr)
+        e
     }
 
     #[inline(always)]
-    fn view_with<'a>(&'a self, rig: &'a [[f64; 10]; N], fr: &'a [[f64; 3]; N]) -> ChainView<'a> {
+    fn view_with<'a>(&'a self, e: &'a Equivalent<N>) -> ChainView<'a> {
         let mut v = self.chain.view();
-        v.inertial = rig;
-        v.friction_params = fr;
+        v.inertial = &e.rig;
+        v.friction_params = &e.fr;
+        if v.armature.is_some() {
+            v.armature = Some(&e.ia);
+        }
         v
     }
 
@@ -156,7 +165,7 @@ impl<const N: usize, const B: usize> ChainBaseModel<N, B> {
     ) -> SVector<f64, N> {
         let mut v = *view;
         if !friction {
-            v.friction = FrictionModel::default();
+            v = v.rigid();
         }
         let mut tau = SVector::<f64, N>::zeros();
         v.rnea(
@@ -186,12 +195,12 @@ impl<const N: usize, const B: usize> ChainBaseModel<N, B> {
 
     /// Mass matrix M(q, β) of the equivalent chain.
     pub fn mass_matrix(&self, q: &SVector<f64, N>, beta: &SVector<f64, B>) -> SMatrix<f64, N, N> {
-        let (rig, fr) = self.equivalent(beta);
-        let view = self.view_with(&rig, &fr);
+        let e = self.equivalent(beta);
+        let view = self.view_with(&e);
         let mut st = [LinkState::default(); N];
         let mut comp = [[0.0; 10]; N];
         let mut m = SMatrix::<f64, N, N>::zeros();
-        view.mass_matrix_with(&rig, q.as_slice(), &mut st, &mut comp, m.as_mut_slice());
+        view.mass_matrix_with(&e.rig, q.as_slice(), &mut st, &mut comp, m.as_mut_slice());
         m
     }
 }
@@ -209,7 +218,7 @@ impl<const N: usize, const B: usize> LinearDynamics<N, B> for ChainBaseModel<N, 
         let mut sink = BaseSink {
             out: &mut out,
             rigid_map: &self.rigid_map,
-            friction_map: &self.friction_map,
+            actuator_map: &self.actuator_map,
         };
         self.chain.view().regressor_into(
             q.as_slice(),
@@ -230,8 +239,8 @@ impl<const N: usize, const B: usize> LinearDynamics<N, B> for ChainBaseModel<N, 
         qdd: &SVector<f64, N>,
         lambda: &SVector<f64, B>,
     ) -> SVector<f64, N> {
-        let (rig, fr) = self.equivalent(lambda);
-        let view = self.view_with(&rig, &fr);
+        let e = self.equivalent(lambda);
+        let view = self.view_with(&e);
         let mut st = [LinkState::default(); N];
         self.rnea_at(&view, q, qd, qdd, true, &mut st)
     }
@@ -244,8 +253,8 @@ impl<const N: usize, const B: usize> LinearDynamics<N, B> for ChainBaseModel<N, 
         tau: &SVector<f64, N>,
         lambda: &SVector<f64, B>,
     ) -> Result<SVector<f64, N>> {
-        let (rig, fr) = self.equivalent(lambda);
-        let view = self.view_with(&rig, &fr);
+        let e = self.equivalent(lambda);
+        let view = self.view_with(&e);
         let mut st = [LinkState::default(); N];
         let l = self.mass_factor(&view, q, &mut st)?;
         let mut x = tau - self.rnea_at(&view, q, qd, &SVector::zeros(), true, &mut st);
@@ -265,8 +274,8 @@ impl<const N: usize, const B: usize> LinearDynamics<N, B> for ChainBaseModel<N, 
         tau: &SVector<f64, N>,
         lambda: &SVector<f64, B>,
     ) -> Result<ForwardDerivatives<N, B>> {
-        let (rig, fr) = self.equivalent(lambda);
-        let view = self.view_with(&rig, &fr);
+        let e = self.equivalent(lambda);
+        let view = self.view_with(&e);
         let mut st = [LinkState::default(); N];
         let l = self.mass_factor(&view, q, &mut st)?;
         let mut qdd = tau - self.rnea_at(&view, q, qd, &SVector::zeros(), true, &mut st);
@@ -278,16 +287,14 @@ impl<const N: usize, const B: usize> LinearDynamics<N, B> for ChainBaseModel<N, 
         let mut dqd = SMatrix::<f64, N, N>::zeros();
         let mut tan = [LinkTangent::default(); N];
         view.rnea_derivatives(
-            &rig,
+            &e.rig,
             qd.as_slice(),
             &st,
             &mut tan,
             dq.as_mut_slice(),
             dqd.as_mut_slice(),
         );
-        for k in 0..N {
-            dqd[(k, k)] += friction_slope(&view.friction, qd[k], &fr[k]);
-        }
+        view.add_actuator_slope(&e.fr, qd.as_slice(), dqd.as_mut_slice());
         let mut dl = self.regressor(q, qd, &qdd);
         let mut inv = SMatrix::<f64, N, N>::zeros();
         let mut tmp = SVector::<f64, N>::zeros();
@@ -304,29 +311,22 @@ impl<const N: usize, const B: usize> LinearDynamics<N, B> for ChainBaseModel<N, 
     }
 }
 
-/// Where standard parameter `idx` of a chain with `n` joints and friction model `f` lives.
-pub(super) fn slot_of(idx: usize, n: usize, f: &FrictionModel) -> Slot {
+/// Standard parameters of an equivalent chain (see [`ChainBaseModel`]).
+#[derive(Debug, Clone, Copy)]
+struct Equivalent<const N: usize> {
+    rig: [[f64; 10]; N],
+    fr: [[f64; 3]; N],
+    ia: [f64; N],
+}
+
+/// Where standard parameter `idx` of a chain with `n` joints and actuator layout `l` lives.
+pub(super) fn slot_of(idx: usize, n: usize, l: &ActuatorLayout) -> Slot {
     if idx < 10 * n {
         Slot::Rigid(idx / 10, idx % 10)
     } else {
-        let per_joint = f.columns_per_joint().max(1);
+        let per = l.per.max(1);
         let off = idx - 10 * n;
-        let (j, s) = (off / per_joint, off % per_joint);
-        let kind = f.slots().iter().position(|&x| x == s).unwrap_or(0);
-        Slot::Friction(j, kind)
+        let (m, s) = (off / per, off % per);
+        Slot::Actuator(m, l.kind_of(s))
     }
-}
-
-/// ∂τ_friction/∂q̇ of one joint.
-#[inline(always)]
-pub(super) fn friction_slope(f: &FrictionModel, qd: f64, p: &[f64; 3]) -> f64 {
-    let mut s = 0.0;
-    if f.viscous {
-        s += p[0];
-    }
-    if f.coulomb && f.coulomb_smoothing > 0.0 {
-        let t = (qd / f.coulomb_smoothing).tanh();
-        s += p[1] * (1.0 - t * t) / f.coulomb_smoothing;
-    }
-    s
 }

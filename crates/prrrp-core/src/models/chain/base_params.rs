@@ -23,6 +23,7 @@
 use faer::linalg::solvers::SolveLstsq;
 use faer::Mat;
 
+use super::actuators::ActuatorLayout;
 use super::friction::FrictionModel;
 use super::joint::JointGeom;
 use super::rnea::{ChainView, LinkState};
@@ -65,8 +66,11 @@ impl Default for BaseOptions {
 pub struct BaseParameters {
     /// Number of joints of the analysed chain.
     pub dof: usize,
-    /// Friction model of the analysed chain (it fixes the parameter layout).
+    /// Friction model of the analysed chain (with `armature` it fixes the parameter
+    /// layout).
     pub friction: FrictionModel,
+    /// Whether the analysed chain's actuators have armature columns (`Ia1 … Ian`).
+    pub armature: bool,
     /// Names of the standard parameters (length p).
     pub names: Vec<String>,
     /// Standard parameters kept as base parameters, increasing (length b); base
@@ -148,15 +152,39 @@ impl BaseParameters {
         }))
     }
 
-    pub(crate) fn check_layout(&self, dof: usize, friction: &FrictionModel) -> Result<()> {
+    /// Where the actuator parameters of the analysed chain sit.
+    pub(crate) fn layout(&self) -> ActuatorLayout {
+        ActuatorLayout::new(&self.friction, self.armature)
+    }
+
+    pub(crate) fn check_layout(&self, dof: usize, layout: &ActuatorLayout) -> Result<()> {
         // The Coulomb speed scale changes a column's values, not which columns exist or
         // which combinations are identifiable, so one analysis serves every v_s (the
         // Coulomb speed-scale search relies on it).
-        if self.dof != dof || self.friction.enabled() != friction.enabled() {
+        if self.dof != dof || self.layout() != *layout {
+            let terms = |l: &ActuatorLayout| {
+                let on: Vec<&str> = ["viscous", "coulomb", "offset", "armature"]
+                    .into_iter()
+                    .zip(l.enabled())
+                    .filter_map(|(t, on)| on.then_some(t))
+                    .collect();
+                if on.is_empty() {
+                    "none".to_string()
+                } else {
+                    on.join("+")
+                }
+            };
             return Err(PrrrpError::ShapeMismatch {
                 what: "base parameters".into(),
-                expected: format!("an analysis of this chain ({dof} joints, {friction:?})"),
-                got: format!("an analysis of {} joints, {:?}", self.dof, self.friction),
+                expected: format!(
+                    "an analysis of this chain ({dof} joints, actuator terms [{}])",
+                    terms(layout)
+                ),
+                got: format!(
+                    "an analysis of {} joints, actuator terms [{}]",
+                    self.dof,
+                    terms(&self.layout())
+                ),
             });
         }
         Ok(())
@@ -190,13 +218,15 @@ pub(crate) fn analyse(view: &ChainView<'_>, opts: &BaseOptions) -> Result<BasePa
     let tol = opts.rank_tolerance;
     if !(tol.is_finite() && tol > 0.0 && tol < 1.0) {
         return Err(PrrrpError::InvalidParameter {
-            field: "BaseOptions::rank_tolerance".into(),
+            field: "rank_tolerance (base-parameter analysis)".into(),
             value: tol,
             reason: "must be in (0, 1); the default is 1e-8",
         });
     }
     let n = view.dof();
-    let p = n * (10 + view.friction.columns_per_joint());
+    super::check_dof("chain joints", n)?;
+    let layout = view.layout();
+    let p = n * (10 + layout.per);
     let samples = if opts.samples == 0 {
         (4 * p).div_ceil(n).max(20)
     } else {
@@ -206,7 +236,7 @@ pub(crate) fn analyse(view: &ChainView<'_>, opts: &BaseOptions) -> Result<BasePa
     let entries = n as f64 * samples as f64 * p as f64;
     if entries > MAX_MATRIX_ENTRIES || samples > crate::interrupt::MAX_SAMPLES {
         return Err(PrrrpError::InvalidParameter {
-            field: "BaseOptions::samples".into(),
+            field: "samples (base-parameter analysis)".into(),
             value: samples as f64,
             reason: "the stacked regressor would exceed MAX_MATRIX_ENTRIES (2.5e8 doubles, \
                      2 GB) or MAX_SAMPLES: use fewer samples (0 = automatic, 4 rows per \
@@ -256,6 +286,7 @@ pub(crate) fn analyse(view: &ChainView<'_>, opts: &BaseOptions) -> Result<BasePa
     let ws = Mat::from_fn(w.nrows(), nonzero.len(), |i, c| {
         w[(i, nonzero[c])] / norms[nonzero[c]]
     });
+    crate::interrupt::check("base-parameter analysis")?;
     let qr = ws.col_piv_qr();
     let r = qr.R();
     let (perm, _) = qr.P().arrays();
@@ -274,7 +305,8 @@ pub(crate) fn analyse(view: &ChainView<'_>, opts: &BaseOptions) -> Result<BasePa
         pos
     };
     let order: Vec<usize> = preference_order(n, p).filter_map(|j| position[j]).collect();
-    let mut kept = greedy_independent(&ws, &order, tol);
+    crate::interrupt::check("base-parameter analysis")?;
+    let mut kept = greedy_independent(&ws, &order, tol)?;
     if kept.len() != b {
         kept = perm[..b].to_vec();
     }
@@ -286,6 +318,7 @@ pub(crate) fn analyse(view: &ChainView<'_>, opts: &BaseOptions) -> Result<BasePa
     // Ŵ_d = Ŵ_i·X̂ (exact up to round-off), then K_d = X̂ scaled back to SI.
     let ws_i = Mat::from_fn(ws.nrows(), b, |i, r| ws[(i, kept[r])]);
     let ws_d = Mat::from_fn(ws.nrows(), dep_cols.len(), |i, c| ws[(i, dep_cols[c])]);
+    crate::interrupt::check("base-parameter analysis")?;
     let x = if b > 0 && !dep_cols.is_empty() {
         ws_i.qr().solve_lstsq(&ws_d)
     } else {
@@ -310,13 +343,14 @@ pub(crate) fn analyse(view: &ChainView<'_>, opts: &BaseOptions) -> Result<BasePa
         .copied()
         .filter(|&j| (0..b).all(|r| map[(r, j)] == 0.0))
         .collect();
-    let names = parameter_names(n, &view.friction);
+    let names = parameter_names(n, &layout);
     let combinations = (0..b)
         .map(|r| combination(&names, (0..p).map(|j| map[(r, j)])))
         .collect();
     Ok(BaseParameters {
         dof: n,
         friction: view.friction,
+        armature: view.armature.is_some(),
         names,
         independent,
         dependent,
@@ -332,7 +366,9 @@ pub(crate) fn analyse(view: &ChainView<'_>, opts: &BaseOptions) -> Result<BasePa
 /// outwards, and within a link the inertia entries, then the first moments, then the mass
 /// — so that, as in Khalil's regrouping rules, the mass and first moments of a link are
 /// folded into the parameters of the links before it, and each base parameter is named
-/// after the earliest parameter it contains. Friction terms come last.
+/// after the earliest parameter it contains. Actuator terms (friction, armature) come
+/// last: an armature that moves with one joint only, such as the first joint's about a
+/// fixed vertical axis, is folded into that link's inertia (`Izz1 + Ia1`).
 fn preference_order(n: usize, p: usize) -> impl Iterator<Item = usize> {
     (0..n)
         .flat_map(|i| [4, 5, 6, 7, 8, 9, 1, 2, 3, 0].map(|k| 10 * i + k))
@@ -341,11 +377,13 @@ fn preference_order(n: usize, p: usize) -> impl Iterator<Item = usize> {
 
 /// Greedy column selection: keeps a (unit-norm) column if its distance to the span of
 /// the columns kept before it exceeds `tol` (Gram–Schmidt with re-orthogonalisation).
-fn greedy_independent(w: &Mat<f64>, order: &[usize], tol: f64) -> Vec<usize> {
+fn greedy_independent(w: &Mat<f64>, order: &[usize], tol: f64) -> Result<Vec<usize>> {
     let rows = w.nrows();
     let mut basis: Vec<Vec<f64>> = Vec::new();
     let mut kept = Vec::new();
     for &c in order {
+        // O(rows·b) per column: as long as the QR for large chains, so it polls for a stop.
+        crate::interrupt::check("base-parameter analysis")?;
         let mut v: Vec<f64> = (0..rows).map(|i| w[(i, c)]).collect();
         for _ in 0..2 {
             for q in &basis {
@@ -362,7 +400,7 @@ fn greedy_independent(w: &Mat<f64>, order: &[usize], tol: f64) -> Vec<usize> {
             kept.push(c);
         }
     }
-    kept
+    Ok(kept)
 }
 
 fn random_position(rng: &mut SplitMix64, g: &JointGeom) -> f64 {
@@ -446,7 +484,7 @@ impl<const N: usize> SerialChain<N> {
         qd: &[nalgebra::SVector<f64, N>],
         qdd: &[nalgebra::SVector<f64, N>],
     ) -> Result<Mat<f64>> {
-        base.check_layout(N, &self.friction())?;
+        base.check_layout(N, &self.layout())?;
         base.select_columns(&self.observation_matrix(q, qd, qdd)?)
     }
 }
@@ -472,7 +510,7 @@ impl DynChain {
         qd: &[f64],
         qdd: &[f64],
     ) -> Result<Mat<f64>> {
-        base.check_layout(self.dof(), &self.friction())?;
+        base.check_layout(self.dof(), &self.layout())?;
         base.select_columns(&self.observation_matrix(q, qd, qdd)?)
     }
 }

@@ -8,7 +8,8 @@ use super::rnea::{ChainView, LinkState};
 use crate::error::{PrrrpError, Result};
 
 impl ChainView<'_> {
-    /// M(q) into the column-major n×n slice `m`, with inertial parameters `inertial`.
+    /// M(q) into the column-major n×n slice `m`, with inertial parameters `inertial`, plus
+    /// the view's armature Cᵀ·diag(Ia)·C.
     /// `st` and `composite` are scratch of length n.
     #[inline]
     pub(crate) fn mass_matrix_with(
@@ -47,6 +48,7 @@ impl ChainView<'_> {
                 m[i + n * j] = v;
             }
         }
+        self.add_armature_inertia(m);
     }
 }
 

@@ -1,6 +1,6 @@
 //! Exact first derivatives of the recursive Newton–Euler inverse dynamics with respect to
-//! q and q̇ at fixed q̈: ∂τ/∂q and ∂τ/∂q̇ (rigid body only; friction is added by the
-//! caller in closed form).
+//! q and q̇ at fixed q̈: ∂τ/∂q and ∂τ/∂q̇ (rigid body only; the actuator friction slope
+//! is added by the caller in closed form, and the armature does not depend on q or q̇).
 //!
 //! Tangent-linear (forward-mode) differentiation of the recursion of [`super::rnea`], one
 //! direction per joint coordinate and rate, reusing the primal kinematics and joint forces

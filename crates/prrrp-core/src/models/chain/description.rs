@@ -1,10 +1,11 @@
 //! A complete, serialisable description of a [`DynChain`]: joints, inertials, friction,
-//! gravity and names. It is what a saved model carries so that it predicts without its
+//! actuators, gravity and names. It is what a saved model carries so that it predicts without its
 //! original robot file, and what Python pickles. Versioned by [`CHAIN_SCHEMA_VERSION`].
 
 use nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion, Vector3};
 use serde::{Deserialize, Serialize};
 
+use super::actuators::Actuators;
 use super::dh::DhConvention;
 use super::friction::FrictionModel;
 use super::joint::{Joint, JointType};
@@ -14,7 +15,9 @@ use crate::error::{PrrrpError, Result};
 use crate::models::prrrp::robot::{DhRow, JointKind};
 
 /// Version of the [`ChainDescription`] layout; bumped on any incompatible change.
-pub const CHAIN_SCHEMA_VERSION: u32 = 1;
+/// Version 2 added [`ChainDescription::actuators`]; version 1 descriptions (no actuators:
+/// one motor per joint, no armature) still load.
+pub const CHAIN_SCHEMA_VERSION: u32 = 2;
 
 /// A rigid transform: translation (m) and unit quaternion `[w, x, y, z]`.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -89,8 +92,12 @@ pub struct ChainDescription {
     pub friction: Vec<String>,
     /// Speed scale of the smooth Coulomb sign (0 = exact sign), rad/s or m/s.
     pub coulomb_smoothing: f64,
-    /// Per joint [fv, fc, fo].
+    /// Per actuator (= per joint without coupling) [fv, fc, fo].
     pub friction_params: Vec<[f64; 3]>,
+    /// The actuators: coupling, armature, gear ratios (schema 2; absent = the default,
+    /// one motor per joint without armature).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub actuators: Option<Actuators>,
 }
 
 fn pose(iso: &Isometry3<f64>) -> PoseDescription {
@@ -180,6 +187,8 @@ impl DynChain {
             friction: friction_terms(&f),
             coulomb_smoothing: f.coulomb_smoothing,
             friction_params: self.friction_params().to_vec(),
+            actuators: (*self.actuators() != Actuators::default())
+                .then(|| self.actuators().clone()),
         }
     }
 
@@ -188,15 +197,18 @@ impl DynChain {
     /// # Errors
     /// [`PrrrpError::InvalidParameter`] for an unknown schema version, joint type,
     /// convention or friction term, a non-unit quaternion or axis, non-finite values;
-    /// [`PrrrpError::ShapeMismatch`] when the per-joint lists differ in length.
+    /// [`PrrrpError::ShapeMismatch`] when the per-joint lists differ in length or there are
+    /// more than [`crate::MAX_DOF`] joints.
     pub fn from_description(d: &ChainDescription) -> Result<DynChain> {
-        if d.schema_version != CHAIN_SCHEMA_VERSION {
+        if !(1..=CHAIN_SCHEMA_VERSION).contains(&d.schema_version) {
             return Err(PrrrpError::InvalidParameter {
                 field: "schema_version".into(),
                 value: d.schema_version as f64,
-                reason: "unknown chain description version (this prrrp reads version 1)",
+                reason: "unknown chain description version (this prrrp reads versions 1 and 2)",
             });
         }
+        // Before anything is built: every later size (regressor, covariance) grows with it.
+        super::check_dof("joints", d.joints.len())?;
         let mut joints = Vec::with_capacity(d.joints.len());
         let mut infos = Vec::with_capacity(d.joints.len());
         for (i, j) in d.joints.iter().enumerate() {
@@ -303,6 +315,9 @@ impl DynChain {
                 joints: infos,
                 locked_joints: d.locked_joints.clone(),
             })?;
+        if let Some(a) = &d.actuators {
+            chain = chain.with_actuators(a.clone())?;
+        }
         Ok(chain)
     }
 
@@ -360,6 +375,37 @@ mod tests {
             .unwrap();
         let back = DynChain::from_json(&general.to_json().unwrap()).unwrap();
         same(&back, &general);
+    }
+
+    #[test]
+    fn actuators_round_trip_and_version_1_loads() {
+        let mut c = vec![vec![0.0; 6]; 6];
+        for (i, r) in c.iter_mut().enumerate() {
+            r[i] = 1.0;
+        }
+        c[5][4] = 1.0;
+        let act = Actuators {
+            coupling: Some(c),
+            armature: true,
+            armature_values: Some(vec![1.0, 2.0, 0.5, 0.1, 0.05, 0.02]),
+            gear_ratios: Some(vec![100.0; 6]),
+        };
+        let puma = SerialChain::puma560()
+            .to_dyn()
+            .with_friction(FrictionModel::all(), vec![[0.1, 0.2, 0.3]; 6])
+            .unwrap()
+            .with_actuators(act.clone())
+            .unwrap();
+        let back = DynChain::from_json(&puma.to_json().unwrap()).unwrap();
+        assert_eq!(back.actuators(), &act);
+        assert_eq!(back.parameters(), puma.parameters());
+        // A version-1 description (written before actuators existed) still loads.
+        let mut d = SerialChain::puma560().to_dyn().description();
+        d.schema_version = 1;
+        let v1 = serde_json::to_string(&d).unwrap();
+        assert!(!v1.contains("actuators"));
+        let old = DynChain::from_json(&v1).unwrap();
+        assert_eq!(old.actuators(), &Actuators::default());
     }
 
     #[test]

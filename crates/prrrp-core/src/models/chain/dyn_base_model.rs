@@ -9,11 +9,10 @@
 
 use nalgebra::{DMatrix, DVector, Dyn};
 
-use super::base_model::{friction_slope, slot_of, Slot, NONE};
+use super::base_model::{slot_of, Slot, NONE};
 use super::base_params::BaseParameters;
 use super::crba::{cholesky_in_place, cholesky_solve, inverse_from_factor, minus_inverse_times};
 use super::derivatives::LinkTangent;
-use super::friction::FrictionModel;
 use super::regressor::RegressorSink;
 use super::rnea::{ChainView, LinkState};
 use super::serial_chain::DynChain;
@@ -25,9 +24,10 @@ use crate::models::{ForwardDerivativesOf, LinearModel};
 /// [`LinearModel<Dyn, Dyn>`] with N = [`DynChain::dof`] joints and B =
 /// [`BaseParameters::count`] parameters, allocation-free per sample.
 ///
-/// Friction columns of the analysis are base columns like the inertial ones; a Coulomb
-/// term uses the chain's [`FrictionModel::coulomb_smoothing`] (tanh(q̇/v_s) when v_s > 0,
-/// the exact sign otherwise), in the regressor, the dynamics and the derivatives alike.
+/// Actuator columns of the analysis (friction, armature; see [`super::Actuators`]) are
+/// base columns like the inertial ones; a Coulomb term uses the chain's
+/// [`super::FrictionModel::coulomb_smoothing`] (tanh(q̇ₘ/v_s) when v_s > 0, the exact
+/// sign otherwise), in the regressor, the dynamics and the derivatives alike.
 ///
 /// ```
 /// use prrrp_core::{BaseOptions, LinearModel, SerialChain};
@@ -42,7 +42,7 @@ use crate::models::{ForwardDerivativesOf, LinearModel};
 pub struct DynChainBaseModel {
     chain: DynChain,
     rigid_map: Vec<[usize; 10]>,
-    friction_map: Vec<[usize; 3]>,
+    actuator_map: Vec<[usize; 4]>,
     slots: Vec<Slot>,
     beta: DVector<f64>,
 }
@@ -57,6 +57,7 @@ pub struct DynBaseWorkspace {
     /// Standard parameters of the equivalent chain at the current β.
     rig: Vec<[f64; 10]>,
     fr: Vec<[f64; 3]>,
+    ia: Vec<f64>,
     /// Cholesky factor of M(q, β), column-major.
     m: Vec<f64>,
     zero: Vec<f64>,
@@ -72,7 +73,7 @@ pub struct DynBaseWorkspace {
 struct DynBaseSink<'a> {
     out: &'a mut DMatrix<f64>,
     rigid_map: &'a [[usize; 10]],
-    friction_map: &'a [[usize; 3]],
+    actuator_map: &'a [[usize; 4]],
 }
 
 impl RegressorSink for DynBaseSink<'_> {
@@ -84,10 +85,10 @@ impl RegressorSink for DynBaseSink<'_> {
         }
     }
     #[inline(always)]
-    fn friction(&mut self, joint: usize, kind: usize, v: f64) {
-        let c = self.friction_map[joint][kind];
+    fn actuator(&mut self, row: usize, act: usize, kind: usize, v: f64) {
+        let c = self.actuator_map[act][kind];
         if c != NONE {
-            self.out[(joint, c)] = v;
+            self.out[(row, c)] = v;
         }
     }
 }
@@ -109,7 +110,8 @@ impl DynChain {
     /// number of joints or friction model, or has no base parameter.
     pub fn base_model(&self, base: &BaseParameters) -> Result<DynChainBaseModel> {
         let n = self.dof();
-        base.check_layout(n, &self.friction())?;
+        let layout = self.layout();
+        base.check_layout(n, &layout)?;
         if base.count() == 0 {
             return Err(mismatch(
                 "base parameters",
@@ -126,13 +128,13 @@ impl DynChain {
             ));
         }
         let mut rigid_map = vec![[NONE; 10]; n];
-        let mut friction_map = vec![[NONE; 3]; n];
+        let mut actuator_map = vec![[NONE; 4]; n];
         let mut slots = Vec::with_capacity(base.count());
         for (c, &idx) in base.independent.iter().enumerate() {
-            let slot = slot_of(idx, n, &self.friction());
+            let slot = slot_of(idx, n, &layout);
             match slot {
                 Slot::Rigid(i, k) => rigid_map[i][k] = c,
-                Slot::Friction(j, kind) => friction_map[j][kind] = c,
+                Slot::Actuator(j, kind) => actuator_map[j][kind] = c,
             }
             slots.push(slot);
         }
@@ -140,7 +142,7 @@ impl DynChain {
         Ok(DynChainBaseModel {
             chain: self.clone(),
             rigid_map,
-            friction_map,
+            actuator_map,
             slots,
             beta,
         })
@@ -180,9 +182,14 @@ impl DynChainBaseModel {
         let mut ws = self.workspace();
         self.equivalent(beta, &mut ws);
         let DynBaseWorkspace {
-            st, comp, rig, fr, ..
+            st,
+            comp,
+            rig,
+            fr,
+            ia,
+            ..
         } = &mut ws;
-        let view = self.view_with(rig, fr);
+        let view = self.view_with(rig, fr, ia);
         let n = self.dof();
         let mut m = DMatrix::zeros(n, n);
         view.mass_matrix_with(rig, q.as_slice(), st, comp, m.as_mut_slice());
@@ -245,19 +252,29 @@ impl DynChainBaseModel {
         for f in ws.fr.iter_mut() {
             *f = [0.0; 3];
         }
+        ws.ia.fill(0.0);
         for (c, s) in self.slots.iter().enumerate() {
             match *s {
                 Slot::Rigid(i, k) => ws.rig[i][k] = beta[c],
-                Slot::Friction(j, kind) => ws.fr[j][kind] = beta[c],
+                Slot::Actuator(m, 3) => ws.ia[m] = beta[c],
+                Slot::Actuator(m, kind) => ws.fr[m][kind] = beta[c],
             }
         }
     }
 
     #[inline]
-    fn view_with<'a>(&'a self, rig: &'a [[f64; 10]], fr: &'a [[f64; 3]]) -> ChainView<'a> {
+    fn view_with<'a>(
+        &'a self,
+        rig: &'a [[f64; 10]],
+        fr: &'a [[f64; 3]],
+        ia: &'a [f64],
+    ) -> ChainView<'a> {
         let mut v = self.chain.view();
         v.inertial = rig;
         v.friction_params = fr;
+        if v.armature.is_some() {
+            v.armature = Some(ia);
+        }
         v
     }
 
@@ -277,11 +294,12 @@ impl DynChainBaseModel {
             comp,
             rig,
             fr,
+            ia,
             m,
             zero,
             ..
         } = ws;
-        let view = self.view_with(rig, fr);
+        let view = self.view_with(rig, fr, ia);
         view.mass_matrix_with(rig, q, st, comp, m);
         cholesky_in_place(m, n).map_err(|_| PrrrpError::NotPositiveDefinite {
             what: "mass matrix M(q, β) of the base-parameter model",
@@ -310,6 +328,7 @@ impl LinearModel<Dyn, Dyn> for DynChainBaseModel {
             comp: vec![[0.0; 10]; n],
             rig: vec![[0.0; 10]; n],
             fr: vec![[0.0; 3]; n],
+            ia: vec![0.0; n],
             m: vec![0.0; n * n],
             zero: vec![0.0; n],
             minv: vec![0.0; n * n],
@@ -338,7 +357,7 @@ impl LinearModel<Dyn, Dyn> for DynChainBaseModel {
         let mut sink = DynBaseSink {
             out,
             rigid_map: &self.rigid_map,
-            friction_map: &self.friction_map,
+            actuator_map: &self.actuator_map,
         };
         self.chain.view().regressor_into(
             q.as_slice(),
@@ -368,8 +387,10 @@ impl LinearModel<Dyn, Dyn> for DynChainBaseModel {
         }
         self.check_beta(lambda.len())?;
         self.equivalent(lambda, ws);
-        let DynBaseWorkspace { st, rig, fr, .. } = ws;
-        self.view_with(rig, fr).rnea(
+        let DynBaseWorkspace {
+            st, rig, fr, ia, ..
+        } = ws;
+        self.view_with(rig, fr, ia).rnea(
             q.as_slice(),
             qd.as_slice(),
             qdd.as_slice(),
@@ -435,6 +456,7 @@ impl LinearModel<Dyn, Dyn> for DynChainBaseModel {
             st,
             rig,
             fr,
+            ia,
             m,
             minv,
             tmp,
@@ -442,8 +464,8 @@ impl LinearModel<Dyn, Dyn> for DynChainBaseModel {
             tan,
             ..
         } = ws;
-        let mut rigid = self.view_with(rig, fr);
-        rigid.friction = FrictionModel::default();
+        let full = self.view_with(rig, fr, ia);
+        let rigid = full.rigid();
         let qdd = out.qdd.as_slice();
         // The primal pass at the q̈ just computed leaves the kinematics and joint forces
         // that the tangent passes differentiate.
@@ -451,16 +473,14 @@ impl LinearModel<Dyn, Dyn> for DynChainBaseModel {
         let dq = out.dqdd_dq.as_mut_slice();
         let dqd = out.dqdd_dqd.as_mut_slice();
         rigid.rnea_derivatives(rig, qd, st, tan, dq, dqd);
-        for k in 0..n {
-            dqd[k * n + k] += friction_slope(&self.chain.friction(), qd[k], &fr[k]);
-        }
+        full.add_actuator_slope(fr, qd, dqd);
         // Φ_b at the q̈ just computed.
         let dl = &mut out.dqdd_dlambda;
         dl.fill(0.0);
         let mut sink = DynBaseSink {
             out: dl,
             rigid_map: &self.rigid_map,
-            friction_map: &self.friction_map,
+            actuator_map: &self.actuator_map,
         };
         self.chain
             .view()

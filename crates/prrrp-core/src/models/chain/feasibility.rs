@@ -8,11 +8,13 @@
 //! identification", IEEE RA-L 2017). For m > 0 that is the same as the inertia about the
 //! centre of mass I_C having principal moments J₁ ≤ J₂ ≤ J₃ that satisfy the triangle
 //! inequalities J_a + J_b ≥ J_c — the report gives both views: the smallest eigenvalue of
-//! J, and the moments and margins. Joint friction is dissipative when the viscous and
-//! Coulomb coefficients are ≥ 0 (the offset fo has no sign).
+//! J, and the moments and margins. Joint (actuator) friction is dissipative when the
+//! viscous and Coulomb coefficients are ≥ 0 (the offset fo has no sign), and a rotor
+//! inertia (armature) is physical when Ia ≥ 0.
 
 use nalgebra::Matrix3;
 
+use super::actuators::ActuatorLayout;
 use super::friction::FrictionModel;
 use super::inertia::{com_and_inertia, pseudo_inertia, LINK_PARAMS};
 use super::serial_chain::{DynChain, SerialChain, PHYSICAL_TOLERANCE};
@@ -88,14 +90,16 @@ impl LinkFeasibility {
     }
 }
 
-/// Friction signs of one joint.
+/// Friction signs and armature of one joint's actuator.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct JointFrictionFeasibility {
     /// Viscous coefficient fv (N·m·s/rad or N·s/m), `None` if the model has no viscous term.
     pub viscous: Option<f64>,
     /// Coulomb coefficient fc (N·m or N), `None` if the model has no Coulomb term.
     pub coulomb: Option<f64>,
-    /// Whether the enabled terms are dissipative: fv ≥ 0 and fc ≥ 0.
+    /// Reflected rotor inertia Ia (kg·m² or kg), `None` without an armature term.
+    pub armature: Option<f64>,
+    /// Whether the enabled terms are physical: fv ≥ 0, fc ≥ 0 and Ia ≥ 0.
     pub consistent: bool,
 }
 
@@ -105,7 +109,7 @@ pub struct JointFrictionFeasibility {
 pub struct FeasibilityReport {
     /// One entry per link, from the base outwards.
     pub links: Vec<LinkFeasibility>,
-    /// One entry per joint.
+    /// One entry per joint (per actuator: friction acts on the actuator velocities).
     pub friction: Vec<JointFrictionFeasibility>,
 }
 
@@ -117,12 +121,28 @@ impl FeasibilityReport {
     /// [`PrrrpError::ShapeMismatch`] if π has the wrong length, [`PrrrpError::NonFinite`]
     /// if an entry is NaN or infinite.
     pub fn new(pi: &[f64], dof: usize, friction: &FrictionModel) -> Result<Self> {
-        let per = friction.columns_per_joint();
+        Self::with_armature(pi, dof, friction, false)
+    }
+
+    /// Feasibility of the standard parameter vector π of an n-joint chain with friction
+    /// model `friction` and, if `armature`, one rotor inertia per actuator (length
+    /// n·(10 + terms per actuator), the layout of [`DynChain::parameters`]).
+    ///
+    /// # Errors
+    /// As [`FeasibilityReport::new`].
+    pub fn with_armature(
+        pi: &[f64],
+        dof: usize,
+        friction: &FrictionModel,
+        armature: bool,
+    ) -> Result<Self> {
+        let layout = ActuatorLayout::new(friction, armature);
+        let per = layout.per;
         let p = dof * (LINK_PARAMS + per);
         if pi.len() != p {
             return Err(PrrrpError::ShapeMismatch {
                 what: "standard parameters π".into(),
-                expected: format!("{p} entries ({dof} joints × (10 + {per} friction terms))"),
+                expected: format!("{p} entries ({dof} joints × (10 + {per} actuator terms))"),
                 got: format!("{} entries", pi.len()),
             });
         }
@@ -139,16 +159,20 @@ impl FeasibilityReport {
                 LinkFeasibility::of(&l)
             })
             .collect();
-        let slots = friction.slots();
+        let slots = layout.slots;
         let friction = (0..dof)
             .map(|j| {
                 let base = LINK_PARAMS * dof + per * j;
                 let viscous = friction.viscous.then(|| pi[base + slots[0]]);
                 let coulomb = friction.coulomb.then(|| pi[base + slots[1]]);
+                let armature = armature.then(|| pi[base + slots[3]]);
                 JointFrictionFeasibility {
                     viscous,
                     coulomb,
-                    consistent: viscous.unwrap_or(0.0) >= 0.0 && coulomb.unwrap_or(0.0) >= 0.0,
+                    armature,
+                    consistent: viscous.unwrap_or(0.0) >= 0.0
+                        && coulomb.unwrap_or(0.0) >= 0.0
+                        && armature.unwrap_or(0.0) >= 0.0,
                 }
             })
             .collect();
@@ -167,7 +191,8 @@ impl FeasibilityReport {
             .collect()
     }
 
-    /// Indices (0-based) of the joints with negative viscous or Coulomb friction.
+    /// Indices (0-based) of the joints (actuators) with negative viscous or Coulomb friction
+    /// or a negative armature.
     pub fn infeasible_joints(&self) -> Vec<usize> {
         (0..self.friction.len())
             .filter(|&j| !self.friction[j].consistent)
@@ -219,16 +244,26 @@ pub fn standard_from_base(
 impl DynChain {
     /// Feasibility of the chain's own parameters ([`DynChain::parameters`]).
     pub fn feasibility_report(&self) -> FeasibilityReport {
-        FeasibilityReport::new(&self.parameters(), self.dof(), &self.friction())
-            .unwrap_or_else(|_| unreachable_report(self.dof()))
+        FeasibilityReport::with_armature(
+            &self.parameters(),
+            self.dof(),
+            &self.friction(),
+            self.actuators().armature,
+        )
+        .unwrap_or_else(|_| unreachable_report(self.dof()))
     }
 }
 
 impl<const N: usize> SerialChain<N> {
     /// Feasibility of the chain's own parameters ([`SerialChain::parameters`]).
     pub fn feasibility_report(&self) -> FeasibilityReport {
-        FeasibilityReport::new(&self.parameters(), N, &self.friction())
-            .unwrap_or_else(|_| unreachable_report(N))
+        FeasibilityReport::with_armature(
+            &self.parameters(),
+            N,
+            &self.friction(),
+            self.actuators().armature,
+        )
+        .unwrap_or_else(|_| unreachable_report(N))
     }
 }
 
@@ -242,6 +277,7 @@ fn unreachable_report(n: usize) -> FeasibilityReport {
             JointFrictionFeasibility {
                 viscous: None,
                 coulomb: None,
+                armature: None,
                 consistent: false,
             };
             n

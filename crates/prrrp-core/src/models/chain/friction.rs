@@ -11,6 +11,10 @@ pub const FRICTION_PARAMETER_NAMES: [&str; 3] = ["fv", "fc", "fo"];
 /// 10·n inertial parameters in the order: joint 1 (fv, fc, fo), joint 2 (…), … — keeping
 /// only the enabled ones. Units: fv in N·s/m or N·m·s/rad, fc and fo in N or N·m.
 ///
+/// With coupled actuators ([`super::Actuators`]) the terms act on each actuator's velocity
+/// (C·q̇)ₘ instead and reach the joints through Cᵀ; with an armature each actuator's block
+/// gains `Ia` after its friction terms.
+///
 /// Default: no friction (all `false`, `coulomb_smoothing` = 0).
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct FrictionModel {
@@ -57,23 +61,6 @@ impl FrictionModel {
         [self.viscous, self.coulomb, self.offset]
     }
 
-    /// Slot of each term among the enabled ones of a joint (`usize::MAX` if disabled).
-    #[inline(always)]
-    pub(crate) const fn slots(&self) -> [usize; 3] {
-        let e = self.enabled();
-        let mut out = [usize::MAX; 3];
-        let mut next = 0;
-        let mut k = 0;
-        while k < 3 {
-            if e[k] {
-                out[k] = next;
-                next += 1;
-            }
-            k += 1;
-        }
-        out
-    }
-
     /// Regressor entries [q̇, sgn(q̇), 1] of one joint (disabled terms still returned).
     #[inline(always)]
     pub(crate) fn features(&self, qd: f64) -> [f64; 3] {
@@ -117,7 +104,6 @@ mod tests {
             coulomb_smoothing: 0.0,
         };
         assert_eq!(f.columns_per_joint(), 2);
-        assert_eq!(f.slots(), [0, usize::MAX, 1]);
         assert_eq!(f.torque(-2.0, &[0.5, 10.0, 0.1]), -1.0 + 0.1);
         let c = FrictionModel::all();
         assert_eq!(c.torque(-2.0, &[0.5, 0.3, 0.1]), -1.0 - 0.3 + 0.1);

@@ -8,6 +8,7 @@
 //! [`DynChain`] (size known at run time). [`SerialChain::paper`] is the PRRRP arm of the
 //! paper as a chain; it reproduces the closed-form [`crate::PrrrpModel`].
 
+mod actuators;
 mod base_model;
 mod base_params;
 mod crba;
@@ -27,8 +28,10 @@ mod robots;
 mod serial_chain;
 mod workspace;
 
+pub use actuators::{Actuators, ACTUATOR_PARAMETER_NAMES, COUPLING_CONDITION_LIMIT};
 pub use base_model::ChainBaseModel;
 pub use base_params::{BaseOptions, BaseParameters, MAX_MATRIX_ENTRIES};
+pub(crate) use crba::{cholesky_in_place, cholesky_solve};
 pub use description::{
     ChainDescription, DhDescription, JointDescription, PoseDescription, CHAIN_SCHEMA_VERSION,
 };
@@ -45,6 +48,6 @@ pub use inertia::{
 };
 pub use joint::{Joint, JointType, AXIS_UNIT_TOLERANCE};
 pub use meta::{ChainMeta, JointInfo, JointLimit};
-pub(crate) use serial_chain::flat_samples;
-pub use serial_chain::{DynChain, SerialChain, PHYSICAL_TOLERANCE};
+pub(crate) use serial_chain::{check_dof, flat_samples};
+pub use serial_chain::{DynChain, SerialChain, MAX_DOF, PHYSICAL_TOLERANCE};
 pub use workspace::DynWorkspace;

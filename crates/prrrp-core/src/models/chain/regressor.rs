@@ -1,5 +1,6 @@
 //! The standard regressor Y(q, q̇, q̈) ∈ R^{n×10n} with τ = Y·π (Khalil & Dombre 2002,
-//! Atkeson, An & Hollerbach 1986), plus the friction columns.
+//! Atkeson, An & Hollerbach 1986), plus the actuator columns (friction and armature, see
+//! [`super::Actuators`]).
 //!
 //! Link i's wrench about its frame origin is linear in its own 10 parameters,
 //! w_i = A(ωᵢ, ω̇ᵢ, aᵢ)·πᵢ (a 6×10 matrix); joint j ≤ i feels it through the chain of
@@ -8,6 +9,7 @@
 
 use nalgebra::Vector3;
 
+use super::actuators::ActuatorLayout;
 use super::rnea::{ChainView, LinkState};
 
 /// Receives the entries of a regressor as they are computed. Entries never reported are
@@ -15,20 +17,19 @@ use super::rnea::{ChainView, LinkState};
 pub(crate) trait RegressorSink {
     /// Entry of joint row `row` for parameter `k` (0..10) of link `link`.
     fn rigid(&mut self, row: usize, link: usize, k: usize, v: f64);
-    /// Friction entry of joint `joint` for term `kind` (0 viscous, 1 Coulomb, 2 offset);
-    /// reported only for enabled terms.
-    fn friction(&mut self, joint: usize, kind: usize, v: f64);
+    /// Entry of joint row `row` for term `kind` (0 viscous, 1 Coulomb, 2 offset, 3
+    /// armature) of actuator `act`; reported only for enabled terms.
+    fn actuator(&mut self, row: usize, act: usize, kind: usize, v: f64);
 }
 
 /// Sink into a column-major matrix slice with `ld` rows, writing rows `row0 + joint` and
-/// columns in the chain's parameter order (10 per link, then enabled friction terms).
+/// columns in the chain's parameter order (10 per link, then the enabled actuator terms).
 pub(crate) struct ColumnMajorSink<'a> {
     pub(crate) data: &'a mut [f64],
     pub(crate) ld: usize,
     pub(crate) row0: usize,
     pub(crate) n: usize,
-    pub(crate) per_joint: usize,
-    pub(crate) slots: [usize; 3],
+    pub(crate) layout: ActuatorLayout,
 }
 
 impl RegressorSink for ColumnMajorSink<'_> {
@@ -37,9 +38,9 @@ impl RegressorSink for ColumnMajorSink<'_> {
         self.data[self.row0 + row + self.ld * (10 * link + k)] = v;
     }
     #[inline(always)]
-    fn friction(&mut self, joint: usize, kind: usize, v: f64) {
-        let col = 10 * self.n + self.per_joint * joint + self.slots[kind];
-        self.data[self.row0 + joint + self.ld * col] = v;
+    fn actuator(&mut self, row: usize, act: usize, kind: usize, v: f64) {
+        let col = 10 * self.n + self.layout.per * act + self.layout.slots[kind];
+        self.data[self.row0 + row + self.ld * col] = v;
     }
 }
 
@@ -48,8 +49,7 @@ pub(crate) struct FaerSink<'a> {
     pub(crate) mat: &'a mut faer::Mat<f64>,
     pub(crate) row0: usize,
     pub(crate) n: usize,
-    pub(crate) per_joint: usize,
-    pub(crate) slots: [usize; 3],
+    pub(crate) layout: ActuatorLayout,
 }
 
 impl RegressorSink for FaerSink<'_> {
@@ -58,9 +58,9 @@ impl RegressorSink for FaerSink<'_> {
         self.mat[(self.row0 + row, 10 * link + k)] = v;
     }
     #[inline(always)]
-    fn friction(&mut self, joint: usize, kind: usize, v: f64) {
-        let col = 10 * self.n + self.per_joint * joint + self.slots[kind];
-        self.mat[(self.row0 + joint, col)] = v;
+    fn actuator(&mut self, row: usize, act: usize, kind: usize, v: f64) {
+        let col = 10 * self.n + self.layout.per * act + self.layout.slots[kind];
+        self.mat[(self.row0 + row, col)] = v;
     }
 }
 
@@ -130,7 +130,8 @@ impl LinkColumns {
 }
 
 impl ChainView<'_> {
-    /// Computes Y (and, if `friction`, the enabled friction columns) into `sink`.
+    /// Computes Y (and, if `friction`, the enabled actuator columns: friction and armature)
+    /// into `sink`.
     #[inline]
     pub(crate) fn regressor_into<S: RegressorSink>(
         &self,
@@ -161,12 +162,27 @@ impl ChainView<'_> {
             }
         }
         if friction {
+            // Actuator m's column of term k is Cᵀ times its feature at (C·q̇)ₘ, (C·q̈)ₘ:
+            // rows j with C[m][j] ≠ 0.
             let en = self.friction.enabled();
-            for (j, &v) in qd.iter().enumerate().take(n) {
-                let feat = self.friction.features(v);
-                for kind in 0..3 {
-                    if en[kind] {
-                        sink.friction(j, kind, feat[kind]);
+            let arm = self.armature.is_some();
+            for m in 0..n {
+                let f = self.friction.features(self.actuator_rate(m, qd));
+                let feat = [f[0], f[1], f[2], self.actuator_rate(m, qdd)];
+                let on = [en[0], en[1], en[2], arm];
+                for kind in 0..4 {
+                    if !on[kind] {
+                        continue;
+                    }
+                    match self.coupling {
+                        None => sink.actuator(m, m, kind, feat[kind]),
+                        Some(c) => {
+                            for (j, &cj) in c[m * n..m * n + n].iter().enumerate() {
+                                if cj != 0.0 {
+                                    sink.actuator(j, m, kind, cj * feat[kind]);
+                                }
+                            }
+                        }
                     }
                 }
             }

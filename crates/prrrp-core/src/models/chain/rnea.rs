@@ -18,6 +18,11 @@ pub(crate) struct ChainView<'a> {
     pub(crate) friction_params: &'a [[f64; 3]],
     pub(crate) friction: FrictionModel,
     pub(crate) gravity: Vector3<f64>,
+    /// The actuator coupling C (row-major n×n, q̇ₘ = C·q̇; see [`super::Actuators`]);
+    /// `None` = the identity.
+    pub(crate) coupling: Option<&'a [f64]>,
+    /// Reflected rotor inertias Ia (one per actuator) when the armature term is on.
+    pub(crate) armature: Option<&'a [f64]>,
 }
 
 /// Per-link kinematic state of one sample, in frame i.
@@ -170,9 +175,124 @@ impl ChainView<'_> {
             f_c = f;
             n_c = nm;
         }
-        if self.friction.columns_per_joint() > 0 {
-            for i in 0..n {
-                tau[i] += self.friction.torque(qd[i], &fric[i]);
+        self.add_actuator_torques(fric, qd, qdd, tau);
+    }
+
+    /// Where the actuator parameters sit in the standard parameter vector.
+    #[inline(always)]
+    pub(crate) fn layout(&self) -> super::actuators::ActuatorLayout {
+        super::actuators::ActuatorLayout::new(&self.friction, self.armature.is_some())
+    }
+
+    /// The view without actuator terms (no friction, no armature): the rigid body alone.
+    #[inline(always)]
+    pub(crate) fn rigid(mut self) -> Self {
+        self.friction = FrictionModel::default();
+        self.armature = None;
+        self
+    }
+
+    /// Actuator m's joint-side rate (C·v)ₘ of a joint-space rate v (velocity or
+    /// acceleration).
+    #[inline(always)]
+    pub(crate) fn actuator_rate(&self, m: usize, v: &[f64]) -> f64 {
+        match self.coupling {
+            None => v[m],
+            Some(c) => {
+                let n = self.dof();
+                c[m * n..m * n + n].iter().zip(v).map(|(a, b)| a * b).sum()
+            }
+        }
+    }
+
+    /// Adds the actuator torques reflected to the joints, Cᵀ·(diag(Ia)·C·q̈ + f(C·q̇)),
+    /// with friction parameters `fric` (one row per actuator) and the view's armature.
+    #[inline]
+    pub(crate) fn add_actuator_torques(
+        &self,
+        fric: &[[f64; 3]],
+        qd: &[f64],
+        qdd: &[f64],
+        tau: &mut [f64],
+    ) {
+        let friction = self.friction.columns_per_joint() > 0;
+        if !friction && self.armature.is_none() {
+            return;
+        }
+        let n = self.dof();
+        for m in 0..n {
+            let mut t = 0.0;
+            if friction {
+                t += self.friction.torque(self.actuator_rate(m, qd), &fric[m]);
+            }
+            if let Some(ia) = self.armature {
+                t += ia[m] * self.actuator_rate(m, qdd);
+            }
+            match self.coupling {
+                None => tau[m] += t,
+                Some(c) => {
+                    for (tj, &cj) in tau[..n].iter_mut().zip(&c[m * n..m * n + n]) {
+                        *tj += cj * t;
+                    }
+                }
+            }
+        }
+    }
+
+    /// Adds ∂/∂q̇ of the actuator friction, Cᵀ·diag(f'(C·q̇))·C, to the column-major n×n
+    /// `dqd` (the exact Coulomb sign contributes 0).
+    #[inline]
+    pub(crate) fn add_actuator_slope(&self, fric: &[[f64; 3]], qd: &[f64], dqd: &mut [f64]) {
+        if self.friction.columns_per_joint() == 0 {
+            return;
+        }
+        let n = self.dof();
+        for m in 0..n {
+            let s = friction_slope(&self.friction, self.actuator_rate(m, qd), &fric[m]);
+            if s == 0.0 {
+                continue;
+            }
+            match self.coupling {
+                None => dqd[m * n + m] += s,
+                Some(c) => {
+                    let row = &c[m * n..m * n + n];
+                    for (k, &ck) in row.iter().enumerate() {
+                        if ck != 0.0 {
+                            for (j, &cj) in row.iter().enumerate() {
+                                dqd[k * n + j] += cj * s * ck;
+                            }
+                        }
+                    }
+                }
+            }
+        }
+    }
+
+    /// Adds Cᵀ·diag(Ia)·C to the column-major n×n mass matrix `m` when the armature term
+    /// is on.
+    #[inline]
+    pub(crate) fn add_armature_inertia(&self, m: &mut [f64]) {
+        let Some(ia) = self.armature else {
+            return;
+        };
+        let n = self.dof();
+        match self.coupling {
+            None => {
+                for (i, &a) in ia.iter().enumerate().take(n) {
+                    m[i + n * i] += a;
+                }
+            }
+            Some(c) => {
+                for (k, &a) in ia.iter().enumerate().take(n) {
+                    let row = &c[k * n..k * n + n];
+                    for (i, &ci) in row.iter().enumerate() {
+                        if ci != 0.0 {
+                            for (j, &cj) in row.iter().enumerate() {
+                                m[i + n * j] += ci * a * cj;
+                            }
+                        }
+                    }
+                }
             }
         }
     }
@@ -198,4 +318,18 @@ impl ChainView<'_> {
             tau,
         );
     }
+}
+
+/// ∂f/∂v of one actuator's friction at rate v with parameters [fv, fc, fo].
+#[inline(always)]
+pub(crate) fn friction_slope(f: &FrictionModel, v: f64, p: &[f64; 3]) -> f64 {
+    let mut s = 0.0;
+    if f.viscous {
+        s += p[0];
+    }
+    if f.coulomb && f.coulomb_smoothing > 0.0 {
+        let t = (v / f.coulomb_smoothing).tanh();
+        s += p[1] * (1.0 - t * t) / f.coulomb_smoothing;
+    }
+    s
 }

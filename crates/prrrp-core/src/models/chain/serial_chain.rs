@@ -4,6 +4,7 @@
 use faer::Mat;
 use nalgebra::{DMatrix, SMatrix, SVector, Vector3};
 
+use super::actuators::{ActuatorLayout, Actuators, ACTUATOR_PARAMETER_NAMES};
 use super::crba::{cholesky_in_place, cholesky_solve};
 use super::dh::DhConvention;
 use super::friction::{FrictionModel, FRICTION_PARAMETER_NAMES};
@@ -31,10 +32,13 @@ use crate::models::prrrp::robot::{DhRow, STANDARD_GRAVITY};
 ///   length aᵢ lies at x = lc − aᵢ. See [`super::inertial_parameters`] to convert from a
 ///   centre-of-mass description.
 /// - Gravity: a vector in world coordinates (m/s²), default (0, 0, −9.81).
-/// - Friction: optional per-joint terms, see [`FrictionModel`] (default none).
+/// - Friction: optional per-actuator terms, see [`FrictionModel`] (default none).
+/// - Actuators: a coupling C of the actuator velocities C·q̇ on which friction acts and an
+///   optional rotor inertia (armature) per actuator, see [`Actuators`] (default: one motor
+///   per joint, C = I, no armature: friction on each joint's own velocity).
 ///
-/// The full parameter vector is π = [π₁, …, π_N, friction terms] with
-/// [`SerialChain::num_params`] = 10·N + (friction terms per joint)·N entries, named by
+/// The full parameter vector is π = [π₁, …, π_N, actuator terms] with
+/// [`SerialChain::num_params`] = 10·N + (terms per actuator)·N entries, named by
 /// [`SerialChain::parameter_names`].
 ///
 /// ```
@@ -72,6 +76,12 @@ pub struct SerialChain<const N: usize> {
     /// The first link whose inertial parameters no rigid body has, cached so that the
     /// per-sample forward dynamics can refuse it with one branch.
     non_physical: Option<usize>,
+    /// Actuator coupling C by rows (`None` = identity), see [`Actuators`].
+    coupling: Option<[[f64; N]; N]>,
+    /// Whether the armature term is on, and its values (kg·m² or kg, joint side).
+    armature: bool,
+    armature_values: [f64; N],
+    gear_ratios: Option<[f64; N]>,
 }
 
 /// A serial manipulator whose number of joints is known only at run time (e.g. read from
@@ -91,6 +101,11 @@ pub struct DynChain {
     meta: ChainMeta,
     /// See [`SerialChain`]'s field of the same name.
     non_physical: Option<usize>,
+    /// The actuators as given (validated), and the forms the kernels read: C row-major
+    /// (`None` when it is the identity) and one armature value per actuator.
+    actuators: Actuators,
+    coupling: Option<Vec<f64>>,
+    armature_values: Vec<f64>,
 }
 
 fn invalid(field: String, value: f64, reason: &'static str) -> PrrrpError {
@@ -101,6 +116,25 @@ fn invalid(field: String, value: f64, reason: &'static str) -> PrrrpError {
     }
 }
 
+/// Most movable joints a chain may have: 64. The longest serial chains built (snake and
+/// continuum robots) have a few dozen. The base-parameter analysis grows as n⁴ (its
+/// stacked regressor is 52n × 13n): measured 0.9 s at 32 joints, 8 s at 64 and 65 s at
+/// 128 on one core, so longer chains from a file or a saved model are refused before any
+/// work.
+pub const MAX_DOF: usize = 64;
+
+/// The error of a chain with more than [`MAX_DOF`] joints; `what` names the input.
+pub(crate) fn check_dof(what: &str, n: usize) -> Result<()> {
+    if n > MAX_DOF {
+        return Err(PrrrpError::ShapeMismatch {
+            what: what.into(),
+            expected: format!("at most MAX_DOF = {MAX_DOF} joints"),
+            got: format!("{n} joints"),
+        });
+    }
+    Ok(())
+}
+
 fn validate_joints(joints: &[Joint]) -> Result<()> {
     if joints.is_empty() {
         return Err(PrrrpError::ShapeMismatch {
@@ -109,6 +143,7 @@ fn validate_joints(joints: &[Joint]) -> Result<()> {
             got: "0 joints".into(),
         });
     }
+    check_dof("joints", joints.len())?;
     for (i, j) in joints.iter().enumerate() {
         j.validate(&format!("joint {}", i + 1))?;
     }
@@ -231,31 +266,37 @@ pub(crate) fn non_physical_error(link: &str) -> PrrrpError {
     }
 }
 
-pub(crate) fn parameter_names(n: usize, friction: &FrictionModel) -> Vec<String> {
-    let mut names = Vec::with_capacity(n * (10 + friction.columns_per_joint()));
+pub(crate) fn parameter_names(n: usize, layout: &ActuatorLayout) -> Vec<String> {
+    let mut names = Vec::with_capacity(n * (10 + layout.per));
     for i in 0..n {
         for s in INERTIAL_PARAMETER_NAMES {
             names.push(format!("{s}{}", i + 1));
         }
     }
-    let en = friction.enabled();
+    let en = layout.enabled();
     for j in 0..n {
-        for k in 0..3 {
+        for k in 0..4 {
             if en[k] {
-                names.push(format!("{}{}", FRICTION_PARAMETER_NAMES[k], j + 1));
+                names.push(format!("{}{}", ACTUATOR_PARAMETER_NAMES[k], j + 1));
             }
         }
     }
     names
 }
 
-fn parameter_vector(inertial: &[[f64; 10]], friction: &FrictionModel, fp: &[[f64; 3]]) -> Vec<f64> {
+fn parameter_vector(
+    inertial: &[[f64; 10]],
+    layout: &ActuatorLayout,
+    fp: &[[f64; 3]],
+    armature: &[f64],
+) -> Vec<f64> {
     let mut v: Vec<f64> = inertial.iter().flatten().copied().collect();
-    let en = friction.enabled();
-    for row in fp {
-        for k in 0..3 {
+    let en = layout.enabled();
+    for (row, &ia) in fp.iter().zip(armature) {
+        let terms = [row[0], row[1], row[2], ia];
+        for k in 0..4 {
             if en[k] {
-                v.push(row[k]);
+                v.push(terms[k]);
             }
         }
     }
@@ -282,8 +323,8 @@ pub(crate) fn stack_regressor<'s>(
     st: &mut [LinkState],
 ) -> Result<Mat<f64>> {
     let n = view.dof();
-    let per_joint = view.friction.columns_per_joint();
-    let p = n * (10 + per_joint);
+    let layout = view.layout();
+    let p = n * (10 + layout.per);
     let mut w = Mat::<f64>::zeros(n * samples, p);
     for k in 0..samples {
         crate::interrupt::check("regressor stacking")?;
@@ -300,8 +341,7 @@ pub(crate) fn stack_regressor<'s>(
             mat: &mut w,
             row0: n * k,
             n,
-            per_joint,
-            slots: view.friction.slots(),
+            layout,
         };
         view.regressor_into(q, qd, qdd, true, st, &mut sink);
     }
@@ -339,6 +379,10 @@ impl<const N: usize> SerialChain<N> {
             friction_params: [[0.0; 3]; N],
             gravity: Vector3::new(0.0, 0.0, -STANDARD_GRAVITY),
             non_physical: None,
+            coupling: None,
+            armature: false,
+            armature_values: [0.0; N],
+            gear_ratios: None,
         })
     }
 
@@ -358,6 +402,10 @@ impl<const N: usize> SerialChain<N> {
             friction_params: [[0.0; 3]; N],
             gravity: Vector3::from(gravity),
             non_physical: non_physical_links(&inertial).first().copied(),
+            coupling: None,
+            armature: false,
+            armature_values: [0.0; N],
+            gear_ratios: None,
         }
     }
 
@@ -396,6 +444,43 @@ impl<const N: usize> SerialChain<N> {
         Ok(self)
     }
 
+    /// Sets the actuators: coupling, armature, gear ratios (see [`Actuators`]). Friction
+    /// then acts on the actuator velocities C·q̇, one [fv, fc, fo] row per actuator.
+    ///
+    /// # Errors
+    /// As [`Actuators::validate`] with n = N.
+    pub fn with_actuators(mut self, actuators: &Actuators) -> Result<Self> {
+        actuators.validate(N)?;
+        self.coupling = match &actuators.coupling {
+            Some(rows) if !is_identity_rows(rows) => {
+                Some(std::array::from_fn(|m| std::array::from_fn(|j| rows[m][j])))
+            }
+            _ => None,
+        };
+        self.armature = actuators.armature;
+        self.armature_values = match &actuators.armature_values {
+            Some(v) => std::array::from_fn(|m| v[m]),
+            None => [0.0; N],
+        };
+        self.gear_ratios = actuators
+            .gear_ratios
+            .as_ref()
+            .map(|r| std::array::from_fn(|m| r[m]));
+        Ok(self)
+    }
+
+    /// The actuators (see [`Actuators`]).
+    pub fn actuators(&self) -> Actuators {
+        Actuators {
+            coupling: self
+                .coupling
+                .map(|c| c.iter().map(|r| r.to_vec()).collect()),
+            armature: self.armature,
+            armature_values: (self.armature || self.armature_values.iter().any(|&x| x != 0.0))
+                .then(|| self.armature_values.to_vec()),
+            gear_ratios: self.gear_ratios.map(|r| r.to_vec()),
+        }
+    }
     /// The joints (placements, axes, link frames).
     pub fn joints(&self) -> &[Joint; N] {
         &self.joints
@@ -428,17 +513,27 @@ impl<const N: usize> SerialChain<N> {
     pub const fn dof(&self) -> usize {
         N
     }
-    /// Number of standard parameters: 10·N inertial plus the enabled friction terms.
+    /// Number of standard parameters: 10·N inertial plus the enabled actuator terms
+    /// (friction and armature) of each actuator.
     pub fn num_params(&self) -> usize {
-        N * (10 + self.friction.columns_per_joint())
+        N * (10 + self.layout().per)
     }
     /// Names of the standard parameters in order, e.g. `m1, mx1, …, Izz6, fv1, fc1, …`.
     pub fn parameter_names(&self) -> Vec<String> {
-        parameter_names(N, &self.friction)
+        parameter_names(N, &self.layout())
     }
-    /// The standard parameter vector π (inertial, then enabled friction terms).
+    /// The standard parameter vector π (inertial, then enabled actuator terms).
     pub fn parameters(&self) -> Vec<f64> {
-        parameter_vector(&self.inertial, &self.friction, &self.friction_params)
+        parameter_vector(
+            &self.inertial,
+            &self.layout(),
+            &self.friction_params,
+            &self.armature_values,
+        )
+    }
+
+    pub(crate) fn layout(&self) -> ActuatorLayout {
+        ActuatorLayout::new(&self.friction, self.armature)
     }
 
     /// Indices (0-based) of the links whose inertial parameters no rigid body has: a
@@ -481,11 +576,14 @@ impl<const N: usize> SerialChain<N> {
             friction_params: &self.friction_params,
             friction: self.friction,
             gravity: self.gravity,
+            coupling: self.coupling.as_ref().map(|c| c.as_flattened()),
+            armature: self.armature.then_some(&self.armature_values[..]),
         }
     }
 
-    /// Inverse dynamics τ = M(q)·q̈ + C(q, q̇)·q̇ + G(q) + τ_friction(q̇) by recursive
-    /// Newton–Euler (N or N·m per joint).
+    /// Inverse dynamics τ = M(q)·q̈ + C(q, q̇)·q̇ + G(q) + Cᵀ·(diag(Ia)·C·q̈ + f(C·q̇)) by
+    /// recursive Newton–Euler plus the actuator terms of [`Actuators`] (N or N·m per
+    /// joint; with the default actuators the last term is the joint friction).
     #[inline]
     pub fn inverse_dynamics(
         &self,
@@ -517,8 +615,7 @@ impl<const N: usize> SerialChain<N> {
         let z = SVector::<f64, N>::zeros();
         let mut st = [LinkState::default(); N];
         let mut tau = SVector::<f64, N>::zeros();
-        let mut view = self.view();
-        view.friction = FrictionModel::default();
+        let view = self.view().rigid();
         view.rnea(
             q.as_slice(),
             z.as_slice(),
@@ -530,7 +627,7 @@ impl<const N: usize> SerialChain<N> {
     }
 
     /// Joint-space mass matrix M(q) by the composite-rigid-body algorithm (kg, kg·m,
-    /// kg·m² by joint kinds).
+    /// kg·m² by joint kinds), plus the armature's Cᵀ·diag(Ia)·C when it is on.
     #[inline]
     pub fn mass_matrix(&self, q: &SVector<f64, N>) -> SMatrix<f64, N, N> {
         let mut st = [LinkState::default(); N];
@@ -567,10 +664,21 @@ impl<const N: usize> SerialChain<N> {
         Ok(x)
     }
 
-    /// Friction forces τ_friction(q̇) of the enabled terms (N, N·m).
+    /// Friction forces of the enabled terms reflected to the joints, Cᵀ·f(C·q̇) (N, N·m;
+    /// with the default actuators each joint's own friction).
     #[inline]
     pub fn friction_torque(&self, qd: &SVector<f64, N>) -> SVector<f64, N> {
-        SVector::from_fn(|j, _| self.friction.torque(qd[j], &self.friction_params[j]))
+        let mut tau = SVector::<f64, N>::zeros();
+        let zero = SVector::<f64, N>::zeros();
+        let mut view = self.view();
+        view.armature = None;
+        view.add_actuator_torques(
+            &self.friction_params,
+            qd.as_slice(),
+            zero.as_slice(),
+            tau.as_mut_slice(),
+        );
+        tau
     }
 
     /// Standard rigid-body regressor Y(q, q̇, q̈) ∈ R^{N×P}, P = 10·N (checked at compile
@@ -592,8 +700,7 @@ impl<const N: usize> SerialChain<N> {
             ld: N,
             row0: 0,
             n: N,
-            per_joint: 0,
-            slots: [usize::MAX; 3],
+            layout: ActuatorLayout::new(&FrictionModel::default(), false),
         };
         self.view().regressor_into(
             q.as_slice(),
@@ -606,7 +713,7 @@ impl<const N: usize> SerialChain<N> {
         y
     }
 
-    /// The full regressor, friction columns included, written column-major (N rows,
+    /// The full regressor, actuator columns included, written column-major (N rows,
     /// [`SerialChain::num_params`] columns) into `out`: τ = Y_full·π with
     /// π = [`SerialChain::parameters`]. Allocation-free.
     ///
@@ -631,8 +738,7 @@ impl<const N: usize> SerialChain<N> {
             ld: N,
             row0: 0,
             n: N,
-            per_joint: self.friction.columns_per_joint(),
-            slots: self.friction.slots(),
+            layout: self.layout(),
         };
         self.view().regressor_into(
             q.as_slice(),
@@ -682,6 +788,9 @@ impl<const N: usize> SerialChain<N> {
             gravity: self.gravity,
             meta: ChainMeta::numbered(N),
             non_physical: self.non_physical,
+            actuators: self.actuators(),
+            coupling: self.coupling.map(|c| c.as_flattened().to_vec()),
+            armature_values: self.armature_values.to_vec(),
         }
     }
 }
@@ -719,6 +828,9 @@ impl DynChain {
             gravity: Vector3::new(0.0, 0.0, -STANDARD_GRAVITY),
             meta: ChainMeta::numbered(n),
             non_physical: None,
+            actuators: Actuators::default(),
+            coupling: None,
+            armature_values: vec![0.0; n],
         })
     }
 
@@ -784,6 +896,40 @@ impl DynChain {
         Ok(self)
     }
 
+    /// Sets the actuators: coupling, armature, gear ratios (see [`Actuators`]). Friction
+    /// then acts on the actuator velocities C·q̇, one [fv, fc, fo] row per actuator.
+    ///
+    /// # Errors
+    /// As [`Actuators::validate`] with n = [`DynChain::dof`].
+    pub fn with_actuators(mut self, actuators: Actuators) -> Result<Self> {
+        let n = self.dof();
+        actuators.validate(n)?;
+        self.coupling = match &actuators.coupling {
+            Some(rows) if !is_identity_rows(rows) => Some(actuators.coupling_row_major(n)),
+            _ => None,
+        };
+        self.armature_values = actuators
+            .armature_values
+            .clone()
+            .unwrap_or_else(|| vec![0.0; n]);
+        self.actuators = actuators;
+        Ok(self)
+    }
+
+    /// The actuators (see [`Actuators`]).
+    pub fn actuators(&self) -> &Actuators {
+        &self.actuators
+    }
+
+    /// The armature values Iaₘ in use (one per actuator; kg·m² or kg, joint side), zeros
+    /// when none are given.
+    pub fn armature_values(&self) -> &[f64] {
+        &self.armature_values
+    }
+
+    pub(crate) fn layout(&self) -> ActuatorLayout {
+        ActuatorLayout::new(&self.friction, self.actuators.armature)
+    }
     /// The same chain with a compile-time size.
     ///
     /// # Errors
@@ -800,7 +946,7 @@ impl DynChain {
         c.friction = self.friction;
         c.friction_params = std::array::from_fn(|i| self.friction_params[i]);
         c.gravity = self.gravity;
-        Ok(c)
+        c.with_actuators(&self.actuators)
     }
 
     /// The joints (placements, axes, link frames).
@@ -835,17 +981,23 @@ impl DynChain {
     pub fn dof(&self) -> usize {
         self.joints.len()
     }
-    /// Number of standard parameters: 10·n inertial plus the enabled friction terms.
+    /// Number of standard parameters: 10·n inertial plus the enabled actuator terms
+    /// (friction and armature) of each actuator.
     pub fn num_params(&self) -> usize {
-        self.dof() * (10 + self.friction.columns_per_joint())
+        self.dof() * (10 + self.layout().per)
     }
     /// Names of the standard parameters in order.
     pub fn parameter_names(&self) -> Vec<String> {
-        parameter_names(self.dof(), &self.friction)
+        parameter_names(self.dof(), &self.layout())
     }
-    /// The standard parameter vector π (inertial, then enabled friction terms).
+    /// The standard parameter vector π (inertial, then enabled actuator terms).
     pub fn parameters(&self) -> Vec<f64> {
-        parameter_vector(&self.inertial, &self.friction, &self.friction_params)
+        parameter_vector(
+            &self.inertial,
+            &self.layout(),
+            &self.friction_params,
+            &self.armature_values,
+        )
     }
 
     /// Indices (0-based) of the links whose inertial parameters no rigid body has: a
@@ -885,6 +1037,8 @@ impl DynChain {
             friction_params: &self.friction_params,
             friction: self.friction,
             gravity: self.gravity,
+            coupling: self.coupling.as_deref(),
+            armature: self.actuators.armature.then_some(&self.armature_values[..]),
         }
     }
 
@@ -895,7 +1049,8 @@ impl DynChain {
         check_len("qdd", qdd.len(), n)
     }
 
-    /// Inverse dynamics τ (friction included) by recursive Newton–Euler.
+    /// Inverse dynamics τ (actuator terms included, see [`SerialChain::inverse_dynamics`])
+    /// by recursive Newton–Euler.
     ///
     /// # Errors
     /// [`PrrrpError::ShapeMismatch`] if an input does not have n entries.
@@ -956,8 +1111,7 @@ impl DynChain {
             ld: n,
             row0: 0,
             n,
-            per_joint: self.friction.columns_per_joint(),
-            slots: self.friction.slots(),
+            layout: self.layout(),
         };
         self.view()
             .regressor_into(q, qd, qdd, true, &mut st, &mut sink);
@@ -1006,4 +1160,12 @@ impl<const N: usize> From<&SerialChain<N>> for DynChain {
     fn from(c: &SerialChain<N>) -> Self {
         c.to_dyn()
     }
+}
+
+fn is_identity_rows(rows: &[Vec<f64>]) -> bool {
+    rows.iter().enumerate().all(|(i, r)| {
+        r.iter()
+            .enumerate()
+            .all(|(j, &x)| x == if i == j { 1.0 } else { 0.0 })
+    })
 }

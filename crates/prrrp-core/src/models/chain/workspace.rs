@@ -4,9 +4,9 @@
 //! bindings, loops over recorded data) use: one workspace per batch, no allocation per
 //! sample.
 
+use super::actuators::ActuatorLayout;
 use super::base_params::BaseParameters;
 use super::crba::{cholesky_in_place, cholesky_solve};
-use super::friction::FrictionModel;
 use super::regressor::RegressorSink;
 use super::rnea::LinkState;
 use super::serial_chain::DynChain;
@@ -35,8 +35,7 @@ struct RowMajorSink<'a> {
     data: &'a mut [f64],
     p: usize,
     n: usize,
-    per_joint: usize,
-    slots: [usize; 3],
+    layout: ActuatorLayout,
 }
 
 impl RegressorSink for RowMajorSink<'_> {
@@ -45,9 +44,9 @@ impl RegressorSink for RowMajorSink<'_> {
         self.data[row * self.p + 10 * link + k] = v;
     }
     #[inline(always)]
-    fn friction(&mut self, joint: usize, kind: usize, v: f64) {
-        let col = 10 * self.n + self.per_joint * joint + self.slots[kind];
-        self.data[joint * self.p + col] = v;
+    fn actuator(&mut self, row: usize, act: usize, kind: usize, v: f64) {
+        let col = 10 * self.n + self.layout.per * act + self.layout.slots[kind];
+        self.data[row * self.p + col] = v;
     }
 }
 
@@ -154,8 +153,7 @@ impl DynChain {
     ) -> Result<()> {
         self.check_ws(ws)?;
         self.check_joint(&[("q", q.len()), ("out", out.len())])?;
-        let mut view = self.view();
-        view.friction = FrictionModel::default();
+        let view = self.view().rigid();
         view.rnea(q, &ws.zero, &ws.zero, &mut ws.st, out);
         Ok(())
     }
@@ -239,13 +237,11 @@ impl DynChain {
             "entries (n·num_params)",
         )?;
         out.fill(0.0);
-        let f = self.friction();
         let mut sink = RowMajorSink {
             data: out,
             p,
             n,
-            per_joint: f.columns_per_joint(),
-            slots: f.slots(),
+            layout: self.layout(),
         };
         self.view()
             .regressor_into(q, qd, qdd, true, &mut ws.st, &mut sink);
@@ -268,7 +264,7 @@ impl DynChain {
         qdd: &[f64],
         out: &mut [f64],
     ) -> Result<()> {
-        base.check_layout(self.dof(), &self.friction())?;
+        base.check_layout(self.dof(), &self.layout())?;
         let (n, p, b) = (self.dof(), self.num_params(), base.count());
         check(
             "base regressor output",

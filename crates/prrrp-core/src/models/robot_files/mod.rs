@@ -12,9 +12,14 @@
 //! Every problem with a file is a [`PrrrpError::RobotFile`] naming the file, the element or
 //! key and what to fix; no input panics.
 
+mod actuators;
 mod toml_file;
+mod transmission;
 mod urdf;
 mod urdf_export;
+mod xml_scan;
+
+pub use xml_scan::{MAX_URDF_DEPTH, MAX_URDF_ELEMENTS};
 
 use std::path::Path;
 
@@ -90,7 +95,8 @@ fn read_text(path: &Path) -> Result<(String, String)> {
 impl DynChain {
     /// Reads a chain from a robot file, choosing the format by the extension: `.urdf`
     /// ([`DynChain::from_urdf_file`] with `opts`) or `.toml` ([`DynChain::from_toml_file`];
-    /// `opts` unused), case-insensitively.
+    /// `opts.base` and `opts.tip` override those of a TOML file that takes its links from a
+    /// URDF), case-insensitively.
     ///
     /// # Errors
     /// [`PrrrpError::RobotFile`] for another or no extension, and every error of the two
@@ -102,7 +108,10 @@ impl DynChain {
             .map(|e| e.to_string_lossy().to_ascii_lowercase());
         match ext.as_deref() {
             Some("urdf") => Self::from_urdf_file(path, opts),
-            Some("toml") => Self::from_toml_file(path),
+            Some("toml") => {
+                let (file, text) = read_text(path)?;
+                toml_file::chain_from_toml(&text, &file, opts)
+            }
             Some(other) => Err(file_error(
                 &path.display().to_string(),
                 "file",
@@ -166,7 +175,7 @@ impl DynChain {
     /// of [`DynChain::from_toml_str`] with the path as `file`.
     pub fn from_toml_file(path: impl AsRef<Path>) -> Result<DynChain> {
         let (file, text) = read_text(path.as_ref())?;
-        toml_file::chain_from_toml(&text, &file)
+        toml_file::chain_from_toml(&text, &file, &UrdfOptions::default())
     }
 
     /// Reads a chain from a TOML DH table:
@@ -189,6 +198,17 @@ impl DynChain {
     ///
     /// Integers are accepted for numbers. If any joint gives `friction`, the chain uses
     /// [`crate::FrictionModel::all`] with zeros for the joints that give none.
+    ///
+    /// Instead of `[[joint]]` tables (and `convention`, `base_link`) a file may take its
+    /// links, joints, limits and inertials from a URDF: `urdf = "arm.urdf"` (relative to the
+    /// TOML file's folder; to the working directory for text given here), optional `base`
+    /// and `tip` links and `gravity`. Either kind of file may declare its drives in an
+    /// `[actuators]` table (see [`crate::Actuators`]): `armature = true` (one rotor inertia
+    /// per actuator, identified), `coupling = [[…], …]` (n×n, q̇ₘ = C·q̇; square, finite and
+    /// invertible), `armature_values = […]` (kg·m², joint side; needs `armature = true`),
+    /// `gear_ratios = […]` and `friction = [[fv, fc, fo], …]` (per actuator, instead of the
+    /// joints' `friction`). The URDF's `<transmission>` elements are read first; the table
+    /// overrides them key by key.
     ///
     /// ```
     /// use prrrp_core::{DynChain, DhConvention};
@@ -216,7 +236,7 @@ impl DynChain {
     /// value of the wrong type, length or sign, a non-finite number, or a repeated link or
     /// joint name.
     pub fn from_toml_str(text: &str) -> Result<DynChain> {
-        toml_file::chain_from_toml(text, STRING_SOURCE)
+        toml_file::chain_from_toml(text, STRING_SOURCE, &UrdfOptions::default())
     }
 
     /// A URDF 1.0 document of the chain, with `parameters` as its standard parameters

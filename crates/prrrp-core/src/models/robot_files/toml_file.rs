@@ -5,14 +5,24 @@
 
 use toml::{Table, Value};
 
-use super::file_error;
+use super::{file_error, UrdfOptions};
 use crate::error::Result;
 use crate::models::chain::{
-    ChainMeta, DhConvention, DynChain, FrictionModel, JointInfo, JointLimit,
+    ChainMeta, DhConvention, DynChain, FrictionModel, JointInfo, JointLimit, MAX_DOF,
 };
 use crate::models::prrrp::robot::{DhRow, JointKind, STANDARD_GRAVITY};
 
-const TOP_KEYS: [&str; 5] = ["name", "convention", "gravity", "base_link", "joint"];
+const TOP_KEYS: [&str; 9] = [
+    "name",
+    "convention",
+    "gravity",
+    "base_link",
+    "joint",
+    "urdf",
+    "base",
+    "tip",
+    "actuators",
+];
 const JOINT_KEYS: [&str; 14] = [
     "type",
     "a",
@@ -30,16 +40,16 @@ const JOINT_KEYS: [&str; 14] = [
     "friction",
 ];
 
-struct Ctx<'a> {
-    file: &'a str,
+pub(super) struct Ctx<'a> {
+    pub(super) file: &'a str,
 }
 
 impl Ctx<'_> {
-    fn err(&self, key: impl Into<String>, msg: impl Into<String>) -> crate::PrrrpError {
+    pub(super) fn err(&self, key: impl Into<String>, msg: impl Into<String>) -> crate::PrrrpError {
         file_error(self.file, key, msg)
     }
 
-    fn check_keys(&self, table: &Table, allowed: &[&str], prefix: &str) -> Result<()> {
+    pub(super) fn check_keys(&self, table: &Table, allowed: &[&str], prefix: &str) -> Result<()> {
         for k in table.keys() {
             if !allowed.contains(&k.as_str()) {
                 return Err(self.err(
@@ -51,7 +61,7 @@ impl Ctx<'_> {
         Ok(())
     }
 
-    fn number(&self, v: &Value, key: &str) -> Result<f64> {
+    pub(super) fn number(&self, v: &Value, key: &str) -> Result<f64> {
         let x = match v {
             Value::Float(x) => *x,
             // Integers are common in hand-written tables (`d = 0`).
@@ -81,7 +91,7 @@ impl Ctx<'_> {
             .ok_or_else(|| self.err(format!("{path}{key}"), "missing; give a number (SI units)"))
     }
 
-    fn string<'v>(&self, v: &'v Value, key: &str) -> Result<&'v str> {
+    pub(super) fn string<'v>(&self, v: &'v Value, key: &str) -> Result<&'v str> {
         v.as_str().ok_or_else(|| {
             self.err(
                 key,
@@ -90,7 +100,7 @@ impl Ctx<'_> {
         })
     }
 
-    fn array<const N: usize>(&self, v: &Value, key: &str) -> Result<[f64; N]> {
+    pub(super) fn array<const N: usize>(&self, v: &Value, key: &str) -> Result<[f64; N]> {
         let Some(items) = v.as_array() else {
             return Err(self.err(
                 key,
@@ -224,7 +234,7 @@ fn joint_spec(ctx: &Ctx<'_>, t: &Table, i: usize) -> Result<JointSpec> {
     })
 }
 
-pub(super) fn chain_from_toml(text: &str, file: &str) -> Result<DynChain> {
+pub(super) fn chain_from_toml(text: &str, file: &str, opts: &UrdfOptions) -> Result<DynChain> {
     let ctx = Ctx { file };
     let doc: Table = text.parse().map_err(|e: toml::de::Error| {
         let at = e
@@ -240,6 +250,10 @@ pub(super) fn chain_from_toml(text: &str, file: &str) -> Result<DynChain> {
         )
     })?;
     ctx.check_keys(&doc, &TOP_KEYS, "")?;
+    if doc.contains_key("urdf") {
+        return super::actuators::chain_from_urdf_toml(&ctx, &doc, opts);
+    }
+    super::actuators::refuse_urdf_keys(&ctx, &doc)?;
     let name = match doc.get("name") {
         Some(v) => ctx.string(v, "name")?.to_string(),
         None => "robot".to_string(),
@@ -288,6 +302,16 @@ pub(super) fn chain_from_toml(text: &str, file: &str) -> Result<DynChain> {
             ))
         }
     };
+    if tables.len() > MAX_DOF {
+        return Err(ctx.err(
+            "joint",
+            format!(
+                "{} [[joint]] tables, more than MAX_DOF = {MAX_DOF}; a serial chain has a few \
+                 dozen joints at most",
+                tables.len()
+            ),
+        ));
+    }
     let mut specs = Vec::with_capacity(tables.len());
     for (i, v) in tables.iter().enumerate() {
         let Some(t) = v.as_table() else {
@@ -351,5 +375,5 @@ pub(super) fn chain_from_toml(text: &str, file: &str) -> Result<DynChain> {
     if has_friction {
         chain = chain.with_friction(FrictionModel::all(), friction)?;
     }
-    Ok(chain)
+    super::actuators::apply_actuators(&ctx, &doc, chain, has_friction)
 }

@@ -10,7 +10,7 @@ use super::{file_error, UrdfOptions};
 use crate::error::Result;
 use crate::models::chain::{
     transform_inertial_parameters, ChainMeta, DynChain, Joint, JointInfo, JointLimit, JointType,
-    AXIS_UNIT_TOLERANCE,
+    AXIS_UNIT_TOLERANCE, MAX_DOF,
 };
 use crate::models::prrrp::robot::STANDARD_GRAVITY;
 
@@ -159,7 +159,8 @@ impl<'r> Tree<'r> {
                 file,
                 "robot",
                 format!(
-                    "several root links ({}); connect them or choose one with UrdfOptions::base",
+                    "several root links ({}); connect them or choose the chain's first link \
+                     with --base LINK (Python: base=)",
                     names(roots.iter().map(|&l| self.link_name(l)))
                 ),
             )),
@@ -192,16 +193,28 @@ impl<'r> Tree<'r> {
     }
 
     /// The tip when none is given: the child of the only movable joint below the base with
-    /// no movable joint below it.
+    /// no movable joint below it. When the movable joints branch, the error proposes the
+    /// arm's end first — the link where they branch (a hand whose fingers are separate
+    /// joints), if a movable joint lies above it — then the branch ends, the end of the
+    /// longest movable chain first.
     fn default_tip(&self, base: usize, file: &str) -> Result<usize> {
         let order = self.subtree(base, file)?;
-        let mut movable_below = vec![false; self.parent_joint.len()];
+        let nl = self.parent_joint.len();
+        // Movable joints strictly below each link, and on the path from the base to it.
+        let mut movable_below = vec![false; nl];
         for &l in order.iter().rev() {
             movable_below[l] = self.child_joints[l].iter().any(|&j| {
                 is_articulated(&self.joint(j).joint_type) || movable_below[self.joint_child[j]]
             });
         }
-        let tips: Vec<usize> = order
+        let mut movable_above = vec![0usize; nl];
+        for &l in &order {
+            for &j in &self.child_joints[l] {
+                movable_above[self.joint_child[j]] =
+                    movable_above[l] + usize::from(is_articulated(&self.joint(j).joint_type));
+            }
+        }
+        let mut tips: Vec<usize> = order
             .iter()
             .flat_map(|&l| self.child_joints[l].iter().copied())
             .filter(|&j| is_articulated(&self.joint(j).joint_type))
@@ -218,16 +231,41 @@ impl<'r> Tree<'r> {
                     self.link_name(base)
                 ),
             )),
-            _ => Err(file_error(
-                file,
-                "tip",
-                format!(
-                    "the movable joints below `{}` branch; candidate tips: {}; choose one \
-                     with UrdfOptions::tip (the other branches are locked at zero)",
-                    self.link_name(base),
-                    names(tips.iter().map(|&l| self.link_name(l)))
-                ),
-            )),
+            _ => {
+                // Stable: equal lengths keep file order.
+                tips.sort_by_key(|&t| std::cmp::Reverse(movable_above[t]));
+                // Walk down while a single child subtree holds movable joints.
+                let mut branch = base;
+                loop {
+                    let mut moving = self.child_joints[branch].iter().filter(|&&j| {
+                        is_articulated(&self.joint(j).joint_type)
+                            || movable_below[self.joint_child[j]]
+                    });
+                    match (moving.next(), moving.next()) {
+                        (Some(&j), None) => branch = self.joint_child[j],
+                        _ => break,
+                    }
+                }
+                let arm_end = (movable_above[branch] > 0).then(|| {
+                    format!(
+                        "`{}` (the arm's end, where they branch), ",
+                        self.link_name(branch)
+                    )
+                });
+                Err(file_error(
+                    file,
+                    "tip",
+                    format!(
+                        "the movable joints below `{}` branch: choose the chain's last link \
+                         with --tip LINK (Python: tip=). Candidates, best first: {}{} \
+                         (branch ends, the longest movable chain first); the joints off the \
+                         chosen chain are locked at zero",
+                        self.link_name(base),
+                        arm_end.unwrap_or_default(),
+                        names(tips.iter().map(|&l| self.link_name(l)))
+                    ),
+                ))
+            }
         }
     }
 
@@ -271,6 +309,15 @@ fn names<'a>(it: impl Iterator<Item = &'a str>) -> String {
     it.map(|n| format!("`{n}`")).collect::<Vec<_>>().join(", ")
 }
 
+/// Numbers as a URDF attribute writes them: `"0 nan 1.5"`.
+fn xml_numbers(values: &[f64]) -> String {
+    let v: Vec<String> = values
+        .iter()
+        .map(|v| v.to_string().to_lowercase())
+        .collect();
+    format!("\"{}\"", v.join(" "))
+}
+
 fn check_finite(values: &[f64], file: &str, element: impl FnOnce() -> String) -> Result<()> {
     if values.iter().all(|v| v.is_finite()) {
         Ok(())
@@ -278,7 +325,10 @@ fn check_finite(values: &[f64], file: &str, element: impl FnOnce() -> String) ->
         Err(file_error(
             file,
             element(),
-            format!("{values:?} has a NaN or infinite value; give finite numbers (SI units)"),
+            format!(
+                "{} has a NaN or infinite value; give finite numbers (SI units)",
+                xml_numbers(values)
+            ),
         ))
     }
 }
@@ -402,15 +452,17 @@ fn axis(joint: &urdf_rs::Joint, file: &str) -> Result<Vector3<f64>> {
             file,
             joint_el(&joint.name, "axis"),
             format!(
-                "axis xyz = {:?} has length {norm}; a joint axis must be a unit vector \
+                "axis xyz = {} has length {norm}; a joint axis must be a unit vector \
                  (within {AXIS_UNIT_TOLERANCE}), e.g. \"0 0 1\"",
-                joint.axis.xyz.0
+                xml_numbers(&joint.axis.xyz.0)
             ),
         ))
     }
 }
 
 pub(super) fn chain_from_urdf(xml: &str, file: &str, opts: &UrdfOptions) -> Result<DynChain> {
+    super::xml_scan::prescan(xml, file)?;
+    crate::interrupt::check("reading the URDF")?;
     let robot = urdf_rs::read_from_string(xml).map_err(|e| {
         file_error(
             file,
@@ -434,6 +486,9 @@ pub(super) fn chain_from_urdf(xml: &str, file: &str, opts: &UrdfOptions) -> Resu
             ),
         ));
     }
+    // Everything below is walked from the base; a cycle through it (possible when --base
+    // names a link that is some joint's child) is refused here, before any walk.
+    tree.subtree(base, file)?;
     let path = tree.path(base, tip, file)?;
 
     // Chain index (1-based link number) of each movable path joint.
@@ -469,6 +524,18 @@ pub(super) fn chain_from_urdf(xml: &str, file: &str, opts: &UrdfOptions) -> Resu
         }
     }
     let n = chain_index.len();
+    if n > MAX_DOF {
+        return Err(file_error(
+            file,
+            "tip",
+            format!(
+                "{n} movable joints between `{}` and `{}`, more than MAX_DOF = {MAX_DOF}; \
+                 choose a shorter chain with --base/--tip (Python: base=, tip=)",
+                tree.link_name(base),
+                tree.link_name(tip)
+            ),
+        ));
+    }
     if n == 0 {
         return Err(file_error(
             file,
@@ -485,10 +552,26 @@ pub(super) fn chain_from_urdf(xml: &str, file: &str, opts: &UrdfOptions) -> Resu
     let mut infos: Vec<Option<JointInfo>> = vec![None; n];
     let mut links = vec![String::new(); n];
     let mut inertial = vec![[0.0; 10]; n];
-    let mut locked = Vec::new();
+    // Indices of the locked joints (sorted into file order at the end: linear time).
+    let mut locked: Vec<usize> = Vec::new();
+    let mut visited = vec![false; robot.links.len()];
     // (link, owner chain link (0 = base), pose of the link in the owner's frame)
     let mut stack = vec![(base, 0usize, Isometry3::identity())];
+    let mut walked = 0usize;
     while let Some((l, owner, pose_in_owner)) = stack.pop() {
+        // `subtree` refused cycles; a link seen twice would still mean one, so stop rather
+        // than loop.
+        if std::mem::replace(&mut visited[l], true) {
+            return Err(file_error(
+                file,
+                link_el(tree.link_name(l), ""),
+                "the joints form a cycle; a URDF must be a tree",
+            ));
+        }
+        walked += 1;
+        if walked % 4096 == 0 {
+            crate::interrupt::check("reading the URDF")?;
+        }
         if owner > 0 {
             let p = link_parameters(&robot.links[l], file)?;
             let p = in_frame(&p, &pose_in_owner);
@@ -521,7 +604,7 @@ pub(super) fn chain_from_urdf(xml: &str, file: &str, opts: &UrdfOptions) -> Resu
                 UrdfJointType::Fixed => {}
                 UrdfJointType::Revolute | UrdfJointType::Continuous | UrdfJointType::Prismatic => {
                     // Held at q = 0, where the joint's motion is the identity.
-                    locked.push(joint.name.clone());
+                    locked.push(j);
                 }
                 ref t => {
                     return Err(file_error(
@@ -540,7 +623,11 @@ pub(super) fn chain_from_urdf(xml: &str, file: &str, opts: &UrdfOptions) -> Resu
         }
     }
     // Locked joints in file order, independent of the traversal.
-    locked.sort_by_key(|name| robot.joints.iter().position(|j| &j.name == name));
+    locked.sort_unstable();
+    let locked: Vec<String> = locked
+        .into_iter()
+        .map(|j| tree.joint(j).name.clone())
+        .collect();
 
     let joints: Vec<Joint> = joints.into_iter().flatten().collect();
     let infos: Vec<JointInfo> = infos.into_iter().flatten().collect();
@@ -551,8 +638,13 @@ pub(super) fn chain_from_urdf(xml: &str, file: &str, opts: &UrdfOptions) -> Resu
         joints: infos,
         locked_joints: locked,
     };
-    DynChain::from_joints(joints)?
+    let chain = DynChain::from_joints(joints)?
         .with_inertial(inertial)?
         .with_gravity(opts.gravity.unwrap_or([0.0, 0.0, -STANDARD_GRAVITY]))?
-        .with_meta(meta)
+        .with_meta(meta)?;
+    let actuators = super::transmission::actuators_from_urdf(xml, file, &chain)?;
+    if actuators.is_default() {
+        return Ok(chain);
+    }
+    chain.with_actuators(actuators)
 }

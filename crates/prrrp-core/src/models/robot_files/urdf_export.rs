@@ -9,7 +9,7 @@ use crate::models::chain::{transform_inertial_parameters, DynChain, JointType, L
 
 /// Shortest text that reads back to the same `f64` (Rust's `Debug` is round-trip exact);
 /// −0 is written as 0, which no reader treats differently.
-fn num(x: f64) -> String {
+pub(super) fn num(x: f64) -> String {
     let x = if x == 0.0 { 0.0 } else { x };
     format!("{x:?}")
 }
@@ -18,8 +18,10 @@ fn vec3(v: &Vector3<f64>) -> String {
     format!("{} {} {}", num(v.x), num(v.y), num(v.z))
 }
 
-/// Escapes a name for a double-quoted XML attribute.
-fn attr(s: &str) -> String {
+/// Escapes a name for a double-quoted XML attribute. Tab, newline and carriage return
+/// are written as character references, which survive the attribute-value normalisation
+/// of XML readers (a literal one would be read back as a space).
+pub(super) fn attr(s: &str) -> String {
     let mut out = String::with_capacity(s.len());
     for ch in s.chars() {
         match ch {
@@ -28,10 +30,104 @@ fn attr(s: &str) -> String {
             '>' => out.push_str("&gt;"),
             '"' => out.push_str("&quot;"),
             '\'' => out.push_str("&apos;"),
+            '\t' => out.push_str("&#9;"),
+            '\n' => out.push_str("&#10;"),
+            '\r' => out.push_str("&#13;"),
             c => out.push(c),
         }
     }
     out
+}
+
+fn bad_name(field: String, reason: &'static str) -> PrrrpError {
+    PrrrpError::InvalidParameter {
+        field,
+        value: f64::NAN,
+        reason,
+    }
+}
+
+/// The names a URDF identifies links and joints by: non-empty, representable in XML 1.0
+/// (no control character but tab, newline and carriage return) and unique, or the
+/// written file would not read back.
+fn check_names(c: &DynChain) -> Result<()> {
+    let meta = c.meta();
+    let check = |field: String, name: &str| -> Result<()> {
+        if name.trim().is_empty() {
+            return Err(bad_name(
+                field,
+                "an empty name cannot identify a URDF link or joint",
+            ));
+        }
+        if name
+            .chars()
+            .any(|ch| ch.is_control() && !matches!(ch, '\t' | '\n' | '\r'))
+        {
+            return Err(bad_name(
+                field,
+                "a control character cannot be written in XML 1.0; rename it",
+            ));
+        }
+        Ok(())
+    };
+    let mut links = std::collections::HashSet::new();
+    check("meta.base_link".into(), &meta.base_link)?;
+    links.insert(meta.base_link.as_str());
+    for (i, l) in meta.links.iter().enumerate() {
+        check(format!("meta.links[{i}]"), l)?;
+        if !links.insert(l.as_str()) {
+            return Err(bad_name(
+                format!("meta.links[{i}] ({l})"),
+                "link names must be unique (the base link's too) to be written to URDF",
+            ));
+        }
+    }
+    let mut joints = std::collections::HashSet::new();
+    for (i, j) in meta.joints.iter().enumerate() {
+        check(format!("meta.joints[{i}].name"), &j.name)?;
+        if !joints.insert(j.name.as_str()) {
+            return Err(bad_name(
+                format!("meta.joints[{i}].name ({})", j.name),
+                "joint names must be unique to be written to URDF",
+            ));
+        }
+    }
+    if let Some(last) = meta.links.last() {
+        let frame = format!("{last}_dh_frame");
+        let joint = format!("{last}_dh_frame_joint");
+        let needs_frame = c
+            .joints()
+            .last()
+            .is_some_and(|j| j.link_frame != Isometry3::identity());
+        if needs_frame && (links.contains(frame.as_str()) || joints.contains(joint.as_str())) {
+            return Err(bad_name(
+                format!("meta.links ({frame})"),
+                "the name of the last link's DH frame (`<last link>_dh_frame`) is taken; \
+                 rename that link or joint",
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// Every number written must read back: a NaN or ∞ (a placement that overflowed, a centre
+/// of mass of a vanishing mass) is an error naming where it would have gone.
+fn finite(values: &[f64], field: impl FnOnce() -> String) -> Result<()> {
+    match values.iter().find(|v| !v.is_finite()) {
+        None => Ok(()),
+        Some(&v) => Err(PrrrpError::InvalidParameter {
+            field: field(),
+            value: v,
+            reason: "would be written to URDF as a NaN or infinite number, which no URDF \
+                     reader accepts; check the chain's placements and parameters",
+        }),
+    }
+}
+
+fn iso_values(iso: &Isometry3<f64>) -> [f64; 6] {
+    let (r, p, y) = rpy(&iso.rotation.to_rotation_matrix().into_inner());
+    let t = iso.translation.vector;
+    [t.x, t.y, t.z, r, p, y]
 }
 
 /// Fixed-axis roll, pitch, yaw of a rotation, R = Rz(y)·Ry(p)·Rx(r), accurate also near
@@ -88,6 +184,18 @@ fn inertial_xml(out: &mut String, p: &[f64; 10], link: usize) -> Result<()> {
                      mass and cannot be written to URDF",
         });
     };
+    finite(&[c.x, c.y, c.z, m], || {
+        format!(
+            "link {} inertial (centre of mass = first moment / mass)",
+            link + 1
+        )
+    })?;
+    finite(i.as_slice(), || {
+        format!(
+            "link {} inertial (inertia about the centre of mass)",
+            link + 1
+        )
+    })?;
     let _ = write!(
         out,
         "    <inertial>\n      <origin xyz=\"{}\" rpy=\"0 0 0\"/>\n      <mass value=\"{}\"/>\n      \
@@ -129,34 +237,39 @@ pub(super) fn chain_to_urdf(c: &DynChain, parameters: Option<&[f64]>) -> Result<
         });
     }
     // Each joint's [fv, fc] when the chain models them: from `params` when they follow
-    // the inertials, else the chain's own.
-    let per_joint = model.columns_per_joint();
-    let friction: Option<Vec<[f64; 2]>> = (model.viscous || model.coulomb).then(|| {
-        (0..n)
-            .map(|j| {
-                let own = c.friction_params()[j];
-                if params.len() == c.num_params() {
-                    let block = &params[LINK_PARAMS * n + per_joint * j..];
-                    let fv = if model.viscous { block[0] } else { 0.0 };
-                    let fc = if model.coulomb {
-                        block[usize::from(model.viscous)]
+    // the inertials, else the chain's own. Friction of coupled actuators acts on C·q̇, not
+    // on a joint: URDF cannot say so and the TOML robot file keeps it.
+    let per_joint = c.layout().per;
+    let coupled = c.actuators().coupling.is_some() && !c.actuators().is_default_coupling();
+    let friction: Option<Vec<[f64; 2]>> =
+        (!coupled && (model.viscous || model.coulomb)).then(|| {
+            (0..n)
+                .map(|j| {
+                    let own = c.friction_params()[j];
+                    if params.len() == c.num_params() {
+                        let block = &params[LINK_PARAMS * n + per_joint * j..];
+                        let fv = if model.viscous { block[0] } else { 0.0 };
+                        let fc = if model.coulomb {
+                            block[usize::from(model.viscous)]
+                        } else {
+                            0.0
+                        };
+                        [fv, fc]
                     } else {
-                        0.0
-                    };
-                    [fv, fc]
-                } else {
-                    [
-                        if model.viscous { own[0] } else { 0.0 },
-                        if model.coulomb { own[1] } else { 0.0 },
-                    ]
-                }
-            })
-            .collect()
-    });
+                        [
+                            if model.viscous { own[0] } else { 0.0 },
+                            if model.coulomb { own[1] } else { 0.0 },
+                        ]
+                    }
+                })
+                .collect()
+        });
 
+    check_names(c)?;
     let meta = c.meta();
     let joints = c.joints();
     let g = c.gravity();
+    finite(&g, || "gravity".into())?;
     let mut out = String::new();
     let _ = write!(
         out,
@@ -182,6 +295,12 @@ pub(super) fn chain_to_urdf(c: &DynChain, parameters: Option<&[f64]>) -> Result<
             &meta.links[i - 1]
         };
         let info = &meta.joints[i];
+        finite(&iso_values(&(parent_frame * j.placement)), || {
+            format!("joint {} ({}) origin", i + 1, info.name)
+        })?;
+        finite(j.axis.as_slice(), || {
+            format!("joint {} ({}) axis", i + 1, info.name)
+        })?;
         let _ = write!(
             out,
             "  <joint name=\"{}\" type=\"{}\">\n    <parent link=\"{}\"/>\n    <child link=\"{}\"/>\n    \
@@ -229,6 +348,9 @@ pub(super) fn chain_to_urdf(c: &DynChain, parameters: Option<&[f64]>) -> Result<
             None => None,
         };
         if let Some([d, f]) = dynamics {
+            finite(&[d, f], || {
+                format!("joint {} ({}) dynamics", i + 1, info.name)
+            })?;
             let _ = writeln!(
                 out,
                 "    <dynamics damping=\"{}\" friction=\"{}\"/>",
@@ -254,6 +376,9 @@ pub(super) fn chain_to_urdf(c: &DynChain, parameters: Option<&[f64]>) -> Result<
     if let (Some(last), Some(name)) = (joints.last(), meta.links.last()) {
         // Keep the standard-DH frame of the last link (e.g. for a tool) as a massless link.
         if last.link_frame != Isometry3::identity() {
+            finite(&iso_values(&last.link_frame), || {
+                "last link's DH frame (origin)".into()
+            })?;
             let _ = write!(
                 out,
                 "  <joint name=\"{0}_dh_frame_joint\" type=\"fixed\">\n    <parent link=\"{0}\"/>\n    \
@@ -263,6 +388,7 @@ pub(super) fn chain_to_urdf(c: &DynChain, parameters: Option<&[f64]>) -> Result<
             );
         }
     }
+    super::transmission::write_transmissions(c, params, &mut out);
     out.push_str("</robot>\n");
     Ok(out)
 }

@@ -1,0 +1,227 @@
+"""Torque predictions at the rows of a measured log, scored against the measured torque.
+
+Identification fits the *processed* log: resampled, low-passed at the cut-off, trimmed at
+each end. Scoring a model against that processed torque would score it against our own
+filtered version of the measurement: the number would move with ``--cutoff`` (the
+reference moves) and flatter every model by the noise the filter removed. So every torque
+error prrrp prints, writes in a report or returns from here is against the torque **as
+measured**, at the rows it was measured:
+
+1. the log is processed as for identification (the model's recorded settings): that pass
+   sets the cut-off, the grid and the edge span the filter's transient spoils;
+2. the same processing with no trimming (one grid sample at each end, which central
+   differences need) gives q, q̇, q̈ over the whole log; the model is evaluated there and
+   its torque is interpolated linearly to every row's time stamp (exact at the rows when
+   the log was not resampled; the grid is at the log's rate and the prediction is
+   band-limited by the filter, so linear interpolation adds nothing measurable);
+3. a row is **scored** unless it lies in the filter's edge transient (outside the first
+   pass's trimmed span: predicted, but from signals the filter has not settled on) or
+   repeats the previous row's time stamp (the preprocessing keeps the first of such rows,
+   so a repeat would count one instant twice). Both are counted in every table.
+
+A log that gives q̇ and q̈ is not processed: the model is evaluated at its rows as they are.
+
+>>> grid = prrrp.prediction.prepare(raw, model.preprocessing["settings"])  # doctest: +SKIP
+>>> tau_hat = grid.predict(model)          # (rows, n), at every row of the log
+>>> grid.errors(tau_hat)["percent"]        # per joint, % of the measured torque's RMS
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+
+from prrrp._prrrp import Dataset, IdentifiedModel, preprocess_log
+from prrrp.measurements import PREPROCESS_KEYS, measurements_to_dataset
+
+
+@dataclasses.dataclass
+class LogGrid:
+    """A measured log prepared for predictions at its rows (see the module docs).
+
+    ``t`` (S,) s, the log's time stamps; ``measured`` (S, n) its torque column as read (None
+    when the log has none); ``filtered`` (S, n) the low-passed torque identification fits,
+    at the rows (None when not processed); ``edge`` and ``repeated`` (S,) bool, the rows not
+    scored and why; ``processed`` the whole-log signals the model is evaluated on;
+    ``data`` the data set identification would use (trimmed); ``report`` what the
+    preprocessing did (None when q̇, q̈ were given)."""
+
+    t: np.ndarray
+    measured: np.ndarray | None
+    filtered: np.ndarray | None
+    edge: np.ndarray
+    repeated: np.ndarray
+    processed: Dataset
+    data: Dataset
+    report: dict[str, Any] | None
+    #: "log" (measurements as read: scored against the measured torque) or "dataset" (a
+    #: ready Dataset: scored against its own τ, whatever made it).
+    source: str = "log"
+
+    @property
+    def scored(self) -> np.ndarray:
+        """(S,) bool: the rows every error is computed over."""
+        return ~(self.edge | self.repeated)
+
+    @property
+    def span(self) -> tuple[float, float]:
+        """First and last scored time stamps, s."""
+        t = self.t[self.scored]
+        return (float(t[0]), float(t[-1])) if len(t) else (float("nan"), float("nan"))
+
+    def predict(self, model: IdentifiedModel) -> np.ndarray:
+        """``model``'s torque at every row of the log, (S, n) N·m or N."""
+        p = self.processed
+        tau = np.asarray(model.predict(p.q, p.qd, p.qdd))
+        return _at_rows(np.asarray(p.t), tau, self.t)
+
+    def errors(self, predicted: np.ndarray) -> dict[str, Any]:
+        """Per joint over the scored rows: ``rms`` of measured − predicted (N·m, N),
+        ``tau_rms`` of the measured torque, ``percent`` = 100·rms/tau_rms; beside them,
+        labelled, ``filtered_rms`` and ``filtered_percent`` against the low-passed torque
+        identification fits (None when not processed); ``rows`` scored, ``rows_total``,
+        ``edge_rows``, ``repeated_rows``, ``span`` (s)."""
+        if self.measured is None:
+            raise ValueError("the log has no measured torque to score against")
+        k = self.scored
+        rms = _rms(self.measured[k] - predicted[k])
+        ref = _rms(self.measured[k])
+        out: dict[str, Any] = {
+            "rms": rms,
+            "tau_rms": ref,
+            "percent": _percent(rms, ref),
+            "filtered_rms": None,
+            "filtered_percent": None,
+            "rows": int(k.sum()),
+            "rows_total": len(self.t),
+            "edge_rows": int(self.edge.sum()),
+            "repeated_rows": int((self.repeated & ~self.edge).sum()),
+            "span": self.span,
+        }
+        if self.filtered is not None:
+            f = _rms(self.filtered[k] - predicted[k])
+            out["filtered_rms"] = f
+            out["filtered_percent"] = _percent(f, _rms(self.filtered[k]))
+        return out
+
+    def describe(self) -> str:
+        """One line: which rows are scored, and why the others are not."""
+        n, k = len(self.t), int(self.scored.sum())
+        parts = []
+        if self.edge.any():
+            parts.append(f"{int(self.edge.sum())} in the filter's edge transient")
+        if (self.repeated & ~self.edge).any():
+            parts.append(
+                f"{int((self.repeated & ~self.edge).sum())} repeating the previous time stamp"
+            )
+        a, b = self.span
+        why = f"; not scored: {', '.join(parts)}" if parts else ""
+        what = "; against the data set's own τ" if self.source == "dataset" else ""
+        return f"{k} of {n} rows, t = {a:.6g}..{b:.6g} s{why}{what}"
+
+
+def _rms(x: np.ndarray) -> np.ndarray:
+    return np.sqrt(np.mean(np.asarray(x) ** 2, axis=0))
+
+
+def _percent(rms: np.ndarray, ref: np.ndarray) -> np.ndarray:
+    return np.where(ref > 0, 100.0 * rms / np.where(ref > 0, ref, 1.0), np.nan)
+
+
+def _at_rows(t_grid: np.ndarray, values: np.ndarray, t_rows: np.ndarray) -> np.ndarray:
+    """Columns of ``values`` (on the increasing ``t_grid``) interpolated linearly to
+    ``t_rows`` (held at the end values outside the grid)."""
+    out = np.empty((len(t_rows), values.shape[1]))
+    for j in range(values.shape[1]):
+        out[:, j] = np.interp(t_rows, t_grid, values[:, j])
+    return out
+
+
+def _repeats(t: np.ndarray) -> np.ndarray:
+    rep = np.zeros(len(t), dtype=bool)
+    rep[1:] = t[1:] == t[:-1]
+    return rep
+
+
+def prepare(
+    raw: Mapping[str, np.ndarray] | Dataset, settings: Mapping[str, Any] | None = None
+) -> LogGrid:
+    """A measured log (``prrrp.read_measurements``'s dict) prepared for predictions at its
+    rows, with the preprocessing ``settings`` of identification (keys of
+    ``prrrp.preprocess_log``; None/missing = its defaults). A ``Dataset`` is taken as it is
+    (its rows and its τ are then what is scored). Raises what the preprocessing raises."""
+    if isinstance(raw, Dataset):
+        t = np.asarray(raw.t)
+        none = np.zeros(len(t), dtype=bool)
+        tau = np.asarray(raw.tau)
+        return LogGrid(t, tau, None, none, none.copy(), raw, raw, None, "dataset")
+    t = np.asarray(raw["t"], dtype=float)
+    measured = np.asarray(raw["tau"], dtype=float) if "tau" in raw else None
+    tau = measured if measured is not None else np.zeros_like(np.asarray(raw["q"]))
+    log = {**raw, "tau": tau}
+    settings = {k: v for k, v in dict(settings or {}).items() if k in PREPROCESS_KEYS}
+    data, report = measurements_to_dataset(log, settings)
+    if report is None:  # q̇ and q̈ given: evaluated at the rows as they are
+        none = np.zeros(len(t), dtype=bool)
+        return LogGrid(t, measured, None, none, _repeats(t), data, data, None)
+    whole = {**settings, "cutoff_hz": report["cutoff_hz"], "rate_hz": report["rate_hz"]}
+    whole.pop("decimate_to_hz", None)
+    whole["trim_s"] = 0.0
+    processed, _ = preprocess_log(t, log["q"], tau, qd=log.get("qd"), **whole)
+    td = np.asarray(data.t)
+    # A hair of slack: grid times are t0 + i/rate, rounded differently from the rows'.
+    eps = 1e-9 * max(1.0, float(np.abs(t).max()))
+    edge = (t < td[0] - eps) | (t > td[-1] + eps)
+    filtered = None
+    if measured is not None:
+        filtered = _at_rows(np.asarray(processed.t), np.asarray(processed.tau), t)
+    return LogGrid(t, measured, filtered, edge, _repeats(t), processed, data, dict(report))
+
+
+def recorded_settings(model: IdentifiedModel) -> dict[str, Any]:
+    """The preprocessing settings a model was identified with (its record), checked: a
+    value of the wrong type (a hand-edited model.json) is a ValueError naming it."""
+    pre = model.preprocessing
+    if pre is None or pre == {}:
+        return {}
+    if not isinstance(pre, dict):
+        raise ValueError(f"the model's 'preprocessing' is a {type(pre).__name__}, not an object")
+    settings = pre.get("settings") or {}
+    if not isinstance(settings, dict):
+        raise ValueError(
+            f"the model's preprocessing 'settings' is a {type(settings).__name__}, not an object"
+        )
+    return check_settings(settings, "the model's preprocessing setting")
+
+
+def _is_number(v: Any) -> bool:
+    return isinstance(v, int | float) and not isinstance(v, bool)
+
+
+#: Type of each preprocessing setting: a check and what it should be.
+_SETTING_TYPES: dict[str, tuple[Any, str]] = {
+    "rate_hz": (_is_number, "a number (Hz)"),
+    "cutoff_hz": (_is_number, "a number (Hz)"),
+    "order": (lambda v: isinstance(v, int) and not isinstance(v, bool), "an integer"),
+    "filter_torque": (lambda v: isinstance(v, bool), "true or false"),
+    "trim_s": (_is_number, "a number (s)"),
+    "decimate_to_hz": (_is_number, "a number (Hz)"),
+    "max_gap_s": (_is_number, "a number (s)"),
+}
+
+
+def check_settings(settings: Mapping[str, Any], what: str) -> dict[str, Any]:
+    """``settings`` with every known key's value type-checked (None = the default); raises
+    ValueError naming the first bad one. Unknown keys are dropped."""
+    out = {}
+    for key, value in settings.items():
+        if key not in _SETTING_TYPES or value is None:
+            continue
+        ok, expected = _SETTING_TYPES[key]
+        if not ok(value):
+            raise ValueError(f"{what} '{key}' is {value!r}; it must be {expected}")
+        out[key] = value
+    return out
