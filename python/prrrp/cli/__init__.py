@@ -18,6 +18,8 @@ Any robot (a ``.urdf`` with ``--base``/``--tip`` links, or a ``.toml`` robot fil
 - ``prrrp identify DATA --robot ROBOT --out DIR``: model.json, report.md and figures from a CSV
   or a ROS 2 bag (:mod:`prrrp.cli.identify_robot`);
 - ``prrrp predict MODEL.json DATA --out tau.csv``: a saved model's torques for recorded states.
+- ``prrrp track DATA --robot ROBOT [--model PRIOR.json] [--payload] --out DIR``: the log fed
+  one row at a time to the online identifier (:mod:`prrrp.cli.track`).
 
 - ``prrrp benchmark [--robot ROBOT] --methods ls,rls --noise 1,3 --rates 50,100 --seeds N
   [--workers K | --dask ADDRESS] --out DIR``: a Monte-Carlo benchmark of the estimators
@@ -37,7 +39,7 @@ from collections.abc import Sequence
 from typing import Any
 
 import prrrp
-from prrrp.cli import benchmark, excite, identify, predict, reproduce, simulate
+from prrrp.cli import benchmark, excite, identify, predict, reproduce, simulate, track
 from prrrp.cli.common import (
     EXIT_FAILED,
     EXIT_INTERRUPTED,
@@ -64,7 +66,7 @@ __all__ = [
 ]
 
 #: One module per command, each with ``add_parser(subparsers)`` and ``run(args) -> int``.
-COMMANDS = (reproduce, excite, simulate, identify, predict, benchmark)
+COMMANDS = (reproduce, excite, simulate, identify, predict, track, benchmark)
 
 
 def build_parser() -> argparse.ArgumentParser:

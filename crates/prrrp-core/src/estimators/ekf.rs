@@ -1035,7 +1035,8 @@ where
                 at: self.samples,
                 hint: "M(q, λ̂) is not positive definite: the parameter estimate left the \
                            physical region; start from a better λ0, lower the initial \
-                           parameter uncertainty or raise the measurement noise",
+                           parameter uncertainty (`prrrp identify --ekf-prior-width`) or \
+                           raise the measurement noise (`--ekf-noise`)",
             },
             other => other,
         })

@@ -914,19 +914,15 @@ impl OnlineIdentifier {
             }
         }
         if self.config.payload {
+            // The output (and the predictions) is the nearest rigid body; the estimator
+            // keeps its own unconstrained estimate. Writing the projection back into it
+            // rectified the noise of every update at an empty gripper (π = 0 is the apex
+            // of the cone of rigid bodies): the mass ratcheted up to 1.5 kg in 3 s of a
+            // log without any payload.
             let mut pi = [0.0; PAYLOAD_PARAMS];
             pi.copy_from_slice(self.theta.as_slice());
             if project(&mut pi) {
                 self.theta.copy_from_slice(&pi);
-                for i in 0..self.theta.len() {
-                    self.gamma[i] = self.theta[i] / self.scale[i];
-                }
-                match &mut self.engine {
-                    Engine::Rls(r) => r.set_estimate(&self.gamma)?,
-                    Engine::Ekf(e) if e.running => e.ekf.set_parameter_estimate(&self.theta)?,
-                    Engine::Ekf(e) => e.rls.set_estimate(&self.gamma)?,
-                    _ => {}
-                }
             }
         }
         self.refresh_outputs();
