@@ -73,10 +73,20 @@ impl TrackedModel {
         }
     }
 
-    /// The payload columns of a matrix of B columns: out = m·K_tip.
+    /// The payload columns of a matrix of B columns: out = m·K_tip. A plain loop:
+    /// nalgebra's `gemm` hands dynamic matrices to matrixmultiply, which allocates its
+    /// packing buffers on every call (one allocation per sample, `tests/alloc_online.rs`).
     fn map_columns(&self, m: &DMatrix<f64>, out: &mut DMatrix<f64>) {
         if let Self::Payload { k_tip, .. } = self {
-            out.gemm(1.0, m, k_tip, 0.0);
+            for k in 0..k_tip.ncols() {
+                for i in 0..m.nrows() {
+                    let mut acc = 0.0;
+                    for r in 0..k_tip.nrows() {
+                        acc += m[(i, r)] * k_tip[(r, k)];
+                    }
+                    out[(i, k)] = acc;
+                }
+            }
         }
     }
 
