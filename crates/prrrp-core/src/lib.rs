@@ -98,6 +98,10 @@ pub use models::chain::{
     JointFrictionFeasibility, LinkFeasibility,
 };
 pub use models::chain::{Actuators, ACTUATOR_PARAMETER_NAMES, COUPLING_CONDITION_LIMIT};
+pub use models::payload::{
+    is_physical as is_physical_payload, project_physical, Payload, PayloadIdentifiable,
+    PayloadThresholds,
+};
 pub use models::prrrp::derivatives::InverseDerivatives;
 pub use models::prrrp::dynamics::{MassCholesky, PrrrpModel};
 pub use models::prrrp::regressor::{condition_number, observation_matrix, singular_values};

@@ -699,7 +699,7 @@ impl OnlineIdentifier {
             });
         }
         let finite = |v: &[f64]| v.iter().all(|x| x.is_finite());
-        if !t.is_finite() || !finite(q) || !finite(tau) || !qd.is_none_or(finite) {
+        if !t.is_finite() || !finite(q) || !finite(tau) || !qd.map_or(true, finite) {
             let what = if !t.is_finite() {
                 "t"
             } else if !finite(q) {
@@ -1070,10 +1070,11 @@ impl OnlineIdentifier {
         )
     }
 
-    /// In payload mode, the payload as load data (what `payload.json` holds): `mass`
-    /// (kg), `com` (m, in the tip link's frame), `inertia` about the centre of mass
-    /// ([Ixx, Ixy, Iyy, Ixz, Iyz, Izz], kg·m², tip link axes), each with its σ, and the 10
-    /// parameters π with theirs; `None` outside payload mode. Allocates.
+    /// In payload mode, the payload as load data (what `payload.json` holds, the shared
+    /// [`crate::Payload`]'s JSON): `mass` (kg), `com` (m, in the tip link's frame),
+    /// `inertia` about the centre of mass ([Ixx, Ixy, Iyy, Ixz, Iyz, Izz], kg·m², tip
+    /// link axes), each with its σ, the 10 parameters π and their covariance, and
+    /// `physical`; `None` outside payload mode. Allocates.
     pub fn payload_summary(&self) -> Option<serde_json::Value> {
         if !self.config.payload {
             return None;
@@ -1084,9 +1085,9 @@ impl OnlineIdentifier {
             let c = (&c + c.transpose()) * 0.5;
             c.transpose().iter().copied().collect::<Vec<f64>>()
         });
-        let mut v = summary_json(&pi, cov.as_deref());
-        v["link"] = json!(self.chain.meta().links.last());
-        v["method"] = json!(self.config.method.name());
+        let link = self.chain.meta().links.last().cloned().unwrap_or_default();
+        let mut v = summary_json(&link, self.n, &pi, cov);
+        v["identification"] = json!({"method": self.config.method.name(), "online": true});
         Some(v)
     }
 
@@ -1154,7 +1155,10 @@ impl OnlineIdentifier {
 
 /// The factor d (on σ) that multiplies a variance `var` by `k`, at most up to `cap`.
 fn opening(k: f64, cap: f64, var: f64) -> f64 {
-    if !(var > 0.0) || !(cap > var) {
+    // NaN-safe: a NaN variance or cap opens nothing.
+    if var.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater)
+        || cap.partial_cmp(&var) != Some(std::cmp::Ordering::Greater)
+    {
         return 1.0;
     }
     (k.min(cap / var)).sqrt().max(1.0)

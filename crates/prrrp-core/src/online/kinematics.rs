@@ -288,9 +288,9 @@ impl CausalKinematics {
             self.age += dt;
         } else {
             let s = w.powi(6);
-            for j in 0..self.n {
-                predict3(&mut self.x[j], &mut self.p[j], dt, s);
-                update_first(&mut self.x[j], &mut self.p[j], q[j], 3);
+            for ((x, p), &qj) in self.x.iter_mut().zip(self.p.iter_mut()).zip(q) {
+                predict3(x, p, dt, s);
+                update_first(x, p, qj, 3);
             }
             self.age += dt;
         }
