@@ -601,7 +601,7 @@ where
 
     /// Number of predictions taken linearly implicit ([`EkfOf::set_stiff_handling`])
     /// because the dynamics were stiff at the
-    /// sample period: h·‖∂q̈/∂q̇‖∞ + h²·‖∂q̈/∂q‖∞ above [`STIFF_LIMIT`]. Viscous and
+    /// sample period: h·‖∂q̈/∂q̇‖∞ + h²·‖∂q̈/∂q‖∞ above 0.5. Viscous and
     /// smoothed Coulomb friction over a small inertia (a light wrist, a hobby arm) decay
     /// faster than one period, and an estimate near the edge of the physical region has
     /// modes faster than the sampling; the explicit step then amplifies them each sample
