@@ -85,7 +85,7 @@ def _rel_error(m: prrrp.IdentifiedModel, val) -> np.ndarray:
             "ekf",
             marks=pytest.mark.xfail(
                 strict=True,
-                reason="known gap of issue 28: the payload EKF finds 3.7 kg for a 2 kg part "
+                reason="known gap of issue 28: the payload EKF finds 2.24 kg for a 2 kg part "
                 "on this UR5 log (it meets 5 % on the Rust test's Panda-like arm)",
             ),
         ),
@@ -180,3 +180,21 @@ def test_track_command_writes_its_outputs(setup, tmp_path):
         main(["predict", str(out / "model.json"), str(data), "--out", str(tmp_path / "t.csv")]) == 0
     )
     assert main(["track", str(data), "--payload", "--robot", "x.urdf", "--out", str(out)]) == 2
+
+
+def test_identify_ekf_takes_the_options_its_errors_name(setup, tmp_path):
+    """`prrrp identify --method ekf --ekf-prior-width W --ekf-noise F` reach the filter
+    (recorded in the model's settings); a non-positive value is a usage error."""
+    _chain, _prior, run, _ = setup
+    rel, _tip = ARMS["ur5"]
+    data = tmp_path / "ur5.csv"
+    unloaded = {k: v[: int(GRIP * RATE)] for k, v in run.items()}
+    _write_csv(data, unloaded)
+    out = tmp_path / "ekf"
+    common = ["identify", str(data), "--robot", str(ROBOTS / rel), "--method", "ekf"]
+    assert main([*common, "--ekf-noise", "0", "--out", str(out)]) == 2
+    code = main([*common, "--ekf-prior-width", "2", "--ekf-noise", "3", "--out", str(out)])
+    assert code == 0
+    settings = prrrp.IdentifiedModel.load(out / "model.json").settings
+    assert settings["least_squares_prior_width"] == 2.0
+    assert np.atleast_1d(settings["position_noise"])[0] == pytest.approx(3e-3)
