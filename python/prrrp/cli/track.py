@@ -41,9 +41,17 @@ def add_parser(sub: Any) -> None:
         "(m, tip frame) and inertia about it (kg·m²), each with σ.",
     )
     p.add_argument("data", metavar="DATA", help="measurement CSV file or ROS 2 bag")
-    p.add_argument("--robot", metavar="ROBOT", help="robot file (.urdf or .toml)")
+    p.add_argument(
+        "--robot",
+        metavar="ROBOT",
+        help="robot file (.urdf or .toml) (default: the robot of --model)",
+    )
     p.add_argument("--base", metavar="LINK", help="URDF: first link of the chain (default: root)")
-    p.add_argument("--tip", metavar="LINK", help="URDF: last link of the chain")
+    p.add_argument(
+        "--tip",
+        metavar="LINK",
+        help="URDF: last link of the chain (default: the end of the movable joints)",
+    )
     p.add_argument(
         "--friction",
         metavar="TERMS",
@@ -55,7 +63,7 @@ def add_parser(sub: Any) -> None:
         "--model",
         metavar="PRIOR.json",
         help="start from this identified model (its robot, estimate and covariance); "
-        "needed by --payload",
+        "needed by --payload (default: none, the robot file's chain from no knowledge)",
     )
     p.add_argument("--method", choices=METHODS, default="rls", help="default: rls")
     p.add_argument(
@@ -77,7 +85,10 @@ def add_parser(sub: Any) -> None:
         help="do not open the covariance when the one-step-ahead errors jump",
     )
     p.add_argument(
-        "--cutoff", type=float, metavar="HZ", help="bandwidth of the causal filtering (10 Hz)"
+        "--cutoff",
+        type=float,
+        metavar="HZ",
+        help="bandwidth of the causal filtering (default: 10 Hz)",
     )
     p.add_argument(
         "--prior-width",
