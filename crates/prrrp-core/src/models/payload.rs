@@ -594,8 +594,8 @@ mod tests {
     }
 
     #[test]
-    fn sigma_of_derived_quantities_matches_sampling() {
-        // First-order σ of the COM from the covariance of π against a Monte-Carlo draw.
+    fn sigma_of_the_com_matches_the_first_order_formula() {
+        // First-order σ of the COM from the covariance of π against the formula by hand.
         let base = inertial_parameters(2.0, [0.02, 0.0, 0.08], [0.01, 0.0, 0.012, 0.0, 0.0, 0.008]);
         let mut cov = vec![0.0; 100];
         let sd = [
