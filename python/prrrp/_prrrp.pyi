@@ -856,6 +856,102 @@ class SerialChain:
         """A chain from the JSON of `to_json`."""
     def __reduce__(self) -> tuple[Any, ...]: ...
 
+class _OnlineUpdate(TypedDict):
+    prediction: _F64
+    estimate: _F64
+    sigma: _F64 | None
+    change: bool
+    updated: bool
+
+class OnlineIdentifier:
+    """Identification while the arm runs: one raw sample at a time, causal (no sample
+    after the current one is used), any clock (irregular time stamps, repeated rows).
+
+    Built from a robot (a `SerialChain`, starting from no knowledge) or from a `prior`
+    model (`IdentifiedModel`: its robot, β̂ and covariance). `method`: "rls" (joint-
+    weighted recursive least squares), "ekf" (the paper's filter on [q, q̇, β], started
+    inside the physical region: from the prior, or after `ekf_warmup` s of RLS), "adaline"
+    or "hopfield". `payload=True` (needs `prior`) tracks only the 10 inertial parameters
+    of a payload at the tip link (m ≥ 0, pseudo-inertia PSD after every update).
+    `forgetting`: memory in s (data older weigh < 1/e), directional for RLS unless
+    `directional=False`; `change_detection`: an innovation test that opens the covariance
+    when the dynamics jump (`change_threshold`: alarm level of the normalised squared
+    one-step-ahead error). `cutoff_hz`: bandwidth of the causal filtering (default 10 Hz),
+    `prior_width`: P₀ = width²·Σ_prior, `ekf_noise`: factor on the EKF's measurement noise
+    (1e-3 rad, 1e-2 rad/s), `payload_mass_std` (kg) and `payload_size` (m): the payload
+    prior. Settings out of range (an unstable step size, a non-positive memory) raise
+    InvalidParameterError.
+
+    >>> import numpy as np, prrrp
+    >>> robot = prrrp.SerialChain.puma560()
+    >>> online = prrrp.OnlineIdentifier(robot, method="rls")
+    >>> for k in range(300):
+    ...     t = k * 1e-3
+    ...     q = np.sin(t * np.arange(1, 7))
+    ...     qd = np.arange(1, 7) * np.cos(t * np.arange(1, 7))
+    ...     qdd = -np.arange(1, 7) ** 2 * q
+    ...     out = online.update(t, q, robot.inverse_dynamics(q, qd, qdd))
+    >>> sorted(out)
+    ['change', 'estimate', 'prediction', 'sigma', 'updated']
+    >>> model = online.estimate()  # an IdentifiedModel, as identify returns
+    """
+
+    def __init__(
+        self,
+        robot: SerialChain | None = None,
+        *,
+        prior: IdentifiedModel | None = None,
+        method: str = "rls",
+        payload: bool = False,
+        forgetting: float | None = None,
+        directional: bool = True,
+        change_detection: bool = True,
+        change_threshold: float = 9.0,
+        cutoff_hz: float | None = None,
+        prior_width: float = 3.0,
+        initial_covariance: float = 1e6,
+        payload_mass_std: float = 10.0,
+        payload_size: float = 0.2,
+        ekf_noise: float = 1.0,
+        ekf_warmup: float = 2.0,
+        step_size: float = 0.5,
+        seed: int = 0,
+    ) -> None: ...
+    def update(
+        self, t: float, q: _ArrayLike, tau: _ArrayLike, qd: _ArrayLike | None = None
+    ) -> _OnlineUpdate:
+        """One raw sample: time t (s, not decreasing), positions q (rad, m), joint forces
+        tau (N·m, N), optionally measured velocities qd (rad/s, m/s; at every sample or
+        never). Returns the one-step-ahead `prediction` of this row's forces from the
+        estimate before it, the `estimate` after it with its `sigma` (None for Adaline and
+        Hopfield), whether a `change` was detected, and whether the row `updated` the
+        estimate. NaN, wrong lengths and time running backwards raise and leave the state
+        as it was."""
+    def estimate(self) -> IdentifiedModel:
+        """The current estimate as a model (in payload mode: the prior's arm carrying the
+        payload)."""
+    def payload(self) -> dict[str, Any] | None:
+        """Payload mode: mass (kg), com (m, tip frame), inertia about the com (kg·m²),
+        each with σ; None otherwise."""
+    @property
+    def parameter_names(self) -> list[str]: ...
+    @property
+    def parameters(self) -> _F64: ...
+    @property
+    def sigma(self) -> _F64 | None: ...
+    @property
+    def dof(self) -> int: ...
+    @property
+    def counts(self) -> tuple[int, int, int, int]:
+        """Rows consumed, rows that updated the estimate, repeated rows, changes."""
+    @property
+    def noise_rms(self) -> list[float]:
+        """Running noise level of each joint's torque (N·m or N)."""
+    @property
+    def ekf_running(self) -> bool: ...
+    @property
+    def settings(self) -> dict[str, Any]: ...
+
 class IdentifiedModel:
     """An identification result for any robot (schema: docs/model-schema.md): the robot
     description, the base-parameter analysis, β̂ with σ and %σ where the method gives them

@@ -231,6 +231,7 @@ def identify_methods(
     preprocessing: dict[str, Any] | None = None,
     drives: dict[str, Any] | None = None,
     progress: Callable[[int, int], object] | None = None,
+    per_method: dict[str, dict[str, Any]] | None = None,
     **settings: Any,
 ) -> list[MethodRun]:
     """:func:`identify_measurements` with several methods on one preprocessing, one
@@ -238,7 +239,8 @@ def identify_methods(
     compares). A method
     that fails (a PrrrpError or ValueError: diverged, rank deficient, ...) is
     returned with its error and does not stop the others; errors of the shared
-    preprocessing are raised."""
+    preprocessing are raised. ``per_method``: settings of one method only (e.g.
+    ``{"ekf": {"least_squares_prior_width": 2.0}}``), added to ``settings`` for it."""
     prepared = _prepare(robot, raw, coulomb_scale, preprocessing, drives)
     if isinstance(prepared.robot, SerialChain) and settings.get("base") is None:
         # One base analysis for every method: the same base parameters to compare.
@@ -249,8 +251,9 @@ def identify_methods(
             progress(k, len(methods))
         t0 = time.perf_counter()
         try:
+            own = {**settings, **(per_method or {}).get(method, {})}
             model = identify(
-                prepared.robot, prepared.data, method, preprocessing=prepared.record, **settings
+                prepared.robot, prepared.data, method, preprocessing=prepared.record, **own
             )
         except (PrrrpError, ValueError) as e:
             text = (str(e).strip() or type(e).__name__).splitlines()[0]

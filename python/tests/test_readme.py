@@ -15,7 +15,8 @@ def python_blocks() -> list[str]:
 
 
 @pytest.mark.parametrize(
-    "needle", ["SerialChain.puma560", "SerialChain.from_urdf", "prrrp.identify"]
+    "needle",
+    ["SerialChain.puma560", "SerialChain.from_urdf", "prrrp.identify", "OnlineIdentifier"],
 )
 def test_readme_example_runs(needle):
     blocks = [b for b in python_blocks() if needle in b]

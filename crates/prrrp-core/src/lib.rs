@@ -49,6 +49,7 @@ mod identification;
 mod interrupt;
 mod models;
 mod motion;
+mod online;
 mod paper;
 mod validation;
 
@@ -73,7 +74,7 @@ pub use estimators::{
     least_squares, weighted_least_squares, Adaline, AdalineConfig, AdalineOf, AdalineRule,
     Discretisation, DynAdaline, DynEkf, DynHopfield, DynJointNoise, DynLeastSquaresReport, DynRls,
     DynSample, DynSamples, Ekf, EkfAllocator, EkfConfig, EkfMeasurement, EkfOf, Estimator,
-    Hopfield, HopfieldConfig, HopfieldOf, JointNoise, JointNoiseOf, LeastSquares,
+    Forgetting, Hopfield, HopfieldConfig, HopfieldOf, JointNoise, JointNoiseOf, LeastSquares,
     LeastSquaresConfig, LeastSquaresReport, LeastSquaresReportOf, PrrrpEkf, Rls, RlsConfig, RlsOf,
     Sample, SampleOf, Samples, SamplesOf, TrainingReport, PRRRP_EKF_STATES,
 };
@@ -135,6 +136,10 @@ pub use motion::trajectory::{
     sample_trajectory, DynTrajectory, ExcitationTrajectory, FourierSeries, JointTrajectory,
     PiecewiseQuintic, Quintic, Reflected, SampledTrajectory, ScalarTrajectory, Sinusoid,
     TrajectoryPoint, REFLECTED_REST_TOLERANCE,
+};
+pub use online::{
+    CausalKinematics, CausalLowPass, ChangeDetection, ChangeDetector, OnlineConfig,
+    OnlineIdentifier, OnlineMethod, OnlineUpdate, ONLINE_METHOD_NAMES,
 };
 pub use paper::sensitivity::{sensitivity, SensitivityConfig, SensitivityReport};
 pub use paper::study::{

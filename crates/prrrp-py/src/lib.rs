@@ -17,7 +17,8 @@
 //! - `preprocessing`: filtering and differentiation of measurements;
 //! - `estimators`: least squares and the online estimators;
 //! - `metrics`: the error indices;
-//! - `study`: the whole study as JSON.
+//! - `study`: the whole study as JSON;
+//! - `online`: `OnlineIdentifier`, identification one sample at a time.
 
 mod arrays;
 mod data;
@@ -27,6 +28,7 @@ mod identification;
 mod interrupt;
 mod models;
 mod motion;
+mod online;
 mod paper;
 mod validation;
 
@@ -54,5 +56,6 @@ fn _prrrp(m: &Bound<'_, PyModule>) -> PyResult<()> {
     estimators::register(m)?;
     validation::metrics::register(m)?;
     paper::study::register(m)?;
+    online::register(m)?;
     Ok(())
 }

@@ -21,6 +21,8 @@ Any robot (a ``.urdf`` with ``--base``/``--tip`` links, or a ``.toml`` robot fil
 - ``prrrp payload LOADED --model ARM.json [--mass KG] --out DIR``: the payload an identified arm
   carries (:mod:`prrrp.cli.payload`); ``prrrp identify UNLOADED --robot R --payload-run LOADED
   --payload-mass KG --out DIR``: drive gains from current logs and a payload of known mass.
+- ``prrrp track DATA --robot ROBOT [--model PRIOR.json] [--payload] --out DIR``: the log fed
+  one row at a time to the online identifier (:mod:`prrrp.cli.track`).
 
 - ``prrrp benchmark [--robot ROBOT] --methods ls,rls --noise 1,3 --rates 50,100 --seeds N
   [--workers K | --dask ADDRESS] --out DIR``: a Monte-Carlo benchmark of the estimators
@@ -40,7 +42,7 @@ from collections.abc import Sequence
 from typing import Any
 
 import prrrp
-from prrrp.cli import benchmark, excite, identify, payload, predict, reproduce, simulate
+from prrrp.cli import benchmark, excite, identify, payload, predict, reproduce, simulate, track
 from prrrp.cli.common import (
     EXIT_FAILED,
     EXIT_INTERRUPTED,
@@ -67,7 +69,7 @@ __all__ = [
 ]
 
 #: One module per command, each with ``add_parser(subparsers)`` and ``run(args) -> int``.
-COMMANDS = (reproduce, excite, simulate, identify, predict, payload, benchmark)
+COMMANDS = (reproduce, excite, simulate, identify, predict, payload, track, benchmark)
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -295,6 +295,8 @@ def run(args: argparse.Namespace) -> int:
             ("decimate", None),
             ("friction", "viscous,coulomb,offset"),
             ("coulomb_scale", "auto"),
+            ("ekf_prior_width", None),
+            ("ekf_noise", None),
         )
         if getattr(args, name) != default
     ]

@@ -119,6 +119,20 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         default=bags.DEFAULT_TOPIC,
         help=f"JointState topic of a ROS 2 bag (default: {bags.DEFAULT_TOPIC})",
     )
+    g.add_argument(
+        "--ekf-prior-width",
+        type=float,
+        metavar="W",
+        help="ekf: the filter starts from the weighted least-squares fit with covariance "
+        "W²·(its covariance); smaller W keeps the filter closer to the fit (default 3)",
+    )
+    g.add_argument(
+        "--ekf-noise",
+        type=float,
+        metavar="F",
+        help="ekf: factor on the measurement noise of positions (1e-3 rad) and velocities "
+        "(1e-2 rad/s); raise it when the filter diverges on noisy data (default 1)",
+    )
 
 
 def _coulomb_scale(text: str) -> str | float:
@@ -131,6 +145,20 @@ def _coulomb_scale(text: str) -> str | float:
     if not (math.isfinite(v) and v >= 0):
         raise CliError(f"--coulomb-scale must be finite and >= 0 rad/s, got {text}")
     return v
+
+
+def _ekf_settings(args: argparse.Namespace) -> dict[str, float]:
+    """The EKF's settings from --ekf-prior-width and --ekf-noise (checked)."""
+    out: dict[str, float] = {}
+    for flag, v in (("--ekf-prior-width", args.ekf_prior_width), ("--ekf-noise", args.ekf_noise)):
+        if v is not None and not (math.isfinite(v) and v > 0):
+            raise CliError(f"{flag} must be finite and > 0, got {v}")
+    if args.ekf_prior_width is not None:
+        out["least_squares_prior_width"] = args.ekf_prior_width
+    if args.ekf_noise is not None:
+        out["position_noise"] = 1e-3 * args.ekf_noise
+        out["velocity_noise"] = 1e-2 * args.ekf_noise
+    return out
 
 
 def run(args: argparse.Namespace) -> int:
@@ -163,13 +191,20 @@ def run(args: argparse.Namespace) -> int:
     # which releases the GIL, computes; the figures wait for it, a failed or interrupted
     # run does not (Ctrl-C answers at once).
     drawing.preload()
+    ekf = _ekf_settings(args)
     progress = Progress()
     try:
         if len(methods) == 1:
             # One method asked for: its failure is the command's (typed, with its exit code).
             t0 = time.perf_counter()
             result = workflow.identify_measurements(
-                robot, raw, methods[0], coulomb_scale=scale, preprocessing=pre, drives=record
+                robot,
+                raw,
+                methods[0],
+                coulomb_scale=scale,
+                preprocessing=pre,
+                drives=record,
+                **(ekf if methods[0] == "ekf" else {}),
             )
             method_runs = [workflow.MethodRun(methods[0], result, None, time.perf_counter() - t0)]
         else:
@@ -181,6 +216,7 @@ def run(args: argparse.Namespace) -> int:
                 preprocessing=pre,
                 drives=record,
                 progress=lambda k, total: progress("identify", k, total),
+                per_method={"ekf": ekf},
             )
     finally:
         progress.close()

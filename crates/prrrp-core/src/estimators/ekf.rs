@@ -200,6 +200,16 @@ where
     samples: usize,
     skipped: usize,
     damped: usize,
+    /// Whether the last prediction was stiff (see [`EkfOf::stiff_steps`]): the next step
+    /// then takes its derivatives at the start of the interval, not half a period on.
+    stiff: bool,
+    stiff_steps: usize,
+    stiff_handling: bool,
+    /// A parameter vector known to be physical (e.g. the start), which an estimate that
+    /// left the region where M(q, λ̂) ≻ 0 is pulled back towards; see
+    /// [`EkfOf::set_parameter_anchor`].
+    anchor: Option<OVector<f64, P>>,
+    anchored: usize,
     /// Whether the CPU runs the AVX2 copy of the step (detected once, at construction).
     avx2: bool,
     buf: Buffers<N, P, S>,
@@ -245,6 +255,8 @@ where
     tau_lin: OVector<f64, N>,
     /// q̈ at the start of the interval ([`Discretisation::Midpoint`]).
     qdd_start: OVector<f64, N>,
+    /// λ before a pull towards the anchor.
+    lam_prior: OVector<f64, P>,
     innovation: OVector<f64, N>,
     k: OMatrix<f64, S, N>,
     damped_k: OMatrix<f64, S, N>,
@@ -254,6 +266,8 @@ where
     /// A = ∂q̈/∂x = [∂q̈/∂q, ∂q̈/∂q̇, ∂q̈/∂λ] (N×S), contiguous.
     a: OMatrix<f64, N, S>,
     sz: OMatrix<f64, N, N>,
+    /// I − h·∂q̈/∂q̇, factorised in place, of a stiff step.
+    implicit: OMatrix<f64, N, N>,
     chol: OMatrix<f64, N, N>,
     linv: OMatrix<f64, N, N>,
     sinv: OMatrix<f64, N, N>,
@@ -278,6 +292,7 @@ where
             lam: OVector::zeros_generic(p, U1),
             tau_lin: OVector::zeros_generic(n, U1),
             qdd_start: OVector::zeros_generic(n, U1),
+            lam_prior: OVector::zeros_generic(p, U1),
             innovation: OVector::zeros_generic(n, U1),
             k: OMatrix::zeros_generic(s, n),
             damped_k: OMatrix::zeros_generic(s, n),
@@ -286,6 +301,7 @@ where
             g: OMatrix::zeros_generic(s, n),
             a: OMatrix::zeros_generic(n, s),
             sz: OMatrix::zeros_generic(n, n),
+            implicit: OMatrix::zeros_generic(n, n),
             chol: OMatrix::zeros_generic(n, n),
             linv: OMatrix::zeros_generic(n, n),
             sinv: OMatrix::zeros_generic(n, n),
@@ -430,6 +446,11 @@ where
             samples: 0,
             skipped: 0,
             damped: 0,
+            stiff: false,
+            stiff_steps: 0,
+            stiff_handling: false,
+            anchor: None,
+            anchored: 0,
             avx2: cpu_has_avx2_fma(),
             buf: Buffers::new(nd, pd, sd),
         })
@@ -532,6 +553,11 @@ where
         Ok(())
     }
 
+    /// The settings (with the period of [`EkfOf::set_dt`]).
+    pub fn config(&self) -> &EkfConfig {
+        &self.config
+    }
+
     /// The state x = [q, q̇, λ] predicted for the next sample.
     pub fn state(&self) -> &OVector<f64, S> {
         &self.x
@@ -563,6 +589,164 @@ where
     /// M(q, λ̂) positive definite.
     pub fn damped_updates(&self) -> usize {
         self.damped
+    }
+
+    /// Takes the time update linearly implicit whenever the dynamics are stiff at the
+    /// sample period (see [`EkfOf::stiff_steps`]); off by default, which keeps the
+    /// configured explicit discretisation at every step (the paper's filter).
+    /// `identify(.., "ekf")` and the online identifier turn it on.
+    pub fn set_stiff_handling(&mut self, on: bool) {
+        self.stiff_handling = on;
+    }
+
+    /// Number of predictions taken linearly implicit ([`EkfOf::set_stiff_handling`])
+    /// because the dynamics were stiff at the
+    /// sample period: h·‖∂q̈/∂q̇‖∞ + h²·‖∂q̈/∂q‖∞ above 0.5. Viscous and
+    /// smoothed Coulomb friction over a small inertia (a light wrist, a hobby arm) decay
+    /// faster than one period, and an estimate near the edge of the physical region has
+    /// modes faster than the sampling; the explicit step then amplifies them each sample
+    /// and the filter diverged within a few dozen samples (an SO-100 at 100 Hz). The
+    /// stiff step is the linearly implicit Euler step of [q, q̇] (stable for every
+    /// damping and stiffness), with P propagated by its exact Jacobian; first order, so
+    /// its bias is O(h) where the explicit one is unbounded.
+    pub fn stiff_steps(&self) -> usize {
+        self.stiff_steps
+    }
+
+    /// Sets an anchor λ_a, parameters whose M(q, λ_a) is positive definite at every
+    /// configuration (a physically consistent estimate, every link a rigid body). When
+    /// even the smallest damped gain leaves M(q, λ̂) indefinite at a sample (the prior λ̂
+    /// itself has drifted out of the region at a new configuration), λ̂ is moved along the
+    /// segment towards λ_a, by halving its distance until M is positive definite, instead
+    /// of failing: M is linear in λ, so the region at one q is convex and the segment
+    /// reaches it. Counted by [`EkfOf::anchored_updates`]. Without an anchor (default)
+    /// such a sample is [`PrrrpError::Diverged`].
+    ///
+    /// # Errors
+    /// [`PrrrpError::ShapeMismatch`] for a λ_a without one entry per parameter,
+    /// [`PrrrpError::InvalidParameter`] for a non-finite entry.
+    pub fn set_parameter_anchor(&mut self, anchor: &OVector<f64, P>) -> Result<()> {
+        let (_, pd) = self.model.dims();
+        check_lambda0(anchor, self.n(), pd.value())?;
+        self.anchor = Some(anchor.clone());
+        Ok(())
+    }
+
+    /// Sets the period h of the next prediction, s (a log's time stamps need not be
+    /// uniform). Allocation-free.
+    ///
+    /// # Errors
+    /// [`PrrrpError::InvalidParameter`] for a non-positive or non-finite h.
+    pub fn set_dt(&mut self, dt: f64) -> Result<()> {
+        if !(dt.is_finite() && dt > 0.0) {
+            return Err(PrrrpError::InvalidParameter {
+                field: "dt".into(),
+                value: dt,
+                reason: "must be finite and > 0",
+            });
+        }
+        self.config.dt = dt;
+        Ok(())
+    }
+
+    /// Scales the parameter block of P by the congruence P ← D·P·D, D = diag(1 (q, q̇),
+    /// `d` (λ)), d ≥ 0: the parameter covariance P_λλ by d_i·d_j, their covariance with
+    /// q and q̇ by d_i; P stays positive semidefinite. Opens the parameters after a
+    /// detected change of the dynamics. Allocation-free.
+    ///
+    /// # Errors
+    /// [`PrrrpError::ShapeMismatch`] for a `d` without one entry per parameter,
+    /// [`PrrrpError::InvalidParameter`] for a negative or non-finite entry.
+    pub fn scale_parameter_covariance(&mut self, d: &OVector<f64, P>) -> Result<()> {
+        let (o, s) = (2 * self.n(), self.x.nrows());
+        if d.nrows() != s - o {
+            return Err(size_error(
+                "parameter scale",
+                format!("{} entries", s - o),
+                format!("{} entries", d.nrows()),
+            ));
+        }
+        if let Some(&v) = d.iter().find(|v| !(v.is_finite() && **v >= 0.0)) {
+            return Err(PrrrpError::InvalidParameter {
+                field: "parameter scale".into(),
+                value: v,
+                reason: "must be finite and >= 0",
+            });
+        }
+        let f = |i: usize| if i < o { 1.0 } else { d[i - o] };
+        for j in 0..s {
+            let fj = f(j);
+            for i in 0..s {
+                self.p[(i, j)] *= f(i) * fj;
+            }
+        }
+        Ok(())
+    }
+
+    /// Replaces the parameter part λ̂ of the state (e.g. by its projection onto a
+    /// constraint set such as the rigid bodies); P is kept. Allocation-free.
+    ///
+    /// # Errors
+    /// [`PrrrpError::ShapeMismatch`] / [`PrrrpError::InvalidParameter`] as for λ₀.
+    pub fn set_parameter_estimate(&mut self, lambda: &OVector<f64, P>) -> Result<()> {
+        let (_, pd) = self.model.dims();
+        check_lambda0(lambda, self.n(), pd.value())?;
+        let n = self.n();
+        self.x.as_mut_slice()[2 * n..].copy_from_slice(lambda.as_slice());
+        self.lambda.copy_from(lambda);
+        Ok(())
+    }
+
+    /// Number of samples at which λ̂ was pulled towards the anchor
+    /// ([`EkfOf::set_parameter_anchor`]).
+    pub fn anchored_updates(&self) -> usize {
+        self.anchored
+    }
+
+    /// Moves λ of the state (the candidate buffer if `candidate`) towards the anchor until
+    /// the derivatives exist: λ = λ_a + 2⁻ᵏ·(λ − λ_a), k = 1, 2, …, 30, then λ_a itself.
+    fn pull_to_anchor(&mut self, candidate: bool, sample: SampleOf<'_, N>) -> Result<()> {
+        let n = self.n();
+        let Some(anchor) = self.anchor.take() else {
+            return Err(PrrrpError::NotPositiveDefinite {
+                what: "mass matrix M(q, λ̂) (no anchor set)",
+            });
+        };
+        {
+            let x = if candidate {
+                &self.buf.candidate
+            } else {
+                &self.x
+            };
+            self.buf
+                .lam_prior
+                .as_mut_slice()
+                .copy_from_slice(&x.as_slice()[2 * n..]);
+        }
+        let mut result = Err(PrrrpError::NotPositiveDefinite {
+            what: "mass matrix M(q, λ_a) of the EKF's anchor",
+        });
+        for k in 1..=31 {
+            let s = if k == 31 { 0.0 } else { 0.5f64.powi(k) };
+            {
+                let x = if candidate {
+                    &mut self.buf.candidate
+                } else {
+                    &mut self.x
+                };
+                let lp = &self.buf.lam_prior;
+                for (i, xi) in x.as_mut_slice()[2 * n..].iter_mut().enumerate() {
+                    *xi = anchor[i] + s * (lp[i] - anchor[i]);
+                }
+            }
+            result = self.derivatives(candidate, sample);
+            if result.is_ok() {
+                break;
+            }
+        }
+        self.anchor = Some(anchor);
+        self.anchored += usize::from(result.is_ok());
+        result
     }
 
     /// The body of [`Estimator::step`], inlined into a portable and an AVX2 copy.
@@ -613,7 +797,12 @@ where
                         self.x.copy_from(&self.buf.x_prior);
                         self.p.copy_from(&self.buf.p_prior);
                         if attempt == MAX_GAIN_HALVINGS || !(q_ok || qd_ok) {
-                            return Err(e);
+                            if self.anchor.is_none() {
+                                return Err(e);
+                            }
+                            // The prior itself is outside at this configuration.
+                            self.pull_to_anchor(false, sample).map_err(|_| e)?;
+                            break;
                         }
                     }
                 }
@@ -632,6 +821,7 @@ where
             } else {
                 self.buf.step.fill(0.0);
             }
+            let mut update = q_ok;
             loop {
                 let b = &mut self.buf;
                 b.candidate.copy_from(&self.x);
@@ -641,14 +831,24 @@ where
                         self.x.copy_from(&self.buf.candidate);
                         break;
                     }
-                    Err(e) if attempt == MAX_GAIN_HALVINGS || !q_ok => return Err(e),
+                    Err(e) if attempt == MAX_GAIN_HALVINGS || !q_ok => {
+                        if self.anchor.is_none() {
+                            return Err(e);
+                        }
+                        // The prior itself is outside at this configuration: no update.
+                        self.buf.candidate.copy_from(&self.x);
+                        self.pull_to_anchor(true, sample).map_err(|_| e)?;
+                        self.x.copy_from(&self.buf.candidate);
+                        update = false;
+                        break;
+                    }
                     Err(_) => {
                         alpha *= 0.5;
                         attempt += 1;
                     }
                 }
             }
-            if q_ok {
+            if update {
                 self.update_covariance::<FMA>(alpha);
             }
         }
@@ -794,7 +994,7 @@ where
         b.lam.as_mut_slice().copy_from_slice(&xs[2 * n..]);
         let ws = &mut self.ws;
         let mut result = Ok(());
-        if self.config.discretisation == Discretisation::Midpoint {
+        if self.config.discretisation == Discretisation::Midpoint && !self.stiff {
             // q̈ at the start of the interval, then the state half a period on, where the
             // derivatives (and the q̈ that moves the state) are taken.
             let h = self.config.dt;
@@ -835,7 +1035,8 @@ where
                 at: self.samples,
                 hint: "M(q, λ̂) is not positive definite: the parameter estimate left the \
                            physical region; start from a better λ0, lower the initial \
-                           parameter uncertainty or raise the measurement noise",
+                           parameter uncertainty (`prrrp identify --ekf-prior-width`) or \
+                           raise the measurement noise (`--ekf-noise`)",
             },
             other => other,
         })
@@ -852,13 +1053,49 @@ where
         // A = ∂q̈/∂x = [∂q̈/∂q, ∂q̈/∂q̇, ∂q̈/∂λ] (N×S) assembled contiguously (uniform
         // column indexing in the loops below); then G = P·Aᵀ (S×N), skipping zero
         // entries of A.
-        {
-            let a = b.a.as_mut_slice();
+        assemble_a(fd, b.a.as_mut_slice(), n);
+        let midpoint = self.config.discretisation == Discretisation::Midpoint && !self.stiff;
+        // Stiff dynamics (see `stiff_steps`): the linearly implicit Euler step of
+        // [q, q̇], whose velocity increment solves L·Δq̇ = h·(q̈ + h·A_q·q̇) with
+        // L = I − h·A_v − h²·A_q, then q⁺ = q + h·q̇⁺. In the update below that is A
+        // replaced by Ã = L⁻¹·[A_q, A_v + h·A_q, A_λ], q̈ by L⁻¹·(q̈ + h·A_q·q̇) and the
+        // position coefficient c by h: its exact Jacobian, F_vv = I + h·Ã_v etc.
+        let stiffness =
+            h * inf_norm(fd.dqdd_dqd.as_slice(), n) + h * h * inf_norm(fd.dqdd_dq.as_slice(), n);
+        let mut stiff = self.stiff_handling && stiffness > STIFF_LIMIT;
+        if stiff {
+            let l = b.implicit.as_mut_slice();
+            for j in 0..n {
+                for i in 0..n {
+                    let d = if i == j { 1.0 } else { 0.0 };
+                    l[j * n + i] = d - h * fd.dqdd_dqd[(i, j)] - h * h * fd.dqdd_dq[(i, j)];
+                }
+            }
             let nn = n * n;
-            a[..nn].copy_from_slice(fd.dqdd_dq.as_slice());
-            a[nn..2 * nn].copy_from_slice(fd.dqdd_dqd.as_slice());
-            a[2 * nn..].copy_from_slice(fd.dqdd_dlambda.as_slice());
+            {
+                let a = b.a.as_mut_slice();
+                for k in 0..nn {
+                    a[nn + k] += h * a[k];
+                }
+            }
+            for i in 0..n {
+                let mut v = fd.qdd[i];
+                for j in 0..n {
+                    v += h * fd.dqdd_dq[(i, j)] * self.x[n + j];
+                }
+                b.innovation[i] = v;
+            }
+            // L = M⁻¹·(M + h·D + h²·K) for damping D and stiffness K that only dissipate
+            // and restore; a numerically singular L keeps the explicit step.
+            if solve_in_place(l, n, b.a.as_mut_slice(), b.innovation.as_mut_slice()) {
+                b.fd.qdd.copy_from(&b.innovation);
+                self.stiff_steps += 1;
+            } else {
+                assemble_a(&b.fd, b.a.as_mut_slice(), n);
+                stiff = false;
+            }
         }
+        let fd = &b.fd;
         let a = b.a.as_slice();
         if s > ACC_ROWS {
             p_times_at_blocked::<FMA>(self.p.as_slice(), a, b.g.as_mut_slice(), n, s);
@@ -875,6 +1112,7 @@ where
         // upper triangle, in an order that reads every block before it is overwritten:
         // qq, qλ, qv, vv, vλ. G_q, G_v, G_λ are the row blocks of G.
         let c = match self.config.discretisation {
+            _ if stiff => h,
             Discretisation::Euler => 0.0,
             Discretisation::SecondOrder | Discretisation::Midpoint => 0.5 * h,
         };
@@ -922,8 +1160,9 @@ where
         }
         mirror_upper(p, s);
 
+        self.stiff = stiff;
         let qdd = &fd.qdd;
-        if self.config.discretisation == Discretisation::Midpoint {
+        if midpoint && !stiff {
             // q̇ by the midpoint rule; q by h²/6·(q̈_0 + 2·q̈_½), exact for a q̈ linear in t.
             let a0 = &b.qdd_start;
             for i in 0..n {
@@ -987,7 +1226,97 @@ where
         self.samples = 0;
         self.skipped = 0;
         self.damped = 0;
+        self.stiff = false;
+        self.stiff_steps = 0;
+        self.anchored = 0;
     }
+}
+
+/// Above this h·‖∂q̈/∂q̇‖∞ + h²·‖∂q̈/∂q‖∞ the time update is linearly implicit (see
+/// [`EkfOf::stiff_steps`]). The explicit step's factor on a mode decaying at rate r is
+/// |1 − h·r|, which leaves (0, 1] at h·r = 1 and passes 1 at h·r = 2, and on an
+/// oscillation of frequency ω it grows once h·ω nears 2; below 0.5 the steps differ by
+/// less than their discretisation error, so well-damped arms at usual rates keep the
+/// explicit (second-order or midpoint) step exactly.
+pub const STIFF_LIMIT: f64 = 0.5;
+
+/// ‖A‖∞ (largest absolute row sum) of a column-major n×n matrix, ≥ its spectral radius.
+#[inline]
+fn inf_norm(a: &[f64], n: usize) -> f64 {
+    (0..n)
+        .map(|i| (0..n).map(|j| a[j * n + i].abs()).sum::<f64>())
+        .fold(0.0, f64::max)
+}
+
+/// A = [∂q̈/∂q, ∂q̈/∂q̇, ∂q̈/∂λ] (N×S, column-major) from the derivatives.
+#[inline(always)]
+fn assemble_a<N: Dim, P: Dim>(fd: &ForwardDerivativesOf<N, P>, a: &mut [f64], n: usize)
+where
+    DefaultAllocator: Allocator<N> + Allocator<N, N> + Allocator<N, P>,
+{
+    let nn = n * n;
+    a[..nn].copy_from_slice(fd.dqdd_dq.as_slice());
+    a[nn..2 * nn].copy_from_slice(fd.dqdd_dqd.as_slice());
+    a[2 * nn..].copy_from_slice(fd.dqdd_dlambda.as_slice());
+}
+
+/// Solves L·X = [A | b] in place (L column-major n×n, overwritten; A column-major n×m,
+/// b n-long) by Gaussian elimination with partial pivoting, rows swapped in every
+/// right-hand side as it goes (no pivot storage). Returns false if L is numerically
+/// singular (A and b are then partly eliminated: the caller restores them).
+fn solve_in_place(l: &mut [f64], n: usize, a: &mut [f64], b: &mut [f64]) -> bool {
+    let m = a.len() / n.max(1);
+    let scale = l.iter().fold(0.0f64, |s, v| s.max(v.abs()));
+    for k in 0..n {
+        let mut p = k;
+        for i in k + 1..n {
+            if l[k * n + i].abs() > l[k * n + p].abs() {
+                p = i;
+            }
+        }
+        let pivot = l[k * n + p].abs();
+        if pivot.is_nan() || pivot <= 1e-12 * scale {
+            return false;
+        }
+        if p != k {
+            for j in 0..n {
+                l.swap(j * n + k, j * n + p);
+            }
+            for j in 0..m {
+                a.swap(j * n + k, j * n + p);
+            }
+            b.swap(k, p);
+        }
+        let piv = l[k * n + k];
+        for i in k + 1..n {
+            let f = l[k * n + i] / piv;
+            if f == 0.0 {
+                continue;
+            }
+            l[k * n + i] = 0.0;
+            for j in k + 1..n {
+                l[j * n + i] -= f * l[j * n + k];
+            }
+            for j in 0..m {
+                a[j * n + i] -= f * a[j * n + k];
+            }
+            b[i] -= f * b[k];
+        }
+    }
+    let back = |x: &mut [f64]| {
+        for i in (0..n).rev() {
+            let mut v = x[i];
+            for j in i + 1..n {
+                v -= l[j * n + i] * x[j];
+            }
+            x[i] = v / l[i * n + i];
+        }
+    };
+    for j in 0..m {
+        back(&mut a[j * n..(j + 1) * n]);
+    }
+    back(b);
+    true
 }
 
 fn check_variances(what: &str, v: &[f64], zero_ok: bool) -> Result<()> {

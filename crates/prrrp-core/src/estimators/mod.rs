@@ -43,5 +43,6 @@ pub use physical::{
     base_feasibility, identify_physical, BaseFeasibility, PhysicalConfig, PhysicalEstimate,
     PhysicalProblem, BASE_FEASIBILITY_TOLERANCE, BASE_MISMATCH_FLOOR, DEFAULT_DIVERGENCE_WEIGHT,
 };
-pub use rls::{DynRls, Rls, RlsConfig, RlsOf};
+pub use rls::{DynRls, Forgetting, Rls, RlsConfig, RlsOf};
+pub(crate) use samples::len_mismatch;
 pub use samples::{DynSample, DynSamples, Sample, SampleOf, Samples, SamplesOf};

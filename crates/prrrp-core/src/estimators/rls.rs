@@ -37,6 +37,36 @@ impl Default for RlsConfig {
     }
 }
 
+/// How [`RlsOf::update_weighted`] discounts old data over one sample.
+///
+/// With ν = exp(−Δt/T) per sample of period Δt, information older than T seconds weighs
+/// less than 1/e. Exponential forgetting divides the whole covariance by ν: directions the
+/// trajectory does not excite lose information too, so their covariance grows without
+/// bound (P/νᵏ) until a sample excites them with a huge gain ("covariance windup").
+/// Directional forgetting discounts only the information along each row's regressor φ,
+/// R ← R − (1 − ν)·φφᵀ/(φᵀPφ) + φφᵀ in information form (Kulhavý 1987; Bittanti,
+/// Bolzern & Campi 1990): the variance of φᵀλ̂ settles at (1 − ν) of the noise variance
+/// along what is excited, and unexcited directions keep what they knew.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Forgetting {
+    /// Every sample keeps its full weight (batch least squares).
+    None,
+    /// P ← P/ν after the sample, ν ∈ (0, 1].
+    Exponential(f64),
+    /// Each row forgets the fraction 1 − ν of the information along its own regressor,
+    /// ν ∈ (0, 1].
+    Directional(f64),
+}
+
+impl Forgetting {
+    fn factor(&self) -> f64 {
+        match *self {
+            Self::None => 1.0,
+            Self::Exponential(nu) | Self::Directional(nu) => nu,
+        }
+    }
+}
+
 /// Recursive least squares over the rows of τ = Φ·λ.
 ///
 /// Each of the N joint equations of a sample is one scalar update (exactly equivalent to
@@ -57,8 +87,12 @@ where
     lambda0: OVector<f64, P>,
     lambda: OVector<f64, P>,
     cov: OMatrix<f64, P, P>,
+    /// P₀ (δ·I unless set by [`RlsOf::set_initial_covariance`]).
+    cov0: OMatrix<f64, P, P>,
     phi: OMatrix<f64, N, P>,
     p_phi: OVector<f64, P>,
+    /// A-priori prediction Φ·λ̂ of the last [`RlsOf::update_weighted`] sample.
+    pred: OVector<f64, N>,
     samples: usize,
 }
 
@@ -68,7 +102,8 @@ where
     DefaultAllocator:
         Allocator<N> + Allocator<P> + Allocator<N, N> + Allocator<N, P> + Allocator<P, P>,
 {
-    /// A filter starting from λ₀ with covariance `config.initial_covariance`·I.
+    /// A filter starting from λ₀ with covariance `config.initial_covariance`·I (see also
+    /// [`RlsOf::set_initial_covariance`]).
     ///
     /// # Errors
     /// [`PrrrpError::InvalidParameter`] for a forgetting factor outside (0, 1], a
@@ -93,15 +128,18 @@ where
         }
         let (n, p) = model.dims();
         check_lambda0(&lambda0, n.value(), p.value())?;
+        let cov = OMatrix::identity_generic(p, p) * d;
         Ok(Self {
             ws: model.workspace(),
             model,
             config,
             lambda: lambda0.clone(),
             lambda0,
-            cov: OMatrix::identity_generic(p, p) * d,
+            cov0: cov.clone(),
+            cov,
             phi: OMatrix::zeros_generic(n, p),
             p_phi: OVector::zeros_generic(p, nalgebra::U1),
+            pred: OVector::zeros_generic(n, nalgebra::U1),
             samples: 0,
         })
     }
@@ -115,6 +153,191 @@ where
     /// Number of samples consumed since construction or the last reset.
     pub fn samples(&self) -> usize {
         self.samples
+    }
+
+    /// Replaces P₀ (and P, when no sample has been consumed since construction or reset),
+    /// e.g. with the covariance of a prior estimate. Units: λ² per unit of the weighted
+    /// equation error squared.
+    ///
+    /// # Errors
+    /// [`PrrrpError::ShapeMismatch`] if P₀ is not P×P, [`PrrrpError::NonFinite`] for
+    /// NaN/∞, [`PrrrpError::InvalidParameter`] if it is not symmetric,
+    /// [`PrrrpError::NotPositiveDefinite`] if it is not positive definite.
+    pub fn set_initial_covariance(&mut self, p0: &OMatrix<f64, P, P>) -> Result<()> {
+        let p = self.lambda.nrows();
+        if p0.nrows() != p || p0.ncols() != p {
+            return Err(PrrrpError::ShapeMismatch {
+                what: "initial covariance".into(),
+                expected: format!("{p}×{p}"),
+                got: format!("{}×{}", p0.nrows(), p0.ncols()),
+            });
+        }
+        if !p0.iter().all(|v| v.is_finite()) {
+            return Err(PrrrpError::NonFinite {
+                what: "initial covariance".into(),
+                row: None,
+            });
+        }
+        let asym = (p0 - p0.transpose()).amax();
+        if asym > 1e-12 * p0.amax() {
+            return Err(PrrrpError::InvalidParameter {
+                field: "initial covariance".into(),
+                value: asym,
+                reason: "must be symmetric",
+            });
+        }
+        if p0.clone().cholesky().is_none() {
+            return Err(PrrrpError::NotPositiveDefinite {
+                what: "initial covariance P0",
+            });
+        }
+        self.cov0.copy_from(p0);
+        if self.samples == 0 {
+            self.cov.copy_from(p0);
+        }
+        Ok(())
+    }
+
+    /// The a-priori prediction Φ·λ̂ of the last sample given to
+    /// [`RlsOf::update_weighted`], with the estimate before that sample (units of τ).
+    pub fn prediction(&self) -> &OVector<f64, N> {
+        &self.pred
+    }
+
+    /// Replaces the estimate λ̂ (e.g. by its projection onto a constraint set); P is kept.
+    ///
+    /// # Errors
+    /// [`PrrrpError::ShapeMismatch`] / [`PrrrpError::InvalidParameter`] as for λ₀.
+    pub fn set_estimate(&mut self, lambda: &OVector<f64, P>) -> Result<()> {
+        let (n, p) = self.model.dims();
+        check_lambda0(lambda, n.value(), p.value())?;
+        self.lambda.copy_from(lambda);
+        Ok(())
+    }
+
+    /// P ← D·P·D with D = diag(`d`), d ≥ 0 (a congruence: P stays positive
+    /// semidefinite). Opens the covariance after a detected change of the dynamics (d > 1
+    /// on the parameters that may have changed), allocation-free.
+    pub fn scale_covariance(&mut self, d: &OVector<f64, P>) {
+        let p = self.lambda.nrows();
+        for j in 0..p {
+            for i in 0..p {
+                self.cov[(i, j)] *= d[i] * d[j];
+            }
+        }
+    }
+
+    /// One sample with joint weights and forgetting: each joint's equation is weighted by
+    /// `weights[j]` (1/σ_j² for a joint force noise σ_j: the weighted errors have unit
+    /// variance, so P is the covariance of λ̂), then old data are discounted by
+    /// `forgetting`. Also records the a-priori prediction ([`RlsOf::prediction`]). A joint
+    /// of weight 0 is skipped. Allocation-free.
+    ///
+    /// # Errors
+    /// As [`Estimator::step`], and [`PrrrpError::InvalidParameter`] for a negative or
+    /// non-finite weight or a forgetting factor outside (0, 1].
+    pub fn update_weighted(
+        &mut self,
+        sample: SampleOf<'_, N>,
+        weights: &OVector<f64, N>,
+        forgetting: Forgetting,
+    ) -> Result<&OVector<f64, P>> {
+        let n = self.phi.nrows();
+        sample.check(n)?;
+        let nu = forgetting.factor();
+        if !(nu > 0.0 && nu <= 1.0) {
+            return Err(PrrrpError::InvalidParameter {
+                field: "forgetting".into(),
+                value: nu,
+                reason: "must be in (0, 1]",
+            });
+        }
+        if weights.nrows() != n {
+            return Err(super::samples::len_mismatch("weights", n, weights.nrows()));
+        }
+        if let Some(&w) = weights.iter().find(|w| !(w.is_finite() && **w >= 0.0)) {
+            return Err(PrrrpError::InvalidParameter {
+                field: "weights".into(),
+                value: w,
+                reason: "joint weights must be finite and >= 0",
+            });
+        }
+        self.model
+            .regressor_into(&mut self.ws, sample.q, sample.qd, sample.qdd, &mut self.phi)?;
+        self.pred.gemv(1.0, &self.phi, &self.lambda, 0.0);
+        let directional = match forgetting {
+            Forgetting::Directional(nu) if nu < 1.0 => Some(nu),
+            _ => None,
+        };
+        for i in 0..n {
+            let w = weights[i];
+            if w == 0.0 {
+                continue;
+            }
+            let s = w.sqrt();
+            if s != 1.0 {
+                self.phi.row_mut(i).scale_mut(s);
+            }
+            let ok = match directional {
+                Some(nu) => self.update_row_directional(i, sample.tau[i] * s, nu),
+                None => self.update_row(i, sample.tau[i] * s),
+            };
+            if !ok {
+                return Err(diverged(self.samples));
+            }
+        }
+        if let Forgetting::Exponential(nu) = forgetting {
+            if nu != 1.0 {
+                self.cov /= nu;
+            }
+        }
+        if !(self.lambda.iter().all(|x| x.is_finite()) && self.cov[(0, 0)].is_finite()) {
+            return Err(diverged(self.samples));
+        }
+        self.samples += 1;
+        Ok(&self.lambda)
+    }
+
+    /// The scalar update with row `row` and directional forgetting ν (see
+    /// [`Forgetting`]): with p = P·φ and r = φᵀ·p, λ ← λ + p·e/(r + ν) and
+    /// P ← P − β·p·pᵀ/(r + ν), β = 1 − (1 − ν)/r. A row with r = 0 (no regressor, or a
+    /// direction already known exactly) is the plain update.
+    #[inline(always)]
+    fn update_row_directional(&mut self, row: usize, tau: f64, nu: f64) -> bool {
+        let np = self.lambda.nrows();
+        let (phi, cov, p_phi) = (&self.phi, &mut self.cov, &mut self.p_phi);
+        p_phi.fill(0.0);
+        for j in 0..np {
+            let f = phi[(row, j)];
+            if f != 0.0 {
+                p_phi.axpy(f, &cov.column(j), 1.0);
+            }
+        }
+        let (mut r, mut pred) = (0.0, 0.0);
+        for j in 0..np {
+            r += phi[(row, j)] * p_phi[j];
+            pred += phi[(row, j)] * self.lambda[j];
+        }
+        if !r.is_finite() || r < 0.0 {
+            return false;
+        }
+        let (den, beta) = if r > 0.0 {
+            (r + nu, 1.0 - (1.0 - nu) / r)
+        } else {
+            (1.0 + r, 1.0)
+        };
+        let e = tau - pred;
+        self.lambda.axpy(e / den, p_phi, 1.0);
+        let c = beta / den;
+        for j in 0..np {
+            let pj = p_phi[j] * c;
+            for i in 0..=j {
+                let v = cov[(i, j)] - p_phi[i] * pj;
+                cov[(i, j)] = v;
+                cov[(j, i)] = v;
+            }
+        }
+        true
     }
 
     /// The scalar update with row `row` of the stored regressor.
@@ -193,8 +416,7 @@ where
 
     fn reset(&mut self) {
         self.lambda.copy_from(&self.lambda0);
-        self.cov.fill_with_identity();
-        self.cov *= self.config.initial_covariance;
+        self.cov.copy_from(&self.cov0);
         self.samples = 0;
     }
 }

@@ -327,9 +327,17 @@ impl Default for GradientSettings {
 /// Where the EKF starts.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub enum EkfStart {
-    /// The least-squares estimate on the same data (default).
+    /// The joint-weighted least-squares estimate on the same data (default), or the
+    /// physically consistent one ([`EkfStart::Physical`]) when M(q, β̂_LS) is not positive
+    /// definite at some sample of the data: the filter must start inside the region where
+    /// its forward dynamics exist (ordinary least squares, the default before, left the
+    /// wrist inertias of a UR10 and an SO-100 stand-in log negative, so that the filter
+    /// stopped at sample 0).
     #[default]
     LeastSquares,
+    /// The physically consistent estimate ([`crate::identify_physical`], every link a
+    /// rigid body) on the same data, with the prior covariance of least squares.
+    Physical,
     /// The chain's own parameters (its CAD / URDF inertials and friction).
     Prior,
     /// Given β₀ (one entry per base parameter).
@@ -374,12 +382,18 @@ pub struct EkfSettings {
     /// let poorly excited small parameters wander out of the physical region in the first
     /// second of gentle data. The data then count 1/w² twice (the prior's information is
     /// 1/w² of theirs), so the reported covariance is multiplied by 1 + 1/w². `0` or a
-    /// start other than least squares keeps the diagonal prior.
+    /// start other than least squares or the physical estimate keeps the diagonal prior.
+    /// Smaller widths let the filter move less from its start (the command line's
+    /// `--ekf-prior-width`).
     pub least_squares_prior_width: f64,
     /// Multiply the reported parameter covariance by the correlation time κ ≥ 1 (samples)
     /// of the least-squares torque residuals (default `true`): the filter assumes white
     /// noise, and low-pass filtered data are not.
     pub correlation_correction: bool,
+    /// Take the filter's time update linearly implicit where the dynamics are stiff at
+    /// the sample period (default `true`; [`crate::DynEkf::set_stiff_handling`]): friction
+    /// over a light wrist made the explicit step diverge within a few dozen samples.
+    pub stiff_handling: bool,
 }
 
 impl Default for EkfSettings {
@@ -392,6 +406,7 @@ impl Default for EkfSettings {
             process_noise_at_estimate: true,
             least_squares_prior_width: 3.0,
             correlation_correction: true,
+            stiff_handling: true,
             config: EkfConfig {
                 measurement: EkfMeasurement::PositionsVelocities,
                 discretisation: Discretisation::Midpoint,
@@ -480,9 +495,10 @@ pub fn identify(
     let config = LeastSquaresConfig {
         rank_tolerance: method.rank_tolerance(),
     };
-    // The physical fit takes its joint weights from the same weighted solve as wls.
+    // The physical fit takes its joint weights from the same weighted solve as wls; the
+    // EKF starts from the weighted fit (see `EkfStart::LeastSquares`).
     let weighted = match method {
-        Method::Wls(_) => true,
+        Method::Wls(_) | Method::Ekf(_) => true,
         Method::Physical(s) => s.weighted,
         _ => false,
     };
@@ -552,6 +568,7 @@ pub fn identify(
             let run = |s: &EkfSettings| {
                 ekf(
                     &model,
+                    base,
                     data,
                     &samples,
                     s,
@@ -1305,8 +1322,50 @@ fn c_pos2(c: &EkfConfig) -> f64 {
     c.process_position_noise.powi(2)
 }
 
+/// The first sample at which M(q, β) is not positive definite, if any (the forward
+/// dynamics, which the EKF propagates with, do not exist there).
+fn first_indefinite(
+    model: &DynChainBaseModel,
+    samples: &DynSamples<'_>,
+    beta: &DVector<f64>,
+) -> Result<Option<usize>> {
+    let mut ws = model.workspace();
+    let mut qdd = DVector::zeros(model.dof());
+    for (k, smp) in samples.iter().enumerate() {
+        if k % 1024 == 0 {
+            crate::interrupt::check("identify")?;
+        }
+        match model.forward_dynamics_into(&mut ws, smp.q, smp.qd, smp.tau, beta, &mut qdd) {
+            Ok(()) => {}
+            Err(PrrrpError::NotPositiveDefinite { .. }) => return Ok(Some(k)),
+            Err(e) => return Err(e),
+        }
+    }
+    Ok(None)
+}
+
+/// The base values of the physically consistent estimate on `data` (every link a rigid
+/// body): where the EKF starts when least squares is not physical.
+fn physical_start(
+    model: &DynChainBaseModel,
+    base: &BaseParameters,
+    data: &DynDataset,
+) -> Result<DVector<f64>> {
+    let est = crate::identify_physical(
+        model.chain(),
+        data.q(),
+        data.qd(),
+        data.qdd(),
+        data.tau(),
+        &crate::PhysicalConfig::default(),
+    )?;
+    Ok(DVector::from_vec(base.base_values(&est.parameters)?))
+}
+
+#[allow(clippy::too_many_arguments)]
 fn ekf(
     model: &DynChainBaseModel,
+    base: &BaseParameters,
     data: &DynDataset,
     samples: &DynSamples<'_>,
     s: &EkfSettings,
@@ -1314,8 +1373,16 @@ fn ekf(
     joint_var: &[f64],
 ) -> Result<Fit> {
     let b = model.count();
+    let mut indefinite_at = None;
     let (beta0, start) = match &s.initial {
-        EkfStart::LeastSquares => (beta_ls.clone(), "ls"),
+        EkfStart::LeastSquares => {
+            indefinite_at = first_indefinite(model, samples, beta_ls)?;
+            match indefinite_at {
+                None => (beta_ls.clone(), "ls"),
+                Some(_) => (physical_start(model, base, data)?, "physical"),
+            }
+        }
+        EkfStart::Physical => (physical_start(model, base, data)?, "physical"),
         EkfStart::Prior => (model.chain_base_values().clone(), "prior"),
         EkfStart::Given(v) => {
             if v.len() != b {
@@ -1356,6 +1423,11 @@ fn ekf(
         (vec![cfg.position_noise; n], vec![cfg.velocity_noise; n])
     };
     let mut est = DynEkf::new(model.clone(), beta0.clone(), cfg)?;
+    // The start is inside the region where M(q, β) ≻ 0 along the data (checked above, or
+    // a set of rigid bodies): an estimate that drifts out at a new configuration is
+    // pulled back towards it instead of stopping the filter.
+    est.set_parameter_anchor(&beta0)?;
+    est.set_stiff_handling(s.stiff_handling);
     let w = s.least_squares_prior_width;
     if !(w.is_finite() && w >= 0.0) {
         return Err(PrrrpError::InvalidParameter {
@@ -1365,7 +1437,7 @@ fn ekf(
         });
     }
     let mut prior = "diagonal";
-    if w > 0.0 && matches!(s.initial, EkfStart::LeastSquares) {
+    if w > 0.0 && matches!(s.initial, EkfStart::LeastSquares | EkfStart::Physical) {
         if let Some(cov) = weighted_covariance(model, samples, joint_var)? {
             let mut p0 = est.covariance().clone();
             p0.view_mut((2 * n, 2 * n), (b, b))
@@ -1506,6 +1578,7 @@ fn ekf(
         covariance: Some(RawCovariance::Scaled(cov)),
         settings: json!({
             "initial": start,
+            "least_squares_indefinite_at": indefinite_at,
             "dt": c.dt,
             "measurement": match c.measurement {
                 EkfMeasurement::Positions => "positions",
@@ -1525,6 +1598,7 @@ fn ekf(
             "noise_from_data": s.noise_from_data,
             "process_noise_at_estimate": s.process_noise_at_estimate,
             "correlation_correction": s.correlation_correction,
+            "stiff_handling": s.stiff_handling,
             "least_squares_prior_width": w,
             "prior": prior,
             "correlation_time_samples": kappas,
@@ -1538,6 +1612,8 @@ fn ekf(
             "init_from_first_measurement": c.init_from_first_measurement,
             "skipped_updates": est.skipped_updates(),
             "damped_updates": est.damped_updates(),
+            "stiff_steps": est.stiff_steps(),
+            "anchored_updates": est.anchored_updates(),
             "rank_tolerance": s.rank_tolerance,
         }),
         converged: true,

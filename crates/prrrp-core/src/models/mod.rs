@@ -8,7 +8,8 @@
 //!
 //! The models themselves: [`chain`] (any serial chain, compile-time or run-time size),
 //! [`prrrp`] (the paper's arm in closed form), [`robot_files`] (chains read from URDF and
-//! TOML files) and [`scaled`] (column-scaled views the gradient estimators train on).
+//! TOML files), [`scaled`] (column-scaled views the gradient estimators train on) and
+//! [`payload`] (a load carried by a link).
 
 pub(crate) mod chain;
 pub(crate) mod payload;

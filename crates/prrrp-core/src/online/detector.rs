@@ -1,0 +1,178 @@
+//! Change detection on the one-step-ahead torque errors (an innovation test), and the
+//! running joint noise levels the online estimators weight their equations with.
+//!
+//! Per joint j the a-priori error e_j = τ_j − τ̂_j (τ̂ from the estimate before the
+//! sample) is compared with a slow running variance σ̂_j² (time constant `noise_window`,
+//! updated only by samples that pass the test, so that a jump does not inflate it). The
+//! normalised innovation s = (1/N)·Σ_j e_j²/σ̂_j² has mean ≈ 1 while the model holds; its
+//! fast running mean (time constant `window`) above `threshold` is a change of the
+//! dynamics: the caller then opens the estimator's covariance, and the test is held off
+//! for `holdoff` seconds while the estimate re-converges. The statistic is scale-free
+//! (each joint in its own noise units), so one threshold serves N·m and N alike.
+
+/// Settings of [`ChangeDetector`] (SI units).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ChangeDetection {
+    /// Time constant of the fast mean of the normalised innovation, s (default `0.05`).
+    pub window: f64,
+    /// Time constant of the running joint noise variances, s (default `2.0`).
+    pub noise_window: f64,
+    /// Alarm level of the fast mean (dimensionless, default `9.0`: a torque error three
+    /// times the running noise level on every joint, or larger on some).
+    pub threshold: f64,
+    /// No second alarm within this time after one, s (default `0.5`).
+    pub holdoff: f64,
+    /// No alarm before this time from the start, s (default `2.0`): the estimate is
+    /// still converging then.
+    pub warmup: f64,
+}
+
+impl Default for ChangeDetection {
+    fn default() -> Self {
+        Self {
+            window: 0.05,
+            noise_window: 2.0,
+            threshold: 9.0,
+            holdoff: 0.5,
+            warmup: 2.0,
+        }
+    }
+}
+
+/// The running test of [`ChangeDetection`] (module docs). Allocation-free after
+/// construction.
+#[derive(Debug, Clone)]
+pub struct ChangeDetector {
+    config: ChangeDetection,
+    /// Running noise variance per joint (units of τ_j²).
+    var: Vec<f64>,
+    fast: f64,
+    age: f64,
+    since_alarm: f64,
+    started: bool,
+    alarms: usize,
+    /// Last normalised innovation (the statistic before averaging).
+    last: f64,
+}
+
+impl ChangeDetector {
+    /// A detector for `n` joints; `initial_sd`: noise standard deviations to start from
+    /// (e.g. a prior model's residual RMS), or `None` to start from the first errors.
+    pub fn new(n: usize, config: ChangeDetection, initial_sd: Option<&[f64]>) -> Self {
+        let var = match initial_sd {
+            Some(s) => s.iter().map(|v| v * v).collect(),
+            None => vec![0.0; n],
+        };
+        Self {
+            config,
+            started: initial_sd.is_some(),
+            var,
+            fast: 1.0,
+            age: 0.0,
+            since_alarm: f64::INFINITY,
+            alarms: 0,
+            last: 1.0,
+        }
+    }
+
+    /// Running noise variance of each joint's equation (units of τ²).
+    pub fn variances(&self) -> &[f64] {
+        &self.var
+    }
+
+    /// Number of alarms so far.
+    pub fn alarms(&self) -> usize {
+        self.alarms
+    }
+
+    /// The fast mean of the normalised innovation (≈ 1 while the model holds).
+    pub fn statistic(&self) -> f64 {
+        self.fast
+    }
+
+    /// The last sample's normalised innovation.
+    pub fn last(&self) -> f64 {
+        self.last
+    }
+
+    /// Consumes the a-priori errors `e` of a sample taken `dt` s after the previous one;
+    /// returns whether a change is detected (an alarm). `floor`: smallest variance per
+    /// joint (units of τ²), so that exact data do not divide by zero.
+    pub fn update(&mut self, dt: f64, e: &[f64], floor: &[f64]) -> bool {
+        let c = &self.config;
+        if !self.started {
+            for (v, (x, f)) in self.var.iter_mut().zip(e.iter().zip(floor)) {
+                *v = (x * x).max(*f);
+            }
+            self.started = true;
+            return false;
+        }
+        self.age += dt;
+        self.since_alarm += dt;
+        let n = e.len().max(1) as f64;
+        let stat = e
+            .iter()
+            .zip(&self.var)
+            .zip(floor)
+            .map(|((x, v), f)| x * x / v.max(*f))
+            .sum::<f64>()
+            / n;
+        self.last = stat;
+        let af = 1.0 - (-dt / c.window).exp();
+        self.fast += af * (stat - self.fast);
+        // Ungated during the warm-up: a level started from one small error would
+        // otherwise refuse every later (normal) error as a jump and never grow.
+        if self.age < c.warmup || stat < c.threshold {
+            let a = 1.0 - (-dt / c.noise_window).exp();
+            for (v, (x, f)) in self.var.iter_mut().zip(e.iter().zip(floor)) {
+                *v = (*v + a * (x * x - *v)).max(*f);
+            }
+        }
+        let alarm =
+            self.age >= c.warmup && self.since_alarm >= c.holdoff && self.fast > c.threshold;
+        if alarm {
+            self.alarms += 1;
+            self.since_alarm = 0.0;
+            self.fast = 1.0;
+        }
+        alarm
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// White errors of constant size never alarm; a jump to ten times the size alarms
+    /// within a few windows, and the noise level has not absorbed the jump by then.
+    #[test]
+    fn alarms_on_a_jump_only() {
+        let mut d = ChangeDetector::new(3, ChangeDetection::default(), None);
+        let mut s: u64 = 7;
+        let mut noise = || {
+            s = s
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            ((s >> 11) as f64 / (1u64 << 53) as f64 - 0.5) * 12f64.sqrt()
+        };
+        let floor = [1e-12; 3];
+        let dt = 1e-3;
+        for _ in 0..20000 {
+            let e = [0.1 * noise(), 0.01 * noise(), 2.0 * noise()];
+            assert!(!d.update(dt, &e, &floor));
+        }
+        assert!((d.variances()[0] / 0.01 - 1.0).abs() < 0.3);
+        let mut first = None;
+        for k in 0..2000 {
+            let e = [1.0 * noise() + 0.5, 0.01 * noise(), 2.0 * noise()];
+            if d.update(dt, &e, &floor) && first.is_none() {
+                first = Some((k, d.variances()[0]));
+            }
+        }
+        let (k, var) = first.expect("no alarm");
+        assert!(k < 100, "{k}");
+        // Until the alarm the level has not absorbed the jump (a sustained one is
+        // absorbed over the 2 s memory afterwards: the estimator has re-converged by then).
+        assert!(var < 0.02, "{var}");
+    }
+}

@@ -1,0 +1,1411 @@
+//! [`OnlineIdentifier`]: identification while the arm runs, one raw sample at a time.
+
+use nalgebra::{DMatrix, DVector};
+use serde_json::json;
+
+use super::detector::{ChangeDetection, ChangeDetector};
+use super::kinematics::{CausalKinematics, CausalLowPass};
+use super::payload::{project, summary_json, PAYLOAD_PARAMS};
+use super::tracked::{TrackedModel, TrackedWorkspace};
+use crate::error::{PrrrpError, Result};
+use crate::estimators::{
+    AdalineConfig, AdalineRule, Discretisation, DynAdaline, DynEkf, DynHopfield, DynRls,
+    DynSamples, EkfConfig, EkfMeasurement, Estimator, Forgetting, HopfieldConfig,
+    ParameterJacobian, RlsConfig, SampleOf,
+};
+use crate::identification::IdentifiedModel;
+use crate::models::chain::{BaseParameters, DynChain};
+use crate::models::scaled::DynScaledModel;
+use crate::models::LinearModel;
+
+/// The online methods of [`OnlineIdentifier`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum OnlineMethod {
+    /// Recursive least squares, joint-weighted, with optional (directional) forgetting.
+    #[default]
+    Rls,
+    /// The extended Kalman filter on [q, q̇, θ] (the paper's), started inside the
+    /// physical region.
+    Ekf,
+    /// Adaline networks (normalised delta rule, one step per sample).
+    Adaline,
+    /// The Hopfield network (one Euler step per sample).
+    Hopfield,
+}
+
+/// The names [`OnlineMethod::parse`] accepts.
+pub const ONLINE_METHOD_NAMES: [&str; 4] = ["rls", "ekf", "adaline", "hopfield"];
+
+impl OnlineMethod {
+    /// The method by name (one of [`ONLINE_METHOD_NAMES`]).
+    ///
+    /// # Errors
+    /// [`PrrrpError::InvalidParameter`] for an unknown name.
+    pub fn parse(name: &str) -> Result<Self> {
+        Ok(match name {
+            "rls" => Self::Rls,
+            "ekf" => Self::Ekf,
+            "adaline" => Self::Adaline,
+            "hopfield" => Self::Hopfield,
+            _ => {
+                return Err(PrrrpError::InvalidParameter {
+                    field: format!("online method {name:?}"),
+                    value: f64::NAN,
+                    reason: "unknown: use \"rls\", \"ekf\", \"adaline\" or \"hopfield\"",
+                })
+            }
+        })
+    }
+
+    /// The method's name.
+    pub fn name(&self) -> &'static str {
+        match self {
+            Self::Rls => "rls",
+            Self::Ekf => "ekf",
+            Self::Adaline => "adaline",
+            Self::Hopfield => "hopfield",
+        }
+    }
+}
+
+/// Settings of [`OnlineIdentifier`] (SI units). Every field has a documented default.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct OnlineConfig {
+    /// The method (default [`OnlineMethod::Rls`]).
+    pub method: OnlineMethod,
+    /// Track only the 10 inertial parameters of a payload at the tip link, on the arm of
+    /// the prior model (default `false`; needs [`OnlineIdentifier::with_prior`]).
+    pub payload: bool,
+    /// Memory T of forgetting, s: data older than T weigh less than 1/e (factor
+    /// ν = exp(−Δt/T) per sample). `None` (default): no forgetting; the change detection
+    /// still follows jumps. RLS and EKF only.
+    pub forgetting: Option<f64>,
+    /// Directional forgetting for RLS (default `true`): discount only the information
+    /// along the excited directions, so that unexcited ones do not blow up
+    /// ([`Forgetting`]); `false`: exponential. The EKF forgets exponentially, through a
+    /// random walk of the parameters of variance (1/ν − 1)·P_θθ per sample.
+    pub directional: bool,
+    /// Bandwidth of the causal velocity and acceleration estimates, Hz (default `10.0`,
+    /// the batch preprocessing's cut-off; see the `kinematics` module).
+    pub cutoff_hz: f64,
+    /// Change detection on the one-step-ahead torque errors (default on); `None`: off.
+    pub change_detection: Option<ChangeDetection>,
+    /// Factor on the parameter variances when a change is detected (default `1e3`: the
+    /// data before the change keep a thousandth of their weight), capped at the initial
+    /// (prior) variances.
+    pub open_factor: f64,
+    /// RLS initial covariance δ of the equilibrated parameters (N²·m² per unit weighted
+    /// error², default `1e6`: a prior σ of 1000 N·m on the torque each parameter
+    /// explains) when no prior covariance is given.
+    pub initial_covariance: f64,
+    /// Width of the prior from a prior model's covariance (default `3.0`: P₀ = 3²·Σ_prior),
+    /// and of the EKF's start from the RLS warm-up.
+    pub prior_width: f64,
+    /// Payload mode: prior standard deviation of the payload mass, kg (default `10.0`).
+    pub payload_mass_std: f64,
+    /// Payload mode: size of the payload, m (default `0.2`): prior σ of the first
+    /// moments `payload_mass_std`·size, of the inertia `payload_mass_std`·size².
+    pub payload_size: f64,
+    /// EKF without a prior: seconds of RLS before the filter starts from its estimate
+    /// (default `2.0`; then also until M(q, θ̂) has been positive definite for 0.5 s).
+    pub ekf_warmup: f64,
+    /// EKF: factor on the measurement noise R of the positions (1e-3 rad or m) and
+    /// velocities (1e-2 rad/s or m/s) (default `1.0`).
+    pub ekf_noise: f64,
+    /// Adaline's normalised step, Hopfield's gain as a fraction of its stability limit
+    /// (dimensionless in (0, 2), default `0.5`).
+    pub step_size: f64,
+    /// Seed of the random states the parameters are equilibrated on (default `0`).
+    pub seed: u64,
+}
+
+impl Default for OnlineConfig {
+    fn default() -> Self {
+        Self {
+            method: OnlineMethod::Rls,
+            payload: false,
+            forgetting: None,
+            directional: true,
+            cutoff_hz: crate::DEFAULT_LOG_CUTOFF_HZ,
+            change_detection: Some(ChangeDetection::default()),
+            open_factor: 1e3,
+            initial_covariance: 1e6,
+            prior_width: 3.0,
+            payload_mass_std: 10.0,
+            payload_size: 0.2,
+            ekf_warmup: 2.0,
+            ekf_noise: 1.0,
+            step_size: 0.5,
+            seed: 0,
+        }
+    }
+}
+
+impl OnlineConfig {
+    fn validate(&self) -> Result<()> {
+        let positive = [
+            ("cutoff_hz", self.cutoff_hz),
+            ("initial_covariance", self.initial_covariance),
+            ("prior_width", self.prior_width),
+            ("payload_mass_std", self.payload_mass_std),
+            ("payload_size", self.payload_size),
+            ("ekf_noise", self.ekf_noise),
+            ("open_factor", self.open_factor),
+        ];
+        for (name, v) in positive {
+            if !(v.is_finite() && v > 0.0) {
+                return Err(invalid(name, v, "must be finite and > 0"));
+            }
+        }
+        if !(self.ekf_warmup.is_finite() && self.ekf_warmup >= 0.0) {
+            return Err(invalid(
+                "ekf_warmup",
+                self.ekf_warmup,
+                "must be finite and >= 0 s",
+            ));
+        }
+        if let Some(t) = self.forgetting {
+            if !(t.is_finite() && t > 0.0) {
+                return Err(invalid(
+                    "forgetting",
+                    t,
+                    "the memory must be finite and > 0 s",
+                ));
+            }
+        }
+        if !(self.step_size > 0.0 && self.step_size < 2.0) {
+            return Err(invalid("step_size", self.step_size, "must be in (0, 2)"));
+        }
+        if let Some(c) = &self.change_detection {
+            for (name, v) in [
+                ("change_detection.window", c.window),
+                ("change_detection.noise_window", c.noise_window),
+                ("change_detection.threshold", c.threshold),
+            ] {
+                if !(v.is_finite() && v > 0.0) {
+                    return Err(invalid(name, v, "must be finite and > 0"));
+                }
+            }
+            for (name, v) in [
+                ("change_detection.holdoff", c.holdoff),
+                ("change_detection.warmup", c.warmup),
+            ] {
+                if !(v.is_finite() && v >= 0.0) {
+                    return Err(invalid(name, v, "must be finite and >= 0 s"));
+                }
+            }
+        }
+        Ok(())
+    }
+}
+
+fn invalid(field: &str, value: f64, reason: &'static str) -> PrrrpError {
+    PrrrpError::InvalidParameter {
+        field: field.into(),
+        value,
+        reason,
+    }
+}
+
+/// What one [`OnlineIdentifier::update`] returns, borrowed from the identifier.
+#[derive(Debug, Clone, Copy)]
+pub struct OnlineUpdate<'a> {
+    /// The one-step-ahead prediction τ̂ of this row's joint forces (N·m or N), from the
+    /// estimate before the row and this row's causal q, q̇, q̈.
+    pub prediction: &'a [f64],
+    /// The estimate after the row: the base parameters β̂ (SI units of their
+    /// combinations), or in payload mode the payload's π̂ = [m, m·cx, m·cy, m·cz, Ixx,
+    /// Ixy, Iyy, Ixz, Iyz, Izz] in the tip link's frame, inertia about its origin (kg,
+    /// kg·m, kg·m²).
+    pub estimate: &'a [f64],
+    /// Standard deviation of each entry of `estimate`, where the method has one (RLS,
+    /// EKF): the filter's own, which assumes white equation errors of the running joint
+    /// noise levels.
+    pub sigma: Option<&'a [f64]>,
+    /// Whether a change of the dynamics was detected at this row (the covariance was
+    /// opened).
+    pub change: bool,
+    /// Whether the row updated the estimate (not: a repeated time stamp, or the causal
+    /// derivatives still converging after the start or a gap).
+    pub updated: bool,
+}
+
+/// The estimator behind an [`OnlineIdentifier`].
+#[derive(Debug, Clone)]
+enum Engine {
+    Rls(Box<DynRls<DynScaledModel<TrackedModel>>>),
+    Adaline(Box<DynAdaline<DynScaledModel<TrackedModel>>>),
+    Hopfield(Box<DynHopfield<DynScaledModel<TrackedModel>>>),
+    Ekf(Box<EkfEngine>),
+}
+
+/// The EKF and what it needs between samples.
+#[derive(Debug, Clone)]
+struct EkfEngine {
+    /// The warm-up estimator (no prior): RLS until the filter can start from its estimate.
+    rls: DynRls<DynScaledModel<TrackedModel>>,
+    ekf: DynEkf<TrackedModel>,
+    running: bool,
+    /// Time the warm-up estimate has kept M(q, θ̂) positive definite, s.
+    definite_for: f64,
+    warm_for: f64,
+    restarts: usize,
+    /// The previous row (the filter steps one row behind, so that it knows the period
+    /// and the torque at the end of it).
+    prev: [DVector<f64>; 4],
+    has_prev: bool,
+    held: DVector<f64>,
+    /// diag(M⁻¹·Σ·M⁻ᵀ) per joint (units of q̈²), refreshed every `Q_REFRESH` samples.
+    qdd_var: DVector<f64>,
+    minv: DMatrix<f64>,
+    f0: DVector<f64>,
+    f1: DVector<f64>,
+    tau_j: DVector<f64>,
+    qn: DVector<f64>,
+    since_q: usize,
+    ws: TrackedWorkspace,
+    /// Initial parameter variances of the running filter (θ units), the cap of the
+    /// opening.
+    p0_diag: DVector<f64>,
+}
+
+/// Samples between two refreshes of the EKF's process noise (its M⁻¹ costs N + 1
+/// forward dynamics).
+const Q_REFRESH: usize = 16;
+
+/// Positions and velocities R of the EKF before `ekf_noise` (as `identify`'s defaults).
+const EKF_POSITION_NOISE: f64 = 1e-3;
+const EKF_VELOCITY_NOISE: f64 = 1e-2;
+
+/// Identification while the arm runs (see the module docs of `online`).
+///
+/// ```
+/// use prrrp_core::{BaseOptions, OnlineConfig, OnlineIdentifier, SerialChain};
+/// let chain = SerialChain::puma560().to_dyn();
+/// let base = chain.base_parameters(&BaseOptions::default())?;
+/// let mut id = OnlineIdentifier::new(&chain, &base, OnlineConfig::default())?;
+/// for k in 0..2000 {
+///     let t = k as f64 * 1e-3;
+///     let q: Vec<f64> = (0..6).map(|j| (t * (1.0 + j as f64)).sin()).collect();
+///     let qd: Vec<f64> = (0..6).map(|j| (1.0 + j as f64) * (t * (1.0 + j as f64)).cos()).collect();
+///     let qdd: Vec<f64> = (0..6).map(|j| -(1.0 + j as f64).powi(2) * (t * (1.0 + j as f64)).sin()).collect();
+///     let tau = chain.inverse_dynamics(&q, &qd, &qdd)?;
+///     let step = id.update(t, &q, &tau, None)?;
+///     assert_eq!(step.prediction.len(), 6);
+/// }
+/// let model = id.estimate()?;            // an IdentifiedModel, as `identify` returns
+/// assert_eq!(model.beta.len(), base.count());
+/// # Ok::<(), prrrp_core::PrrrpError>(())
+/// ```
+#[derive(Debug, Clone)]
+pub struct OnlineIdentifier {
+    config: OnlineConfig,
+    chain: DynChain,
+    base: BaseParameters,
+    prior: Option<IdentifiedModel>,
+    model: TrackedModel,
+    mws: TrackedWorkspace,
+    /// θ = D·γ for the scaled engines (RLS, Adaline, Hopfield, the EKF's warm-up).
+    scale: DVector<f64>,
+    engine: Engine,
+    /// Zero-lag q̇, q̈ at each row for the one-step-ahead prediction.
+    kin: CausalKinematics,
+    /// The regression data: q, q̇, q̈ and τ through one causal low-pass.
+    lp: CausalLowPass,
+    detector: Option<ChangeDetector>,
+    /// Running noise variance per joint when change detection is off.
+    noise: ChangeDetector,
+    n: usize,
+    /// Variance cap of the opening (θ units); for the arm's scale s in payload mode 0
+    /// (never opened).
+    cap: DVector<f64>,
+    q: DVector<f64>,
+    qd: DVector<f64>,
+    qdd: DVector<f64>,
+    tau: DVector<f64>,
+    pred: DVector<f64>,
+    /// The filtered row (regression data) and its a-priori prediction.
+    qf: DVector<f64>,
+    vf: DVector<f64>,
+    af: DVector<f64>,
+    tf: DVector<f64>,
+    predf: DVector<f64>,
+    /// The regressed forces: τ_f, less the arm's in payload mode.
+    tr: DVector<f64>,
+    resid: Vec<f64>,
+    floor: Vec<f64>,
+    tau_max: Vec<f64>,
+    weights: DVector<f64>,
+    theta: DVector<f64>,
+    gamma: DVector<f64>,
+    open: DVector<f64>,
+    out_estimate: Vec<f64>,
+    out_sigma: Vec<f64>,
+    has_sigma: bool,
+    t_prev: Option<f64>,
+    rows: usize,
+    updates: usize,
+    repeated: usize,
+    changes: usize,
+}
+
+impl OnlineIdentifier {
+    /// An identifier of the base parameters of `chain` in the analysis `base`, starting
+    /// from no knowledge (RLS from θ = 0 with an uninformative covariance; the EKF after
+    /// an RLS warm-up).
+    ///
+    /// # Errors
+    /// [`PrrrpError::InvalidParameter`] for a setting out of range or payload mode
+    /// without a prior; [`PrrrpError::ShapeMismatch`] if `base` is not an analysis of
+    /// `chain`.
+    pub fn new(chain: &DynChain, base: &BaseParameters, config: OnlineConfig) -> Result<Self> {
+        if config.payload {
+            return Err(invalid(
+                "payload",
+                f64::NAN,
+                "payload mode tracks a load on a known arm: give the arm's model \
+                 (OnlineIdentifier::with_prior)",
+            ));
+        }
+        Self::build(chain, base, None, config)
+    }
+
+    /// An identifier that starts from the identified model `prior` (its robot, base
+    /// analysis, β̂ and covariance): of the base parameters, or in payload mode
+    /// (`config.payload`) of a payload at the tip link on the arm β̂ of `prior` (starting
+    /// from no payload).
+    ///
+    /// # Errors
+    /// As [`OnlineIdentifier::new`], and the errors of rebuilding the prior's robot.
+    pub fn with_prior(prior: &IdentifiedModel, config: OnlineConfig) -> Result<Self> {
+        let chain = prior.chain()?;
+        let base = base_of(prior, &chain)?;
+        Self::build(&chain, &base, Some(prior.clone()), config)
+    }
+
+    fn build(
+        chain: &DynChain,
+        base: &BaseParameters,
+        prior: Option<IdentifiedModel>,
+        config: OnlineConfig,
+    ) -> Result<Self> {
+        config.validate()?;
+        let n = chain.dof();
+        let bm = chain.base_model(base)?;
+        let b = bm.count();
+        let model = match (&prior, config.payload) {
+            (Some(p), true) => {
+                TrackedModel::payload(bm, base, DVector::from_column_slice(&p.beta))?
+            }
+            _ => TrackedModel::Full(bm),
+        };
+        let p = model.dims().1 .0;
+        let states = random_states(chain, config.seed);
+        let samples = DynSamples::new(&states[0], &states[1], &states[2], &states[3])?;
+        let scaled = DynScaledModel::equilibrated(model.clone(), &samples)?;
+        let scale = scaled.scale().clone();
+
+        // The start θ₀ and its covariance (θ units), and the opening's cap.
+        let w2 = config.prior_width * config.prior_width;
+        let mut theta0 = DVector::zeros(p);
+        let mut p0: Option<DMatrix<f64>> = None;
+        let mut cap = DVector::from_fn(p, |i, _| scale[i] * scale[i] * config.initial_covariance);
+        if config.payload {
+            let (ms, l) = (config.payload_mass_std, config.payload_size);
+            let mut var = DVector::zeros(p);
+            var[0] = ms * ms;
+            for k in 1..4 {
+                var[k] = (ms * l).powi(2);
+            }
+            for k in 4..PAYLOAD_PARAMS {
+                var[k] = (ms * l * l).powi(2);
+            }
+            cap.copy_from(&var);
+            p0 = Some(DMatrix::from_diagonal(&var));
+        } else if let Some(pr) = &prior {
+            theta0.copy_from_slice(&pr.beta);
+            if let Some(c) = &pr.covariance {
+                let c = DMatrix::from_row_slice(b, b, c) * w2;
+                let c = (&c + c.transpose()) * 0.5;
+                if c.clone().cholesky().is_some() {
+                    p0 = Some(c);
+                }
+            }
+        }
+        let gamma0 = theta0.component_div(&scale);
+        let p0_gamma = p0
+            .as_ref()
+            .map(|c| DMatrix::from_fn(p, p, |i, j| c[(i, j)] / (scale[i] * scale[j])));
+        let rls_cfg = RlsConfig {
+            forgetting: 1.0,
+            initial_covariance: config.initial_covariance,
+        };
+        let make_rls = || -> Result<DynRls<DynScaledModel<TrackedModel>>> {
+            let mut r = DynRls::new(scaled.clone(), gamma0.clone(), rls_cfg)?;
+            if let Some(c) = &p0_gamma {
+                r.set_initial_covariance(c)?;
+            }
+            Ok(r)
+        };
+        let engine = match config.method {
+            OnlineMethod::Rls => Engine::Rls(Box::new(make_rls()?)),
+            OnlineMethod::Adaline => {
+                let cfg = AdalineConfig {
+                    rule: AdalineRule::Normalised,
+                    step_size: config.step_size,
+                    ..AdalineConfig::default()
+                };
+                Engine::Adaline(Box::new(DynAdaline::new(
+                    scaled.clone(),
+                    gamma0.clone(),
+                    cfg,
+                )?))
+            }
+            OnlineMethod::Hopfield => {
+                let cfg = hopfield_config(&scaled, &samples, chain, &gamma0, config.step_size)?;
+                Engine::Hopfield(Box::new(DynHopfield::new(
+                    scaled.clone(),
+                    gamma0.clone(),
+                    cfg,
+                )?))
+            }
+            OnlineMethod::Ekf => {
+                let cfg = EkfConfig {
+                    dt: 1e-3,
+                    measurement: EkfMeasurement::PositionsVelocities,
+                    discretisation: Discretisation::SecondOrder,
+                    position_noise: EKF_POSITION_NOISE * config.ekf_noise,
+                    velocity_noise: EKF_VELOCITY_NOISE * config.ekf_noise,
+                    process_position_noise: 0.0,
+                    process_velocity_noise: 0.0,
+                    process_parameter_noise: 0.0,
+                    initial_parameter_rel_std: 0.1,
+                    initial_parameter_min_std: 1e-6,
+                    parameter_jacobian: ParameterJacobian::DataAcceleration,
+                    ..EkfConfig::default()
+                };
+                let mut ekf = DynEkf::new(model.clone(), theta0.clone(), cfg)?;
+                ekf.set_stiff_handling(true);
+                let s = 2 * n + p;
+                let mut e = EkfEngine {
+                    rls: make_rls()?,
+                    ekf,
+                    running: false,
+                    definite_for: 0.0,
+                    warm_for: 0.0,
+                    restarts: 0,
+                    prev: [
+                        DVector::zeros(n),
+                        DVector::zeros(n),
+                        DVector::zeros(n),
+                        DVector::zeros(n),
+                    ],
+                    has_prev: false,
+                    held: DVector::zeros(n),
+                    qdd_var: DVector::zeros(n),
+                    minv: DMatrix::zeros(n, n),
+                    f0: DVector::zeros(n),
+                    f1: DVector::zeros(n),
+                    tau_j: DVector::zeros(n),
+                    qn: DVector::zeros(s),
+                    since_q: 0,
+                    ws: model.workspace(),
+                    p0_diag: DVector::zeros(p),
+                };
+                // With a prior (or in payload mode) the filter starts at once.
+                if prior.is_some() {
+                    let p0 = match &p0 {
+                        Some(c) => c.clone(),
+                        None => DMatrix::from_diagonal(&DVector::from_fn(p, |i, _| {
+                            (0.1 * theta0[i].abs())
+                                .max(1e-6 * theta0.amax())
+                                .max(1e-12)
+                                .powi(2)
+                        })),
+                    };
+                    e.start(&theta0, &p0, n)?;
+                }
+                Engine::Ekf(Box::new(e))
+            }
+        };
+        let detection = config.change_detection;
+        let init_sd = prior
+            .as_ref()
+            .filter(|p| p.residual_rms.iter().all(|v| *v > 0.0))
+            .map(|p| p.residual_rms.clone());
+        let noise_cfg = ChangeDetection {
+            threshold: f64::INFINITY,
+            ..detection.unwrap_or_default()
+        };
+        let mut out = Self {
+            config,
+            chain: chain.clone(),
+            base: base.clone(),
+            prior,
+            mws: model.workspace(),
+            model,
+            scale,
+            engine,
+            kin: CausalKinematics::new(n, config.cutoff_hz, false),
+            lp: CausalLowPass::new(n, config.cutoff_hz, false),
+            qf: DVector::zeros(n),
+            vf: DVector::zeros(n),
+            af: DVector::zeros(n),
+            tf: DVector::zeros(n),
+            predf: DVector::zeros(n),
+            tr: DVector::zeros(n),
+            detector: detection.map(|d| ChangeDetector::new(n, d, init_sd.as_deref())),
+            noise: ChangeDetector::new(n, noise_cfg, init_sd.as_deref()),
+            n,
+            cap,
+            q: DVector::zeros(n),
+            qd: DVector::zeros(n),
+            qdd: DVector::zeros(n),
+            tau: DVector::zeros(n),
+            pred: DVector::zeros(n),
+            resid: vec![0.0; n],
+            floor: vec![0.0; n],
+            tau_max: vec![0.0; n],
+            weights: DVector::zeros(n),
+            theta: theta0,
+            gamma: DVector::zeros(p),
+            open: DVector::zeros(p),
+            out_estimate: vec![0.0; if config.payload { PAYLOAD_PARAMS } else { b }],
+            out_sigma: vec![0.0; if config.payload { PAYLOAD_PARAMS } else { b }],
+            has_sigma: false,
+            t_prev: None,
+            rows: 0,
+            updates: 0,
+            repeated: 0,
+            changes: 0,
+        };
+        out.refresh_outputs();
+        Ok(out)
+    }
+
+    /// The settings.
+    pub fn config(&self) -> &OnlineConfig {
+        &self.config
+    }
+
+    /// The robot (as the estimates are expressed in it).
+    pub fn chain(&self) -> &DynChain {
+        &self.chain
+    }
+
+    /// The base-parameter analysis.
+    pub fn base(&self) -> &BaseParameters {
+        &self.base
+    }
+
+    /// Number of joints.
+    pub fn dof(&self) -> usize {
+        self.n
+    }
+
+    /// Names of the estimated parameters: the base parameters' (named after their first
+    /// standard parameter), or in payload mode the payload's `m, mx, my, mz, Ixx, …`.
+    pub fn parameter_names(&self) -> Vec<String> {
+        if self.config.payload {
+            crate::models::chain::INERTIAL_PARAMETER_NAMES
+                .iter()
+                .map(|s| s.to_string())
+                .collect()
+        } else {
+            self.base
+                .independent
+                .iter()
+                .map(|&j| self.base.names[j].clone())
+                .collect()
+        }
+    }
+
+    /// The current estimate (see [`OnlineUpdate::estimate`]).
+    pub fn parameters(&self) -> &[f64] {
+        &self.out_estimate
+    }
+
+    /// Standard deviation of the current estimate, where the method has one.
+    pub fn sigma(&self) -> Option<&[f64]> {
+        self.has_sigma.then_some(self.out_sigma.as_slice())
+    }
+
+    /// Rows consumed, rows that updated the estimate, repeated rows, detected changes.
+    pub fn counts(&self) -> (usize, usize, usize, usize) {
+        (self.rows, self.updates, self.repeated, self.changes)
+    }
+
+    /// The running noise level (RMS of the one-step-ahead errors that passed the change
+    /// test) of each joint, N·m or N.
+    pub fn noise_rms(&self) -> Vec<f64> {
+        self.variances().iter().map(|v| v.sqrt()).collect()
+    }
+
+    fn variances(&self) -> &[f64] {
+        match &self.detector {
+            Some(d) => d.variances(),
+            None => self.noise.variances(),
+        }
+    }
+
+    /// Whether the EKF is running (false during its RLS warm-up, and for other methods).
+    pub fn ekf_running(&self) -> bool {
+        matches!(&self.engine, Engine::Ekf(e) if e.running)
+    }
+
+    /// Consumes one raw sample: time `t` (s, not decreasing), positions `q` (rad, m),
+    /// joint forces `tau` (N·m, N) and optionally measured velocities `qd` (rad/s, m/s;
+    /// give them at every sample or never). Causal: only this and earlier samples are
+    /// used. A row with the previous row's time stamp is a repeat: it gets a prediction
+    /// and changes nothing. Allocation-free.
+    ///
+    /// # Errors
+    /// [`PrrrpError::ShapeMismatch`] for vectors without one entry per joint, or
+    /// velocities given at some samples and not others; [`PrrrpError::NonFinite`] for
+    /// NaN/∞ (the sample is refused and the state left as it was);
+    /// [`PrrrpError::NonIncreasingTime`] for a time stamp before the previous one;
+    /// [`PrrrpError::Diverged`] when the estimator fails (the identifier should then be
+    /// rebuilt).
+    pub fn update(
+        &mut self,
+        t: f64,
+        q: &[f64],
+        tau: &[f64],
+        qd: Option<&[f64]>,
+    ) -> Result<OnlineUpdate<'_>> {
+        let n = self.n;
+        for (what, v) in [("q", q), ("tau", tau)] {
+            if v.len() != n {
+                return Err(crate::estimators::len_mismatch(what, n, v.len()));
+            }
+        }
+        if let Some(v) = qd {
+            if v.len() != n {
+                return Err(crate::estimators::len_mismatch("qd", n, v.len()));
+            }
+        }
+        if self.rows == 0 {
+            self.kin = CausalKinematics::new(n, self.config.cutoff_hz, qd.is_some());
+            self.lp = CausalLowPass::new(n, self.config.cutoff_hz, qd.is_some());
+        } else if qd.is_some() != self.kin.measured_velocity() {
+            return Err(PrrrpError::ShapeMismatch {
+                what: "qd".into(),
+                expected: if self.kin.measured_velocity() {
+                    "measured velocities at every sample (the first had them)".into()
+                } else {
+                    "no velocities (the first sample had none)".into()
+                },
+                got: "a sample that differs".into(),
+            });
+        }
+        let finite = |v: &[f64]| v.iter().all(|x| x.is_finite());
+        if !t.is_finite() || !finite(q) || !finite(tau) || !qd.map_or(true, finite) {
+            let what = if !t.is_finite() {
+                "t"
+            } else if !finite(q) {
+                "q"
+            } else if !finite(tau) {
+                "tau"
+            } else {
+                "qd"
+            };
+            return Err(PrrrpError::NonFinite {
+                what: what.into(),
+                row: Some(self.rows),
+            });
+        }
+        let dt = match self.t_prev {
+            Some(tp) if t < tp => return Err(PrrrpError::NonIncreasingTime { row: self.rows }),
+            Some(tp) => t - tp,
+            None => 0.0,
+        };
+        let repeat = self.t_prev.is_some() && dt == 0.0;
+        self.rows += 1;
+        self.q.copy_from_slice(q);
+        self.tau.copy_from_slice(tau);
+        let mut change = false;
+        let mut updated = false;
+        if repeat {
+            self.repeated += 1;
+        } else {
+            self.kin
+                .update(dt, q, qd, self.qd.as_mut_slice(), self.qdd.as_mut_slice());
+            self.lp.update(
+                dt,
+                q,
+                tau,
+                qd,
+                self.qf.as_mut_slice(),
+                self.vf.as_mut_slice(),
+                self.af.as_mut_slice(),
+                self.tf.as_mut_slice(),
+            );
+            self.t_prev = Some(t);
+        }
+        // The prediction with the estimate before this row.
+        self.model.inverse_dynamics_into(
+            &mut self.mws,
+            &self.q,
+            &self.qd,
+            &self.qdd,
+            &self.theta,
+            &mut self.pred,
+        )?;
+        if !repeat && self.lp.ready() {
+            // The change test and the noise levels (the regression's weights) on the
+            // filtered equation errors, with the estimate before this row.
+            self.model.inverse_dynamics_into(
+                &mut self.mws,
+                &self.qf,
+                &self.vf,
+                &self.af,
+                &self.theta,
+                &mut self.predf,
+            )?;
+            for j in 0..n {
+                self.resid[j] = self.tf[j] - self.predf[j];
+                self.tau_max[j] = self.tau_max[j].max(self.tau[j].abs());
+                // Variances below (1e-6 of the largest force)² are round-off, not noise.
+                self.floor[j] = (1e-6 * self.tau_max[j]).powi(2).max(1e-300);
+            }
+            if let Some(d) = &mut self.detector {
+                change = d.update(dt, &self.resid, &self.floor);
+            } else {
+                self.noise.update(dt, &self.resid, &self.floor);
+            }
+            if change {
+                self.changes += 1;
+                self.open_covariance()?;
+            }
+            self.step_engine(dt)?;
+            updated = true;
+            self.updates += 1;
+        } else if !repeat {
+            // No regression across a restart of the derivatives: the EKF must not step
+            // over the gap either.
+            if let Engine::Ekf(e) = &mut self.engine {
+                e.has_prev = false;
+            }
+        }
+        Ok(OnlineUpdate {
+            prediction: self.pred.as_slice(),
+            estimate: &self.out_estimate,
+            sigma: self.has_sigma.then_some(self.out_sigma.as_slice()),
+            change,
+            updated,
+        })
+    }
+
+    /// One estimator step with this row (kinematics ready).
+    fn step_engine(&mut self, dt: f64) -> Result<()> {
+        let nu = self.config.forgetting.map_or(1.0, |tc| (-dt / tc).exp());
+        for j in 0..self.n {
+            let v = match &self.detector {
+                Some(d) => d.variances()[j],
+                None => self.noise.variances()[j],
+            };
+            self.weights[j] = 1.0 / v.max(self.floor[j]);
+        }
+        let forgetting = if nu == 1.0 {
+            Forgetting::None
+        } else if self.config.directional {
+            Forgetting::Directional(nu)
+        } else {
+            Forgetting::Exponential(nu)
+        };
+        // The inverse-model estimators regress τ − τ_arm in payload mode (the model is
+        // affine there, see `tracked`).
+        self.model
+            .arm_torque_into(&mut self.mws, &self.qf, &self.vf, &self.af, &mut self.tr)?;
+        self.tr.neg_mut();
+        self.tr += &self.tf;
+        let sample = SampleOf::new(&self.qf, &self.vf, &self.af, &self.tr);
+        match &mut self.engine {
+            Engine::Rls(r) => {
+                r.update_weighted(sample, &self.weights, forgetting)?;
+            }
+            Engine::Adaline(a) => {
+                a.step(sample)?;
+            }
+            Engine::Hopfield(h) => {
+                h.step(sample)?;
+            }
+            Engine::Ekf(e) => {
+                if !e.running {
+                    e.rls.update_weighted(sample, &self.weights, forgetting)?;
+                    e.warm_for += dt;
+                    self.gamma.copy_from(e.rls.estimate());
+                    self.theta.copy_from(&self.gamma);
+                    self.theta.component_mul_assign(&self.scale);
+                    // M(q, θ̂) at this sample: the filter may start from θ̂ once it has
+                    // been positive definite for a while.
+                    let ok = self
+                        .model
+                        .forward_dynamics_into(
+                            &mut e.ws,
+                            &self.qf,
+                            &self.vf,
+                            &self.tf,
+                            &self.theta,
+                            &mut e.f0,
+                        )
+                        .is_ok();
+                    e.definite_for = if ok { e.definite_for + dt } else { 0.0 };
+                    if e.warm_for >= self.config.ekf_warmup && e.definite_for >= 0.5 {
+                        let w2 = self.config.prior_width.powi(2);
+                        let c = e.rls.covariance();
+                        let p = self.theta.len();
+                        let s = &self.scale;
+                        let p0 = DMatrix::from_fn(p, p, |i, j| {
+                            let v = w2 * c[(i, j)] * s[i] * s[j];
+                            if i == j {
+                                v.max(1e-300)
+                            } else {
+                                v
+                            }
+                        });
+                        let p0 = (&p0 + p0.transpose()) * 0.5;
+                        let theta = self.theta.clone();
+                        e.start(&theta, &p0, self.n)?;
+                    }
+                } else {
+                    let var = match &self.detector {
+                        Some(d) => d.variances(),
+                        None => self.noise.variances(),
+                    };
+                    if let Err(err) = e.step(&self.model, dt, &self.tf, var, nu) {
+                        match err {
+                            // Out of the region where the filter's dynamics exist even
+                            // after its own safeguards: back to the warm-up from the
+                            // filter's last estimate, which a fresh RLS refines.
+                            PrrrpError::Diverged { .. }
+                            | PrrrpError::NotPositiveDefinite { .. } => {
+                                e.restart(&self.theta, &self.scale, &mut self.gamma)?;
+                            }
+                            other => return Err(other),
+                        }
+                    }
+                }
+                if e.running {
+                    e.keep(&self.qf, &self.vf, &self.af, &self.tf);
+                }
+            }
+        }
+        self.after_step()
+    }
+
+    /// Reads the estimate back, projects a payload onto the rigid bodies, refreshes the
+    /// outputs.
+    fn after_step(&mut self) -> Result<()> {
+        match &self.engine {
+            Engine::Rls(r) => self.gamma.copy_from(r.estimate()),
+            Engine::Adaline(a) => self.gamma.copy_from(a.estimate()),
+            Engine::Hopfield(h) => self.gamma.copy_from(h.estimate()),
+            Engine::Ekf(e) if !e.running => self.gamma.copy_from(e.rls.estimate()),
+            Engine::Ekf(e) => {
+                self.theta.copy_from(e.ekf.estimate());
+                self.gamma.copy_from(&self.theta);
+                self.gamma.component_div_assign(&self.scale);
+            }
+        }
+        if !matches!(&self.engine, Engine::Ekf(e) if e.running) {
+            for i in 0..self.theta.len() {
+                self.theta[i] = self.gamma[i] * self.scale[i];
+            }
+        }
+        if self.config.payload {
+            // The output (and the predictions) is the nearest rigid body; the estimator
+            // keeps its own unconstrained estimate. Writing the projection back into it
+            // rectified the noise of every update at an empty gripper (π = 0 is the apex
+            // of the cone of rigid bodies): the mass ratcheted up to 1.5 kg in 3 s of a
+            // log without any payload.
+            let mut pi = [0.0; PAYLOAD_PARAMS];
+            pi.copy_from_slice(self.theta.as_slice());
+            if project(&mut pi) {
+                self.theta.copy_from_slice(&pi);
+            }
+        }
+        self.refresh_outputs();
+        Ok(())
+    }
+
+    /// The outputs (estimate, σ) from θ and the engine's covariance.
+    fn refresh_outputs(&mut self) {
+        self.out_estimate.copy_from_slice(self.theta.as_slice());
+        self.has_sigma = true;
+        match &self.engine {
+            Engine::Rls(r) => {
+                let c = r.covariance();
+                for (k, v) in self.out_sigma.iter_mut().enumerate() {
+                    let i = k;
+                    *v = c[(i, i)].max(0.0).sqrt() * self.scale[i];
+                }
+            }
+            Engine::Ekf(e) if !e.running => {
+                let c = e.rls.covariance();
+                for (k, v) in self.out_sigma.iter_mut().enumerate() {
+                    let i = k;
+                    *v = c[(i, i)].max(0.0).sqrt() * self.scale[i];
+                }
+            }
+            Engine::Ekf(e) => {
+                let p = e.ekf.covariance();
+                let o = 2 * self.n;
+                for (k, v) in self.out_sigma.iter_mut().enumerate() {
+                    let i = o + k;
+                    *v = p[(i, i)].max(0.0).sqrt();
+                }
+            }
+            Engine::Adaline(_) | Engine::Hopfield(_) => self.has_sigma = false,
+        }
+    }
+
+    /// Opens the covariance after a detected change: each parameter variance times
+    /// `open_factor`, at most up to its cap (a congruence, so P stays positive
+    /// semidefinite).
+    fn open_covariance(&mut self) -> Result<()> {
+        let k = self.config.open_factor;
+        match &mut self.engine {
+            Engine::Rls(r) => {
+                let c = r.covariance();
+                for i in 0..self.open.len() {
+                    let cap = self.cap[i] / (self.scale[i] * self.scale[i]);
+                    self.open[i] = opening(k, cap, c[(i, i)]);
+                }
+                r.scale_covariance(&self.open);
+            }
+            Engine::Ekf(e) if e.running => {
+                let p = e.ekf.covariance();
+                let o = 2 * self.n;
+                for i in 0..self.open.len() {
+                    let cap = self.cap[i].max(e.p0_diag[i]);
+                    self.open[i] = opening(k, cap, p[(o + i, o + i)]);
+                }
+                e.ekf.scale_parameter_covariance(&self.open)?;
+            }
+            Engine::Ekf(e) => {
+                let c = e.rls.covariance();
+                for i in 0..self.open.len() {
+                    let cap = self.cap[i] / (self.scale[i] * self.scale[i]);
+                    self.open[i] = opening(k, cap, c[(i, i)]);
+                }
+                e.rls.scale_covariance(&self.open);
+            }
+            Engine::Adaline(_) | Engine::Hopfield(_) => {}
+        }
+        Ok(())
+    }
+
+    /// The current estimate as an [`IdentifiedModel`] (allocates): the base parameters
+    /// with σ and covariance where the method has them, the running joint noise as
+    /// `residual_rms`, method and settings (`"online": true`); in payload mode the prior's
+    /// arm carrying the payload: β̂ = β_arm + K_tip·π̂ (the payload is the tip link's
+    /// extra mass, so the arm with it is an arm of other base parameters), with
+    /// [`OnlineIdentifier::payload_summary`] under `preprocessing.payload`.
+    ///
+    /// # Errors
+    /// As [`IdentifiedModel::new`] (e.g. a non-finite estimate).
+    pub fn estimate(&self) -> Result<IdentifiedModel> {
+        let cov_theta = self.covariance_theta();
+        if let (TrackedModel::Payload { arm, k_tip, .. }, Some(prior)) = (&self.model, &self.prior)
+        {
+            // The arm with the payload is the arm's base parameters plus K_tip·π: a model
+            // that predicts (and saves) like any other; its covariance adds the
+            // payload's, K_tip·Σ_π·K_tipᵀ, to the prior's.
+            let b = arm.len();
+            let mut beta = arm.clone();
+            beta.gemv(1.0, k_tip, &self.theta, 1.0);
+            let mut cov = match &prior.covariance {
+                Some(c) => DMatrix::from_row_slice(b, b, c),
+                None => DMatrix::zeros(b, b),
+            };
+            if let Some(c) = &cov_theta {
+                cov += k_tip * c * k_tip.transpose();
+            }
+            let cov = (&cov + cov.transpose()) * 0.5;
+            let has_cov = prior.covariance.is_some() || cov_theta.is_some();
+            let sigma = has_cov.then(|| (0..b).map(|i| cov[(i, i)].max(0.0).sqrt()).collect());
+            let mut model = IdentifiedModel::new(
+                &self.chain,
+                &self.base,
+                beta.as_slice().to_vec(),
+                sigma,
+                has_cov.then(|| cov.transpose().iter().copied().collect()),
+                prior.cond,
+                self.noise_rms(),
+                self.config.method.name(),
+                self.settings_json(),
+                json!({
+                    "online": true,
+                    "causal_cutoff_hz": self.config.cutoff_hz,
+                    "rows": self.rows,
+                    "repeated_rows": self.repeated,
+                    "payload": self.payload_summary(),
+                }),
+            )?;
+            model.robot = prior.robot.clone();
+            return Ok(model);
+        }
+        let sigma = self.has_sigma.then(|| self.out_sigma.clone());
+        let cov = cov_theta.map(|c| {
+            let c = (&c + c.transpose()) * 0.5;
+            c.transpose().iter().copied().collect::<Vec<f64>>()
+        });
+        IdentifiedModel::new(
+            &self.chain,
+            &self.base,
+            self.out_estimate.clone(),
+            sigma,
+            cov,
+            self.prior.as_ref().and_then(|p| p.cond),
+            self.noise_rms(),
+            self.config.method.name(),
+            self.settings_json(),
+            json!({
+                "online": true,
+                "causal_cutoff_hz": self.config.cutoff_hz,
+                "rows": self.rows,
+                "repeated_rows": self.repeated,
+            }),
+        )
+    }
+
+    /// In payload mode, the payload as load data (what `payload.json` holds, the shared
+    /// [`crate::Payload`]'s JSON): `mass` (kg), `com` (m, in the tip link's frame),
+    /// `inertia` about the centre of mass ([Ixx, Ixy, Iyy, Ixz, Iyz, Izz], kg·m², tip
+    /// link axes), each with its σ, the 10 parameters π and their covariance, and
+    /// `physical`; `None` outside payload mode. Allocates.
+    pub fn payload_summary(&self) -> Option<serde_json::Value> {
+        if !self.config.payload {
+            return None;
+        }
+        let mut pi = [0.0; PAYLOAD_PARAMS];
+        pi.copy_from_slice(self.theta.as_slice());
+        let cov = self.covariance_theta().map(|c| {
+            let c = (&c + c.transpose()) * 0.5;
+            c.transpose().iter().copied().collect::<Vec<f64>>()
+        });
+        let link = self.chain.meta().links.last().cloned().unwrap_or_default();
+        let mut v = summary_json(&link, self.n, &pi, cov);
+        v["identification"] = json!({"method": self.config.method.name(), "online": true});
+        Some(v)
+    }
+
+    /// The covariance of θ (θ units), where the method has one.
+    fn covariance_theta(&self) -> Option<DMatrix<f64>> {
+        let p = self.theta.len();
+        let s = &self.scale;
+        match &self.engine {
+            Engine::Rls(r) => {
+                let c = r.covariance();
+                Some(DMatrix::from_fn(p, p, |i, j| c[(i, j)] * s[i] * s[j]))
+            }
+            Engine::Ekf(e) if !e.running => {
+                let c = e.rls.covariance();
+                Some(DMatrix::from_fn(p, p, |i, j| c[(i, j)] * s[i] * s[j]))
+            }
+            Engine::Ekf(e) => {
+                let o = 2 * self.n;
+                Some(e.ekf.covariance().view((o, o), (p, p)).clone_owned())
+            }
+            _ => None,
+        }
+    }
+
+    /// The settings as JSON (recorded in [`IdentifiedModel::settings`]).
+    pub fn settings_json(&self) -> serde_json::Value {
+        let c = &self.config;
+        let mut v = json!({
+            "online": true,
+            "method": c.method.name(),
+            "payload": c.payload,
+            "forgetting_s": c.forgetting,
+            "forgetting": match (c.forgetting, c.directional, c.method) {
+                (None, _, _) => "none",
+                (Some(_), true, OnlineMethod::Rls) => "directional",
+                _ => "exponential",
+            },
+            "cutoff_hz": c.cutoff_hz,
+            "change_detection": c.change_detection.is_some(),
+            "open_factor": c.open_factor,
+            "prior_width": c.prior_width,
+            "detected_changes": self.changes,
+            "rows": self.rows,
+            "updates": self.updates,
+            "repeated_rows": self.repeated,
+            "prior": self.prior.is_some(),
+        });
+        if let Some(d) = &c.change_detection {
+            v["change_threshold"] = json!(d.threshold);
+            v["change_window_s"] = json!(d.window);
+            v["noise_window_s"] = json!(d.noise_window);
+        }
+        if let Engine::Ekf(e) = &self.engine {
+            v["ekf_running"] = json!(e.running);
+            v["ekf_restarts"] = json!(e.restarts);
+            v["ekf_noise"] = json!(c.ekf_noise);
+            v["ekf_warmup_s"] = json!(c.ekf_warmup);
+            v["stiff_steps"] = json!(e.ekf.stiff_steps());
+            v["damped_updates"] = json!(e.ekf.damped_updates());
+            v["anchored_updates"] = json!(e.ekf.anchored_updates());
+        }
+        v
+    }
+}
+
+/// The factor d (on σ) that multiplies a variance `var` by `k`, at most up to `cap`.
+fn opening(k: f64, cap: f64, var: f64) -> f64 {
+    // NaN-safe: a NaN variance or cap opens nothing.
+    if var.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater)
+        || cap.partial_cmp(&var) != Some(std::cmp::Ordering::Greater)
+    {
+        return 1.0;
+    }
+    (k.min(cap / var)).sqrt().max(1.0)
+}
+
+impl EkfEngine {
+    /// Starts the filter at θ₀ with parameter covariance `p0` (θ units).
+    fn start(&mut self, theta0: &DVector<f64>, p0: &DMatrix<f64>, n: usize) -> Result<()> {
+        let p = theta0.len();
+        let s = 2 * n + p;
+        self.ekf.reset();
+        self.ekf.set_parameter_estimate(theta0)?;
+        let c = *self.ekf_config();
+        let mut full = DMatrix::zeros(s, s);
+        for i in 0..n {
+            full[(i, i)] = c.initial_position_std.powi(2);
+            full[(n + i, n + i)] = c.initial_velocity_std.powi(2);
+        }
+        full.view_mut((2 * n, 2 * n), (p, p)).copy_from(p0);
+        let full = (&full + full.transpose()) * 0.5;
+        self.ekf.set_initial_covariance(&full)?;
+        self.ekf.set_parameter_anchor(theta0)?;
+        self.p0_diag = p0.diagonal();
+        self.running = true;
+        self.has_prev = false;
+        self.since_q = 0;
+        Ok(())
+    }
+
+    fn ekf_config(&self) -> &EkfConfig {
+        self.ekf.config()
+    }
+
+    /// Stores this row for the next step.
+    fn keep(
+        &mut self,
+        q: &DVector<f64>,
+        qd: &DVector<f64>,
+        qdd: &DVector<f64>,
+        tau: &DVector<f64>,
+    ) {
+        self.prev[0].copy_from(q);
+        self.prev[1].copy_from(qd);
+        self.prev[2].copy_from(qdd);
+        self.prev[3].copy_from(tau);
+        self.has_prev = true;
+    }
+
+    /// Back to the RLS warm-up from the filter's last estimate θ (after a failure).
+    fn restart(
+        &mut self,
+        theta: &DVector<f64>,
+        scale: &DVector<f64>,
+        gamma: &mut DVector<f64>,
+    ) -> Result<()> {
+        self.running = false;
+        self.has_prev = false;
+        self.warm_for = 0.0;
+        self.definite_for = 0.0;
+        self.restarts += 1;
+        self.rls.reset();
+        gamma.copy_from(theta);
+        gamma.component_div_assign(scale);
+        self.rls.set_estimate(gamma)
+    }
+
+    /// One filter step over the previous row, now that its period `dt` and the torque
+    /// `tau_now` at its end are known: the interval's mean torque is the input (what
+    /// moves the state to second order), the process noise is the torque noise `var`
+    /// (per joint, units of τ²) through M⁻¹ (Q_q̇ = h²·M⁻¹·diag(var)·M⁻ᵀ, (h²/2)² of it on
+    /// q), and forgetting ν a random walk of the parameters of variance (1/ν − 1)·P_θθ.
+    fn step(
+        &mut self,
+        model: &TrackedModel,
+        dt: f64,
+        tau_now: &DVector<f64>,
+        var: &[f64],
+        nu: f64,
+    ) -> Result<()> {
+        if !self.has_prev {
+            return Ok(());
+        }
+        let n = self.prev[0].len();
+        self.ekf.set_dt(dt)?;
+        self.held.copy_from(&self.prev[3]);
+        self.held += tau_now;
+        self.held *= 0.5;
+        if self.since_q == 0 {
+            let theta = self.ekf.estimate();
+            let (q, qd) = (&self.prev[0], &self.prev[1]);
+            // M⁻¹ column by column, exactly (q̈ is affine in τ); an indefinite M keeps the
+            // last Q (the step itself then reports it).
+            if model
+                .forward_dynamics_into(&mut self.ws, q, qd, &self.held, theta, &mut self.f0)
+                .is_ok()
+            {
+                for j in 0..n {
+                    self.tau_j.copy_from(&self.held);
+                    self.tau_j[j] += 1.0;
+                    model.forward_dynamics_into(
+                        &mut self.ws,
+                        q,
+                        qd,
+                        &self.tau_j,
+                        theta,
+                        &mut self.f1,
+                    )?;
+                    for i in 0..n {
+                        self.minv[(i, j)] = self.f1[i] - self.f0[i];
+                    }
+                }
+                for i in 0..n {
+                    self.qdd_var[i] = (0..n).map(|k| self.minv[(i, k)].powi(2) * var[k]).sum();
+                }
+            }
+        }
+        self.since_q = (self.since_q + 1) % Q_REFRESH;
+        let h2 = dt * dt;
+        for i in 0..n {
+            self.qn[i] = (0.5 * h2).powi(2) * self.qdd_var[i];
+            self.qn[n + i] = h2 * self.qdd_var[i];
+        }
+        let o = 2 * n;
+        let p = self.qn.len() - o;
+        let walk = 1.0 / nu - 1.0;
+        {
+            let cov = self.ekf.covariance();
+            for i in 0..p {
+                self.qn[o + i] = if walk > 0.0 {
+                    walk * cov[(o + i, o + i)].max(0.0)
+                } else {
+                    0.0
+                };
+            }
+        }
+        self.ekf.set_process_noise(&self.qn)?;
+        let sample = SampleOf::new(&self.prev[0], &self.prev[1], &self.prev[2], &self.held);
+        self.ekf.step(sample)?;
+        Ok(())
+    }
+}
+
+/// Seeded random states within the robot's limits, on which the parameters are
+/// equilibrated (no data are needed, so the scaling is fixed before the first sample):
+/// q uniform in the position limits (±π without), q̇ within half the speed limit (1 rad/s
+/// without), q̈ within 5 rad/s², τ unused.
+fn random_states(chain: &DynChain, seed: u64) -> [Vec<DVector<f64>>; 4] {
+    let n = chain.dof();
+    let mut s = seed ^ 0x9E37_79B9_7F4A_7C15;
+    let mut uniform = |lo: f64, hi: f64| {
+        s = s.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = s;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^= z >> 31;
+        lo + (hi - lo) * ((z >> 11) as f64 / (1u64 << 53) as f64)
+    };
+    let info = chain.joint_info();
+    let count = 256;
+    let mut out: [Vec<DVector<f64>>; 4] = Default::default();
+    for _ in 0..count {
+        let mut q = DVector::zeros(n);
+        let mut qd = DVector::zeros(n);
+        let mut qdd = DVector::zeros(n);
+        for j in 0..n {
+            let l = info.get(j).map(|i| i.limit).unwrap_or_default();
+            let (lo, hi) = if l.lower.is_finite() && l.upper.is_finite() && l.upper > l.lower {
+                (l.lower, l.upper)
+            } else {
+                (-std::f64::consts::PI, std::f64::consts::PI)
+            };
+            q[j] = uniform(lo, hi);
+            let v = if l.velocity.is_finite() && l.velocity > 0.0 {
+                0.5 * l.velocity
+            } else {
+                1.0
+            };
+            qd[j] = uniform(-v, v);
+            qdd[j] = uniform(-5.0, 5.0);
+        }
+        out[0].push(q);
+        out[1].push(qd);
+        out[2].push(qdd);
+        out[3].push(DVector::zeros(n));
+    }
+    out
+}
+
+/// Hopfield settings for online use on the equilibrated model: bound c well above the
+/// torques the parameters explain, gain μ of the stability limit on the largest
+/// regressor of the random states (twice it, for margin).
+fn hopfield_config(
+    scaled: &DynScaledModel<TrackedModel>,
+    samples: &DynSamples<'_>,
+    chain: &DynChain,
+    gamma0: &DVector<f64>,
+    mu: f64,
+) -> Result<HopfieldConfig> {
+    let (n, p) = scaled.dims();
+    let mut ws = scaled.workspace();
+    let mut phi = DMatrix::zeros(n.0, p.0);
+    let mut frob: f64 = 0.0;
+    for s in samples.iter() {
+        scaled.regressor_into(&mut ws, s.q, s.qd, s.qdd, &mut phi)?;
+        frob = frob.max(phi.norm_squared());
+    }
+    let effort = chain
+        .joint_info()
+        .iter()
+        .map(|i| i.limit.effort)
+        .filter(|e| e.is_finite() && *e > 0.0)
+        .fold(0.0, f64::max);
+    let c = (4.0 * gamma0.amax()).max(if effort > 0.0 { 2.0 * effort } else { 1000.0 });
+    Ok(HopfieldConfig {
+        bound: c,
+        beta: c * 2.0 * frob.max(f64::MIN_POSITIVE) / mu,
+        dt: 1.0,
+        stability_limit: 1.0,
+        max_substeps: 64,
+    })
+}
+
+/// The base-parameter analysis an identified model carries, as [`BaseParameters`] of its
+/// chain.
+pub(crate) fn base_of(model: &IdentifiedModel, chain: &DynChain) -> Result<BaseParameters> {
+    let d = &model.base;
+    let (b, p) = (d.independent.len(), d.standard_names.len());
+    if chain.num_params() != p {
+        return Err(PrrrpError::ShapeMismatch {
+            what: "model base analysis".into(),
+            expected: format!("{} standard parameters (the robot's)", chain.num_params()),
+            got: format!("{p}"),
+        });
+    }
+    let mut dependent: Vec<usize> = (0..p).filter(|j| !d.independent.contains(j)).collect();
+    dependent.sort_unstable();
+    Ok(BaseParameters {
+        dof: chain.dof(),
+        friction: chain.friction(),
+        armature: d.standard_names.iter().any(|s| s.starts_with("Ia")),
+        names: d.standard_names.clone(),
+        independent: d.independent.clone(),
+        dependent,
+        unidentifiable: Vec::new(),
+        map: faer::Mat::from_fn(b, p, |r, j| d.map[r * p + j]),
+        combinations: d.combinations.clone(),
+        pivots: Vec::new(),
+        rank_tolerance: d.rank_tolerance,
+    })
+}

@@ -1,0 +1,204 @@
+//! The model the online identifier estimates: the arm's base parameters, or only a
+//! payload's 10 inertial parameters on an arm known from a prior model.
+//!
+//! In payload mode θ = π and β = β_arm + K_tip·π, where K_tip is the base map's block of
+//! the tip link's 10 standard parameters (Y_tip = Y_b·K_tip, since Y = Y_b·K for every
+//! state). The model is affine in θ: its regressor is the payload's Φ = Y_b·K_tip and
+//! its dynamics are the base model's at that β, so τ = τ_arm + Φ·π. The EKF only uses
+//! the dynamics and their derivatives; the inverse-model estimators (RLS, Adaline,
+//! Hopfield) are given τ − τ_arm ([`TrackedModel::arm_torque_into`]), for which the
+//! model is linear. (A fixed unit parameter for the arm, with a zero prior variance,
+//! kept the model linear but made the covariance update lose definiteness within a few
+//! hundred samples.) Every method of the base model is evaluated at β, so whatever
+//! columns it has (friction, actuators) flow through unchanged.
+
+use nalgebra::{DMatrix, DVector, Dyn};
+
+use super::payload::{tip_columns, PAYLOAD_PARAMS};
+use crate::error::Result;
+use crate::models::chain::{BaseParameters, DynBaseWorkspace, DynChainBaseModel};
+use crate::models::{ForwardDerivativesOf, LinearModel};
+
+/// The arm's base model, or the payload model on top of it (module docs).
+#[derive(Debug, Clone)]
+pub(crate) enum TrackedModel {
+    /// θ = β, the base parameters.
+    Full(DynChainBaseModel),
+    /// θ = π; β = β_arm + K_tip·π (affine, see the module docs).
+    Payload {
+        base: DynChainBaseModel,
+        arm: DVector<f64>,
+        /// K_tip (B×10).
+        k_tip: DMatrix<f64>,
+    },
+}
+
+/// Workspace of [`TrackedModel`]: the base model's, Φ_b or ∂q̈/∂β before the map, β.
+#[derive(Debug, Clone)]
+pub(crate) struct TrackedWorkspace {
+    base: DynBaseWorkspace,
+    phi: DMatrix<f64>,
+    beta: DVector<f64>,
+    fd: ForwardDerivativesOf<Dyn, Dyn>,
+}
+
+impl TrackedModel {
+    /// The payload model on `base` (the analysis `analysis` of its chain) with the arm at
+    /// `arm` (its base parameters).
+    pub(crate) fn payload(
+        base: DynChainBaseModel,
+        analysis: &BaseParameters,
+        arm: DVector<f64>,
+    ) -> Result<Self> {
+        let cols = tip_columns(&analysis.names, base.dof())?;
+        let b = base.count();
+        let k_tip = DMatrix::from_fn(b, PAYLOAD_PARAMS, |r, k| analysis.map[(r, cols[k])]);
+        Ok(Self::Payload { base, arm, k_tip })
+    }
+
+    pub(crate) fn base(&self) -> &DynChainBaseModel {
+        match self {
+            Self::Full(b) | Self::Payload { base: b, .. } => b,
+        }
+    }
+
+    /// β of θ into `out` (B).
+    fn beta_into(&self, theta: &DVector<f64>, out: &mut DVector<f64>) {
+        match self {
+            Self::Full(_) => out.copy_from(theta),
+            Self::Payload { arm, k_tip, .. } => {
+                out.copy_from(arm);
+                out.gemv(1.0, k_tip, theta, 1.0);
+            }
+        }
+    }
+
+    /// The payload columns of a matrix of B columns: out = m·K_tip. A plain loop:
+    /// nalgebra's `gemm` hands dynamic matrices to matrixmultiply, which allocates its
+    /// packing buffers on every call (one allocation per sample, `tests/alloc_online.rs`).
+    fn map_columns(&self, m: &DMatrix<f64>, out: &mut DMatrix<f64>) {
+        if let Self::Payload { k_tip, .. } = self {
+            for k in 0..k_tip.ncols() {
+                for i in 0..m.nrows() {
+                    let mut acc = 0.0;
+                    for r in 0..k_tip.nrows() {
+                        acc += m[(i, r)] * k_tip[(r, k)];
+                    }
+                    out[(i, k)] = acc;
+                }
+            }
+        }
+    }
+
+    /// The arm's joint forces without the payload (payload mode; zero otherwise), the
+    /// offset of the affine model.
+    pub(crate) fn arm_torque_into(
+        &self,
+        ws: &mut TrackedWorkspace,
+        q: &DVector<f64>,
+        qd: &DVector<f64>,
+        qdd: &DVector<f64>,
+        out: &mut DVector<f64>,
+    ) -> Result<()> {
+        match self {
+            Self::Full(_) => {
+                out.fill(0.0);
+                Ok(())
+            }
+            Self::Payload { base, arm, .. } => {
+                base.inverse_dynamics_into(&mut ws.base, q, qd, qdd, arm, out)
+            }
+        }
+    }
+}
+
+impl LinearModel<Dyn, Dyn> for TrackedModel {
+    type Workspace = TrackedWorkspace;
+
+    fn dims(&self) -> (Dyn, Dyn) {
+        match self {
+            Self::Full(b) => b.dims(),
+            Self::Payload { base, .. } => (Dyn(base.dof()), Dyn(PAYLOAD_PARAMS)),
+        }
+    }
+
+    fn workspace(&self) -> TrackedWorkspace {
+        let base = self.base();
+        let (n, b) = (base.dof(), base.count());
+        TrackedWorkspace {
+            base: base.workspace(),
+            phi: DMatrix::zeros(n, b),
+            beta: DVector::zeros(b),
+            fd: ForwardDerivativesOf::zeros(Dyn(n), Dyn(b)),
+        }
+    }
+
+    fn regressor_into(
+        &self,
+        ws: &mut TrackedWorkspace,
+        q: &DVector<f64>,
+        qd: &DVector<f64>,
+        qdd: &DVector<f64>,
+        out: &mut DMatrix<f64>,
+    ) -> Result<()> {
+        match self {
+            Self::Full(b) => b.regressor_into(&mut ws.base, q, qd, qdd, out),
+            Self::Payload { base, .. } => {
+                base.regressor_into(&mut ws.base, q, qd, qdd, &mut ws.phi)?;
+                self.map_columns(&ws.phi, out);
+                Ok(())
+            }
+        }
+    }
+
+    fn inverse_dynamics_into(
+        &self,
+        ws: &mut TrackedWorkspace,
+        q: &DVector<f64>,
+        qd: &DVector<f64>,
+        qdd: &DVector<f64>,
+        lambda: &DVector<f64>,
+        out: &mut DVector<f64>,
+    ) -> Result<()> {
+        self.beta_into(lambda, &mut ws.beta);
+        self.base()
+            .inverse_dynamics_into(&mut ws.base, q, qd, qdd, &ws.beta, out)
+    }
+
+    fn forward_dynamics_into(
+        &self,
+        ws: &mut TrackedWorkspace,
+        q: &DVector<f64>,
+        qd: &DVector<f64>,
+        tau: &DVector<f64>,
+        lambda: &DVector<f64>,
+        out: &mut DVector<f64>,
+    ) -> Result<()> {
+        self.beta_into(lambda, &mut ws.beta);
+        self.base()
+            .forward_dynamics_into(&mut ws.base, q, qd, tau, &ws.beta, out)
+    }
+
+    fn forward_derivatives_into(
+        &self,
+        ws: &mut TrackedWorkspace,
+        q: &DVector<f64>,
+        qd: &DVector<f64>,
+        tau: &DVector<f64>,
+        lambda: &DVector<f64>,
+        out: &mut ForwardDerivativesOf<Dyn, Dyn>,
+    ) -> Result<()> {
+        match self {
+            Self::Full(b) => b.forward_derivatives_into(&mut ws.base, q, qd, tau, lambda, out),
+            Self::Payload { base, .. } => {
+                self.beta_into(lambda, &mut ws.beta);
+                base.forward_derivatives_into(&mut ws.base, q, qd, tau, &ws.beta, &mut ws.fd)?;
+                out.qdd.copy_from(&ws.fd.qdd);
+                out.dqdd_dq.copy_from(&ws.fd.dqdd_dq);
+                out.dqdd_dqd.copy_from(&ws.fd.dqdd_dqd);
+                self.map_columns(&ws.fd.dqdd_dlambda, &mut out.dqdd_dlambda);
+                Ok(())
+            }
+        }
+    }
+}

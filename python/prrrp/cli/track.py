@@ -1,0 +1,350 @@
+"""``prrrp track DATA --robot ROBOT [--model PRIOR.json] [--payload] --out DIR``: the log fed
+to ``prrrp.OnlineIdentifier`` one row at a time, as it would be while the arm runs →
+``DIR/model.json`` (the estimate at the end of the data), ``DIR/payload.json`` (payload
+mode), ``DIR/estimates.csv``, ``DIR/prediction.csv``, ``DIR/track.png`` and
+``DIR/report.md``."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+import prrrp
+from prrrp import bags, csvio, outdir, workflow
+from prrrp.cli.common import EXIT_OK, CliError, Progress, friction_terms, nonempty_path
+from prrrp.cli.predict import load_model
+from prrrp.measurements import read_measurements
+
+METHODS = ("rls", "ekf", "adaline", "hopfield")
+
+#: At most this many rows of estimates.csv (evenly spaced; the last row always kept).
+MAX_ESTIMATE_ROWS = 5000
+
+
+def add_parser(sub: Any) -> None:
+    p = sub.add_parser(
+        "track",
+        help="identify while the arm runs: a log fed one sample at a time",
+        description="Feeds DATA (a CSV t, q1..qN, tau1..tauN, optional qd1..qdN, or a ROS 2 "
+        "bag) row by row to the online identifier, causally (no row sees a later one), and "
+        "writes DIR/model.json (the estimate at the end of the data, predictable with "
+        "`prrrp predict`), DIR/estimates.csv (t and each estimated parameter with σ over "
+        "time), DIR/prediction.csv (t, tau1..tauN: the one-step-ahead prediction of each "
+        "row from the estimate before it), DIR/track.png and DIR/report.md. With --payload "
+        "(needs --model): only the 10 inertial parameters of a payload at the tip link are "
+        "tracked on the prior arm, and DIR/payload.json gives its mass (kg), centre of mass "
+        "(m, tip frame) and inertia about it (kg·m²), each with σ.",
+    )
+    p.add_argument("data", metavar="DATA", help="measurement CSV file or ROS 2 bag")
+    p.add_argument(
+        "--robot",
+        metavar="ROBOT",
+        help="robot file (.urdf or .toml) (default: the robot of --model)",
+    )
+    p.add_argument("--base", metavar="LINK", help="URDF: first link of the chain (default: root)")
+    p.add_argument(
+        "--tip",
+        metavar="LINK",
+        help="URDF: last link of the chain (default: the end of the movable joints)",
+    )
+    p.add_argument(
+        "--friction",
+        metavar="TERMS",
+        default="viscous,coulomb,offset",
+        help="friction terms with --robot, comma-separated from viscous, coulomb, offset, or "
+        "'none' (default: viscous,coulomb,offset)",
+    )
+    p.add_argument(
+        "--model",
+        metavar="PRIOR.json",
+        help="start from this identified model (its robot, estimate and covariance); "
+        "needed by --payload (default: none, the robot file's chain from no knowledge)",
+    )
+    p.add_argument("--method", choices=METHODS, default="rls", help="default: rls")
+    p.add_argument(
+        "--payload",
+        action="store_true",
+        help="track only a payload at the tip link on the arm of --model",
+    )
+    p.add_argument(
+        "--forgetting",
+        type=float,
+        metavar="SECONDS",
+        help="memory: data older than this weigh less than 1/e (rls: directional, ekf: a "
+        "random walk of the parameters; default: none, changes are followed through the "
+        "change detection)",
+    )
+    p.add_argument(
+        "--no-change-detection",
+        action="store_true",
+        help="do not open the covariance when the one-step-ahead errors jump",
+    )
+    p.add_argument(
+        "--cutoff",
+        type=float,
+        metavar="HZ",
+        help="bandwidth of the causal filtering (default: 10 Hz)",
+    )
+    p.add_argument(
+        "--prior-width",
+        type=float,
+        default=3.0,
+        metavar="W",
+        help="the prior's covariance times W² (default 3)",
+    )
+    p.add_argument(
+        "--ekf-noise",
+        type=float,
+        default=1.0,
+        metavar="F",
+        help="ekf: factor on the measurement noise of positions (1e-3 rad) and velocities "
+        "(1e-2 rad/s) (default 1)",
+    )
+    p.add_argument(
+        "--topic",
+        default=bags.DEFAULT_TOPIC,
+        help=f"JointState topic of a bag (default: {bags.DEFAULT_TOPIC})",
+    )
+    p.add_argument("--out", required=True, type=nonempty_path, metavar="DIR", help="output folder")
+    p.set_defaults(func=run)
+
+
+def _positive(name: str, v: float | None) -> None:
+    if v is not None and not (math.isfinite(v) and v > 0):
+        raise CliError(f"{name} must be finite and > 0, got {v}")
+
+
+def run(args: argparse.Namespace) -> int:
+    _positive("--forgetting", args.forgetting)
+    _positive("--cutoff", args.cutoff)
+    _positive("--prior-width", args.prior_width)
+    _positive("--ekf-noise", args.ekf_noise)
+    if args.payload and not args.model:
+        raise CliError("--payload tracks a load on a known arm: give its model with --model")
+    if not args.model and not args.robot:
+        raise CliError("give --robot ROBOT (or --model PRIOR.json, which carries its robot)")
+    prior = load_model(args.model) if args.model else None
+    if prior is not None:
+        if args.robot:
+            raise CliError("--model carries its robot; --robot is not needed with it")
+        robot = prior.robot
+    else:
+        robot = workflow.load_robot(
+            args.robot, base=args.base, tip=args.tip, friction=friction_terms(args.friction)
+        )
+    outdir.check(args.out)
+    raw = read_measurements(args.data, robot, topic=args.topic)
+    online = prrrp.OnlineIdentifier(
+        None if prior is not None else robot,
+        prior=prior,
+        method=args.method,
+        payload=args.payload,
+        forgetting=args.forgetting,
+        change_detection=not args.no_change_detection,
+        cutoff_hz=args.cutoff,
+        prior_width=args.prior_width,
+        ekf_noise=args.ekf_noise,
+    )
+    run_ = track(online, raw, Progress())
+    model = online.estimate()
+    payload = online.payload()
+
+    def build(tmp: Path) -> list[Path]:
+        written = [tmp / "model.json", tmp / "estimates.csv", tmp / "prediction.csv"]
+        model.save(tmp / "model.json")
+        names = online.parameter_names
+        header = ["t", *names, *(f"sigma_{n}" for n in names)]
+        csvio.write_text_atomic(tmp / "estimates.csv", _csv(header, run_["estimates"]))
+        n = online.dof
+        pred = np.column_stack([raw["t"], run_["prediction"]])
+        header = ["t", *(f"tau{j + 1}" for j in range(n))]
+        csvio.write_text_atomic(tmp / "prediction.csv", _csv(header, pred))
+        if payload is not None:
+            (tmp / "payload.json").write_text(json.dumps(payload, indent=2), encoding="utf-8")
+            written.append(tmp / "payload.json")
+        written.append(tmp / "track.png")
+        figure(tmp / "track.png", raw, run_, names, payload is not None)
+        written.append(tmp / "report.md")
+        (tmp / "report.md").write_text(
+            report(args, online, model, raw, run_, payload), encoding="utf-8"
+        )
+        return written
+
+    written = outdir.write_dir(args.out, build)
+    errs = run_["late_error_percent"]
+    print(
+        f"{robot.name}: {len(raw['t'])} rows, {online.counts[3]} change(s) detected "
+        f"at t = {', '.join(f'{t:.3g}' for t in run_['changes']) or '-'} s"
+    )
+    print(
+        "one-step-ahead error over the last 20 % (% of RMS torque): "
+        + ", ".join(f"{e:.3g}" for e in errs)
+    )
+    if payload is not None:
+        print(f"payload: {_payload_line(payload)}")
+    print(f"results in {args.out}/ ({len(written)} files: model.json, report.md, figures)")
+    return EXIT_OK
+
+
+def track(
+    online: prrrp.OnlineIdentifier, raw: dict[str, np.ndarray], progress: Progress | None = None
+) -> dict[str, Any]:
+    """Feeds every row of ``raw`` (``t``, ``q``, ``tau``, optional ``qd``) to ``online``;
+    returns the one-step-ahead ``prediction`` (S, N), ``estimates`` (rows of t, θ, σ;
+    at most :data:`MAX_ESTIMATE_ROWS`), the times of detected ``changes`` and the
+    one-step-ahead error per joint over the last 20 % of the rows (% of RMS torque)."""
+    t, q, tau = raw["t"], raw["q"], raw["tau"]
+    qd = raw.get("qd")
+    rows = len(t)
+    step = max(1, math.ceil(rows / MAX_ESTIMATE_ROWS))
+    p = len(online.parameter_names)
+    prediction = np.empty_like(tau, dtype=float)
+    estimates = []
+    changes = []
+    for k in range(rows):
+        out = online.update(float(t[k]), q[k], tau[k], None if qd is None else qd[k])
+        prediction[k] = out["prediction"]
+        if out["change"]:
+            changes.append(float(t[k]))
+        if k % step == 0 or k == rows - 1:
+            sigma = out["sigma"]
+            estimates.append(
+                np.concatenate(
+                    [[t[k]], out["estimate"], np.full(p, np.nan) if sigma is None else sigma]
+                )
+            )
+        if progress is not None and k % 500 == 0:
+            progress("track", k, rows)
+    if progress is not None:
+        progress("track", rows, rows)
+        progress.close()
+    late = slice(int(0.8 * rows), rows)
+    err = prediction[late] - tau[late]
+    rms = np.sqrt(np.mean(tau[late] ** 2, axis=0))
+    late_error = 100 * np.sqrt(np.mean(err**2, axis=0)) / np.where(rms > 0, rms, np.nan)
+    return {
+        "prediction": prediction,
+        "estimates": np.array(estimates),
+        "changes": changes,
+        "late_error_percent": late_error,
+    }
+
+
+def _csv(header: list[str], rows: np.ndarray) -> str:
+    lines = [",".join(header)]
+    lines += [",".join("" if not np.isfinite(v) else repr(float(v)) for v in r) for r in rows]
+    return "\n".join(lines) + "\n"
+
+
+def figure(
+    path: Path, raw: dict[str, np.ndarray], run_: dict[str, Any], names: list[str], payload: bool
+) -> None:
+    """Parameters over time (payload: the mass in kg; else each parameter over its final
+    magnitude) above the one-step-ahead torque error of each joint (N·m or N, a 0.1 s
+    running RMS); detected changes as vertical lines."""
+    from prrrp import drawing
+
+    est = run_["estimates"]
+    t = raw["t"]
+    fig, axes = drawing.figure(2, 1, panel=(8.0, 2.7), left=0.9, right=1.2, hspace=0.7, sharex=True)
+    a, b = axes[0][0], axes[1][0]
+    p = len(names)
+    if payload:
+        drawing.lines(a, est[:, 0], est[:, 1], label="m")
+        # The σ band needs no more points than the panel has pixel columns.
+        step = max(1, len(est) // (2 * drawing.pixels(a)[0]))
+        e = est[::step]
+        a.fill_between(e[:, 0], e[:, 1] - e[:, 1 + p], e[:, 1] + e[:, 1 + p], alpha=0.3, lw=0)
+        a.set_ylabel("payload mass (kg)", fontsize=8)
+    else:
+        final = np.abs(est[-1, 1 : 1 + p])
+        scale = np.where(final > 0, final, 1.0)
+        for k in range(p):
+            drawing.lines(a, est[:, 0], est[:, 1 + k] / scale[k], lw=0.7)
+        a.set_ylim(-3, 3)
+        a.set_ylabel("parameter / |final value| (1)", fontsize=8)
+    err = run_["prediction"] - raw["tau"]
+    dt = np.median(np.diff(t)) if len(t) > 1 else 1.0
+    w = max(1, round(0.1 / dt)) if dt > 0 else 1
+    kernel = np.ones(w) / w
+    for j in range(err.shape[1]):
+        rms = np.sqrt(np.convolve(err[:, j] ** 2, kernel, mode="same"))
+        drawing.lines(b, t, rms, lw=0.8, label=f"joint {j + 1}")
+    b.set_yscale("log")
+    b.set_ylabel("one-step-ahead torque\nerror, 0.1 s RMS (N·m, N)", fontsize=8)
+    b.set_xlabel("time (s)", fontsize=8)
+    b.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False)
+    for ax in (a, b):
+        for c in run_["changes"]:
+            ax.axvline(c, color="k", lw=0.6, ls="--")
+    drawing.save(fig, path)
+
+
+def _payload_line(p: dict[str, Any]) -> str:
+    def pm(v: Any, s: Any, unit: str) -> str:
+        if v is None:
+            return "-"
+        if isinstance(v, list):
+            vs = s if s is not None else [None] * len(v)
+            return "[" + ", ".join(pm(x, y, "") for x, y in zip(v, vs, strict=True)) + "]" + unit
+        return f"{v:.4g}" + (f" ± {s:.2g}" if s is not None else "") + unit
+
+    return (
+        f"mass {pm(p['mass'], p['mass_sigma'], ' kg')}, com {pm(p['com'], p['com_sigma'], ' m')}"
+        f", inertia about com {pm(p['inertia'], p['inertia_sigma'], ' kg·m²')}"
+    )
+
+
+def report(
+    args: argparse.Namespace,
+    online: prrrp.OnlineIdentifier,
+    model: prrrp.IdentifiedModel,
+    raw: dict[str, np.ndarray],
+    run_: dict[str, Any],
+    payload: dict[str, Any] | None,
+) -> str:
+    rows, updates, repeated, changes = online.counts
+    t = raw["t"]
+    lines = [
+        f"# prrrp track: {model.robot.name}",
+        "",
+        f"- data: `{args.data}` ({rows} rows over {t[-1] - t[0]:.4g} s; {repeated} repeated "
+        f"time stamps; {updates} rows updated the estimate)",
+        f"- method: {args.method}{' (payload mode)' if payload is not None else ''}; prior: "
+        f"{args.model or 'none'}; forgetting: "
+        f"{'none' if args.forgetting is None else f'{args.forgetting:g} s'}; change "
+        f"detection: {'off' if args.no_change_detection else 'on'}",
+        f"- changes detected: {changes}"
+        + (f" (t = {', '.join(f'{c:.4g}' for c in run_['changes'])} s)" if changes else ""),
+        "",
+        "## One-step-ahead prediction",
+        "",
+        "Each row's torque predicted from the estimate before it (`prediction.csv`); error "
+        "over the last 20 % of the rows, % of each joint's RMS torque:",
+        "",
+        "| joint | error (%) | running noise level (N·m or N) |",
+        "|---|---|---|",
+    ]
+    for j, (e, s) in enumerate(zip(run_["late_error_percent"], online.noise_rms, strict=True)):
+        lines.append(f"| {model.robot.joint_names[j]} | {e:.3g} | {s:.3g} |")
+    if payload is not None:
+        lines += ["", "## Payload", "", _payload_line(payload) + " (`payload.json`)."]
+    lines += [
+        "",
+        "## Files",
+        "",
+        "- `model.json`: the estimate at the end of the data (`prrrp predict MODEL DATA`)",
+        "- `estimates.csv`: t, each estimated parameter, then its σ "
+        f"(every {max(1, math.ceil(rows / MAX_ESTIMATE_ROWS))}. row)",
+        "- `prediction.csv`: t, tau1..tauN one step ahead",
+        "- `track.png`: parameters and one-step-ahead error over time",
+        "",
+        "![track](track.png)",
+        "",
+    ]
+    return "\n".join(lines)

@@ -1,0 +1,200 @@
+"""`prrrp.OnlineIdentifier` and `prrrp track` against Pinocchio: a UR5 of example-robot-data
+whose torques come from `pin.rnea`, with a payload added to the last joint's inertia
+(Pinocchio's own `Inertia` arithmetic) when the part is gripped mid-run."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pinocchio as pin
+import pytest
+from pinocchio_standin import ARMS, ROBOTS, _multisine, _torques
+
+import prrrp
+from prrrp.cli import main
+
+RATE = 250.0
+GRIP = 10.0
+PART = {
+    "mass": 2.0,
+    "com": np.array([0.01, -0.02, 0.06]),
+    "inertia_com": np.diag([4e-3, 4e-3, 3e-3]),
+}
+
+
+def _ur5():
+    rel, tip = ARMS["ur5"]
+    path = str(ROBOTS / rel)
+    chain = prrrp.SerialChain.from_urdf(path, tip=tip)
+    full = pin.buildModelFromUrdf(path)
+    names = list(chain.joint_names)
+    lock = [full.getJointId(j) for j in full.names[1:] if j not in names]
+    model = pin.buildReducedModel(full, lock, pin.neutral(full)) if lock else full
+    return chain, model
+
+
+def _loaded(model: pin.Model) -> pin.Model:
+    out = model.copy()
+    part = pin.Inertia(PART["mass"], PART["com"], PART["inertia_com"])
+    last = out.njoints - 1
+    out.inertias[last] = out.inertias[last] + part
+    return out
+
+
+def _log(model, loaded, seed, seconds, grip, noise=0.02):
+    rng = np.random.default_rng(seed)
+    n = model.nv
+    t, q, qd, qdd = _multisine(rng, n, seconds, RATE, np.full(n, 0.8), f0=0.1)
+    tau = _torques(model, q, qd, qdd)
+    if grip is not None:
+        after = t >= grip
+        tau[after] = _torques(loaded, q[after], qd[after], qdd[after])
+    return {
+        "t": t,
+        "q": q + rng.normal(0, 1e-5, q.shape),
+        "qd": qd,
+        "qdd": qdd,
+        "tau": tau + rng.normal(0, noise, tau.shape),
+        "exact": tau,
+    }
+
+
+@pytest.fixture(scope="module")
+def setup():
+    chain, model = _ur5()
+    loaded = _loaded(model)
+    un = _log(model, loaded, 1, 20.0, None)
+    data = prrrp.Dataset(un["t"], un["q"], un["qd"], un["qdd"], un["tau"])
+    prior = prrrp.identify(chain, data, "wls")
+    run = _log(model, loaded, 2, 20.0, GRIP)
+    val = _log(model, loaded, 3, 8.0, 0.0)
+    return chain, prior, run, val
+
+
+def _rel_error(m: prrrp.IdentifiedModel, val) -> np.ndarray:
+    err = np.asarray(m.predict(val["q"], val["qd"], val["qdd"])) - val["exact"]
+    return np.sqrt(np.mean(err**2, axis=0) / np.mean(val["exact"] ** 2, axis=0))
+
+
+@pytest.mark.parametrize(
+    "method",
+    [
+        "rls",
+        pytest.param(
+            "ekf",
+            marks=pytest.mark.xfail(
+                strict=True,
+                reason="known gap of issue 28: the payload EKF finds 2.24 kg for a 2 kg part "
+                "on this UR5 log (it meets 5 % on the Rust test's Panda-like arm)",
+            ),
+        ),
+    ],
+)
+def test_payload_mode_finds_the_gripped_mass(setup, method):
+    """Payload mode on a prior of the bare arm: the change is detected within a second of
+    the grip, the mass is within 5 % (Pinocchio's torques, not prrrp's), and the model at
+    the end predicts another loaded motion within 3 % of each joint's RMS torque."""
+    _chain, prior, run, val = setup
+    online = prrrp.OnlineIdentifier(prior=prior, method=method, payload=True)
+    changes = []
+    for k in range(len(run["t"])):
+        out = online.update(run["t"][k], run["q"][k], run["tau"][k])
+        if out["change"]:
+            changes.append(run["t"][k])
+    assert any(GRIP <= c < GRIP + 1 for c in changes), changes
+    p = online.payload()
+    assert abs(p["mass"] / PART["mass"] - 1) < 0.05, p["mass"]
+    assert 0 < p["mass_sigma"] < 0.1 * PART["mass"]
+    assert p["physical"]
+    err = _rel_error(online.estimate(), val)
+    assert np.all(err < 0.03), err
+
+
+def test_future_rows_do_not_change_past_outputs(setup):
+    _chain, prior, run, _ = setup
+    k0 = 600
+    outs = []
+    for tau in (run["tau"], np.where(np.arange(len(run["t"]))[:, None] >= k0, 0.0, run["tau"])):
+        online = prrrp.OnlineIdentifier(prior=prior, method="rls")
+        outs.append([online.update(run["t"][k], run["q"][k], tau[k]) for k in range(k0 + 50)])
+    for k in range(k0):
+        for key in ("prediction", "estimate", "sigma"):
+            np.testing.assert_array_equal(outs[0][k][key], outs[1][k][key])
+    assert not np.array_equal(outs[0][-1]["estimate"], outs[1][-1]["estimate"])
+
+
+def test_bad_input_is_a_typed_error(setup):
+    chain, _prior, *_ = setup
+    online = prrrp.OnlineIdentifier(chain)
+    online.update(0.0, np.zeros(6), np.ones(6))
+    with pytest.raises(prrrp.NonFiniteError):
+        online.update(0.01, [0, 0, np.nan, 0, 0, 0], np.ones(6))
+    with pytest.raises(prrrp.ShapeMismatchError):
+        online.update(0.01, np.zeros(5), np.ones(6))
+    with pytest.raises(prrrp.NonIncreasingTimeError):
+        online.update(-1.0, np.zeros(6), np.ones(6))
+    assert online.counts[0] == 1
+    for bad in ({"forgetting": 0.0}, {"method": "adaline", "step_size": 2.5}, {"payload": True}):
+        with pytest.raises(prrrp.InvalidParameterError):
+            prrrp.OnlineIdentifier(chain, **bad)
+    with pytest.raises(prrrp.InvalidParameterError):
+        prrrp.OnlineIdentifier(chain, method="kalman")
+    with pytest.raises(prrrp.InvalidParameterError):
+        prrrp.OnlineIdentifier()
+
+
+def _write_csv(path, log):
+    n = log["q"].shape[1]
+    header = ["t", *(f"q{j + 1}" for j in range(n)), *(f"tau{j + 1}" for j in range(n))]
+    table = np.column_stack([log["t"], log["q"], log["tau"]])
+    np.savetxt(path, table, delimiter=",", header=",".join(header), comments="")
+
+
+def test_track_command_writes_its_outputs(setup, tmp_path):
+    """`prrrp track --payload` on a CSV: every file, payload.json's mass within 5 %, a
+    model.json that `prrrp predict` takes, one prediction row per input row."""
+    _chain, prior, run, _ = setup
+    data = tmp_path / "loaded.csv"
+    _write_csv(data, run)
+    prior_path = tmp_path / "prior.json"
+    prior.save(prior_path)
+    out = tmp_path / "track"
+    code = main(["track", str(data), "--model", str(prior_path), "--payload", "--out", str(out)])
+    assert code == 0
+    for name in (
+        "model.json",
+        "payload.json",
+        "estimates.csv",
+        "prediction.csv",
+        "track.png",
+        "report.md",
+    ):
+        assert (out / name).is_file(), name
+    payload = json.loads((out / "payload.json").read_text())
+    assert abs(payload["mass"] / PART["mass"] - 1) < 0.05
+    pred = np.loadtxt(out / "prediction.csv", delimiter=",", skiprows=1)
+    assert pred.shape == (len(run["t"]), 7)
+    np.testing.assert_array_equal(pred[:, 0], run["t"])
+    assert (
+        main(["predict", str(out / "model.json"), str(data), "--out", str(tmp_path / "t.csv")]) == 0
+    )
+    assert main(["track", str(data), "--payload", "--robot", "x.urdf", "--out", str(out)]) == 2
+
+
+def test_identify_ekf_takes_the_options_its_errors_name(setup, tmp_path):
+    """`prrrp identify --method ekf --ekf-prior-width W --ekf-noise F` reach the filter
+    (recorded in the model's settings); a non-positive value is a usage error."""
+    _chain, _prior, run, _ = setup
+    rel, _tip = ARMS["ur5"]
+    data = tmp_path / "ur5.csv"
+    unloaded = {k: v[: int(GRIP * RATE)] for k, v in run.items()}
+    _write_csv(data, unloaded)
+    out = tmp_path / "ekf"
+    common = ["identify", str(data), "--robot", str(ROBOTS / rel), "--method", "ekf"]
+    assert main([*common, "--ekf-noise", "0", "--out", str(out)]) == 2
+    code = main([*common, "--ekf-prior-width", "2", "--ekf-noise", "3", "--out", str(out)])
+    assert code == 0
+    settings = prrrp.IdentifiedModel.load(out / "model.json").settings
+    assert settings["least_squares_prior_width"] == 2.0
+    assert np.atleast_1d(settings["position_noise"])[0] == pytest.approx(3e-3)

