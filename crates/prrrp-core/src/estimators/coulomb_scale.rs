@@ -504,8 +504,20 @@ struct Search {
 struct JointRows {
     /// Fixed-column indices with a non-zero entry in some sample, increasing.
     cols: Vec<usize>,
-    /// samples × `cols.len()`.
-    rows: Mat<f64>,
+    /// The equations, sample by sample (`cols.len()` entries each).
+    rows: Vec<f64>,
+}
+
+impl JointRows {
+    /// The transposed equations of samples `range`: `cols.len()` × samples.
+    fn transposed(&self, range: &Range<usize>) -> faer::MatRef<'_, f64> {
+        let m = self.cols.len();
+        faer::MatRef::from_column_major_slice(
+            &self.rows[range.start * m..range.end * m],
+            m,
+            range.len(),
+        )
+    }
 }
 
 /// A Coulomb column of W_b: actuator m's entry in joint j's equation of sample k is
@@ -568,9 +580,11 @@ impl Search {
             }
         }
 
-        // The fixed columns, joint by joint, from the base regressor of each sample.
-        let mut full: Vec<Mat<f64>> = (0..n).map(|_| Mat::<f64>::zeros(s, nf)).collect();
+        // The fixed columns, joint by joint, from the base regressor of each sample; each
+        // sample's entries of a joint kept together, so that stacking writes in order.
+        let mut stacked: Vec<Vec<f64>> = (0..n).map(|_| Vec::with_capacity(s * nf)).collect();
         let mut used = vec![vec![false; nf]; n];
+        let fixed_cols: Vec<usize> = (0..b).filter(|&c| fixed_index[c].is_some()).collect();
         let mut ws = model.workspace();
         let mut phi = DMatrix::zeros(n, b);
         let (mut q, mut qd, mut qdd) = (DVector::zeros(n), DVector::zeros(n), DVector::zeros(n));
@@ -582,27 +596,33 @@ impl Search {
             qd.copy_from_slice(data.qd_row(k));
             qdd.copy_from_slice(data.qdd_row(k));
             model.regressor_into(&mut ws, &q, &qd, &qdd, &mut phi)?;
-            for (c, f) in fixed_index.iter().enumerate() {
-                let Some(f) = *f else { continue };
-                for j in 0..n {
-                    let v = phi[(j, c)];
-                    full[j][(k, f)] = v;
-                    used[j][f] |= v != 0.0;
+            let ph = phi.as_slice();
+            for (j, (dst, used)) in stacked.iter_mut().zip(&mut used).enumerate() {
+                for (u, &c) in used.iter_mut().zip(&fixed_cols) {
+                    let v = ph[c * n + j];
+                    dst.push(v);
+                    *u |= v != 0.0;
                 }
             }
         }
         // A joint's equations involve only the links from it outwards (and its actuators):
         // dropping the columns that are zero throughout halves the work below, exactly.
-        let joints: Vec<JointRows> = full
+        let joints: Vec<JointRows> = stacked
             .into_iter()
             .zip(&used)
-            .map(|(rows, used)| {
+            .map(|(mut rows, used)| {
                 let cols: Vec<usize> = (0..nf).filter(|&f| used[f]).collect();
-                let rows = if cols.len() == nf {
-                    rows
-                } else {
-                    Mat::<f64>::from_fn(s, cols.len(), |k, r| rows[(k, cols[r])])
-                };
+                let m = cols.len();
+                if m < nf {
+                    // In place: sample k's entries move to k·m.., never past where they were.
+                    for k in 0..s {
+                        for (r, &c) in cols.iter().enumerate() {
+                            rows[k * m + r] = rows[k * nf + c];
+                        }
+                    }
+                    rows.truncate(s * m);
+                    rows.shrink_to_fit();
+                }
                 JointRows { cols, rows }
             })
             .collect();
@@ -621,21 +641,21 @@ impl Search {
             let mut gram = Mat::<f64>::zeros(nf, nf);
             let mut rhs = vec![0.0; nf];
             for (j, jr) in joints.iter().enumerate() {
-                let g = jr.rows.as_ref().subrows(k0, len);
+                let gt = jr.transposed(range);
                 let m = jr.cols.len();
                 let mut part = Mat::<f64>::zeros(m, m);
                 tri::matmul(
                     part.as_mut(),
                     BlockStructure::TriangularLower,
                     Accum::Replace,
-                    g.transpose(),
+                    gt,
                     BlockStructure::Rectangular,
-                    g,
+                    gt.transpose(),
                     BlockStructure::Rectangular,
                     1.0,
                     Par::Seq,
                 );
-                let gt = g.transpose() * tau_j[j].as_ref().subrows(k0, len);
+                let gt = gt * tau_j[j].as_ref().subrows(k0, len);
                 // `cols` increases, so the lower triangle lands in the lower triangle.
                 for (r, &cr) in jr.cols.iter().enumerate() {
                     rhs[cr] += gt[(r, 0)];
@@ -781,7 +801,7 @@ impl Scorer for Search {
                 let sa = features[a].as_ref().subrows(k0, len);
                 for &(j, w) in &col.joints {
                     let jr = &self.joints[j];
-                    let part = jr.rows.as_ref().subrows(k0, len).transpose() * sa;
+                    let part = jr.transposed(range) * sa;
                     for c in 0..kc {
                         for (r, &cr) in jr.cols.iter().enumerate() {
                             cross[f][(cr, a * kc + c)] += w * part[(r, c)];
