@@ -502,7 +502,7 @@ struct Search {
 
 /// The equations of one joint (rows: samples) in the fixed columns they involve.
 struct JointRows {
-    /// Fixed-column indices with a non-zero entry in some sample, increasing.
+    /// Fixed-column indices the joint's equations can involve, increasing.
     cols: Vec<usize>,
     /// The equations, sample by sample (`cols.len()` entries each).
     rows: Vec<f64>,
@@ -580,11 +580,30 @@ impl Search {
             }
         }
 
-        // The fixed columns, joint by joint, from the base regressor of each sample; each
-        // sample's entries of a joint kept together, so that stacking writes in order.
-        let mut stacked: Vec<Vec<f64>> = (0..n).map(|_| Vec::with_capacity(s * nf)).collect();
-        let mut used = vec![vec![false; nf]; n];
+        // A joint's equations involve only the links from it outwards and the actuators
+        // that reach it (the regressor writes nothing else): the other columns are zero
+        // throughout and left out, exactly, which halves the work below.
+        let coupling = view.coupling;
+        let reaches = |j: usize, idx: usize| match idx.checked_sub(10 * n) {
+            None => j <= idx / 10,
+            Some(off) => {
+                let m = off / layout.per.max(1);
+                coupling.map_or(j == m, |c| c[m * n + j] != 0.0)
+            }
+        };
         let fixed_cols: Vec<usize> = (0..b).filter(|&c| fixed_index[c].is_some()).collect();
+        let joint_cols: Vec<Vec<usize>> = (0..n)
+            .map(|j| {
+                (0..nf)
+                    .filter(|&f| reaches(j, base.independent[fixed_cols[f]]))
+                    .collect()
+            })
+            .collect();
+        // Each sample's entries of a joint kept together, so that stacking writes in order.
+        let mut stacked: Vec<Vec<f64>> = joint_cols
+            .iter()
+            .map(|cols| Vec::with_capacity(s * cols.len()))
+            .collect();
         let mut ws = model.workspace();
         let mut phi = DMatrix::zeros(n, b);
         let (mut q, mut qd, mut qdd) = (DVector::zeros(n), DVector::zeros(n), DVector::zeros(n));
@@ -597,34 +616,14 @@ impl Search {
             qdd.copy_from_slice(data.qdd_row(k));
             model.regressor_into(&mut ws, &q, &qd, &qdd, &mut phi)?;
             let ph = phi.as_slice();
-            for (j, (dst, used)) in stacked.iter_mut().zip(&mut used).enumerate() {
-                for (u, &c) in used.iter_mut().zip(&fixed_cols) {
-                    let v = ph[c * n + j];
-                    dst.push(v);
-                    *u |= v != 0.0;
-                }
+            for (j, (dst, cols)) in stacked.iter_mut().zip(&joint_cols).enumerate() {
+                dst.extend(cols.iter().map(|&f| ph[fixed_cols[f] * n + j]));
             }
         }
-        // A joint's equations involve only the links from it outwards (and its actuators):
-        // dropping the columns that are zero throughout halves the work below, exactly.
-        let joints: Vec<JointRows> = stacked
+        let joints: Vec<JointRows> = joint_cols
             .into_iter()
-            .zip(&used)
-            .map(|(mut rows, used)| {
-                let cols: Vec<usize> = (0..nf).filter(|&f| used[f]).collect();
-                let m = cols.len();
-                if m < nf {
-                    // In place: sample k's entries move to k·m.., never past where they were.
-                    for k in 0..s {
-                        for (r, &c) in cols.iter().enumerate() {
-                            rows[k * m + r] = rows[k * nf + c];
-                        }
-                    }
-                    rows.truncate(s * m);
-                    rows.shrink_to_fit();
-                }
-                JointRows { cols, rows }
-            })
+            .zip(stacked)
+            .map(|(cols, rows)| JointRows { cols, rows })
             .collect();
 
         let ranges: Vec<Range<usize>> = (0..folds)
@@ -693,7 +692,6 @@ impl Search {
             fold.train = factor(train, &rhs);
         }
 
-        let coupling = view.coupling;
         let coulomb: Vec<CoulombColumn> = actuators
             .iter()
             .map(|&m| {
@@ -774,19 +772,6 @@ fn factor(p: Mat<f64>, rhs: &[f64]) -> Option<Train> {
 impl Scorer for Search {
     fn score(&mut self, scales: &[f64]) -> Result<Vec<Option<Vec<f64>>>> {
         let (kc, nc, nf, nfold) = (scales.len(), self.coulomb.len(), self.nf, self.folds.len());
-        let samples = self.folds.last().map_or(0, |r| r.end);
-        // The Coulomb columns' entries: samples × candidates per column.
-        let mut features = Vec::with_capacity(nc);
-        for col in &self.coulomb {
-            crate::interrupt::check("Coulomb speed-scale search")?;
-            features.push(Mat::<f64>::from_fn(samples, kc, |k, c| {
-                let model = FrictionModel {
-                    coulomb_smoothing: scales[c],
-                    ..self.friction
-                };
-                model.features(col.rate[k])[1]
-            }));
-        }
         // Per fold: W_Fᵀ·W_C (nf × nc·kc, candidate c of column a at a·kc + c), W_Cᵀ·W_C
         // (nc × nc per candidate) and W_Cᵀ·τ (nc per candidate).
         let mut cross: Vec<Mat<f64>> = (0..nfold).map(|_| Mat::<f64>::zeros(nf, nc * kc)).collect();
@@ -794,11 +779,29 @@ impl Scorer for Search {
             .map(|_| (0..kc).map(|_| Mat::<f64>::zeros(nc, nc)).collect())
             .collect();
         let mut ct: Vec<Mat<f64>> = (0..nfold).map(|_| Mat::<f64>::zeros(nc, kc)).collect();
-        for (a, col) in self.coulomb.iter().enumerate() {
-            crate::interrupt::check("Coulomb speed-scale search")?;
-            for (f, range) in self.folds.iter().enumerate() {
-                let (k0, len) = (range.start, range.len());
-                let sa = features[a].as_ref().subrows(k0, len);
+        // The Coulomb columns' entries over one fold (samples × candidates per column),
+        // reused fold after fold.
+        let longest = self.folds.iter().map(|r| r.len()).max().unwrap_or(0);
+        let mut features: Vec<Mat<f64>> = (0..nc).map(|_| Mat::zeros(longest, kc)).collect();
+        for (f, range) in self.folds.iter().enumerate() {
+            let len = range.len();
+            for (col, feat) in self.coulomb.iter().zip(&mut features) {
+                crate::interrupt::check("Coulomb speed-scale search")?;
+                for (c, &v) in scales.iter().enumerate() {
+                    let model = FrictionModel {
+                        coulomb_smoothing: v,
+                        ..self.friction
+                    };
+                    for (x, &rate) in feat.col_as_slice_mut(c)[..len]
+                        .iter_mut()
+                        .zip(&col.rate[range.clone()])
+                    {
+                        *x = model.features(rate)[1];
+                    }
+                }
+            }
+            for (a, col) in self.coulomb.iter().enumerate() {
+                let sa = features[a].as_ref().subrows(0, len);
                 for &(j, w) in &col.joints {
                     let jr = &self.joints[j];
                     let part = jr.transposed(range) * sa;
@@ -809,12 +812,12 @@ impl Scorer for Search {
                     }
                 }
                 for c in 0..kc {
-                    let fa = &features[a].col_as_slice(c)[range.clone()];
+                    let fa = &features[a].col_as_slice(c)[..len];
                     ct[f][(a, c)] = dot(fa, &col.torque[range.clone()]);
                     for b in 0..=a {
                         let o = self.overlap[a * nc + b];
                         if o != 0.0 {
-                            let fb = &features[b].col_as_slice(c)[range.clone()];
+                            let fb = &features[b].col_as_slice(c)[..len];
                             let x = o * dot(fa, fb);
                             cc[f][c][(a, b)] = x;
                             cc[f][c][(b, a)] = x;
