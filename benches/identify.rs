@@ -1,8 +1,8 @@
 //! The identification core of `prrrp identify` on a 6-joint, 20 000-sample log: a UR5-like
-//! arm (`tests/data/ur5_like_friction.toml`, viscous + smooth Coulomb with v_s = 0.02 rad/s
-//! + offset friction) following a seeded five-harmonic Fourier excitation for 40 s at
-//! 500 Hz, with torque-sensor (0.05 N·m) and encoder (1e-4 rad) noise. Timed, each from the
-//! output of the step before (built outside the timed closures):
+//! arm (`tests/data/ur5_like_friction.toml`: viscous, smooth Coulomb with v_s = 0.02 rad/s
+//! and offset friction) following a seeded five-harmonic Fourier excitation for 40 s at
+//! 500 Hz, with torque-sensor (0.05 N·m) and encoder (1e-4 rad) noise. Each step is timed
+//! on the output of the step before, built outside the timed closures:
 //! - `preprocess_log`: the raw log to filtered q, q̇, q̈, τ (default settings);
 //! - `base_observation_matrix`: stacking the base regressor W_b of the preprocessed data;
 //! - `identify_wls`: the default method, joint-weighted least squares with its σ;

@@ -759,7 +759,7 @@ fn factor(p: Mat<f64>, rhs: &[f64]) -> Option<Train> {
             }
         })
         .collect();
-    if scale.iter().any(|&x| x == 0.0) {
+    if scale.contains(&0.0) {
         return None;
     }
     let scaled = Mat::<f64>::from_fn(nf, nf, |i, j| p[(i, j)] * scale[i] * scale[j]);
@@ -854,7 +854,7 @@ impl Scorer for Search {
                         }
                     })
                     .collect();
-                if dc.iter().any(|&x| x == 0.0) {
+                if dc.contains(&0.0) {
                     break;
                 }
                 // Block Cholesky of the scaled training matrix [P Q; Qᵀ R]: X = L⁻¹·Q̃, the
