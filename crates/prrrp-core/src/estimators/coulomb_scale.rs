@@ -3,15 +3,14 @@
 //! Real joint friction turns over within a small speed band rather than jumping at q̇ = 0;
 //! a Coulomb column of the wrong width leaves a large torque error wherever a joint
 //! reverses. The regressor is linear in fc for a fixed v_s, so the search is a 1-D
-//! model selection over v_s (shared by all joints): for each candidate the base
-//! observation matrix W_b(v_s) is built and scored by K-fold cross-validation over
-//! contiguous blocks of samples (the held-out block is a different stretch of motion, so
-//! a width that only fits noise is not rewarded). The folds cost one pass: with the
-//! normal equations A_f = W_fᵀW_f, b_f = W_fᵀτ_f of every fold, the fit without fold f is
-//! β_f = (A − A_f)⁻¹(b − b_f) and its held-out error is
-//! τ_fᵀτ_f − 2β_fᵀb_f + β_fᵀA_fβ_f. The best grid point is refined by a parabola in
-//! log v_s through it and its neighbours. v_s = 0 (the exact sign) is always a candidate,
-//! so the hard sign is chosen when it predicts best.
+//! model selection over v_s (shared by all joints): each candidate's base observation
+//! matrix W_b(v_s) is scored by K-fold cross-validation over contiguous blocks of samples
+//! (the held-out block is a different stretch of motion, so a width that only fits noise
+//! is not rewarded). The folds cost one pass: with the normal equations A_f = W_fᵀW_f,
+//! b_f = W_fᵀτ_f of every fold, the fit without fold f is β_f = (A − A_f)⁻¹(b − b_f) and
+//! its held-out error is τ_fᵀτ_f − 2β_fᵀb_f + β_fᵀA_fβ_f. The best grid point is refined by
+//! a parabola in log v_s through it and its neighbours. v_s = 0 (the exact sign) is always
+//! a candidate, so the hard sign is chosen when it predicts best.
 //!
 //! **Edges and identifiability.** An optimum on the largest candidate (or on the smallest
 //! positive one, beating the exact sign) says only that the error still falls beyond the
@@ -26,17 +25,29 @@
 //! the widenings (above the data's speeds the smooth Coulomb term is nearly linear in q̇,
 //! i.e. indistinguishable from viscous friction).
 //!
-//! The search is a loop over candidates, each scored on its own ([`Search::score`]); a
-//! faster scorer (updating the normal equations by the Coulomb columns only) can replace
-//! that function without changing the search.
+//! **Cost.** Only the Coulomb columns W_C (one per actuator) depend on v_s. The other
+//! columns W_F, their per-fold blocks W_FᵀW_F and W_Fᵀτ, and the Cholesky factor of each
+//! fold's training block are built once; a candidate adds the blocks W_FᵀW_C, W_CᵀW_C and
+//! W_Cᵀτ, and each fold's fit is a Schur complement of the N Coulomb columns (a block
+//! Cholesky of the same unit-diagonal-scaled matrix the full solve factors, so the result
+//! is the same to round-off). The candidates of a round (the grid, a widening) are scored
+//! together, so W_FᵀW_C is one matrix product per joint and fold over all of them. A
+//! joint's equations involve only the links from it outwards: the columns that are zero
+//! throughout are skipped, exactly.
 
-use faer::Mat;
+use std::ops::Range;
+
+use faer::linalg::matmul::triangular::{self as tri, BlockStructure};
+use faer::linalg::solvers::Solve;
+use faer::linalg::triangular_solve;
+use faer::{Accum, Mat, Par, Side};
 use nalgebra::{DMatrix, DVector};
 use serde::{Deserialize, Serialize};
 
 use crate::data::DynDataset;
 use crate::error::{PrrrpError, Result};
 use crate::models::chain::{BaseParameters, DynChain, FrictionModel};
+use crate::models::LinearModel;
 
 /// Smallest and largest default candidate v_s, rad/s (m/s for prismatic joints).
 pub const COULOMB_SCALE_RANGE: (f64, f64) = (1e-3, 0.3);
@@ -223,26 +234,33 @@ pub fn select_coulomb_scale(
         })
         .collect();
 
-    let mut search = Search {
-        chain,
-        base,
-        data,
-        folds: config.folds,
-        friction,
-    };
+    let mut search = Search::new(chain, base, data, config.folds)?;
+    let default = friction.coulomb_smoothing;
+    run(&mut search, &grid, config, reversals, data, b, default)
+}
+
+/// The search over `grid` with `scorer` (see the module docs), after the checks of
+/// [`select_coulomb_scale`]; `b` is the number of base parameters, `default` the v_s kept
+/// when the data cannot decide.
+fn run(
+    scorer: &mut impl Scorer,
+    grid: &[f64],
+    config: &CoulombScaleConfig,
+    reversals: Vec<usize>,
+    data: &DynDataset,
+    b: usize,
+    default: f64,
+) -> Result<CoulombScaleReport> {
+    let rows = data.len() * data.dof();
     let mut scored = Scored::default();
-    for &v in &grid {
-        scored.add(&mut search, v)?;
-    }
+    scored.add(scorer, rows, grid)?;
     // Widen by a decade past whichever edge the optimum sits on, a bounded number of times.
     let mut widenings = 0;
     while widenings < config.max_widenings {
         let Some(edge) = scored.best().and_then(|best| scored.on_edge(best)) else {
             break;
         };
-        for v in widen(&scored.candidates, edge) {
-            scored.add(&mut search, v)?;
-        }
+        scored.add(scorer, rows, &widen(&scored.candidates, edge))?;
         widenings += 1;
     }
     let best = scored.best().ok_or(PrrrpError::RankDeficient {
@@ -252,7 +270,6 @@ pub fn select_coulomb_scale(
         directions: vec![],
     })?;
     let range = scored.range();
-    let default = friction.coulomb_smoothing;
     let spread = scored.spread(best);
     let z = scored.worst_z(best);
     let kept = if reversals.iter().all(|&r| r == 0) {
@@ -306,7 +323,7 @@ pub fn select_coulomb_scale(
     };
     if note.is_none() && config.refine && chosen > 0.0 {
         if let Some(v) = refine(&scored.candidates, &scored.cv_rms, best) {
-            scored.add(&mut search, v)?;
+            scored.add(scorer, rows, &[v])?;
             let last = scored.cv_rms.len() - 1;
             if matches!((scored.cv_rms[last], scored.cv_rms[best]), (Some(a), Some(b)) if a < b) {
                 chosen = v;
@@ -336,12 +353,16 @@ struct Scored {
 }
 
 impl Scored {
-    fn add(&mut self, search: &mut Search<'_>, v: f64) -> Result<()> {
+    /// Scores `scales` together (one pass over the data for all of them) and records
+    /// them; `rows` is the number of equations.
+    fn add(&mut self, scorer: &mut impl Scorer, rows: usize, scales: &[f64]) -> Result<()> {
         crate::interrupt::check("Coulomb speed-scale search")?;
-        let folds = search.score(v)?;
-        self.candidates.push(v);
-        self.cv_rms.push(search.rms(&folds));
-        self.folds.push(folds);
+        let folds = scorer.score(scales)?;
+        for (&v, folds) in scales.iter().zip(folds) {
+            self.candidates.push(v);
+            self.cv_rms.push(rms(rows, &folds));
+            self.folds.push(folds);
+        }
         Ok(())
     }
 
@@ -453,88 +474,447 @@ fn widen(candidates: &[f64], edge: Edge) -> Vec<f64> {
         .collect()
 }
 
-struct Search<'a> {
-    chain: &'a DynChain,
-    base: &'a BaseParameters,
-    data: &'a DynDataset,
-    folds: usize,
-    friction: FrictionModel,
+/// Scores candidate speed scales.
+trait Scorer {
+    /// Held-out sum of squared torque errors of each fold ((N·m)², N²) for each of
+    /// `scales`, `None` where a fold's fit is singular.
+    fn score(&mut self, scales: &[f64]) -> Result<Vec<Option<Vec<f64>>>>;
 }
 
-impl Search<'_> {
-    /// Held-out sum of squared torque errors of each fold with speed scale `v`
-    /// ((N·m)², N²), or `None` if a fold is singular.
-    fn score(&mut self, v: f64) -> Result<Option<Vec<f64>>> {
-        let model = FrictionModel {
-            coulomb_smoothing: v,
-            ..self.friction
-        };
-        let chain = self
-            .chain
-            .clone()
-            .with_friction(model, self.chain.friction_params().to_vec())?;
-        let d = self.data;
-        let w = chain.base_observation_matrix(self.base, d.q(), d.qd(), d.qdd())?;
-        let n = chain.dof();
-        let s = d.len();
-        let b = w.ncols();
-        let tau = d.tau();
-        // Per-fold normal equations over contiguous blocks of samples.
-        let mut a_f = Vec::with_capacity(self.folds);
-        let mut b_f = Vec::with_capacity(self.folds);
-        let mut tt_f = Vec::with_capacity(self.folds);
-        for f in 0..self.folds {
-            let (k0, k1) = (f * s / self.folds, (f + 1) * s / self.folds);
-            let rows = w.subrows(k0 * n, (k1 - k0) * n);
-            let gram: Mat<f64> = rows.transpose() * rows;
-            let t = &tau[k0 * n..k1 * n];
-            let mut bv = DVector::zeros(b);
-            for (i, &ti) in t.iter().enumerate() {
-                for c in 0..b {
-                    bv[c] += rows[(i, c)] * ti;
-                }
-            }
-            a_f.push(DMatrix::from_fn(b, b, |i, j| gram[(i, j)]));
-            b_f.push(bv);
-            tt_f.push(t.iter().map(|x| x * x).sum::<f64>());
-        }
-        let a: DMatrix<f64> = a_f.iter().fold(DMatrix::zeros(b, b), |acc, m| acc + m);
-        let bt: DVector<f64> = b_f.iter().fold(DVector::zeros(b), |acc, v| acc + v);
-        let mut sse = Vec::with_capacity(self.folds);
-        for f in 0..self.folds {
-            let train = &a - &a_f[f];
-            // Unit-diagonal scaling keeps the Cholesky factor accurate when columns differ
-            // by orders of magnitude (inertia vs friction).
-            let dscale = DVector::from_fn(b, |i, _| {
-                let x = train[(i, i)];
-                if x > 0.0 {
-                    1.0 / x.sqrt()
-                } else {
-                    0.0
-                }
-            });
-            if dscale.iter().any(|&x| x == 0.0) {
-                return Ok(None);
-            }
-            let scaled = DMatrix::from_fn(b, b, |i, j| train[(i, j)] * dscale[i] * dscale[j]);
-            let Some(chol) = scaled.cholesky() else {
-                return Ok(None);
-            };
-            let rhs = (&bt - &b_f[f]).component_mul(&dscale);
-            let beta = chol.solve(&rhs).component_mul(&dscale);
-            let e = tt_f[f] - 2.0 * beta.dot(&b_f[f]) + (&a_f[f] * &beta).dot(&beta);
-            sse.push(e.max(0.0));
-        }
-        Ok(sse.iter().all(|x| x.is_finite()).then_some(sse))
-    }
+/// The cross-validation with everything that does not depend on v_s built once (see the
+/// module docs): per fold the normal equations of the other base columns, their training
+/// factor and τ's moments; per call only the Coulomb columns' blocks.
+struct Search {
+    friction: FrictionModel,
+    /// Sample ranges of the contiguous folds.
+    folds: Vec<Range<usize>>,
+    /// Number of base columns that do not depend on v_s (the "fixed" ones).
+    nf: usize,
+    /// Each joint's equations in the fixed columns.
+    joints: Vec<JointRows>,
+    /// The Coulomb columns of W_b, in base order.
+    coulomb: Vec<CoulombColumn>,
+    /// Σ_j c_aj·c_bj of Coulomb columns a and b (row-major): their columns' products
+    /// sample by sample.
+    overlap: Vec<f64>,
+    fixed: Vec<FoldFixed>,
+}
 
-    /// The candidate's cross-validated torque RMS (N·m, N) from its fold errors.
-    fn rms(&self, folds: &Option<Vec<f64>>) -> Option<f64> {
-        let rows = (self.data.len() * self.data.dof()) as f64;
-        folds
-            .as_ref()
-            .map(|f| (f.iter().sum::<f64>() / rows).sqrt())
+/// The equations of one joint (rows: samples) in the fixed columns they involve.
+struct JointRows {
+    /// Fixed-column indices the joint's equations can involve, increasing.
+    cols: Vec<usize>,
+    /// The equations, sample by sample (`cols.len()` entries each).
+    rows: Vec<f64>,
+}
+
+impl JointRows {
+    /// The transposed equations of samples `range`: `cols.len()` × samples.
+    fn transposed(&self, range: &Range<usize>) -> faer::MatRef<'_, f64> {
+        let m = self.cols.len();
+        faer::MatRef::from_column_major_slice(
+            &self.rows[range.start * m..range.end * m],
+            m,
+            range.len(),
+        )
     }
+}
+
+/// A Coulomb column of W_b: actuator m's entry in joint j's equation of sample k is
+/// c_mj·sgn_vs((C·q̇_k)_m) (c_mj = δ_mj without coupling).
+struct CoulombColumn {
+    /// (C·q̇)_m per sample, rad/s or m/s.
+    rate: Vec<f64>,
+    /// The joints the actuator reaches and c_mj.
+    joints: Vec<(usize, f64)>,
+    /// Σ_j c_mj·τ_j per sample (N·m, N).
+    torque: Vec<f64>,
+}
+
+/// One fold's v_s-independent parts.
+struct FoldFixed {
+    /// W_Fᵀ·W_F over the fold's samples (fixed columns).
+    gram: Mat<f64>,
+    /// W_Fᵀ·τ over the fold's samples.
+    rhs: Vec<f64>,
+    /// τᵀτ over the fold's samples.
+    tt: f64,
+    /// The fit without the fold, fixed block; `None` when singular.
+    train: Option<Train>,
+}
+
+/// The fixed block P = A − A_f of a fold's training normal equations, scaled to unit
+/// diagonal (D·P·D = L·Lᵀ), and y = L⁻¹·D·(b − b_f).
+struct Train {
+    l: Mat<f64>,
+    scale: Vec<f64>,
+    y: Mat<f64>,
+}
+
+impl Search {
+    fn new(
+        chain: &DynChain,
+        base: &BaseParameters,
+        data: &DynDataset,
+        folds: usize,
+    ) -> Result<Self> {
+        let model = chain.base_model(base)?;
+        let (n, s, b) = (chain.dof(), data.len(), model.count());
+        let layout = base.layout();
+        let view = chain.view();
+        // Which base columns are Coulomb columns (of which actuator); the rest are fixed.
+        let mut fixed_index = vec![None; b];
+        let mut actuators = Vec::new();
+        let mut nf = 0;
+        for (c, &idx) in base.independent.iter().enumerate() {
+            let coulomb_of = idx
+                .checked_sub(10 * n)
+                .filter(|off| layout.per > 0 && off % layout.per == layout.slots[1])
+                .map(|off| off / layout.per);
+            match coulomb_of {
+                Some(m) => actuators.push(m),
+                None => {
+                    fixed_index[c] = Some(nf);
+                    nf += 1;
+                }
+            }
+        }
+
+        // A joint's equations involve only the links from it outwards and the actuators
+        // that reach it (the regressor writes nothing else): the other columns are zero
+        // throughout and left out, exactly, which halves the work below.
+        let coupling = view.coupling;
+        let reaches = |j: usize, idx: usize| match idx.checked_sub(10 * n) {
+            None => j <= idx / 10,
+            Some(off) => {
+                let m = off / layout.per.max(1);
+                coupling.map_or(j == m, |c| c[m * n + j] != 0.0)
+            }
+        };
+        let fixed_cols: Vec<usize> = (0..b).filter(|&c| fixed_index[c].is_some()).collect();
+        let joint_cols: Vec<Vec<usize>> = (0..n)
+            .map(|j| {
+                (0..nf)
+                    .filter(|&f| reaches(j, base.independent[fixed_cols[f]]))
+                    .collect()
+            })
+            .collect();
+        // Each sample's entries of a joint kept together, so that stacking writes in order.
+        let mut stacked: Vec<Vec<f64>> = joint_cols
+            .iter()
+            .map(|cols| Vec::with_capacity(s * cols.len()))
+            .collect();
+        let mut ws = model.workspace();
+        let mut phi = DMatrix::zeros(n, b);
+        let (mut q, mut qd, mut qdd) = (DVector::zeros(n), DVector::zeros(n), DVector::zeros(n));
+        for k in 0..s {
+            if k % 1024 == 0 {
+                crate::interrupt::check("Coulomb speed-scale search")?;
+            }
+            q.copy_from_slice(data.q_row(k));
+            qd.copy_from_slice(data.qd_row(k));
+            qdd.copy_from_slice(data.qdd_row(k));
+            model.regressor_into(&mut ws, &q, &qd, &qdd, &mut phi)?;
+            let ph = phi.as_slice();
+            for (j, (dst, cols)) in stacked.iter_mut().zip(&joint_cols).enumerate() {
+                dst.extend(cols.iter().map(|&f| ph[fixed_cols[f] * n + j]));
+            }
+        }
+        let joints: Vec<JointRows> = joint_cols
+            .into_iter()
+            .zip(stacked)
+            .map(|(cols, rows)| JointRows { cols, rows })
+            .collect();
+
+        let ranges: Vec<Range<usize>> = (0..folds)
+            .map(|f| f * s / folds..(f + 1) * s / folds)
+            .collect();
+        let tau = data.tau();
+        let tau_j: Vec<Mat<f64>> = (0..n)
+            .map(|j| Mat::<f64>::from_fn(s, 1, |k, _| tau[k * n + j]))
+            .collect();
+        let mut fixed = Vec::with_capacity(folds);
+        for range in &ranges {
+            crate::interrupt::check("Coulomb speed-scale search")?;
+            let (k0, len) = (range.start, range.len());
+            let mut gram = Mat::<f64>::zeros(nf, nf);
+            let mut rhs = vec![0.0; nf];
+            for (j, jr) in joints.iter().enumerate() {
+                let gt = jr.transposed(range);
+                let m = jr.cols.len();
+                let mut part = Mat::<f64>::zeros(m, m);
+                tri::matmul(
+                    part.as_mut(),
+                    BlockStructure::TriangularLower,
+                    Accum::Replace,
+                    gt,
+                    BlockStructure::Rectangular,
+                    gt.transpose(),
+                    BlockStructure::Rectangular,
+                    1.0,
+                    Par::Seq,
+                );
+                let gt = gt * tau_j[j].as_ref().subrows(k0, len);
+                // `cols` increases, so the lower triangle lands in the lower triangle.
+                for (r, &cr) in jr.cols.iter().enumerate() {
+                    rhs[cr] += gt[(r, 0)];
+                    for (r2, &cr2) in jr.cols[..=r].iter().enumerate() {
+                        gram[(cr, cr2)] += part[(r, r2)];
+                    }
+                }
+            }
+            for i in 0..nf {
+                for i2 in 0..i {
+                    gram[(i2, i)] = gram[(i, i2)];
+                }
+            }
+            let tt = tau[k0 * n..range.end * n].iter().map(|x| x * x).sum();
+            fixed.push(FoldFixed {
+                gram,
+                rhs,
+                tt,
+                train: None,
+            });
+        }
+        let total = fixed
+            .iter()
+            .fold(Mat::<f64>::zeros(nf, nf), |acc, f| acc + &f.gram);
+        let total_rhs: Vec<f64> = (0..nf)
+            .map(|i| fixed.iter().map(|f| f.rhs[i]).sum())
+            .collect();
+        for fold in &mut fixed {
+            let train = &total - &fold.gram;
+            let rhs: Vec<f64> = total_rhs
+                .iter()
+                .zip(&fold.rhs)
+                .map(|(a, b)| a - b)
+                .collect();
+            fold.train = factor(train, &rhs);
+        }
+
+        let coulomb: Vec<CoulombColumn> = actuators
+            .iter()
+            .map(|&m| {
+                let joints: Vec<(usize, f64)> = match coupling {
+                    None => vec![(m, 1.0)],
+                    Some(c) => (0..n)
+                        .map(|j| (j, c[m * n + j]))
+                        .filter(|&(_, w)| w != 0.0)
+                        .collect(),
+                };
+                let rate = (0..s)
+                    .map(|k| view.actuator_rate(m, data.qd_row(k)))
+                    .collect();
+                let torque = (0..s)
+                    .map(|k| joints.iter().map(|&(j, w)| w * tau[k * n + j]).sum())
+                    .collect();
+                CoulombColumn {
+                    rate,
+                    joints,
+                    torque,
+                }
+            })
+            .collect();
+        let nc = coulomb.len();
+        let mut overlap = vec![0.0; nc * nc];
+        for (a, ca) in coulomb.iter().enumerate() {
+            for (b, cb) in coulomb.iter().enumerate() {
+                overlap[a * nc + b] = ca
+                    .joints
+                    .iter()
+                    .flat_map(|&(j, wa)| {
+                        cb.joints
+                            .iter()
+                            .filter(move |x| x.0 == j)
+                            .map(move |x| wa * x.1)
+                    })
+                    .sum();
+            }
+        }
+        Ok(Self {
+            friction: chain.friction(),
+            folds: ranges,
+            nf,
+            joints,
+            coulomb,
+            overlap,
+            fixed,
+        })
+    }
+}
+
+/// The unit-diagonal Cholesky factor of `p` and L⁻¹·D·`rhs`, or `None` if `p` is not
+/// positive definite.
+fn factor(p: Mat<f64>, rhs: &[f64]) -> Option<Train> {
+    let nf = p.nrows();
+    // Unit-diagonal scaling keeps the Cholesky factor accurate when columns differ by
+    // orders of magnitude (inertia vs friction).
+    let scale: Vec<f64> = (0..nf)
+        .map(|i| {
+            let x = p[(i, i)];
+            if x > 0.0 {
+                1.0 / x.sqrt()
+            } else {
+                0.0
+            }
+        })
+        .collect();
+    if scale.contains(&0.0) {
+        return None;
+    }
+    let scaled = Mat::<f64>::from_fn(nf, nf, |i, j| p[(i, j)] * scale[i] * scale[j]);
+    let l = scaled.as_ref().llt(Side::Lower).ok()?.L().to_owned();
+    let mut y = Mat::<f64>::from_fn(nf, 1, |i, _| rhs[i] * scale[i]);
+    triangular_solve::solve_lower_triangular_in_place(l.as_ref(), y.as_mut(), Par::Seq);
+    Some(Train { l, scale, y })
+}
+
+impl Scorer for Search {
+    fn score(&mut self, scales: &[f64]) -> Result<Vec<Option<Vec<f64>>>> {
+        let (kc, nc, nf, nfold) = (scales.len(), self.coulomb.len(), self.nf, self.folds.len());
+        // Per fold: W_Fᵀ·W_C (nf × nc·kc, candidate c of column a at a·kc + c), W_Cᵀ·W_C
+        // (nc × nc per candidate) and W_Cᵀ·τ (nc per candidate).
+        let mut cross: Vec<Mat<f64>> = (0..nfold).map(|_| Mat::<f64>::zeros(nf, nc * kc)).collect();
+        let mut cc: Vec<Vec<Mat<f64>>> = (0..nfold)
+            .map(|_| (0..kc).map(|_| Mat::<f64>::zeros(nc, nc)).collect())
+            .collect();
+        let mut ct: Vec<Mat<f64>> = (0..nfold).map(|_| Mat::<f64>::zeros(nc, kc)).collect();
+        // The Coulomb columns' entries over one fold (samples × candidates per column),
+        // reused fold after fold.
+        let longest = self.folds.iter().map(|r| r.len()).max().unwrap_or(0);
+        let mut features: Vec<Mat<f64>> = (0..nc).map(|_| Mat::zeros(longest, kc)).collect();
+        for (f, range) in self.folds.iter().enumerate() {
+            let len = range.len();
+            for (col, feat) in self.coulomb.iter().zip(&mut features) {
+                crate::interrupt::check("Coulomb speed-scale search")?;
+                for (c, &v) in scales.iter().enumerate() {
+                    let model = FrictionModel {
+                        coulomb_smoothing: v,
+                        ..self.friction
+                    };
+                    for (x, &rate) in feat.col_as_slice_mut(c)[..len]
+                        .iter_mut()
+                        .zip(&col.rate[range.clone()])
+                    {
+                        *x = model.features(rate)[1];
+                    }
+                }
+            }
+            for (a, col) in self.coulomb.iter().enumerate() {
+                let sa = features[a].as_ref().subrows(0, len);
+                for &(j, w) in &col.joints {
+                    let jr = &self.joints[j];
+                    let part = jr.transposed(range) * sa;
+                    for c in 0..kc {
+                        for (r, &cr) in jr.cols.iter().enumerate() {
+                            cross[f][(cr, a * kc + c)] += w * part[(r, c)];
+                        }
+                    }
+                }
+                for c in 0..kc {
+                    let fa = &features[a].col_as_slice(c)[..len];
+                    ct[f][(a, c)] = dot(fa, &col.torque[range.clone()]);
+                    for b in 0..=a {
+                        let o = self.overlap[a * nc + b];
+                        if o != 0.0 {
+                            let fb = &features[b].col_as_slice(c)[..len];
+                            let x = o * dot(fa, fb);
+                            cc[f][c][(a, b)] = x;
+                            cc[f][c][(b, a)] = x;
+                        }
+                    }
+                }
+            }
+        }
+
+        let mut out = Vec::with_capacity(kc);
+        for c in 0..kc {
+            crate::interrupt::check("Coulomb speed-scale search")?;
+            let cross_c = |f: usize, r: usize, a: usize| cross[f][(r, a * kc + c)];
+            let total_cross = Mat::<f64>::from_fn(nf, nc, |r, a| {
+                (0..nfold).map(|f| cross_c(f, r, a)).sum::<f64>()
+            });
+            let total_cc = Mat::<f64>::from_fn(nc, nc, |a, b| {
+                (0..nfold).map(|f| cc[f][c][(a, b)]).sum::<f64>()
+            });
+            let total_ct: Vec<f64> = (0..nc)
+                .map(|a| (0..nfold).map(|f| ct[f][(a, c)]).sum())
+                .collect();
+            let mut sse = Vec::with_capacity(nfold);
+            for (f, fold) in self.fixed.iter().enumerate() {
+                let Some(train) = &fold.train else { break };
+                let r = Mat::<f64>::from_fn(nc, nc, |a, b| total_cc[(a, b)] - cc[f][c][(a, b)]);
+                let dc: Vec<f64> = (0..nc)
+                    .map(|a| {
+                        let x = r[(a, a)];
+                        if x > 0.0 {
+                            1.0 / x.sqrt()
+                        } else {
+                            0.0
+                        }
+                    })
+                    .collect();
+                if dc.contains(&0.0) {
+                    break;
+                }
+                // Block Cholesky of the scaled training matrix [P Q; Qᵀ R]: X = L⁻¹·Q̃, the
+                // Schur complement R̃ − XᵀX, then back substitution.
+                let mut x = Mat::<f64>::from_fn(nf, nc, |i, a| {
+                    train.scale[i] * (total_cross[(i, a)] - cross_c(f, i, a)) * dc[a]
+                });
+                triangular_solve::solve_lower_triangular_in_place(
+                    train.l.as_ref(),
+                    x.as_mut(),
+                    Par::Seq,
+                );
+                let schur = Mat::<f64>::from_fn(nc, nc, |a, b| r[(a, b)] * dc[a] * dc[b])
+                    - x.transpose() * &x;
+                let Ok(schur) = schur.as_ref().llt(Side::Lower) else {
+                    break;
+                };
+                let mut beta_c =
+                    Mat::<f64>::from_fn(nc, 1, |a, _| (total_ct[a] - ct[f][(a, c)]) * dc[a])
+                        - x.transpose() * &train.y;
+                schur.solve_in_place(beta_c.as_mut());
+                let mut beta_f = &train.y - &x * &beta_c;
+                triangular_solve::solve_upper_triangular_in_place(
+                    train.l.transpose(),
+                    beta_f.as_mut(),
+                    Par::Seq,
+                );
+                let bf: Vec<f64> = (0..nf).map(|i| beta_f[(i, 0)] * train.scale[i]).collect();
+                let bc: Vec<f64> = (0..nc).map(|a| beta_c[(a, 0)] * dc[a]).collect();
+                // ‖τ_f − W_f·β‖² = τᵀτ − 2βᵀW_fᵀτ + βᵀ(W_fᵀW_f)β over the fold's blocks.
+                let af = Mat::<f64>::from_fn(nf, 1, |i, _| bf[i]);
+                let gf = &fold.gram * &af;
+                let mut e = fold.tt
+                    - 2.0
+                        * (dot(&bf, &fold.rhs)
+                            + (0..nc).map(|a| bc[a] * ct[f][(a, c)]).sum::<f64>());
+                e += (0..nf).map(|i| bf[i] * gf[(i, 0)]).sum::<f64>();
+                for a in 0..nc {
+                    let wfc: f64 = (0..nf).map(|i| bf[i] * cross_c(f, i, a)).sum();
+                    let wcc: f64 = (0..nc).map(|b| cc[f][c][(a, b)] * bc[b]).sum();
+                    e += bc[a] * (2.0 * wfc + wcc);
+                }
+                sse.push(e.max(0.0));
+            }
+            out.push((sse.len() == nfold && sse.iter().all(|x| x.is_finite())).then_some(sse));
+        }
+        Ok(out)
+    }
+}
+
+fn dot(a: &[f64], b: &[f64]) -> f64 {
+    a.iter().zip(b).map(|(x, y)| x * y).sum()
+}
+
+/// The candidate's cross-validated torque RMS (N·m, N) from its fold errors over `rows`
+/// equations.
+fn rms(rows: usize, folds: &Option<Vec<f64>>) -> Option<f64> {
+    folds
+        .as_ref()
+        .map(|f| (f.iter().sum::<f64>() / rows as f64).sqrt())
 }
 
 fn argmin(values: &[Option<f64>]) -> Option<usize> {
@@ -583,5 +963,355 @@ fn invalid(field: &str, value: f64, reason: &'static str) -> PrrrpError {
         field: field.into(),
         value,
         reason,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::models::chain::{Actuators, BaseOptions, SerialChain};
+    use rand::rngs::StdRng;
+    use rand::{RngExt, SeedableRng};
+
+    /// The straightforward scorer the fast one replaced: W_b rebuilt for every candidate,
+    /// the full normal equations of every fold solved from scratch.
+    struct Rebuild<'a> {
+        chain: &'a DynChain,
+        base: &'a BaseParameters,
+        data: &'a DynDataset,
+        folds: usize,
+        friction: FrictionModel,
+    }
+
+    impl Rebuild<'_> {
+        fn score_one(&self, v: f64) -> Result<Option<Vec<f64>>> {
+            let model = FrictionModel {
+                coulomb_smoothing: v,
+                ..self.friction
+            };
+            let chain = self
+                .chain
+                .clone()
+                .with_friction(model, self.chain.friction_params().to_vec())?;
+            let d = self.data;
+            let w = chain.base_observation_matrix(self.base, d.q(), d.qd(), d.qdd())?;
+            let n = chain.dof();
+            let s = d.len();
+            let b = w.ncols();
+            let tau = d.tau();
+            // Per-fold normal equations over contiguous blocks of samples.
+            let mut a_f = Vec::with_capacity(self.folds);
+            let mut b_f = Vec::with_capacity(self.folds);
+            let mut tt_f = Vec::with_capacity(self.folds);
+            for f in 0..self.folds {
+                let (k0, k1) = (f * s / self.folds, (f + 1) * s / self.folds);
+                let rows = w.subrows(k0 * n, (k1 - k0) * n);
+                let gram: Mat<f64> = rows.transpose() * rows;
+                let t = &tau[k0 * n..k1 * n];
+                let mut bv = DVector::zeros(b);
+                for (i, &ti) in t.iter().enumerate() {
+                    for c in 0..b {
+                        bv[c] += rows[(i, c)] * ti;
+                    }
+                }
+                a_f.push(DMatrix::from_fn(b, b, |i, j| gram[(i, j)]));
+                b_f.push(bv);
+                tt_f.push(t.iter().map(|x| x * x).sum::<f64>());
+            }
+            let a: DMatrix<f64> = a_f.iter().fold(DMatrix::zeros(b, b), |acc, m| acc + m);
+            let bt: DVector<f64> = b_f.iter().fold(DVector::zeros(b), |acc, v| acc + v);
+            let mut sse = Vec::with_capacity(self.folds);
+            for f in 0..self.folds {
+                let train = &a - &a_f[f];
+                // Unit-diagonal scaling keeps the Cholesky factor accurate when columns differ
+                // by orders of magnitude (inertia vs friction).
+                let dscale = DVector::from_fn(b, |i, _| {
+                    let x = train[(i, i)];
+                    if x > 0.0 {
+                        1.0 / x.sqrt()
+                    } else {
+                        0.0
+                    }
+                });
+                if dscale.iter().any(|&x| x == 0.0) {
+                    return Ok(None);
+                }
+                let scaled = DMatrix::from_fn(b, b, |i, j| train[(i, j)] * dscale[i] * dscale[j]);
+                let Some(chol) = scaled.cholesky() else {
+                    return Ok(None);
+                };
+                let rhs = (&bt - &b_f[f]).component_mul(&dscale);
+                let beta = chol.solve(&rhs).component_mul(&dscale);
+                let e = tt_f[f] - 2.0 * beta.dot(&b_f[f]) + (&a_f[f] * &beta).dot(&beta);
+                sse.push(e.max(0.0));
+            }
+            Ok(sse.iter().all(|x| x.is_finite()).then_some(sse))
+        }
+    }
+
+    impl Scorer for Rebuild<'_> {
+        fn score(&mut self, scales: &[f64]) -> Result<Vec<Option<Vec<f64>>>> {
+            scales.iter().map(|&v| self.score_one(v)).collect()
+        }
+    }
+
+    /// The PUMA 560 with viscous, Coulomb and offset friction; `coupled`: its sixth motor
+    /// turns with q̇5 + q̇6 and every motor has an armature.
+    fn puma(coupled: bool) -> DynChain {
+        let chain = SerialChain::puma560()
+            .to_dyn()
+            .with_friction(FrictionModel::all(), vec![[0.5, 0.3, 0.02]; 6])
+            .unwrap();
+        if !coupled {
+            return chain;
+        }
+        let mut c = vec![vec![0.0; 6]; 6];
+        for (i, row) in c.iter_mut().enumerate() {
+            row[i] = 1.0;
+        }
+        c[5][4] = 1.0;
+        chain
+            .with_actuators(Actuators {
+                coupling: Some(c),
+                armature: true,
+                armature_values: Some(vec![0.5, 0.8, 0.3, 0.02, 0.02, 0.01]),
+                gear_ratios: None,
+            })
+            .unwrap()
+    }
+
+    /// Random states (speeds reversing often, some small against the scales tried) and
+    /// random torques: nothing a fit would favour.
+    fn random_data(samples: usize, seed: u64) -> DynDataset {
+        let n = 6;
+        let mut rng = StdRng::seed_from_u64(seed);
+        let mut u = |scale: f64| scale * (2.0 * rng.random::<f64>() - 1.0);
+        let t: Vec<f64> = (0..samples).map(|k| k as f64 * 0.01).collect();
+        let q: Vec<f64> = (0..samples * n).map(|_| u(3.0)).collect();
+        let qd: Vec<f64> = (0..samples * n)
+            .map(|i| u(if i % 3 == 0 { 0.05 } else { 2.0 }))
+            .collect();
+        let qdd: Vec<f64> = (0..samples * n).map(|_| u(5.0)).collect();
+        let tau: Vec<f64> = (0..samples * n).map(|_| u(10.0)).collect();
+        DynDataset::new(n, t, q, qd, qdd, tau).unwrap()
+    }
+
+    /// Held-out squared errors of each fold from a QR fit of the other folds' rows and the
+    /// held-out residuals themselves (no normal equations, no cancellation).
+    fn exact_fold_errors(
+        chain: &DynChain,
+        base: &BaseParameters,
+        data: &DynDataset,
+        folds: usize,
+        v: f64,
+    ) -> Vec<f64> {
+        use faer::linalg::solvers::SolveLstsq;
+        let friction = FrictionModel {
+            coulomb_smoothing: v,
+            ..chain.friction()
+        };
+        let chain = chain
+            .clone()
+            .with_friction(friction, chain.friction_params().to_vec())
+            .unwrap();
+        let w = chain
+            .base_observation_matrix(base, data.q(), data.qd(), data.qdd())
+            .unwrap();
+        let (n, s, b) = (data.dof(), data.len(), w.ncols());
+        let tau = data.tau();
+        (0..folds)
+            .map(|f| {
+                let (r0, r1) = (f * s / folds * n, (f + 1) * s / folds * n);
+                let train: Vec<usize> = (0..s * n).filter(|&r| r < r0 || r >= r1).collect();
+                let a = Mat::<f64>::from_fn(train.len(), b, |i, j| w[(train[i], j)]);
+                let y = Mat::<f64>::from_fn(train.len(), 1, |i, _| tau[train[i]]);
+                let beta = a.qr().solve_lstsq(&y);
+                (r0..r1)
+                    .map(|r| {
+                        let e = tau[r] - (0..b).map(|j| w[(r, j)] * beta[(j, 0)]).sum::<f64>();
+                        e * e
+                    })
+                    .sum()
+            })
+            .collect()
+    }
+
+    fn relative(a: f64, b: f64) -> f64 {
+        if a == b {
+            return 0.0;
+        }
+        (a - b).abs() / a.abs().max(b.abs())
+    }
+
+    /// On random data (held-out errors as large as the torques: no cancellation in
+    /// τᵀτ − 2βᵀb + βᵀAβ) the fast scorer's fold errors are the rebuild's to 1e-9 over the
+    /// default grid and a widening below it. At 3 and 30 rad/s, far above the data's
+    /// speeds, tanh(q̇/v_s) is the viscous column q̇/v_s within (q̇/v_s)³/3, so the normal
+    /// equations lose cond²·ε in both scorers alike: there the fast one must be as close as
+    /// the rebuild to an exact reference (QR fit, held-out residuals summed directly).
+    #[test]
+    fn fold_errors_equal_a_rebuild() {
+        let grid: Vec<f64> = default_coulomb_scales().into_iter().chain([1e-5]).collect();
+        for (coupled, folds) in [(false, 4), (true, 3)] {
+            let chain = puma(coupled);
+            let base = chain.base_parameters(&BaseOptions::default()).unwrap();
+            let data = random_data(400, 7 + folds as u64);
+            let mut rebuild = Rebuild {
+                chain: &chain,
+                base: &base,
+                data: &data,
+                folds,
+                friction: chain.friction(),
+            };
+            let mut fast = Search::new(&chain, &base, &data, folds).unwrap();
+            // The Coulomb columns are among the base columns (else there is nothing to test).
+            assert_eq!(fast.coulomb.len(), 6);
+            let want = rebuild.score(&grid).unwrap();
+            let got = fast.score(&grid).unwrap();
+            assert_eq!(got.len(), grid.len());
+            for (v, (g, w)) in grid.iter().zip(got.iter().zip(&want)) {
+                let (g, w) = (g.as_ref().unwrap(), w.as_ref().unwrap());
+                assert_eq!(g.len(), folds);
+                for (x, y) in g.iter().zip(w) {
+                    assert!(
+                        relative(*x, *y) < 1e-9,
+                        "v_s = {v}, coupled {coupled}: {x} vs {y}"
+                    );
+                }
+            }
+            let high = [3.0, 30.0];
+            let want = rebuild.score(&high).unwrap();
+            let got = fast.score(&high).unwrap();
+            for (v, (g, w)) in high.iter().zip(got.iter().zip(&want)) {
+                let exact = exact_fold_errors(&chain, &base, &data, folds, *v);
+                let (g, w) = (g.as_ref().unwrap(), w.as_ref().unwrap());
+                // Round-off varies with the folds' summation order: bound each fold by the
+                // rebuild's worst fold at this scale (the same conditioning).
+                let rebuild_err = w
+                    .iter()
+                    .zip(&exact)
+                    .map(|(y, z)| relative(*y, *z))
+                    .fold(0.0, f64::max);
+                for ((x, y), z) in g.iter().zip(w).zip(&exact) {
+                    let fast_err = relative(*x, *z);
+                    println!("v_s = {v}, coupled {coupled}: fast {fast_err:.1e}, rebuild {rebuild_err:.1e}");
+                    assert!(
+                        fast_err <= 10.0 * rebuild_err + 1e-12,
+                        "v_s = {v}, coupled {coupled}: fast {x}, rebuild {y}, exact {z}"
+                    );
+                }
+            }
+        }
+    }
+
+    /// A multi-sine of `truth` (smooth Coulomb of scale `v_s`) at 100 Hz with torque noise.
+    fn excited(v_s: f64, samples: usize, seed: u64) -> DynDataset {
+        let n = 6;
+        let friction = FrictionModel {
+            coulomb_smoothing: v_s,
+            ..FrictionModel::all()
+        };
+        let truth = puma(false)
+            .with_friction(friction, vec![[0.5, 0.3, 0.02]; n])
+            .unwrap();
+        let mut rng = StdRng::seed_from_u64(seed);
+        let coef: Vec<f64> = (0..n * 6).map(|_| rng.random::<f64>() - 0.5).collect();
+        let (mut t, mut q, mut qd, mut qdd, mut tau) = (vec![], vec![], vec![], vec![], vec![]);
+        for k in 0..samples {
+            let tk = k as f64 * 0.01;
+            let (mut qk, mut qdk, mut qddk) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
+            for j in 0..n {
+                for h in 0..3 {
+                    let w = 2.0 * std::f64::consts::PI * 0.25 * (h + 1) as f64;
+                    let (a, b) = (coef[j * 6 + 2 * h], coef[j * 6 + 2 * h + 1]);
+                    let (s, c) = (w * tk).sin_cos();
+                    qk[j] += a * s + b * c;
+                    qdk[j] += w * (a * c - b * s);
+                    qddk[j] -= w * w * (a * s + b * c);
+                }
+            }
+            let tk_tau = truth.inverse_dynamics(&qk, &qdk, &qddk).unwrap();
+            t.push(tk);
+            q.extend(qk);
+            qd.extend(qdk);
+            qdd.extend(qddk);
+            tau.extend(
+                tk_tau
+                    .iter()
+                    .map(|x| x + 0.01 * (rng.random::<f64>() - 0.5)),
+            );
+        }
+        DynDataset::new(n, t, q, qd, qdd, tau).unwrap()
+    }
+
+    /// The whole search (grid, widening, refinement, verdict) with the fast scorer reports
+    /// what it reports with the rebuild.
+    #[test]
+    fn the_search_is_unchanged() {
+        let chain = puma(false);
+        let base = chain.base_parameters(&BaseOptions::default()).unwrap();
+        let config = CoulombScaleConfig::default();
+        let grid = default_coulomb_scales();
+        // A scale inside the default range, one above it (widening), the exact sign.
+        for (seed, v_s) in [(1, 0.02), (2, 0.6), (3, 0.0)] {
+            let data = excited(v_s, 1200, seed);
+            let reversals = vec![1; 6];
+            let mut rebuild = Rebuild {
+                chain: &chain,
+                base: &base,
+                data: &data,
+                folds: config.folds,
+                friction: chain.friction(),
+            };
+            let want = run(
+                &mut rebuild,
+                &grid,
+                &config,
+                reversals.clone(),
+                &data,
+                base.count(),
+                0.0,
+            )
+            .unwrap();
+            let mut fast = Search::new(&chain, &base, &data, config.folds).unwrap();
+            let got = run(
+                &mut fast,
+                &grid,
+                &config,
+                reversals,
+                &data,
+                base.count(),
+                0.0,
+            )
+            .unwrap();
+            // Good fits leave held-out errors 1e-7 of the torques' energy, below which
+            // τᵀτ − 2βᵀb + βᵀAβ cancels in either scorer: compare the errors on that scale.
+            let energy: f64 = data.tau().iter().map(|x| x * x).sum();
+            let rows = data.tau().len() as f64;
+            let k = want.candidates.len();
+            assert_eq!(got.candidates.len(), k, "{got:?}\n{want:?}");
+            // The grid and its widenings alike; a refined point (last) within round-off.
+            assert_eq!(got.candidates[..k - 1], want.candidates[..k - 1]);
+            assert!(relative(got.candidates[k - 1], want.candidates[k - 1]) <= 1e-6);
+            for (x, y) in got.cv_rms.iter().zip(&want.cv_rms) {
+                let (x, y) = (x.unwrap(), y.unwrap());
+                assert!(
+                    (x * x - y * y).abs() * rows <= 1e-9 * energy,
+                    "{got:?}\n{want:?}"
+                );
+            }
+            assert!(
+                relative(got.chosen, want.chosen) <= 1e-6,
+                "{got:?}\n{want:?}"
+            );
+            assert_eq!(
+                (got.identifiable, &got.note, got.widenings),
+                (want.identifiable, &want.note, want.widenings)
+            );
+            println!(
+                "v_s = {v_s}: chose {} ({} widenings)",
+                got.chosen, got.widenings
+            );
+        }
     }
 }
