@@ -503,6 +503,9 @@ impl IdentifiedModel {
         })?;
         m.validate()?;
         m.chain()?;
+        // A file of any version this prrrp reads is held in this version's layout (as a
+        // model built here is); `to_json` decides the version it writes.
+        m.schema_version = MODEL_SCHEMA_VERSION;
         m.actuators = m.actuator_estimates();
         if let Some(p) = m.payload.as_mut() {
             p.derive();
