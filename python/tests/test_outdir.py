@@ -91,7 +91,13 @@ def test_sigterm_during_reproduce_leaves_the_old_results(tmp_path: Path) -> None
         env=env,
     )
     try:
-        time.sleep(2.0)
+        # Signal once the run is building its output (its handler is installed before
+        # that): a fixed sleep sometimes ended while Python was still importing, whose
+        # default SIGTERM action is right too but is not what this test checks.
+        deadline = time.monotonic() + 60.0
+        while not leftovers(tmp_path) and child.poll() is None and time.monotonic() < deadline:
+            time.sleep(0.02)
+        assert leftovers(tmp_path), "reproduce never started building its output"
         child.send_signal(signal.SIGTERM)
         child.communicate(timeout=30)
     finally:
