@@ -34,6 +34,8 @@ from typing import Any
 
 import numpy as np
 
+from prrrp import signals
+
 NDOF = 5
 POSITION_COLUMNS = tuple(f"q{i}" for i in range(1, NDOF + 1))
 TORQUE_COLUMNS = tuple(f"tau{i}" for i in range(1, NDOF + 1))
@@ -383,6 +385,7 @@ def atomic_path(path: str | os.PathLike[str]) -> Iterator[Path]:
         umask = os.umask(0)
         os.umask(umask)
         os.chmod(tmp, 0o666 & ~umask)
+        signals.checkpoint()  # a Ctrl-C Python dropped must not let the file land
         os.replace(tmp, path)
     except BaseException:
         with contextlib.suppress(OSError):

@@ -36,6 +36,8 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import TypeVar
 
+from prrrp import signals
+
 try:
     import fcntl
 except ImportError:  # pragma: no cover - not on Linux/macOS
@@ -211,6 +213,7 @@ def write_dir(out: str | os.PathLike[str], build: Callable[[Path], _T]) -> _T:
         os.chmod(tmp, 0o777 & ~_umask())
         result = build(tmp)
         (tmp / MARKER).write_text("written by prrrp; this folder is replaced as a whole\n")
+        signals.checkpoint()  # a Ctrl-C Python dropped must not let the folder land
         if not out.exists():
             tmp.rename(out)
         elif _exchange(tmp, out):

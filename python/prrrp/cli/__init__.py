@@ -36,12 +36,10 @@ interrupted. Errors are one line on stderr, never a traceback.
 from __future__ import annotations
 
 import argparse
-import contextlib
-import signal
 from collections.abc import Sequence
-from typing import Any
 
 import prrrp
+from prrrp import signals
 from prrrp.cli import benchmark, excite, identify, payload, predict, reproduce, simulate, track
 from prrrp.cli.common import (
     EXIT_FAILED,
@@ -96,20 +94,16 @@ def _oserror_message(e: OSError) -> str:
     return f"{what}: {reason}" if what else reason
 
 
-def _on_sigterm(signum: int, _frame: Any) -> None:
-    # An exception, unlike the default action, unwinds: temporary output is removed and
-    # running computations stop (the bindings poll for signals).
-    raise SystemExit(128 + signum)
-
-
 def main(argv: Sequence[str] | None = None) -> int:
     """Runs the command line; returns the exit code (argparse exits itself on usage errors)."""
     args = build_parser().parse_args(argv)
-    with contextlib.suppress(ValueError):  # not the main thread: keep the default
-        signal.signal(signal.SIGTERM, _on_sigterm)
+    signals.install()
     try:
         check_chain_options(args)
-        return int(args.func(args))
+        code = int(args.func(args))
+        # A signal whose exception Python dropped (see prrrp.signals) still ends the run.
+        signals.checkpoint()
+        return code
     except CliError as e:
         error(str(e))
         return e.code

@@ -13,6 +13,8 @@ from typing import Any, NoReturn
 
 import numpy as np
 
+from prrrp import signals
+
 EXIT_OK = 0
 EXIT_FAILED = 1
 EXIT_USAGE = 2
@@ -42,6 +44,8 @@ class Progress:
         self._stage: str | None = None
 
     def __call__(self, stage: str, done: int, total: int) -> None:
+        # Raising here stops the running computation (see prrrp.signals).
+        signals.checkpoint()
         if not self.enabled:
             return
         from tqdm import tqdm
