@@ -2,12 +2,11 @@
 //! (a counting global allocator; the count is per thread, so parallel tests do not
 //! interfere).
 
+mod alloc_support;
 mod dyn_support;
 mod est_support;
 
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::cell::Cell;
-
+use alloc_support::allocations;
 use dyn_support::{exact_record, panda_like, DynFourier, DynRecord};
 use est_support::{closed_loop, excitation, paper, DT};
 use prrrp_core::nalgebra::{DVector, Dyn};
@@ -16,36 +15,6 @@ use prrrp_core::{
     DynChainBaseModel, DynEkf, DynHopfield, DynRls, EkfConfig, EkfMeasurement, Estimator, Hopfield,
     HopfieldConfig, Lambda, PrrrpEkf, Rls, RlsConfig,
 };
-
-struct Counting;
-
-thread_local! {
-    static ALLOCATIONS: Cell<usize> = const { Cell::new(0) };
-}
-
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        ALLOCATIONS.with(|c| c.set(c.get() + 1));
-        // SAFETY: forwarded unchanged to the system allocator.
-        unsafe { System.alloc(layout) }
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        // SAFETY: `ptr` came from `System.alloc` with this layout.
-        unsafe { System.dealloc(ptr, layout) }
-    }
-    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        ALLOCATIONS.with(|c| c.set(c.get() + 1));
-        // SAFETY: forwarded unchanged to the system allocator.
-        unsafe { System.realloc(ptr, layout, new_size) }
-    }
-}
-
-#[global_allocator]
-static GLOBAL: Counting = Counting;
-
-fn allocations() -> usize {
-    ALLOCATIONS.with(|c| c.get())
-}
 
 /// Steps `est` over samples 1.. of `data` after a warm-up on sample 0 and returns the
 /// number of allocations during the measured steps.
