@@ -1,34 +1,18 @@
 //! Per-sample trajectory evaluation, the controller and the RK4 step never allocate.
 
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::sync::atomic::{AtomicUsize, Ordering};
+mod alloc_support;
 
 use prrrp_core::{
     rk4_step, ComputedTorque, ExcitationTrajectory, FourierSeries, JointTrajectory,
     PiecewiseQuintic, Quintic, Robot, Sinusoid, Vec5,
 };
 
-struct Counting;
-static ALLOCS: AtomicUsize = AtomicUsize::new(0);
-
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, l: Layout) -> *mut u8 {
-        ALLOCS.fetch_add(1, Ordering::SeqCst);
-        unsafe { System.alloc(l) }
-    }
-    unsafe fn dealloc(&self, p: *mut u8, l: Layout) {
-        unsafe { System.dealloc(p, l) }
-    }
-}
-
-#[global_allocator]
-static GLOBAL: Counting = Counting;
-
+/// Allocations made by the calling thread in a second run of `f` (the first warms up).
 fn allocations(f: impl Fn()) -> usize {
     f(); // warm-up
-    let before = ALLOCS.load(Ordering::SeqCst);
+    let before = alloc_support::allocations();
     f();
-    ALLOCS.load(Ordering::SeqCst) - before
+    alloc_support::allocations() - before
 }
 
 #[test]
