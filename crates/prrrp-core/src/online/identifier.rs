@@ -1013,8 +1013,8 @@ impl OnlineIdentifier {
             // that predicts (and saves) like any other; its covariance adds the
             // payload's, K_tip·Σ_π·K_tipᵀ, to the prior's.
             let b = arm.len();
-            let mut beta = arm.clone();
-            beta.gemv(1.0, k_tip, &self.theta, 1.0);
+            let mut beta = DVector::zeros(b);
+            self.model.beta_into(&self.theta, &mut beta);
             let mut cov = match &prior.covariance {
                 Some(c) => DMatrix::from_row_slice(b, b, c),
                 None => DMatrix::zeros(b, b),

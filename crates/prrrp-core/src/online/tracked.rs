@@ -63,7 +63,7 @@ impl TrackedModel {
     }
 
     /// β of θ into `out` (B).
-    fn beta_into(&self, theta: &DVector<f64>, out: &mut DVector<f64>) {
+    pub(crate) fn beta_into(&self, theta: &DVector<f64>, out: &mut DVector<f64>) {
         match self {
             Self::Full(_) => out.copy_from(theta),
             Self::Payload { arm, k_tip, .. } => {
