@@ -24,7 +24,7 @@ use serde_json::json;
 use super::IdentifiedModel;
 use crate::data::DynDataset;
 use crate::error::{PrrrpError, Result};
-use crate::models::chain::{DynChain, LINK_PARAMS};
+use crate::models::chain::{DynChain, DynWorkspace, LINK_PARAMS};
 use crate::models::payload::{project_physical, Payload, PayloadThresholds};
 
 use super::ekf_defaults::correlation_time;
@@ -254,6 +254,28 @@ impl Solved {
 /// rank tolerance on W).
 const RANK_TOLERANCE: f64 = 1e-12;
 
+/// The full regressor of sample `s` of `data`, row-major n × num_params, into `yf`;
+/// returns that sample's `tau` row (n). One place for the slicing that every row
+/// builder of this module needs.
+fn sample_regressor<'d>(
+    chain: &DynChain,
+    ws: &mut DynWorkspace,
+    data: &'d DynDataset,
+    s: usize,
+    yf: &mut [f64],
+) -> Result<&'d [f64]> {
+    let n = chain.dof();
+    let r = n * s..n * s + n;
+    chain.regressor_row_major_into(
+        ws,
+        &data.q()[r.clone()],
+        &data.qd()[r.clone()],
+        &data.qdd()[r.clone()],
+        yf,
+    )?;
+    Ok(&data.tau()[r])
+}
+
 fn check_link(link: Option<usize>, n: usize) -> Result<usize> {
     let l = link.unwrap_or(n - 1);
     if l >= n {
@@ -409,15 +431,7 @@ pub fn identify_payload(
                     z: &mut DMatrix<f64>,
                     y: &mut DVector<f64>|
      -> Result<()> {
-        let r = n * s..n * s + n;
-        chain.regressor_row_major_into(
-            &mut ws,
-            &data.q()[r.clone()],
-            &data.qd()[r.clone()],
-            &data.qdd()[r.clone()],
-            &mut yf,
-        )?;
-        let tau = &data.tau()[r];
+        let tau = sample_regressor(&chain, &mut ws, data, s, &mut yf)?;
         for i in 0..n {
             let row = &yf[i * p..(i + 1) * p];
             let known: f64 = fixed.iter().map(|&b| row[indep[b]] * model.beta[b]).sum();
@@ -462,14 +476,7 @@ pub fn identify_payload(
                 crate::interrupt::check("payload identification")?;
             }
             fill(s, &mut a, &mut z, &mut y)?;
-            let r = n * s..n * s + n;
-            chain.regressor_row_major_into(
-                &mut ws,
-                &data.q()[r.clone()],
-                &data.qd()[r.clone()],
-                &data.qdd()[r],
-                &mut yf,
-            )?;
+            sample_regressor(&chain, &mut ws, data, s, &mut yf)?;
             for i in 0..n {
                 let row = &yf[i * p..(i + 1) * p];
                 for (c, &b) in fixed.iter().enumerate() {
@@ -746,15 +753,7 @@ pub fn identify_drive_gains(
         } else {
             (loaded, s - nu, true)
         };
-        let r = n * s..n * s + n;
-        chain.regressor_row_major_into(
-            &mut ws,
-            &data.q()[r.clone()],
-            &data.qd()[r.clone()],
-            &data.qdd()[r.clone()],
-            &mut yf,
-        )?;
-        let cur = &data.tau()[r];
+        let cur = sample_regressor(&chain, &mut ws, data, s, &mut yf)?;
         a.fill(0.0);
         y.fill(0.0);
         for i in 0..n {
