@@ -247,6 +247,22 @@ impl Solved {
             .sqrt()
             > 0.1
     }
+
+    /// The error for data that do not determine what the caller needs: the rank of the
+    /// solve and its dropped directions, in x's coordinates.
+    fn rank_deficient(&self) -> PrrrpError {
+        let k = self.x.len();
+        PrrrpError::RankDeficient {
+            rank: k - self.dropped.len(),
+            params: k,
+            cond: f64::INFINITY,
+            directions: self
+                .dropped
+                .iter()
+                .map(|v| v.iter().copied().collect())
+                .collect(),
+        }
+    }
 }
 
 /// Directions of the equilibrated normal matrix below this fraction of the largest
@@ -495,16 +511,7 @@ pub fn identify_payload(
     // The mass must be seen: a payload that never moved against gravity or accelerated
     // has no identifiable mass, and then nothing else is.
     if settings.mass.is_none() && fit.undetermined(0) {
-        return Err(PrrrpError::RankDeficient {
-            rank: k - fit.dropped.len(),
-            params: k,
-            cond: f64::INFINITY,
-            directions: fit
-                .dropped
-                .iter()
-                .map(|v| v.iter().copied().collect())
-                .collect(),
-        });
+        return Err(fit.rank_deficient());
     }
 
     // Information of the payload block with the friction terms eliminated (their Schur
@@ -822,16 +829,7 @@ pub fn identify_drive_gains(
     let gsig: Vec<f64> = (0..n).map(|m| cov[(m, m)].max(0.0).sqrt()).collect();
     let undetermined: Vec<bool> = (0..n).map(|m| fit.undetermined(m)).collect();
     if undetermined.iter().all(|u| *u) {
-        return Err(PrrrpError::RankDeficient {
-            rank: k - fit.dropped.len(),
-            params: k,
-            cond: f64::INFINITY,
-            directions: fit
-                .dropped
-                .iter()
-                .map(|v| v.iter().copied().collect())
-                .collect(),
-        });
+        return Err(fit.rank_deficient());
     }
     let identifiable: Vec<bool> = (0..n)
         .map(|m| {
