@@ -4,10 +4,13 @@
 //! the open-loop energy balance d(T + V)/dt = q̇ᵀτ holds to the integrator's order, the
 //! sensor noise has the configured statistics, and runs are reproducible from the seed.
 
+mod dyn_support;
+
+use dyn_support::fourier;
 use prrrp_core::{
     simulate_dyn_closed_loop, simulate_dyn_open_loop, validate_torque_prediction, DynChain,
-    DynSampledTrajectory, DynSensorNoise, DynSimulationConfig, DynTrajectory, FourierTrajectory,
-    FrictionModel, ParameterisedModel, PrrrpError, SerialChain, Sinusoid, UrdfOptions,
+    DynSampledTrajectory, DynSensorNoise, DynSimulationConfig, DynTrajectory, FrictionModel,
+    ParameterisedModel, PrrrpError, SerialChain, Sinusoid, UrdfOptions,
 };
 
 /// PUMA 560 with viscous, smoothed-Coulomb and offset friction on every joint, sized to
@@ -32,19 +35,6 @@ fn puma() -> DynChain {
             ],
         )
         .unwrap()
-}
-
-/// A Fourier excitation of n joints at 0.2 Hz, 3 harmonics, starting at rest
-/// (Σ a = 0, Σ l·b = 0), amplitudes of about a radian.
-fn fourier(n: usize, scale: f64) -> FourierTrajectory {
-    let (mut a, mut b) = (Vec::new(), Vec::new());
-    for j in 0..n {
-        let s = scale * (1.0 + 0.1 * j as f64);
-        a.extend([0.6 * s, -0.2 * s, -0.4 * s]);
-        b.extend([0.3 * s, 0.15 * s, -0.2 * s]);
-    }
-    let offsets = (0..n).map(|j| 0.1 * j as f64 - 0.2).collect();
-    FourierTrajectory::new(2.0 * std::f64::consts::PI * 0.2, offsets, a, b).unwrap()
 }
 
 fn noiseless(n: usize) -> DynSimulationConfig {

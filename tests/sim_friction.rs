@@ -7,9 +7,12 @@
 //! recorded torque is the inverse dynamics of its recorded state, with a Coulomb torque
 //! within ±fc wherever a joint is at rest.
 
+mod dyn_support;
+
+use dyn_support::fourier;
 use prrrp_core::{
     simulate_dyn_closed_loop, simulate_dyn_open_loop, DhConvention, DhRow, DynChain,
-    DynSimulationConfig, FourierTrajectory, FrictionModel, JointKind,
+    DynSimulationConfig, FrictionModel, JointKind,
 };
 
 fn ur5_like() -> DynChain {
@@ -18,19 +21,6 @@ fn ur5_like() -> DynChain {
         "/tests/data/ur5_like_friction.toml"
     ))
     .unwrap()
-}
-
-/// A Fourier excitation of n joints at 0.2 Hz, 3 harmonics, starting at rest; every
-/// joint reverses several times in 10 s.
-fn fourier(n: usize, scale: f64) -> FourierTrajectory {
-    let (mut a, mut b) = (Vec::new(), Vec::new());
-    for j in 0..n {
-        let s = scale * (1.0 + 0.1 * j as f64);
-        a.extend([0.6 * s, -0.2 * s, -0.4 * s]);
-        b.extend([0.3 * s, 0.15 * s, -0.2 * s]);
-    }
-    let offsets = (0..n).map(|j| 0.1 * j as f64 - 0.2).collect();
-    FourierTrajectory::new(2.0 * std::f64::consts::PI * 0.2, offsets, a, b).unwrap()
 }
 
 /// A block of mass `m` on a horizontal prismatic joint (no gravity along it) with

@@ -6,7 +6,8 @@
 
 use prrrp_core::nalgebra::{DVector, SVector};
 use prrrp_core::{
-    inertial_parameters, DhConvention, DhRow, DynChain, DynSamples, FrictionModel, JointKind,
+    inertial_parameters, DhConvention, DhRow, DynChain, DynSamples, FourierTrajectory,
+    FrictionModel, JointKind,
 };
 use rand::rngs::StdRng;
 use rand::{RngExt, SeedableRng};
@@ -171,4 +172,18 @@ pub fn exact_record(
         rec.tau.push(DVector::from_vec(tau));
     }
     rec
+}
+
+/// A Fourier excitation of n joints at 0.2 Hz, 3 harmonics, starting at rest
+/// (Σ a = 0, Σ l·b = 0), amplitudes in proportion to `scale`; every joint reverses several
+/// times in 10 s. The simulation tests' reference trajectory.
+pub fn fourier(n: usize, scale: f64) -> FourierTrajectory {
+    let (mut a, mut b) = (Vec::new(), Vec::new());
+    for j in 0..n {
+        let s = scale * (1.0 + 0.1 * j as f64);
+        a.extend([0.6 * s, -0.2 * s, -0.4 * s]);
+        b.extend([0.3 * s, 0.15 * s, -0.2 * s]);
+    }
+    let offsets = (0..n).map(|j| 0.1 * j as f64 - 0.2).collect();
+    FourierTrajectory::new(2.0 * std::f64::consts::PI * 0.2, offsets, a, b).unwrap()
 }
