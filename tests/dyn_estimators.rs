@@ -722,3 +722,91 @@ fn bad_input_is_a_typed_error_at_run_time_sizes() {
     ));
     let _ = &f.base;
 }
+
+/// The EKF's time update on a damped rotor, against its exact solution. One revolute
+/// joint about the vertical (no gravity torque), inertia I about the axis, viscous
+/// friction fv, no torque: q̇(t) = q̇₀·e^(−r·t) and q(t) = q₀ + q̇₀·(1 − e^(−r·t))/r with
+/// r = fv/I. Where h·r passes the stiffness limit the filter (stiff handling on, as
+/// `identify` runs it) takes its linearly implicit step; up to h·r = 2, where the explicit
+/// midpoint step is still stable, that step must predict q and q̇ at least as well as the
+/// explicit one, and beyond, where the explicit step grows the mode, it must stay bounded
+/// (|q̇⁺| ≤ |q̇|). (That the switch does not bias the slow modes an estimate rests on is
+/// checked end to end in `python/tests/test_identify_methods.py`.)
+#[test]
+fn ekf_time_update_on_a_damped_rotor_matches_its_exact_decay() {
+    use prrrp_core::{inertial_parameters, DhConvention, DhRow, DynChain, FrictionModel};
+    let (inertia, fv) = (0.02, 0.5);
+    let r = fv / inertia;
+    let chain = DynChain::new(
+        vec![DhRow {
+            kind: prrrp_core::JointKind::Revolute,
+            theta: 0.0,
+            d: 0.0,
+            a: 0.0,
+            alpha: 0.0,
+        }],
+        DhConvention::Modified,
+    )
+    .unwrap()
+    .with_inertial(vec![inertial_parameters(
+        1.0,
+        [0.0; 3],
+        [inertia, 0.0, inertia, 0.0, 0.0, inertia],
+    )])
+    .unwrap()
+    .with_friction(
+        FrictionModel {
+            viscous: true,
+            ..FrictionModel::default()
+        },
+        vec![[fv, 0.0, 0.0]],
+    )
+    .unwrap();
+    let base = chain.base_parameters(&BaseOptions::default()).unwrap();
+    let model = chain.base_model(&base).unwrap();
+    let beta = model.chain_base_values().clone();
+    // (q, q̇) after one prediction from the state the first step left.
+    let predict = |h: f64, stiff_handling: bool| {
+        let cfg = EkfConfig {
+            dt: h,
+            measurement: prrrp_core::EkfMeasurement::PositionsVelocities,
+            ..Default::default()
+        };
+        let mut ekf = DynEkf::new(model.clone(), beta.clone(), cfg).unwrap();
+        ekf.set_stiff_handling(stiff_handling);
+        let (q, qd) = (DVector::from_element(1, 0.3), DVector::from_element(1, 2.0));
+        // No q̈ (NaN): the filter linearises at its own prediction.
+        let (zero, nan) = (DVector::zeros(1), DVector::from_element(1, f64::NAN));
+        ekf.step(DynSample::new(&q, &qd, &nan, &zero)).unwrap();
+        let x1 = ekf.state().clone();
+        ekf.step(DynSample::new(&nan, &nan, &nan, &zero)).unwrap();
+        let x2 = ekf.state().clone();
+        let decay = (-r * h).exp();
+        let exact = (x1[0] + x1[1] * (1.0 - decay) / r, x1[1] * decay);
+        (x1[1], x2[0] - exact.0, x2[1] - exact.1, ekf.stiff_steps())
+    };
+    for hr in [1.2, 1.5, 1.9] {
+        let h = hr / r;
+        let (_, eq_on, ev_on, steps) = predict(h, true);
+        let (_, eq_off, ev_off, _) = predict(h, false);
+        println!(
+            "h·r = {hr}: stiff steps {steps}; errors q {eq_on:.2e} (explicit {eq_off:.2e}), \
+             q̇ {ev_on:.2e} (explicit {ev_off:.2e})"
+        );
+        assert!(steps > 0, "h·r = {hr}: the stiff step was not taken");
+        assert!(
+            eq_on.abs() <= eq_off.abs(),
+            "h·r = {hr}: q {eq_on} vs {eq_off}"
+        );
+        assert!(
+            ev_on.abs() <= ev_off.abs(),
+            "h·r = {hr}: q̇ {ev_on} vs {ev_off}"
+        );
+    }
+    for hr in [3.0, 30.0] {
+        let (v1, _, ev, _) = predict(hr / r, true);
+        let v2 = ev + v1 * (-hr).exp();
+        println!("h·r = {hr}: q̇ {v1:.3} → {v2:.3}");
+        assert!(v2.abs() <= v1.abs(), "h·r = {hr}: {v1} → {v2}");
+    }
+}

@@ -1157,7 +1157,10 @@ def identify(
     residual variance and correlation time), `parameter_jacobian` ("predicted" or
     "data_acceleration", the default: the Jacobian linearised at the data's q̈, free of the
     input-noise bias), `least_squares_prior_width` (default 3: P0 of β is 3² times the
-    weighted least-squares covariance; 0 for the diagonal prior); `discretisation` of
+    weighted least-squares covariance; 0 for the diagonal prior), `stiff_handling` (default
+    True: the time update is linearly implicit at samples where the dynamics are too stiff
+    for the explicit step, h·‖∂q̈/∂q̇‖∞ + h²·‖∂q̈/∂q‖∞ > 0.5; the trapezoidal rule,
+    second order and A-stable); `discretisation` of
     ekf also takes "midpoint" (its default); physical `prior`
     (standard parameters π0; default the robot's own, `robot.parameters`: a URDF's
     inertials), `divergence_weight` (γ ≥ 0, default 10: the log-det divergence of each

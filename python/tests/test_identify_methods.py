@@ -212,3 +212,33 @@ def test_online_estimators_from_a_chain(panda, data, held_out, models):
         prrrp.Rls(scale=np.ones(8))
     # The paper's arm keeps working.
     assert prrrp.Rls().estimate.shape == (8,)
+
+
+@pytest.mark.parametrize("seed", [2, 7])
+def test_ekf_stiff_handling_leaves_a_well_damped_arm_alone(seed):
+    """The EKF's linearly implicit time update where the dynamics are stiff
+    (`stiff_handling`) must not bias an arm the explicit step resolves. The paper's arm at
+    its 50 Hz with 3× the default noise, as ``prrrp identify --method ekf`` sees it (a
+    tenth of the samples take the implicit step): the estimate with the handling on (the
+    default) is within 0.5σ of the one without, on every parameter. (With the first-order
+    implicit Euler step used before, parameters moved by up to 1.5σ, and the protocol's
+    EKF missed 4σ on λ2.)"""
+    from prrrp.cli.simulate import DEFAULT_Q_NOISE, DEFAULT_TAU_NOISE, reference_for
+
+    duration, dt = 30.0, 1.0 / 50.0
+    rec = prrrp.simulate_closed_loop(
+        reference_for(prrrp.optimise_excitation(seed=seed), duration),
+        duration,
+        dt=dt,
+        q_noise=3.0 * np.asarray(DEFAULT_Q_NOISE),
+        tau_noise=3.0 * np.asarray(DEFAULT_TAU_NOISE),
+        seed=seed,
+    )
+    d = prrrp.preprocess(rec["t"], rec["q_measured"], rec["tau_measured"])
+    ds = prrrp.Dataset(d["t"], d["q"], d["qd"], d["qdd"], d["tau"])
+    off = prrrp.identify(prrrp.Robot.paper(), ds, "ekf", stiff_handling=False)
+    on = prrrp.identify(prrrp.Robot.paper(), ds, "ekf")
+    sigma = np.sqrt(np.diag(np.asarray(off.covariance)))
+    shift = np.abs(np.asarray(on.beta) - np.asarray(off.beta)) / sigma
+    print(f"seed {seed}: {on.settings['stiff_steps']} stiff steps, shift/σ {np.round(shift, 2)}")
+    assert np.all(shift <= 0.5), shift

@@ -548,6 +548,7 @@ fn valid_keys(method: &str) -> &'static [&'static str] {
             "parameter_jacobian",
             "least_squares_prior_width",
             "correlation_correction",
+            "stiff_handling",
         ],
     }
 }
@@ -694,6 +695,7 @@ fn parse_method(
                     "noise_from_data" => s.noise_from_data = v.extract()?,
                     "least_squares_prior_width" => s.least_squares_prior_width = f()?,
                     "correlation_correction" => s.correlation_correction = v.extract()?,
+                    "stiff_handling" => s.stiff_handling = v.extract()?,
                     "process_noise_at_estimate" => s.process_noise_at_estimate = v.extract()?,
                     "process_position_noise" => c.process_position_noise = f()?,
                     "process_velocity_noise" => c.process_velocity_noise = f()?,
