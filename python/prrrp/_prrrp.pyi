@@ -8,7 +8,7 @@ qdd, tau) have shape (5,) for one sample or (N, 5) for a batch; λ (`lam`) has s
 import builtins
 import os
 from collections.abc import Callable, Iterator, Mapping
-from typing import Any, Final, Literal, TypedDict, overload
+from typing import Any, Final, Literal, Self, TypedDict, overload
 
 import numpy as np
 import numpy.typing as npt
@@ -117,15 +117,15 @@ class Robot:
     Raises InvalidParameterError naming a non-physical value.
     """
 
-    def __init__(
-        self,
+    def __new__(
+        cls,
         *,
         mass: _ArrayLike | None = None,
         length: _ArrayLike | None = None,
         com: _ArrayLike | None = None,
         inertia_zz: _ArrayLike | None = None,
         gravity: float = 9.81,
-    ) -> None: ...
+    ) -> Self: ...
     @staticmethod
     def paper() -> Robot:
         """The robot of Urrea & Pascal 2017, Table 2, with g = 9.81 m/s²."""
@@ -268,14 +268,14 @@ class Excitation:
 class SinusoidReference:
     """q_i(t) = offset_i + amplitude_i·sin(omega_i·t + phase_i); each argument (5,)."""
 
-    def __init__(
-        self,
+    def __new__(
+        cls,
         *,
         offset: _ArrayLike,
         amplitude: _ArrayLike,
         omega: _ArrayLike,
         phase: _ArrayLike | None = None,
-    ) -> None: ...
+    ) -> Self: ...
     def eval(self, t: _ArrayLike) -> _Triple: ...
     def sample(self, t: _ArrayLike) -> _Triple: ...
 
@@ -413,8 +413,8 @@ class _OnlineEstimator:
     def reset(self) -> None: ...
 
 class Adaline(_OnlineEstimator):
-    def __init__(
-        self,
+    def __new__(
+        cls,
         lam0: _ArrayLike | None = None,
         *,
         rule: Literal["normalised", "normalized", "delta"] = "normalised",
@@ -425,7 +425,7 @@ class Adaline(_OnlineEstimator):
         beta0: _ArrayLike | None = None,
         base: BaseParameters | None = None,
         scale: _ArrayLike | None = None,
-    ) -> None:
+    ) -> Self:
         """The paper's arm (`lam0` (8,), default Table 3), or any chain: pass a
         `SerialChain` first; then `beta0` (b,) (default zeros), the analysis `base`
         (default `chain.base_parameters()`) and a positive column `scale` (b,) (default
@@ -437,8 +437,8 @@ class Adaline(_OnlineEstimator):
         """RMS equation error per epoch, (epochs,)."""
 
 class Hopfield(_OnlineEstimator):
-    def __init__(
-        self,
+    def __new__(
+        cls,
         lam0: _ArrayLike | None = None,
         *,
         bound: float = 10.0,
@@ -449,7 +449,7 @@ class Hopfield(_OnlineEstimator):
         beta0: _ArrayLike | None = None,
         base: BaseParameters | None = None,
         scale: _ArrayLike | None = None,
-    ) -> None:
+    ) -> Self:
         """The paper's arm (`lam0` (8,), default Table 3), or any chain: pass a
         `SerialChain` first; then `beta0` (b,) (default zeros), the analysis `base`
         (default `chain.base_parameters()`) and a positive column `scale` (b,) (default
@@ -460,8 +460,8 @@ class Hopfield(_OnlineEstimator):
     ) -> _F64: ...
 
 class Rls(_OnlineEstimator):
-    def __init__(
-        self,
+    def __new__(
+        cls,
         lam0: _ArrayLike | None = None,
         *,
         forgetting: float = 1.0,
@@ -469,15 +469,15 @@ class Rls(_OnlineEstimator):
         beta0: _ArrayLike | None = None,
         base: BaseParameters | None = None,
         scale: _ArrayLike | None = None,
-    ) -> None:
+    ) -> Self:
         """The paper's arm (`lam0` (8,), default Table 3), or any chain: pass a
         `SerialChain` first; then `beta0` (b,) (default zeros), the analysis `base`
         (default `chain.base_parameters()`) and a positive column `scale` (b,) (default
         ones): the estimator trains on γ = β/scale and reports β."""
 
 class Ekf(_OnlineEstimator):
-    def __init__(
-        self,
+    def __new__(
+        cls,
         lam0: _ArrayLike | None = None,
         *,
         measurement: Literal["positions", "positions_velocities"] = "positions",
@@ -495,7 +495,7 @@ class Ekf(_OnlineEstimator):
         init_from_first_measurement: bool = True,
         beta0: _ArrayLike | None = None,
         base: BaseParameters | None = None,
-    ) -> None:
+    ) -> Self:
         """The paper's arm (`lam0` (8,), default Table 3), or any chain: pass a
         `SerialChain` first; then `beta0` (b,) (default the chain's own base parameters,
         since the filter needs a positive definite M(q, β0)) and the analysis `base`.
@@ -572,8 +572,8 @@ class SerialChain:
     joints 1..n] (`parameters`, `parameter_names`), P = `num_params` entries.
     """
 
-    def __init__(
-        self,
+    def __new__(
+        cls,
         dh: _ArrayLike,
         joint_types: str | list[str],
         *,
@@ -583,7 +583,7 @@ class SerialChain:
         friction: str | list[str] | None = None,
         friction_params: _ArrayLike | None = None,
         coulomb_smoothing: float = 0.0,
-    ) -> None: ...
+    ) -> Self: ...
     @staticmethod
     def from_urdf(
         source: str | os.PathLike[str],
@@ -896,8 +896,8 @@ class OnlineIdentifier:
     >>> model = online.estimate()  # an IdentifiedModel, as identify returns
     """
 
-    def __init__(
-        self,
+    def __new__(
+        cls,
         robot: SerialChain | None = None,
         *,
         prior: IdentifiedModel | None = None,
@@ -916,7 +916,7 @@ class OnlineIdentifier:
         ekf_warmup: float = 2.0,
         step_size: float = 0.5,
         seed: int = 0,
-    ) -> None: ...
+    ) -> Self: ...
     def update(
         self, t: float, q: _ArrayLike, tau: _ArrayLike, qd: _ArrayLike | None = None
     ) -> _OnlineUpdate:
@@ -1221,9 +1221,9 @@ class Dataset:
     arm (`torque_prediction`, ...) take 5-joint data sets."""
 
     MIN_SAMPLES: Final[int]
-    def __init__(
-        self, t: _ArrayLike, q: _ArrayLike, qd: _ArrayLike, qdd: _ArrayLike, tau: _ArrayLike
-    ) -> None: ...
+    def __new__(
+        cls, t: _ArrayLike, q: _ArrayLike, qd: _ArrayLike, qdd: _ArrayLike, tau: _ArrayLike
+    ) -> Self: ...
     @staticmethod
     def from_dict(d: Mapping[str, _ArrayLike]) -> Dataset:
         """From a mapping with keys t, q, qd, qdd, tau (e.g. `preprocess(...)`'s result)."""
