@@ -8,7 +8,7 @@ qdd, tau) have shape (5,) for one sample or (N, 5) for a batch; λ (`lam`) has s
 import builtins
 import os
 from collections.abc import Callable, Iterator, Mapping
-from typing import Any, Final, Literal, Self, TypedDict, overload
+from typing import Any, Final, Literal, Self, TypedDict, final, overload
 
 import numpy as np
 import numpy.typing as npt
@@ -83,6 +83,7 @@ class _DhRow(TypedDict):
     a: float
     alpha: float
 
+@final
 class InverseDerivatives:
     """∂τ/∂q and ∂τ/∂q̇ at fixed q̈ and λ; unpacks as (dtau_dq, dtau_dqd)."""
 
@@ -93,6 +94,7 @@ class InverseDerivatives:
     def __iter__(self) -> Iterator[_F64]: ...
     def __len__(self) -> int: ...
 
+@final
 class ForwardDerivatives:
     """q̈ and ∂q̈/∂q, ∂q̈/∂q̇, ∂q̈/∂λ at fixed τ; unpacks as
     (qdd, dqdd_dq, dqdd_dqd, dqdd_dlambda)."""
@@ -108,6 +110,7 @@ class ForwardDerivatives:
     def __iter__(self) -> Iterator[_F64]: ...
     def __len__(self) -> int: ...
 
+@final
 class Robot:
     """The PRRRP arm (paper Table 2 quantities, SI units) and its dynamic model.
 
@@ -235,6 +238,7 @@ class _LimitUsage(TypedDict):
 def joint_limits() -> _JointLimits:
     """Default joint limits of the excitation search: (5,) arrays (m, rad, /s, /s²)."""
 
+@final
 class Excitation:
     """An optimised excitation trajectory (paper §4.1) and the figures of its search."""
 
@@ -265,6 +269,7 @@ class Excitation:
     @property
     def is_reflected(self) -> bool: ...
 
+@final
 class SinusoidReference:
     """q_i(t) = offset_i + amplitude_i·sin(omega_i·t + phase_i); each argument (5,)."""
 
@@ -362,6 +367,7 @@ def preprocess(
 
 # --- estimators ---------------------------------------------------------------------------
 
+@final
 class LeastSquaresResult:
     lam: _F64
     std: _F64
@@ -412,6 +418,7 @@ class _OnlineEstimator:
     ) -> tuple[_F64, _F64]: ...
     def reset(self) -> None: ...
 
+@final
 class Adaline(_OnlineEstimator):
     def __new__(
         cls,
@@ -436,6 +443,7 @@ class Adaline(_OnlineEstimator):
     ) -> _F64:
         """RMS equation error per epoch, (epochs,)."""
 
+@final
 class Hopfield(_OnlineEstimator):
     def __new__(
         cls,
@@ -459,6 +467,7 @@ class Hopfield(_OnlineEstimator):
         self, q: _ArrayLike, qd: _ArrayLike, qdd: _ArrayLike, tau: _ArrayLike, epochs: int
     ) -> _F64: ...
 
+@final
 class Rls(_OnlineEstimator):
     def __new__(
         cls,
@@ -475,6 +484,7 @@ class Rls(_OnlineEstimator):
         (default `chain.base_parameters()`) and a positive column `scale` (b,) (default
         ones): the estimator trains on γ = β/scale and reports β."""
 
+@final
 class Ekf(_OnlineEstimator):
     def __new__(
         cls,
@@ -542,6 +552,7 @@ def run_study_json(seed: int = 0, progress: Callable[[str, int, int], object] | 
 
 # --- generic serial chains ------------------------------------------------------------
 
+@final
 class SerialChain:
     """A serial arm of revolute and prismatic joints, with the 10 standard inertial parameters
     per link and optional joint friction. n joints; joint-space arrays have shape (n,) or
@@ -863,6 +874,7 @@ class _OnlineUpdate(TypedDict):
     change: bool
     updated: bool
 
+@final
 class OnlineIdentifier:
     """Identification while the arm runs: one raw sample at a time, causal (no sample
     after the current one is used), any clock (irregular time stamps, repeated rows).
@@ -952,6 +964,7 @@ class OnlineIdentifier:
     @property
     def settings(self) -> dict[str, Any]: ...
 
+@final
 class IdentifiedModel:
     """An identification result for any robot (schema: docs/model-schema.md): the robot
     description, the base-parameter analysis, β̂ with σ and %σ where the method gives them
@@ -1173,6 +1186,7 @@ def identify(
     that do not excite every base parameter), InvalidParameterError (unknown method, a
     setting out of range, an unstable step), DivergedError, NonFiniteError."""
 
+@final
 class BaseParameters:
     """Result of `SerialChain.base_parameters()`: base parameters β = map @ π (b of them)."""
 
@@ -1213,6 +1227,7 @@ class BaseParameters:
 
 # --- data sets, validation, sensitivity --------------------------------------------------
 
+@final
 class Dataset:
     """An identification data set of any robot, checked on creation: t (N,) s strictly
     increasing; q, qd, qdd, tau (N, n) (m, rad; m/s, rad/s; m/s², rad/s²; N, N·m), n joints
@@ -1389,6 +1404,7 @@ def sensitivity(
 
 # --- simulation and validation of any chain -----------------------------------------------
 
+@final
 class ChainTrajectory:
     """A reference trajectory of n joints (any robot): per-joint Fourier series, one
     sinusoid per joint, or a recorded trajectory. Units: m, rad; m/s, rad/s; m/s², rad/s²."""
@@ -1423,6 +1439,7 @@ class ChainTrajectory:
     def eval(self, t: _ArrayLike) -> tuple[_F64, _F64, _F64]:
         """(q, qd, qdd) at a scalar t (each (n,)) or at t of shape (N,) (each (N, n))."""
 
+@final
 class ChainSimulation:
     """What `simulate_chain` / `simulate_chain_open_loop` recorded at t_k = k/rate. The true
     signals are consistent: tau[k] = inverse dynamics of the chain at (q, qd, qdd)[k]."""
