@@ -16,6 +16,69 @@ import numpy.typing as npt
 _ArrayLike = npt.ArrayLike
 _F64 = npt.NDArray[np.float64]
 
+__all__ = [
+    "NDOF",
+    "NPARAM",
+    "STANDARD_GRAVITY",
+    "Adaline",
+    "BaseParameters",
+    "ChainSimulation",
+    "ChainTrajectory",
+    "Dataset",
+    "DivergedError",
+    "Ekf",
+    "Excitation",
+    "ForwardDerivatives",
+    "Hopfield",
+    "IdentifiedModel",
+    "InfeasibleError",
+    "InvalidInputError",
+    "InvalidParameterError",
+    "InverseDerivatives",
+    "LeastSquaresResult",
+    "NonFiniteError",
+    "NonIncreasingTimeError",
+    "NotPositiveDefiniteError",
+    "OnlineIdentifier",
+    "PrrrpError",
+    "RankDeficientError",
+    "Rls",
+    "Robot",
+    "RobotFileError",
+    "SerialChain",
+    "ShapeMismatchError",
+    "SinusoidReference",
+    "TooFewSamplesError",
+    "__version__",
+    "agreement_index",
+    "condition_number",
+    "design_excitation",
+    "error_indices",
+    "identified_model_from_parts",
+    "identify",
+    "identify_drive_gains",
+    "joint_limits",
+    "least_squares",
+    "observation_matrix",
+    "optimise_excitation",
+    "preprocess",
+    "preprocess_log",
+    "regressor",
+    "relative_errors_percent",
+    "rms",
+    "rsd",
+    "run_study_json",
+    "sensitivity",
+    "simulate_chain",
+    "simulate_chain_open_loop",
+    "simulate_closed_loop",
+    "simulate_open_loop",
+    "singular_values",
+    "torque_prediction",
+    "validate",
+    "validate_model",
+]
+
 __version__: Final[str]
 NDOF: Final[int]
 """Number of joints (5)."""
@@ -204,7 +267,9 @@ class Robot:
         *,
         lam: _ArrayLike | None = None,
     ) -> ForwardDerivatives: ...
-    def __eq__(self, other: object) -> bool: ...
+    def __eq__(self, other: object, /) -> bool: ...
+    def __getnewargs_ex__(self) -> tuple[tuple[()], dict[str, Any]]:
+        """Pickle and copy support: the keyword arguments that rebuild this robot."""
 
 def regressor(q: _ArrayLike, qd: _ArrayLike, qdd: _ArrayLike, *, gravity: float = 9.81) -> _F64:
     """Φ(q, q̇, q̈) with τ = Φ·λ, shape (5, 8) or (N, 5, 8)."""
@@ -1260,7 +1325,7 @@ class Dataset:
         """t[-1] − t[0], s."""
     def slice(self, start: int, stop: int) -> Dataset:
         """Samples start..stop as a new data set (TooFewSamplesError below 8)."""
-    def __getitem__(self, key: builtins.slice) -> Dataset:
+    def __getitem__(self, key: builtins.slice, /) -> Dataset:
         """Contiguous slices only (step 1)."""
     def __len__(self) -> int: ...
     def to_dict(self) -> _Dataset: ...
