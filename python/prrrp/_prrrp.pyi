@@ -13,6 +13,11 @@ from typing import Any, Final, Literal, Self, TypedDict, final, overload
 import numpy as np
 import numpy.typing as npt
 
+# Where a default in the Rust signature is not a Python literal (`UInt(20)`, a Rust
+# constant), pyo3 shows it as `...` at runtime. The stub writes `...` too, so that stubtest
+# checks the signature, with the value in a comment; where the Rust default is the exported
+# `STANDARD_GRAVITY`, the stub names that constant.
+
 _ArrayLike = npt.ArrayLike
 _F64 = npt.NDArray[np.float64]
 
@@ -190,7 +195,7 @@ class Robot:
         length: _ArrayLike | None = None,
         com: _ArrayLike | None = None,
         inertia_zz: _ArrayLike | None = None,
-        gravity: float = 9.81,
+        gravity: float = STANDARD_GRAVITY,
     ) -> Self: ...
     @staticmethod
     def paper() -> Robot:
@@ -271,11 +276,13 @@ class Robot:
     def __getnewargs_ex__(self) -> tuple[tuple[()], dict[str, Any]]:
         """Pickle and copy support: the keyword arguments that rebuild this robot."""
 
-def regressor(q: _ArrayLike, qd: _ArrayLike, qdd: _ArrayLike, *, gravity: float = 9.81) -> _F64:
+def regressor(
+    q: _ArrayLike, qd: _ArrayLike, qdd: _ArrayLike, *, gravity: float = STANDARD_GRAVITY
+) -> _F64:
     """Φ(q, q̇, q̈) with τ = Φ·λ, shape (5, 8) or (N, 5, 8)."""
 
 def observation_matrix(
-    q: _ArrayLike, qd: _ArrayLike, qdd: _ArrayLike, *, gravity: float = 9.81
+    q: _ArrayLike, qd: _ArrayLike, qdd: _ArrayLike, *, gravity: float = STANDARD_GRAVITY
 ) -> _F64:
     """Stacked regressors W (eq. 35), shape (5·N, 8)."""
 
@@ -351,15 +358,15 @@ class SinusoidReference:
 
 def optimise_excitation(
     *,
-    seed: int = 0,
+    seed: int = ...,  # 0
     duration: float = 10.0,
     dt: float = 0.02,
-    max_evaluations: int = 6000,
-    restarts: int = 6,
+    max_evaluations: int = ...,  # 6000
+    restarts: int = ...,  # 6
     margin: float = 0.01,
     limits: Mapping[str, _ArrayLike] | None = None,
     progress: Callable[[int, int, float], object] | None = None,
-    progress_every: int = 100,
+    progress_every: int = ...,  # 100
 ) -> Excitation:
     """Minimises cond(W) within the joint limits. `progress(evaluations, max_evaluations,
     best_cond)`; an exception it raises is re-raised when the search returns."""
@@ -385,12 +392,12 @@ def simulate_closed_loop(
     lam: _ArrayLike | None = None,
     controller_lam: _ArrayLike | None = None,
     dt: float = 0.02,
-    substeps: int = 20,
+    substeps: int = ...,  # 20
     kp: _ArrayLike | None = None,
     kd: _ArrayLike | None = None,
     q_noise: _ArrayLike | None = None,
     tau_noise: _ArrayLike | None = None,
-    seed: int = 0,
+    seed: int = ...,  # 0
 ) -> _Record:
     """Computed-torque tracking of `reference`; arrays t (N,) and (N, 5) columns."""
 
@@ -401,10 +408,10 @@ def simulate_open_loop(
     *,
     lam: _ArrayLike | None = None,
     dt: float = 0.02,
-    substeps: int = 20,
+    substeps: int = ...,  # 20
     q_noise: _ArrayLike | None = None,
     tau_noise: _ArrayLike | None = None,
-    seed: int = 0,
+    seed: int = ...,  # 0
 ) -> _Record:
     """The robot under the torques tau (N, 5), zero-order hold; no *_ref keys."""
 
@@ -426,7 +433,7 @@ def preprocess(
     order: int = 4,
     filter_torque: bool = True,
     trim: int | None = None,
-    decimate: int = 1,
+    decimate: int = ...,  # 1
 ) -> _Dataset:
     """Zero-phase low-pass, central differences, trimming, decimation."""
 
@@ -612,7 +619,10 @@ def relative_errors_percent(estimate: _ArrayLike, truth: _ArrayLike) -> _F64: ..
 
 # --- study --------------------------------------------------------------------------------
 
-def run_study_json(seed: int = 0, progress: Callable[[str, int, int], object] | None = None) -> str:
+def run_study_json(
+    seed: int = ...,  # 0
+    progress: Callable[[str, int, int], object] | None = None,
+) -> str:
     """The whole study as JSON (schema_version 1); use `prrrp.run_study` for a dict."""
 
 # --- generic serial chains ------------------------------------------------------------
@@ -888,9 +898,9 @@ class SerialChain:
         data: Dataset,
         *,
         candidates: _ArrayLike | None = None,
-        folds: int = 4,
+        folds: int = ...,  # 4
         refine: bool = True,
-        max_widenings: int = 2,
+        max_widenings: int = ...,  # 2
     ) -> dict[str, Any]:
         """Chooses the speed scale v_s (rad/s, m/s) of this chain's smooth Coulomb friction
         fc·tanh(q̇/v_s) from `data` (the chain must have a Coulomb term): for each candidate
@@ -907,7 +917,11 @@ class SerialChain:
         candidate scored)}. Apply it with
         `with_friction(..., coulomb_smoothing=report["chosen"])`."""
     def base_parameters(
-        self, *, samples: int = 0, seed: int = 0x5EED_BA5E, rank_tolerance: float = 1e-8
+        self,
+        *,
+        samples: int = ...,  # 0
+        seed: int = ...,  # 0x5EED_BA5E
+        rank_tolerance: float = ...,  # 1e-8
     ) -> BaseParameters:
         """Numerical base parameters: QR with column pivoting of the regressor stacked over
         `samples` random states (0 = automatic, ≥ 4·P rows and ≥ 20 states) drawn with
@@ -1359,7 +1373,7 @@ def preprocess_log(
     qd: _ArrayLike | None = None,
     rate_hz: float | None = None,
     cutoff_hz: float | None = None,
-    order: int = 4,
+    order: int = ...,  # 4
     filter_torque: bool = True,
     trim_s: float | None = None,
     decimate_to_hz: float | None = None,
@@ -1386,7 +1400,7 @@ class _TorquePrediction(TypedDict):
     """Φ(q, q̇, q̈)·λ̂, (N, 5)."""
 
 def torque_prediction(
-    data: Dataset | Mapping[str, _ArrayLike], lam: _ArrayLike, *, gravity: float = 9.81
+    data: Dataset | Mapping[str, _ArrayLike], lam: _ArrayLike, *, gravity: float = STANDARD_GRAVITY
 ) -> _TorquePrediction:
     """Predicts data's torques with Φ(q, q̇, q̈)·lam (8,) and compares them with data.tau."""
 
@@ -1419,9 +1433,9 @@ def validate(
     relative_errors: bool = True,
     reference: SinusoidReference | None = None,
     duration: float = 10.0,
-    seed: int = 1,
+    seed: int = ...,  # 1
     dt: float = 0.02,
-    substeps: int = 20,
+    substeps: int = ...,  # 20
     kp: _ArrayLike | None = None,
     kd: _ArrayLike | None = None,
     q_noise: _ArrayLike | None = None,
@@ -1450,12 +1464,12 @@ def sensitivity(
     *,
     nominal: _ArrayLike | None = None,
     range: float = 0.5,
-    points: int = 11,
-    threads: int = 0,
+    points: int = ...,  # 11
+    threads: int = ...,  # 0
     reference: SinusoidReference | None = None,
     duration: float = 10.0,
     dt: float = 0.02,
-    substeps: int = 20,
+    substeps: int = ...,  # 20
     kp: _ArrayLike | None = None,
     kd: _ArrayLike | None = None,
     progress: Callable[[int, int], object] | None = None,
@@ -1558,14 +1572,14 @@ def simulate_chain(
     duration: float,
     *,
     rate: float = 100.0,
-    substeps: int = 10,
+    substeps: int = ...,  # 10
     controller: SerialChain | None = None,
     kp: _ArrayLike | None = None,
     kd: _ArrayLike | None = None,
     q_noise: _ArrayLike | None = None,
     qd_noise: _ArrayLike | None = None,
     tau_noise: _ArrayLike | None = None,
-    seed: int = 0,
+    seed: int = ...,  # 0
 ) -> ChainSimulation:
     """Simulates `chain` (its inertials and friction) tracking `reference` (a
     ChainTrajectory, a Dataset, a dict with t, q, qd, qdd, or a tuple (t, q, qd, qdd)) from
@@ -1587,11 +1601,11 @@ def simulate_chain_open_loop(
     tau: _ArrayLike,
     *,
     rate: float = 100.0,
-    substeps: int = 10,
+    substeps: int = ...,  # 10
     q_noise: _ArrayLike | None = None,
     qd_noise: _ArrayLike | None = None,
     tau_noise: _ArrayLike | None = None,
-    seed: int = 0,
+    seed: int = ...,  # 0
 ) -> ChainSimulation:
     """Simulates `chain` from (q0, qd0) (n,) under the torques tau (N, n), row k held over
     [k/rate, (k+1)/rate) (zero-order hold). No reference (q_ref etc. are None)."""
@@ -1626,13 +1640,13 @@ def validate_model(
 def design_excitation(
     robot: SerialChain,
     *,
-    harmonics: int = 5,
+    harmonics: int = ...,  # 5
     base_frequency: float = 0.1,
     sample_rate: float = 10.0,
     margin: float = 0.05,
-    seed: int = 0,
-    restarts: int = 16,
-    max_evaluations: int = 2000,
+    seed: int = ...,  # 0
+    restarts: int = ...,  # 16
+    max_evaluations: int = ...,  # 2000
     limits: dict[str, _ArrayLike] | None = None,
     progress: Callable[[int, int], object] | None = None,
 ) -> dict[str, Any]:
