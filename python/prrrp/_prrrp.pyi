@@ -823,7 +823,9 @@ class SerialChain:
     @staticmethod
     def paper() -> SerialChain:
         """The paper's PRRRP arm (Tables 1–2, g = 9.81 m/s²) as a chain: same dynamics as
-        `Robot.paper()`, 50 standard parameters, 9 base parameters."""
+        `Robot.paper()`, 50 standard parameters, 9 base parameters; its joints carry the
+        limits of the paper's excitation (`joint_limits()`), and `load_robot("paper")` /
+        `--robot paper` give it."""
     @staticmethod
     def puma560() -> SerialChain:
         """The PUMA 560 (6R, standard DH), links only, from Corke & Armstrong-Hélouvry (ICRA

@@ -71,6 +71,12 @@ class TrackingError(RuntimeError):
         )
 
 
+#: Robots known by name to :func:`load_robot` and every ``--robot``: ``"paper"`` is Urrea &
+#: Pascal's PRRRP arm as a chain (``SerialChain.paper()``: the dynamics of ``Robot.paper()``,
+#: 9 base parameters), so that the paper's arm runs through the same commands as a file.
+BUILT_IN_ROBOTS = {"paper": SerialChain.paper}
+
+
 def load_robot(
     path: str | os.PathLike[str],
     *,
@@ -84,8 +90,18 @@ def load_robot(
     file, with the friction terms to identify (``"viscous+coulomb+offset"``, a list of
     them, or None for the file's own), the Coulomb speed scale (rad/s; 0 = exact sign) and
     whether to identify one rotor inertia (armature) per actuator (None: as the file says;
-    see ``SerialChain.with_actuators``)."""
-    robot = SerialChain.from_file(path, base=base, tip=tip)
+    see ``SerialChain.with_actuators``). ``path`` may also name a built-in robot
+    (:data:`BUILT_IN_ROBOTS`): ``"paper"`` is the paper's PRRRP arm."""
+    name = os.fspath(path)
+    if name in BUILT_IN_ROBOTS:
+        if base is not None or tip is not None:
+            raise ValueError(
+                f"--base and --tip pick the chain of a URDF; the built-in robot {name!r} is "
+                "one chain already"
+            )
+        robot = BUILT_IN_ROBOTS[name]()
+    else:
+        robot = SerialChain.from_file(path, base=base, tip=tip)
     if friction is not None:
         terms = friction if isinstance(friction, str) else "+".join(friction)
         robot = robot.with_friction(terms or None, None, coulomb_smoothing=coulomb_scale)

@@ -67,7 +67,9 @@ def add_parser(sub: Any) -> None:
         "A case whose worker dies or times out is retried once, then recorded as failed.",
     )
     p.add_argument(
-        "--robot", metavar="ROBOT", help="robot file (.urdf or .toml) (default: the paper's arm)"
+        "--robot",
+        metavar="ROBOT",
+        help='robot file (.urdf or .toml) or "paper" (default: the paper\'s arm)',
     )
     p.add_argument(
         "--base", metavar="LINK", help="URDF: first link of the chain (default: the root link)"

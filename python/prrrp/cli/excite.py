@@ -35,7 +35,12 @@ def add_parser(sub: Any) -> None:
         "asked), starting and ending at rest, within the position, velocity and acceleration "
         "limits of the robot file, and writes t, q1..qN, qd1..qdN, qdd1..qddN (SI units).",
     )
-    p.add_argument("--robot", required=True, metavar="ROBOT", help="robot file (.urdf, .toml)")
+    p.add_argument(
+        "--robot",
+        required=True,
+        metavar="ROBOT",
+        help='robot file (.urdf, .toml) or "paper" (the paper\'s arm)',
+    )
     p.add_argument(
         "--base", metavar="LINK", help="URDF: first link of the chain (default: the root link)"
     )

@@ -34,7 +34,10 @@ DEFAULT_CUTOFF_HZ = 10.0
 def add_arguments(p: argparse.ArgumentParser) -> None:
     g = p.add_argument_group("any robot (with --robot)")
     g.add_argument(
-        "--robot", metavar="ROBOT", help="robot file (.urdf or .toml) (default: the paper's arm)"
+        "--robot",
+        metavar="ROBOT",
+        help='robot file (.urdf or .toml), or "paper": the paper\'s arm as a chain '
+        "through this general pipeline (default: the paper's arm, its closed form)",
     )
     g.add_argument(
         "--base", metavar="LINK", help="URDF: first link of the chain (default: the root link)"

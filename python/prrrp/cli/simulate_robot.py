@@ -22,7 +22,9 @@ MAX_TRACKING_ERROR = workflow.MAX_TRACKING_ERROR
 def add_arguments(p: argparse.ArgumentParser) -> None:
     g = p.add_argument_group("any robot (with --robot)")
     g.add_argument(
-        "--robot", metavar="ROBOT", help="robot file (.urdf or .toml) (default: the paper's arm)"
+        "--robot",
+        metavar="ROBOT",
+        help='robot file (.urdf or .toml) or "paper" (default: the paper\'s arm)',
     )
     g.add_argument(
         "--base", metavar="LINK", help="URDF: first link of the chain (default: the root link)"

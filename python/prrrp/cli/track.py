@@ -44,7 +44,7 @@ def add_parser(sub: Any) -> None:
     p.add_argument(
         "--robot",
         metavar="ROBOT",
-        help="robot file (.urdf or .toml) (default: the robot of --model)",
+        help='robot file (.urdf or .toml) or "paper" (default: the robot of --model)',
     )
     p.add_argument("--base", metavar="LINK", help="URDF: first link of the chain (default: root)")
     p.add_argument(

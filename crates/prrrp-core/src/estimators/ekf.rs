@@ -601,12 +601,12 @@ where
 
     /// Number of predictions taken linearly implicit ([`EkfOf::set_stiff_handling`])
     /// because the dynamics were stiff at the
-    /// sample period: h·‖∂q̈/∂q̇‖∞ + h²·‖∂q̈/∂q‖∞ above [`STIFF_LIMIT`]. Viscous and
+    /// sample period: h·‖∂q̈/∂q̇‖∞ + h²·‖∂q̈/∂q‖∞ above 0.5 (`STIFF_LIMIT`). Viscous and
     /// smoothed Coulomb friction over a small inertia (a light wrist, a hobby arm) decay
     /// faster than one period, and an estimate near the edge of the physical region has
     /// modes faster than the sampling; the explicit step then amplifies them each sample
     /// and the filter diverged within a few dozen samples (an SO-100 at 100 Hz). The
-    /// stiff step is the linearly implicit trapezoidal step of [q, q̇] ([`STIFF_THETA`];
+    /// stiff step is the linearly implicit trapezoidal step of [q, q̇] (θ = ½;
     /// stable for every damping and stiffness, second order like the explicit step), with
     /// P propagated by its exact Jacobian.
     pub fn stiff_steps(&self) -> usize {

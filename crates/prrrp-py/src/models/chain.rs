@@ -592,10 +592,11 @@ impl PySerialChain {
         self.inner.is_physically_consistent()
     }
 
-    /// The paper's PRRRP arm (Tables 1–2, g = 9.81 m/s²) as a chain.
+    /// The paper's PRRRP arm (Tables 1–2, g = 9.81 m/s²) as a chain, with the joint
+    /// limits of its excitation.
     #[staticmethod]
     fn paper() -> Self {
-        Self::wrap(SerialChain::paper().to_dyn())
+        Self::wrap(DynChain::paper())
     }
 
     /// The PUMA 560 (6R; Corke & Armstrong-Hélouvry 1994, links only) as a chain.

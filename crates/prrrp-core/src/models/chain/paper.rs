@@ -2,9 +2,11 @@
 
 use super::dh::DhConvention;
 use super::inertia::inertial_parameters;
-use super::serial_chain::SerialChain;
+use super::meta::{ChainMeta, JointLimit};
+use super::serial_chain::{DynChain, SerialChain};
 use crate::error::Result;
 use crate::models::prrrp::robot::Robot;
+use crate::motion::limits::JointLimits;
 
 impl SerialChain<5> {
     /// The paper's robot (Tables 1–2, g = 9.81 m/s²) as a generic chain; see
@@ -50,5 +52,30 @@ impl SerialChain<5> {
             [point(m[0]), rod(0), rod(1), rod(2), point(m[4])],
             [0.0, 0.0, -robot.gravity],
         )
+    }
+}
+
+impl DynChain {
+    /// The paper's robot as a run-time chain ([`SerialChain::paper`]) whose joints carry the
+    /// limits its excitation is designed within ([`JointLimits::default`]: m and rad,
+    /// /s, /s²; no effort limit), so that it runs through everything that takes a robot
+    /// (the command line's `--robot paper`).
+    pub fn paper() -> Self {
+        let l = JointLimits::default();
+        let mut meta = ChainMeta::numbered(5);
+        meta.name = "paper-prrrp".into();
+        for (i, j) in meta.joints.iter_mut().enumerate() {
+            j.limit = JointLimit {
+                lower: l.q_min[i],
+                upper: l.q_max[i],
+                velocity: l.qd_max[i],
+                acceleration: l.qdd_max[i],
+                effort: f64::NAN,
+            };
+        }
+        SerialChain::paper()
+            .to_dyn()
+            .with_meta(meta)
+            .expect("five joints and links")
     }
 }
