@@ -1830,6 +1830,7 @@ mod tests {
         let mut p0 = a.covariance().clone();
         p0[(1, 0)] += 1e-13 * p0[(0, 0)];
         a.set_initial_covariance(&p0).unwrap();
+        a.set_parameter_anchor(&beta).unwrap();
         assert!(!a.p_symmetric);
         let mut b = a.clone();
         for k in 0..300 {
@@ -1837,7 +1838,8 @@ mod tests {
             let f = |d: usize| -> DVector<f64> {
                 DVector::from_fn(n, |j, _| {
                     let w = 1.0 + 0.3 * j as f64;
-                    0.5 * w.powi(d as i32) * (w * t + (d as f64 + j as f64) * 1.5708).sin()
+                    0.5 * w.powi(d as i32)
+                        * (w * t + (d as f64 + j as f64) * std::f64::consts::FRAC_PI_2).sin()
                 })
             };
             let (q, qd, qdd) = (f(0), f(1), f(2));
