@@ -212,6 +212,10 @@ where
     anchored: usize,
     /// Whether the CPU runs the AVX2 copy of the step (detected once, at construction).
     avx2: bool,
+    /// Whether P is exactly symmetric entering the time update, which then mirrors only
+    /// the rows it changes (those of q and q̇), and whether P₀ is.
+    p_symmetric: bool,
+    p0_symmetric: bool,
     buf: Buffers<N, P, S>,
 }
 
@@ -278,6 +282,10 @@ where
     p_prior: OMatrix<f64, S, S>,
     /// max_j (H·P·Hᵀ)_jj / R_j of the last gain: how much the update cancels.
     prior_to_noise: f64,
+    /// The Joseph update's factors with interleaved columns, [D₁, K'₁, D₂, …] and
+    /// [K'₁, P_z₁, K'₂, …] (S×2N each), for the register tiles of [`joseph_columns`].
+    jx: Vec<f64>,
+    jy: Vec<f64>,
 }
 
 impl<N: Dim, P: Dim, S: Dim> Buffers<N, P, S>
@@ -311,6 +319,8 @@ where
             x_prior: OVector::zeros_generic(s, U1),
             p_prior: OMatrix::zeros_generic(s, s),
             prior_to_noise: 0.0,
+            jx: vec![0.0; 2 * s.value() * n.value()],
+            jy: vec![0.0; 2 * s.value() * n.value()],
         }
     }
 }
@@ -452,6 +462,8 @@ where
             anchor: None,
             anchored: 0,
             avx2: cpu_has_avx2_fma(),
+            p_symmetric: true,
+            p0_symmetric: true,
             buf: Buffers::new(nd, pd, sd),
         })
     }
@@ -503,8 +515,10 @@ where
             });
         }
         self.p0.copy_from(p0);
+        self.p0_symmetric = *p0 == p0.transpose();
         if self.samples == 0 {
             self.p.copy_from(p0);
+            self.p_symmetric = self.p0_symmetric;
         }
         Ok(())
     }
@@ -940,23 +954,23 @@ where
             return;
         }
         let k = if alpha == 1.0 { &b.k } else { &b.damped_k };
+        // Whole columns (small states) leave the triangles differing by rounding.
+        self.p_symmetric &= s > ACC_ROWS;
         b.d.copy_from(&b.pz);
         minus_k_sz::<FMA>(k.as_slice(), b.sz.as_slice(), b.d.as_mut_slice(), n, s);
-        let upper_only = joseph_columns::<FMA>(
+        joseph_columns::<FMA>(
             k.as_slice(),
             b.d.as_slice(),
             b.pz.as_slice(),
             self.p.as_mut_slice(),
             n,
             s,
+            (&mut b.jx, &mut b.jy),
         );
         // Whole columns: the two triangles now differ by rounding, and the prediction
         // that always follows mirrors its upper triangle, so the stored P is exactly
-        // symmetric. Upper triangle only: the next gain and the prediction read whole
-        // columns, so mirror now.
-        if upper_only {
-            mirror_upper(self.p.as_mut_slice(), s);
-        }
+        // symmetric. The upper triangle (larger states) comes mirrored already: the next
+        // gain and the prediction read whole columns.
     }
 
     /// Full measurement update (state and covariance) with the gain α·K.
@@ -1159,7 +1173,14 @@ where
         for i in 0..s {
             p[at(i, i)] += self.q_diag[i];
         }
-        mirror_upper(p, s);
+        // Only the upper rows of q and q̇ (and the diagonal) changed: an exactly symmetric
+        // P needs only those copied (a third of the strided copies at a chain's size).
+        if self.p_symmetric {
+            mirror_upper_rows(p, s, 2 * n);
+        } else {
+            mirror_upper(p, s);
+            self.p_symmetric = true;
+        }
 
         self.stiff = stiff;
         let qdd = &fd.qdd;
@@ -1220,6 +1241,7 @@ where
         let n = self.n();
         self.x.copy_from(&self.x0);
         self.p.copy_from(&self.p0);
+        self.p_symmetric = self.p0_symmetric;
         self.lambda
             .as_mut_slice()
             .copy_from_slice(&self.x0.as_slice()[2 * n..]);
@@ -1422,7 +1444,7 @@ const ACC_ROWS: usize = 32;
 /// array (the accumulator stays in registers and cannot alias P). Up to [`ACC_ROWS`]
 /// states whole columns, fully unrolled and vectorised, which is faster than the
 /// triangle's ragged loops although it does twice the flops; beyond, the upper triangle
-/// only. Returns whether only the upper triangle was written.
+/// only, copied onto the lower one (exactly symmetric).
 #[inline(always)]
 fn joseph_columns<const FMA: bool>(
     ks: &[f64],
@@ -1431,7 +1453,8 @@ fn joseph_columns<const FMA: bool>(
     p: &mut [f64],
     n: usize,
     s: usize,
-) -> bool {
+    (jx, jy): (&mut [f64], &mut [f64]),
+) {
     if s <= ACC_ROWS {
         // One block per column (every compile-time size up to 32 states, PRRRP's 18):
         // the trip count is the constant S, so the column is fully unrolled.
@@ -1450,32 +1473,65 @@ fn joseph_columns<const FMA: bool>(
                 *c -= v;
             }
         }
-        return false;
+        return;
     }
-    // Larger states: the upper triangle only (rows 0..=j of column j), half the work;
-    // the caller mirrors it.
-    for j in 0..s {
-        let mut r0 = 0;
-        while r0 <= j {
-            let len = (j + 1 - r0).min(ACC_ROWS);
-            let mut acc = [0.0f64; ACC_ROWS];
-            let acc = &mut acc[..len];
-            for m in 0..n {
-                let a = pzs[m * s + j];
-                let bv = ks[m * s + j];
-                let kc = &ks[m * s + r0..m * s + r0 + len];
-                let dc = &ds[m * s + r0..m * s + r0 + len];
-                for ((ac, &kv), &dv) in acc.iter_mut().zip(kc).zip(dc) {
-                    *ac = madd::<FMA>(a, kv, madd::<FMA>(bv, dv, *ac));
+    // Larger states: the upper triangle only, half the work, in register tiles as
+    // `minus_w_wt` (the stack accumulators of ragged column blocks went through memory on
+    // every multiply-add), each entry written to both triangles as it is finished (the
+    // caller's separate mirroring pass read P row-wise once more). Every entry sums the
+    // same products in the same order as column by column.
+    // The interleaved columns make entry (i, j) the plain sum Σ_k X_ik·Y_jk over 2N
+    // terms, in the same order as above.
+    for m in 0..n {
+        jx[2 * m * s..(2 * m + 1) * s].copy_from_slice(&ds[m * s..m * s + s]);
+        jx[(2 * m + 1) * s..(2 * m + 2) * s].copy_from_slice(&ks[m * s..m * s + s]);
+        jy[2 * m * s..(2 * m + 1) * s].copy_from_slice(&ks[m * s..m * s + s]);
+        jy[(2 * m + 1) * s..(2 * m + 2) * s].copy_from_slice(&pzs[m * s..m * s + s]);
+    }
+    let (jx, jy) = (&*jx, &*jy);
+    let mut c0 = 0;
+    while c0 < s {
+        match s - c0 {
+            1 => joseph_upper_cols::<FMA, 1>(jx, jy, p, 2 * n, s, c0),
+            2 => joseph_upper_cols::<FMA, 2>(jx, jy, p, 2 * n, s, c0),
+            3 => joseph_upper_cols::<FMA, 3>(jx, jy, p, 2 * n, s, c0),
+            _ => joseph_upper_cols::<FMA, TILE_COLS>(jx, jy, p, 2 * n, s, c0),
+        }
+        c0 += TILE_COLS;
+    }
+}
+
+/// Columns `c0..c0 + NC` of [`joseph_columns`]' upper triangle (rows up to the last
+/// column's diagonal) from its interleaved factors (`k2` columns each), mirrored into
+/// the lower triangle.
+#[inline(always)]
+fn joseph_upper_cols<const FMA: bool, const NC: usize>(
+    jx: &[f64],
+    jy: &[f64],
+    p: &mut [f64],
+    k2: usize,
+    s: usize,
+    c0: usize,
+) {
+    let end = c0 + NC;
+    let mut r0 = 0;
+    while r0 < end {
+        let len = (end - r0).min(TILE_ROWS);
+        let (t0, skip) = full_tile(r0, len, end);
+        let acc = tile::<FMA, NC>(jx, s, t0, len + skip, k2, |k, c| jy[k * s + c0 + c]);
+        for (c, a) in acc.iter().enumerate() {
+            let j = c0 + c;
+            for (r, &v) in a[skip..skip + len].iter().enumerate() {
+                let i = r0 + r;
+                if i <= j {
+                    let x = p[j * s + i] - v;
+                    p[j * s + i] = x;
+                    p[i * s + j] = x;
                 }
             }
-            for (c, &v) in p[j * s + r0..j * s + r0 + len].iter_mut().zip(acc.iter()) {
-                *c -= v;
-            }
-            r0 += len;
         }
+        r0 += len;
     }
-    true
 }
 
 /// W = P_·z·L⁻ᵀ (S×N) from the inverse L⁻¹ of the innovation covariance's Cholesky factor
@@ -1547,6 +1603,20 @@ fn tile<const FMA: bool, const NC: usize>(
     acc
 }
 
+/// The tile for rows `r0..r0 + len` of `d`: a whole tile ending at the last row when
+/// `len` is short and there are enough rows above (the register tile instead of the
+/// short one's loop through memory; each entry's sum is the same), as (first row, rows
+/// of it to skip).
+#[inline(always)]
+fn full_tile(r0: usize, len: usize, d: usize) -> (usize, usize) {
+    if len < TILE_ROWS && d >= TILE_ROWS {
+        let t0 = r0 + len - TILE_ROWS;
+        (t0, r0 - t0)
+    } else {
+        (r0, 0)
+    }
+}
+
 /// P ← P − W·Wᵀ (W is S×N) on whole columns, tiled: the sum for entry (i, j) runs over
 /// the same products in the same order as for (j, i), so a symmetric P stays exactly so.
 #[inline(always)]
@@ -1574,10 +1644,11 @@ fn minus_w_wt_cols<const FMA: bool, const NC: usize>(
     let mut r0 = 0;
     while r0 < s {
         let len = (s - r0).min(TILE_ROWS);
-        let acc = tile::<FMA, NC>(ws, s, r0, len, n, |m, c| ws[m * s + c0 + c]);
+        let (t0, skip) = full_tile(r0, len, s);
+        let acc = tile::<FMA, NC>(ws, s, t0, len + skip, n, |m, c| ws[m * s + c0 + c]);
         for (c, a) in acc.iter().enumerate() {
             let col = &mut p[(c0 + c) * s + r0..(c0 + c) * s + r0 + len];
-            for (pv, &av) in col.iter_mut().zip(a) {
+            for (pv, &av) in col.iter_mut().zip(&a[skip..]) {
                 *pv -= av;
             }
         }
@@ -1613,9 +1684,10 @@ fn p_times_at_cols<const FMA: bool, const NC: usize>(
     let mut r0 = 0;
     while r0 < s {
         let len = (s - r0).min(TILE_ROWS);
-        let acc = tile::<FMA, NC>(ps, s, r0, len, s, |k, c| a[k * n + c0 + c]);
+        let (t0, skip) = full_tile(r0, len, s);
+        let acc = tile::<FMA, NC>(ps, s, t0, len + skip, s, |k, c| a[k * n + c0 + c]);
         for (c, av) in acc.iter().enumerate() {
-            gs[(c0 + c) * s + r0..(c0 + c) * s + r0 + len].copy_from_slice(&av[..len]);
+            gs[(c0 + c) * s + r0..(c0 + c) * s + r0 + len].copy_from_slice(&av[skip..skip + len]);
         }
         r0 += len;
     }
@@ -1661,6 +1733,18 @@ fn lower_triangular_inverse(l: &[f64], n: usize, inv: &mut [f64]) {
                 s += l[k * n + i] * inv[j * n + k];
             }
             inv[j * n + i] = -s / l[i * n + i];
+        }
+    }
+}
+
+/// Copies rows `0..rows` of the upper triangle of the column-major d×d `p` onto the lower
+/// one: row i of the upper triangle (strided) becomes column i below the diagonal
+/// (contiguous).
+#[inline(always)]
+fn mirror_upper_rows(p: &mut [f64], d: usize, rows: usize) {
+    for i in 0..rows.min(d) {
+        for j in i + 1..d {
+            p[i * d + j] = p[j * d + i];
         }
     }
 }
@@ -1721,6 +1805,140 @@ mod tests {
         }
         let dp = (fast.covariance() - portable.covariance()).amax();
         assert!(dp <= 1e-9 * fast.covariance().amax(), "{dp}");
+    }
+
+    /// The time update's partial mirroring (rows of q and q̇ only, when P is exactly
+    /// symmetric) gives the bits of mirroring the whole triangle, at a chain's size, from
+    /// a P₀ symmetric only to round-off (which the first update must mirror whole), and P
+    /// stays exactly symmetric.
+    #[test]
+    fn partial_mirror_equals_full_mirror() {
+        use crate::{BaseOptions, SerialChain};
+        use nalgebra::DVector;
+        let chain = SerialChain::puma560().to_dyn();
+        let base = chain.base_parameters(&BaseOptions::default()).unwrap();
+        let model = chain.base_model(&base).unwrap();
+        let beta = model.chain_base_values().clone();
+        let n = chain.dof();
+        let cfg = EkfConfig {
+            measurement: EkfMeasurement::PositionsVelocities,
+            ..EkfConfig::default()
+        };
+        let mut a = DynEkf::new(model, &beta * 1.1, cfg).unwrap();
+        let s = a.covariance().nrows();
+        assert!(s > ACC_ROWS, "the test needs a chain-sized state, S = {s}");
+        let mut p0 = a.covariance().clone();
+        p0[(1, 0)] += 1e-13 * p0[(0, 0)];
+        a.set_initial_covariance(&p0).unwrap();
+        a.set_parameter_anchor(&beta).unwrap();
+        assert!(!a.p_symmetric);
+        let mut b = a.clone();
+        for k in 0..300 {
+            let t = k as f64 * cfg.dt;
+            let f = |d: usize| -> DVector<f64> {
+                DVector::from_fn(n, |j, _| {
+                    let w = 1.0 + 0.3 * j as f64;
+                    0.5 * w.powi(d as i32)
+                        * (w * t + (d as f64 + j as f64) * std::f64::consts::FRAC_PI_2).sin()
+                })
+            };
+            let (q, qd, qdd) = (f(0), f(1), f(2));
+            let tau = chain
+                .inverse_dynamics(q.as_slice(), qd.as_slice(), qdd.as_slice())
+                .unwrap();
+            let tau = DVector::from_vec(tau);
+            let sample = SampleOf::new(&q, &qd, &qdd, &tau);
+            b.p_symmetric = false;
+            a.step(sample).unwrap();
+            b.step(sample).unwrap();
+            assert_eq!(a.covariance(), b.covariance(), "k {k}");
+            assert_eq!(a.covariance(), &a.covariance().transpose(), "k {k}");
+        }
+        assert!(a.p_symmetric);
+    }
+
+    /// The tiled P·Aᵀ of run-time sizes against nalgebra's product on random data (state
+    /// counts with a short last tile, and below one tile).
+    #[test]
+    fn p_times_at_tiles_match_the_product() {
+        use nalgebra::DMatrix;
+        let mut seed = 0x9E37_79B9_7F4A_7C15u64;
+        let mut rnd = || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+        };
+        for (n, s) in [(7usize, 78usize), (6, 45), (2, 6)] {
+            let p = DMatrix::from_fn(s, s, |_, _| rnd());
+            let a = DMatrix::from_fn(n, s, |_, _| rnd());
+            let want = &p * a.transpose();
+            let mut got = DMatrix::from_element(s, n, f64::NAN);
+            p_times_at_blocked::<false>(p.as_slice(), a.as_slice(), got.as_mut_slice(), n, s);
+            let err = (&got - &want).amax();
+            assert!(err <= 1e-14 * s as f64, "S {s}: {err:e}");
+        }
+    }
+
+    /// The tiled Joseph kernel of larger states against the plain formula on random
+    /// data: the upper triangle of P − K'·P_z·ᵀ − D·K'ᵀ (S×N factors; fused and plain
+    /// multiply-adds, state counts past one tile and ragged), copied exactly onto the
+    /// lower one.
+    #[test]
+    fn joseph_tiles_match_the_formula() {
+        use nalgebra::DMatrix;
+        let mut seed = 0x2545_F491_4F6C_DD1Du64;
+        let mut rnd = || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+        };
+        for (n, s) in [(7usize, 78usize), (3, 33), (6, 81)] {
+            let k = DMatrix::from_fn(s, n, |_, _| rnd());
+            let d = DMatrix::from_fn(s, n, |_, _| rnd());
+            let pz = DMatrix::from_fn(s, n, |_, _| rnd());
+            let b = DMatrix::from_fn(s, s, |_, _| rnd());
+            let p = &b * b.transpose();
+            let want = &p - &k * pz.transpose() - &d * k.transpose();
+            let (mut jx, mut jy) = (vec![0.0; 2 * s * n], vec![0.0; 2 * s * n]);
+            for fma in [false, true] {
+                let mut got = p.clone();
+                let args = (k.as_slice(), d.as_slice(), pz.as_slice());
+                let scratch = (jx.as_mut_slice(), jy.as_mut_slice());
+                if fma {
+                    joseph_columns::<true>(
+                        args.0,
+                        args.1,
+                        args.2,
+                        got.as_mut_slice(),
+                        n,
+                        s,
+                        scratch,
+                    );
+                } else {
+                    joseph_columns::<false>(
+                        args.0,
+                        args.1,
+                        args.2,
+                        got.as_mut_slice(),
+                        n,
+                        s,
+                        scratch,
+                    );
+                }
+                assert_eq!(got, got.transpose(), "S {s}: not exactly symmetric");
+                for j in 0..s {
+                    for i in 0..=j {
+                        let err = (got[(i, j)] - want[(i, j)]).abs();
+                        assert!(
+                            err <= 1e-14 * (n as f64 + p.amax()),
+                            "S {s} ({i}, {j}): {err:e}"
+                        );
+                    }
+                }
+            }
+        }
     }
 
     /// The symmetric rank-N update P − W·Wᵀ of run-time sizes against the textbook Joseph

@@ -30,6 +30,9 @@ pub(crate) enum TrackedModel {
         arm: DVector<f64>,
         /// K_tip (B×10).
         k_tip: DMatrix<f64>,
+        /// The non-zero entries (row, value) of each column of K_tip, in row order: a
+        /// payload parameter enters few base parameters.
+        k_nz: Vec<Vec<(usize, f64)>>,
     },
 }
 
@@ -53,7 +56,20 @@ impl TrackedModel {
         let cols = tip_columns(&analysis.names, base.dof())?;
         let b = base.count();
         let k_tip = DMatrix::from_fn(b, PAYLOAD_PARAMS, |r, k| analysis.map[(r, cols[k])]);
-        Ok(Self::Payload { base, arm, k_tip })
+        let k_nz = (0..PAYLOAD_PARAMS)
+            .map(|k| {
+                (0..b)
+                    .filter(|&r| k_tip[(r, k)] != 0.0)
+                    .map(|r| (r, k_tip[(r, k)]))
+                    .collect()
+            })
+            .collect();
+        Ok(Self::Payload {
+            base,
+            arm,
+            k_tip,
+            k_nz,
+        })
     }
 
     pub(crate) fn base(&self) -> &DynChainBaseModel {
@@ -76,13 +92,15 @@ impl TrackedModel {
     /// The payload columns of a matrix of B columns: out = m·K_tip. A plain loop:
     /// nalgebra's `gemm` hands dynamic matrices to matrixmultiply, which allocates its
     /// packing buffers on every call (one allocation per sample, `tests/alloc_online.rs`).
+    /// Over the non-zero entries of K_tip only: the same sums (a zero product adds
+    /// nothing) over a few of the B terms.
     fn map_columns(&self, m: &DMatrix<f64>, out: &mut DMatrix<f64>) {
-        if let Self::Payload { k_tip, .. } = self {
-            for k in 0..k_tip.ncols() {
+        if let Self::Payload { k_nz, .. } = self {
+            for (k, nz) in k_nz.iter().enumerate() {
                 for i in 0..m.nrows() {
                     let mut acc = 0.0;
-                    for r in 0..k_tip.nrows() {
-                        acc += m[(i, r)] * k_tip[(r, k)];
+                    for &(r, v) in nz {
+                        acc += m[(i, r)] * v;
                     }
                     out[(i, k)] = acc;
                 }
