@@ -24,7 +24,7 @@ use nalgebra::allocator::Allocator;
 use nalgebra::{Const, DefaultAllocator, Dim, Dyn, OMatrix, OVector, U1};
 
 use super::estimator::Estimator;
-use super::rls::check_lambda0;
+use super::rls::{check_initial_covariance, check_lambda0};
 use super::samples::{all_finite, SampleOf};
 use crate::error::{PrrrpError, Result};
 use crate::models::prrrp::dynamics::PrrrpModel;
@@ -495,25 +495,7 @@ where
     /// [`PrrrpError::NotPositiveDefinite`] if it is not positive definite.
     pub fn set_initial_covariance(&mut self, p0: &OMatrix<f64, S, S>) -> Result<()> {
         self.check_state_shape("initial covariance", p0.nrows(), p0.ncols().max(2))?;
-        if !p0.iter().all(|v| v.is_finite()) {
-            return Err(PrrrpError::NonFinite {
-                what: "initial covariance".into(),
-                row: None,
-            });
-        }
-        let asym = (p0 - p0.transpose()).amax();
-        if asym > 1e-12 * p0.amax() {
-            return Err(PrrrpError::InvalidParameter {
-                field: "initial covariance".into(),
-                value: asym,
-                reason: "must be symmetric",
-            });
-        }
-        if p0.clone().cholesky().is_none() {
-            return Err(PrrrpError::NotPositiveDefinite {
-                what: "initial covariance P0",
-            });
-        }
+        check_initial_covariance(p0)?;
         self.p0.copy_from(p0);
         self.p0_symmetric = *p0 == p0.transpose();
         if self.samples == 0 {

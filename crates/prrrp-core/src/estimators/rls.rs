@@ -179,25 +179,7 @@ where
                 got: format!("{}×{}", p0.nrows(), p0.ncols()),
             });
         }
-        if !p0.iter().all(|v| v.is_finite()) {
-            return Err(PrrrpError::NonFinite {
-                what: "initial covariance".into(),
-                row: None,
-            });
-        }
-        let asym = (p0 - p0.transpose()).amax();
-        if asym > 1e-12 * p0.amax() {
-            return Err(PrrrpError::InvalidParameter {
-                field: "initial covariance".into(),
-                value: asym,
-                reason: "must be symmetric",
-            });
-        }
-        if p0.clone().cholesky().is_none() {
-            return Err(PrrrpError::NotPositiveDefinite {
-                what: "initial covariance P0",
-            });
-        }
+        check_initial_covariance(p0)?;
         self.cov0.copy_from(p0);
         if self.samples == 0 {
             self.cov.copy_from(p0);
@@ -512,6 +494,34 @@ fn diverged(at: usize) -> PrrrpError {
 }
 
 /// Checks the model's sizes and λ₀ (length, then values) before any buffer is allocated.
+/// Checks an initial covariance P₀ (shape checked by the caller): finite, symmetric (to
+/// 1e-12 of its largest entry) and positive definite; shared by RLS and the EKF.
+pub(crate) fn check_initial_covariance<D: Dim>(p0: &OMatrix<f64, D, D>) -> Result<()>
+where
+    DefaultAllocator: Allocator<D, D>,
+{
+    if !p0.iter().all(|v| v.is_finite()) {
+        return Err(PrrrpError::NonFinite {
+            what: "initial covariance".into(),
+            row: None,
+        });
+    }
+    let asym = (p0 - p0.transpose()).amax();
+    if asym > 1e-12 * p0.amax() {
+        return Err(PrrrpError::InvalidParameter {
+            field: "initial covariance".into(),
+            value: asym,
+            reason: "must be symmetric",
+        });
+    }
+    if p0.clone().cholesky().is_none() {
+        return Err(PrrrpError::NotPositiveDefinite {
+            what: "initial covariance P0",
+        });
+    }
+    Ok(())
+}
+
 pub(crate) fn check_lambda0<P: Dim>(lambda0: &OVector<f64, P>, n: usize, p: usize) -> Result<()>
 where
     DefaultAllocator: Allocator<P>,

@@ -1035,13 +1035,7 @@ impl OnlineIdentifier {
                 self.noise_rms(),
                 self.config.method.name(),
                 self.settings_json(),
-                json!({
-                    "online": true,
-                    "causal_cutoff_hz": self.config.cutoff_hz,
-                    "rows": self.rows,
-                    "repeated_rows": self.repeated,
-                    "payload": self.payload_summary(),
-                }),
+                self.preprocessing_json(true),
             )?;
             model.robot = prior.robot.clone();
             return Ok(model);
@@ -1061,13 +1055,23 @@ impl OnlineIdentifier {
             self.noise_rms(),
             self.config.method.name(),
             self.settings_json(),
-            json!({
-                "online": true,
-                "causal_cutoff_hz": self.config.cutoff_hz,
-                "rows": self.rows,
-                "repeated_rows": self.repeated,
-            }),
+            self.preprocessing_json(false),
         )
+    }
+
+    /// What a model from [`OnlineIdentifier::estimate`] records as its preprocessing:
+    /// causal filtering of `rows` rows, and in payload mode the payload's summary.
+    fn preprocessing_json(&self, with_payload: bool) -> serde_json::Value {
+        let mut v = json!({
+            "online": true,
+            "causal_cutoff_hz": self.config.cutoff_hz,
+            "rows": self.rows,
+            "repeated_rows": self.repeated,
+        });
+        if with_payload {
+            v["payload"] = json!(self.payload_summary());
+        }
+        v
     }
 
     /// In payload mode, the payload as load data (what `payload.json` holds, the shared
