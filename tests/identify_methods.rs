@@ -214,6 +214,30 @@ fn every_method_on_noisy_data() {
     }
 }
 
+/// The residual RMS a model reports is that of its own prediction (the chain's full
+/// regressor per sample) on the identification data, whichever way identify computed it.
+#[test]
+fn residual_rms_is_the_models_own_prediction_error() {
+    let f = fixture();
+    let n = f.noisy.dof();
+    for name in ["ls", "wls", "rls", "ekf"] {
+        let m = run(name, &f.noisy);
+        let p = m.predict(f.noisy.q(), f.noisy.qd(), f.noisy.qdd()).unwrap();
+        let rows = f.noisy.len() as f64;
+        for j in 0..n {
+            let se: f64 = (0..f.noisy.len())
+                .map(|k| (p[k * n + j] - f.noisy.tau()[k * n + j]).powi(2))
+                .sum();
+            let want = (se / rows).sqrt();
+            let got = m.residual_rms[j];
+            assert!(
+                (got - want).abs() <= 1e-9 * want,
+                "{name} joint {j}: {got} vs {want}"
+            );
+        }
+    }
+}
+
 /// Every method's model survives JSON and predicts the same after it.
 #[test]
 fn json_round_trip_of_every_method() {

@@ -160,6 +160,16 @@ pub struct LeastSquares {
     householder: Mat<f64>,
     gram: Mat<f64>,
     resid: Mat<f64>,
+    /// W_iᵀW_i (lower triangle, over the joint's column runs) of each joint i of the
+    /// unscaled W, and W_iᵀy_i: a row scaling s_i of joint i's equations multiplies them by
+    /// s_i², so every weighting of one data set is solved from one stack of W.
+    joint_grams: Vec<Mat<f64>>,
+    joint_wty: Vec<Mat<f64>>,
+    /// Which joints' equations involve which parameters (bit masks) in W.
+    masks: Vec<u64>,
+    /// Whether `w`, `y`, `joint_grams` and `joint_wty` hold the unscaled stack of the data
+    /// of the current solve (the QR path factorises a row-scaled W in place).
+    unscaled: bool,
     normal_equations_used: bool,
     scratch: Option<((usize, usize), MemBuffer)>,
 }
@@ -189,6 +199,10 @@ impl LeastSquares {
             householder: Mat::new(),
             gram: Mat::new(),
             resid: Mat::new(),
+            joint_grams: Vec::new(),
+            joint_wty: Vec::new(),
+            masks: Vec::new(),
+            unscaled: false,
             normal_equations_used: false,
             scratch: None,
         })
@@ -216,9 +230,9 @@ impl LeastSquares {
     {
         let (nd, pd) = model.dims();
         check_samples(nd.value(), pd.value(), data)?;
+        self.unscaled = false;
         let ones = OVector::<f64, N>::repeat_generic(nd, U1, 1.0);
-        let masks = self.build(model, data, &ones)?;
-        let (sol, joint_ss) = self.factor_and_solve(nd, pd, data.len(), &masks)?;
+        let (sol, joint_ss) = self.solve_scaled(model, data, &ones)?;
         // σ_j² = ‖ρ_j‖²/(n − P/N): the residual degrees of freedom shared equally.
         let joint_variances =
             joint_ss / (data.len() as f64 - pd.value() as f64 / nd.value() as f64);
@@ -239,6 +253,11 @@ impl LeastSquares {
         DefaultAllocator: Allocator<N> + Allocator<P> + Allocator<N, N> + Allocator<N, P>,
     {
         let (nd, pd) = model.dims();
+        // Another data set may have been stacked by the last call (the estimated variances
+        // start with an ordinary solve, which restacks).
+        if matches!(noise, JointNoiseOf::Variances(_)) {
+            self.unscaled = false;
+        }
         let variances = match noise {
             JointNoiseOf::Variances(v) => {
                 if v.nrows() != nd.value() {
@@ -275,8 +294,7 @@ impl LeastSquares {
                     let dof = data.len() as f64 - pd.value() as f64 / nd.value() as f64;
                     for _ in 0..MAX_VARIANCE_PASSES {
                         let scale = var.map(|s| 1.0 / s.sqrt());
-                        let masks = self.build(model, data, &scale)?;
-                        let (_, weighted_ss) = self.factor_and_solve(nd, pd, data.len(), &masks)?;
+                        let (_, weighted_ss) = self.solve_scaled(model, data, &scale)?;
                         // The weighted residuals are ρ_j/σ_j.
                         let next = floor(var.component_mul(&weighted_ss) / dof);
                         let change =
@@ -295,9 +313,100 @@ impl LeastSquares {
         };
         check_samples(nd.value(), pd.value(), data)?;
         let scale = variances.map(|s| 1.0 / s.sqrt());
-        let masks = self.build(model, data, &scale)?;
-        let (sol, _) = self.factor_and_solve(nd, pd, data.len(), &masks)?;
+        let (sol, _) = self.solve_scaled(model, data, &scale)?;
         sol.report(variances, data.len())
+    }
+
+    /// The solve with joint i's equations scaled by `row_scale[i]`: through the normal
+    /// equations assembled from the per-joint Gram matrices of the unscaled W (stacked
+    /// once per data set: the regressor of every sample is the expensive part), or, when
+    /// they cannot be trusted, by QR of the row-scaled W (stacked again, as the
+    /// factorisation overwrites it).
+    fn solve_scaled<N: Dim, P: Dim, M: LinearModel<N, P>>(
+        &mut self,
+        model: &M,
+        data: &SamplesOf<'_, N>,
+        row_scale: &OVector<f64, N>,
+    ) -> Result<(Solution<P>, OVector<f64, N>)>
+    where
+        DefaultAllocator: Allocator<N> + Allocator<P> + Allocator<N, N> + Allocator<N, P>,
+    {
+        let (nd, pd) = model.dims();
+        let n = data.len();
+        if !self.unscaled {
+            let ones = OVector::<f64, N>::repeat_generic(nd, U1, 1.0);
+            self.masks = self.build(model, data, &ones)?;
+            self.joint_moments_of_w(n);
+            self.unscaled = true;
+        }
+        if let Some(done) = self.normal_equations(nd, pd, n, row_scale.as_slice()) {
+            self.normal_equations_used = true;
+            return Ok(done);
+        }
+        self.unscaled = false;
+        let masks = self.build(model, data, row_scale)?;
+        self.factor_and_solve(nd, pd, n, &masks)
+    }
+
+    /// W_iᵀW_i and W_iᵀy_i of every joint i of the stacked (unscaled) W.
+    fn joint_moments_of_w(&mut self, n: usize) {
+        let (nj, p) = (self.masks.len(), self.w.ncols());
+        self.joint_grams.resize_with(nj, Mat::new);
+        self.joint_wty.resize_with(nj, Mat::new);
+        let mut runs: Vec<(usize, usize)> = Vec::with_capacity(8);
+        for i in 0..nj {
+            let g = &mut self.joint_grams[i];
+            g.resize_with(p, p, |_, _| 0.0);
+            g.fill(0.0);
+            let wty = &mut self.joint_wty[i];
+            wty.resize_with(p, 1, |_, _| 0.0);
+            wty.fill(0.0);
+            gram_and_wty_of_joint(&self.w, &self.y, i, self.masks[i], n, &mut runs, g, wty);
+        }
+    }
+
+    /// Each joint's W_iᵀW_i (full, symmetric) of the last solve's unscaled W, or `None`
+    /// when W is no longer held unscaled (the last solve went through QR).
+    pub(crate) fn joint_grams(&self) -> Option<Vec<Mat<f64>>> {
+        if !self.unscaled {
+            return None;
+        }
+        let full = |g: &Mat<f64>| {
+            Mat::from_fn(g.nrows(), g.ncols(), |i, j| {
+                if i >= j {
+                    g[(i, j)]
+                } else {
+                    g[(j, i)]
+                }
+            })
+        };
+        Some(self.joint_grams.iter().map(full).collect())
+    }
+
+    /// The unscaled residuals τ − W·β of the last solve's data at parameters `beta`
+    /// (joint-major: entry i·n + k is joint i of sample k), or `None` when W is no longer
+    /// held unscaled (the last solve went through QR) or `beta` has another length.
+    pub(crate) fn residuals_at(&self, beta: &[f64]) -> Option<Vec<f64>> {
+        if !self.unscaled || beta.len() != self.w.ncols() {
+            return None;
+        }
+        let n = self.w.nrows() / self.masks.len().max(1);
+        let lam = Mat::<f64>::from_fn(beta.len(), 1, |k, _| beta[k]);
+        let mut rho = Mat::<f64>::zeros(self.w.nrows(), 1);
+        let mut runs = Vec::with_capacity(8);
+        let ones = vec![1.0; self.masks.len()];
+        residual(
+            &self.w,
+            &self.y,
+            &self.masks,
+            &ones,
+            n,
+            &mut runs,
+            &lam,
+            &mut rho,
+            None,
+        );
+        Some(rho.col_as_slice(0).to_vec())
     }
 
     /// Stacks the row-scaled regressors into W (column-major, N·n × P) and τ into y, joint
@@ -381,29 +490,31 @@ impl LeastSquares {
         nd: N,
         pd: P,
         n: usize,
-        masks: &[u64],
+        row_scale: &[f64],
     ) -> Option<(Solution<P>, OVector<f64, N>)>
     where
         DefaultAllocator: Allocator<N> + Allocator<P>,
     {
         let (nj, p) = (nd.value(), pd.value());
-        if masks.contains(&0) {
+        if self.masks.contains(&0) {
             // A joint with no parameter: leave the bookkeeping to the QR path.
             return None;
         }
+        // G = Σ_i s_i²·W_iᵀW_i and Wᵀy = Σ_i s_i²·W_iᵀy_i of the row-scaled problem.
         self.gram.resize_with(p, p, |_, _| 0.0);
         self.gram.fill(0.0);
-        let mut runs_buf: Vec<(usize, usize)> = Vec::with_capacity(8);
         let mut wty = Mat::<f64>::zeros(p, 1);
-        gram_and_wty(
-            &self.w,
-            &self.y,
-            masks,
-            n,
-            &mut runs_buf,
-            &mut self.gram,
-            &mut wty,
-        );
+        for ((g, gy), s) in self.joint_grams.iter().zip(&self.joint_wty).zip(row_scale) {
+            let s2 = s * s;
+            for j in 0..p {
+                for i in j..p {
+                    self.gram[(i, j)] += s2 * g[(i, j)];
+                }
+                wty[(j, 0)] += s2 * gy[(j, 0)];
+            }
+        }
+        let masks = &self.masks;
+        let mut runs_buf: Vec<(usize, usize)> = Vec::with_capacity(8);
         // Unit-diagonal scaling; a zero column is rank deficiency, for the QR path.
         let mut d = vec![0.0; p];
         for (k, dk) in d.iter_mut().enumerate() {
@@ -455,6 +566,7 @@ impl LeastSquares {
                 &self.w,
                 &self.y,
                 masks,
+                row_scale,
                 n,
                 &mut runs_buf,
                 &lam,
@@ -468,6 +580,7 @@ impl LeastSquares {
             &self.w,
             &self.y,
             masks,
+            row_scale,
             n,
             &mut runs_buf,
             &lam,
@@ -482,9 +595,10 @@ impl LeastSquares {
             let c = linv.col(k);
             d[k] * d[k] * (k..p).map(|j| c[j] * c[j]).sum::<f64>()
         });
+        // The residual is the unscaled y − W·λ̂; joint i's scaled residual is s_i times it.
         let rho = self.resid.col_as_slice(0);
         let joint_ss = OVector::<f64, N>::from_fn_generic(nd, U1, |i, _| {
-            rho[i * n..i * n + n].iter().map(|v| v * v).sum()
+            row_scale[i] * row_scale[i] * rho[i * n..i * n + n].iter().map(|v| v * v).sum::<f64>()
         });
         let sigma2 = joint_ss.sum() / (nj * n - p) as f64;
         let std_dev = rinv_norm2.map(|v| (sigma2 * v).sqrt());
@@ -507,7 +621,8 @@ impl LeastSquares {
     /// z = Qᵀy, λ̂ = R⁻¹·z and the residual Q·[0; z_p..]; the singular values of W are
     /// those of the blocks' R factors together, (WᵀW)⁻¹ is block diagonal, and a parameter
     /// in no block is an unidentifiable direction of its own. Returns the solution and the
-    /// residual sum of squares of each joint.
+    /// residual sum of squares of each joint. (The normal equations are tried first by
+    /// [`Self::solve_scaled`].)
     fn factor_and_solve<N: Dim, P: Dim>(
         &mut self,
         nd: N,
@@ -518,10 +633,6 @@ impl LeastSquares {
     where
         DefaultAllocator: Allocator<N> + Allocator<P>,
     {
-        if let Some(done) = self.normal_equations(nd, pd, n, masks) {
-            self.normal_equations_used = true;
-            return Ok(done);
-        }
         self.normal_equations_used = false;
         #[allow(non_snake_case)]
         let (N, P) = (nd.value(), pd.value());
@@ -862,66 +973,69 @@ fn upper_triangular_inverse_dyn(r: &Mat<f64>) -> Mat<f64> {
 /// the L2 cache between the products that read it.
 const CHUNK_ROWS: usize = 512;
 
-/// Lower triangle of G += WᵀW and wty += Wᵀy over the joints' column runs, chunk by chunk
-/// of rows so that W is read from memory once.
-fn gram_and_wty(
+/// Lower triangle of G += W_iᵀW_i and wty += W_iᵀy_i of joint i (rows i·n..(i+1)·n, the
+/// parameters of `mask`) over its column runs, chunk by chunk of rows so that W is read
+/// from memory once.
+#[allow(clippy::too_many_arguments)]
+fn gram_and_wty_of_joint(
     w: &Mat<f64>,
     y: &Mat<f64>,
-    masks: &[u64],
+    i: usize,
+    mask: u64,
     n: usize,
     runs: &mut Vec<(usize, usize)>,
     gram: &mut Mat<f64>,
     wty: &mut Mat<f64>,
 ) {
-    for (i, &m) in masks.iter().enumerate() {
-        column_runs(m, w.ncols(), runs);
-        for c0 in (0..n).step_by(CHUNK_ROWS) {
-            let rows = CHUNK_ROWS.min(n - c0);
-            let wi = w.as_ref().subrows(i * n + c0, rows);
-            let yi = y.as_ref().subrows(i * n + c0, rows);
-            for (ia, &(a0, a1)) in runs.iter().enumerate() {
-                let wa = wi.subcols(a0, a1 - a0);
-                tri::matmul(
-                    gram.as_mut().submatrix_mut(a0, a0, a1 - a0, a1 - a0),
-                    BlockStructure::TriangularLower,
-                    Accum::Add,
-                    wa.transpose(),
-                    BlockStructure::Rectangular,
-                    wa,
-                    BlockStructure::Rectangular,
-                    1.0,
-                    Par::Seq,
-                );
-                for &(b0, b1) in &runs[ia + 1..] {
-                    matmul(
-                        gram.as_mut().submatrix_mut(b0, a0, b1 - b0, a1 - a0),
-                        Accum::Add,
-                        wi.subcols(b0, b1 - b0).transpose(),
-                        wa,
-                        1.0,
-                        Par::Seq,
-                    );
-                }
+    column_runs(mask, w.ncols(), runs);
+    for c0 in (0..n).step_by(CHUNK_ROWS) {
+        let rows = CHUNK_ROWS.min(n - c0);
+        let wi = w.as_ref().subrows(i * n + c0, rows);
+        let yi = y.as_ref().subrows(i * n + c0, rows);
+        for (ia, &(a0, a1)) in runs.iter().enumerate() {
+            let wa = wi.subcols(a0, a1 - a0);
+            tri::matmul(
+                gram.as_mut().submatrix_mut(a0, a0, a1 - a0, a1 - a0),
+                BlockStructure::TriangularLower,
+                Accum::Add,
+                wa.transpose(),
+                BlockStructure::Rectangular,
+                wa,
+                BlockStructure::Rectangular,
+                1.0,
+                Par::Seq,
+            );
+            for &(b0, b1) in &runs[ia + 1..] {
                 matmul(
-                    wty.as_mut().subrows_mut(a0, a1 - a0),
+                    gram.as_mut().submatrix_mut(b0, a0, b1 - b0, a1 - a0),
                     Accum::Add,
-                    wa.transpose(),
-                    yi,
+                    wi.subcols(b0, b1 - b0).transpose(),
+                    wa,
                     1.0,
                     Par::Seq,
                 );
             }
+            matmul(
+                wty.as_mut().subrows_mut(a0, a1 - a0),
+                Accum::Add,
+                wa.transpose(),
+                yi,
+                1.0,
+                Par::Seq,
+            );
         }
     }
 }
 
-/// rho = y − W·λ over the joints' column runs and, when `wtr` is given, wtr += Wᵀ·rho in
-/// the same pass (chunk by chunk, while the chunk of W is in cache).
+/// rho = y − W·λ over the joints' column runs and, when `wtr` is given, wtr += Σ_i
+/// s_i²·W_iᵀ·rho_i (the row-scaled problem's Wᵀρ, `row_scale` s_i) in the same pass (chunk
+/// by chunk, while the chunk of W is in cache).
 #[allow(clippy::too_many_arguments)]
 fn residual(
     w: &Mat<f64>,
     y: &Mat<f64>,
     masks: &[u64],
+    row_scale: &[f64],
     n: usize,
     runs: &mut Vec<(usize, usize)>,
     lambda: &Mat<f64>,
@@ -952,7 +1066,7 @@ fn residual(
                         Accum::Add,
                         wi.subcols(a0, a1 - a0).transpose(),
                         ri.as_ref(),
-                        1.0,
+                        row_scale[i] * row_scale[i],
                         Par::Seq,
                     );
                 }

@@ -80,9 +80,9 @@ use serde_json::json;
 use super::IdentifiedModel;
 use crate::error::{PrrrpError, Result};
 use crate::estimators::{
-    least_squares, weighted_least_squares, AdalineConfig, AdalineRule, Discretisation, DynAdaline,
-    DynEkf, DynHopfield, DynJointNoise, DynRls, DynSamples, EkfConfig, EkfMeasurement, Estimator,
-    HopfieldConfig, LeastSquaresConfig, ParameterJacobian, RlsConfig,
+    AdalineConfig, AdalineRule, Discretisation, DynAdaline, DynEkf, DynHopfield, DynJointNoise,
+    DynRls, DynSamples, EkfConfig, EkfMeasurement, Estimator, HopfieldConfig, LeastSquares,
+    LeastSquaresConfig, ParameterJacobian, RlsConfig,
 };
 use crate::models::chain::{BaseOptions, BaseParameters, DynChain, DynChainBaseModel, SerialChain};
 use crate::models::prrrp::robot::Robot;
@@ -502,10 +502,14 @@ pub fn identify(
         Method::Physical(s) => s.weighted,
         _ => false,
     };
+    // The solver keeps the stacked base regressor W of the data, from which the
+    // covariance, the residuals and the model's residual RMS below are products instead of
+    // a regressor per sample each.
+    let mut stack = LeastSquares::new(config)?;
     let ls = if weighted {
-        weighted_least_squares(&model, &samples, DynJointNoise::Estimated, &config)?
+        stack.solve_weighted(&model, &samples, DynJointNoise::Estimated)?
     } else {
-        least_squares(&model, &samples, &config)?
+        stack.solve(&model, &samples)?
     };
     let mut standard: Option<Vec<f64>> = None;
     // The least-squares covariance from the residuals (see `ls_covariance`).
@@ -515,7 +519,9 @@ pub fn identify(
                 Method::Wls(_) => ls.joint_variances.iter().map(|v| 1.0 / v).collect(),
                 _ => vec![1.0; n],
             };
-            Some(ls_covariance(&model, &samples, &ls.lambda, &weights)?)
+            Some(ls_covariance(
+                &model, &samples, &ls.lambda, &weights, &stack,
+            )?)
         }
         _ => None,
     };
@@ -574,6 +580,7 @@ pub fn identify(
                     s,
                     &ls.lambda,
                     ls.joint_variances.as_slice(),
+                    &stack,
                 )
             };
             match run(s) {
@@ -602,7 +609,7 @@ pub fn identify(
             // least-squares fit times the residuals' correlation time, so that a low-pass
             // filtered log's rows/κ independent equations are what the prior is weighed
             // against (as `ls_covariance` counts them for σ).
-            let moments = joint_moments(&model, &samples, &ls.lambda)?;
+            let moments = joint_moments(&model, &samples, &ls.lambda, &stack)?;
             let unit = (0..n)
                 .map(|j| {
                     let w = joint_weights.as_ref().map_or(1.0, |w| w[j]);
@@ -675,8 +682,14 @@ pub fn identify(
     out.standard = standard;
     out.converged = fit.converged;
     out.epochs = fit.epochs;
-    let predicted = out.predict(data.q(), data.qd(), data.qdd())?;
-    let (sse, rms) = residuals(&predicted, data.tau(), n);
+    let (sse, rms) = match stack.residuals_at(&out.beta) {
+        Some(r) => joint_residuals(&r, n),
+        None => residuals(
+            &out.predict(data.q(), data.qd(), data.qdd())?,
+            data.tau(),
+            n,
+        ),
+    };
     out.residual_rms = rms;
     let sigma = match (fit.sigma, &fit.covariance) {
         (Some(s), Some(RawCovariance::Scaled(p))) => {
@@ -783,8 +796,43 @@ fn joint_moments(
     model: &DynChainBaseModel,
     samples: &DynSamples<'_>,
     beta: &DVector<f64>,
+    stack: &LeastSquares,
 ) -> Result<JointMoments> {
     let (n, b, m) = (model.dof(), model.count(), samples.len());
+    // The residual degrees of freedom shared equally among the joints, as the solver does.
+    let dof = (m as f64 - b as f64 / n as f64).max(1.0);
+    // From the solver's stacked W when it holds the unscaled one (the normal-equations
+    // path): the Gram matrices it already has, the residuals one product.
+    if let (Some(grams), Some(r)) = (stack.joint_grams(), stack.residuals_at(beta.as_slice())) {
+        let grams = grams
+            .iter()
+            .map(|g| DMatrix::from_fn(b, b, |i, k| g[(i, k)]))
+            .collect();
+        let (variances, kappas) = r
+            .chunks_exact(m)
+            .map(|rj| {
+                let var = rj.iter().map(|v| v * v).sum::<f64>() / dof;
+                (var, super::ekf_defaults::correlation_time(rj, 1))
+            })
+            .unzip();
+        return Ok(JointMoments {
+            grams,
+            variances,
+            kappas,
+        });
+    }
+    joint_moments_per_sample(model, samples, beta)
+}
+
+/// [`joint_moments`] with the regressor of every sample (when the solver went through QR
+/// and no longer holds the unscaled W).
+fn joint_moments_per_sample(
+    model: &DynChainBaseModel,
+    samples: &DynSamples<'_>,
+    beta: &DVector<f64>,
+) -> Result<JointMoments> {
+    let (n, b, m) = (model.dof(), model.count(), samples.len());
+    let dof = (m as f64 - b as f64 / n as f64).max(1.0);
     let mut ws = model.workspace();
     let mut phi = DMatrix::zeros(n, b);
     let mut grams = vec![DMatrix::<f64>::zeros(b, b); n];
@@ -801,8 +849,6 @@ fn joint_moments(
         let res = smp.tau - &phi * beta;
         r[k * n..(k + 1) * n].copy_from_slice(res.as_slice());
     }
-    // The residual degrees of freedom shared equally among the joints, as the solver does.
-    let dof = (m as f64 - b as f64 / n as f64).max(1.0);
     let mut variances = Vec::with_capacity(n);
     let mut kappas = Vec::with_capacity(n);
     for j in 0..n {
@@ -830,13 +876,14 @@ fn ls_covariance(
     samples: &DynSamples<'_>,
     beta: &DVector<f64>,
     weights: &[f64],
+    stack: &LeastSquares,
 ) -> Result<LsCovariance> {
     let (n, b) = (model.dof(), model.count());
     let JointMoments {
         grams,
         variances,
         kappas,
-    } = joint_moments(model, samples, beta)?;
+    } = joint_moments(model, samples, beta, stack)?;
     let mut a = DMatrix::zeros(b, b);
     let mut meat = DMatrix::zeros(b, b);
     for j in 0..n {
@@ -864,12 +911,24 @@ fn weighted_covariance(
     model: &DynChainBaseModel,
     samples: &DynSamples<'_>,
     joint_var: &[f64],
+    stack: &LeastSquares,
 ) -> Result<Option<DMatrix<f64>>> {
     let (n, b) = (model.dof(), model.count());
     if joint_var.len() != n || !joint_var.iter().all(|v| v.is_finite() && *v > 0.0) {
         return Ok(None);
     }
     let inv_sd: Vec<f64> = joint_var.iter().map(|v| 1.0 / v.sqrt()).collect();
+    if let Some(grams) = stack.joint_grams() {
+        // Σ_k Y_kᵀ·Σ⁻¹·Y_k = Σ_j W_jᵀW_j/σ_j².
+        let mut info = DMatrix::zeros(b, b);
+        for (g, f) in grams.iter().zip(&inv_sd) {
+            info += DMatrix::from_fn(b, b, |i, k| g[(i, k)]) * (f * f);
+        }
+        return Ok(info
+            .cholesky()
+            .map(|c| c.inverse())
+            .filter(|c| c.iter().all(|v| v.is_finite())));
+    }
     let mut ws = model.workspace();
     let mut phi = DMatrix::zeros(n, b);
     let mut info = DMatrix::zeros(b, b);
@@ -887,6 +946,21 @@ fn weighted_covariance(
         .cholesky()
         .map(|c| c.inverse())
         .filter(|c| c.iter().all(|v| v.is_finite())))
+}
+
+/// Sum of squared residuals and the per-joint RMS of joint-major residuals (entry i·m + k
+/// is joint i of sample k).
+fn joint_residuals(r: &[f64], n: usize) -> (f64, Vec<f64>) {
+    let m = r.len() / n.max(1);
+    let per: Vec<f64> = r
+        .chunks_exact(m.max(1))
+        .map(|rj| rj.iter().map(|v| v * v).sum::<f64>())
+        .collect();
+    let sse = per.iter().sum();
+    (
+        sse,
+        per.iter().map(|s| (s / m.max(1) as f64).sqrt()).collect(),
+    )
 }
 
 /// Sum of squared residuals and the per-joint RMS.
@@ -1371,6 +1445,7 @@ fn ekf(
     s: &EkfSettings,
     beta_ls: &DVector<f64>,
     joint_var: &[f64],
+    stack: &LeastSquares,
 ) -> Result<Fit> {
     let b = model.count();
     let mut indefinite_at = None;
@@ -1438,7 +1513,7 @@ fn ekf(
     }
     let mut prior = "diagonal";
     if w > 0.0 && matches!(s.initial, EkfStart::LeastSquares | EkfStart::Physical) {
-        if let Some(cov) = weighted_covariance(model, samples, joint_var)? {
+        if let Some(cov) = weighted_covariance(model, samples, joint_var, stack)? {
             let mut p0 = est.covariance().clone();
             p0.view_mut((2 * n, 2 * n), (b, b))
                 .copy_from(&(cov * (w * w)));
@@ -1549,7 +1624,7 @@ fn ekf(
     // ≈ P_λ, as the filter's information is ≈ Σ_j W_jᵀW_j/σ_j²).
     let p_lambda = est.covariance().view((2 * n, 2 * n), (b, b)).clone_owned();
     let (cov, kappas) = if s.correlation_correction {
-        let mom = joint_moments(model, samples, &est.estimate().clone())?;
+        let mom = joint_moments(model, samples, &est.estimate().clone(), stack)?;
         let mut meat = DMatrix::zeros(b, b);
         for (j, &var) in joint_var.iter().enumerate().take(n) {
             // A joint without residual (exact data) adds no noise.
@@ -1619,4 +1694,96 @@ fn ekf(
         converged: true,
         epochs: None,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::models::chain::Actuators;
+    use crate::FrictionModel;
+    use rand::rngs::StdRng;
+    use rand::{RngExt, SeedableRng};
+
+    /// The PUMA 560 with viscous, Coulomb and offset friction; `coupled`: its sixth motor
+    /// turns with q̇5 + q̇6 and every motor has an armature.
+    fn puma(coupled: bool) -> DynChain {
+        let chain = SerialChain::puma560()
+            .to_dyn()
+            .with_friction(FrictionModel::all(), vec![[0.5, 0.3, 0.02]; 6])
+            .unwrap();
+        if !coupled {
+            return chain;
+        }
+        let mut c = vec![vec![0.0; 6]; 6];
+        for (i, row) in c.iter_mut().enumerate() {
+            row[i] = 1.0;
+        }
+        c[5][4] = 1.0;
+        chain
+            .with_actuators(Actuators {
+                coupling: Some(c),
+                armature: true,
+                armature_values: Some(vec![0.5, 0.8, 0.3, 0.02, 0.02, 0.01]),
+                gear_ratios: None,
+            })
+            .unwrap()
+    }
+
+    /// Random states and torques: nothing a fit would favour.
+    fn random_data(samples: usize, seed: u64) -> DynDataset {
+        let n = 6;
+        let mut rng = StdRng::seed_from_u64(seed);
+        let mut u = |scale: f64| scale * (2.0 * rng.random::<f64>() - 1.0);
+        let t: Vec<f64> = (0..samples).map(|k| k as f64 * 0.01).collect();
+        let q: Vec<f64> = (0..samples * n).map(|_| u(3.0)).collect();
+        let qd: Vec<f64> = (0..samples * n).map(|_| u(2.0)).collect();
+        let qdd: Vec<f64> = (0..samples * n).map(|_| u(5.0)).collect();
+        let tau: Vec<f64> = (0..samples * n).map(|_| u(10.0)).collect();
+        DynDataset::new(n, t, q, qd, qdd, tau).unwrap()
+    }
+
+    fn close(a: &DMatrix<f64>, b: &DMatrix<f64>, rel: f64) -> bool {
+        (a - b).amax() <= rel * b.amax()
+    }
+
+    /// The Gram matrices, residual variances, correlation times and the weighted
+    /// information from the solver's stacked W equal the regressor-per-sample formulas,
+    /// at the fit's β and at another β (as the EKF's).
+    #[test]
+    fn moments_from_the_stacked_regressor_equal_the_per_sample_ones() {
+        for coupled in [false, true] {
+            let chain = puma(coupled);
+            let base = chain.base_parameters(&BaseOptions::default()).unwrap();
+            let model = chain.base_model(&base).unwrap();
+            let data = random_data(800, 3);
+            let rows = Rows::new(&data);
+            let samples = rows.samples().unwrap();
+            let mut stack = LeastSquares::new(LeastSquaresConfig::default()).unwrap();
+            let ls = stack
+                .solve_weighted(&model, &samples, DynJointNoise::Estimated)
+                .unwrap();
+            assert!(stack.used_normal_equations() && stack.joint_grams().is_some());
+            let other = ls.lambda.map(|v| 1.1 * v + 0.01);
+            for beta in [&ls.lambda, &other] {
+                let fast = joint_moments(&model, &samples, beta, &stack).unwrap();
+                let slow = joint_moments_per_sample(&model, &samples, beta).unwrap();
+                for j in 0..6 {
+                    assert!(close(&fast.grams[j], &slow.grams[j], 1e-12), "gram {j}");
+                    let (a, b) = (fast.variances[j], slow.variances[j]);
+                    assert!((a - b).abs() <= 1e-10 * b, "variance {j}: {a} vs {b}");
+                    let (a, b) = (fast.kappas[j], slow.kappas[j]);
+                    assert!((a - b).abs() <= 1e-8 * b, "κ {j}: {a} vs {b}");
+                }
+            }
+            let var = ls.joint_variances.as_slice();
+            let fresh = LeastSquares::new(LeastSquaresConfig::default()).unwrap();
+            let fast = weighted_covariance(&model, &samples, var, &stack)
+                .unwrap()
+                .unwrap();
+            let slow = weighted_covariance(&model, &samples, var, &fresh)
+                .unwrap()
+                .unwrap();
+            assert!(close(&fast, &slow, 1e-9));
+        }
+    }
 }
