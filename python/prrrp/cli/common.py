@@ -20,6 +20,9 @@ EXIT_FAILED = 1
 EXIT_USAGE = 2
 EXIT_INTERRUPTED = 130
 
+#: The robot of a command without --robot: the built-in arm of Urrea & Pascal 2017.
+DEFAULT_ROBOT = "paper"
+
 
 class CliError(Exception):
     """A user-facing failure: the message is printed as one line."""

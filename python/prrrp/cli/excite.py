@@ -1,5 +1,7 @@
-"""``prrrp excite --robot ROBOT --duration S --out traj.csv``: an exciting trajectory for any
-robot, within its limits, starting and ending at rest."""
+"""``prrrp excite [--robot ROBOT] --duration S --out DIR``: an exciting trajectory for a robot
+(the built-in ``paper`` by default), within its limits, starting and ending at rest →
+``DIR/trajectory.csv``. The previous release's one-file spelling (``--out TRAJ.csv``) is
+kept by :mod:`prrrp.cli.deprecated`'s rule."""
 
 from __future__ import annotations
 
@@ -10,12 +12,13 @@ from typing import Any
 
 import numpy as np
 
-from prrrp import csvio, workflow
+from prrrp import csvio, outdir, workflow
+from prrrp.cli import deprecated
 from prrrp.cli.common import (
+    DEFAULT_ROBOT,
     EXIT_OK,
     CliError,
     Progress,
-    check_output_file,
     friction_terms,
     nonempty_path,
     options,
@@ -24,6 +27,19 @@ from prrrp.cli.common import (
 )
 
 LIMIT_KEYS = ("lower", "upper", "velocity", "acceleration")
+#: The file written into --out.
+TRAJECTORY = "trajectory.csv"
+#: Options repeated in the deprecation notice, with their defaults.
+EXCITE_DEFAULTS = (
+    ("duration", 10.0),
+    ("seed", 0),
+    ("harmonics", 5),
+    ("base_freq", None),
+    ("rate", 100.0),
+    ("friction", "viscous,coulomb,offset"),
+    ("limits", None),
+    ("evaluations", 2000),
+)
 
 
 def add_parser(sub: Any) -> None:
@@ -33,13 +49,15 @@ def add_parser(sub: Any) -> None:
         description="Designs per-joint Fourier series (Swevers 1997) whose coefficients "
         "minimise cond(W_b) of the robot's base regressor (friction columns included when "
         "asked), starting and ending at rest, within the position, velocity and acceleration "
-        "limits of the robot file, and writes t, q1..qN, qd1..qdN, qdd1..qddN (SI units).",
+        "limits of the robot file, and writes DIR/trajectory.csv: t, q1..qN, qd1..qdN, "
+        "qdd1..qddN (SI units), for `prrrp simulate --trajectory`.",
+        epilog=deprecated.FILE_RULE,
     )
     p.add_argument(
         "--robot",
-        required=True,
         metavar="ROBOT",
-        help='robot file (.urdf, .toml) or "paper" (the paper\'s arm)',
+        help='robot file (.urdf or .toml), or "paper": the 5-joint arm of Urrea & Pascal '
+        "2017 (default: paper)",
     )
     p.add_argument(
         "--base", metavar="LINK", help="URDF: first link of the chain (default: the root link)"
@@ -50,7 +68,11 @@ def add_parser(sub: Any) -> None:
         help="URDF: last link of the chain (default: the end of the movable joints)",
     )
     p.add_argument(
-        "--out", required=True, type=nonempty_path, metavar="TRAJ.csv", help="CSV file to write"
+        "--out",
+        required=True,
+        type=nonempty_path,
+        metavar="DIR",
+        help="the output folder (built aside and swapped in whole)",
     )
     p.add_argument(
         "--duration", type=float, default=10.0, metavar="S", help="seconds (default: 10)"
@@ -138,8 +160,13 @@ def _check_size(duration: float, rate: float, n: int) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    old = deprecated.file_spelling(args)
     out = Path(args.out)
-    check_output_file(out)
+    if old:
+        deprecated.check_file(out)
+    else:
+        outdir.check(out)
+    args.robot = args.robot or DEFAULT_ROBOT
     robot = workflow.load_robot(
         args.robot, base=args.base, tip=args.tip, friction=friction_terms(args.friction)
     )
@@ -167,7 +194,10 @@ def run(args: argparse.Namespace) -> int:
     groups = csvio.columns(robot.dof)
     names = ["t", *groups["q"], *groups["qd"], *groups["qdd"]]
     table = np.column_stack([design["t"], design["q"], design["qd"], design["qdd"]])
-    csvio.write_table_atomic(out, names, table)
+    if old:
+        csvio.write_table_atomic(out, names, table)
+    else:
+        outdir.write_dir(out, lambda tmp: csvio.write_table_atomic(tmp / TRAJECTORY, names, table))
     print(
         f"cond(W_b) {design['cond_initial']:.4g} -> {design['cond_final']:.4g} "
         f"({design['evaluations']} evaluations); limit usage per joint:"
@@ -178,5 +208,12 @@ def run(args: argparse.Namespace) -> int:
         for i, j in enumerate(robot.joint_names)
     ]
     print_table(["joint", "position", "velocity", "acceleration"], rows)
-    print(f"trajectory in {out} ({len(table)} samples over {args.duration:g} s)")
+    where = out if old else out / TRAJECTORY
+    print(f"trajectory in {where} ({len(table)} samples over {args.duration:g} s)")
+    if old:
+        new = ["prrrp", "excite", *deprecated.robot_options(args)]
+        for name, default in EXCITE_DEFAULTS:
+            new += deprecated.option(args, name, default)
+        new += ["--out", deprecated.folder_for(args.out)]
+        deprecated.notice(new, f"a folder: DIR/{TRAJECTORY}")
     return EXIT_OK
