@@ -37,8 +37,8 @@ def test_the_default_robot_is_the_paper_arm_through_the_general_path(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
 ) -> None:
     """Without --robot: excite designs for the paper's 5 joints into DIR/trajectory.csv,
-    simulate writes DIR/data.csv, identify writes DIR/model.json that `prrrp predict` uses;
-    the model is the one `--robot paper` gives, bit for bit."""
+    simulate writes DIR/data.csv, identify writes DIR/model.json that `prrrp predict` uses
+    (the model is the one `--robot paper` gives, bit for bit), track tracks the paper arm."""
     monkeypatch.chdir(tmp_path)
     argv = ["excite", "--duration", "5", "--evaluations", "200", "--out", "traj"]
     code, _, err = run(argv, capsys)
@@ -73,6 +73,13 @@ def test_the_default_robot_is_the_paper_arm_through_the_general_path(
     assert code == 0, err
     tau = np.loadtxt(tmp_path / "tau.csv", delimiter=",", skiprows=1)
     assert len(tau) == len(data["t"])
+
+    # The online identifier's command has the same default robot.
+    code, stdout, err = run(["track", "sim/data.csv", "--out", "track"], capsys)
+    assert code == 0, err
+    assert stdout.startswith(f"{paper.name}: ")
+    tracked = prrrp.IdentifiedModel.load(tmp_path / "track" / "model.json")
+    assert list(tracked.robot.joint_names) == list(paper.joint_names)
 
 
 def test_identify_without_robot_and_a_json_out_is_the_deprecated_closed_form(

@@ -16,7 +16,7 @@ Subcommands (ROBOT is a ``.urdf`` with ``--base``/``--tip`` links, a ``.toml`` r
 - ``prrrp payload LOADED --model ARM.json [--mass KG] --out DIR``: the payload an identified arm
   carries (:mod:`prrrp.cli.payload`); ``prrrp identify UNLOADED --robot R --payload-run LOADED
   --payload-mass KG --out DIR``: drive gains from current logs and a payload of known mass.
-- ``prrrp track DATA --robot ROBOT [--model PRIOR.json] [--payload] --out DIR``: the log fed
+- ``prrrp track DATA [--robot ROBOT] [--model PRIOR.json] [--payload] --out DIR``: the log fed
   one row at a time to the online identifier (:mod:`prrrp.cli.track`).
 
 - ``prrrp benchmark [--robot ROBOT] --methods ls,rls --noise 1,3 --rates 50,100 --seeds N
