@@ -39,8 +39,9 @@ from prrrp.cli.common import (
 
 #: The one-line rule each command's help epilogue gives.
 IDENTIFY_RULE = (
-    "Deprecated (removed in the next release): without --robot, an --out ending in .json, or "
-    "no --out, runs the previous release's closed-form paper arm (λ printed, one JSON file)."
+    "Deprecated (removed in the next release): with no --robot and an --out ending in .json, "
+    "or no --out at all, the previous release's closed-form paper arm runs (λ printed, one "
+    "JSON file)."
 )
 FILE_RULE = (
     "Deprecated (removed in the next release): an --out ending in .csv writes that one file, "

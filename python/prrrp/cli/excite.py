@@ -45,7 +45,7 @@ EXCITE_DEFAULTS = (
 def add_parser(sub: Any) -> None:
     p = sub.add_parser(
         "excite",
-        help="design an exciting trajectory for a robot (CSV)",
+        help="design an exciting trajectory for a robot (DIR/trajectory.csv)",
         description="Designs per-joint Fourier series (Swevers 1997) whose coefficients "
         "minimise cond(W_b) of the robot's base regressor (friction columns included when "
         "asked), starting and ending at rest, within the position, velocity and acceleration "

@@ -48,7 +48,7 @@ DEFAULT_DURATION_S = 10.0
 def add_parser(sub: Any) -> None:
     p = sub.add_parser(
         "simulate",
-        help="simulate a robot's measurement log (CSV) along a trajectory",
+        help="simulate a robot's measurement log along a trajectory (DIR/data.csv)",
         description="Runs the robot (its file's inertials and friction) along TRAJ.csv, or "
         "along an exciting trajectory designed first as `prrrp excite` does, under computed-"
         "torque control with sensor noise, and writes DIR/data.csv (t, q1..qN, tau1..tauN; "
