@@ -40,8 +40,7 @@ def test_the_default_robot_is_the_paper_arm_through_the_general_path(
     simulate writes DIR/data.csv, identify writes DIR/model.json that `prrrp predict` uses
     (the model is the one `--robot paper` gives, bit for bit), track tracks the paper arm."""
     monkeypatch.chdir(tmp_path)
-    argv = ["excite", "--duration", "5", "--evaluations", "200", "--out", "traj"]
-    code, _, err = run(argv, capsys)
+    code, _, err = run(["excite", "--seed", "2", "--out", "traj"], capsys)
     assert code == 0, err
     assert err == ""
     traj = csvio.read_table(tmp_path / "traj" / "trajectory.csv", 5, need_tau=False)
@@ -55,6 +54,9 @@ def test_the_default_robot_is_the_paper_arm_through_the_general_path(
     assert files == [".prrrp-output", "data.csv", "trajectory.csv"]
     data = csvio.read_measurements(tmp_path / "sim" / "data.csv")
     assert data["q"].shape[1] == 5
+    # The trajectory simulate designs is the one `prrrp excite` designs (same seed).
+    designed = csvio.read_table(tmp_path / "sim" / "trajectory.csv", 5, need_tau=False)
+    np.testing.assert_array_equal(designed["q"], traj["q"])
 
     code, _, err = run(["identify", "sim/data.csv", "--out", "id"], capsys)
     assert code == 0, err

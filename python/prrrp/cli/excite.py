@@ -29,6 +29,8 @@ from prrrp.cli.common import (
 LIMIT_KEYS = ("lower", "upper", "velocity", "acceleration")
 #: The file written into --out.
 TRAJECTORY = "trajectory.csv"
+#: The friction columns of W_b the design keeps well conditioned by default.
+DEFAULT_FRICTION = "viscous,coulomb,offset"
 #: Options repeated in the deprecation notice, with their defaults.
 EXCITE_DEFAULTS = (
     ("duration", 10.0),
@@ -36,7 +38,7 @@ EXCITE_DEFAULTS = (
     ("harmonics", 5),
     ("base_freq", None),
     ("rate", 100.0),
-    ("friction", "viscous,coulomb,offset"),
+    ("friction", DEFAULT_FRICTION),
     ("limits", None),
     ("evaluations", 2000),
 )
@@ -93,9 +95,9 @@ def add_parser(sub: Any) -> None:
     p.add_argument(
         "--friction",
         metavar="TERMS",
-        default="viscous,coulomb,offset",
-        help="friction columns of W_b: viscous, coulomb, offset or none "
-        "(default: viscous,coulomb,offset)",
+        default=DEFAULT_FRICTION,
+        help=f"friction columns of W_b: viscous, coulomb, offset or none (default: "
+        f"{DEFAULT_FRICTION})",
     )
     p.add_argument(
         "--limits",

@@ -14,13 +14,14 @@ from typing import Any
 import numpy as np
 
 from prrrp import csvio, outdir, workflow
-from prrrp.cli import deprecated
+from prrrp.cli import deprecated, excite
 from prrrp.cli.common import (
     DEFAULT_ROBOT,
     EXIT_FAILED,
     EXIT_OK,
     CliError,
     Progress,
+    friction_terms,
     nonempty_path,
     seed,
 )
@@ -127,10 +128,15 @@ def _trajectory(args: argparse.Namespace, robot: Any) -> tuple[dict[str, np.ndar
     duration = DEFAULT_DURATION_S if args.duration is None else args.duration
     if not (math.isfinite(duration) and duration > 0):
         raise CliError(f"--duration must be a positive number of seconds, got {duration}")
+    # Designed as `prrrp excite` does by default: friction columns in W_b (the simulated
+    # robot keeps its file's friction values).
+    design_robot = workflow.load_robot(
+        args.robot, base=args.base, tip=args.tip, friction=friction_terms(excite.DEFAULT_FRICTION)
+    )
     progress = Progress()
     try:
         design = workflow.excite(
-            robot,
+            design_robot,
             duration,
             seed=args.seed,
             progress=lambda done, total: progress("excitation", done, total),
