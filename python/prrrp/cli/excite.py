@@ -19,6 +19,7 @@ from prrrp.cli.common import (
     EXIT_OK,
     CliError,
     Progress,
+    add_robot_arguments,
     friction_terms,
     nonempty_path,
     options,
@@ -55,20 +56,7 @@ def add_parser(sub: Any) -> None:
         "qdd1..qddN (SI units), for `prrrp simulate --trajectory`.",
         epilog=deprecated.FILE_RULE,
     )
-    p.add_argument(
-        "--robot",
-        metavar="ROBOT",
-        help='robot file (.urdf or .toml), or "paper": the 5-joint arm of Urrea & Pascal '
-        "2017 (default: paper)",
-    )
-    p.add_argument(
-        "--base", metavar="LINK", help="URDF: first link of the chain (default: the root link)"
-    )
-    p.add_argument(
-        "--tip",
-        metavar="LINK",
-        help="URDF: last link of the chain (default: the end of the movable joints)",
-    )
+    add_robot_arguments(p)
     p.add_argument(
         "--out",
         required=True,

@@ -25,6 +25,7 @@ from prrrp.cli.common import (
     EXIT_OK,
     CliError,
     Progress,
+    add_robot_arguments,
     friction_terms,
     nonempty_path,
     print_table,
@@ -79,20 +80,7 @@ def add_parser(sub: Any) -> None:
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     g = p.add_argument_group("robot and log")
-    g.add_argument(
-        "--robot",
-        metavar="ROBOT",
-        help='robot file (.urdf or .toml), or "paper": the 5-joint arm of Urrea & Pascal '
-        "2017 (default: paper)",
-    )
-    g.add_argument(
-        "--base", metavar="LINK", help="URDF: first link of the chain (default: the root link)"
-    )
-    g.add_argument(
-        "--tip",
-        metavar="LINK",
-        help="URDF: last link of the chain (default: the end of the movable joints)",
-    )
+    add_robot_arguments(g)
     g.add_argument(
         "--friction",
         metavar="TERMS",
