@@ -226,7 +226,7 @@ def _run(argv: list[str], key: str | None = None) -> float:
 
 def _log(prrrp_cmd: list[str], folder: Path, name: str, seconds: float, rate: float) -> Path:
     """A simulated log of the UR5-like arm (excitation designed for it), seeded."""
-    traj, log = folder / f"{name}-traj.csv", folder / f"{name}.csv"
+    traj, log = folder / f"{name}-traj", folder / name
     robot = ["--robot", str(UR5_LIKE)]
     _run(
         [
@@ -243,8 +243,9 @@ def _log(prrrp_cmd: list[str], folder: Path, name: str, seconds: float, rate: fl
             "300",
         ]
     )
-    _run([*prrrp_cmd, "simulate", *robot, "--trajectory", str(traj), "--out", str(log)])
-    return log
+    trajectory = traj / "trajectory.csv"
+    _run([*prrrp_cmd, "simulate", *robot, "--trajectory", str(trajectory), "--out", str(log)])
+    return log / "data.csv"
 
 
 def end_to_end(short: bool) -> list[tuple[str, float, float]]:

@@ -1,5 +1,5 @@
 """The main job for any robot, as functions: load a robot file, identify it from a log,
-and report — what ``prrrp identify --robot`` runs, for notebook users.
+and report — what ``prrrp identify`` runs, for notebook users.
 
 >>> robot = prrrp.load_robot("panda.urdf", tip="panda_link8",
 ...                          friction="viscous+coulomb+offset")      # doctest: +SKIP
@@ -35,9 +35,9 @@ from prrrp.measurements import PREPROCESS_KEYS, measurements_to_dataset
 
 #: Methods of :func:`identify_measurements`, in the order ``--method all`` runs them.
 METHODS = ("ls", "wls", "rls", "adaline", "hopfield", "ekf", "physical")
-#: The default method of :func:`identify_measurements` and ``prrrp identify`` (both the
-#: paper's arm and ``--robot``): least squares with each joint's equations weighted by
-#: 1/σ_j, σ_j estimated from the residuals (IDIM-WLS). Ordinary least squares adds the N²
+#: The default method of :func:`identify_measurements` and ``prrrp identify``: least
+#: squares with each joint's equations weighted by 1/σ_j, σ_j estimated from the residuals
+#: (IDIM-WLS). Ordinary least squares adds the N²
 #: of a prismatic joint to the (N·m)² of a revolute one, a sum that depends on the units;
 #: weighting by each joint's noise makes the fit unit-free and is the best linear unbiased
 #: estimate when the joints' noise differs, as it does on real arms (different sensors,

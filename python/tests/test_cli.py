@@ -329,10 +329,14 @@ needs_simulation = pytest.mark.skipif(
 
 @needs_simulation
 def test_simulate_identify_round_trip(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """The previous release's closed-form spellings (deprecated, kept for one release)."""
     data, val, out = tmp_path / "data.csv", tmp_path / "val.csv", tmp_path / "lam.json"
     code, stdout, err = run(["simulate", "--out", str(data), "--seed", "3"], capsys)
     assert code == 0, err
     assert stdout.startswith(f"results in {data}")
+    # The previous release's spelling (a CSV file, the closed form): kept, with a notice.
+    assert err.startswith("prrrp: deprecated: "), err
+    assert f"use `prrrp simulate --seed 3 --robot paper --out {tmp_path / 'data'}`" in err
     code, _, err = run(["simulate", "--out", str(val), "--seed", "4"], capsys)
     assert code == 0, err
     assert data.read_text().splitlines()[0] == ",".join(csvio.REQUIRED_COLUMNS)
@@ -342,6 +346,8 @@ def test_simulate_identify_round_trip(tmp_path: Path, capsys: pytest.CaptureFixt
         capsys,
     )
     assert code == 0, err
+    assert err.startswith("prrrp: deprecated: "), err
+    assert "--robot paper --out" in err
     assert "cond(W)" in stdout
     result = json.loads(out.read_text())
     (ls,) = result["estimates"]

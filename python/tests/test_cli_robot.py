@@ -115,10 +115,11 @@ def test_excite_simulate_identify_tour(tmp_path: Path, capsys, monkeypatch):
     """The README's "your robot" tour, as a user runs it, on the Panda URDF."""
     monkeypatch.chdir(tmp_path)
     robot = ["--robot", str(URDF), "--tip", "panda_link8"]
-    assert cli.main(["excite", *robot, "--duration", "20", "--out", "traj.csv"]) == 0
-    out = capsys.readouterr().out
+    assert cli.main(["excite", *robot, "--duration", "20", "--out", "traj"]) == 0
+    out, err = capsys.readouterr()
     assert "cond(W_b)" in out
-    traj = csvio.read_table(tmp_path / "traj.csv", 7, need_tau=False)
+    assert "deprecated" not in err
+    traj = csvio.read_table(tmp_path / "traj" / "trajectory.csv", 7, need_tau=False)
     chain = prrrp.SerialChain.from_urdf(str(URDF), tip="panda_link8")
     lim = chain.limits
     # At rest at both ends, within the file's position and speed limits everywhere.
@@ -131,17 +132,19 @@ def test_excite_simulate_identify_tour(tmp_path: Path, capsys, monkeypatch):
     # The trajectory's accelerations are the derivative of its velocities.
     dqd = np.gradient(traj["qd"], traj["t"], axis=0)
     assert np.abs(dqd[2:-2] - traj["qdd"][2:-2]).max() < 1e-2 * np.abs(traj["qdd"]).max()
-    argv = ["simulate", *robot, "--trajectory", "traj.csv", "--out", "data.csv"]
+    argv = ["simulate", *robot, "--trajectory", "traj/trajectory.csv", "--out", "data"]
     assert cli.main(argv) == 0
-    data = csvio.read_table(tmp_path / "data.csv", 7)
+    assert sorted(p.name for p in (tmp_path / "data").iterdir()) == [".prrrp-output", "data.csv"]
+    data = csvio.read_table(tmp_path / "data" / "data.csv", 7)
     # Closed-loop tracking: the measured motion follows the reference to within a few
     # milliradians; the measured torques are the robot's (noise 0.05 N·m).
     assert np.abs(data["q"] - traj["q"]).max() < 5e-3
     ref = chain.inverse_dynamics(traj["q"], traj["qd"], traj["qdd"])
     assert np.sqrt(((data["tau"] - ref) ** 2).mean()) < 0.5
-    argv = ["identify", "data.csv", *robot, "--out", "out", "--cutoff", "20"]
+    argv = ["identify", "data/data.csv", *robot, "--out", "out", "--cutoff", "20"]
     assert cli.main(argv) == 0
-    assert cli.main(["predict", "out/model.json", "traj.csv", "--out", "tau.csv"]) == 0
+    argv = ["predict", "out/model.json", "traj/trajectory.csv", "--out", "tau.csv"]
+    assert cli.main(argv) == 0
     pred = np.loadtxt(tmp_path / "tau.csv", delimiter=",", skiprows=1)[:, 1:8]
     scale = np.sqrt((ref**2).mean(axis=0))
     rel = np.sqrt(((pred - ref) ** 2).mean(axis=0)) / scale

@@ -1,14 +1,14 @@
 """The convergence protocol (issue 16): nothing is tuned to one data set.
 
-The paper's arm is simulated by prrrp as ``prrrp simulate`` does (an excitation optimised
-for cond(W) → computed-torque tracking → sensor noise), preprocessed as ``prrrp identify``
-does (zero-phase low-pass, central differences, trimming), and identified with the command
-line's defaults (``prrrp.cli.identify._estimate``, i.e. ``prrrp.identify(Robot.paper(), …)``,
-no per-case settings) over 20 seeds × rates {50, 100, 200, 1000} Hz × sensor noise {1×, 3×}
-the default × durations {10, 30} s. Every method is within 5 % of the truth on every λ,
-the command line's least squares (joint-weighted, its default method) within 2 %, each
-method that gives a σ (WLS, LS, EKF) has |error| ≤ 4σ, and the gradient methods report
-that they converged.
+The paper's arm is simulated by prrrp as the closed-form ``prrrp simulate --out DATA.csv``
+does (an excitation optimised for cond(W) → computed-torque tracking → sensor noise),
+preprocessed as the closed-form ``prrrp identify`` does (zero-phase low-pass, central
+differences, trimming), and identified with its defaults (``prrrp.cli.deprecated._estimate``,
+i.e. ``prrrp.identify(Robot.paper(), …)``, no per-case settings) over 20 seeds × rates
+{50, 100, 200, 1000} Hz × sensor noise {1×, 3×} the default × durations {10, 30} s. Every
+method is within 5 % of the truth on every λ, the command line's least squares
+(joint-weighted, its default method) within 2 %, each method that gives a σ (WLS, LS, EKF)
+has |error| ≤ 4σ, and the gradient methods report that they converged.
 
 The default run checks 2 seeds of every condition; the full grid is marked ``protocol``
 (``pytest -m protocol``, run by CI) and writes its case table (worst error per method and
@@ -29,7 +29,7 @@ import numpy as np
 import pytest
 
 import prrrp
-from prrrp.cli import identify as cli_identify
+from prrrp.cli import deprecated as cli_identify
 from prrrp.cli import simulate as cli_simulate
 from prrrp.cli.simulate import DEFAULT_Q_NOISE, DEFAULT_TAU_NOISE
 

@@ -48,9 +48,16 @@ def test_your_robot_tour_runs_as_written(tmp_path):
         timeout=600,
     )
     assert run.returncode == 0, run.stderr
-    for name in ("traj.csv", "data.csv", "val.csv", "tau.csv", "panda-id/model.json"):
+    for name in (
+        "traj/trajectory.csv",
+        "data/data.csv",
+        "val/data.csv",
+        "tau.csv",
+        "panda-id/model.json",
+    ):
         assert (tmp_path / name).is_file(), name
     assert "torque-prediction error" in run.stdout
+    assert "deprecated" not in run.stderr
 
 
 def test_benchmark_example_runs_as_a_saved_script(tmp_path):

@@ -14,7 +14,7 @@ import pytest
 
 import prrrp
 from prrrp import cli
-from prrrp.cli.simulate_robot import MAX_TRACKING_ERROR
+from prrrp.cli.simulate import MAX_TRACKING_ERROR
 
 pin = pytest.importorskip("pinocchio")
 

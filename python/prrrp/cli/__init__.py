@@ -1,32 +1,30 @@
 """The ``prrrp`` command line (also ``python -m prrrp``).
 
-Subcommands:
+Subcommands (ROBOT is a ``.urdf`` with ``--base``/``--tip`` links, a ``.toml`` robot file, or
+``paper``, the arm of Urrea & Pascal 2017, which is the default):
 
 - ``prrrp reproduce [--out DIR] [--seed N]``: the paper's whole study (excitation, simulation,
   the four estimators, validation, sensitivity) → ``DIR/results.json``, ``DIR/report.md`` and
   the figures ``DIR/*.png``.
-- ``prrrp simulate --out data.csv [--seed N] [--noise SCALE] [--duration S]``: an optimised
-  excitation run on the simulated robot, written as a measurement file.
-- ``prrrp identify DATA.csv [--method ls|adaline|hopfield|ekf|all] [--validate VAL.csv]
-  [--out results.json]``: λ from a measurement file, optionally validated on another.
-
-Any robot (a ``.urdf`` with ``--base``/``--tip`` links, or a ``.toml`` robot file):
-
-- ``prrrp excite --robot ROBOT --duration S --out traj.csv``: an exciting trajectory within the
-  file's limits (:mod:`prrrp.cli.excite`);
-- ``prrrp simulate --robot ROBOT --trajectory traj.csv --out data.csv``: the robot tracking it;
-- ``prrrp identify DATA --robot ROBOT --out DIR``: model.json, report.md and figures from a CSV
-  or a ROS 2 bag (:mod:`prrrp.cli.identify_robot`);
+- ``prrrp excite [--robot ROBOT] --duration S --out DIR``: an exciting trajectory within the
+  robot's limits → ``DIR/trajectory.csv`` (:mod:`prrrp.cli.excite`);
+- ``prrrp simulate [--robot ROBOT] [--trajectory TRAJ.csv] --out DIR``: the robot tracking it
+  (or a trajectory designed first) → ``DIR/data.csv`` (:mod:`prrrp.cli.simulate`);
+- ``prrrp identify DATA [--robot ROBOT] --out DIR``: model.json, report.md and figures from a
+  CSV or a ROS 2 bag (:mod:`prrrp.cli.identify`);
 - ``prrrp predict MODEL.json DATA --out tau.csv``: a saved model's torques for recorded states.
 - ``prrrp payload LOADED --model ARM.json [--mass KG] --out DIR``: the payload an identified arm
   carries (:mod:`prrrp.cli.payload`); ``prrrp identify UNLOADED --robot R --payload-run LOADED
   --payload-mass KG --out DIR``: drive gains from current logs and a payload of known mass.
-- ``prrrp track DATA --robot ROBOT [--model PRIOR.json] [--payload] --out DIR``: the log fed
+- ``prrrp track DATA [--robot ROBOT] [--model PRIOR.json] [--payload] --out DIR``: the log fed
   one row at a time to the online identifier (:mod:`prrrp.cli.track`).
 
 - ``prrrp benchmark [--robot ROBOT] --methods ls,rls --noise 1,3 --rates 50,100 --seeds N
   [--workers K | --dask ADDRESS] --out DIR``: a Monte-Carlo benchmark of the estimators
   (:mod:`prrrp.cli.benchmark`).
+
+The previous release's spellings (``identify`` of the closed-form arm without ``--robot``, an
+``--out`` naming a file) still work for one release: :mod:`prrrp.cli.deprecated`.
 
 The measurement CSV format is documented in :mod:`prrrp.csvio`. Exit codes: 0 success,
 1 a computation failed (e.g. an estimator diverged), 2 bad usage or bad input, 130
@@ -73,9 +71,9 @@ COMMANDS = (reproduce, excite, simulate, identify, predict, payload, track, benc
 def build_parser() -> argparse.ArgumentParser:
     parser = Parser(
         prog="prrrp",
-        description="Dynamic parameter identification of robot manipulators: the PRRRP robot "
-        "of Urrea & Pascal 2017 (reproduce, simulate, identify) and any arm from its URDF or "
-        "TOML file (excite, simulate/identify --robot, predict).",
+        description="Dynamic parameter identification of robot manipulators: any arm from its "
+        "URDF or TOML file, or the built-in PRRRP arm of Urrea & Pascal 2017 (--robot paper, "
+        "the default): excite, simulate, identify, predict; and the paper's study (reproduce).",
         epilog="Run `prrrp reproduce` for the paper's whole study; `prrrp COMMAND --help` "
         "for each command.",
     )

@@ -20,6 +20,9 @@ EXIT_FAILED = 1
 EXIT_USAGE = 2
 EXIT_INTERRUPTED = 130
 
+#: The robot of a command without --robot: the built-in arm of Urrea & Pascal 2017.
+DEFAULT_ROBOT = "paper"
+
 
 class CliError(Exception):
     """A user-facing failure: the message is printed as one line."""
@@ -166,6 +169,25 @@ def options(values: Sequence[str]) -> str:
     """``a, b or c``: a list of choices as a message says it (not a Python tuple)."""
     values = list(values)
     return values[0] if len(values) == 1 else ", ".join(values[:-1]) + " or " + values[-1]
+
+
+def add_robot_arguments(p: Any) -> None:
+    """``--robot`` (default: the paper's arm) and the ``--base``/``--tip`` links of a URDF,
+    as every command that loads a robot takes them."""
+    p.add_argument(
+        "--robot",
+        metavar="ROBOT",
+        help=f'robot file (.urdf or .toml), or "{DEFAULT_ROBOT}": the 5-joint arm of Urrea & '
+        f"Pascal 2017 (default: {DEFAULT_ROBOT})",
+    )
+    p.add_argument(
+        "--base", metavar="LINK", help="URDF: first link of the chain (default: the root link)"
+    )
+    p.add_argument(
+        "--tip",
+        metavar="LINK",
+        help="URDF: last link of the chain (default: the end of the movable joints)",
+    )
 
 
 def check_chain_options(args: argparse.Namespace) -> None:

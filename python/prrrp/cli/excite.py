@@ -1,5 +1,7 @@
-"""``prrrp excite --robot ROBOT --duration S --out traj.csv``: an exciting trajectory for any
-robot, within its limits, starting and ending at rest."""
+"""``prrrp excite [--robot ROBOT] --duration S --out DIR``: an exciting trajectory for a robot
+(the built-in ``paper`` by default), within its limits, starting and ending at rest →
+``DIR/trajectory.csv``. The previous release's one-file spelling (``--out TRAJ.csv``) is
+kept by :mod:`prrrp.cli.deprecated`'s rule."""
 
 from __future__ import annotations
 
@@ -10,12 +12,14 @@ from typing import Any
 
 import numpy as np
 
-from prrrp import csvio, workflow
+from prrrp import csvio, outdir, workflow
+from prrrp.cli import deprecated
 from prrrp.cli.common import (
+    DEFAULT_ROBOT,
     EXIT_OK,
     CliError,
     Progress,
-    check_output_file,
+    add_robot_arguments,
     friction_terms,
     nonempty_path,
     options,
@@ -24,33 +28,41 @@ from prrrp.cli.common import (
 )
 
 LIMIT_KEYS = ("lower", "upper", "velocity", "acceleration")
+#: The file written into --out.
+TRAJECTORY = "trajectory.csv"
+#: The friction columns of W_b the design keeps well conditioned by default.
+DEFAULT_FRICTION = "viscous,coulomb,offset"
+#: Options repeated in the deprecation notice, with their defaults.
+EXCITE_DEFAULTS = (
+    ("duration", 10.0),
+    ("seed", 0),
+    ("harmonics", 5),
+    ("base_freq", None),
+    ("rate", 100.0),
+    ("friction", DEFAULT_FRICTION),
+    ("limits", None),
+    ("evaluations", 2000),
+)
 
 
 def add_parser(sub: Any) -> None:
     p = sub.add_parser(
         "excite",
-        help="design an exciting trajectory for a robot (CSV)",
+        help="design an exciting trajectory for a robot (DIR/trajectory.csv)",
         description="Designs per-joint Fourier series (Swevers 1997) whose coefficients "
         "minimise cond(W_b) of the robot's base regressor (friction columns included when "
         "asked), starting and ending at rest, within the position, velocity and acceleration "
-        "limits of the robot file, and writes t, q1..qN, qd1..qdN, qdd1..qddN (SI units).",
+        "limits of the robot file, and writes DIR/trajectory.csv: t, q1..qN, qd1..qdN, "
+        "qdd1..qddN (SI units), for `prrrp simulate --trajectory`.",
+        epilog=deprecated.FILE_RULE,
     )
+    add_robot_arguments(p)
     p.add_argument(
-        "--robot",
+        "--out",
         required=True,
-        metavar="ROBOT",
-        help='robot file (.urdf, .toml) or "paper" (the paper\'s arm)',
-    )
-    p.add_argument(
-        "--base", metavar="LINK", help="URDF: first link of the chain (default: the root link)"
-    )
-    p.add_argument(
-        "--tip",
-        metavar="LINK",
-        help="URDF: last link of the chain (default: the end of the movable joints)",
-    )
-    p.add_argument(
-        "--out", required=True, type=nonempty_path, metavar="TRAJ.csv", help="CSV file to write"
+        type=nonempty_path,
+        metavar="DIR",
+        help="the output folder (built aside and swapped in whole)",
     )
     p.add_argument(
         "--duration", type=float, default=10.0, metavar="S", help="seconds (default: 10)"
@@ -71,9 +83,9 @@ def add_parser(sub: Any) -> None:
     p.add_argument(
         "--friction",
         metavar="TERMS",
-        default="viscous,coulomb,offset",
-        help="friction columns of W_b: viscous, coulomb, offset or none "
-        "(default: viscous,coulomb,offset)",
+        default=DEFAULT_FRICTION,
+        help=f"friction columns of W_b: viscous, coulomb, offset or none (default: "
+        f"{DEFAULT_FRICTION})",
     )
     p.add_argument(
         "--limits",
@@ -138,8 +150,13 @@ def _check_size(duration: float, rate: float, n: int) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    old = deprecated.file_spelling(args)
     out = Path(args.out)
-    check_output_file(out)
+    if old:
+        deprecated.check_file(out)
+    else:
+        outdir.check(out)
+    args.robot = args.robot or DEFAULT_ROBOT
     robot = workflow.load_robot(
         args.robot, base=args.base, tip=args.tip, friction=friction_terms(args.friction)
     )
@@ -167,7 +184,10 @@ def run(args: argparse.Namespace) -> int:
     groups = csvio.columns(robot.dof)
     names = ["t", *groups["q"], *groups["qd"], *groups["qdd"]]
     table = np.column_stack([design["t"], design["q"], design["qd"], design["qdd"]])
-    csvio.write_table_atomic(out, names, table)
+    if old:
+        csvio.write_table_atomic(out, names, table)
+    else:
+        outdir.write_dir(out, lambda tmp: csvio.write_table_atomic(tmp / TRAJECTORY, names, table))
     print(
         f"cond(W_b) {design['cond_initial']:.4g} -> {design['cond_final']:.4g} "
         f"({design['evaluations']} evaluations); limit usage per joint:"
@@ -178,5 +198,12 @@ def run(args: argparse.Namespace) -> int:
         for i, j in enumerate(robot.joint_names)
     ]
     print_table(["joint", "position", "velocity", "acceleration"], rows)
-    print(f"trajectory in {out} ({len(table)} samples over {args.duration:g} s)")
+    where = out if old else out / TRAJECTORY
+    print(f"trajectory in {where} ({len(table)} samples over {args.duration:g} s)")
+    if old:
+        new = ["prrrp", "excite", *deprecated.robot_options(args)]
+        for name, default in EXCITE_DEFAULTS:
+            new += deprecated.option(args, name, default)
+        new += ["--out", deprecated.folder_for(args.out)]
+        deprecated.notice(new, f"a folder: DIR/{TRAJECTORY}")
     return EXIT_OK

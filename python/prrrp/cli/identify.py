@@ -1,374 +1,515 @@
-"""``prrrp identify``: base parameters from a measurement file, printed and optionally written
-as JSON, and validated on another file."""
+"""``prrrp identify DATA [--robot ROBOT] --out DIR``: a robot (a URDF/TOML file, or the
+built-in ``paper``, the default) and a log (CSV or ROS 2 bag) → ``DIR/model.json``,
+``DIR/report.md`` and figures. The previous release's closed-form spelling is dispatched to
+:mod:`prrrp.cli.deprecated`."""
 
 from __future__ import annotations
 
 import argparse
-import functools
+import json
+import math
+import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 import prrrp
-from prrrp import csvio, paper, workflow
-from prrrp.cli import identify_robot
+from prrrp import bags, drawing, drives, model_report, outdir, prediction, workflow
+from prrrp import payload as payloads
+from prrrp.cli import deprecated
 from prrrp.cli.common import (
+    DEFAULT_ROBOT,
+    EXIT_FAILED,
     EXIT_OK,
     CliError,
     Progress,
-    attr,
-    check_output_file,
-    dump_json,
-    first_line,
+    add_robot_arguments,
+    friction_terms,
     nonempty_path,
-    options,
     print_table,
 )
+from prrrp.measurements import measurements_to_dataset, read_measurements
 
-#: Methods of the paper's arm (without --robot).
-PAPER_METHODS = ("wls", "ls", "adaline", "hopfield", "ekf", "all")
-METHOD_CHOICES = (*workflow.METHODS, "all")
-METHOD_KEYS = {
-    "wls": "weighted_least_squares",
-    "ls": "least_squares",
-    "adaline": "adaline",
-    "hopfield": "hopfield",
-    "ekf": "ekf",
-}
-#: What ``--method all`` runs on the paper's arm: the default, then the paper's four.
-PAPER_ALL = ("weighted_least_squares", *paper.METHODS)
-#: The method names of ``prrrp.identify`` by result key.
-METHOD_NAMES = {v: k for k, v in METHOD_KEYS.items()}
+#: The core's default cut-off (DEFAULT_LOG_CUTOFF_HZ), Hz, before the cap at a tenth of the
+#: output rate.
+DEFAULT_CUTOFF_HZ = 10.0
 
 
 def add_parser(sub: Any) -> None:
     p = sub.add_parser(
         "identify",
-        help="identify a robot's dynamic parameters from a measurement file",
-        description="Without --robot: the paper's arm. Reads DATA.csv (columns t, q1..q5, "
-        "tau1..tau5, optionally qd1..qd5 and qdd1..qdd5; SI units), filters and "
-        "differentiates it when velocities and accelerations are absent, runs the chosen "
-        "estimators and prints λ; with --validate, predicts the torques of VAL.csv with each "
-        "estimate. With --robot ROBOT (.urdf or .toml): any arm, from a CSV (t, q1..qN, "
-        "tau1..tauN, optional qd1..qdN, qdd1..qddN; time stamps may repeat) or a ROS 2 bag "
-        "(sensor_msgs/JointState matched by joint name); writes DIR/model.json "
-        "(DIR/model-<method>.json for --method all), DIR/report.md and figures.",
+        help="identify a robot's dynamic parameters from a measurement log",
+        description="Reads DATA, a CSV (t, q1..qN, tau1..tauN, optionally qd1..qdN and "
+        "qdd1..qddN; SI units; time stamps may repeat) or a ROS 2 bag (sensor_msgs/JointState "
+        "matched by joint name), resamples, filters and differentiates it, identifies the "
+        "robot's base parameters and friction with the chosen method, and writes "
+        "DIR/model.json (for `prrrp predict`; DIR/model-<method>.json each for --method "
+        "all), DIR/report.md and figures; with --validate, the torque errors on another log.",
+        epilog=deprecated.IDENTIFY_RULE,
     )
-    p.add_argument("data", metavar="DATA", help="measurement file (CSV, or a bag with --robot)")
+    p.add_argument("data", metavar="DATA", help="measurement log (CSV or ROS 2 bag)")
     p.add_argument(
         "--method",
-        choices=METHOD_CHOICES,
+        choices=(*workflow.METHODS, "all"),
         default=workflow.DEFAULT_METHOD,
         help="wls = least squares with each joint weighted by its residual noise, ls = "
         "ordinary least squares (the paper's), rls = recursive least squares, adaline = "
         "linear network (delta rule), hopfield = recurrent network, ekf = extended Kalman "
-        "filter, physical = physically consistent (every link "
-        "a rigid body; needs --robot, as rls does), or all = every method compared (with "
-        "--robot: model-<method>.json each, model.json the default's; the paper's arm: wls, "
-        "ls, adaline, hopfield, ekf); least squares print σ and cond(W) "
+        "filter, physical = physically consistent (every link a rigid body), or all = every "
+        "method compared (model-<method>.json each, model.json the default's) "
         f"(default: {workflow.DEFAULT_METHOD})",
     )
     p.add_argument(
         "--validate",
-        metavar="VAL.csv",
-        help="validation measurement file: each model's torque error against its measured "
-        "torque (default: none)",
+        metavar="VAL",
+        help="validation log: each model's torque error against its measured torque "
+        "(default: none)",
     )
     p.add_argument(
         "--out",
         type=nonempty_path,
-        metavar="RESULTS.json|DIR",
-        help="the paper's arm: write the estimates as JSON (default: print only); with "
-        "--robot: the output folder, required (built aside and swapped in whole; a symbolic "
-        "link is followed and kept)",
+        metavar="DIR",
+        help="the output folder (built aside and swapped in whole; a symbolic link is "
+        "followed and kept) (required, no default)",
     )
-    identify_robot.add_arguments(p)
+    add_arguments(p)
     p.set_defaults(func=run)
 
 
-def _load(path: str) -> dict[str, Any]:
-    """Reads a measurement file and preprocesses it when q̇, q̈ are absent; keeps the
-    measured time stamps and torque (``raw_t``, ``raw_tau``) that validation scores
-    against."""
-    raw = csvio.read_measurements(path)
-    if "qd" in raw:
-        return {**raw, "preprocessed": False, "raw_t": raw["t"], "raw_tau": raw["tau"]}
-    try:
-        data = prrrp.preprocess(raw["t"], raw["q"], raw["tau"])
-    except prrrp.TooFewSamplesError as e:
-        raise CliError(
-            f"{path}: too few samples ({len(raw['t'])}) for the preprocessing, which trims "
-            f"the filter's edge transient at each end: {e}"
-        ) from None
-    return {
-        "t": np.asarray(attr(data, "t")),
-        "q": np.asarray(attr(data, "q")),
-        "qd": np.asarray(attr(data, "qd")),
-        "qdd": np.asarray(attr(data, "qdd")),
-        "tau": np.asarray(attr(data, "tau")),
-        "preprocessed": True,
-        "raw_t": raw["t"],
-        "raw_tau": raw["tau"],
-    }
-
-
-def _rank_deficient(path: str, e: Exception) -> CliError:
-    cond = getattr(e, "cond", float("inf"))
-    rank = getattr(e, "rank", None)
-    params = getattr(e, "params", None)
-    rank_text = f"rank {rank} of {params}, " if rank is not None and params is not None else ""
-    return CliError(
-        f"{path}: the data does not excite every parameter: the observation matrix W is "
-        f"rank deficient ({rank_text}cond(W) = {cond:.3g}); record a richer motion "
-        "(see `prrrp simulate`)"
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    g = p.add_argument_group("robot and log")
+    add_robot_arguments(g)
+    g.add_argument(
+        "--friction",
+        metavar="TERMS",
+        default="viscous,coulomb,offset",
+        help="friction terms to identify, comma-separated from viscous, coulomb, offset, or "
+        "'none' (default: viscous,coulomb,offset)",
+    )
+    g.add_argument(
+        "--coulomb-scale",
+        metavar="auto|0|V",
+        default="auto",
+        help="speed scale v_s (rad/s) of the smooth Coulomb term fc·tanh(q̇/v_s): auto = "
+        "chosen from the data by cross-validation, 0 = exact sign (default: auto)",
+    )
+    g.add_argument(
+        "--armature",
+        action="store_true",
+        help="identify one rotor inertia (armature) per actuator: Ia·q̈ₘ through the coupling "
+        "of the robot file's [actuators] (default: as the robot file says)",
+    )
+    g.add_argument(
+        "--drive-gains",
+        metavar="K1,...,KN|FILE.json",
+        help="the log has motor currents i1..iN (A): joint-side drive gains, N·m/A per actuator "
+        "(torque constant × gear ratio), or a JSON file with them (a model.json of "
+        "--payload-run); torques are Cᵀ·(K∘i) (default: none, the log has torques tau1..tauN)",
+    )
+    g.add_argument(
+        "--payload-run",
+        metavar="LOADED",
+        help="identify the drive gains (Gautier & Briot): DATA and LOADED are current logs "
+        "(i1..iN) of the same trajectory without and with a payload of --payload-mass at the "
+        "tip; writes the gains with σ into model.json (instrumental variables, unbiased by "
+        "the currents' noise), the arm in N·m and DIR/payload.json (default: none, the "
+        "gains are given or the log has torques)",
+    )
+    g.add_argument(
+        "--payload-mass",
+        type=float,
+        metavar="KG",
+        help="the known mass of the payload of --payload-run (kg) (default: none; required "
+        "with --payload-run)",
+    )
+    g.add_argument(
+        "--motor-side",
+        action="store_true",
+        help="the log's positions and torques are motor-side: mapped to the joints through the "
+        "gear_ratios and coupling of the robot file's [actuators] (default: joint side)",
+    )
+    g.add_argument(
+        "--cutoff",
+        type=float,
+        metavar="HZ",
+        help="low-pass cut-off of the log, Hz; shapes the signals identification fits, "
+        "never the torque errors (scored against the measured torque) (default: "
+        f"min({DEFAULT_CUTOFF_HZ:g} Hz, output rate/10))",
+    )
+    g.add_argument(
+        "--rate",
+        type=float,
+        metavar="HZ",
+        help="resampling rate of the log, Hz (default: the log's median rate, or the "
+        "smallest whole multiple of --decimate at or above it)",
+    )
+    g.add_argument(
+        "--decimate",
+        type=float,
+        metavar="HZ",
+        help="output rate after filtering, Hz (default: none, every resampled sample kept)",
+    )
+    g.add_argument(
+        "--topic",
+        default=bags.DEFAULT_TOPIC,
+        help=f"JointState topic of a ROS 2 bag (default: {bags.DEFAULT_TOPIC})",
+    )
+    g.add_argument(
+        "--ekf-prior-width",
+        type=float,
+        metavar="W",
+        help="ekf: the filter starts from the weighted least-squares fit with covariance "
+        "W²·(its covariance); smaller W keeps the filter closer to the fit (default 3)",
+    )
+    g.add_argument(
+        "--ekf-noise",
+        type=float,
+        metavar="F",
+        help="ekf: factor on the measurement noise of positions (1e-3 rad) and velocities "
+        "(1e-2 rad/s); raise it when the filter diverges on noisy data (default 1)",
     )
 
 
-@functools.cache
-def lambda_map() -> np.ndarray:
-    """T, (8, 9): the paper's λ = T @ β for the base parameters β of
-    ``prrrp.identify(prrrp.Robot.paper(), ...)`` (the chain form's numerical analysis).
-
-    The chain's 9 base parameters span the paper's λ1..λ5, λ8, m4·lc4 + m5·l4 (λ6 and λ7
-    are l2 and l3 times it) and the lateral first moments my3 and my4 + my5, which the
-    paper's model sets to 0. So Y_b(x)·β = Φ(x)·λ + Y_lat(x)·μ at every state x, and T is
-    the λ rows of the exact solution of [Φ | Y_lat]·[T; L] = Y_b over random states (the
-    residual is checked to be round-off: the map is an identity, not a fit)."""
-    chain = prrrp.SerialChain.paper()
-    base = chain.base_parameters()
-    rng = np.random.default_rng(0)
-    q, qd, qdd = rng.uniform(-1.0, 1.0, size=(3, 64, prrrp.NDOF))
-    phi = np.asarray(prrrp.regressor(q, qd, qdd)).reshape(-1, prrrp.NPARAM)
-    y = np.asarray(chain.regressor(q, qd, qdd)).reshape(len(q) * prrrp.NDOF, -1)
-    names = list(base.names)
-    lateral = np.stack(
-        [y[:, names.index("my3")], y[:, names.index("my4")] + y[:, names.index("my5")]], axis=1
-    )
-    yb = np.asarray(chain.base_regressor(q, qd, qdd)).reshape(-1, base.count)
-    a = np.hstack([phi, lateral])
-    sol, *_ = np.linalg.lstsq(a, yb, rcond=None)
-    if not np.allclose(a @ sol, yb, rtol=0.0, atol=1e-9 * np.abs(yb).max()):
-        raise RuntimeError("the chain's base parameters do not map onto the paper's λ")
-    return sol[: prrrp.NPARAM]
-
-
-def _identify(method: str, data: dict[str, Any], path: str) -> dict[str, Any]:
-    """``prrrp.identify(prrrp.Robot.paper(), data, method)`` with its defaults (the same
-    as ``prrrp identify --robot``), reported in the paper's λ (:func:`lambda_map`), with
-    σ from the model's covariance where the method gives one (LS, EKF)."""
-    ds = prrrp.Dataset(data["t"], data["q"], data["qd"], data["qdd"], data["tau"])
+def _coulomb_scale(text: str) -> str | float:
+    if text == "auto":
+        return text
     try:
-        model = prrrp.identify(prrrp.Robot.paper(), ds, method)
-    except prrrp.RankDeficientError as e:
-        raise _rank_deficient(path, e) from None
-    t = lambda_map()
-    lam = t @ np.asarray(model.beta)
-    out: dict[str, Any] = {
-        "method": METHOD_KEYS[method],
-        "lambda": lam.tolist(),
-        "converged": bool(model.converged),
-        "epochs": model.epochs,
-    }
-    cov = model.covariance
-    if cov is not None:
-        std = np.sqrt(np.maximum(np.diag(t @ np.asarray(cov) @ t.T), 0.0))
-        out["std"] = std.tolist()
-        out["rsd_percent"] = (100.0 * std / np.abs(lam)).tolist()
-    if method in ("ls", "wls"):
-        n = len(data["t"])
-        rms = np.asarray(model.residual_rms)
-        out["cond"] = model.cond
-        out["sigma2"] = float(n * np.sum(rms**2) / (n * prrrp.NDOF - len(model.beta)))
+        v = float(text)
+    except ValueError:
+        raise CliError(f"--coulomb-scale must be auto or a number (rad/s), got {text!r}") from None
+    if not (math.isfinite(v) and v >= 0):
+        raise CliError(f"--coulomb-scale must be finite and >= 0 rad/s, got {text}")
+    return v
+
+
+def _ekf_settings(args: argparse.Namespace) -> dict[str, float]:
+    """The EKF's settings from --ekf-prior-width and --ekf-noise (checked)."""
+    out: dict[str, float] = {}
+    for flag, v in (("--ekf-prior-width", args.ekf_prior_width), ("--ekf-noise", args.ekf_noise)):
+        if v is not None and not (math.isfinite(v) and v > 0):
+            raise CliError(f"{flag} must be finite and > 0, got {v}")
+    if args.ekf_prior_width is not None:
+        out["least_squares_prior_width"] = args.ekf_prior_width
+    if args.ekf_noise is not None:
+        out["position_noise"] = 1e-3 * args.ekf_noise
+        out["velocity_noise"] = 1e-2 * args.ekf_noise
     return out
-
-
-def _estimate(method: str, data: dict[str, Any], path: str) -> dict[str, Any]:
-    """One estimator's result; an estimate that is not finite (data whose magnitudes
-    overflow the arithmetic, e.g. τ = 1e308 on some rows) is a usage error (exit 2)."""
-    try:
-        result = _identify(method, data, path)
-    except prrrp.NonFiniteError as e:
-        raise CliError(f"{path}: {method}: {first_line(e)}") from None
-    lam = np.asarray(result["lambda"], dtype=float)
-    if not np.all(np.isfinite(lam)):
-        raise CliError(
-            f"{path}: {method}: the estimate is not finite; the data holds values too large "
-            "to compute with (remove or rescale those rows)"
-        )
-    return result
-
-
-def _validate(estimates: list[dict[str, Any]], data: dict[str, Any]) -> list[dict[str, Any]]:
-    """Torque prediction on validation data: τ̂ = Φ(q, q̇, q̈)·λ̂ on the (processed) states,
-    mapped to the measured rows, against the torque as measured there (never the low-passed
-    torque the preprocessing makes). Rows in the filter's edge transient (outside the
-    processed span) are not scored: :func:`_scored_rows`."""
-    phi = prrrp.regressor(data["q"], data["qd"], data["qdd"])
-    rows = _scored_rows(data)
-    t_rows, tau = data["raw_t"][rows], data["raw_tau"][rows]
-    tau_rms = np.sqrt(np.mean(tau**2, axis=0))
-    out = []
-    for e in estimates:
-        pred = phi @ np.asarray(e["lambda"], dtype=float)
-        at_rows = np.column_stack(
-            [np.interp(t_rows, data["t"], pred[:, j]) for j in range(pred.shape[1])]
-        )
-        err = at_rows - tau
-        rms = np.sqrt(np.mean(err**2, axis=0))
-        rel = np.where(tau_rms > 0, 100.0 * rms / np.where(tau_rms > 0, tau_rms, 1.0), np.nan)
-        out.append(
-            {
-                "method": e["method"],
-                "torque_rms": rms.tolist(),
-                "torque_relative_percent": rel.tolist(),
-                "rows_scored": int(rows.sum()),
-                "rows": len(rows),
-            }
-        )
-    return out
-
-
-def _scored_rows(data: dict[str, Any]) -> np.ndarray:
-    """The measured rows a prediction is scored at: those within the processed data's time
-    span (the preprocessing trims the filter's edge transient at each end)."""
-    t = data["raw_t"]
-    return (t >= data["t"][0]) & (t <= data["t"][-1])
-
-
-def _label(e: dict[str, Any]) -> str:
-    """The method's column title; a method that did not meet its stopping rule is flagged
-    on every number it prints, so that it is not read as a converged estimate."""
-    label = paper.METHOD_LABELS.get(e["method"], e["method"])
-    return label if e.get("converged", True) else f"{label} (NOT CONVERGED)"
-
-
-def _print_estimates(estimates: list[dict[str, Any]], truth: np.ndarray) -> None:
-    header = ["λ", "unit"]
-    for e in estimates:
-        header.append(_label(e))
-        if e.get("std") is not None:
-            header += ["σ", "%σ"]
-    header.append("paper robot")
-    rows = []
-    for i in range(prrrp.NPARAM):
-        row = [f"λ{i + 1}", paper.PARAMETER_UNITS[i]]
-        for e in estimates:
-            mark = "" if e.get("converged", True) else "?"
-            row.append(f"{e['lambda'][i]:.6g}{mark}")
-            if e.get("std") is not None:
-                row += [f"{e['std'][i]:.3g}", f"{e['rsd_percent'][i]:.3g}"]
-        row.append(f"{truth[i]:.6g}")
-        rows.append(row)
-    print_table(header, rows)
-    status = [
-        [
-            _label(e),
-            "yes" if e.get("converged", True) else "NO",
-            "-" if e.get("epochs") is None else str(e["epochs"]),
-        ]
-        for e in estimates
-    ]
-    print_table(["method", "converged", "epochs"], status)
-    for e in estimates:
-        if not e.get("converged", True):
-            print(
-                f"warning: {_label(e)} did not meet its stopping rule within its epoch cap; "
-                "its λ (marked ?) is not at the method's optimum"
-            )
-    for e in estimates:
-        if e.get("cond") is not None:
-            print(
-                f"{_label(e)}: cond(W) = {e['cond']:.4g}; "
-                f"torque residual variance σ² = {e['sigma2']:.4g}"
-            )
 
 
 def run(args: argparse.Namespace) -> int:
-    if args.robot:
-        return identify_robot.run(args)
-    robot_only = [
-        f"--{name.replace('_', '-')}"
-        for name, default in (
-            ("cutoff", None),
-            ("rate", None),
-            ("decimate", None),
-            ("friction", "viscous,coulomb,offset"),
-            ("coulomb_scale", "auto"),
-            ("ekf_prior_width", None),
-            ("ekf_noise", None),
-        )
-        if getattr(args, name) != default
-    ]
-    if robot_only:
-        raise CliError(
-            f"{' and '.join(robot_only)} {'apply' if len(robot_only) > 1 else 'applies'} to "
-            "--robot ROBOT (the paper's arm is "
-            "preprocessed at its own 5 Hz and has no friction terms)"
-        )
-    if args.method not in PAPER_METHODS:
-        raise CliError(
-            f"--method {args.method} needs --robot (the paper's arm has {options(PAPER_METHODS)})"
-        )
-    out = Path(args.out) if args.out else None
-    if out is not None:
-        check_output_file(out)
-    data = _load(args.data)
-    val = _load(args.validate) if args.validate else None
-    methods = list(PAPER_ALL) if args.method == "all" else [METHOD_KEYS[args.method]]
-    methods = [METHOD_NAMES[m] for m in methods]
+    if deprecated.identify_spelling(args):
+        return deprecated.identify(args)
+    if not args.out:
+        raise CliError("--out DIR is required (the model, report and figures)")
+    out = Path(args.out)
+    outdir.check(out)
+    args.robot = args.robot or DEFAULT_ROBOT
+    robot = workflow.load_robot(
+        args.robot,
+        base=args.base,
+        tip=args.tip,
+        friction=friction_terms(args.friction),
+        armature=True if args.armature else None,
+    )
+    scale = _coulomb_scale(args.coulomb_scale)
+    pre = {"cutoff_hz": args.cutoff, "rate_hz": args.rate, "decimate_to_hz": args.decimate}
+    if args.payload_run or args.payload_mass is not None:
+        return _run_drive_gains(args, robot, scale, pre, out)
+    gains = None if args.drive_gains is None else drives.parse_gains(args.drive_gains, robot.dof)
+    conversion = {"drive_gains": gains, "motor_side": args.motor_side}
+    record = drives.record(gains, args.motor_side)
+    raw = read_measurements(args.data, robot, topic=args.topic, **conversion)
+    val_raw = (
+        read_measurements(args.validate, robot, topic=args.topic, **conversion)
+        if args.validate
+        else None
+    )
+    methods = list(workflow.METHODS) if args.method == "all" else [args.method]
+    # matplotlib's import (longer than drawing the figures) runs while the identification,
+    # which releases the GIL, computes; the figures wait for it, a failed or interrupted
+    # run does not (Ctrl-C answers at once).
+    drawing.preload()
+    ekf = _ekf_settings(args)
     progress = Progress()
-    estimates: list[dict[str, Any]] = []
     try:
-        for k, method in enumerate(methods):
-            progress("identify", k, len(methods))
-            estimates.append(_estimate(method, data, args.data))
-        progress("identify", len(methods), len(methods))
+        if len(methods) == 1:
+            # One method asked for: its failure is the command's (typed, with its exit code).
+            t0 = time.perf_counter()
+            result = workflow.identify_measurements(
+                robot,
+                raw,
+                methods[0],
+                coulomb_scale=scale,
+                preprocessing=pre,
+                drives=record,
+                **(ekf if methods[0] == "ekf" else {}),
+            )
+            method_runs = [workflow.MethodRun(methods[0], result, None, time.perf_counter() - t0)]
+        else:
+            method_runs = workflow.identify_methods(
+                robot,
+                raw,
+                methods,
+                coulomb_scale=scale,
+                preprocessing=pre,
+                drives=record,
+                progress=lambda k, total: progress("identify", k, total),
+                per_method={"ekf": ekf},
+            )
     finally:
         progress.close()
-    truth = prrrp.Robot.paper().base_parameters()
-    print(
-        f"{args.data}: {len(data['t'])} samples"
-        + (" (after preprocessing)" if data["preprocessed"] else "")
-    )
-    _print_estimates(estimates, truth)
-    validation = None
-    if val is not None:
-        validation = _validate(estimates, val)
-        scored = _scored_rows(val)
-        edge = "" if scored.all() else f"; {int((~scored).sum())} in the filter's edge transient"
-        print(
-            f"\nvalidation on {args.validate}: torque-prediction error per joint against the "
-            f"measured torque (RMS, and % of the measured torque's RMS; {int(scored.sum())} of "
-            f"{len(scored)} rows scored{edge})"
+    runs = {r.method: r.result for r in method_runs if r.result is not None}
+    if not runs:
+        raise CliError(
+            "every method failed: " + "; ".join(f"{r.method}: {r.error}" for r in method_runs),
+            code=EXIT_FAILED,
         )
-        header = [
-            "method",
-            *(f"{j} ({u})" for j, u in zip(paper.FORCES, paper.FORCE_UNITS, strict=True)),
-        ]
-        rows = [
-            [
-                paper.METHOD_LABELS.get(v["method"], v["method"]),
-                *(
-                    f"{x:.4g} ({p:.3g}%)"
-                    for x, p in zip(v["torque_rms"], v["torque_relative_percent"], strict=True)
-                ),
-            ]
-            for v in validation
-        ]
-        print_table(header, rows)
-    if out is not None:
-        result = {
-            "data": str(args.data),
-            "samples": len(data["t"]),
-            "preprocessed": data["preprocessed"],
-            "estimates": estimates,
-            "validation": (
-                {"data": str(args.validate), "samples": len(val["t"]), "methods": validation}
-                if val is not None
-                else None
-            ),
-        }
-        csvio.write_atomic(out, lambda p: dump_json(result, p))
-        print(f"results in {out}")
+    default = workflow.DEFAULT_METHOD
+    main = runs.get(default) or next(iter(runs.values()))
+    settings = main.model.preprocessing.get("settings") or {}
+    # Prepared once: every method is scored on the same rows of the same logs.
+    fit_grid = prediction.prepare(raw, settings, identified=(main.data, main.log_report))
+    val_grid = prediction.prepare(val_raw, settings) if val_raw is not None else None
+    table = _comparison_rows(method_runs, fit_grid, val_grid)
+
+    def build(tmp: Path) -> list[Path]:
+        written = []
+        for method, r in runs.items():
+            name = "model.json" if len(methods) == 1 else f"model-{method}.json"
+            r.model.save(tmp / name)
+            written.append(tmp / name)
+        if len(methods) > 1:
+            main.model.save(tmp / "model.json")
+            written.append(tmp / "model.json")
+        sources = {"robot": str(args.robot), "data": str(args.data)}
+        if args.validate:
+            sources["validation"] = str(args.validate)
+        comparison: list[str] = []
+        figures: list[tuple[str, str]] = []
+        # Every text file first, then the figures: model.json and report.md never wait.
+        drawings: list[Callable[[], object]] = []
+        if len(methods) > 1:
+            joints = list(robot.joint_names)
+            drawings.append(
+                lambda: model_report.comparison_figure(table, joints, tmp / "methods.png")
+            )
+            figures.append(("methods.png", "Torque error per joint and method"))
+            comparison = model_report.comparison_section(
+                table, joints, main.model.method, "methods.png", default
+            )
+        written += model_report.write_report(
+            main.model,
+            tmp,
+            fit_grid,
+            validation=val_grid,
+            log_report=main.log_report,
+            coulomb=main.coulomb,
+            sources=sources,
+            comparison=comparison,
+            figures=figures,
+            drawings=drawings,
+        )
+        physical = runs.get("physical")
+        if physical is not None:
+            (tmp / "robot.urdf").write_text(physical.model.to_urdf(), encoding="utf-8")
+            written.append(tmp / "robot.urdf")
+            identified = physical.model.robot
+            act = identified.actuators
+            if act["coupling"] is not None or act["armature"] or act["gear_ratios"] is not None:
+                # What URDF cannot hold (a coupling, per-actuator friction) goes to a TOML
+                # robot file that takes its links from robot.urdf.
+                text = identified.to_toml("robot.urdf", physical.model.standard_parameters)
+                (tmp / "robot.toml").write_text(text, encoding="utf-8")
+                written.append(tmp / "robot.toml")
+            if physical is not main:
+                report_dir = tmp / "physical"
+                report_dir.mkdir()
+                written += model_report.write_report(
+                    physical.model,
+                    report_dir,
+                    fit_grid,
+                    validation=val_grid,
+                    log_report=physical.log_report,
+                    coulomb=physical.coulomb,
+                    sources=sources,
+                    drawings=drawings,
+                )
+        for draw in drawings:
+            draw()
+        return written
+
+    written = outdir.write_dir(out, build)
+    _summary(main, table, fit_grid, val_grid)
+    names = "model-<method>.json, model.json" if len(methods) > 1 else "model.json"
+    print(f"results in {out}/ ({len(written)} files: {names}, report.md, figures)")
     return EXIT_OK
+
+
+def _run_drive_gains(
+    args: argparse.Namespace,
+    robot: Any,
+    scale: str | float,
+    pre: dict[str, Any],
+    out: Path,
+) -> int:
+    """``--payload-run``: drive gains, arm and payload from two current logs."""
+    if not args.payload_run or args.payload_mass is None:
+        raise CliError("--payload-run LOADED and --payload-mass KG go together")
+    mass = args.payload_mass
+    if not (math.isfinite(mass) and mass > 0):
+        raise CliError(f"--payload-mass must be a positive number of kg, got {mass}")
+    if args.drive_gains is not None:
+        raise CliError("--payload-run identifies the drive gains: drop --drive-gains")
+    if args.method not in (workflow.DEFAULT_METHOD, "wls"):
+        raise CliError(
+            "--payload-run has its own estimator (instrumental variables): drop --method"
+        )
+    conversion = {"motor_side": args.motor_side, "currents": True}
+    raw_u = read_measurements(args.data, robot, topic=args.topic, **conversion)
+    raw_l = read_measurements(args.payload_run, robot, topic=args.topic, **conversion)
+    progress = Progress()
+    try:
+        progress("identify", 0, 2)
+        # The unloaded run in current units: the Coulomb speed scale and the base analysis.
+        start = workflow.identify_measurements(
+            robot,
+            raw_u,
+            "wls",
+            coulomb_scale=scale,
+            preprocessing=pre,
+            drives={"drive_gains": None, "motor_side": bool(args.motor_side), "identified": True},
+        )
+        loaded, _ = measurements_to_dataset(raw_l, pre)
+        progress("identify", 1, 2)
+        arm, payload, _naive = payloads.drive_gains(start.model, start.data, loaded, mass)
+        progress("identify", 2, 2)
+    finally:
+        progress.close()
+    gains = arm.drive_gains
+    d = start.data
+    tau = arm.robot.joint_torques_from_currents(np.asarray(d.tau), np.asarray(gains["values"]))
+    data = prrrp.Dataset(d.t, d.q, d.qd, d.qdd, np.asarray(tau))
+    run = workflow.Identification(arm, data, start.log_report, start.coulomb)
+    joints = list(arm.robot.joint_names)
+
+    def build(tmp: Path) -> list[Path]:
+        arm.save(tmp / "model.json")
+        (tmp / "payload.json").write_text(
+            json.dumps(payload, indent=1, allow_nan=False) + "\n", encoding="utf-8"
+        )
+        sources = {
+            "robot": str(args.robot),
+            "unloaded run": str(args.data),
+            "loaded run": str(args.payload_run),
+        }
+        written = [tmp / "model.json", tmp / "payload.json"]
+        written += run.report(tmp, sources=sources)
+        lines = [
+            "",
+            f"## Drive gains (payload of {mass:g} kg)",
+            "",
+            *payloads.gain_lines(gains, joints),
+            "",
+            "Instrumental variables (the currents instrumented by those the model predicts "
+            "from the positions); the naive least squares, with the noisy currents in the "
+            "regressor, is biased towards smaller gains. A gain is identifiable when σ is at "
+            f"most {100 * arm.settings.get('max_relative_sigma', 0.05):.3g} % of it.",
+            "",
+        ]
+        with (tmp / "report.md").open("a", encoding="utf-8") as f:
+            f.write("\n".join(lines))
+        return written
+
+    written = outdir.write_dir(out, build)
+    rows = []
+    for j, name in enumerate(joints):
+        ok = gains["identifiable"][j]
+        value = f"{gains['values'][j]:.4g}" if ok else "not identifiable"
+        rows.append([name, value, f"{gains['sigma'][j]:.2g}"])
+    print(f"drive gains (N·m/A) from {args.data} and {args.payload_run} ({mass:g} kg payload):")
+    print_table(["actuator of", "K", "σ"], rows)
+    bad = [joints[j] for j, ok in enumerate(gains["identifiable"]) if not ok]
+    if bad:
+        print(
+            f"warning: the runs do not determine the gains of {', '.join(bad)} (σ above the "
+            "threshold; e.g. an axis the payload's weight never loads): the model's torques "
+            "there are in doubt; give them with --drive-gains if known"
+        )
+    print(f"results in {out}/ ({len(written)} files: model.json, payload.json, report.md)")
+    return EXIT_OK
+
+
+def _comparison_rows(
+    method_runs: list[workflow.MethodRun],
+    fit: prediction.LogGrid,
+    val: prediction.LogGrid | None,
+) -> list[dict[str, Any]]:
+    """One row per method: status, convergence, time and its error tables."""
+    rows = []
+    for r in method_runs:
+        row: dict[str, Any] = {"method": r.method, "seconds": r.seconds, "error": r.error}
+        if r.result is None:
+            row.update(status="failed", converged=None, epochs=None)
+            row.update(identification=None, validation=None)
+        else:
+            model = r.result.model
+            row.update(status="ok", converged=bool(model.converged), epochs=model.epochs)
+            row["identification"] = fit.errors(fit.predict(model))
+            row["validation"] = val.errors(val.predict(model)) if val is not None else None
+        rows.append(row)
+    return rows
+
+
+def _converged(row: dict[str, Any]) -> str:
+    """'yes' (with the epochs of the gradient methods) or 'NO' for the summary table."""
+    epochs = f" ({row['epochs']} epochs)" if row["epochs"] is not None else ""
+    return ("yes" if row["converged"] else "NO") + epochs
+
+
+def _summary(
+    main: workflow.Identification,
+    table: list[dict[str, Any]],
+    fit: prediction.LogGrid,
+    val: prediction.LogGrid | None,
+) -> None:
+    robot = main.model.robot
+    d = main.data
+    print(f"{robot.name}: {robot.dof} joints, {len(d)} samples over {d.duration:.3g} s")
+    if main.coulomb is not None:
+        note = main.coulomb.get("note")
+        identified = main.coulomb.get("identifiable", not note)
+        print(
+            f"Coulomb speed scale v_s = {main.coulomb['chosen']:.4g} rad/s"
+            + (" (chosen by cross-validation)" if identified else f": NOT IDENTIFIABLE: {note}")
+        )
+    which, grid = ("validation", val) if val is not None else ("identification", fit)
+    header = ["method", "converged", "time (s)", *list(robot.joint_names)]
+    rows = []
+    for r in table:
+        if r["status"] != "ok":
+            continue
+        errors = r[which]
+        rows.append(
+            [r["method"], _converged(r), f"{r['seconds']:.3g}"]
+            + [f"{x:.3g}%" for x in errors["percent"]]
+        )
+    print(
+        f"torque-prediction error on the {which} data, % of the measured torque's RMS "
+        f"({grid.describe()}):"
+    )
+    print_table(header, rows)
+    for r in table:
+        if r["status"] == "ok" and not r["converged"]:
+            print(
+                f"warning: {r['method']} did not meet its stopping rule within {r['epochs']} "
+                "epochs; its model is not at the method's optimum (raise max_epochs or use wls)"
+            )
+    for r in table:
+        if r["status"] != "ok":
+            print(f"{r['method']}: failed: {r['error']}")
+    if len(table) > 1:
+        default = workflow.DEFAULT_METHOD
+        why = "" if main.model.method == default else f" (the default, {default}, failed)"
+        print(f"model.json is the {main.model.method} model{why}")

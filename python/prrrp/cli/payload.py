@@ -22,7 +22,7 @@ def add_parser(sub: Any) -> None:
         help="identify the payload an identified arm carries",
         description="Fits the payload's mass, centre of mass and inertia (about the centre of "
         "mass) at the tip link from the torque that the arm model ARM.json (written by "
-        "`prrrp identify --robot`) does not explain in LOADED, a run with the payload (CSV or "
+        "`prrrp identify --out DIR`) does not explain in LOADED, a run with the payload (CSV or "
         "ROS 2 bag, read and preprocessed as the arm model recorded), with the arm's friction "
         "re-fitted. The result is physically consistent; a quantity the run cannot determine is "
         "reported as not identifiable. Writes DIR/payload.json, DIR/model.json (arm + "

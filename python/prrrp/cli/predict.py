@@ -25,7 +25,7 @@ def add_parser(sub: Any) -> None:
     p = sub.add_parser(
         "predict",
         help="joint torques of an identified model for recorded states",
-        description="Loads MODEL.json (written by `prrrp identify --robot ... --out DIR`) and "
+        description="Loads MODEL.json (written by `prrrp identify DATA --out DIR`) and "
         "writes the model's joint torques at every row of DATA (a CSV file t, q1..qN and "
         "optionally tau1..tauN, qd1..qdN, qdd1..qddN, or a ROS 2 bag) as t, tau1..tauN, edge: "
         "the time stamps of DATA, row for row. When DATA has qd and qdd columns they are used "

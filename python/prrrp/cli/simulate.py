@@ -1,5 +1,8 @@
-"""``prrrp simulate``: an optimised excitation run on the simulated paper robot, written as a
-measurement CSV."""
+"""``prrrp simulate [--robot ROBOT] [--trajectory TRAJ.csv] --out DIR``: a robot (the built-in
+``paper`` by default) tracking a trajectory in closed loop, with sensor noise →
+``DIR/data.csv``; without ``--trajectory`` an exciting one is designed first
+(``DIR/trajectory.csv``). The previous release's one-file spelling is dispatched to
+:mod:`prrrp.cli.deprecated`."""
 
 from __future__ import annotations
 
@@ -10,110 +13,186 @@ from typing import Any
 
 import numpy as np
 
-import prrrp
-from prrrp import csvio
-from prrrp.cli import simulate_robot
+from prrrp import csvio, outdir, workflow
+from prrrp.cli import deprecated, excite
 from prrrp.cli.common import (
+    DEFAULT_ROBOT,
+    EXIT_FAILED,
     EXIT_OK,
     CliError,
     Progress,
-    attr,
-    check_output_file,
+    add_robot_arguments,
+    friction_terms,
     nonempty_path,
     seed,
 )
+from prrrp.cli.deprecated import DEFAULT_Q_NOISE, DEFAULT_TAU_NOISE, reference_for
 
-#: The core's default sensor noise (prrrp_core::SensorNoise::default): standard deviations
-#: of the measured positions (m, rad) and generalised forces (N, N·m) per joint. ``--noise``
-#: scales both.
-DEFAULT_Q_NOISE = (1e-5, 1e-4, 1e-4, 1e-4, 1e-5)
-DEFAULT_TAU_NOISE = (0.5, 0.03, 0.015, 0.007, 0.05)
+__all__ = [
+    "DEFAULT_Q_NOISE",
+    "DEFAULT_TAU_NOISE",
+    "MAX_TRACKING_ERROR",
+    "add_parser",
+    "reference_for",
+    "run",
+]
+
+#: Default bound on the largest tracking error |q - q_ref| of a simulated run, rad or m.
+#: The robot's own model tracks to a few milliradians (the controller's 1 kHz zero-order
+#: hold, brief sticking at reversals under Coulomb friction): 3.7e-3 rad on a UR5-like arm
+#: with a 1.5e-4 kg·m² wrist and 0.4 N·m of Coulomb friction, below 5e-3 on the Panda.
+#: A run off by more does not follow its trajectory and its data would mislead.
+MAX_TRACKING_ERROR = workflow.MAX_TRACKING_ERROR
+#: The designed trajectory's duration without --trajectory, s (as `prrrp excite`).
+DEFAULT_DURATION_S = 10.0
 
 
 def add_parser(sub: Any) -> None:
     p = sub.add_parser(
         "simulate",
-        help="write a simulated measurement file (CSV) of the paper's arm or any robot",
-        description="Optimises an excitation trajectory, runs it on the simulated paper robot "
-        "under PD control with sensor noise, and writes the measured t, q1..q5, tau1..tau5 as "
-        "CSV (SI units: s, m/rad, N/N·m) for `prrrp identify`.",
+        help="simulate a robot's measurement log along a trajectory (DIR/data.csv)",
+        description="Runs the robot (its file's inertials and friction) along TRAJ.csv, or "
+        "along an exciting trajectory designed first as `prrrp excite` does, under computed-"
+        "torque control with sensor noise, and writes DIR/data.csv (t, q1..qN, tau1..tauN; "
+        "SI units) for `prrrp identify`, and DIR/trajectory.csv when it designed one.",
+        epilog=deprecated.SIMULATE_RULE,
     )
     p.add_argument(
-        "--out", required=True, type=nonempty_path, metavar="DATA.csv", help="CSV file to write"
+        "--out",
+        required=True,
+        type=nonempty_path,
+        metavar="DIR",
+        help="the output folder (built aside and swapped in whole)",
     )
+    add_robot_arguments(p)
     p.add_argument(
-        "--seed", type=seed, default=0, help="seed of the excitation and noise (default: 0)"
-    )
-    p.add_argument(
-        "--noise",
-        type=float,
-        default=1.0,
-        metavar="SCALE",
-        help="multiplies the default sensor noise (std 1e-5 m / 1e-4 rad on positions, "
-        "0.5 N .. 0.007 N·m on forces); 0 = noise-free (default: 1)",
+        "--trajectory",
+        metavar="TRAJ.csv",
+        help="reference t, q1..qN, qd1..qdN, qdd1..qddN at a uniform rate (from `prrrp "
+        "excite`) (default: none, one is designed: 100 Hz, 5 harmonics)",
     )
     p.add_argument(
         "--duration",
         type=float,
         default=None,
         metavar="S",
-        help="simulated time, s (default: the excitation's duration, 10 s; longer: the "
-        "excitation is played forward and backward in turn, see Excitation.reflected)",
+        help="seconds of the designed trajectory; not with --trajectory, whose file sets it "
+        f"(default: {DEFAULT_DURATION_S:g})",
     )
-    simulate_robot.add_arguments(p)
+    p.add_argument(
+        "--seed", type=seed, default=0, help="seed of the design and the noise (default: 0)"
+    )
+    p.add_argument(
+        "--noise",
+        type=float,
+        default=1.0,
+        metavar="SCALE",
+        help=f"multiplies the sensor noise (std {workflow.DEFAULT_Q_NOISE:g} rad or m on "
+        f"positions, {workflow.DEFAULT_TAU_NOISE:g} N·m or N on torques); 0 = noise-free "
+        "(default: 1)",
+    )
+    p.add_argument(
+        "--max-tracking-error",
+        type=float,
+        default=MAX_TRACKING_ERROR,
+        metavar="E",
+        help="largest |q - q_ref| allowed anywhere in the run, rad or m; a run that strays "
+        "further is an error and writes nothing (default: %(default)g). The simulated "
+        "controller is computed torque with the robot's own model, friction compensated "
+        "from the reference velocity",
+    )
     p.set_defaults(func=run)
 
 
-def _noise(scale: float) -> tuple[Any, Any]:
-    if scale == 1.0:
-        return None, None  # the core's defaults
-    return (
-        scale * np.asarray(DEFAULT_Q_NOISE, dtype=float),
-        scale * np.asarray(DEFAULT_TAU_NOISE, dtype=float),
+def _trajectory(args: argparse.Namespace, robot: Any) -> tuple[dict[str, np.ndarray], bool]:
+    """The reference to track, and whether it was designed here (no --trajectory)."""
+    if args.trajectory:
+        if args.duration is not None:
+            raise CliError("--duration is not used with --trajectory: the trajectory file sets it")
+        traj = csvio.read_table(args.trajectory, robot.dof, need_tau=False)
+        if "qd" not in traj or "qdd" not in traj:
+            raise CliError(f"{args.trajectory}: a trajectory needs qd1..qdN and qdd1..qddN columns")
+        return traj, False
+    duration = DEFAULT_DURATION_S if args.duration is None else args.duration
+    if not (math.isfinite(duration) and duration > 0):
+        raise CliError(f"--duration must be a positive number of seconds, got {duration}")
+    # Designed as `prrrp excite` does by default: friction columns in W_b (the simulated
+    # robot keeps its file's friction values).
+    design_robot = workflow.load_robot(
+        args.robot, base=args.base, tip=args.tip, friction=friction_terms(excite.DEFAULT_FRICTION)
     )
-
-
-def reference_for(excitation: Any, duration: float) -> Any:
-    """The reference a recording of ``duration`` s follows: the excitation itself, or, for a
-    recording longer than it, the excitation played forward and backward in turn (it
-    starts and ends at rest, so the reflection is C² and stays within the same limits;
-    a longer recording sees the same motion again rather than a gentler one)."""
-    if duration > excitation.duration * (1 + 1e-9):
-        return excitation.reflected()
-    return excitation
-
-
-def run(args: argparse.Namespace) -> int:
-    if args.robot:
-        return simulate_robot.run(args)
-    out = Path(args.out)
-    check_output_file(out)
-    if not (math.isfinite(args.noise) and args.noise >= 0):
-        raise CliError(f"--noise must be a finite number >= 0, got {args.noise}")
-    if args.duration is not None and not (math.isfinite(args.duration) and args.duration > 0):
-        raise CliError(f"--duration must be a positive number of seconds, got {args.duration}")
     progress = Progress()
     try:
-        excitation = prrrp.optimise_excitation(
+        design = workflow.excite(
+            design_robot,
+            duration,
             seed=args.seed,
-            progress=lambda done, total, *_: progress("excitation", done, total),
+            progress=lambda done, total: progress("excitation", done, total),
         )
     finally:
         progress.close()
-    duration = args.duration if args.duration is not None else attr(excitation, "duration", 10.0)
-    q_noise, tau_noise = _noise(args.noise)
-    rec = prrrp.simulate_closed_loop(
-        reference_for(excitation, duration),
-        duration,
-        q_noise=q_noise,
-        tau_noise=tau_noise,
-        seed=args.seed,
-    )
-    text = csvio.format_measurements(rec["t"], rec["q_measured"], rec["tau_measured"])
-    csvio.write_text_atomic(out, text)
-    n = len(rec["t"])
+    return {k: design[k] for k in ("t", "q", "qd", "qdd")}, True
+
+
+def run(args: argparse.Namespace) -> int:
+    old = deprecated.file_spelling(args)
+    if old and not (args.robot or args.trajectory):
+        return deprecated.simulate_paper(args)
+    bound = args.max_tracking_error
+    if not (np.isfinite(bound) and bound > 0):
+        raise CliError(f"--max-tracking-error must be a positive number, got {bound}")
+    if not (math.isfinite(args.noise) and args.noise >= 0):
+        raise CliError(f"--noise must be a finite number >= 0, got {args.noise}")
+    out = Path(args.out)
+    if old:
+        deprecated.check_file(out)
+    else:
+        outdir.check(out)
+    args.robot = args.robot or DEFAULT_ROBOT
+    robot = workflow.load_robot(args.robot, base=args.base, tip=args.tip)
+    traj, designed = _trajectory(args, robot)
+    try:
+        rec = workflow.simulate(
+            robot, traj, noise=args.noise, seed=args.seed, max_tracking_error=bound
+        )
+    except workflow.TrackingError as e:
+        raise CliError(
+            f"the simulated {robot.name} strays {e.error:.3g} rad or m from the trajectory "
+            f"(joint {e.joint + 1}, {e.joint_name}, at t = {e.t:g} s), more than "
+            f"--max-tracking-error {bound:g}; no data written. Check the trajectory against "
+            "the robot's limits and its inertials and friction",
+            EXIT_FAILED,
+        ) from None
+    except ValueError as e:
+        if "prrrp" in type(e).__module__:
+            raise
+        raise CliError(f"{args.trajectory or 'the designed trajectory'}: {e}") from None
+    groups = csvio.columns(robot.dof)
+    data_names = ["t", *groups["q"], *groups["tau"]]
+    data = np.column_stack([rec["t"], rec["q"], rec["tau"]])
+    if old:
+        csvio.write_table_atomic(out, data_names, data)
+    else:
+
+        def build(tmp: Path) -> None:
+            csvio.write_table_atomic(tmp / "data.csv", data_names, data)
+            if designed:
+                names = ["t", *groups["q"], *groups["qd"], *groups["qdd"]]
+                table = np.column_stack([traj["t"], traj["q"], traj["qd"], traj["qdd"]])
+                csvio.write_table_atomic(tmp / "trajectory.csv", names, table)
+
+        outdir.write_dir(out, build)
+    where = out if old else out / "data.csv"
     print(
-        f"results in {out} ({n} samples over {duration:g} s; cond(W) of the excitation "
-        f"{attr(excitation, 'cond_initial'):.4g} -> {attr(excitation, 'cond_final'):.4g})"
+        f"results in {where} ({len(rec['t'])} samples of {robot.name}, {robot.dof} joints; "
+        f"largest tracking error {rec['tracking_error'].max():.2e} rad or m, bound "
+        f"{bound:g}; noise x{args.noise:g})"
     )
+    if old:
+        new = ["prrrp", "simulate", *deprecated.robot_options(args)]
+        new += [*deprecated.option(args, "trajectory"), *deprecated.option(args, "seed", 0)]
+        new += deprecated.option(args, "noise", 1.0)
+        new += ["--out", deprecated.folder_for(args.out)]
+        notice_what = "a folder: DIR/data.csv"
+        deprecated.notice(new, notice_what)
     return EXIT_OK

@@ -1,4 +1,4 @@
-"""``prrrp track DATA --robot ROBOT [--model PRIOR.json] [--payload] --out DIR``: the log fed
+"""``prrrp track DATA [--robot ROBOT] [--model PRIOR.json] [--payload] --out DIR``: the log fed
 to ``prrrp.OnlineIdentifier`` one row at a time, as it would be while the arm runs →
 ``DIR/model.json`` (the estimate at the end of the data), ``DIR/payload.json`` (payload
 mode), ``DIR/estimates.csv``, ``DIR/prediction.csv``, ``DIR/track.png`` and
@@ -16,7 +16,14 @@ import numpy as np
 
 import prrrp
 from prrrp import bags, csvio, outdir, workflow
-from prrrp.cli.common import EXIT_OK, CliError, Progress, friction_terms, nonempty_path
+from prrrp.cli.common import (
+    DEFAULT_ROBOT,
+    EXIT_OK,
+    CliError,
+    Progress,
+    friction_terms,
+    nonempty_path,
+)
 from prrrp.cli.predict import load_model
 from prrrp.measurements import read_measurements
 
@@ -44,7 +51,7 @@ def add_parser(sub: Any) -> None:
     p.add_argument(
         "--robot",
         metavar="ROBOT",
-        help='robot file (.urdf or .toml) or "paper" (default: the robot of --model)',
+        help='robot file (.urdf or .toml) or "paper" (default: the robot of --model, else paper)',
     )
     p.add_argument("--base", metavar="LINK", help="URDF: first link of the chain (default: root)")
     p.add_argument(
@@ -126,8 +133,6 @@ def run(args: argparse.Namespace) -> int:
     _positive("--ekf-noise", args.ekf_noise)
     if args.payload and not args.model:
         raise CliError("--payload tracks a load on a known arm: give its model with --model")
-    if not args.model and not args.robot:
-        raise CliError("give --robot ROBOT (or --model PRIOR.json, which carries its robot)")
     prior = load_model(args.model) if args.model else None
     if prior is not None:
         if args.robot:
@@ -135,7 +140,10 @@ def run(args: argparse.Namespace) -> int:
         robot = prior.robot
     else:
         robot = workflow.load_robot(
-            args.robot, base=args.base, tip=args.tip, friction=friction_terms(args.friction)
+            args.robot or DEFAULT_ROBOT,
+            base=args.base,
+            tip=args.tip,
+            friction=friction_terms(args.friction),
         )
     outdir.check(args.out)
     raw = read_measurements(args.data, robot, topic=args.topic)
