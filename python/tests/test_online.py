@@ -83,10 +83,13 @@ def _rel_error(m: prrrp.IdentifiedModel, val) -> np.ndarray:
         "rls",
         pytest.param(
             "ekf",
+            # Not strict: the payload EKF's result depends on round-off (1e-12 changes of
+            # its start move the mass from 2.5 kg to 0.002 kg on the Rust test's arm), so
+            # a pass here would be luck, not a fix; see tests/online.rs.
             marks=pytest.mark.xfail(
-                strict=True,
-                reason="known gap of issue 28: the payload EKF finds 2.24 kg for a 2 kg part "
-                "on this UR5 log (it meets 5 % on the Rust test's Panda-like arm)",
+                strict=False,
+                reason="known gap of issue 28: the payload EKF's mass depends on round-off "
+                "(2.24 kg for a 2 kg part on this UR5 log)",
             ),
         ),
     ],
