@@ -139,15 +139,19 @@ def envelope(x: np.ndarray, y: np.ndarray, columns: int) -> tuple[np.ndarray, np
     if not span > 0:
         return x, y
     col = np.minimum(((x - x[0]) / span * columns).astype(np.int64), columns - 1)
-    # Runs of equal column (x non-decreasing): the first of each run in an order sorted by
-    # (column, value) is that column's minimum; by (column, -value) its maximum. lexsort
-    # puts NaN last, so a NaN is chosen only by an all-NaN column.
-    first = np.r_[True, col[1:] != col[:-1]]
+    # Runs of equal column (x non-decreasing). Each run's extremes by one reduceat (fmin and
+    # fmax skip NaN), then the first sample of the run equal to it: O(S), where sorting
+    # each line by (column, value) cost 15× more. An all-NaN run keeps its first sample.
+    change = col[1:] != col[:-1]
+    starts = np.flatnonzero(np.r_[True, change])
+    run = np.cumsum(np.r_[False, change])
     keep = [np.array([0, n - 1])]
     for v in y.T if y.ndim == 2 else (y,):
-        for sign in (1.0, -1.0):
-            order = np.lexsort((sign * v, col))
-            keep.append(order[first])
+        for reduce in (np.fmin, np.fmax):
+            extreme = reduce.reduceat(v, starts)
+            hit = np.flatnonzero(v == extreme[run])
+            keep.append(hit[np.r_[True, run[hit[1:]] != run[hit[:-1]]]])
+            keep.append(starts[np.isnan(extreme)])
     idx = np.unique(np.concatenate(keep))
     return x[idx], y[idx]
 
