@@ -17,11 +17,14 @@ measured by ``tight_layout``, which draws every text twice to find its size.
 
 from __future__ import annotations
 
+import contextlib
 import importlib
 import os
+import signal
+import sys
 import threading
-from collections.abc import Sequence
-from typing import Any
+from collections.abc import Callable, Sequence
+from typing import Any, NoReturn
 
 import numpy as np
 
@@ -189,7 +192,173 @@ def thin_points(
 
 
 def save(fig: Any, path: str | os.PathLike[str]) -> None:
-    """Writes ``fig`` as a PNG at :data:`DPI` (format given: the caller may write to a
-    temporary name without the .png suffix)."""
-    # zlib level 6 (PIL's default) costs more than drawing for a few percent of size.
-    fig.savefig(path, dpi=DPI, format="png", pil_kwargs={"compress_level": 2})
+    """Writes ``fig`` as a PNG at :data:`DPI` to ``path``, through a temporary file beside
+    it that is renamed to ``path`` once complete: a failed or interrupted drawing leaves
+    no half-written PNG (and an existing one as it was)."""
+    from prrrp import csvio
+
+    def write(tmp: Any) -> None:
+        # zlib level 6 (PIL's default) costs more than drawing for a few percent of size.
+        fig.savefig(tmp, dpi=DPI, format="png", pil_kwargs={"compress_level": 2})
+
+    csvio.write_atomic(path, write)
+
+
+def draw_all(
+    drawings: Sequence[Callable[[], object]], workers: int | None = None
+) -> list[tuple[int, str]]:
+    """Runs the calls ``drawings`` (each draws and saves figures with :func:`save`), in
+    forked worker processes, at most ``workers`` at a time (default: twice the CPUs this
+    process may use, none when it may use one), and returns when all have ended.
+
+    A call that fails stops neither the others nor the caller: its error is said on stderr
+    and returned as (index of the call, message) — the results the figures illustrate are
+    already written and must not be lost to a figure. Ctrl-C and SIGTERM end every worker
+    (SIGKILL) and reap it before the exception leaves: no worker outlives the call (nor its
+    process: they die with it) or writes after it, and a figure lands only whole.
+
+    Without ``os.fork`` (not Linux), while another thread runs (a fork copies the locks it
+    holds), or with one worker or one call, the calls run here one after another, with the
+    same handling of errors."""
+    jobs = list(drawings)
+    wait_preload()  # also a thread that runs
+    if workers is None:
+        cpus = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else 1
+        # Two per CPU: figures take similar times, and a third beside two others ends with
+        # them where it would start after them (3 figures on 2 cores: 1.5 figures' time).
+        workers = 2 * cpus if cpus > 1 else 1
+    if sys.platform != "linux" or workers < 2 or len(jobs) < 2 or threading.active_count() > 1:
+        failures = [f for f in (_draw_here(i, job) for i, job in enumerate(jobs)) if f]
+    else:
+        failures = _draw_forked(jobs, workers)
+    for i, message in failures:
+        name = getattr(jobs[i], "__name__", "")
+        what = f"figure {name!r}" if name.isidentifier() else "a figure"
+        print(f"prrrp: {what} was not drawn: {message}", file=sys.stderr)
+    return failures
+
+
+def _describe(e: BaseException) -> str:
+    return f"{type(e).__name__}: {e}"
+
+
+def _draw_here(index: int, job: Callable[[], object]) -> tuple[int, str] | None:
+    """Runs ``job`` in this process: None, or (index, its error)."""
+    try:
+        job()
+    except Exception as e:
+        return index, _describe(e)
+    return None
+
+
+def _draw_forked(jobs: list[Callable[[], object]], workers: int) -> list[tuple[int, str]]:
+    """:func:`draw_all` in forked workers, each reporting its error through a pipe whose
+    end of file also says that it has exited."""
+    import select
+
+    from prrrp import signals
+
+    # The workers inherit matplotlib imported, and no output buffered twice.
+    _import()
+    sys.stdout.flush()
+    sys.stderr.flush()
+    stops = {signal.SIGINT, signal.SIGTERM}
+    pending = list(enumerate(jobs))
+    running: dict[int, tuple[int, int, bytearray]] = {}  # read end -> (pid, index, message)
+    failures: list[tuple[int, str]] = []
+    parent = os.getpid()
+    try:
+        while pending or running:
+            while pending and len(running) < workers:
+                index, job = pending.pop(0)
+                # Blocked across the fork: a signal arriving now reaches the parent once
+                # the worker is in `running` (to be stopped), and the worker only inside
+                # the handler that ends it (Python clears a child's pending signal flags).
+                mask = signal.pthread_sigmask(signal.SIG_BLOCK, stops)
+                try:
+                    read, write = os.pipe()
+                    try:
+                        pid = os.fork()
+                    except OSError:
+                        pid = -1  # no process to spare: drawn here, below
+                    if pid == 0:
+                        _worker(job, write, mask, parent)
+                    if pid > 0:
+                        running[read] = (pid, index, bytearray())
+                    os.close(write)
+                finally:
+                    signal.pthread_sigmask(signal.SIG_SETMASK, mask)
+                if pid == -1:
+                    os.close(read)
+                    failure = _draw_here(index, job)
+                    failures += [failure] if failure else []
+            if not running:
+                continue
+            ready, _, _ = select.select(list(running), [], [])
+            for fd in ready:
+                chunk = os.read(fd, 4096)
+                pid, index, message = running[fd]
+                if chunk:
+                    message.extend(chunk)
+                    continue
+                # End of file: the worker is exiting; reaped before it leaves `running`.
+                code = _reap(pid)
+                del running[fd]
+                os.close(fd)
+                if code != 0 or message:
+                    signals.checkpoint()  # the worker's Ctrl-C is also the parent's
+                    text = message.decode("utf-8", "replace").strip()
+                    if not text:
+                        text = f"killed by signal {-code}" if code < 0 else f"exit code {code}"
+                    failures.append((index, text))
+        signals.checkpoint()
+    finally:
+        # Only when interrupted (or failing) here: stop every worker left, then reap it.
+        for pid, _, _ in running.values():
+            with contextlib.suppress(ProcessLookupError):
+                os.kill(pid, signal.SIGKILL)
+        for fd, (pid, _, _) in running.items():
+            _reap(pid)
+            os.close(fd)
+    return failures
+
+
+def _reap(pid: int) -> int:
+    """Waits for the worker ``pid``: its exit code (−n for signal n; 0 when it was reaped
+    elsewhere, e.g. with SIGCHLD ignored)."""
+    try:
+        return os.waitstatus_to_exitcode(os.waitpid(pid, 0)[1])
+    except ChildProcessError:
+        return 0
+
+
+def _worker(job: Callable[[], object], write: int, mask: Any, parent: int) -> NoReturn:
+    """A forked worker of :func:`draw_all`: runs ``job`` and exits (0, or with its error on
+    ``write``); never returns into the parent's code."""
+    code = 1
+    try:
+        _die_with(parent)
+        signal.pthread_sigmask(signal.SIG_SETMASK, mask)
+        job()
+        code = 0
+    except KeyboardInterrupt:
+        code = 130
+    except SystemExit as e:
+        code = e.code if isinstance(e.code, int) else 1
+    except BaseException as e:
+        with contextlib.suppress(OSError):
+            os.write(write, _describe(e).encode("utf-8", "replace")[:4000])
+    finally:
+        os._exit(code)
+
+
+def _die_with(parent: int) -> None:
+    """Asks Linux to SIGKILL this process when its parent dies (PR_SET_PDEATHSIG), so that a
+    parent killed outright leaves no worker drawing into its output; exits at once if
+    the parent is already gone."""
+    import ctypes
+
+    with contextlib.suppress(OSError, AttributeError):
+        ctypes.CDLL(None, use_errno=True).prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
+    if os.getppid() != parent:
+        os._exit(1)
