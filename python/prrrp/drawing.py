@@ -23,6 +23,7 @@ import os
 import signal
 import sys
 import threading
+import zlib
 from collections.abc import Callable, Sequence
 from typing import Any, NoReturn
 
@@ -45,12 +46,36 @@ def _import() -> None:
         importlib.import_module(name)
 
 
+def _warm() -> None:
+    """Draws and encodes a small figure: what a process's first figure pays once (loading
+    the font, the PNG writer's plugins, matplotlib's caches), paid here instead — and
+    inherited by the workers of :func:`draw_all`, which would each pay it again."""
+    import io
+
+    with contextlib.suppress(Exception):  # only a head start: drawing proper says what fails
+        fig, axes = figure(1, 1, panel=(1.0, 0.8), wait=False)
+        ax = axes[0, 0]
+        ax.plot([0.0, 1.0], [0.0, 1.0], ".-", label="a")
+        ax.set_title("torque", fontsize=9)
+        ax.set_xlabel("time (s)", fontsize=8)
+        ax.legend(fontsize=7)
+        save(fig, io.BytesIO())
+
+
+def _preload_and_warm() -> None:
+    _import()
+    _warm()
+
+
 def preload() -> None:
-    """Starts importing matplotlib on a daemon thread (once), for a caller that will draw
-    after a computation that releases the GIL; :func:`figure` waits for it."""
+    """Starts importing matplotlib (and drawing a first figure, :func:`_warm`) on a daemon
+    thread (once), for a caller that will draw after a computation that releases the GIL;
+    :func:`figure` waits for it."""
     global _preload
     if _preload is None:
-        _preload = threading.Thread(target=_import, name="prrrp-import-matplotlib", daemon=True)
+        _preload = threading.Thread(
+            target=_preload_and_warm, name="prrrp-import-matplotlib", daemon=True
+        )
         _preload.start()
 
 
@@ -74,12 +99,15 @@ def figure(
     hspace: float = 0.85,
     sharex: bool = False,
     label_offset: float | None = None,
+    wait: bool = True,
 ) -> tuple[Any, np.ndarray]:
     """A figure of ``rows`` × ``cols`` panels of ``panel`` = (width, height) inches each,
     with fixed margins in inches: ``left`` (y tick labels and label), ``bottom`` (x tick
     labels and label), ``top`` (titles), ``wspace`` and ``hspace`` between panels. Returns
-    (figure, axes array of shape (rows, cols))."""
-    wait_preload()
+    (figure, axes array of shape (rows, cols)); ``wait=False``: without waiting for
+    :func:`preload` (its own drawing)."""
+    if wait:
+        wait_preload()
     _import()
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
@@ -103,10 +131,12 @@ def figure(
             "hspace": hspace / ph,
         },
     )
+    locator = _in_view_locator()
     for ax in axes.flat:
         ax.tick_params(which="both", labelsize=8)
         # Few ticks: each label is a text to lay out, and more crowd a small panel.
-        ax.locator_params(nbins=4)
+        ax.xaxis.set_major_locator(locator(nbins=4, steps=[1, 2, 2.5, 5, 10]))
+        ax.yaxis.set_major_locator(locator(nbins=4, steps=[1, 2, 2.5, 5, 10]))
         # Titles and axis labels at fixed places in the margins: placed automatically,
         # each would be moved clear of the tick labels, measuring every one of them.
         ax.title.set_y(1.0)
@@ -115,6 +145,28 @@ def figure(
         offset = LABEL_Y_OFFSET if label_offset is None else label_offset
         ax.yaxis.set_label_coords(-offset / pw, 0.5)
     return fig, axes
+
+
+_InView: Any = None
+
+
+def _in_view_locator() -> Any:
+    """matplotlib's default tick locator (``AutoLocator``'s steps) giving only the ticks
+    inside the view: matplotlib makes a tick object (lines and texts, the larger part of
+    drawing an axis) for each location, also the two it then leaves out."""
+    global _InView
+    if _InView is None:
+        from matplotlib.ticker import MaxNLocator
+
+        class InView(MaxNLocator):  # type: ignore[misc]
+            def __call__(self) -> Any:
+                lo, hi = sorted(self.axis.get_view_interval())
+                locs = np.asarray(super().__call__())
+                slack = 1e-10 * (hi - lo)
+                return locs[(locs >= lo - slack) & (locs <= hi + slack)]
+
+        _InView = InView
+    return _InView
 
 
 def pixels(ax: Any) -> tuple[int, int]:
@@ -191,15 +243,24 @@ def thin_points(
     return ok[np.unique(np.concatenate((first, extremes)))]
 
 
-def save(fig: Any, path: str | os.PathLike[str]) -> None:
+#: PIL's PNG settings: zlib level 6 (PIL's default) costs more than drawing for a few
+#: percent of size; run-length matching suits flat plots (a tenth faster than level 2,
+#: and smaller).
+PNG_OPTIONS = {"compress_level": 1, "compress_type": zlib.Z_RLE}
+
+
+def save(fig: Any, path: str | os.PathLike[str] | Any) -> None:
     """Writes ``fig`` as a PNG at :data:`DPI` to ``path``, through a temporary file beside
     it that is renamed to ``path`` once complete: a failed or interrupted drawing leaves
-    no half-written PNG (and an existing one as it was)."""
+    no half-written PNG (and an existing one as it was). ``path`` may be a binary file
+    object (written directly)."""
+    if not isinstance(path, str | os.PathLike):
+        fig.savefig(path, dpi=DPI, format="png", pil_kwargs=PNG_OPTIONS)
+        return
     from prrrp import csvio
 
     def write(tmp: Any) -> None:
-        # zlib level 6 (PIL's default) costs more than drawing for a few percent of size.
-        fig.savefig(tmp, dpi=DPI, format="png", pil_kwargs={"compress_level": 2})
+        fig.savefig(tmp, dpi=DPI, format="png", pil_kwargs=PNG_OPTIONS)
 
     csvio.write_atomic(path, write)
 
@@ -209,7 +270,8 @@ def draw_all(
 ) -> list[tuple[int, str]]:
     """Runs the calls ``drawings`` (each draws and saves figures with :func:`save`), in
     forked worker processes, at most ``workers`` at a time (default: twice the CPUs this
-    process may use, none when it may use one), and returns when all have ended.
+    process may use, none when it may use one), the last one in this process beside them,
+    and returns when all have ended.
 
     A call that fails stops neither the others nor the caller: its error is said on stderr
     and returned as (index of the call, message) — the results the figures illustrate are
@@ -254,6 +316,7 @@ def _draw_here(index: int, job: Callable[[], object]) -> tuple[int, str] | None:
 def _draw_forked(jobs: list[Callable[[], object]], workers: int) -> list[tuple[int, str]]:
     """:func:`draw_all` in forked workers, each reporting its error through a pipe whose
     end of file also says that it has exited."""
+    import gc
     import select
 
     from prrrp import signals
@@ -271,16 +334,27 @@ def _draw_forked(jobs: list[Callable[[], object]], workers: int) -> list[tuple[i
         while pending or running:
             while pending and len(running) < workers:
                 index, job = pending.pop(0)
+                if not pending and running:
+                    # The last call is drawn here, beside the workers: this process would
+                    # only wait, and a worker costs a fork and the pages it copies.
+                    failure = _draw_here(index, job)
+                    failures += [failure] if failure else []
+                    break
                 # Blocked across the fork: a signal arriving now reaches the parent once
                 # the worker is in `running` (to be stopped), and the worker only inside
                 # the handler that ends it (Python clears a child's pending signal flags).
                 mask = signal.pthread_sigmask(signal.SIG_BLOCK, stops)
                 try:
                     read, write = os.pipe()
+                    # The worker's garbage collector leaves the inherited objects alone:
+                    # scanning them would copy every page it touches.
+                    gc.freeze()
                     try:
                         pid = os.fork()
                     except OSError:
                         pid = -1  # no process to spare: drawn here, below
+                    if pid != 0:
+                        gc.unfreeze()
                     if pid == 0:
                         _worker(job, write, mask, parent)
                     if pid > 0:
@@ -313,14 +387,39 @@ def _draw_forked(jobs: list[Callable[[], object]], workers: int) -> list[tuple[i
                     failures.append((index, text))
         signals.checkpoint()
     finally:
-        # Only when interrupted (or failing) here: stop every worker left, then reap it.
+        _stop(running)  # only when interrupted (or failing) here
+    return failures
+
+
+#: Seconds the workers of an interrupted :func:`draw_all` have to remove their temporary
+#: files (their Python code runs between two calls into matplotlib's C code, each well
+#: under this) before they are killed.
+STOP_GRACE_S = 1.0
+
+
+def _stop(running: dict[int, tuple[int, int, bytearray]]) -> None:
+    """Ends the workers ``running`` (read end -> (pid, ...)): SIGTERM, up to
+    :data:`STOP_GRACE_S` for them to exit, then SIGKILL; reaps every one."""
+    import select
+    import time
+
+    def kill(sig: int) -> None:
         for pid, _, _ in running.values():
             with contextlib.suppress(ProcessLookupError):
-                os.kill(pid, signal.SIGKILL)
+                os.kill(pid, sig)  # also harmless on one that has exited, until reaped
+
+    kill(signal.SIGTERM)
+    try:
+        deadline = time.monotonic() + STOP_GRACE_S
+        left = set(running)
+        while left and (timeout := deadline - time.monotonic()) > 0:
+            ready, _, _ = select.select(list(left), [], [], timeout)
+            left -= {fd for fd in ready if not os.read(fd, 4096)}  # end of file: exited
+    finally:
+        kill(signal.SIGKILL)
         for fd, (pid, _, _) in running.items():
             _reap(pid)
             os.close(fd)
-    return failures
 
 
 def _reap(pid: int) -> int:
@@ -338,6 +437,10 @@ def _worker(job: Callable[[], object], write: int, mask: Any, parent: int) -> No
     code = 1
     try:
         _die_with(parent)
+        # Whatever this process's handlers were: stopped by an exception, which removes
+        # the temporary file of a figure being saved.
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+        signal.signal(signal.SIGTERM, _exit_on_signal)
         signal.pthread_sigmask(signal.SIG_SETMASK, mask)
         job()
         code = 0
@@ -350,6 +453,10 @@ def _worker(job: Callable[[], object], write: int, mask: Any, parent: int) -> No
             os.write(write, _describe(e).encode("utf-8", "replace")[:4000])
     finally:
         os._exit(code)
+
+
+def _exit_on_signal(signum: int, _frame: Any) -> NoReturn:
+    raise SystemExit(128 + signum)
 
 
 def _die_with(parent: int) -> None:
