@@ -219,3 +219,45 @@ def test_ctrl_c_stops_every_worker(tmp_path: Path, whole_group: bool) -> None:
         assert not Path(f"/proc/{pid}").exists(), pid
     assert not list(tmp_path.glob("*.png"))
     assert leftovers(tmp_path) == sorted(f"worker-{k}.pid" for k in range(3))
+
+
+UR5_LIKE = Path(__file__).resolve().parents[2] / "tests" / "data" / "ur5_like_friction.toml"
+
+
+def test_identify_keeps_its_results_when_a_figure_fails(tmp_path: Path, monkeypatch, capsys):
+    """`prrrp identify`: a figure that cannot be drawn is said on stderr; the model, the
+    report and the other figures are written, and the command succeeds."""
+    import prrrp
+    from prrrp.cli import main
+
+    robot = prrrp.SerialChain.from_file(str(UR5_LIKE))
+    n = robot.dof
+    rng = np.random.default_rng(11)
+    t = np.arange(0.0, 8.0, 0.004)
+    w = 2 * np.pi * 0.3 * np.arange(1, 4)
+    a = rng.normal(0, 0.4, (n, 3)) / np.arange(1, 4)
+    s, c = np.sin(np.outer(t, w)), np.cos(np.outer(t, w))
+    q, qd, qdd = s @ a.T, (c * w) @ a.T, -(s * w**2) @ a.T
+    tau = robot.inverse_dynamics(q, qd, qdd) + rng.normal(0, 0.05, q.shape)
+    log = tmp_path / "log.csv"
+    header = ["t", *(f"q{j + 1}" for j in range(n)), *(f"tau{j + 1}" for j in range(n))]
+    np.savetxt(log, np.column_stack([t, q, tau]), delimiter=",", header=",".join(header))
+    log.write_text(log.read_text().removeprefix("# "))
+
+    real = drawing.save
+
+    def failing(fig, path):
+        if Path(path).name == "torque.png":
+            raise RuntimeError("cannot draw the torque")
+        real(fig, path)
+
+    monkeypatch.setattr(drawing, "save", failing)
+    out = tmp_path / "out"
+    argv = ["identify", str(log), "--robot", str(UR5_LIKE), "--out", str(out)]
+    assert main([*argv, "--coulomb-scale", "0"]) == 0
+    err = capsys.readouterr().err
+    assert "figure 'torque' was not drawn: RuntimeError: cannot draw the torque" in err
+    assert (out / "model.json").is_file()
+    assert "torque.png" in (out / "report.md").read_text()
+    assert sorted(p.name for p in out.glob("*.png")) == ["friction.png", "residual.png"]
+    assert no_children_left()
