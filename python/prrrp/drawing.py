@@ -270,8 +270,8 @@ def draw_all(
 ) -> list[tuple[int, str]]:
     """Runs the calls ``drawings`` (each draws and saves figures with :func:`save`), in
     forked worker processes, at most ``workers`` at a time (default: twice the CPUs this
-    process may use, none when it may use one), the last one in this process beside them,
-    and returns when all have ended.
+    process may use, none when it may use one or none is idle), the last one in this
+    process beside them, and returns when all have ended.
 
     A call that fails stops neither the others nor the caller: its error is said on stderr
     and returned as (index of the call, message) — the results the figures illustrate are
@@ -285,10 +285,7 @@ def draw_all(
     jobs = list(drawings)
     wait_preload()  # also a thread that runs
     if workers is None:
-        cpus = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else 1
-        # Two per CPU: figures take similar times, and a third beside two others ends with
-        # them where it would start after them (3 figures on 2 cores: 1.5 figures' time).
-        workers = 2 * cpus if cpus > 1 else 1
+        workers = _default_workers()
     if sys.platform != "linux" or workers < 2 or len(jobs) < 2 or threading.active_count() > 1:
         failures = [f for f in (_draw_here(i, job) for i, job in enumerate(jobs)) if f]
     else:
@@ -298,6 +295,20 @@ def draw_all(
         what = f"figure {name!r}" if name.isidentifier() else "a figure"
         print(f"prrrp: {what} was not drawn: {message}", file=sys.stderr)
     return failures
+
+
+def _default_workers() -> int:
+    """Two per CPU this process may use: figures take similar times, and a third beside
+    two others ends with them where it would start after them (3 figures on 2 cores: 1.5
+    figures' time). None (1) when no CPU is idle (1-minute load average, this process
+    included, within half a CPU of the count): a worker then only adds its own cost (the
+    pages it copies, ~40 ms of CPU a figure) and takes CPU from the others."""
+    cpus = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else 1
+    try:
+        idle = cpus - os.getloadavg()[0]
+    except OSError:
+        idle = cpus
+    return 2 * cpus if cpus > 1 and idle >= 0.5 else 1
 
 
 def _describe(e: BaseException) -> str:
