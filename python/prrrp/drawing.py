@@ -276,8 +276,9 @@ def draw_all(
     A call that fails stops neither the others nor the caller: its error is said on stderr
     and returned as (index of the call, message) — the results the figures illustrate are
     already written and must not be lost to a figure. Ctrl-C and SIGTERM end every worker
-    (SIGKILL) and reap it before the exception leaves: no worker outlives the call (nor its
-    process: they die with it) or writes after it, and a figure lands only whole.
+    (SIGTERM, then SIGKILL after :data:`STOP_GRACE_S`) and reap it before the exception
+    leaves: no worker outlives the call (nor its process: they die with it) or writes after
+    it, and a figure lands only whole.
 
     Without ``os.fork`` (not Linux), while another thread runs (a fork copies the locks it
     holds), or with one worker or one call, the calls run here one after another, with the
