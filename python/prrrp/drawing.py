@@ -330,6 +330,7 @@ def _draw_forked(jobs: list[Callable[[], object]], workers: int) -> list[tuple[i
     end of file also says that it has exited."""
     import gc
     import select
+    import warnings
 
     from prrrp import signals
 
@@ -362,7 +363,12 @@ def _draw_forked(jobs: list[Callable[[], object]], workers: int) -> list[tuple[i
                     # scanning them would copy every page it touches.
                     gc.freeze()
                     try:
-                        pid = os.fork()
+                        with warnings.catch_warnings():
+                            # Python ≥ 3.12 warns of any thread, also OpenBLAS's pool,
+                            # which readies itself for a fork (pthread_atfork); no Python
+                            # thread runs (checked by draw_all).
+                            warnings.simplefilter("ignore", DeprecationWarning)
+                            pid = os.fork()
                     except OSError:
                         pid = -1  # no process to spare: drawn here, below
                     if pid != 0:
