@@ -224,9 +224,14 @@ def test_ctrl_c_stops_every_worker(tmp_path: Path, whole_group: bool) -> None:
 UR5_LIKE = Path(__file__).resolve().parents[2] / "tests" / "data" / "ur5_like_friction.toml"
 
 
-def test_identify_keeps_its_results_when_a_figure_fails(tmp_path: Path, monkeypatch, capsys):
-    """`prrrp identify`: a figure that cannot be drawn is said on stderr; the model, the
+@pytest.mark.parametrize("workers", [1, 4])
+def test_identify_keeps_its_results_when_a_figure_fails(
+    tmp_path: Path, monkeypatch, capsys, workers: int
+):
+    """`prrrp identify`, its figures drawn here or in workers (the default depends on the
+    machine's load): a figure that cannot be drawn is said on stderr; the model, the
     report and the other figures are written, and the command succeeds."""
+    monkeypatch.setattr(drawing, "_default_workers", lambda: workers)
     import prrrp
     from prrrp.cli import main
 
