@@ -17,11 +17,15 @@ measured by ``tight_layout``, which draws every text twice to find its size.
 
 from __future__ import annotations
 
+import contextlib
 import importlib
 import os
+import signal
+import sys
 import threading
-from collections.abc import Sequence
-from typing import Any
+import zlib
+from collections.abc import Callable, Sequence
+from typing import Any, NoReturn
 
 import numpy as np
 
@@ -42,12 +46,36 @@ def _import() -> None:
         importlib.import_module(name)
 
 
+def _warm() -> None:
+    """Draws and encodes a small figure: what a process's first figure pays once (loading
+    the font, the PNG writer's plugins, matplotlib's caches), paid here instead — and
+    inherited by the workers of :func:`draw_all`, which would each pay it again."""
+    import io
+
+    with contextlib.suppress(Exception):  # only a head start: drawing proper says what fails
+        fig, axes = figure(1, 1, panel=(1.0, 0.8), wait=False)
+        ax = axes[0, 0]
+        ax.plot([0.0, 1.0], [0.0, 1.0], ".-", label="a")
+        ax.set_title("torque", fontsize=9)
+        ax.set_xlabel("time (s)", fontsize=8)
+        ax.legend(fontsize=7)
+        save(fig, io.BytesIO())
+
+
+def _preload_and_warm() -> None:
+    _import()
+    _warm()
+
+
 def preload() -> None:
-    """Starts importing matplotlib on a daemon thread (once), for a caller that will draw
-    after a computation that releases the GIL; :func:`figure` waits for it."""
+    """Starts importing matplotlib (and drawing a first figure, :func:`_warm`) on a daemon
+    thread (once), for a caller that will draw after a computation that releases the GIL;
+    :func:`figure` waits for it."""
     global _preload
     if _preload is None:
-        _preload = threading.Thread(target=_import, name="prrrp-import-matplotlib", daemon=True)
+        _preload = threading.Thread(
+            target=_preload_and_warm, name="prrrp-import-matplotlib", daemon=True
+        )
         _preload.start()
 
 
@@ -71,12 +99,15 @@ def figure(
     hspace: float = 0.85,
     sharex: bool = False,
     label_offset: float | None = None,
+    wait: bool = True,
 ) -> tuple[Any, np.ndarray]:
     """A figure of ``rows`` × ``cols`` panels of ``panel`` = (width, height) inches each,
     with fixed margins in inches: ``left`` (y tick labels and label), ``bottom`` (x tick
     labels and label), ``top`` (titles), ``wspace`` and ``hspace`` between panels. Returns
-    (figure, axes array of shape (rows, cols))."""
-    wait_preload()
+    (figure, axes array of shape (rows, cols)); ``wait=False``: without waiting for
+    :func:`preload` (its own drawing)."""
+    if wait:
+        wait_preload()
     _import()
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
@@ -100,10 +131,12 @@ def figure(
             "hspace": hspace / ph,
         },
     )
+    locator = _in_view_locator()
     for ax in axes.flat:
         ax.tick_params(which="both", labelsize=8)
         # Few ticks: each label is a text to lay out, and more crowd a small panel.
-        ax.locator_params(nbins=4)
+        ax.xaxis.set_major_locator(locator(nbins=4, steps=[1, 2, 2.5, 5, 10]))
+        ax.yaxis.set_major_locator(locator(nbins=4, steps=[1, 2, 2.5, 5, 10]))
         # Titles and axis labels at fixed places in the margins: placed automatically,
         # each would be moved clear of the tick labels, measuring every one of them.
         ax.title.set_y(1.0)
@@ -112,6 +145,28 @@ def figure(
         offset = LABEL_Y_OFFSET if label_offset is None else label_offset
         ax.yaxis.set_label_coords(-offset / pw, 0.5)
     return fig, axes
+
+
+_InView: Any = None
+
+
+def _in_view_locator() -> Any:
+    """matplotlib's default tick locator (``AutoLocator``'s steps) giving only the ticks
+    inside the view: matplotlib makes a tick object (lines and texts, the larger part of
+    drawing an axis) for each location, also the two it then leaves out."""
+    global _InView
+    if _InView is None:
+        from matplotlib.ticker import MaxNLocator
+
+        class InView(MaxNLocator):  # type: ignore[misc]
+            def __call__(self) -> Any:
+                lo, hi = sorted(self.axis.get_view_interval())
+                locs = np.asarray(super().__call__())
+                slack = 1e-10 * (hi - lo)
+                return locs[(locs >= lo - slack) & (locs <= hi + slack)]
+
+        _InView = InView
+    return _InView
 
 
 def pixels(ax: Any) -> tuple[int, int]:
@@ -139,15 +194,19 @@ def envelope(x: np.ndarray, y: np.ndarray, columns: int) -> tuple[np.ndarray, np
     if not span > 0:
         return x, y
     col = np.minimum(((x - x[0]) / span * columns).astype(np.int64), columns - 1)
-    # Runs of equal column (x non-decreasing): the first of each run in an order sorted by
-    # (column, value) is that column's minimum; by (column, -value) its maximum. lexsort
-    # puts NaN last, so a NaN is chosen only by an all-NaN column.
-    first = np.r_[True, col[1:] != col[:-1]]
+    # Runs of equal column (x non-decreasing). Each run's extremes by one reduceat (fmin and
+    # fmax skip NaN), then the first sample of the run equal to it: O(S), where sorting
+    # each line by (column, value) cost 15× more. An all-NaN run keeps its first sample.
+    change = col[1:] != col[:-1]
+    starts = np.flatnonzero(np.r_[True, change])
+    run = np.cumsum(np.r_[False, change])
     keep = [np.array([0, n - 1])]
     for v in y.T if y.ndim == 2 else (y,):
-        for sign in (1.0, -1.0):
-            order = np.lexsort((sign * v, col))
-            keep.append(order[first])
+        for reduce in (np.fmin, np.fmax):
+            extreme = reduce.reduceat(v, starts)
+            hit = np.flatnonzero(v == extreme[run])
+            keep.append(hit[np.r_[True, run[hit[1:]] != run[hit[:-1]]]])
+            keep.append(starts[np.isnan(extreme)])
     idx = np.unique(np.concatenate(keep))
     return x[idx], y[idx]
 
@@ -184,8 +243,247 @@ def thin_points(
     return ok[np.unique(np.concatenate((first, extremes)))]
 
 
-def save(fig: Any, path: str | os.PathLike[str]) -> None:
-    """Writes ``fig`` as a PNG at :data:`DPI` (format given: the caller may write to a
-    temporary name without the .png suffix)."""
-    # zlib level 6 (PIL's default) costs more than drawing for a few percent of size.
-    fig.savefig(path, dpi=DPI, format="png", pil_kwargs={"compress_level": 2})
+#: PIL's PNG settings: zlib level 6 (PIL's default) costs more than drawing for a few
+#: percent of size; run-length matching suits flat plots (a tenth faster than level 2,
+#: and smaller).
+PNG_OPTIONS = {"compress_level": 1, "compress_type": zlib.Z_RLE}
+
+
+def save(fig: Any, path: str | os.PathLike[str] | Any) -> None:
+    """Writes ``fig`` as a PNG at :data:`DPI` to ``path``, through a temporary file beside
+    it that is renamed to ``path`` once complete: a failed or interrupted drawing leaves
+    no half-written PNG (and an existing one as it was). ``path`` may be a binary file
+    object (written directly)."""
+    if not isinstance(path, str | os.PathLike):
+        fig.savefig(path, dpi=DPI, format="png", pil_kwargs=PNG_OPTIONS)
+        return
+    from prrrp import csvio
+
+    def write(tmp: Any) -> None:
+        fig.savefig(tmp, dpi=DPI, format="png", pil_kwargs=PNG_OPTIONS)
+
+    csvio.write_atomic(path, write)
+
+
+def draw_all(
+    drawings: Sequence[Callable[[], object]], workers: int | None = None
+) -> list[tuple[int, str]]:
+    """Runs the calls ``drawings`` (each draws and saves figures with :func:`save`), in
+    forked worker processes, at most ``workers`` at a time (default: twice the CPUs this
+    process may use, none when it may use one or none is idle), the last one in this
+    process beside them, and returns when all have ended.
+
+    A call that fails stops neither the others nor the caller: its error is said on stderr
+    and returned as (index of the call, message) — the results the figures illustrate are
+    already written and must not be lost to a figure. Ctrl-C and SIGTERM end every worker
+    (SIGTERM, then SIGKILL after :data:`STOP_GRACE_S`) and reap it before the exception
+    leaves: no worker outlives the call (nor its process: they die with it) or writes after
+    it, and a figure lands only whole.
+
+    Without ``os.fork`` (not Linux), while another thread runs (a fork copies the locks it
+    holds), or with one worker or one call, the calls run here one after another, with the
+    same handling of errors."""
+    jobs = list(drawings)
+    wait_preload()  # also a thread that runs
+    if workers is None:
+        workers = _default_workers()
+    if sys.platform != "linux" or workers < 2 or len(jobs) < 2 or threading.active_count() > 1:
+        failures = [f for f in (_draw_here(i, job) for i, job in enumerate(jobs)) if f]
+    else:
+        failures = _draw_forked(jobs, workers)
+    for i, message in failures:
+        name = getattr(jobs[i], "__name__", "")
+        what = f"figure {name!r}" if name.isidentifier() else "a figure"
+        print(f"prrrp: {what} was not drawn: {message}", file=sys.stderr)
+    return failures
+
+
+def _default_workers() -> int:
+    """Two per CPU this process may use: figures take similar times, and a third beside
+    two others ends with them where it would start after them (3 figures on 2 cores: 1.5
+    figures' time). None (1) when no CPU is idle (1-minute load average, this process
+    included, within half a CPU of the count): a worker then only adds its own cost (the
+    pages it copies, ~40 ms of CPU a figure) and takes CPU from the others."""
+    cpus = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else 1
+    try:
+        idle = cpus - os.getloadavg()[0]
+    except OSError:
+        idle = cpus
+    return 2 * cpus if cpus > 1 and idle >= 0.5 else 1
+
+
+def _describe(e: BaseException) -> str:
+    return f"{type(e).__name__}: {e}"
+
+
+def _draw_here(index: int, job: Callable[[], object]) -> tuple[int, str] | None:
+    """Runs ``job`` in this process: None, or (index, its error)."""
+    try:
+        job()
+    except Exception as e:
+        return index, _describe(e)
+    return None
+
+
+def _draw_forked(jobs: list[Callable[[], object]], workers: int) -> list[tuple[int, str]]:
+    """:func:`draw_all` in forked workers, each reporting its error through a pipe whose
+    end of file also says that it has exited."""
+    import gc
+    import select
+    import warnings
+
+    from prrrp import signals
+
+    # The workers inherit matplotlib imported, and no output buffered twice.
+    _import()
+    sys.stdout.flush()
+    sys.stderr.flush()
+    stops = {signal.SIGINT, signal.SIGTERM}
+    pending = list(enumerate(jobs))
+    running: dict[int, tuple[int, int, bytearray]] = {}  # read end -> (pid, index, message)
+    failures: list[tuple[int, str]] = []
+    parent = os.getpid()
+    try:
+        while pending or running:
+            while pending and len(running) < workers:
+                index, job = pending.pop(0)
+                if not pending and running:
+                    # The last call is drawn here, beside the workers: this process would
+                    # only wait, and a worker costs a fork and the pages it copies.
+                    failure = _draw_here(index, job)
+                    failures += [failure] if failure else []
+                    break
+                # Blocked across the fork: a signal arriving now reaches the parent once
+                # the worker is in `running` (to be stopped), and the worker only inside
+                # the handler that ends it (Python clears a child's pending signal flags).
+                mask = signal.pthread_sigmask(signal.SIG_BLOCK, stops)
+                try:
+                    read, write = os.pipe()
+                    # The worker's garbage collector leaves the inherited objects alone:
+                    # scanning them would copy every page it touches.
+                    gc.freeze()
+                    try:
+                        with warnings.catch_warnings():
+                            # Python ≥ 3.12 warns of any thread, also OpenBLAS's pool,
+                            # which readies itself for a fork (pthread_atfork); no Python
+                            # thread runs (checked by draw_all).
+                            warnings.simplefilter("ignore", DeprecationWarning)
+                            pid = os.fork()
+                    except OSError:
+                        pid = -1  # no process to spare: drawn here, below
+                    if pid != 0:
+                        gc.unfreeze()
+                    if pid == 0:
+                        _worker(job, write, mask, parent)
+                    if pid > 0:
+                        running[read] = (pid, index, bytearray())
+                    os.close(write)
+                finally:
+                    signal.pthread_sigmask(signal.SIG_SETMASK, mask)
+                if pid == -1:
+                    os.close(read)
+                    failure = _draw_here(index, job)
+                    failures += [failure] if failure else []
+            if not running:
+                continue
+            ready, _, _ = select.select(list(running), [], [])
+            for fd in ready:
+                chunk = os.read(fd, 4096)
+                pid, index, message = running[fd]
+                if chunk:
+                    message.extend(chunk)
+                    continue
+                # End of file: the worker is exiting; reaped before it leaves `running`.
+                code = _reap(pid)
+                del running[fd]
+                os.close(fd)
+                if code != 0 or message:
+                    signals.checkpoint()  # the worker's Ctrl-C is also the parent's
+                    text = message.decode("utf-8", "replace").strip()
+                    if not text:
+                        text = f"killed by signal {-code}" if code < 0 else f"exit code {code}"
+                    failures.append((index, text))
+        signals.checkpoint()
+    finally:
+        _stop(running)  # only when interrupted (or failing) here
+    return failures
+
+
+#: Seconds the workers of an interrupted :func:`draw_all` have to remove their temporary
+#: files (their Python code runs between two calls into matplotlib's C code, each well
+#: under this) before they are killed.
+STOP_GRACE_S = 1.0
+
+
+def _stop(running: dict[int, tuple[int, int, bytearray]]) -> None:
+    """Ends the workers ``running`` (read end -> (pid, ...)): SIGTERM, up to
+    :data:`STOP_GRACE_S` for them to exit, then SIGKILL; reaps every one."""
+    import select
+    import time
+
+    def kill(sig: int) -> None:
+        for pid, _, _ in running.values():
+            with contextlib.suppress(ProcessLookupError):
+                os.kill(pid, sig)  # also harmless on one that has exited, until reaped
+
+    kill(signal.SIGTERM)
+    try:
+        deadline = time.monotonic() + STOP_GRACE_S
+        left = set(running)
+        while left and (timeout := deadline - time.monotonic()) > 0:
+            ready, _, _ = select.select(list(left), [], [], timeout)
+            left -= {fd for fd in ready if not os.read(fd, 4096)}  # end of file: exited
+    finally:
+        kill(signal.SIGKILL)
+        for fd, (pid, _, _) in running.items():
+            _reap(pid)
+            os.close(fd)
+
+
+def _reap(pid: int) -> int:
+    """Waits for the worker ``pid``: its exit code (−n for signal n; 0 when it was reaped
+    elsewhere, e.g. with SIGCHLD ignored)."""
+    try:
+        return os.waitstatus_to_exitcode(os.waitpid(pid, 0)[1])
+    except ChildProcessError:
+        return 0
+
+
+def _worker(job: Callable[[], object], write: int, mask: Any, parent: int) -> NoReturn:
+    """A forked worker of :func:`draw_all`: runs ``job`` and exits (0, or with its error on
+    ``write``); never returns into the parent's code."""
+    code = 1
+    try:
+        _die_with(parent)
+        # Whatever this process's handlers were: stopped by an exception, which removes
+        # the temporary file of a figure being saved.
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+        signal.signal(signal.SIGTERM, _exit_on_signal)
+        signal.pthread_sigmask(signal.SIG_SETMASK, mask)
+        job()
+        code = 0
+    except KeyboardInterrupt:
+        code = 130
+    except SystemExit as e:
+        code = e.code if isinstance(e.code, int) else 1
+    except BaseException as e:
+        with contextlib.suppress(OSError):
+            os.write(write, _describe(e).encode("utf-8", "replace")[:4000])
+    finally:
+        os._exit(code)
+
+
+def _exit_on_signal(signum: int, _frame: Any) -> NoReturn:
+    raise SystemExit(128 + signum)
+
+
+def _die_with(parent: int) -> None:
+    """Asks Linux to SIGKILL this process when its parent dies (PR_SET_PDEATHSIG), so that a
+    parent killed outright leaves no worker drawing into its output; exits at once if
+    the parent is already gone."""
+    import ctypes
+
+    with contextlib.suppress(OSError, AttributeError):
+        ctypes.CDLL(None, use_errno=True).prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
+    if os.getppid() != parent:
+        os._exit(1)

@@ -263,8 +263,21 @@ def write_figures(
 ) -> list[tuple[str, str]]:
     """Writes the figures of :func:`figure_list`; returns their (file name, caption)
     pairs."""
-    from prrrp import drawing
+    for draw in figure_drawings(model, data, directory, validation):
+        draw()
+    return figure_list(model, validation is not None)
 
+
+def figure_drawings(
+    model: IdentifiedModel,
+    data: DataLike,
+    directory: Path,
+    validation: DataLike | None = None,
+) -> list[Callable[[], None]]:
+    """The figures of :func:`figure_list` as calls that each draw one into ``directory``,
+    in its order. What they plot (predictions, residuals) is computed here, at once: a
+    call only draws, so that the calls can run in any order or in other processes
+    (:func:`prrrp.drawing.draw_all`)."""
     joints = list(model.robot.joint_names)
     force_units, speed_units = _units(model)
     n = len(joints)
@@ -274,40 +287,49 @@ def write_figures(
     pred = check.predict(model)
     t = check.t
     cutoff = (check.report or {}).get("cutoff_hz")
+    directory = Path(directory)
 
-    fig, axes = drawing.figure(rows, cols, top=0.7)
-    for j in range(n):
-        ax = axes[j // cols][j % cols]
-        _shade_edges(ax, check)
-        drawing.lines(ax, t, check.measured[:, j], lw=0.6, color="0.55", label="measured")
-        if check.filtered is not None:
-            drawing.lines(
-                ax,
-                t,
-                check.filtered[:, j],
-                lw=0.8,
-                color="tab:blue",
-                label=f"measured, low-passed at {cutoff:.3g} Hz (fitted)",
-            )
-        drawing.lines(ax, t, pred[:, j], lw=0.8, ls="--", color="tab:red", label="predicted")
-        ax.set_title(joints[j], fontsize=9)
-        ax.set_xlabel("time (s)", fontsize=8)
-        ax.set_ylabel(f"torque ({force_units[j]})", fontsize=8)
-    _blank(axes, n, cols)
-    # Above the panels, never over the data.
-    handles, labels = axes[0][0].get_legend_handles_labels()
-    fig.legend(handles, labels, loc="upper center", ncol=3, fontsize=8, frameon=False)
-    drawing.save(fig, directory / "torque.png")
+    def torque() -> None:
+        from prrrp import drawing
+
+        fig, axes = drawing.figure(rows, cols, top=0.7)
+        for j in range(n):
+            ax = axes[j // cols][j % cols]
+            _shade_edges(ax, check)
+            drawing.lines(ax, t, check.measured[:, j], lw=0.6, color="0.55", label="measured")
+            if check.filtered is not None:
+                drawing.lines(
+                    ax,
+                    t,
+                    check.filtered[:, j],
+                    lw=0.8,
+                    color="tab:blue",
+                    label=f"measured, low-passed at {cutoff:.3g} Hz (fitted)",
+                )
+            drawing.lines(ax, t, pred[:, j], lw=0.8, ls="--", color="tab:red", label="predicted")
+            ax.set_title(joints[j], fontsize=9)
+            ax.set_xlabel("time (s)", fontsize=8)
+            ax.set_ylabel(f"torque ({force_units[j]})", fontsize=8)
+        _blank(axes, n, cols)
+        # Above the panels, never over the data.
+        handles, labels = axes[0][0].get_legend_handles_labels()
+        fig.legend(handles, labels, loc="upper center", ncol=3, fontsize=8, frameon=False)
+        drawing.save(fig, directory / "torque.png")
 
     k = check.scored
     resid = check.measured[k] - pred[k]
-    fig, axes = drawing.figure(rows, cols)
-    for j in range(n):
-        ax = axes[j // cols][j % cols]
-        _histogram(ax, resid[:, j], force_units[j], joints[j])
-    _blank(axes, n, cols)
-    drawing.save(fig, directory / "residual.png")
 
+    def residual() -> None:
+        from prrrp import drawing
+
+        fig, axes = drawing.figure(rows, cols)
+        for j in range(n):
+            ax = axes[j // cols][j % cols]
+            _histogram(ax, resid[:, j], force_units[j], joints[j])
+        _blank(axes, n, cols)
+        drawing.save(fig, directory / "residual.png")
+
+    drawings = [torque, residual]
     friction, mask = friction_split(model)
     if mask.any():
         v_s = float(model.robot.coulomb_smoothing)
@@ -325,26 +347,32 @@ def write_figures(
             qd = qd @ c.T
             points = np.linalg.solve(c.T, points.T).T
             titles = [f"actuator {m + 1}" for m in range(n)]
-        fig, axes = drawing.figure(rows, cols, panel=(3.6, 2.1))
-        for j in range(n):
-            ax = axes[j // cols][j % cols]
-            keep = drawing.thin_points(qd[:, j], points[:, j], drawing.pixels(ax))
-            ax.plot(qd[keep, j], points[keep, j], ".", ms=1.5, alpha=0.4, label="data")
-            span = max(float(np.abs(qd[:, j]).max()), 1e-6)
-            grid = np.linspace(-span, span, 401)
-            curve = friction_torque(friction[j : j + 1], grid[:, None], v_s)[:, 0]
-            ax.plot(grid, curve, "r", lw=1.2, label="model")
-            ax.set_title(titles[j], fontsize=9)
-            if coupling is None:
-                ax.set_xlabel(f"joint velocity q̇ ({speed_units[j]})", fontsize=8)
-                ax.set_ylabel(f"friction torque ({force_units[j]})", fontsize=8)
-            else:
-                ax.set_xlabel("actuator velocity (C·q̇)ₘ (rad/s or m/s)", fontsize=8)
-                ax.set_ylabel("friction torque (N·m or N)", fontsize=8)
-        _blank(axes, n, cols)
-        axes[0][0].legend(fontsize=7, loc="upper left", markerscale=4)
-        drawing.save(fig, directory / "friction.png")
-    return figure_list(model, validation is not None)
+
+        def friction_curves() -> None:
+            from prrrp import drawing
+
+            fig, axes = drawing.figure(rows, cols, panel=(3.6, 2.1))
+            for j in range(n):
+                ax = axes[j // cols][j % cols]
+                keep = drawing.thin_points(qd[:, j], points[:, j], drawing.pixels(ax))
+                ax.plot(qd[keep, j], points[keep, j], ".", ms=1.5, alpha=0.4, label="data")
+                span = max(float(np.abs(qd[:, j]).max()), 1e-6)
+                grid = np.linspace(-span, span, 401)
+                curve = friction_torque(friction[j : j + 1], grid[:, None], v_s)[:, 0]
+                ax.plot(grid, curve, "r", lw=1.2, label="model")
+                ax.set_title(titles[j], fontsize=9)
+                if coupling is None:
+                    ax.set_xlabel(f"joint velocity q̇ ({speed_units[j]})", fontsize=8)
+                    ax.set_ylabel(f"friction torque ({force_units[j]})", fontsize=8)
+                else:
+                    ax.set_xlabel("actuator velocity (C·q̇)ₘ (rad/s or m/s)", fontsize=8)
+                    ax.set_ylabel("friction torque (N·m or N)", fontsize=8)
+            _blank(axes, n, cols)
+            axes[0][0].legend(fontsize=7, loc="upper left", markerscale=4)
+            drawing.save(fig, directory / "friction.png")
+
+        drawings.append(friction_curves)
+    return drawings
 
 
 def _blank(axes: Any, n: int, cols: int) -> None:
@@ -745,9 +773,10 @@ def write_report(
     exist; callers that want all-or-nothing output build it with
     :func:`prrrp.outdir.write_dir`). ``data`` and ``validation``: the measurements as read
     (scored at their rows), a :class:`~prrrp.prediction.LogGrid` or a ``Dataset`` (scored
-    against its own τ). With ``drawings`` (a list) the figures are not drawn: a call that
-    draws them is appended, for a caller that writes all its text first. Other keyword
-    arguments as :func:`render`. Returns the paths written (or to be drawn)."""
+    against its own τ). With ``drawings`` (a list) the figures are not drawn: a call per
+    figure is appended (:func:`figure_drawings`), for a caller that writes all its text
+    first. Other keyword arguments as :func:`render`. Returns the paths written (or to be
+    drawn)."""
     d = Path(directory)
     data = as_grid(data, model)
     if kwargs.get("validation") is not None:
@@ -757,14 +786,10 @@ def write_report(
     figures = [*kwargs.pop("figures", ()), *own]
     # The report first: it never waits for the figures it links.
     (d / "report.md").write_text(render(model, data, figures=figures, **kwargs), "utf-8")
-
-    def draw() -> None:
-        write_figures(model, data, d, validation)
-
     if drawings is None:
-        draw()
+        write_figures(model, data, d, validation)
     else:
-        drawings.append(draw)
+        drawings += figure_drawings(model, data, d, validation)
     return [d / "report.md", *(d / name for name, _ in figures)]
 
 

@@ -336,8 +336,7 @@ def run(args: argparse.Namespace) -> int:
                     sources=sources,
                     drawings=drawings,
                 )
-        for draw in drawings:
-            draw()
+        drawing.draw_all(drawings)  # in parallel; a failed figure does not lose the rest
         return written
 
     written = outdir.write_dir(out, build)

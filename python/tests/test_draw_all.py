@@ -1,0 +1,268 @@
+"""Figures drawn in forked workers (`drawing.draw_all`, what `prrrp identify` uses): every
+figure lands whole, a figure that fails or whose worker dies loses only itself, Ctrl-C
+stops every worker and nothing is left half-written, and no worker is left behind (running
+or as a zombie)."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from prrrp import drawing
+
+PNG = b"\x89PNG\r\n\x1a\n"
+
+
+def panel_figure(path: Path, seed: int) -> None:
+    """A small figure of two panels with a line each, saved to ``path``."""
+    rng = np.random.default_rng(seed)
+    fig, axes = drawing.figure(1, 2, panel=(2.0, 1.2))
+    for ax in axes.flat:
+        ax.plot(np.arange(50), rng.normal(size=50))
+        ax.set_xlabel("time (s)", fontsize=8)
+        ax.set_ylabel("torque (N·m)", fontsize=8)
+    drawing.save(fig, path)
+
+
+def job(path: Path, seed: int = 0):
+    def draw() -> None:
+        panel_figure(path, seed)
+
+    return draw
+
+
+def no_children_left() -> bool:
+    """Whether this process has no child process, running or a zombie."""
+    try:
+        os.waitpid(-1, os.WNOHANG)
+    except ChildProcessError:
+        return True
+    return False
+
+
+def leftovers(folder: Path) -> list[str]:
+    """Files that are not finished PNGs (temporary files of an interrupted save)."""
+    return sorted(p.name for p in folder.iterdir() if p.suffix != ".png")
+
+
+def test_every_figure_is_drawn_whole_by_the_workers(tmp_path: Path) -> None:
+    names = [f"f{k}.png" for k in range(5)]
+    pid = os.getpid()
+    failures = drawing.draw_all([job(tmp_path / n, k) for k, n in enumerate(names)], workers=2)
+    assert os.getpid() == pid  # no worker came back from draw_all
+    assert failures == []
+    assert sorted(p.name for p in tmp_path.iterdir()) == names
+    for n in names:
+        assert (tmp_path / n).read_bytes()[:8] == PNG
+    assert no_children_left()
+
+
+def test_the_workers_draw_what_this_process_draws(tmp_path: Path) -> None:
+    """The same calls drawn here and in workers give the same images."""
+    here, there = tmp_path / "here", tmp_path / "there"
+    here.mkdir()
+    there.mkdir()
+    drawing.draw_all([job(here / "a.png", 1), job(here / "b.png", 2)], workers=1)
+    drawing.draw_all([job(there / "a.png", 1), job(there / "b.png", 2)], workers=2)
+    for n in ("a.png", "b.png"):
+        assert (here / n).read_bytes() == (there / n).read_bytes()
+
+
+class Broken:
+    """An artist whose drawing fails halfway through a save."""
+
+    def __init__(self, fig):
+        from matplotlib.artist import Artist
+
+        class Failing(Artist):
+            def draw(self, renderer):
+                raise RuntimeError("this artist cannot be drawn")
+
+        fig.add_artist(Failing())
+
+
+@pytest.mark.parametrize("workers", [1, 2])
+def test_a_failed_figure_loses_only_itself(tmp_path: Path, workers: int, capfd) -> None:
+    def broken() -> None:
+        fig, axes = drawing.figure(1, 1)
+        axes[0, 0].plot([0, 1], [0, 1])
+        Broken(fig)
+        drawing.save(fig, tmp_path / "broken.png")
+
+    def killed() -> None:
+        os.kill(os.getpid(), signal.SIGKILL)
+
+    jobs = [job(tmp_path / "a.png"), broken]
+    if workers > 1:
+        # Only a worker can be killed without killing the test (the last call is drawn
+        # in this process).
+        jobs.append(killed)
+    jobs.append(job(tmp_path / "b.png", 1))
+    failures = drawing.draw_all(jobs, workers=workers)
+    assert [i for i, _ in failures] == ([1, 2] if workers > 1 else [1])
+    assert "RuntimeError: this artist cannot be drawn" in failures[0][1]
+    if workers > 1:
+        assert "signal 9" in failures[1][1]
+    err = capfd.readouterr().err
+    assert "figure 'broken' was not drawn: RuntimeError: this artist cannot be drawn" in err
+    # The others are whole; the failed one is absent, not half-written.
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.png", "b.png"]
+    assert no_children_left()
+
+
+@pytest.mark.parametrize("workers", [1, 2])
+def test_a_write_that_fails_halfway_leaves_the_old_figure(tmp_path: Path, workers: int) -> None:
+    """The PNG writer fails after writing part of the file (a full disk): the figure
+    already there stays as it was, and no partial file is left beside it."""
+    path = tmp_path / "a.png"
+    panel_figure(path, 0)
+    before = path.read_bytes()
+
+    def half_written() -> None:
+        from PIL import Image
+
+        real = Image.SAVE["PNG"]
+
+        def write_half(im, fp, *args, **kwargs):
+            fp.write(PNG + b"half an image")
+            fp.flush()
+            raise OSError("No space left on device")
+
+        Image.SAVE["PNG"] = write_half
+        try:
+            panel_figure(path, 1)
+        finally:
+            Image.SAVE["PNG"] = real
+
+    failures = drawing.draw_all([half_written, job(tmp_path / "b.png")], workers=workers)
+    assert [i for i, _ in failures] == [0]
+    assert "No space left on device" in failures[0][1]
+    assert path.read_bytes() == before
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.png", "b.png"]
+
+
+SLOW = """
+import os, sys, time
+from pathlib import Path
+from prrrp import drawing, signals
+
+folder = Path(sys.argv[1])
+
+def slow(k):
+    def draw():
+        # Says it runs, then saves a figure that takes long to draw.
+        (folder / f"worker-{k}.pid").write_text(str(os.getpid()))
+        fig, axes = drawing.figure(1, 1)
+        axes[0, 0].plot([0, 1], [0, 1])
+        real = fig.draw
+        def draw_slowly(renderer):
+            time.sleep(60)
+            real(renderer)
+        fig.draw = draw_slowly
+        drawing.save(fig, folder / f"figure-{k}.png")
+    return draw
+
+signals.install()
+try:
+    drawing.draw_all([slow(0), slow(1), slow(2)], workers=4)
+except KeyboardInterrupt:
+    try:
+        os.waitpid(-1, os.WNOHANG)
+        print("interrupted, a worker is left", flush=True)
+    except ChildProcessError:
+        print("interrupted, no worker left", flush=True)
+    sys.exit(130)
+print("finished", flush=True)
+"""
+
+
+@pytest.mark.parametrize("whole_group", [True, False])
+def test_ctrl_c_stops_every_worker(tmp_path: Path, whole_group: bool) -> None:
+    """Ctrl-C (to the whole process group, as a terminal sends it, or to the parent only):
+    the command ends with KeyboardInterrupt, no worker outlives it, no figure lands."""
+    child = subprocess.Popen(
+        [sys.executable, "-c", textwrap.dedent(SLOW), str(tmp_path)],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        start_new_session=True,
+    )
+    try:
+        deadline = time.monotonic() + 120
+        while len(list(tmp_path.glob("worker-*.pid"))) < 3:
+            assert child.poll() is None, child.communicate()
+            assert time.monotonic() < deadline, "the workers did not start"
+            time.sleep(0.05)
+        workers = [int(p.read_text()) for p in tmp_path.glob("worker-*.pid")]
+        if whole_group:
+            os.killpg(child.pid, signal.SIGINT)
+        else:
+            child.send_signal(signal.SIGINT)
+        out, err = child.communicate(timeout=60)
+    finally:
+        if child.poll() is None:
+            os.killpg(child.pid, signal.SIGKILL)
+            child.wait()
+    assert child.returncode == 130, (out, err)
+    # Reaped before the exception left draw_all (no zombie), and not running on as
+    # orphans (each would sleep a minute).
+    assert "interrupted, no worker left" in out, (out, err)
+    for pid in workers:
+        assert not Path(f"/proc/{pid}").exists(), pid
+    assert not list(tmp_path.glob("*.png"))
+    assert leftovers(tmp_path) == sorted(f"worker-{k}.pid" for k in range(3))
+
+
+UR5_LIKE = Path(__file__).resolve().parents[2] / "tests" / "data" / "ur5_like_friction.toml"
+
+
+@pytest.mark.parametrize("workers", [1, 4])
+def test_identify_keeps_its_results_when_a_figure_fails(
+    tmp_path: Path, monkeypatch, capsys, workers: int
+):
+    """`prrrp identify`, its figures drawn here or in workers (the default depends on the
+    machine's load): a figure that cannot be drawn is said on stderr; the model, the
+    report and the other figures are written, and the command succeeds."""
+    monkeypatch.setattr(drawing, "_default_workers", lambda: workers)
+    import prrrp
+    from prrrp.cli import main
+
+    robot = prrrp.SerialChain.from_file(str(UR5_LIKE))
+    n = robot.dof
+    rng = np.random.default_rng(11)
+    t = np.arange(0.0, 8.0, 0.004)
+    w = 2 * np.pi * 0.3 * np.arange(1, 4)
+    a = rng.normal(0, 0.4, (n, 3)) / np.arange(1, 4)
+    s, c = np.sin(np.outer(t, w)), np.cos(np.outer(t, w))
+    q, qd, qdd = s @ a.T, (c * w) @ a.T, -(s * w**2) @ a.T
+    tau = robot.inverse_dynamics(q, qd, qdd) + rng.normal(0, 0.05, q.shape)
+    log = tmp_path / "log.csv"
+    header = ["t", *(f"q{j + 1}" for j in range(n)), *(f"tau{j + 1}" for j in range(n))]
+    np.savetxt(log, np.column_stack([t, q, tau]), delimiter=",", header=",".join(header))
+    log.write_text(log.read_text().removeprefix("# "))
+
+    real = drawing.save
+
+    def failing(fig, path):
+        if Path(path).name == "torque.png":
+            raise RuntimeError("cannot draw the torque")
+        real(fig, path)
+
+    monkeypatch.setattr(drawing, "save", failing)
+    out = tmp_path / "out"
+    argv = ["identify", str(log), "--robot", str(UR5_LIKE), "--out", str(out)]
+    assert main([*argv, "--coulomb-scale", "0"]) == 0
+    err = capsys.readouterr().err
+    assert "figure 'torque' was not drawn: RuntimeError: cannot draw the torque" in err
+    assert (out / "model.json").is_file()
+    assert "torque.png" in (out / "report.md").read_text()
+    assert sorted(p.name for p in out.glob("*.png")) == ["friction.png", "residual.png"]
+    assert no_children_left()
