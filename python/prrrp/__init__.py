@@ -1,21 +1,32 @@
-"""prrrp: dynamic model and parameter identification of the 5-DOF PRRRP redundant manipulator
-of Urrea & Pascal, "Parameter identification methods for real redundant manipulators",
-J. Appl. Res. Technol. 15 (2017) 320-331.
+"""prrrp: dynamic models and parameter identification of serial robot manipulators.
 
-Conventions (SI units): q = [d1, θ2, θ3, θ4, d5] in m, rad, rad, rad, m; generalised forces
-τ = [F1, τ2, τ3, τ4, F5] in N, N·m, N·m, N·m, N. World z points up and gravity acts along -z
-(9.81 m/s² by default). The model is linear in 8 grouped base parameters λ: τ = Φ(q, q̇, q̈)·λ.
+A robot is loaded by name or from a file — :func:`load_robot` with ``"paper"`` (the 5-DOF
+PRRRP arm of Urrea & Pascal, "Parameter identification methods for real redundant
+manipulators", J. Appl. Res. Technol. 15 (2017) 320-331), a ``.urdf`` or a ``.toml`` robot
+file — and every robot runs through the same functions: :func:`excite`, :func:`simulate`,
+:func:`identify_measurements` (an :class:`IdentifiedModel` that predicts torques and saves to
+JSON), :class:`OnlineIdentifier`, :func:`benchmark`, and the ``prrrp`` command. The paper's
+closed-form model in its 8 grouped parameters λ (:class:`Robot`, :func:`regressor`, …) is
+the fast path of its study (``prrrp reproduce``).
 
-Every function takes numpy arrays (anything convertible to float64) for one sample, shape
-(5,), or a batch with a leading axis N, shape (N, 5), and returns float64 arrays of the
-matching shape. Batches are computed in Rust with the GIL released.
+Conventions: SI units (m and rad, N and N·m, kg, kg·m, kg·m²); world z up, gravity along -z
+(9.81 m/s² by default). Functions take numpy arrays (anything convertible to float64) for
+one sample, shape (n,), or a batch with a leading axis N, shape (N, n), and return float64
+arrays of the matching shape; batches are computed in Rust with the GIL released. For the
+paper's arm q = [d1, θ2, θ3, θ4, d5] (m, rad, rad, rad, m) and τ = [F1, τ2, τ3, τ4, F5]
+(N, N·m, N·m, N·m, N).
 
 >>> import numpy as np, prrrp
->>> robot = prrrp.Robot.paper()
+>>> robot = prrrp.load_robot("paper")          # or "arm.urdf" (with tip=...), "arm.toml"
 >>> q, qd, qdd = np.zeros(5), np.ones(5), np.ones(5)
 >>> tau = robot.inverse_dynamics(q, qd, qdd)
->>> bool(np.allclose(prrrp.regressor(q, qd, qdd) @ robot.base_parameters(), tau))
+>>> closed_form = prrrp.Robot.paper()
+>>> bool(np.allclose(closed_form.inverse_dynamics(q, qd, qdd), tau))
 True
+>>> bool(np.allclose(prrrp.regressor(q, qd, qdd) @ closed_form.base_parameters(), tau))
+True
+
+Layers, and where a new robot, estimator or file format goes: docs/architecture.md.
 """
 
 import json

@@ -3,23 +3,13 @@
 A command that writes a folder builds it aside, in a hidden sibling, and swaps it in with
 one atomic rename (Linux `renameat2(RENAME_EXCHANGE)`; elsewhere two renames, repaired on
 the next start if interrupted between them). A failed, interrupted or terminated run leaves
-the old folder exactly as it was.
+the old folder exactly as it was. Staging folders are locked (`flock`) while their run
+lives, so that the next run removes only those of runs that died. An existing folder is
+replaced only when it is empty or carries prrrp's marker `.prrrp-output`; a symbolic link
+given as `--out` is kept and its target replaced; the folder gets ordinary `mkdir`
+permissions.
 
-Staging folders are locked (`flock` on the folder) for as long as their run lives. The next
-run into the same `--out` removes the staging folders of runs that died (even by SIGKILL:
-the kernel releases the lock) and says so on stderr; it never touches the staging folder of
-a run that is still writing — removing it was how a benchmark that ran beside another lost
-four minutes of results to "errors_by_noise.png: no such file or directory".
-
-The folder is created with the permissions of an ordinary `mkdir` (0777 minus the umask),
-not the 0700 of a temporary folder.
-
-The folder belongs to prrrp: a marker file `.prrrp-output` is written in it, and an existing
-folder is replaced only when it is empty or carries that marker, so that `--out .` or a
-folder of someone else's files is never swapped away.
-
-A symbolic link given as `--out` is followed: the folder it points to is replaced and the
-link is kept (pointing to the new folder, at the same path), as `cp -r` into a link would.
+Design: docs/design/output-folders.md.
 """
 
 from __future__ import annotations

@@ -1,25 +1,14 @@
 """Torque predictions at the rows of a measured log, scored against the measured torque.
 
-Identification fits the *processed* log: resampled, low-passed at the cut-off, trimmed at
-each end. Scoring a model against that processed torque would score it against our own
-filtered version of the measurement: the number would move with ``--cutoff`` (the
-reference moves) and flatter every model by the noise the filter removed. So every torque
-error prrrp prints, writes in a report or returns from here is against the torque **as
-measured**, at the rows it was measured:
+Identification fits the processed (low-passed, trimmed) log; scoring against that torque
+would score a model against our own filtered version of the measurement, moving with
+``--cutoff`` and flattering every model. So every torque error prrrp reports is against
+the torque **as measured**, at the rows it was measured: the model is evaluated on the
+untrimmed processed signals and interpolated to every row's time stamp; rows in the
+filter's edge transient and repeated time stamps are predicted but not scored, and
+counted. A log that gives q̇ and q̈ is evaluated at its rows as they are.
 
-1. the log is processed as for identification (the model's recorded settings): that pass
-   sets the cut-off, the grid and the edge span the filter's transient spoils;
-2. the same processing with no trimming (one grid sample at each end, which central
-   differences need) gives q, q̇, q̈ over the whole log; the model is evaluated there and
-   its torque is interpolated linearly to every row's time stamp (exact at the rows when
-   the log was not resampled; the grid is at the log's rate and the prediction is
-   band-limited by the filter, so linear interpolation adds nothing measurable);
-3. a row is **scored** unless it lies in the filter's edge transient (outside the first
-   pass's trimmed span: predicted, but from signals the filter has not settled on) or
-   repeats the previous row's time stamp (the preprocessing keeps the first of such rows,
-   so a repeat would count one instant twice). Both are counted in every table.
-
-A log that gives q̇ and q̈ is not processed: the model is evaluated at its rows as they are.
+Design: docs/design/torque-scoring.md.
 
 >>> grid = prrrp.prediction.prepare(raw, model.preprocessing["settings"])  # doctest: +SKIP
 >>> tau_hat = grid.predict(model)          # (rows, n), at every row of the log

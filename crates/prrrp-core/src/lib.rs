@@ -1,27 +1,35 @@
 //! # prrrp-core
 //!
-//! Dynamic model and parameter identification of the 5-DOF PRRRP redundant manipulator of
-//! Urrea & Pascal, "Parameter identification methods for real redundant manipulators",
-//! J. Appl. Res. Technol. 15 (2017) 320–331.
+//! Dynamic models and parameter identification of serial robot manipulators: rigid-body
+//! dynamics of any serial chain (read from URDF or TOML, or built in), with friction and
+//! coupled, geared actuators; the regressor τ = Φ·β in the base parameters β; excitation
+//! design, simulation, preprocessing of logs; batch and online estimators (least squares,
+//! RLS, Adaline, Hopfield, the extended Kalman filter, physically consistent fits); and an
+//! identified model that predicts torques and saves to JSON ([`identify`],
+//! [`IdentifiedModel`]). It began as a reproduction of Urrea & Pascal, "Parameter
+//! identification methods for real redundant manipulators", J. Appl. Res. Technol. 15
+//! (2017) 320–331, whose 5-DOF PRRRP arm is one robot among many here: as a chain
+//! ([`DynChain::paper`]) and in the paper's closed form in 8 grouped parameters λ
+//! ([`Robot`], [`PrrrpModel`]), the fast path of its study.
 //!
-//! The crate gives the closed-form Lagrange–Euler model of the arm **as a function of its
-//! 8 grouped base parameters λ**: mass matrix, Coriolis/centrifugal vector, gravity,
-//! inverse and forward dynamics, the 5×8 regressor Φ with τ = Φ·λ, the stacked observation
-//! matrix W and its condition number, and the analytic derivatives an extended Kalman
-//! filter needs. Every per-sample function works on stack-allocated nalgebra types and
-//! never touches the heap; batch linear algebra uses faer.
+//! Per-sample functions work on stack-allocated nalgebra types and never touch the heap;
+//! batch linear algebra uses faer. Constant model data are kept apart from per-call
+//! workspaces ([`DynChain`] / [`DynWorkspace`]), and every estimator is generic over
+//! [`LinearModel`] with `Const` or `Dyn` sizes, so one implementation serves both.
+//! Layers, and where a new robot, estimator or file format goes: docs/architecture.md.
 //!
 //! ## Conventions
-//! - q = [d1, θ2, θ3, θ4, d5] in m, rad, rad, rad, m; τ = [F1, τ2, τ3, τ4, F5] in N, N·m,
-//!   N·m, N·m, N.
-//! - World z points up; gravity acts along −z with magnitude `gravity` (9.81 m/s² by
-//!   default). Joint 1 lifts the arm along +z, joints 2–4 rotate about vertical axes,
-//!   joint 5 moves the tool along −z (DH α4 = 180°), so G5 = −m5·g and M15 = −m5.
-//! - Inertias of links 2–4 are about their centres of mass.
+//! - SI units throughout: m and rad for joint positions, N and N·m for joint forces, kg,
+//!   kg·m and kg·m² for inertial parameters.
+//! - The paper's arm: q = [d1, θ2, θ3, θ4, d5] in m, rad, rad, rad, m; τ = [F1, τ2, τ3, τ4,
+//!   F5] in N, N·m, N·m, N·m, N. World z points up; gravity acts along −z with magnitude
+//!   `gravity` (9.81 m/s² by default). Joint 1 lifts the arm along +z, joints 2–4 rotate
+//!   about vertical axes, joint 5 moves the tool along −z (DH α4 = 180°), so G5 = −m5·g and
+//!   M15 = −m5. Inertias of links 2–4 are about their centres of mass.
 //!
 //! ## Example
 //! ```
-//! use prrrp_core::{Robot, Vec5};
+//! use prrrp_core::{DynChain, Robot, Vec5};
 //!
 //! let robot = Robot::paper();
 //! let lambda = robot.base_parameters();
@@ -38,6 +46,12 @@
 //! // Forward dynamics inverts it.
 //! let qdd_back = model.forward_dynamics(&q, &qd, &tau, &lambda)?;
 //! assert!((qdd_back - qdd).norm() < 1e-9);
+//!
+//! // The same arm as a run-time chain (as a URDF or TOML file would give,
+//! // `DynChain::from_file`): Newton–Euler agrees with the closed form.
+//! let chain = DynChain::paper();
+//! let tau_chain = chain.inverse_dynamics(q.as_slice(), qd.as_slice(), qdd.as_slice())?;
+//! assert!((Vec5::from_column_slice(&tau_chain) - tau).norm() < 1e-9);
 //! # Ok::<(), prrrp_core::PrrrpError>(())
 //! ```
 #![warn(missing_docs)]

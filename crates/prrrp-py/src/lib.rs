@@ -1,24 +1,13 @@
 //! Python bindings of prrrp: the private native module `prrrp._prrrp`, re-exported by the
-//! pure-Python package `prrrp` (python/prrrp/__init__.py).
+//! pure-Python package `prrrp` (python/prrrp/__init__.py, typed by python/prrrp/_prrrp.pyi).
 //!
-//! The crate is thin: it converts numpy arrays to the core's fixed-size types and back,
-//! loops over batches with the GIL released, and maps errors to Python exceptions. Every
-//! computation is a call into `prrrp-core`. One file per concept:
-//! - `errors`: the exception hierarchy and the one conversion trait `ToPyResult`;
-//! - `arrays`: numpy ⇄ nalgebra, shape checks, the batched loop;
-//! - `robot`: `Robot` and its dynamics;
-//! - `chain`: `SerialChain` (any DH arm) and `BaseParameters`;
-//! - `dataset`: `Dataset`, a validated identification data set;
-//! - `validation`: `validate`, `torque_prediction`, `sensitivity`;
-//! - `regressor`: `regressor`, `observation_matrix`, `singular_values`, `condition_number`;
-//! - `derivatives`: the derivative result classes;
-//! - `trajectories`: the excitation optimisation and reference trajectories;
-//! - `simulation`: the closed- and open-loop simulators;
-//! - `preprocessing`: filtering and differentiation of measurements;
-//! - `estimators`: least squares and the online estimators;
-//! - `metrics`: the error indices;
-//! - `study`: the whole study as JSON;
-//! - `online`: `OnlineIdentifier`, identification one sample at a time.
+//! The crate is thin: it converts numpy arrays to the core's types and back, loops over
+//! batches with the GIL released, reports progress and honours Ctrl-C, and maps errors to
+//! Python exceptions; every computation is a call into `prrrp-core`. Its modules mirror the
+//! core's layers (`models`, `data`, `motion`, `estimators`, `identification`, `online`,
+//! `validation`, `paper`), beside the shared plumbing: `errors` (the exception hierarchy
+//! and `ToPyResult`), `arrays` (numpy ⇄ nalgebra, shape checks, the batched loop) and
+//! `interrupt` (stop flags and progress). Layers: docs/architecture.md.
 
 mod arrays;
 mod data;

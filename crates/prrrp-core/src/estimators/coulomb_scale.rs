@@ -1,39 +1,14 @@
 //! The speed scale v_s of smooth Coulomb friction, fc·tanh(q̇/v_s), chosen from the data.
 //!
-//! Real joint friction turns over within a small speed band rather than jumping at q̇ = 0;
-//! a Coulomb column of the wrong width leaves a large torque error wherever a joint
-//! reverses. The regressor is linear in fc for a fixed v_s, so the search is a 1-D
-//! model selection over v_s (shared by all joints): each candidate's base observation
-//! matrix W_b(v_s) is scored by K-fold cross-validation over contiguous blocks of samples
-//! (the held-out block is a different stretch of motion, so a width that only fits noise
-//! is not rewarded). The folds cost one pass: with the normal equations A_f = W_fᵀW_f,
-//! b_f = W_fᵀτ_f of every fold, the fit without fold f is β_f = (A − A_f)⁻¹(b − b_f) and
-//! its held-out error is τ_fᵀτ_f − 2β_fᵀb_f + β_fᵀA_fβ_f. The best grid point is refined by
-//! a parabola in log v_s through it and its neighbours. v_s = 0 (the exact sign) is always
-//! a candidate, so the hard sign is chosen when it predicts best.
+//! A Coulomb column of the wrong width leaves a large torque error wherever a joint
+//! reverses, and the regressor is linear in fc for a fixed v_s: so v_s (shared by all
+//! joints, v_s = 0 the exact sign) is a 1-D model selection by K-fold cross-validation over
+//! contiguous blocks, which does not reward a width that only fits noise. An optimum on an
+//! edge widens the range (at most [`CoulombScaleConfig::max_widenings`] times); when the
+//! data cannot fix v_s the report says so ([`CoulombScaleReport::identifiable`], with a
+//! [`CoulombScaleReport::note`] why). A candidate costs only its Coulomb columns.
 //!
-//! **Edges and identifiability.** An optimum on the largest candidate (or on the smallest
-//! positive one, beating the exact sign) says only that the error still falls beyond the
-//! range searched: the range then widens by a decade on that side, at the grid's own
-//! spacing, at most [`CoulombScaleConfig::max_widenings`] times (default
-//! [`COULOMB_SCALE_MAX_WIDENINGS`]: up to 30 rad/s and down to 10⁻⁵ rad/s from the default
-//! range). The report says when the data cannot fix v_s
-//! ([`CoulombScaleReport::identifiable`] false, with a [`CoulombScaleReport::note`] why): no
-//! speed reversal; a flat cross-validation curve — spread at most [`COULOMB_SCALE_FLAT`],
-//! or no candidate worse than the best by more than [`COULOMB_SCALE_MIN_Z`] times the
-//! standard error of their paired fold differences; or an optimum still on an edge after
-//! the widenings (above the data's speeds the smooth Coulomb term is nearly linear in q̇,
-//! i.e. indistinguishable from viscous friction).
-//!
-//! **Cost.** Only the Coulomb columns W_C (one per actuator) depend on v_s. The other
-//! columns W_F, their per-fold blocks W_FᵀW_F and W_Fᵀτ, and the Cholesky factor of each
-//! fold's training block are built once; a candidate adds the blocks W_FᵀW_C, W_CᵀW_C and
-//! W_Cᵀτ, and each fold's fit is a Schur complement of the N Coulomb columns (a block
-//! Cholesky of the same unit-diagonal-scaled matrix the full solve factors, so the result
-//! is the same to round-off). The candidates of a round (the grid, a widening) are scored
-//! together, so W_FᵀW_C is one matrix product per joint and fold over all of them. A
-//! joint's equations involve only the links from it outwards: the columns that are zero
-//! throughout are skipped, exactly.
+//! Design: docs/design/coulomb-scale.md.
 
 use std::ops::Range;
 

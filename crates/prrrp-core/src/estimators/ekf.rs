@@ -9,16 +9,9 @@
 //! (A = [∂q̈/∂q, ∂q̈/∂q̇, ∂q̈/∂λ = −M⁻¹Φ]). The measurement is the joint positions, or
 //! positions and velocities; H selects entries of x.
 //!
-//! Cost: F = I + h·B with B = [[0, I, 0], [A], [0]], so
-//! F·P·Fᵀ = P + h(BP + PBᵀ) + h²·BPBᵀ needs only G = P·Aᵀ (S×N) and A·G (N×N): ≈ S²N +
-//! SN² multiply-adds instead of 2S³, and zero entries of A (most of −M⁻¹Φ for PRRRP) are
-//! skipped. Because H is a selection, the innovation covariance is a sub-block of P plus
-//! R, and the Joseph update (I−KH)P(I−KH)ᵀ + KRKᵀ expands exactly to P − K·P_z· − D·Kᵀ
-//! with D = P_·z − K·S_z (zero for the optimal gain, so the form stays first-order
-//! insensitive to errors in K). K = P_·z·S_z⁻¹ with S_z⁻¹ from the Cholesky factor. The
-//! prediction's upper triangle is mirrored at the end of every step, so the stored P is
-//! exactly symmetric. A velocity measurement is processed as a second sequential
-//! update, which equals the joint update for uncorrelated position and velocity noise.
+//! The step exploits that structure (≈ S²N + SN² multiply-adds instead of 2S³; the Joseph
+//! update as a sub-block expansion) and keeps the stored P exactly symmetric. Design:
+//! docs/design/ekf.md; timings: docs/online-speed.md.
 
 use nalgebra::allocator::Allocator;
 use nalgebra::{Const, DefaultAllocator, Dim, Dyn, OMatrix, OVector, U1};

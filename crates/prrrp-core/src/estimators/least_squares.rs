@@ -1,17 +1,13 @@
 //! Batch least squares (eqs. 2–4, 35–36) and weighted least squares with per-joint noise
 //! variances.
 //!
-//! Well-conditioned problems (every exciting trajectory: cond(W) 5–100, up to ~2e3 with
-//! friction and inertial columns of different units) are solved through the normal
-//! equations: G = WᵀW over the non-zero column runs of each joint, scaled to unit
-//! diagonal, Cholesky-factored, then one step of iterative refinement with the exact
-//! residual ρ = y − W·λ̂. Their error is ≈ cond(W)²·ε before the refinement and about QR's
-//! cond(W)·ε after it; they are used only when the computed cond(W) ≤ 1e4 (so cond²·ε
-//! ≤ 2e-8 before refinement) and the smallest singular value clears the rank tolerance by a
-//! factor of 2. Otherwise — ill-conditioned, nearly or truly rank-deficient W — the problem
-//! goes to a blocked Householder QR factorisation of W (faer), which loses only cond·ε and
-//! decides the rank: from the singular values of the P×P factor R, which are W's (Q is
-//! orthogonal), so column pivoting (level-2 and 3–4× slower on a 14000×64 W) is not needed.
+//! Well-conditioned problems (cond(W) ≤ 1e4, the rank clear by a factor of 2) go through
+//! the normal equations, scaled to unit diagonal, with one step of iterative refinement:
+//! their error ≈ cond(W)²·ε ≤ 2e-8 before the refinement falls to QR's cond(W)·ε after it,
+//! at a lower cost. Anything else goes to a blocked Householder QR of W (faer), which loses
+//! only cond·ε and decides the rank from the singular values of R.
+//!
+//! Design and measurements: docs/design/least-squares.md.
 
 use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
 use faer::linalg::householder;

@@ -1,22 +1,16 @@
 //! What the defaults of `identify` take from the data (see [`super::identify`]): the
 //! EKF's measurement noise of the positions and velocities, and how many samples the
-//! least-squares residuals stay correlated over (for the LS and EKF covariances). Kept out of the filter's per-step code ([`crate::DynEkf`]), which
-//! only receives the numbers.
+//! least-squares residuals stay correlated over (for the LS and EKF covariances). Kept out
+//! of the filter's per-step code ([`crate::DynEkf`]), which only receives the numbers.
 //!
-//! - **Measurement noise R** per joint from the third difference of the measured signal:
-//!   Δ³x_k = x_k+1 − 3x_k + 3x_k−1 − x_k−2 annihilates every quadratic, so for a smooth
-//!   signal it is h³·x⃛ and for white noise of variance σ² its variance is 20σ². Hence
-//!   σ̂² = mean(Δ³x²)/20 is the noise of the data plus what a second-order step misses
-//!   (≈ h³/6·x⃛ per step), both of which the filter has to accept. A raw encoder log gives
-//!   its quantisation/noise level; a low-pass filtered one gives the small residual the
-//!   filter left, so the filter trusts smooth data and does not trust noisy data.
-//! - **Correlation time κ** (samples) of the least-squares torque residuals: κ = 1 +
-//!   2·Σ_l ρ(l), summed over Geyer's initial positive sequence of the mean normalised
-//!   autocorrelation ρ of the joints' residuals. A Kalman filter assumes white noise; a
-//!   zero-phase low-pass filter (the preprocessing) makes the residuals correlated over
-//!   ≈ rate/(2·cut-off) samples, so n samples carry the information of ≈ n/κ independent
-//!   ones and the filter's parameter covariance is too small by ≈ κ. The reported
-//!   covariance is P_λ·κ.
+//! - **Measurement noise R** per joint from the third difference of the signal, which
+//!   annihilates quadratics: σ̂² = mean(Δ³x²)/20, so the filter trusts smooth data and
+//!   does not trust noisy data.
+//! - **Correlation time κ** of the least-squares residuals (Geyer's initial positive
+//!   sequence): a zero-phase low-pass makes n samples worth ≈ n/κ independent ones, so
+//!   the reported covariance is P_λ·κ.
+//!
+//! Derivations: docs/design/identify-methods.md.
 
 /// Per-joint noise standard deviation of a flat row-major signal (samples × n) from its
 /// third difference (see the module docs), in the signal's units; `floor` for fewer than

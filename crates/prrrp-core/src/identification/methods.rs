@@ -3,76 +3,24 @@
 //! least squares, weighted least squares, recursive least squares, Adaline, the Hopfield
 //! network or the extended Kalman filter, and returns an [`IdentifiedModel`].
 //!
-//! The estimators are the library's own ([`crate::least_squares`], [`crate::DynRls`],
-//! [`crate::DynAdaline`], [`crate::DynHopfield`], [`crate::DynEkf`]) on
-//! [`crate::DynChainBaseModel`]; this module only chooses their settings from the data
-//! where the user gave none, and turns their output into a model:
+//! The estimators are the library's own; this module only chooses their settings from the
+//! data where the user gave none (defaults must hold on robots they were not tuned on) and
+//! turns their output into a model:
 //!
-//! - every method first stacks the base observation matrix W_b once (an ordinary
-//!   least-squares solve) for cond(W_b), which the model records: data that do not excite
-//!   every base parameter are [`PrrrpError::RankDeficient`] for every method, not a
-//!   silently wrong online estimate;
-//! - RLS, Adaline and the Hopfield network run on the column-equilibrated model
-//!   ([`DynScaledModel::equilibrated`]: every column of W_b·D has unit RMS), whose
-//!   parameters γ = D⁻¹·β are all in units of joint force, so that one step size and one
-//!   initial covariance suit any robot; their estimates are mapped back to β = D·γ;
-//! - the gradient methods (Adaline, Hopfield) take their step size from the data: the
-//!   delta rule's learning rate γ_lr = μ/max_i‖x_i‖² over the scaled regressor rows x_i
-//!   (stable for μ < 2, since one row's update contracts the error by 1 − γ_lr·‖x_i‖²),
-//!   the normalised rule's step μ directly, the Hopfield gain μ/max_k‖Φ_k‖_F² per sample
-//!   (λmax(ΦᵀΦ) ≤ ‖Φ‖_F²). They train in epochs over the data from γ = 0 at a fixed step
-//!   until the epoch map's fixed point is reached, then cut the step by powers of 2 (at
-//!   most `halvings` halvings in all), until the **stopping rule** holds: at the fixed point of the current step
-//!   (the change still to come, extrapolated geometrically from the last two epochs'
-//!   changes, below `parameter_tolerance`, and the relative change of the RMS equation
-//!   error e below `error_tolerance`) the move from the previous step's fixed point is
-//!   below `parameter_tolerance` once scaled to the bias left (below); or `max_epochs` (then [`IdentifiedModel::converged`] is
-//!   false). Why: one epoch at a fixed step μ is a contraction whose fixed point is off
-//!   least squares by a bias ∝ μ (measured on the paper's arm: it halves with each
-//!   halving), so the move between the fixed points of steps μ₀ > μ, B·(μ₀ − μ), gives
-//!   the bias left, B·μ, and the halvings that bring it below the tolerance are taken at
-//!   once (the next fixed point checks that prediction; only a single halving confirms
-//!   convergence); and
-//!   the contraction in the poorly excited directions is only ≈ 1 − μ·λmin(W_bᵀW_b)/
-//!   max‖x‖² per epoch (cond² of the scaled W_b, ≈ 100–250 there), which made plain
-//!   epochs at the final step μ/256 need 600–3000 epochs at 50 Hz. Each epoch therefore
-//!   starts from the **Anderson mixing** of the last ≤ B epochs' outputs (the
-//!   combination whose residual E(γ) − γ is least; for an epoch map that is affine, as
-//!   Adaline's is at a fixed step, it is the map's fixed point once B + 1 epochs are
-//!   known): the networks and their per-sample updates are unchanged, only the state an
-//!   epoch starts from is extrapolated, and every reported estimate is the network's own
-//!   state after a plain epoch. A fixed point is then reached in ≈ 4–10 epochs at any
-//!   step, and 4–6 step sizes are visited (paper's arm, issue 16's protocol: 26–47
-//!   epochs in all, ≈ 7–11 ms at 50 Hz / 10 s, ≈ 0.4–0.6 s at 1000 Hz / 30 s). A mixed state outside the Hopfield box (−c, c) is
-//!   replaced by the epoch's output. Adaline's default is the delta rule, whose fixed
-//!   point as the step shrinks is ordinary least squares (the normalised rule's is least
-//!   squares weighted by 1/‖x‖²); so is the Hopfield network's. The contraction rate
-//!   in a direction of parameter space is set by that direction's eigenvalue of W_bᵀW_b,
-//!   so by default the networks run on whitened parameters ([`DynScaledModel::whitened`],
-//!   β = D·T·γ with orthogonal unit-RMS regressor columns: every direction contracts
-//!   alike), which moves neither fixed point: on a gentle trajectory of the paper's arm
-//!   (cond(W_b·D) ≈ 120) plain epochs on the equilibrated model had left Adaline 16 % and
-//!   Hopfield 23 % off after 3000 epochs (`whiten = false` restores that model);
-//! - the EKF starts from the least-squares β̂ (the accelerations it does not need are in
-//!   the data set anyway) with a relative prior uncertainty, dt from the time stamps, and
-//!   measures positions and velocities; it holds the interval's mean torque. R is the
-//!   configured one (optionally each joint's from the data's third differences,
-//!   `noise_from_data`), Q of q̇ from the least-squares residual variances through M⁻¹(q, λ̂) at
-//!   every sample (the torque noise, τ being the filter's input; with M at the current λ̂
-//!   the weighted innovation is the torque error itself, as in least squares, instead of
-//!   favouring large inertias);
+//! - W_b is stacked once for every method: data that do not excite every base parameter
+//!   are [`PrrrpError::RankDeficient`] for every method, not a wrong online estimate;
+//! - RLS, Adaline and Hopfield run on column-scaled parameters ([`DynScaledModel`]), so
+//!   that one step size and one initial covariance suit any robot;
+//! - Adaline and Hopfield take their step from the data and halve it until the move
+//!   between fixed points says the step's bias is below `parameter_tolerance` (the
+//!   **stopping rule**); epochs start from an Anderson mixing of the last outputs and run
+//!   on whitened parameters, so that a fixed point takes a few epochs, not thousands;
+//! - the EKF starts from the least-squares β̂, with R and the residuals' correlation time
+//!   measured in the data (`ekf_defaults`);
+//! - σ of LS, WLS and the EKF accounts for the residuals' correlation time κ (filtered
+//!   data carry ≈ rows/κ independent equations); Adaline and Hopfield give none.
 //!
-//! Uncertainties: LS and WLS report σ from the residual (σ² = ‖ρ‖²/(rows − B)) times
-//! √κ, and LS its covariance κ·σ²·(W_bᵀW_b)⁻¹, where κ ≥ 1 is the correlation time of the
-//! residuals in samples (low-pass filtered data leave ≈ rows/κ independent equations;
-//! κ = 1 for white residuals); RLS without forgetting is exactly least squares
-//! regularised by ‖γ‖²/δ, so σ̂²·D·P·D is the covariance of β̂ with σ̂² from its
-//! residual; the EKF (Jacobian at the data's q̈, midpoint discretisation, prior 3² times
-//! the weighted least-squares covariance) reports the sandwich P_λ·(Σ_j κ_j·s_j²/σ_j⁴·
-//! W_jᵀW_j)·P_λ of its covariance with each joint's residual variance s_j² and
-//! correlation time κ_j (the filter assumes white noise of variances σ_j²), times
-//! 1 + 1/3² for the prior's reuse of the data; Adaline and
-//! the Hopfield network give none.
+//! Design, derivations and measurements: docs/design/identify-methods.md.
 
 use nalgebra::{DMatrix, DVector, Dyn};
 use serde_json::json;

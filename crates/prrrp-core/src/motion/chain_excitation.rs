@@ -3,27 +3,11 @@
 //! observation matrix (friction columns included when the chain has friction), starting
 //! and ending at rest and within the joint limits.
 //!
-//! # Parameterisation
-//! Joint j follows q_j = q0_j + s_j·Σ_l [a_jl/(ω·l)·sin(ω·l·t) − b_jl/(ω·l)·cos(ω·l·t)]
-//! with H harmonics of the base frequency ω. Rest at t = 0 (and, the series being
-//! periodic, at every whole period) needs Σ_l a_jl = 0 and Σ_l l·b_jl = 0, so the last
-//! harmonic's a and b are eliminated and each joint has 2(H − 1) free coefficients. The
-//! offset q0_j is the middle of the joint's position range (0 for a joint without
-//! position limits, e.g. continuous).
+//! As the paper's design ([`crate::optimise_excitation`]), every shape is scaled into the
+//! limits by construction and the seeded Nelder–Mead search sees shapes only; a joint
+//! without the limits its scaling needs is an error naming the joint.
 //!
-//! # Limits
-//! Feasible by construction, as the paper's design ([`crate::optimise_excitation`]): each
-//! joint's shape is scaled by the largest s_j that keeps its position, speed and
-//! acceleration within (1 − margin) of the limits, measured on a grid of at least 40
-//! points per period of the highest harmonic. Joints are scaled independently, so every
-//! shape is feasible; the optimiser searches the shapes only. A joint without a speed
-//! limit, or with neither an acceleration nor a position limit, cannot be scaled: that is
-//! an error naming the joint (give limits).
-//!
-//! # Optimiser
-//! cond(W_b) of the trajectory sampled at `sample_rate_hz` over one period (log-scaled
-//! cost), minimised by Nelder–Mead (`argmin`) from the best of `restarts` random shapes
-//! (seeded ChaCha8), within `max_evaluations` cost evaluations.
+//! Design: docs/design/excitation.md.
 
 use std::cell::RefCell;
 use std::f64::consts::PI;

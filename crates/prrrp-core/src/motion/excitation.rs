@@ -2,32 +2,13 @@
 //! that minimises the condition number of the observation matrix W, under joint limits,
 //! starting and ending at rest.
 //!
-//! # Parameterisation
-//! The revolute joints 2–4 follow piecewise quintics with K knots equally spaced over the
-//! horizon; the end knots are at rest (q̇ = q̈ = 0) with free positions, the interior knots
-//! have free position, velocity and acceleration. The prismatic joints 1 and 5 follow the
-//! paper's sinusoids q = c − A·cos(ωt) with a whole number of periods over the horizon
-//! (so q̇ = 0 at both ends; a pure sinusoid cannot also have q̈ = 0 there) and a free
-//! amplitude A. That is 3·(2 + 3·(K − 2)) + 2 decision variables (44 for K = 6).
+//! Revolute joints 2–4 follow piecewise quintics, the prismatic joints 1 and 5 the paper's
+//! sinusoids. Every candidate is scaled into the limits by construction, so the optimiser
+//! (seeded Nelder–Mead: cond(W) is not smooth where singular values cross) searches shapes
+//! only and never returns an infeasible trajectory; the result is re-checked on a finer
+//! grid ([`PrrrpError::Infeasible`] otherwise).
 //!
-//! # Limits
-//! Every candidate is made feasible by construction: each revolute joint's shape is
-//! centred in its position range and scaled by the largest factor that keeps position,
-//! velocity and acceleration within the limits (minus a safety `margin`), measured on a
-//! grid twice as fine as the sampling; each sinusoid's amplitude is a fraction (a logistic
-//! function of its variable) of the largest amplitude its limits allow. The optimiser thus
-//! searches an unconstrained space of shapes and never returns an infeasible trajectory;
-//! the result is re-checked on a grid 50 times finer than the sampling, and a violation
-//! there is reported as [`PrrrpError::Infeasible`].
-//!
-//! # Optimiser
-//! Nelder–Mead from the `argmin` crate (derivative-free, since cond(W) is not smooth where
-//! singular values cross, and deterministic), restarted from the best point found with a
-//! fresh simplex while the evaluation budget lasts. The random initial guess comes from a
-//! ChaCha8 generator seeded with [`ExcitationConfig::seed`], so a seed fixes the result.
-//! During the search cond(W) is computed from the eigenvalues of the 8×8 matrix WᵀW
-//! accumulated sample by sample (no heap work per sample); the reported values are
-//! recomputed from the SVD of W.
+//! Design: docs/design/excitation.md.
 
 use std::cell::RefCell;
 use std::f64::consts::PI;

@@ -1,28 +1,15 @@
 //! Causal joint velocities and accelerations from raw position samples: one small Kalman
 //! filter per joint.
 //!
-//! The batch preprocessing (`preprocess_log`) filters forward and backward, which needs
-//! the future of every sample. Online, each joint j runs a Kalman filter on the state
-//! [q, q̇, q̈] of a triple integrator driven by white jerk (or, when velocities are
-//! measured, on [q̇, q̈] driven by white jerk), discretised exactly over each sample's own
-//! Δt, so irregular time stamps cost nothing. Its steady state is a low-pass whose poles
-//! lie on a circle of radius ω_c = 2π·f_c (Butterworth pattern, ω_c⁶ = S/r for jerk
-//! density S and measurement variance r), so `cutoff_hz` alone sets it: the estimates
-//! depend on S/r only.
-//!
-//! Why a tracking filter and not a causal low-pass plus differences: a causal low-pass
-//! delays q, q̇ and q̈ by its group delay (30 ms for a 4th-order 10 Hz filter), so the
-//! regressor at row k would describe the arm 30 ms ago while τ_k is now — a torque error
-//! of τ̇·30 ms that least squares turns into bias, and that one-step-ahead predictions
-//! show as lag. The Kalman tracker has no steady-state lag for motions up to constant
-//! acceleration, and its error for slower-than-f_c motion falls as (f/f_c)³; the price is
-//! the noise of q̈, ≈ ω_c^2.5·√Δt·σ_q (0.02 rad/s² for a 1e-5 rad encoder at 1 kHz and
-//! 10 Hz), which is far below the accelerations of an exciting motion. The regressor uses
-//! the measured q itself and these q̇ (or the measured one) and q̈; τ is used as measured.
-//!
-//! Each filter starts uninformed about q̇ and q̈ and is ready after 6/ω_c (≈ 0.1 s at
-//! 10 Hz); a gap longer than half a cut-off period (the batch preprocessing's rule)
+//! Each joint runs a Kalman filter on [q, q̇, q̈] (or [q̇, q̈] when velocities are measured)
+//! driven by white jerk, discretised exactly over each sample's own Δt; its steady state is
+//! a Butterworth-pattern low-pass set by `cutoff_hz` alone. A tracker rather than a causal
+//! low-pass plus differences, because the low-pass's group delay puts the regressor behind
+//! the torque (a bias for least squares, a lag in the predictions), while the tracker has
+//! no steady-state lag up to constant acceleration. A gap longer than half a cut-off period
 //! restarts it.
+//!
+//! Design and numbers: docs/design/online.md.
 
 use nalgebra::{SMatrix, SVector};
 

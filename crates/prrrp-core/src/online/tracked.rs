@@ -7,10 +7,9 @@
 //! its dynamics are the base model's at that β, so τ = τ_arm + Φ·π. The EKF only uses
 //! the dynamics and their derivatives; the inverse-model estimators (RLS, Adaline,
 //! Hopfield) are given τ − τ_arm ([`TrackedModel::arm_torque_into`]), for which the
-//! model is linear. (A fixed unit parameter for the arm, with a zero prior variance,
-//! kept the model linear but made the covariance update lose definiteness within a few
-//! hundred samples.) Every method of the base model is evaluated at β, so whatever
-//! columns it has (friction, actuators) flow through unchanged.
+//! model is linear (why not a fixed unit parameter: docs/design/online.md). Every method
+//! of the base model is evaluated at β, so whatever columns it has (friction, actuators)
+//! flow through unchanged.
 
 use nalgebra::{DMatrix, DVector, Dyn};
 

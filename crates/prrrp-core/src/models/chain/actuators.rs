@@ -2,37 +2,18 @@
 //! that turns with two joints), each with a reflected rotor inertia (armature) and friction
 //! on its own velocity.
 //!
-//! # Model
-//! A chain of n joints is driven by n actuators. In joint-side units (an actuator's motion
-//! divided by its gear ratio) their velocities are
+//! With actuator velocities q̇ₘ = C·q̇ (C invertible, the identity by default) the joint
+//! forces are, by virtual work,
 //!
-//! q̇ₘ = C·q̇,
+//! τ = M(q)·q̈ + C(q, q̇)·q̇ + G(q) + Cᵀ·(diag(Ia)·C·q̈ + f(C·q̇)),
 //!
-//! with an invertible n×n coupling matrix C: the identity for one geared motor per joint
-//! (the default), a row `[0, 0, 0, 0, 1, 1]` for a sixth motor that turns with q̇₅ + q̇₆
-//! (the Stäubli TX40's wrist). Actuator m exerts τₘ = Iaₘ·q̈ₘ + fₘ(q̇ₘ) — its rotor
-//! inertia reflected through the gear (Iaₘ = rₘ²·J_rotor,ₘ, kg·m² or kg on the joint side)
-//! and the friction of the chain's [`super::FrictionModel`] acting on q̇ₘ — and these
-//! torques reach the joints through Cᵀ (virtual work: q̇ₘᵀ·τₘ = q̇ᵀ·Cᵀτₘ):
+//! one definition that the regressor, base parameters, dynamics, simulation, estimators and
+//! the identified model all use through the chain. The armature, when enabled
+//! ([`Actuators::armature`]), adds one linear parameter per actuator after its friction
+//! terms (fv, fc, fo, Ia). Gear ratios do not enter the dynamics; they only map motor-side
+//! measurements to the joint side ([`Actuators::joint_torques_from_motor`]).
 //!
-//! τ = M(q)·q̈ + C(q, q̇)·q̇ + G(q) + Cᵀ·(diag(Ia)·C·q̈ + f(C·q̇)).
-//!
-//! With C = I this is today's joint friction plus an armature term Ia_j·q̈_j, Pinocchio's
-//! `model.armature`. The armature adds Cᵀ·diag(Ia)·C to the mass matrix. Everything —
-//! regressor, base parameters, inverse and forward dynamics, simulation, estimators, the
-//! identified model — uses this one definition through the chain.
-//!
-//! # Parameters
-//! The armature, when enabled ([`Actuators::armature`]), is one more linear parameter per
-//! actuator, `Ia1 … Ian`. The chain's standard parameter vector is the 10·n inertial
-//! parameters followed, per actuator m, by its enabled terms in the order
-//! (fv, fc, fo, Ia): `fv1, fc1, fo1, Ia1, fv2, …` (only the enabled ones).
-//!
-//! # Gear ratios
-//! Gear ratios rₘ (motor angle per joint-side actuator angle, dimensionless) do not enter
-//! the dynamics; they map motor-side measurements to the joint side
-//! ([`Actuators::joint_positions_from_motor`], [`Actuators::joint_torques_from_motor`]):
-//! θ = r∘(C·q) for the motor angles and τ = Cᵀ·(r∘τ_motor) for the joint torques.
+//! Design: docs/design/actuators.md.
 
 use nalgebra::DMatrix;
 use serde::{Deserialize, Serialize};

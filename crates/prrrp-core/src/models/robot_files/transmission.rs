@@ -1,28 +1,14 @@
 //! URDF `<transmission>` elements ↔ the chain's [`Actuators`].
 //!
 //! urdf-rs does not read transmissions, so the document is read a second time with
-//! quick-xml (the XML reader urdf-rs itself uses) into a small element tree. Understood:
+//! quick-xml into a small element tree. ROS 1 and ros2_control simple, differential and
+//! four-bar transmissions and Drake's rotor inertia and gear ratio are understood; their
+//! motor-velocity map G is split as G = diag(r)·C into gear ratios and a joint-side
+//! coupling, and rotor inertias become joint-side armatures J·r². Placeholder reductions of
+//! 1 leave the default actuators; transmissions off the chain, or of other types, are
+//! ignored.
 //!
-//! - ROS 1 `transmission_interface` and ros2_control `<transmission>` elements (anywhere in
-//!   the document, e.g. inside `<ros2_control>`), the type given by `<type>`, `<plugin>`
-//!   or a `type` attribute, reductions by `<mechanicalReduction>` or
-//!   `<mechanical_reduction>` in the `<actuator>` and/or `<joint>` elements (their product
-//!   for a simple transmission);
-//! - `SimpleTransmission`: motor angle θ = n·q;
-//! - `DifferentialTransmission` (ros2_control's convention, roles `actuator1/2`,
-//!   `joint1/2`): θ̇₁ = n_a1·(n_j1·q̇₁ + n_j2·q̇₂), θ̇₂ = n_a2·(n_j1·q̇₁ − n_j2·q̇₂);
-//! - `FourBarLinkageTransmission`: θ̇₁ = n_j1·n_a1·q̇₁, θ̇₂ = n_a2·(q̇₁ + n_j2·q̇₂);
-//! - Drake's `<drake:rotor_inertia value>` (kg·m², motor side) and `<drake:gear_ratio
-//!   value>` in an `<actuator>`.
-//!
-//! The motor-velocity map G (θ̇ = G·q̇, identity rows for joints without a transmission) is
-//! split as G = diag(r)·C with each row of C scaled so that its largest entry is 1: the
-//! gear ratios r and the coupling C
-//! in joint-side units. A rotor inertia J becomes the joint-side armature Ia = J·r². The
-//! gear ratios are kept only when every chain joint's transmission gives a reduction;
-//! transmissions that only say "reduction 1" everywhere (a common placeholder) leave the
-//! default actuators.
-//! Transmissions of joints off the chain, and of types not listed, are ignored.
+//! The elements and formulas understood: docs/design/actuators.md.
 
 use quick_xml::events::{BytesStart, Event};
 use quick_xml::Reader;
