@@ -96,6 +96,7 @@ from prrrp._prrrp import (
     validate,
     validate_model,
 )
+from prrrp.lambda_view import paper_lambda
 from prrrp.measurements import measurements_to_dataset, read_measurements
 from prrrp.montecarlo import benchmark
 from prrrp.workflow import (
@@ -159,6 +160,7 @@ __all__ = [
     "measurements_to_dataset",
     "observation_matrix",
     "optimise_excitation",
+    "paper_lambda",
     "payload",
     "preprocess",
     "preprocess_log",

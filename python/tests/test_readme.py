@@ -16,7 +16,14 @@ def python_blocks() -> list[str]:
 
 @pytest.mark.parametrize(
     "needle",
-    ["SerialChain.puma560", "SerialChain.from_urdf", "prrrp.identify", "OnlineIdentifier"],
+    [
+        'load_robot("paper")',
+        "Robot.paper()",
+        "SerialChain.puma560",
+        "SerialChain.from_urdf",
+        "prrrp.identify",
+        "OnlineIdentifier",
+    ],
 )
 def test_readme_example_runs(needle):
     blocks = [b for b in python_blocks() if needle in b]

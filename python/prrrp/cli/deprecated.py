@@ -14,7 +14,6 @@ release after."""
 from __future__ import annotations
 
 import argparse
-import functools
 import math
 import shlex
 import sys
@@ -24,7 +23,7 @@ from typing import Any
 import numpy as np
 
 import prrrp
-from prrrp import csvio, paper
+from prrrp import csvio, lambda_view, paper
 from prrrp.cli.common import (
     EXIT_OK,
     CliError,
@@ -152,32 +151,8 @@ def _rank_deficient(path: str, e: Exception) -> CliError:
     )
 
 
-@functools.cache
-def lambda_map() -> np.ndarray:
-    """T, (8, 9): the paper's λ = T @ β for the base parameters β of
-    ``prrrp.identify(prrrp.Robot.paper(), ...)`` (the chain form's numerical analysis).
-
-    The chain's 9 base parameters span the paper's λ1..λ5, λ8, m4·lc4 + m5·l4 (λ6 and λ7
-    are l2 and l3 times it) and the lateral first moments my3 and my4 + my5, which the
-    paper's model sets to 0. So Y_b(x)·β = Φ(x)·λ + Y_lat(x)·μ at every state x, and T is
-    the λ rows of the exact solution of [Φ | Y_lat]·[T; L] = Y_b over random states (the
-    residual is checked to be round-off: the map is an identity, not a fit)."""
-    chain = prrrp.SerialChain.paper()
-    base = chain.base_parameters()
-    rng = np.random.default_rng(0)
-    q, qd, qdd = rng.uniform(-1.0, 1.0, size=(3, 64, prrrp.NDOF))
-    phi = np.asarray(prrrp.regressor(q, qd, qdd)).reshape(-1, prrrp.NPARAM)
-    y = np.asarray(chain.regressor(q, qd, qdd)).reshape(len(q) * prrrp.NDOF, -1)
-    names = list(base.names)
-    lateral = np.stack(
-        [y[:, names.index("my3")], y[:, names.index("my4")] + y[:, names.index("my5")]], axis=1
-    )
-    yb = np.asarray(chain.base_regressor(q, qd, qdd)).reshape(-1, base.count)
-    a = np.hstack([phi, lateral])
-    sol, *_ = np.linalg.lstsq(a, yb, rcond=None)
-    if not np.allclose(a @ sol, yb, rtol=0.0, atol=1e-9 * np.abs(yb).max()):
-        raise RuntimeError("the chain's base parameters do not map onto the paper's λ")
-    return sol[: prrrp.NPARAM]
+#: Moved to :mod:`prrrp.lambda_view` (the λ view of any ``paper`` model).
+lambda_map = lambda_view.lambda_map
 
 
 def _identify(method: str, data: dict[str, Any], path: str) -> dict[str, Any]:

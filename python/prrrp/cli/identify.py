@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 
 import prrrp
-from prrrp import bags, drawing, drives, model_report, outdir, prediction, workflow
+from prrrp import bags, drawing, drives, lambda_view, model_report, outdir, prediction, workflow
 from prrrp import payload as payloads
 from prrrp.cli import deprecated
 from prrrp.cli.common import (
@@ -283,6 +283,11 @@ def run(args: argparse.Namespace) -> int:
         if len(methods) > 1:
             main.model.save(tmp / "model.json")
             written.append(tmp / "model.json")
+        lam = lambda_view.paper_lambda(main.model)
+        if lam is not None:
+            # The paper's arm: its 8 grouped parameters beside the base parameters.
+            (tmp / "lambda.json").write_text(json.dumps(lam, indent=2) + "\n", encoding="utf-8")
+            written.append(tmp / "lambda.json")
         sources = {"robot": str(args.robot), "data": str(args.data)}
         if args.validate:
             sources["validation"] = str(args.validate)
@@ -483,6 +488,14 @@ def _summary(
             f"Coulomb speed scale v_s = {main.coulomb['chosen']:.4g} rad/s"
             + (" (chosen by cross-validation)" if identified else f": NOT IDENTIFIABLE: {note}")
         )
+    lam = lambda_view.paper_lambda(main.model)
+    if lam is not None:
+        sig = lam["sigma"] or [None] * len(lam["lambda"])
+        cells = [
+            f"λ{k + 1} = {v:.4g}" + (f" ± {s:.2g}" if s is not None else "") + f" {u}"
+            for k, (v, s, u) in enumerate(zip(lam["lambda"], sig, lam["units"], strict=True))
+        ]
+        print("the paper's grouped parameters (lambda.json): " + ", ".join(cells))
     which, grid = ("validation", val) if val is not None else ("identification", fit)
     header = ["method", "converged", "time (s)", *list(robot.joint_names)]
     rows = []
