@@ -56,119 +56,36 @@
 //! ```
 #![warn(missing_docs)]
 
-mod data;
+pub mod data;
 mod error;
-mod estimators;
-mod identification;
-mod interrupt;
-mod models;
-mod motion;
-mod online;
-mod paper;
-mod validation;
+pub mod estimators;
+pub mod identification;
+pub mod interrupt;
+pub mod models;
+pub mod motion;
+pub mod online;
+pub mod paper;
+pub mod validation;
 
-pub use data::dataset::{Dataset, DatasetParts};
-pub use data::preprocess::{
-    central_differences, preprocess, ButterworthLowPass, PreprocessConfig, MAX_BUTTERWORTH_ORDER,
-};
-pub use data::{
-    preprocess_log, DynDataset, DynDatasetParts, LogConfig, LogReport, DEFAULT_LOG_CUTOFF_HZ,
-    LOG_MAX_UPSAMPLING, LOG_UNIFORM_TOLERANCE,
-};
 pub use error::{PrrrpError, Result};
-pub use estimators::ParameterJacobian;
-pub use estimators::{
-    base_feasibility, default_coulomb_scales, identify_physical, select_coulomb_scale,
-    BaseFeasibility, CoulombScaleConfig, CoulombScaleReport, PhysicalConfig, PhysicalEstimate,
-    PhysicalProblem, BASE_FEASIBILITY_TOLERANCE, BASE_MISMATCH_FLOOR, COULOMB_SCALE_FLAT,
-    COULOMB_SCALE_GRID, COULOMB_SCALE_MAX_WIDENINGS, COULOMB_SCALE_MIN_Z, COULOMB_SCALE_RANGE,
-    DEFAULT_DIVERGENCE_WEIGHT, MAX_COULOMB_CANDIDATES,
-};
-pub use estimators::{
-    least_squares, weighted_least_squares, Adaline, AdalineConfig, AdalineOf, AdalineRule,
-    Discretisation, DynAdaline, DynEkf, DynHopfield, DynJointNoise, DynLeastSquaresReport, DynRls,
-    DynSample, DynSamples, Ekf, EkfAllocator, EkfConfig, EkfMeasurement, EkfOf, Estimator,
-    Forgetting, Hopfield, HopfieldConfig, HopfieldOf, JointNoise, JointNoiseOf, LeastSquares,
-    LeastSquaresConfig, LeastSquaresReport, LeastSquaresReportOf, PrrrpEkf, Rls, RlsConfig, RlsOf,
-    Sample, SampleOf, Samples, SamplesOf, TrainingReport, PRRRP_EKF_STATES,
-};
-pub use identification::{
-    identify, identify_least_squares, identify_robot, BaseDescription, EkfSettings, EkfStart,
-    GradientSettings, IdentifiedModel, LsSettings, Method, PhysicalSettings, Predictor,
-    RlsSettings, METHOD_NAMES, MODEL_SCHEMA_VERSION,
-};
-pub use identification::{
-    identify_drive_gains, identify_payload, DriveGainSettings, DriveGains, DriveGainsFit,
-    PayloadSettings,
-};
-pub use identification::{ActuatorEstimate, TermEstimate};
-pub use interrupt::{check_count, clear_stop, request_stop, stop_requested, StopFlag, MAX_SAMPLES};
-pub use models::chain::{
-    com_and_inertia, inertial_parameters, is_physically_consistent, transform_inertial_parameters,
-    BaseOptions, BaseParameters, ChainBaseModel, ChainDescription, ChainMeta, DhConvention,
-    DhDescription, DynBaseWorkspace, DynChain, DynChainBaseModel, DynWorkspace, FrictionModel,
-    Joint, JointDescription, JointInfo, JointLimit, JointType, PoseDescription, SerialChain,
-    AXIS_UNIT_TOLERANCE, CHAIN_SCHEMA_VERSION, FRICTION_PARAMETER_NAMES, INERTIAL_PARAMETER_NAMES,
-    LINK_PARAMS, MAX_DOF, MAX_MATRIX_ENTRIES, PHYSICAL_TOLERANCE,
-};
-pub use models::chain::{
-    pseudo_inertia, pseudo_inertia_to_parameters, standard_from_base, FeasibilityReport,
-    JointFrictionFeasibility, LinkFeasibility,
-};
-pub use models::chain::{Actuators, ACTUATOR_PARAMETER_NAMES, COUPLING_CONDITION_LIMIT};
-pub use models::payload::{
-    is_physical as is_physical_payload, project_physical, Payload, PayloadIdentifiable,
-    PayloadThresholds,
-};
-pub use models::prrrp::derivatives::InverseDerivatives;
-pub use models::prrrp::dynamics::{MassCholesky, PrrrpModel};
-pub use models::prrrp::regressor::{condition_number, observation_matrix, singular_values};
-pub use models::prrrp::robot::{DhRow, JointKind, Robot, STANDARD_GRAVITY};
-pub use models::prrrp::types::{Lambda, Mat5, Regressor, Vec5, NDOF, NPARAM};
-pub use models::robot_files::{
-    UrdfOptions, MAX_ROBOT_FILE_BYTES, MAX_URDF_DEPTH, MAX_URDF_ELEMENTS,
-};
-pub use models::scaled::{DynScaledModel, DynScaledWorkspace, ScaledModel};
-pub use models::{ForwardDerivatives, ForwardDerivativesOf, LinearDynamics, LinearModel};
-pub use motion::chain_excitation::{
-    optimise_chain_excitation, ChainExcitation, ChainExcitationConfig, MAX_EXCITATION_EVALUATIONS,
-};
-pub use motion::dyn_trajectory::{DynSampledTrajectory, FourierTrajectory};
-pub use motion::dynamics::{Dynamics, ParameterisedModel, ParameterisedWorkspace};
-pub use motion::excitation::{
-    excitation_variables, optimise_excitation, ExcitationConfig, ExcitationProgress,
-    ExcitationResult, DEFAULT_EXCITATION_KNOTS,
-};
-pub use motion::limits::{limit_usage, JointLimits, LimitUsage};
-pub use motion::simulation::{
-    rk4_step, rk4_step_into, simulate_closed_loop, simulate_dyn_closed_loop,
-    simulate_dyn_open_loop, simulate_open_loop, ComputedTorque, DynComputedTorque, DynSensorNoise,
-    DynSimulationConfig, DynSimulationRecord, Rk4Integrator, SensorNoise, SimulationConfig,
-    SimulationRecord, MAX_INTEGRATION_STEPS, RK4_SCRATCH_PER_JOINT,
-};
-pub use motion::trajectory::{
-    sample_trajectory, DynTrajectory, ExcitationTrajectory, FourierSeries, JointTrajectory,
-    PiecewiseQuintic, Quintic, Reflected, SampledTrajectory, ScalarTrajectory, Sinusoid,
-    TrajectoryPoint, REFLECTED_REST_TOLERANCE,
-};
-pub use online::{
-    CausalKinematics, CausalLowPass, ChangeDetection, ChangeDetector, OnlineConfig,
-    OnlineIdentifier, OnlineMethod, OnlineUpdate, ONLINE_METHOD_NAMES,
-};
-pub use paper::sensitivity::{sensitivity, SensitivityConfig, SensitivityReport};
-pub use paper::study::{
-    run_study, EstimationData, ExcitationSummary, History, MethodEstimate, MethodValidationSummary,
-    SensitivitySummary, StudyConfig, StudyProgress, StudyResult, Timings, ValidationSummary,
-    METHODS,
-};
-pub use validation::metrics::{
-    agreement_index, error_indices, relative_errors_percent, rms, rsd, ErrorIndices,
-};
-pub use validation::{
-    default_validation_reference, joint_indices, per_joint_indices, torque_prediction, validate,
-    validate_identified_model, validate_torque_prediction, MethodValidation, TorquePrediction,
-    TorqueValidation, ValidationConfig, ValidationReport,
-};
+
+/// Every public item of the modules in one flat namespace, for glob imports
+/// (`use prrrp_core::prelude::*;`): the crate root's list before the modules were public.
+pub mod prelude {
+    pub use crate::data::*;
+    pub use crate::error::{PrrrpError, Result};
+    pub use crate::estimators::*;
+    pub use crate::identification::*;
+    pub use crate::interrupt::*;
+    pub use crate::models::*;
+    pub use crate::motion::*;
+    pub use crate::online::*;
+    pub use crate::paper::*;
+    pub use crate::validation::*;
+}
+// The flat names stay importable from the root for code written against it.
+#[doc(hidden)]
+pub use prelude::*;
 
 /// Re-exported so that users name the same nalgebra and faer versions as the crate.
 pub use faer;

@@ -1,6 +1,6 @@
 //! Identification data: the validated [`DynDataset`] of any joint count and
 //! [`preprocess_log`], which turns a real, irregular log into one; the PRRRP's fixed-size
-//! [`Dataset`](dataset::Dataset) and [`preprocess`](crate::preprocess) run on the same
+//! [`Dataset`] and [`preprocess`] run on the same
 //! filtering core.
 
 pub(crate) mod dataset;
@@ -13,4 +13,10 @@ pub use dyn_dataset::{DynDataset, DynDatasetParts};
 pub use log::{
     preprocess_log, LogConfig, LogReport, DEFAULT_LOG_CUTOFF_HZ, LOG_MAX_UPSAMPLING,
     LOG_UNIFORM_TOLERANCE,
+};
+
+// The module's public API (also at the crate root through `prelude`).
+pub use dataset::{Dataset, DatasetParts};
+pub use preprocess::{
+    central_differences, preprocess, ButterworthLowPass, PreprocessConfig, MAX_BUTTERWORTH_ORDER,
 };

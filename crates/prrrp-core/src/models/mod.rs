@@ -6,10 +6,10 @@
 //! work for the PRRRP arm ([`crate::PrrrpModel`]) and for any other robot.
 
 //!
-//! The models themselves: [`chain`] (any serial chain, compile-time or run-time size),
-//! [`prrrp`] (the paper's arm in closed form), [`robot_files`] (chains read from URDF and
-//! TOML files), [`scaled`] (column-scaled views the gradient estimators train on) and
-//! [`payload`] (a load carried by a link).
+//! The models themselves: `chain` (any serial chain, compile-time or run-time size),
+//! `prrrp` (the paper's arm in closed form), `robot_files` (chains read from URDF and
+//! TOML files), `scaled` (column-scaled views the gradient estimators train on) and
+//! `payload` (a load carried by a link).
 
 pub(crate) mod chain;
 pub(crate) mod payload;
@@ -21,6 +21,32 @@ use nalgebra::allocator::Allocator;
 use nalgebra::{Const, DefaultAllocator, Dim, OMatrix, OVector, SMatrix, SVector, U1};
 
 use crate::error::Result;
+
+// The module's public API (also at the crate root through `prelude`).
+pub use chain::{
+    com_and_inertia, inertial_parameters, is_physically_consistent, transform_inertial_parameters,
+    BaseOptions, BaseParameters, ChainBaseModel, ChainDescription, ChainMeta, DhConvention,
+    DhDescription, DynBaseWorkspace, DynChain, DynChainBaseModel, DynWorkspace, FrictionModel,
+    Joint, JointDescription, JointInfo, JointLimit, JointType, PoseDescription, SerialChain,
+    AXIS_UNIT_TOLERANCE, CHAIN_SCHEMA_VERSION, FRICTION_PARAMETER_NAMES, INERTIAL_PARAMETER_NAMES,
+    LINK_PARAMS, MAX_DOF, MAX_MATRIX_ENTRIES, PHYSICAL_TOLERANCE,
+};
+pub use chain::{
+    pseudo_inertia, pseudo_inertia_to_parameters, standard_from_base, FeasibilityReport,
+    JointFrictionFeasibility, LinkFeasibility,
+};
+pub use chain::{Actuators, ACTUATOR_PARAMETER_NAMES, COUPLING_CONDITION_LIMIT};
+pub use payload::{
+    is_physical as is_physical_payload, project_physical, Payload, PayloadIdentifiable,
+    PayloadThresholds,
+};
+pub use prrrp::derivatives::InverseDerivatives;
+pub use prrrp::dynamics::{MassCholesky, PrrrpModel};
+pub use prrrp::regressor::{condition_number, observation_matrix, singular_values};
+pub use prrrp::robot::{DhRow, JointKind, Robot, STANDARD_GRAVITY};
+pub use prrrp::types::{Lambda, Mat5, Regressor, Vec5, NDOF, NPARAM};
+pub use robot_files::{UrdfOptions, MAX_ROBOT_FILE_BYTES, MAX_URDF_DEPTH, MAX_URDF_ELEMENTS};
+pub use scaled::{DynScaledModel, DynScaledWorkspace, ScaledModel};
 
 /// Derivatives of the forward dynamics q̈ = M⁻¹(τ − C·q̇ − G), all at fixed τ.
 #[derive(Debug, Clone, Copy, PartialEq)]
