@@ -21,6 +21,33 @@ use crate::interrupt::interruptible;
 
 type Out<'py> = PyResult<Bound<'py, PyAny>>;
 
+/// The `#[pymethods]` of `SerialChain`: its own items, then one method per dynamics
+/// quantity `fn name(args) -> [shape] = fill;`, taking (n,) or (N, n) arguments, with
+/// `fill` writing sample `k` into `out` through chain `c` and its workspace `ws` (one
+/// per batch, the GIL released).
+macro_rules! chain_pymethods {
+    (|$c:ident, $ws:ident, $k:ident, $out:ident| { $($extra:tt)* }
+     $($(#[$doc:meta])* fn $name:ident($($arg:ident),+) -> [$($dim:expr),+] = $fill:expr;)*) => {
+        #[pymethods]
+        impl PySerialChain {
+            $($extra)*
+            $(
+            $(#[$doc])*
+            fn $name<'py>(&self, py: Python<'py>, $($arg: &Bound<'py, PyAny>),+) -> Out<'py> {
+                $(let $arg = self.joints($arg, stringify!($arg))?;)+
+                let n = batch_len(py, &[$(&$arg),+])?;
+                let $c = &self.inner;
+                let shape = [$($dim),+];
+                let [y] = map_samples_with(py, n, [&shape], $c.workspace(), |$ws, $k, [$out]| {
+                    $fill
+                })?;
+                Ok(y)
+            }
+            )*
+        }
+    };
+}
+
 /// Default rank tolerance and seed of `BaseOptions`, for the Python signature.
 const DEFAULT_SEED: u64 = 0x5EED_BA5E;
 const DEFAULT_RANK_TOLERANCE: f64 = 1e-8;
@@ -244,8 +271,8 @@ impl PySerialChain {
     }
 }
 
-#[pymethods]
-impl PySerialChain {
+chain_pymethods! {
+|c, ws, k, out| {
     /// See the class documentation in `_prrrp.pyi`.
     #[new]
     #[pyo3(signature = (dh, joint_types, *, convention="standard", inertial=None, gravity=None,
@@ -698,111 +725,6 @@ impl PySerialChain {
         self.inner.friction().coulomb_smoothing
     }
 
-    /// Inverse dynamics τ = M·q̈ + C·q̇ + G + τ_friction (N, N·m): (n,) or (N, n).
-    fn inverse_dynamics<'py>(
-        &self,
-        py: Python<'py>,
-        q: &Bound<'py, PyAny>,
-        qd: &Bound<'py, PyAny>,
-        qdd: &Bound<'py, PyAny>,
-    ) -> Out<'py> {
-        let (q, qd, qdd) = (
-            self.joints(q, "q")?,
-            self.joints(qd, "qd")?,
-            self.joints(qdd, "qdd")?,
-        );
-        let n = batch_len(py, &[&q, &qd, &qdd])?;
-        let c = &self.inner;
-        let [tau] = map_samples_with(py, n, [&[c.dof()]], c.workspace(), |ws, k, [out]| {
-            c.inverse_dynamics_into(ws, q.at(k), qd.at(k), qdd.at(k), out)
-        })?;
-        Ok(tau)
-    }
-
-    /// Nonlinear effects C(q, q̇)·q̇ + G(q) + τ_friction(q̇) (N, N·m): (n,) or (N, n).
-    fn nonlinear_effects<'py>(
-        &self,
-        py: Python<'py>,
-        q: &Bound<'py, PyAny>,
-        qd: &Bound<'py, PyAny>,
-    ) -> Out<'py> {
-        let (q, qd) = (self.joints(q, "q")?, self.joints(qd, "qd")?);
-        let n = batch_len(py, &[&q, &qd])?;
-        let c = &self.inner;
-        let [h] = map_samples_with(py, n, [&[c.dof()]], c.workspace(), |ws, k, [out]| {
-            c.nonlinear_effects_into(ws, q.at(k), qd.at(k), out)
-        })?;
-        Ok(h)
-    }
-
-    /// Gravity torques G(q) (N, N·m; no friction): (n,) or (N, n).
-    fn gravity_torques<'py>(&self, py: Python<'py>, q: &Bound<'py, PyAny>) -> Out<'py> {
-        let q = self.joints(q, "q")?;
-        let n = batch_len(py, &[&q])?;
-        let c = &self.inner;
-        let [g] = map_samples_with(py, n, [&[c.dof()]], c.workspace(), |ws, k, [out]| {
-            c.gravity_torques_into(ws, q.at(k), out)
-        })?;
-        Ok(g)
-    }
-
-    /// Mass matrix M(q): (n, n) or (N, n, n).
-    fn mass_matrix<'py>(&self, py: Python<'py>, q: &Bound<'py, PyAny>) -> Out<'py> {
-        let q = self.joints(q, "q")?;
-        let n = batch_len(py, &[&q])?;
-        let c = &self.inner;
-        let d = c.dof();
-        let [m] = map_samples_with(py, n, [&[d, d]], c.workspace(), |ws, k, [out]| {
-            c.mass_matrix_into(ws, q.at(k), out)
-        })?;
-        Ok(m)
-    }
-
-    /// Forward dynamics q̈ = M⁻¹(τ − C·q̇ − G − τ_friction): (n,) or (N, n). Raises
-    /// NotPositiveDefiniteError (with `.sample` for a batch) where M(q) is singular.
-    fn forward_dynamics<'py>(
-        &self,
-        py: Python<'py>,
-        q: &Bound<'py, PyAny>,
-        qd: &Bound<'py, PyAny>,
-        tau: &Bound<'py, PyAny>,
-    ) -> Out<'py> {
-        let (q, qd, tau) = (
-            self.joints(q, "q")?,
-            self.joints(qd, "qd")?,
-            self.joints(tau, "tau")?,
-        );
-        let n = batch_len(py, &[&q, &qd, &tau])?;
-        let c = &self.inner;
-        let [qdd] = map_samples_with(py, n, [&[c.dof()]], c.workspace(), |ws, k, [out]| {
-            c.forward_dynamics_into(ws, q.at(k), qd.at(k), tau.at(k), out)
-        })?;
-        Ok(qdd)
-    }
-
-    /// Full regressor Y (friction columns included) with τ = Y·parameters: (n, P) or
-    /// (N, n, P).
-    fn regressor<'py>(
-        &self,
-        py: Python<'py>,
-        q: &Bound<'py, PyAny>,
-        qd: &Bound<'py, PyAny>,
-        qdd: &Bound<'py, PyAny>,
-    ) -> Out<'py> {
-        let (q, qd, qdd) = (
-            self.joints(q, "q")?,
-            self.joints(qd, "qd")?,
-            self.joints(qdd, "qdd")?,
-        );
-        let n = batch_len(py, &[&q, &qd, &qdd])?;
-        let c = &self.inner;
-        let shape = [c.dof(), c.num_params()];
-        let [y] = map_samples_with(py, n, [&shape], c.workspace(), |ws, k, [out]| {
-            c.regressor_row_major_into(ws, q.at(k), qd.at(k), qdd.at(k), out)
-        })?;
-        Ok(y)
-    }
-
     /// Observation matrix W: the regressors of the samples stacked, shape (N·n, P); rows
     /// n·k..n·k+n hold sample k.
     fn observation_matrix<'py>(
@@ -991,6 +913,31 @@ impl PySerialChain {
         let args = PyTuple::new(py, [self.to_json(py)?])?;
         PyTuple::new(py, [rebuild, args.into_any()])
     }
+}
+
+    /// Inverse dynamics τ = M·q̈ + C·q̇ + G + τ_friction (N, N·m): (n,) or (N, n).
+    fn inverse_dynamics(q, qd, qdd) -> [c.dof()] =
+        c.inverse_dynamics_into(ws, q.at(k), qd.at(k), qdd.at(k), out);
+
+    /// Nonlinear effects C(q, q̇)·q̇ + G(q) + τ_friction(q̇) (N, N·m): (n,) or (N, n).
+    fn nonlinear_effects(q, qd) -> [c.dof()] =
+        c.nonlinear_effects_into(ws, q.at(k), qd.at(k), out);
+
+    /// Gravity torques G(q) (N, N·m; no friction): (n,) or (N, n).
+    fn gravity_torques(q) -> [c.dof()] = c.gravity_torques_into(ws, q.at(k), out);
+
+    /// Mass matrix M(q): (n, n) or (N, n, n).
+    fn mass_matrix(q) -> [c.dof(), c.dof()] = c.mass_matrix_into(ws, q.at(k), out);
+
+    /// Forward dynamics q̈ = M⁻¹(τ − C·q̇ − G − τ_friction): (n,) or (N, n). Raises
+    /// NotPositiveDefiniteError (with `.sample` for a batch) where M(q) is singular.
+    fn forward_dynamics(q, qd, tau) -> [c.dof()] =
+        c.forward_dynamics_into(ws, q.at(k), qd.at(k), tau.at(k), out);
+
+    /// Full regressor Y (friction columns included) with τ = Y·parameters: (n, P) or
+    /// (N, n, P).
+    fn regressor(q, qd, qdd) -> [c.dof(), c.num_params()] =
+        c.regressor_row_major_into(ws, q.at(k), qd.at(k), qdd.at(k), out);
 }
 
 enum Source {
