@@ -35,34 +35,13 @@ impl<const D: usize> Samples<D> {
     /// `(N, D)`, every value finite.
     pub(crate) fn extract(obj: &Bound<'_, PyAny>, name: &'static str) -> PyResult<Self> {
         let py = obj.py();
-        reject_complex(obj, name)?;
-        let arr = match obj.extract::<PyArrayLikeDyn<'_, f64, AllowTypeChange>>() {
-            Ok(a) => a,
-            Err(e) => {
-                let err = Exc::InvalidInput.new_err(
-                    py,
-                    format!(
-                        "`{name}` must be convertible to a float64 array of shape ({D},) or \
-                         (N, {D}): {e}"
-                    ),
-                    &[],
-                );
-                err.set_cause(py, Some(e));
-                return Err(err);
-            }
-        };
+        let want = format!("({D},) or (N, {D})");
+        let arr = float_array(obj, name, &want)?;
         let shape = arr.shape();
         let (batch, n) = match *shape {
             [d] if d == D => (false, 1),
             [n, d] if d == D => (true, n),
-            _ => {
-                return Err(shape_error(
-                    py,
-                    name,
-                    format!("({D},) or (N, {D})"),
-                    fmt_shape(shape),
-                ))
-            }
+            _ => return Err(shape_error(py, name, want, fmt_shape(shape))),
         };
         let mut data: Vec<SVector<f64, D>> = Vec::with_capacity(n);
         // `as_slice` also accepts Fortran order, whose flat order is not the rows'.
@@ -307,22 +286,10 @@ fn exact_array<'py>(
     name: &'static str,
     shape: &[usize],
 ) -> PyResult<PyArrayLikeDyn<'py, f64, AllowTypeChange>> {
-    let py = obj.py();
     let want = fmt_shape(shape);
-    reject_complex(obj, name)?;
-    let arr = obj
-        .extract::<PyArrayLikeDyn<'_, f64, AllowTypeChange>>()
-        .map_err(|e| {
-            let err = Exc::InvalidInput.new_err(
-                py,
-                format!("`{name}` must be convertible to a float64 array of shape {want}: {e}"),
-                &[],
-            );
-            err.set_cause(py, Some(e));
-            err
-        })?;
+    let arr = float_array(obj, name, &want)?;
     if arr.shape() != shape {
-        return Err(shape_error(py, name, want, fmt_shape(arr.shape())));
+        return Err(shape_error(obj.py(), name, want, fmt_shape(arr.shape())));
     }
     Ok(arr)
 }
@@ -377,6 +344,16 @@ pub(crate) fn rows_to_array<'py, const D: usize>(
     to_array(py, buf, Some(rows.len()), &[D])
 }
 
+/// The first non-finite entry of named vectors, as (name, index, value).
+pub(crate) fn first_non_finite<'a, const K: usize>(
+    named: [(&'a str, &[f64]); K],
+) -> Option<(&'a str, usize, f64)> {
+    named.into_iter().find_map(|(name, v)| {
+        let j = v.iter().position(|x| !x.is_finite())?;
+        Some((name, j, v[j]))
+    })
+}
+
 /// Reads a 1-D float64 argument of any length (e.g. time stamps, shape (N,)).
 pub(crate) fn vector(obj: &Bound<'_, PyAny>, name: &'static str) -> PyResult<Vec<f64>> {
     let (shape, data) = any_array(obj, name, "(N,)")?;
@@ -386,16 +363,16 @@ pub(crate) fn vector(obj: &Bound<'_, PyAny>, name: &'static str) -> PyResult<Vec
     Ok(data)
 }
 
-/// Reads a float64 array of any shape: its shape and its values in row-major order.
-pub(crate) fn any_array(
-    obj: &Bound<'_, PyAny>,
+/// Anything numpy converts to float64 (complex refused), or an `InvalidInputError` naming
+/// `name` and the `expected` shape.
+fn float_array<'py>(
+    obj: &Bound<'py, PyAny>,
     name: &'static str,
     expected: &str,
-) -> PyResult<(Vec<usize>, Vec<f64>)> {
+) -> PyResult<PyArrayLikeDyn<'py, f64, AllowTypeChange>> {
     let py = obj.py();
     reject_complex(obj, name)?;
-    let arr = obj
-        .extract::<PyArrayLikeDyn<'_, f64, AllowTypeChange>>()
+    obj.extract::<PyArrayLikeDyn<'_, f64, AllowTypeChange>>()
         .map_err(|e| {
             let err = Exc::InvalidInput.new_err(
                 py,
@@ -404,7 +381,33 @@ pub(crate) fn any_array(
             );
             err.set_cause(py, Some(e));
             err
-        })?;
+        })
+}
+
+/// Time stamps `t`: a scalar (None) or shape (N,) (Some(N)), every one finite.
+pub(crate) fn times(t: &Bound<'_, PyAny>) -> PyResult<(Vec<f64>, Option<usize>)> {
+    let py = t.py();
+    let (shape, ts) = any_array(t, "t", "() or (N,)")?;
+    let batch = match *shape {
+        [] => None,
+        [k] => Some(k),
+        _ => return Err(shape_error(py, "t", "() or (N,)", fmt_shape(&shape))),
+    };
+    if let Some(k) = ts.iter().position(|x| !x.is_finite()) {
+        let what = "t".into();
+        let row = batch.map(|_| k);
+        return Err(to_pyerr(py, &PrrrpError::NonFinite { what, row }));
+    }
+    Ok((ts, batch))
+}
+
+/// Reads a float64 array of any shape: its shape and its values in row-major order.
+pub(crate) fn any_array(
+    obj: &Bound<'_, PyAny>,
+    name: &'static str,
+    expected: &str,
+) -> PyResult<(Vec<usize>, Vec<f64>)> {
+    let arr = float_array(obj, name, expected)?;
     let shape = arr.shape().to_vec();
     let data = arr.as_array().iter().copied().collect();
     Ok((shape, data))

@@ -20,6 +20,9 @@
 //! - `study`: the whole study as JSON;
 //! - `online`: `OnlineIdentifier`, identification one sample at a time.
 
+#[macro_use]
+mod macros;
+
 mod arrays;
 mod data;
 mod errors;
