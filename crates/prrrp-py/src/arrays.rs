@@ -7,7 +7,10 @@
 //! handles any dtype convertible to float64 and any strides.
 
 use nalgebra::{SMatrix, SVector};
-use numpy::{AllowTypeChange, PyArray1, PyArrayLikeDyn, PyArrayMethods, PyUntypedArrayMethods};
+use numpy::ndarray::Dimension;
+use numpy::{
+    AllowTypeChange, PyArray1, PyArrayLike, PyArrayLikeDyn, PyArrayMethods, PyUntypedArrayMethods,
+};
 use prrrp_core::PrrrpError;
 use pyo3::prelude::*;
 use pyo3::types::PyFloat;
@@ -370,13 +373,23 @@ fn float_array<'py>(
     name: &'static str,
     expected: &str,
 ) -> PyResult<PyArrayLikeDyn<'py, f64, AllowTypeChange>> {
+    float_array_of(obj, name, &format!("a float64 array of shape {expected}"))
+}
+
+/// Anything numpy converts to a float64 array of dimension `D` (complex refused), or an
+/// `InvalidInputError` saying that `name` must be convertible to `what`.
+pub(crate) fn float_array_of<'py, D: Dimension + 'static>(
+    obj: &Bound<'py, PyAny>,
+    name: &str,
+    what: &str,
+) -> PyResult<PyArrayLike<'py, f64, D, AllowTypeChange>> {
     let py = obj.py();
     reject_complex(obj, name)?;
-    obj.extract::<PyArrayLikeDyn<'_, f64, AllowTypeChange>>()
+    obj.extract::<PyArrayLike<'_, f64, D, AllowTypeChange>>()
         .map_err(|e| {
             let err = Exc::InvalidInput.new_err(
                 py,
-                format!("`{name}` must be convertible to a float64 array of shape {expected}: {e}"),
+                format!("`{name}` must be convertible to {what}: {e}"),
                 &[],
             );
             err.set_cause(py, Some(e));

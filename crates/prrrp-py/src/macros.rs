@@ -18,3 +18,22 @@ macro_rules! pymethods_with_getters {
         }
     };
 }
+
+/// A `#[pymethods]` block whose first items are getters that return what the wrapped
+/// value says: `name: Type = { expr }` becomes a getter returning `self.inner.expr`. The
+/// rest of the block follows unchanged.
+macro_rules! pymethods_with_inner_getters {
+    ($ty:ty { $($(#[$doc:meta])* $name:ident: $t:ty = { $($e:tt)* })* } { $($rest:tt)* }) => {
+        #[pymethods]
+        impl $ty {
+            $(
+            $(#[$doc])*
+            #[getter]
+            fn $name(&self) -> $t {
+                self.inner.$($e)*
+            }
+            )*
+            $($rest)*
+        }
+    };
+}

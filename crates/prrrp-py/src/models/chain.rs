@@ -991,26 +991,18 @@ fn index_array<'py>(py: Python<'py>, v: &[usize]) -> Bound<'py, PyArray1<i64>> {
     PyArray1::from_vec(py, v.iter().map(|&i| i as i64).collect())
 }
 
-#[pymethods]
-impl PyBaseParameters {
+pymethods_with_inner_getters!(PyBaseParameters {
     /// Number of base parameters b.
-    #[getter]
-    fn count(&self) -> usize {
-        self.inner.count()
-    }
-
+    count: usize = { count() }
     /// Number of standard parameters P.
-    #[getter]
-    fn num_params(&self) -> usize {
-        self.inner.num_standard()
-    }
-
+    num_params: usize = { num_standard() }
     /// Names of the standard parameters (length P).
-    #[getter]
-    fn names(&self) -> Vec<String> {
-        self.inner.names.clone()
-    }
-
+    names: Vec<String> = { names.clone() }
+    /// Each base parameter as a readable combination, e.g. 'Izz2 + 0.4318*mx2 + ...'.
+    combinations: Vec<String> = { combinations.clone() }
+    /// The rank tolerance used.
+    rank_tolerance: f64 = { rank_tolerance }
+} {
     /// Indices of the standard parameters kept as base parameters, increasing, (b,).
     #[getter]
     fn independent<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<i64>> {
@@ -1047,22 +1039,10 @@ impl PyBaseParameters {
         to_array(py, self.inner.map_row_major(), Some(b), &[p])
     }
 
-    /// Each base parameter as a readable combination, e.g. 'Izz2 + 0.4318*mx2 + ...'.
-    #[getter]
-    fn combinations(&self) -> Vec<String> {
-        self.inner.combinations.clone()
-    }
-
     /// Pivots |R_kk| of the scaled pivoted QR (the rank gap diagnostic).
     #[getter]
     fn pivots<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
         PyArray1::from_slice(py, &self.inner.pivots)
-    }
-
-    /// The rank tolerance used.
-    #[getter]
-    fn rank_tolerance(&self) -> f64 {
-        self.inner.rank_tolerance
     }
 
     /// β = K·π for standard parameters π of shape (P,) or (N, P): (b,) or (N, b).
@@ -1089,7 +1069,7 @@ impl PyBaseParameters {
             self.independent_names()
         )
     }
-}
+});
 
 pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PySerialChain>()?;
