@@ -12,7 +12,7 @@
 use nalgebra::allocator::Allocator;
 use nalgebra::{DefaultAllocator, Dim, OVector, U1};
 
-use crate::error::{PrrrpError, Result};
+use crate::error::{check_joints, PrrrpError, Result};
 use crate::models::chain::{DynChain, DynWorkspace};
 use crate::models::LinearModel;
 
@@ -221,17 +221,6 @@ where
     out: OVector<f64, N>,
 }
 
-fn check_len(what: &'static str, len: usize, n: usize) -> Result<()> {
-    if len != n {
-        return Err(PrrrpError::ShapeMismatch {
-            what: what.into(),
-            expected: format!("{n} entries (one per joint)"),
-            got: format!("{len} entries"),
-        });
-    }
-    Ok(())
-}
-
 /// Checks that the three inputs and the output each have `n` entries (the first wrong one,
 /// in that order, is the error) and copies the inputs into the workspace's a, b, c.
 fn load<'w, W, N: Dim>(
@@ -245,9 +234,9 @@ where
     DefaultAllocator: Allocator<N>,
 {
     for (what, len) in inputs.map(|(what, v)| (what, v.len())) {
-        check_len(what, len, n)?;
+        check_joints(what, len, n)?;
     }
-    check_len(output, out.len(), n)?;
+    check_joints(output, out.len(), n)?;
     let [a, b, c] = inputs.map(|(_, v)| v);
     ws.a.as_mut_slice().copy_from_slice(a);
     ws.b.as_mut_slice().copy_from_slice(b);
