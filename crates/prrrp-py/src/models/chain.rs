@@ -71,28 +71,23 @@ fn invalid(py: Python<'_>, field: &str, value: &str, reason: &'static str) -> Py
 /// Joint kinds from "RRP" or ["R", "revolute", "P", ...] (case-insensitive).
 fn joint_kinds(obj: &Bound<'_, PyAny>) -> PyResult<Vec<JointKind>> {
     let py = obj.py();
+    let not_names = || {
+        let reason = "must be a string such as 'RRP' or a list of 'R'/'P'";
+        invalid(
+            py,
+            "joint_types",
+            "not a string or a list of strings",
+            reason,
+        )
+    };
     let items: Vec<String> = if let Ok(s) = obj.cast::<PyString>() {
         s.to_str()?.chars().map(String::from).collect()
     } else {
         obj.try_iter()
-            .map_err(|_| {
-                invalid(
-                    py,
-                    "joint_types",
-                    "not a string or a list of strings",
-                    "must be a string such as 'RRP' or a list of 'R'/'P'",
-                )
-            })?
+            .map_err(|_| not_names())?
             .map(|x| x.and_then(|x| x.extract::<String>()))
             .collect::<PyResult<_>>()
-            .map_err(|_| {
-                invalid(
-                    py,
-                    "joint_types",
-                    "not a string or a list of strings",
-                    "must be a string such as 'RRP' or a list of 'R'/'P'",
-                )
-            })?
+            .map_err(|_| not_names())?
     };
     items
         .iter()
