@@ -537,3 +537,53 @@ fn panda_urdf_tracks_with_exact_model() {
     assert!(err < 1e-3, "Panda tracking error {err}");
     eprintln!("Panda tracking error with the exact model: {err:.2e} rad");
 }
+
+/// The slice interface of a parameterised model (what the simulators call) checks every
+/// length, naming the first wrong slice (the inputs in order, then the output), and hands
+/// the values to the model unchanged: its τ is the model's own inverse dynamics, and its
+/// forward dynamics inverts that τ (forward ∘ inverse = identity).
+#[test]
+fn parameterised_model_slices_reach_the_model_unchanged() {
+    use prrrp_core::{Dynamics, Robot, Vec5};
+    let robot = Robot::paper();
+    let model = robot.model();
+    let lam = robot.base_parameters();
+    let plant = ParameterisedModel::new(model, lam).unwrap();
+    let mut ws = plant.workspace();
+    let what = |r: Result<(), PrrrpError>| match r {
+        Err(PrrrpError::ShapeMismatch { what, .. }) => what,
+        other => panic!("expected a shape mismatch, got {other:?}"),
+    };
+    let (ok, short, mut out) = ([0.1; 5], [0.1; 4], [0.0; 5]);
+    let id = plant.inverse_dynamics_into(&mut ws, &ok, &short, &short, &mut out);
+    assert_eq!(what(id), "qd");
+    let id = plant.inverse_dynamics_into(&mut ws, &ok, &ok, &ok, &mut [0.0; 4]);
+    assert_eq!(what(id), "tau");
+    let fd = plant.forward_dynamics_into(&mut ws, &ok, &ok, &short, &mut out);
+    assert_eq!(what(fd), "tau");
+    let fd = plant.forward_dynamics_into(&mut ws, &ok, &ok, &ok, &mut [0.0; 6]);
+    assert_eq!(what(fd), "qdd");
+
+    let q = Vec5::new(0.3, -0.4, 0.9, 1.2, 0.05);
+    let qd = Vec5::new(0.2, 1.1, -0.7, 0.5, -0.3);
+    let qdd = Vec5::new(-1.5, 0.8, 2.0, -0.6, 0.9);
+    let mut tau = [0.0; 5];
+    let (qs, qds, qdds) = (q.as_slice(), qd.as_slice(), qdd.as_slice());
+    plant
+        .inverse_dynamics_into(&mut ws, qs, qds, qdds, &mut tau)
+        .unwrap();
+    assert_eq!(
+        &tau[..],
+        model.inverse_dynamics(&q, &qd, &qdd, &lam).as_slice()
+    );
+    let mut back = [0.0; 5];
+    plant
+        .forward_dynamics_into(&mut ws, qs, qds, &tau, &mut back)
+        .unwrap();
+    for (b, a) in back.iter().zip(qdd.iter()) {
+        assert!(
+            (b - a).abs() < 1e-9 * (1.0 + a.abs()),
+            "{back:?} vs {qdd:?}"
+        );
+    }
+}

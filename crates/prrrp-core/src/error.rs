@@ -205,3 +205,16 @@ impl std::error::Error for PrrrpError {}
 
 /// Shorthand for `Result<T, PrrrpError>`.
 pub type Result<T> = std::result::Result<T, PrrrpError>;
+
+/// A [`PrrrpError::ShapeMismatch`] naming `what` unless its length `len` is the joint
+/// count `n`.
+pub(crate) fn check_joints(what: &str, len: usize, n: usize) -> Result<()> {
+    if len != n {
+        return Err(PrrrpError::ShapeMismatch {
+            what: what.into(),
+            expected: format!("{n} entries (one per joint)"),
+            got: format!("{len} entries"),
+        });
+    }
+    Ok(())
+}

@@ -7,7 +7,10 @@
 //! handles any dtype convertible to float64 and any strides.
 
 use nalgebra::{SMatrix, SVector};
-use numpy::{AllowTypeChange, PyArray1, PyArrayLikeDyn, PyArrayMethods, PyUntypedArrayMethods};
+use numpy::ndarray::Dimension;
+use numpy::{
+    AllowTypeChange, PyArray1, PyArrayLike, PyArrayLikeDyn, PyArrayMethods, PyUntypedArrayMethods,
+};
 use prrrp_core::PrrrpError;
 use pyo3::prelude::*;
 use pyo3::types::PyFloat;
@@ -35,34 +38,13 @@ impl<const D: usize> Samples<D> {
     /// `(N, D)`, every value finite.
     pub(crate) fn extract(obj: &Bound<'_, PyAny>, name: &'static str) -> PyResult<Self> {
         let py = obj.py();
-        reject_complex(obj, name)?;
-        let arr = match obj.extract::<PyArrayLikeDyn<'_, f64, AllowTypeChange>>() {
-            Ok(a) => a,
-            Err(e) => {
-                let err = Exc::InvalidInput.new_err(
-                    py,
-                    format!(
-                        "`{name}` must be convertible to a float64 array of shape ({D},) or \
-                         (N, {D}): {e}"
-                    ),
-                    &[],
-                );
-                err.set_cause(py, Some(e));
-                return Err(err);
-            }
-        };
+        let want = format!("({D},) or (N, {D})");
+        let arr = float_array(obj, name, &want)?;
         let shape = arr.shape();
         let (batch, n) = match *shape {
             [d] if d == D => (false, 1),
             [n, d] if d == D => (true, n),
-            _ => {
-                return Err(shape_error(
-                    py,
-                    name,
-                    format!("({D},) or (N, {D})"),
-                    fmt_shape(shape),
-                ))
-            }
+            _ => return Err(shape_error(py, name, want, fmt_shape(shape))),
         };
         let mut data: Vec<SVector<f64, D>> = Vec::with_capacity(n);
         // `as_slice` also accepts Fortran order, whose flat order is not the rows'.
@@ -307,22 +289,10 @@ fn exact_array<'py>(
     name: &'static str,
     shape: &[usize],
 ) -> PyResult<PyArrayLikeDyn<'py, f64, AllowTypeChange>> {
-    let py = obj.py();
     let want = fmt_shape(shape);
-    reject_complex(obj, name)?;
-    let arr = obj
-        .extract::<PyArrayLikeDyn<'_, f64, AllowTypeChange>>()
-        .map_err(|e| {
-            let err = Exc::InvalidInput.new_err(
-                py,
-                format!("`{name}` must be convertible to a float64 array of shape {want}: {e}"),
-                &[],
-            );
-            err.set_cause(py, Some(e));
-            err
-        })?;
+    let arr = float_array(obj, name, &want)?;
     if arr.shape() != shape {
-        return Err(shape_error(py, name, want, fmt_shape(arr.shape())));
+        return Err(shape_error(obj.py(), name, want, fmt_shape(arr.shape())));
     }
     Ok(arr)
 }
@@ -377,6 +347,16 @@ pub(crate) fn rows_to_array<'py, const D: usize>(
     to_array(py, buf, Some(rows.len()), &[D])
 }
 
+/// The first non-finite entry of named vectors, as (name, index, value).
+pub(crate) fn first_non_finite<'a, const K: usize>(
+    named: [(&'a str, &[f64]); K],
+) -> Option<(&'a str, usize, f64)> {
+    named.into_iter().find_map(|(name, v)| {
+        let j = v.iter().position(|x| !x.is_finite())?;
+        Some((name, j, v[j]))
+    })
+}
+
 /// Reads a 1-D float64 argument of any length (e.g. time stamps, shape (N,)).
 pub(crate) fn vector(obj: &Bound<'_, PyAny>, name: &'static str) -> PyResult<Vec<f64>> {
     let (shape, data) = any_array(obj, name, "(N,)")?;
@@ -386,25 +366,61 @@ pub(crate) fn vector(obj: &Bound<'_, PyAny>, name: &'static str) -> PyResult<Vec
     Ok(data)
 }
 
+/// Anything numpy converts to float64 (complex refused), or an `InvalidInputError` naming
+/// `name` and the `expected` shape.
+fn float_array<'py>(
+    obj: &Bound<'py, PyAny>,
+    name: &'static str,
+    expected: &str,
+) -> PyResult<PyArrayLikeDyn<'py, f64, AllowTypeChange>> {
+    float_array_of(obj, name, &format!("a float64 array of shape {expected}"))
+}
+
+/// Anything numpy converts to a float64 array of dimension `D` (complex refused), or an
+/// `InvalidInputError` saying that `name` must be convertible to `what`.
+pub(crate) fn float_array_of<'py, D: Dimension + 'static>(
+    obj: &Bound<'py, PyAny>,
+    name: &str,
+    what: &str,
+) -> PyResult<PyArrayLike<'py, f64, D, AllowTypeChange>> {
+    let py = obj.py();
+    reject_complex(obj, name)?;
+    obj.extract::<PyArrayLike<'_, f64, D, AllowTypeChange>>()
+        .map_err(|e| {
+            let err = Exc::InvalidInput.new_err(
+                py,
+                format!("`{name}` must be convertible to {what}: {e}"),
+                &[],
+            );
+            err.set_cause(py, Some(e));
+            err
+        })
+}
+
+/// Time stamps `t`: a scalar (None) or shape (N,) (Some(N)), every one finite.
+pub(crate) fn times(t: &Bound<'_, PyAny>) -> PyResult<(Vec<f64>, Option<usize>)> {
+    let py = t.py();
+    let (shape, ts) = any_array(t, "t", "() or (N,)")?;
+    let batch = match *shape {
+        [] => None,
+        [k] => Some(k),
+        _ => return Err(shape_error(py, "t", "() or (N,)", fmt_shape(&shape))),
+    };
+    if let Some(k) = ts.iter().position(|x| !x.is_finite()) {
+        let what = "t".into();
+        let row = batch.map(|_| k);
+        return Err(to_pyerr(py, &PrrrpError::NonFinite { what, row }));
+    }
+    Ok((ts, batch))
+}
+
 /// Reads a float64 array of any shape: its shape and its values in row-major order.
 pub(crate) fn any_array(
     obj: &Bound<'_, PyAny>,
     name: &'static str,
     expected: &str,
 ) -> PyResult<(Vec<usize>, Vec<f64>)> {
-    let py = obj.py();
-    reject_complex(obj, name)?;
-    let arr = obj
-        .extract::<PyArrayLikeDyn<'_, f64, AllowTypeChange>>()
-        .map_err(|e| {
-            let err = Exc::InvalidInput.new_err(
-                py,
-                format!("`{name}` must be convertible to a float64 array of shape {expected}: {e}"),
-                &[],
-            );
-            err.set_cause(py, Some(e));
-            err
-        })?;
+    let arr = float_array(obj, name, expected)?;
     let shape = arr.shape().to_vec();
     let data = arr.as_array().iter().copied().collect();
     Ok((shape, data))

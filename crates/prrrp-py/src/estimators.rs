@@ -3,26 +3,27 @@
 //! qdd, tau)`, `estimate`, `reset()` and the batch `run(...)` (plus `train(..., epochs)`
 //! for Adaline and Hopfield), looping in Rust with the GIL released.
 
-use prrrp_core::nalgebra::{DMatrix, DVector, SVector};
+use prrrp_core::nalgebra::allocator::Allocator;
+use prrrp_core::nalgebra::{
+    Const, DMatrix, DVector, DefaultAllocator, Dim, Dyn, OMatrix, OVector, SVector,
+};
 use prrrp_core::{
     least_squares as core_ls, weighted_least_squares as core_wls, Adaline as CoreAdaline,
     AdalineConfig, AdalineRule, Discretisation, Ekf as CoreEkf, EkfConfig, EkfMeasurement,
     Estimator, Hopfield as CoreHopfield, HopfieldConfig, JointNoise, Lambda, LeastSquaresConfig,
-    PrrrpError, PrrrpModel, Rls as CoreRls, RlsConfig, Robot, Sample, Samples as CoreSamples, Vec5,
-    NDOF, NPARAM, PRRRP_EKF_STATES,
+    PrrrpError, PrrrpModel, Rls as CoreRls, RlsConfig, Robot, SampleOf, SamplesOf, TrainingReport,
+    Vec5, NDOF, NPARAM, PRRRP_EKF_STATES,
 };
-use prrrp_core::{
-    DynAdaline, DynChainBaseModel, DynEkf, DynHopfield, DynRls, DynSample,
-    DynSamples as CoreDynSamples, DynScaledModel,
-};
+use prrrp_core::{DynAdaline, DynChainBaseModel, DynEkf, DynHopfield, DynRls, DynScaledModel};
 use std::sync::{Mutex, MutexGuard, TryLockError};
 
 use pyo3::prelude::*;
 
 use crate::arrays::{
-    fixed_matrix, fixed_or, fixed_vector, rows_to_array, to_array, write_row_major, Samples, UInt,
+    any_array, batch_len, fixed_matrix, fixed_or, fixed_vector, fmt_shape, to_array, vector,
+    DynSamples, Samples, UInt,
 };
-use crate::errors::{to_pyerr, Exc, ToPyResult};
+use crate::errors::{shape_error, to_pyerr, Exc, ToPyResult};
 use crate::interrupt::interruptible;
 
 type Model = PrrrpModel;
@@ -78,26 +79,62 @@ type Scaled = DynScaledModel<DynChainBaseModel>;
 /// An online estimator of the paper's arm (compile-time sizes, the closed-form model) or
 /// of any `SerialChain` (run-time sizes, its base-parameter model).
 enum Inner<F, D> {
-    Paper(F),
-    Chain(ChainEst<D>),
+    Paper(Est<F>),
+    Chain(Est<D>),
 }
 
-/// A chain estimator with its sizes and the column scale its estimate is mapped back by.
-struct ChainEst<D> {
-    est: D,
-    scale: DVector<f64>,
+/// An estimator with its joint count and the column scale its estimate is mapped back by.
+struct Est<E> {
+    est: E,
+    /// β = scale·γ for a chain trained on scaled columns; None: the estimate as it is.
+    scale: Option<DVector<f64>>,
     n: usize,
+    /// The estimate's symbol in error messages: λ̂ (the paper's arm) or β̂ (a chain).
+    sym: &'static str,
 }
 
-impl<D: Estimator<nalgebra::Dyn, nalgebra::Dyn>> ChainEst<D> {
-    fn beta(&self) -> Vec<f64> {
-        self.est
-            .estimate()
-            .iter()
-            .zip(self.scale.iter())
-            .map(|(g, s)| g * s)
-            .collect()
+impl<E> Est<E> {
+    fn paper(est: E) -> Self {
+        Self {
+            est,
+            scale: None,
+            n: NDOF,
+            sym: "λ̂",
+        }
     }
+
+    fn chain(est: E, scale: DVector<f64>, n: usize) -> Self {
+        Self {
+            est,
+            scale: Some(scale),
+            n,
+            sym: "β̂",
+        }
+    }
+
+    /// The estimate in the user's units (β = scale·γ for a chain).
+    fn value<N: Dim, P: Dim>(&self) -> Vec<f64>
+    where
+        E: Estimator<N, P>,
+        DefaultAllocator: Allocator<N> + Allocator<P>,
+    {
+        let est = self.est.estimate().iter();
+        match &self.scale {
+            Some(scale) => est.zip(scale.iter()).map(|(g, s)| g * s).collect(),
+            None => est.copied().collect(),
+        }
+    }
+}
+
+/// Runs `$body` with `$c` bound to the `Est` of either kind: one text, type-checked for
+/// the compile-time and the run-time sizes.
+macro_rules! each {
+    ($inner:expr, $c:ident => $body:expr) => {
+        match $inner {
+            Inner::Paper($c) => $body,
+            Inner::Chain($c) => $body,
+        }
+    };
 }
 
 /// What a chain constructor needs: the base model, β₀ (or None) and the scale.
@@ -124,16 +161,13 @@ fn chain_setup(
     let model = chain.chain().base_model(&base).to_py(py)?;
     let b = model.count();
     let sized = |o: &Bound<'_, PyAny>, name: &'static str| -> PyResult<Vec<f64>> {
-        let v = crate::arrays::vector(o, name)?;
+        let v = vector(o, name)?;
         if v.len() != b {
-            return Err(to_pyerr(
-                py,
-                &PrrrpError::ShapeMismatch {
-                    what: name.into(),
-                    expected: format!("({b},): one per base parameter"),
-                    got: format!("({},)", v.len()),
-                },
-            ));
+            let (want, got) = (
+                format!("({b},): one per base parameter"),
+                format!("({},)", v.len()),
+            );
+            return Err(shape_error(py, name, want, got));
         }
         Ok(v)
     };
@@ -184,95 +218,155 @@ fn paper_only(
     Ok(())
 }
 
-/// One sample ((n,) arrays) into the preallocated row buffers.
-fn dyn_rows(rows: &mut [DVector<f64>; 4], args: [&Bound<'_, PyAny>; 4], n: usize) -> PyResult<()> {
-    const NAMES: [&str; 4] = ["q", "qd", "qdd", "tau"];
-    for ((buf, obj), name) in rows.iter_mut().zip(args).zip(NAMES) {
-        let s = crate::arrays::DynSamples::extract(obj, name, n)?;
-        if crate::arrays::batch_len(obj.py(), &[&s])?.is_some() {
-            return Err(to_pyerr(
-                obj.py(),
-                &PrrrpError::ShapeMismatch {
-                    what: name.into(),
-                    expected: format!("({n},): one sample (use run for a batch)"),
-                    got: "a batch".into(),
-                },
-            ));
-        }
-        buf.as_mut_slice().copy_from_slice(s.at(0));
-    }
-    Ok(())
+type Any<'py> = Bound<'py, PyAny>;
+
+/// How the arguments of one size family are read. The paper's arm reads fixed (5,) rows
+/// and (N, 5) batches, a chain rows of its own length; each keeps its own checks and
+/// error messages.
+trait Read: Dim
+where
+    DefaultAllocator: Allocator<Self> + Allocator<Self, Self>,
+{
+    /// One sample's (n,) row of argument `name`.
+    fn one(obj: &Any<'_>, name: &'static str, n: usize) -> PyResult<OVector<f64, Self>>;
+    /// The (N, n) rows of a batch argument.
+    fn rows(obj: &Any<'_>, name: &'static str, n: usize) -> PyResult<Vec<OVector<f64, Self>>>;
+    /// A vector argument of this dimension.
+    fn vector(obj: &Any<'_>, name: &'static str) -> PyResult<OVector<f64, Self>>;
+    /// A square (s, s) matrix argument.
+    fn square(obj: &Any<'_>, name: &'static str, s: usize) -> PyResult<OMatrix<f64, Self, Self>>;
 }
 
-/// `step` of a chain estimator: one sample, returns β̂ (b,).
-fn step_chain<'py, D: Estimator<nalgebra::Dyn, nalgebra::Dyn>>(
+impl<const D: usize> Read for Const<D> {
+    fn one(obj: &Any<'_>, name: &'static str, _: usize) -> PyResult<OVector<f64, Self>> {
+        fixed_or::<D>(Some(obj), name, SVector::zeros())
+    }
+
+    fn rows(obj: &Any<'_>, name: &'static str, _: usize) -> PyResult<Vec<OVector<f64, Self>>> {
+        Samples::<D>::extract_rows(obj, name)
+    }
+
+    fn vector(obj: &Any<'_>, name: &'static str) -> PyResult<OVector<f64, Self>> {
+        Ok(OVector::from(fixed_vector::<D>(obj, name)?))
+    }
+
+    fn square(obj: &Any<'_>, name: &'static str, _: usize) -> PyResult<OMatrix<f64, Self, Self>> {
+        fixed_matrix::<D, D>(obj, name)
+    }
+}
+
+impl Read for Dyn {
+    fn one(obj: &Any<'_>, name: &'static str, n: usize) -> PyResult<DVector<f64>> {
+        let s = DynSamples::extract(obj, name, n)?;
+        if batch_len(obj.py(), &[&s])?.is_some() {
+            let want = format!("({n},): one sample (use run for a batch)");
+            return Err(shape_error(obj.py(), name, want, "a batch"));
+        }
+        Ok(DVector::from_column_slice(s.at(0)))
+    }
+
+    fn rows(obj: &Any<'_>, name: &'static str, n: usize) -> PyResult<Vec<DVector<f64>>> {
+        let want = format!("(N, {n})");
+        let (shape, data) = any_array(obj, name, &want)?;
+        if shape.len() != 2 || shape[1] != n {
+            return Err(shape_error(obj.py(), name, want, fmt_shape(&shape)));
+        }
+        let rows = data.chunks_exact(n).map(DVector::from_column_slice);
+        Ok(rows.collect())
+    }
+
+    fn vector(obj: &Any<'_>, name: &'static str) -> PyResult<DVector<f64>> {
+        Ok(DVector::from_vec(vector(obj, name)?))
+    }
+
+    fn square(obj: &Any<'_>, name: &'static str, s: usize) -> PyResult<DMatrix<f64>> {
+        let want = format!("({s}, {s})");
+        let (shape, data) = any_array(obj, name, &want)?;
+        if shape != [s, s] {
+            return Err(shape_error(obj.py(), name, want, fmt_shape(&shape)));
+        }
+        Ok(DMatrix::from_row_slice(s, s, &data))
+    }
+}
+
+const NAMES: [&str; 4] = ["q", "qd", "qdd", "tau"];
+
+/// The four (N, n) columns of a batch call.
+struct Columns<N: Dim>
+where
+    DefaultAllocator: Allocator<N>,
+{
+    cols: [Vec<OVector<f64, N>>; 4],
+}
+
+impl<N: Read> Columns<N>
+where
+    DefaultAllocator: Allocator<N> + Allocator<N, N>,
+{
+    fn extract(args: [&Bound<'_, PyAny>; 4], n: usize) -> PyResult<Self> {
+        let mut cols: [Vec<OVector<f64, N>>; 4] = Default::default();
+        for ((col, obj), name) in cols.iter_mut().zip(args).zip(NAMES) {
+            *col = N::rows(obj, name, n)?;
+        }
+        Ok(Self { cols })
+    }
+
+    fn samples(&self) -> Result<SamplesOf<'_, N>, PrrrpError> {
+        let [q, qd, qdd, tau] = &self.cols;
+        SamplesOf::new(q, qd, qdd, tau)
+    }
+}
+
+/// A (len,) vector as a numpy array.
+fn vec_out(py: Python<'_>, v: Vec<f64>) -> PyResult<Bound<'_, PyAny>> {
+    let len = v.len();
+    to_array(py, v, None, &[len])
+}
+
+/// `step`: one sample ((n,) arrays), returns the updated estimate.
+fn step<'py, N: Read, P: Dim, E: Estimator<N, P>>(
     py: Python<'py>,
-    c: &mut ChainEst<D>,
+    c: &mut Est<E>,
     args: [&Bound<'py, PyAny>; 4],
-) -> PyResult<Bound<'py, PyAny>> {
-    let n = c.n;
-    let mut rows: [DVector<f64>; 4] = std::array::from_fn(|_| DVector::zeros(n));
-    dyn_rows(&mut rows, args, n)?;
-    let [q, qd, qdd, tau] = &rows;
-    c.est.step(DynSample::new(q, qd, qdd, tau)).to_py(py)?;
-    let beta = c.beta();
-    if !beta.iter().all(|x| x.is_finite()) {
-        let what = "estimate β̂ (the sample's magnitudes overflow f64 arithmetic)".into();
+) -> PyResult<Bound<'py, PyAny>>
+where
+    DefaultAllocator: Allocator<N> + Allocator<N, N> + Allocator<P>,
+{
+    let rows = args
+        .into_iter()
+        .zip(NAMES)
+        .map(|(obj, name)| N::one(obj, name, c.n))
+        .collect::<PyResult<Vec<_>>>()?;
+    let [q, qd, qdd, tau] = [&rows[0], &rows[1], &rows[2], &rows[3]];
+    c.est.step(SampleOf::new(q, qd, qdd, tau)).to_py(py)?;
+    let value = c.value();
+    if !value.iter().all(|x| x.is_finite()) {
+        let what = format!(
+            "estimate {} (the sample's magnitudes overflow f64 arithmetic)",
+            c.sym
+        );
         return Err(to_pyerr(py, &PrrrpError::NonFinite { what, row: None }));
     }
-    let b = beta.len();
-    to_array(py, beta, None, &[b])
+    vec_out(py, value)
 }
 
-/// The four (N, n) columns of a chain batch as run-time vectors.
-struct DynColumns {
-    q: Vec<DVector<f64>>,
-    qd: Vec<DVector<f64>>,
-    qdd: Vec<DVector<f64>>,
-    tau: Vec<DVector<f64>>,
-}
-
-impl DynColumns {
-    fn extract(args: [&Bound<'_, PyAny>; 4], n: usize) -> PyResult<Self> {
-        const NAMES: [&str; 4] = ["q", "qd", "qdd", "tau"];
-        let mut cols: [Vec<DVector<f64>>; 4] = Default::default();
-        for ((col, obj), name) in cols.iter_mut().zip(args).zip(NAMES) {
-            let (shape, data) = crate::arrays::any_array(obj, name, &format!("(N, {n})"))?;
-            if shape.len() != 2 || shape[1] != n {
-                return Err(to_pyerr(
-                    obj.py(),
-                    &PrrrpError::ShapeMismatch {
-                        what: name.into(),
-                        expected: format!("(N, {n})"),
-                        got: crate::arrays::fmt_shape(&shape),
-                    },
-                ));
-            }
-            *col = data
-                .chunks_exact(n)
-                .map(DVector::from_column_slice)
-                .collect();
-        }
-        let [q, qd, qdd, tau] = cols;
-        Ok(Self { q, qd, qdd, tau })
-    }
-
-    fn samples(&self) -> Result<CoreDynSamples<'_>, PrrrpError> {
-        CoreDynSamples::new(&self.q, &self.qd, &self.qdd, &self.tau)
-    }
-}
-
-/// `run` of a chain estimator, GIL released; β̂ (b,) or (β̂, history (M, b)).
-fn run_chain<'py, D: Estimator<nalgebra::Dyn, nalgebra::Dyn> + Send>(
+/// `run`: steps over every sample with the GIL released. Returns the estimate (P,), or
+/// `(estimate, history)` with history (M, P) = the estimate after every `history_every`
+/// samples.
+fn run<'py, N: Read, P: Dim, E: Estimator<N, P> + Send>(
     py: Python<'py>,
-    c: &mut ChainEst<D>,
+    c: &mut Est<E>,
     args: [&Bound<'py, PyAny>; 4],
     history_every: Option<usize>,
-) -> PyResult<Bound<'py, PyAny>> {
+) -> PyResult<Bound<'py, PyAny>>
+where
+    DefaultAllocator: Allocator<N> + Allocator<N, N> + Allocator<P>,
+    OVector<f64, N>: Sync,
+{
     if history_every == Some(0) {
         return Err(invalid(py, "history_every", "must be >= 1 (or None)"));
     }
-    let cols = DynColumns::extract(args, c.n)?;
+    let cols = Columns::<N>::extract(args, c.n)?;
     let mut history: Vec<f64> = Vec::new();
     let result = interruptible(py, || -> Result<(), (usize, PrrrpError)> {
         let s = cols.samples().map_err(|e| (0, e))?;
@@ -282,14 +376,17 @@ fn run_chain<'py, D: Estimator<nalgebra::Dyn, nalgebra::Dyn> + Send>(
                 return Err((k, PrrrpError::Interrupted { what }));
             }
             c.est.step(sample).map_err(|e| (k, e))?;
-            let beta = c.beta();
-            if !beta.iter().all(|x| x.is_finite()) {
-                let what = "estimate β̂ (the data's magnitudes overflow f64 arithmetic)".into();
+            let value = c.value();
+            if !value.iter().all(|x| x.is_finite()) {
+                let what = format!(
+                    "estimate {} (the data's magnitudes overflow f64 arithmetic)",
+                    c.sym
+                );
                 return Err((k, PrrrpError::NonFinite { what, row: None }));
             }
             if let Some(every) = history_every {
                 if (k + 1) % every == 0 {
-                    history.extend_from_slice(&beta);
+                    history.extend_from_slice(&value);
                 }
             }
         }
@@ -307,58 +404,126 @@ fn run_chain<'py, D: Estimator<nalgebra::Dyn, nalgebra::Dyn> + Send>(
         err.add_note(py, format!("at sample {k} (index along the leading axis)"))?;
         return Err(err);
     }
-    let beta = c.beta();
-    let b = beta.len();
-    let beta = to_array(py, beta, None, &[b])?;
+    let value = c.value();
+    let b = value.len();
+    let value = vec_out(py, value)?;
     match history_every {
-        None => Ok(beta),
+        None => Ok(value),
         Some(_) => {
             let m = history.len() / b.max(1);
-            let h = to_array(py, history, None, &[m, b])?;
-            Ok((beta, h).into_pyobject(py)?.into_any())
+            let h = to_array(py, history, Some(m), &[b])?;
+            Ok((value, h).into_pyobject(py)?.into_any())
         }
     }
 }
 
-/// `train` of a chain Adaline/Hopfield: RMS equation error per epoch.
-fn train_chain<'py, D: Send>(
+/// `train` of Adaline/Hopfield: the RMS equation error per epoch.
+fn train<'py, N: Read, E: Send>(
     py: Python<'py>,
-    c: &mut ChainEst<D>,
+    c: &mut Est<E>,
     args: [&Bound<'py, PyAny>; 4],
-    f: impl FnOnce(&mut D, &CoreDynSamples<'_>) -> Result<prrrp_core::TrainingReport, PrrrpError> + Send,
-) -> PyResult<Bound<'py, PyAny>> {
-    let cols = DynColumns::extract(args, c.n)?;
+    f: impl FnOnce(&mut E, &SamplesOf<'_, N>) -> Result<TrainingReport, PrrrpError> + Send,
+) -> PyResult<Bound<'py, PyAny>>
+where
+    DefaultAllocator: Allocator<N> + Allocator<N, N>,
+    OVector<f64, N>: Sync,
+{
+    let cols = Columns::<N>::extract(args, c.n)?;
     let est = &mut c.est;
     let report = interruptible(py, || f(est, &cols.samples()?))?.to_py(py)?;
-    let n = report.rms_error.len();
-    to_array(py, report.rms_error, None, &[n])
+    vec_out(py, report.rms_error)
 }
 
-/// The four (N, 5) columns of a batch call.
-struct Columns {
-    q: Vec<Vec5>,
-    qd: Vec<Vec5>,
-    qdd: Vec<Vec5>,
-    tau: Vec<Vec5>,
+/// Generates the `#[pymethods]` of an online estimator: its own items, `train` when
+/// given (Adaline, Hopfield: its doc comment follows `train`), and the methods every
+/// online estimator shares (pyo3 allows one `#[pymethods]` block per class without the
+/// `multiple-pymethods` feature).
+macro_rules! estimator_pymethods {
+    ($name:ident { $($extra:tt)* } $(train: $(#[$train_doc:meta])+)?) => {
+        #[pymethods]
+        impl $name {
+        $($extra)*
+        $(
+        $(#[$train_doc])+
+        fn train<'py>(
+            &self,
+            py: Python<'py>,
+            q: &Bound<'py, PyAny>,
+            qd: &Bound<'py, PyAny>,
+            qdd: &Bound<'py, PyAny>,
+            tau: &Bound<'py, PyAny>,
+            epochs: UInt<usize>,
+        ) -> PyResult<Bound<'py, PyAny>> {
+            let args = [q, qd, qdd, tau];
+            each!(&mut *lock(py, &self.inner)?, c => {
+                train(py, c, args, |e, s| e.train(s, epochs.0))
+            })
+        }
+        )?
+        /// Consumes one sample (each (5,)) and returns the updated λ̂ (8,).
+        fn step<'py>(
+            &self,
+            py: Python<'py>,
+            q: &Bound<'py, PyAny>,
+            qd: &Bound<'py, PyAny>,
+            qdd: &Bound<'py, PyAny>,
+            tau: &Bound<'py, PyAny>,
+        ) -> PyResult<Bound<'py, PyAny>> {
+            each!(&mut *lock(py, &self.inner)?, c => step(py, c, [q, qd, qdd, tau]))
+        }
+        /// Steps over N samples ((N, 5) each) in Rust with the GIL released, continuing
+        /// from the current state. Returns λ̂ (8,), or `(λ̂, history)` with `history`
+        /// (M, 8) the estimate after every `history_every` samples.
+        #[pyo3(signature = (q, qd, qdd, tau, *, history_every=None))]
+        fn run<'py>(
+            &self,
+            py: Python<'py>,
+            q: &Bound<'py, PyAny>,
+            qd: &Bound<'py, PyAny>,
+            qdd: &Bound<'py, PyAny>,
+            tau: &Bound<'py, PyAny>,
+            history_every: Option<UInt<usize>>,
+        ) -> PyResult<Bound<'py, PyAny>> {
+            let every = history_every.map(|u| u.0);
+            each!(&mut *lock(py, &self.inner)?, c => run(py, c, [q, qd, qdd, tau], every))
+        }
+        /// The current estimate λ̂, (8,).
+        #[getter]
+        fn estimate<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+            each!(&*lock(py, &self.inner)?, c => vec_out(py, c.value()))
+        }
+        /// Returns to the state right after construction.
+        fn reset(&self, py: Python<'_>) -> PyResult<()> {
+            each!(&mut *lock(py, &self.inner)?, c => c.est.reset());
+            Ok(())
+        }
+        }
+    };
 }
 
-impl Columns {
-    fn extract(
-        q: &Bound<'_, PyAny>,
-        qd: &Bound<'_, PyAny>,
-        qdd: &Bound<'_, PyAny>,
-        tau: &Bound<'_, PyAny>,
-    ) -> PyResult<Self> {
-        Ok(Self {
-            q: Samples::<NDOF>::extract_rows(q, "q")?,
-            qd: Samples::<NDOF>::extract_rows(qd, "qd")?,
-            qdd: Samples::<NDOF>::extract_rows(qdd, "qdd")?,
-            tau: Samples::<NDOF>::extract_rows(tau, "tau")?,
-        })
-    }
-
-    fn samples(&self) -> Result<CoreSamples<'_, NDOF>, PrrrpError> {
-        CoreSamples::new(&self.q, &self.qd, &self.qdd, &self.tau)
+impl<F, D> Inner<F, D> {
+    /// The estimator of a constructor call: of the SerialChain given first (on its scaled
+    /// base-parameter model, from β₀/scale), or else of the paper's arm from `lam0`.
+    #[allow(clippy::too_many_arguments)]
+    fn build(
+        py: Python<'_>,
+        lam0: Option<&Bound<'_, PyAny>>,
+        beta0: Option<&Bound<'_, PyAny>>,
+        base: Option<&crate::models::chain::PyBaseParameters>,
+        scale: Option<&Bound<'_, PyAny>>,
+        paper: impl FnOnce(Model, Lambda) -> Result<F, PrrrpError>,
+        chain: impl FnOnce(Scaled, DVector<f64>) -> Result<D, PrrrpError>,
+    ) -> PyResult<Mutex<Self>> {
+        if let Some(robot) = chain_arg(lam0) {
+            let setup = chain_setup(py, robot, base, beta0, scale)?;
+            let n = setup.model.dof();
+            let (model, gamma0, scale) = setup.scaled(py)?;
+            let est = chain(model, gamma0).to_py(py)?;
+            return Ok(Mutex::new(Inner::Chain(Est::chain(est, scale, n))));
+        }
+        paper_only(py, beta0, base, scale)?;
+        let est = paper(model(), lambda0(lam0)?).to_py(py)?;
+        Ok(Mutex::new(Inner::Paper(Est::paper(est))))
     }
 }
 
@@ -415,7 +580,7 @@ fn least_squares(
     noise_variances: Option<&Bound<'_, PyAny>>,
     rank_tolerance: f64,
 ) -> PyResult<LeastSquaresResult> {
-    let cols = Columns::extract(q, qd, qdd, tau)?;
+    let cols = Columns::<Const<NDOF>>::extract([q, qd, qdd, tau], NDOF)?;
     let noise = match noise_variances {
         Some(v) => {
             JointNoise::Variances(fixed_or::<NDOF>(Some(v), "noise_variances", Vec5::zeros())?)
@@ -461,399 +626,95 @@ fn least_squares(
     })
 }
 
-/// One `step` of any estimator on a single sample ((5,) arrays).
-fn step_one<'py, E: Estimator<nalgebra::Const<NDOF>, nalgebra::Const<NPARAM>>>(
-    py: Python<'py>,
-    est: &mut E,
-    q: &Bound<'py, PyAny>,
-    qd: &Bound<'py, PyAny>,
-    qdd: &Bound<'py, PyAny>,
-    tau: &Bound<'py, PyAny>,
-) -> PyResult<Bound<'py, PyAny>> {
-    let one = |obj: &Bound<'py, PyAny>, name: &'static str| -> PyResult<Vec5> {
-        fixed_or::<NDOF>(Some(obj), name, Vec5::zeros())
+/// One online estimator class of the paper's arm or of a chain: the struct, its
+/// constructor (`lam0` or a SerialChain first, the class's own settings, which `$make`
+/// turns into its config, then `beta0`, `base`, `scale` for a chain) and the shared
+/// methods (`train` too when the trailing `train:` doc is given).
+macro_rules! online_estimator {
+    (
+        $(#[$doc:meta])*
+        $name:ident($paper:ident, $chain:ident) {
+            #[pyo3(signature = (lam0=None, *, $($sig:tt)*))]
+            fn new($py:ident, $($arg:ident: $ty:ty),* $(,)?) $make:block
+        }
+        $($train:tt)*
+    ) => {
+        $(#[$doc])*
+        #[pyclass(module = "prrrp", frozen)]
+        struct $name {
+            inner: Mutex<Inner<$paper<Model, NDOF, NPARAM>, $chain<Scaled>>>,
+        }
+
+        estimator_pymethods!($name {
+            #[new]
+            #[pyo3(signature = (lam0=None, *, $($sig)*, beta0=None, base=None, scale=None))]
+            #[allow(clippy::too_many_arguments)]
+            fn new(
+                $py: Python<'_>,
+                lam0: Option<&Bound<'_, PyAny>>,
+                $($arg: $ty,)*
+                beta0: Option<&Bound<'_, PyAny>>,
+                base: Option<&crate::models::chain::PyBaseParameters>,
+                scale: Option<&Bound<'_, PyAny>>,
+            ) -> PyResult<Self> {
+                let config = $make;
+                let paper = |m, l| $paper::new(m, l, config);
+                let chain = |m, g| $chain::new(m, g, config);
+                let inner = Inner::build($py, lam0, beta0, base, scale, paper, chain)?;
+                Ok(Self { inner })
+            }
+        } $($train)*);
     };
-    let (q, qd, qdd, tau) = (
-        one(q, "q")?,
-        one(qd, "qd")?,
-        one(qdd, "qdd")?,
-        one(tau, "tau")?,
-    );
-    let lam = *est.step(Sample::new(&q, &qd, &qdd, &tau)).to_py(py)?;
-    if !lam.iter().all(|x| x.is_finite()) {
-        let what = "estimate λ̂ (the sample's magnitudes overflow f64 arithmetic)".into();
-        return Err(to_pyerr(py, &PrrrpError::NonFinite { what, row: None }));
-    }
-    vec8(py, &lam)
 }
 
-/// `run` of any estimator: steps over every sample with the GIL released. Returns λ̂ (8,),
-/// or `(λ̂, history)` with history (M, 8) = λ̂ after every `history_every` samples.
-#[allow(clippy::too_many_arguments)]
-fn run_batch<'py, E: Estimator<nalgebra::Const<NDOF>, nalgebra::Const<NPARAM>> + Send>(
-    py: Python<'py>,
-    est: &mut E,
-    q: &Bound<'py, PyAny>,
-    qd: &Bound<'py, PyAny>,
-    qdd: &Bound<'py, PyAny>,
-    tau: &Bound<'py, PyAny>,
-    history_every: Option<usize>,
-) -> PyResult<Bound<'py, PyAny>> {
-    let cols = Columns::extract(q, qd, qdd, tau)?;
-    if history_every == Some(0) {
-        return Err(invalid(py, "history_every", "must be >= 1 (or None)"));
-    }
-    let mut history: Vec<nalgebra::SVector<f64, NPARAM>> = Vec::new();
-    let result = interruptible(py, || -> Result<Lambda, (usize, PrrrpError)> {
-        let s = cols.samples().map_err(|e| (0, e))?;
-        for (k, sample) in s.iter().enumerate() {
-            if k % CHECK_EVERY == 0 && prrrp_core::stop_requested() {
-                let what = "estimator run";
-                return Err((k, PrrrpError::Interrupted { what }));
-            }
-            let lam = *est.step(sample).map_err(|e| (k, e))?;
-            if !lam.iter().all(|x| x.is_finite()) {
-                let what = "estimate λ̂ (the data's magnitudes overflow f64 arithmetic)".into();
-                return Err((k, PrrrpError::NonFinite { what, row: None }));
-            }
-            if let Some(every) = history_every {
-                if (k + 1) % every == 0 {
-                    history.push(lam);
-                }
-            }
-        }
-        Ok(*est.estimate())
-    })?;
-    let lam = match result {
-        Ok(l) => l,
-        Err((k, e)) => {
-            let e = match e {
-                PrrrpError::NonFinite { what, row: None } => {
-                    PrrrpError::NonFinite { what, row: Some(k) }
-                }
-                other => other,
+online_estimator! {
+    /// Adaline network (paper §3.2) whose weights are λ; `rule` "normalised" (NLMS, step size
+    /// `step_size` in (0, 2)) or "delta" (eq. 11, rate `learning_rate`). `lam0` (8,) defaults
+    /// to Table 3.
+    Adaline(CoreAdaline, DynAdaline) {
+        #[pyo3(signature = (lam0=None, *, rule="normalised", learning_rate=5e-3, step_size=1.0,
+            epsilon=1e-9, divergence_ratio=1e6))]
+        fn new(py, rule: &str, learning_rate: f64, step_size: f64, epsilon: f64,
+            divergence_ratio: f64) {
+            let rule = match rule {
+                "normalised" | "normalized" => AdalineRule::Normalised,
+                "delta" => AdalineRule::Delta,
+                _ => return Err(invalid(py, "rule", "must be \"normalised\" or \"delta\"")),
             };
-            let err = to_pyerr(py, &e);
-            err.value(py).setattr("sample", k)?;
-            err.add_note(py, format!("at sample {k} (index along the leading axis)"))?;
-            return Err(err);
-        }
-    };
-    let lam = vec8(py, &lam)?;
-    match history_every {
-        None => Ok(lam),
-        Some(_) => {
-            let h = rows_to_array(py, &history)?;
-            Ok((lam, h).into_pyobject(py)?.into_any())
+            AdalineConfig { rule, learning_rate, step_size, epsilon, divergence_ratio }
         }
     }
-}
-
-macro_rules! online_methods {
-    ($name:ident) => {
-        impl $name {
-            fn do_step<'py>(
-                &self,
-                py: Python<'py>,
-                q: &Bound<'py, PyAny>,
-                qd: &Bound<'py, PyAny>,
-                qdd: &Bound<'py, PyAny>,
-                tau: &Bound<'py, PyAny>,
-            ) -> PyResult<Bound<'py, PyAny>> {
-                match &mut *lock(py, &self.inner)? {
-                    Inner::Paper(e) => step_one(py, e, q, qd, qdd, tau),
-                    Inner::Chain(c) => step_chain(py, c, [q, qd, qdd, tau]),
-                }
-            }
-            fn do_run<'py>(
-                &self,
-                py: Python<'py>,
-                q: &Bound<'py, PyAny>,
-                qd: &Bound<'py, PyAny>,
-                qdd: &Bound<'py, PyAny>,
-                tau: &Bound<'py, PyAny>,
-                history_every: Option<UInt<usize>>,
-            ) -> PyResult<Bound<'py, PyAny>> {
-                let every = history_every.map(|u| u.0);
-                match &mut *lock(py, &self.inner)? {
-                    Inner::Paper(e) => run_batch(py, e, q, qd, qdd, tau, every),
-                    Inner::Chain(c) => run_chain(py, c, [q, qd, qdd, tau], every),
-                }
-            }
-            fn do_estimate<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
-                match &*lock(py, &self.inner)? {
-                    Inner::Paper(e) => vec8(py, e.estimate()),
-                    Inner::Chain(c) => {
-                        let beta = c.beta();
-                        let b = beta.len();
-                        to_array(py, beta, None, &[b])
-                    }
-                }
-            }
-            fn do_reset(&self, py: Python<'_>) -> PyResult<()> {
-                match &mut *lock(py, &self.inner)? {
-                    Inner::Paper(e) => e.reset(),
-                    Inner::Chain(c) => c.est.reset(),
-                }
-                Ok(())
-            }
-        }
-    };
-}
-
-/// Generates the methods every online estimator shares (pyo3 allows one `#[pymethods]`
-/// block per class without the `multiple-pymethods` feature).
-macro_rules! estimator_pymethods {
-    ($name:ident { $($extra:tt)* }) => {
-        #[pymethods]
-        impl $name {
-        $($extra)*
-        /// Consumes one sample (each (5,)) and returns the updated λ̂ (8,).
-        fn step<'py>(
-            &self,
-            py: Python<'py>,
-            q: &Bound<'py, PyAny>,
-            qd: &Bound<'py, PyAny>,
-            qdd: &Bound<'py, PyAny>,
-            tau: &Bound<'py, PyAny>,
-        ) -> PyResult<Bound<'py, PyAny>> {
-            self.do_step(py, q, qd, qdd, tau)
-        }
-        /// Steps over N samples ((N, 5) each) in Rust with the GIL released, continuing
-        /// from the current state. Returns λ̂ (8,), or `(λ̂, history)` with `history`
-        /// (M, 8) the estimate after every `history_every` samples.
-        #[pyo3(signature = (q, qd, qdd, tau, *, history_every=None))]
-        fn run<'py>(
-            &self,
-            py: Python<'py>,
-            q: &Bound<'py, PyAny>,
-            qd: &Bound<'py, PyAny>,
-            qdd: &Bound<'py, PyAny>,
-            tau: &Bound<'py, PyAny>,
-            history_every: Option<UInt<usize>>,
-        ) -> PyResult<Bound<'py, PyAny>> {
-            self.do_run(py, q, qd, qdd, tau, history_every)
-        }
-        /// The current estimate λ̂, (8,).
-        #[getter]
-        fn estimate<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
-            self.do_estimate(py)
-        }
-        /// Returns to the state right after construction.
-        fn reset(&self, py: Python<'_>) -> PyResult<()> {
-            self.do_reset(py)
-        }
-        }
-    };
-}
-
-/// Multi-epoch training of Adaline/Hopfield: returns the RMS equation error per epoch.
-fn train_epochs<'py, F>(
-    py: Python<'py>,
-    q: &Bound<'py, PyAny>,
-    qd: &Bound<'py, PyAny>,
-    qdd: &Bound<'py, PyAny>,
-    tau: &Bound<'py, PyAny>,
-    f: F,
-) -> PyResult<Bound<'py, PyAny>>
-where
-    F: FnOnce(&CoreSamples<'_, NDOF>) -> Result<prrrp_core::TrainingReport, PrrrpError> + Send,
-{
-    let cols = Columns::extract(q, qd, qdd, tau)?;
-    let report = interruptible(py, || {
-        let s = cols.samples()?;
-        f(&s)
-    })?
-    .to_py(py)?;
-    let n = report.rms_error.len();
-    to_array(py, report.rms_error, None, &[n])
-}
-
-/// Adaline network (paper §3.2) whose weights are λ; `rule` "normalised" (NLMS, step size
-/// `step_size` in (0, 2)) or "delta" (eq. 11, rate `learning_rate`). `lam0` (8,) defaults
-/// to Table 3.
-#[pyclass(module = "prrrp", name = "Adaline", frozen)]
-struct Adaline {
-    inner: Mutex<Inner<CoreAdaline<Model, NDOF, NPARAM>, DynAdaline<Scaled>>>,
-}
-online_methods!(Adaline);
-
-estimator_pymethods!(Adaline {
-    #[new]
-    #[pyo3(signature = (lam0=None, *, rule="normalised", learning_rate=5e-3, step_size=1.0,
-        epsilon=1e-9, divergence_ratio=1e6, beta0=None, base=None, scale=None))]
-    #[allow(clippy::too_many_arguments)]
-    fn new(
-        py: Python<'_>,
-        lam0: Option<&Bound<'_, PyAny>>,
-        rule: &str,
-        learning_rate: f64,
-        step_size: f64,
-        epsilon: f64,
-        divergence_ratio: f64,
-        beta0: Option<&Bound<'_, PyAny>>,
-        base: Option<&crate::models::chain::PyBaseParameters>,
-        scale: Option<&Bound<'_, PyAny>>,
-    ) -> PyResult<Self> {
-        let rule = match rule {
-            "normalised" | "normalized" => AdalineRule::Normalised,
-            "delta" => AdalineRule::Delta,
-            _ => return Err(invalid(py, "rule", "must be \"normalised\" or \"delta\"")),
-        };
-        let config = AdalineConfig {
-            rule,
-            learning_rate,
-            step_size,
-            epsilon,
-            divergence_ratio,
-        };
-        if let Some(robot) = chain_arg(lam0) {
-            let setup = chain_setup(py, robot, base, beta0, scale)?;
-            let n = setup.model.dof();
-            let (model, gamma0, scale) = setup.scaled(py)?;
-            let est = DynAdaline::new(model, gamma0, config).to_py(py)?;
-            return Ok(Self {
-                inner: Mutex::new(Inner::Chain(ChainEst { est, scale, n })),
-            });
-        }
-        paper_only(py, beta0, base, scale)?;
-        Ok(Self {
-            inner: Mutex::new(Inner::Paper(
-                CoreAdaline::new(model(), lambda0(lam0)?, config).to_py(py)?,
-            )),
-        })
-    }
+    train:
     /// `epochs` passes over the N samples; returns the a-priori RMS equation error of
     /// each epoch, (epochs,). At most 10**7 epochs per call (train in several calls for
     /// more); Ctrl-C stops it with KeyboardInterrupt.
-    fn train<'py>(
-        &self,
-        py: Python<'py>,
-        q: &Bound<'py, PyAny>,
-        qd: &Bound<'py, PyAny>,
-        qdd: &Bound<'py, PyAny>,
-        tau: &Bound<'py, PyAny>,
-        epochs: UInt<usize>,
-    ) -> PyResult<Bound<'py, PyAny>> {
-        match &mut *lock(py, &self.inner)? {
-            Inner::Paper(e) => train_epochs(py, q, qd, qdd, tau, |s| e.train(s, epochs.0)),
-            Inner::Chain(c) => {
-                train_chain(py, c, [q, qd, qdd, tau], |e, s| e.train(s, epochs.0))
-            }
-        }
-    }
-});
-
-/// Hopfield network (paper §3.3, Abe's formulation, eq. 19): estimates in (−bound, bound),
-/// slope `beta`, each sample integrated over `dt` s. `lam0` (8,) defaults to Table 3.
-#[pyclass(module = "prrrp", name = "Hopfield", frozen)]
-struct Hopfield {
-    inner: Mutex<Inner<CoreHopfield<Model, NDOF, NPARAM>, DynHopfield<Scaled>>>,
 }
-online_methods!(Hopfield);
 
-estimator_pymethods!(Hopfield {
-    #[new]
-    #[pyo3(signature = (lam0=None, *, bound=10.0, beta=100.0, dt=0.02, stability_limit=1.0,
-        max_substeps=64, beta0=None, base=None, scale=None))]
-    #[allow(clippy::too_many_arguments)]
-    fn new(
-        py: Python<'_>,
-        lam0: Option<&Bound<'_, PyAny>>,
-        bound: f64,
-        beta: f64,
-        dt: f64,
-        stability_limit: f64,
-        max_substeps: u32,
-        beta0: Option<&Bound<'_, PyAny>>,
-        base: Option<&crate::models::chain::PyBaseParameters>,
-        scale: Option<&Bound<'_, PyAny>>,
-    ) -> PyResult<Self> {
-        let config = HopfieldConfig {
-            bound,
-            beta,
-            dt,
-            stability_limit,
-            max_substeps,
-        };
-        if let Some(robot) = chain_arg(lam0) {
-            let setup = chain_setup(py, robot, base, beta0, scale)?;
-            let n = setup.model.dof();
-            let (model, gamma0, scale) = setup.scaled(py)?;
-            let est = DynHopfield::new(model, gamma0, config).to_py(py)?;
-            return Ok(Self {
-                inner: Mutex::new(Inner::Chain(ChainEst { est, scale, n })),
-            });
+online_estimator! {
+    /// Hopfield network (paper §3.3, Abe's formulation, eq. 19): estimates in (−bound, bound),
+    /// slope `beta`, each sample integrated over `dt` s. `lam0` (8,) defaults to Table 3.
+    Hopfield(CoreHopfield, DynHopfield) {
+        #[pyo3(signature = (lam0=None, *, bound=10.0, beta=100.0, dt=0.02, stability_limit=1.0,
+            max_substeps=64))]
+        fn new(py, bound: f64, beta: f64, dt: f64, stability_limit: f64, max_substeps: u32) {
+            HopfieldConfig { bound, beta, dt, stability_limit, max_substeps }
         }
-        paper_only(py, beta0, base, scale)?;
-        Ok(Self {
-            inner: Mutex::new(Inner::Paper(
-                CoreHopfield::new(model(), lambda0(lam0)?, config).to_py(py)?,
-            )),
-        })
     }
+    train:
     /// `epochs` passes over the N samples; returns the RMS equation error per epoch. At
     /// most 10**7 epochs per call; Ctrl-C stops it with KeyboardInterrupt.
-    fn train<'py>(
-        &self,
-        py: Python<'py>,
-        q: &Bound<'py, PyAny>,
-        qd: &Bound<'py, PyAny>,
-        qdd: &Bound<'py, PyAny>,
-        tau: &Bound<'py, PyAny>,
-        epochs: UInt<usize>,
-    ) -> PyResult<Bound<'py, PyAny>> {
-        match &mut *lock(py, &self.inner)? {
-            Inner::Paper(e) => train_epochs(py, q, qd, qdd, tau, |s| e.train(s, epochs.0)),
-            Inner::Chain(c) => {
-                train_chain(py, c, [q, qd, qdd, tau], |e, s| e.train(s, epochs.0))
-            }
-        }
-    }
-});
-
-/// Recursive least squares with forgetting factor `forgetting` in (0, 1] and P₀ =
-/// `initial_covariance`·I. `lam0` (8,) defaults to Table 3.
-#[pyclass(module = "prrrp", name = "Rls", frozen)]
-struct Rls {
-    inner: Mutex<Inner<CoreRls<Model, NDOF, NPARAM>, DynRls<Scaled>>>,
 }
-online_methods!(Rls);
 
-estimator_pymethods!(Rls {
-    #[new]
-    #[pyo3(signature = (lam0=None, *, forgetting=1.0, initial_covariance=1e6, beta0=None,
-        base=None, scale=None))]
-    fn new(
-        py: Python<'_>,
-        lam0: Option<&Bound<'_, PyAny>>,
-        forgetting: f64,
-        initial_covariance: f64,
-        beta0: Option<&Bound<'_, PyAny>>,
-        base: Option<&crate::models::chain::PyBaseParameters>,
-        scale: Option<&Bound<'_, PyAny>>,
-    ) -> PyResult<Self> {
-        let config = RlsConfig {
-            forgetting,
-            initial_covariance,
-        };
-        if let Some(robot) = chain_arg(lam0) {
-            let setup = chain_setup(py, robot, base, beta0, scale)?;
-            let n = setup.model.dof();
-            let (model, gamma0, scale) = setup.scaled(py)?;
-            let est = DynRls::new(model, gamma0, config).to_py(py)?;
-            return Ok(Self {
-                inner: Mutex::new(Inner::Chain(ChainEst { est, scale, n })),
-            });
+online_estimator! {
+    /// Recursive least squares with forgetting factor `forgetting` in (0, 1] and P₀ =
+    /// `initial_covariance`·I. `lam0` (8,) defaults to Table 3.
+    Rls(CoreRls, DynRls) {
+        #[pyo3(signature = (lam0=None, *, forgetting=1.0, initial_covariance=1e6))]
+        fn new(py, forgetting: f64, initial_covariance: f64) {
+            RlsConfig { forgetting, initial_covariance }
         }
-        paper_only(py, beta0, base, scale)?;
-        Ok(Self {
-            inner: Mutex::new(Inner::Paper(
-                CoreRls::new(model(), lambda0(lam0)?, config).to_py(py)?,
-            )),
-        })
     }
-});
+}
 
 /// Extended Kalman filter on the state [q, q̇, λ] (paper §3.4): `measurement` "positions"
 /// (the paper's) or "positions_velocities"; `discretisation` "euler" (eq. 43) or
@@ -864,8 +725,6 @@ estimator_pymethods!(Rls {
 struct Ekf {
     inner: Mutex<Inner<CoreEkf<Model, NDOF, NPARAM, PRRRP_EKF_STATES>, DynEkf<DynChainBaseModel>>>,
 }
-online_methods!(Ekf);
-
 estimator_pymethods!(Ekf {
     #[new]
     #[pyo3(signature = (lam0=None, *, measurement="positions", discretisation="euler",
@@ -942,111 +801,62 @@ estimator_pymethods!(Ekf {
                 None => setup.model.chain_base_values().clone(),
             };
             let est = DynEkf::new(setup.model, beta0, config).to_py(py)?;
-            let scale = DVector::repeat(b, 1.0);
             return Ok(Self {
-                inner: Mutex::new(Inner::Chain(ChainEst { est, scale, n })),
+                inner: Mutex::new(Inner::Chain(Est::chain(est, DVector::repeat(b, 1.0), n))),
             });
         }
         paper_only(py, beta0, base, None)?;
+        let est = CoreEkf::new(model(), lambda0(lam0)?, config).to_py(py)?;
         Ok(Self {
-            inner: Mutex::new(Inner::Paper(
-                CoreEkf::new(model(), lambda0(lam0)?, config).to_py(py)?,
-            )),
+            inner: Mutex::new(Inner::Paper(Est::paper(est))),
         })
     }
     /// Standard deviations of λ̂ (β̂ for a chain) from the filter covariance, (P,).
     #[getter]
     fn parameter_std<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
-        match &*lock(py, &self.inner)? {
-            Inner::Paper(e) => vec8(py, &e.parameter_std()),
-            Inner::Chain(c) => {
-                let v: Vec<f64> = c.est.parameter_std().iter().copied().collect();
-                let b = v.len();
-                to_array(py, v, None, &[b])
-            }
-        }
+        each!(&*lock(py, &self.inner)?, c => {
+            vec_out(py, c.est.parameter_std().as_slice().to_vec())
+        })
     }
     /// Measurement updates skipped because of NaN measurements.
     #[getter]
     fn skipped_updates(&self, py: Python<'_>) -> PyResult<usize> {
-        Ok(match &*lock(py, &self.inner)? {
-            Inner::Paper(e) => e.skipped_updates(),
-            Inner::Chain(c) => c.est.skipped_updates(),
-        })
+        Ok(each!(&*lock(py, &self.inner)?, c => c.est.skipped_updates()))
     }
     /// Samples whose update was damped (gain halved) to keep M(q, λ̂) positive definite.
     #[getter]
     fn damped_updates(&self, py: Python<'_>) -> PyResult<usize> {
-        Ok(match &*lock(py, &self.inner)? {
-            Inner::Paper(e) => e.damped_updates(),
-            Inner::Chain(c) => c.est.damped_updates(),
-        })
+        Ok(each!(&*lock(py, &self.inner)?, c => c.est.damped_updates()))
     }
     /// The state x = [q (n), q̇ (n), λ (P)] predicted for the next sample, (S,).
     #[getter]
     fn state<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
-        let state = match &*lock(py, &self.inner)? {
-            Inner::Paper(e) => e.state().as_slice().to_vec(),
-            Inner::Chain(c) => c.est.state().as_slice().to_vec(),
-        };
-        let s = state.len();
-        to_array(py, state, None, &[s])
+        each!(&*lock(py, &self.inner)?, c => vec_out(py, c.est.state().as_slice().to_vec()))
     }
     /// The state covariance P, (S, S), in the squares of the state's SI units.
     #[getter]
     fn covariance<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
-        match &*lock(py, &self.inner)? {
-            Inner::Paper(e) => {
-                let mut buf = vec![0.0; PRRRP_EKF_STATES * PRRRP_EKF_STATES];
-                write_row_major(e.covariance(), &mut buf);
-                to_array(py, buf, None, &[PRRRP_EKF_STATES, PRRRP_EKF_STATES])
-            }
-            Inner::Chain(c) => {
-                let p = c.est.covariance();
-                let s = p.nrows();
-                to_array(py, p.transpose().as_slice().to_vec(), None, &[s, s])
-            }
-        }
+        each!(&*lock(py, &self.inner)?, c => {
+            let p = c.est.covariance();
+            let s = p.nrows();
+            to_array(py, p.transpose().as_slice().to_vec(), None, &[s, s])
+        })
     }
     /// Replaces the initial covariance P₀ (S, S): symmetric positive definite, squares
     /// of the state units. Also the current P when no sample has been consumed yet.
     fn set_initial_covariance(&self, py: Python<'_>, p0: &Bound<'_, PyAny>) -> PyResult<()> {
-        match &mut *lock(py, &self.inner)? {
-            Inner::Paper(e) => {
-                let p0 = fixed_matrix::<PRRRP_EKF_STATES, PRRRP_EKF_STATES>(p0, "p0")?;
-                e.set_initial_covariance(&p0).to_py(py)
-            }
-            Inner::Chain(c) => {
-                let s = c.est.state().len();
-                let (shape, data) = crate::arrays::any_array(p0, "p0", &format!("({s}, {s})"))?;
-                if shape != [s, s] {
-                    return Err(to_pyerr(
-                        py,
-                        &PrrrpError::ShapeMismatch {
-                            what: "p0".into(),
-                            expected: format!("({s}, {s})"),
-                            got: crate::arrays::fmt_shape(&shape),
-                        },
-                    ));
-                }
-                let m = DMatrix::from_row_slice(s, s, &data);
-                c.est.set_initial_covariance(&m).to_py(py)
-            }
-        }
+        each!(&mut *lock(py, &self.inner)?, c => {
+            let p0 = Read::square(p0, "p0", c.est.state().len())?;
+            c.est.set_initial_covariance(&p0).to_py(py)
+        })
     }
     /// Replaces the process noise Q = diag(variances), (S,), per step, squares of the
     /// state units; each ≥ 0.
     fn set_process_noise(&self, py: Python<'_>, variances: &Bound<'_, PyAny>) -> PyResult<()> {
-        match &mut *lock(py, &self.inner)? {
-            Inner::Paper(e) => {
-                let v = fixed_vector::<PRRRP_EKF_STATES>(variances, "variances")?;
-                e.set_process_noise(&SVector::from_column_slice(&v)).to_py(py)
-            }
-            Inner::Chain(c) => {
-                let v = DVector::from_vec(crate::arrays::vector(variances, "variances")?);
-                c.est.set_process_noise(&v).to_py(py)
-            }
-        }
+        each!(&mut *lock(py, &self.inner)?, c => {
+            let v = Read::vector(variances, "variances")?;
+            c.est.set_process_noise(&v).to_py(py)
+        })
     }
     /// Replaces the measurement noise R = diag(positions (n,), velocities (n,)), variances
     /// in m², rad², (m/s)², (rad/s)²; each > 0.
@@ -1056,22 +866,11 @@ estimator_pymethods!(Ekf {
         positions: &Bound<'_, PyAny>,
         velocities: &Bound<'_, PyAny>,
     ) -> PyResult<()> {
-        match &mut *lock(py, &self.inner)? {
-            Inner::Paper(e) => {
-                let p = fixed_vector::<NDOF>(positions, "positions")?;
-                let v = fixed_vector::<NDOF>(velocities, "velocities")?;
-                e.set_measurement_noise(
-                    &SVector::from_column_slice(&p),
-                    &SVector::from_column_slice(&v),
-                )
-                .to_py(py)
-            }
-            Inner::Chain(c) => {
-                let p = DVector::from_vec(crate::arrays::vector(positions, "positions")?);
-                let v = DVector::from_vec(crate::arrays::vector(velocities, "velocities")?);
-                c.est.set_measurement_noise(&p, &v).to_py(py)
-            }
-        }
+        each!(&mut *lock(py, &self.inner)?, c => {
+            let p = Read::vector(positions, "positions")?;
+            let v = Read::vector(velocities, "velocities")?;
+            c.est.set_measurement_noise(&p, &v).to_py(py)
+        })
     }
 });
 

@@ -101,6 +101,27 @@ pub(crate) struct PyIdentifiedModel {
     pub(crate) inner: IdentifiedModel,
 }
 
+/// The value the string `v` names among `options`, or None for any other string.
+fn pick<T: Copy>(v: &Bound<'_, PyAny>, options: &[(&str, T)]) -> PyResult<Option<T>> {
+    let name = v.extract::<String>()?;
+    Ok(options.iter().find(|(k, _)| *k == name).map(|&(_, t)| t))
+}
+
+/// An optional value's JSON (from `serde_json::to_value`) as its Python form (dicts, lists,
+/// numbers), or None.
+fn json_or_none<'py>(
+    py: Python<'py>,
+    value: Option<serde_json::Result<serde_json::Value>>,
+) -> Out<'py> {
+    match value {
+        Some(v) => {
+            let v = v.map_err(|e| pyo3::exceptions::PyValueError::new_err(e.to_string()))?;
+            json_to_py(py, &v)
+        }
+        None => Ok(py.None().into_bound(py)),
+    }
+}
+
 fn json_to_py<'py>(py: Python<'py>, v: &serde_json::Value) -> Out<'py> {
     let json = py.import("json")?;
     json.call_method1("loads", (v.to_string(),))
@@ -331,28 +352,17 @@ impl PyIdentifiedModel {
     /// layout of `payload.json`), or None for the bare arm.
     #[getter]
     fn payload<'py>(&self, py: Python<'py>) -> Out<'py> {
-        match &self.inner.payload {
-            Some(p) => {
-                let v = serde_json::to_value(p)
-                    .map_err(|e| pyo3::exceptions::PyValueError::new_err(e.to_string()))?;
-                json_to_py(py, &v)
-            }
-            None => Ok(py.None().into_bound(py)),
-        }
+        json_or_none(py, self.inner.payload.as_ref().map(serde_json::to_value))
     }
 
     /// Drive gains identified with the model (`values`, `sigma` in N·m/A, `identifiable`,
     /// `identification`), or None.
     #[getter]
     fn drive_gains<'py>(&self, py: Python<'py>) -> Out<'py> {
-        match &self.inner.drive_gains {
-            Some(g) => {
-                let v = serde_json::to_value(g)
-                    .map_err(|e| pyo3::exceptions::PyValueError::new_err(e.to_string()))?;
-                json_to_py(py, &v)
-            }
-            None => Ok(py.None().into_bound(py)),
-        }
+        json_or_none(
+            py,
+            self.inner.drive_gains.as_ref().map(serde_json::to_value),
+        )
     }
 
     /// The payload as the JSON text of `payload.json`, or None.
@@ -647,29 +657,23 @@ fn parse_method(
                     }
                     "dt" => s.dt = Some(f()?),
                     "measurement" => {
-                        c.measurement = match v.extract::<String>()?.as_str() {
-                            "positions" => EkfMeasurement::Positions,
-                            "positions_velocities" => EkfMeasurement::PositionsVelocities,
-                            _ => {
-                                return Err(bad(
-                                    "measurement".into(),
-                                    "must be \"positions\" or \"positions_velocities\"",
-                                ))
-                            }
-                        }
+                        let options = [
+                            ("positions", EkfMeasurement::Positions),
+                            ("positions_velocities", EkfMeasurement::PositionsVelocities),
+                        ];
+                        let reason = "must be \"positions\" or \"positions_velocities\"";
+                        c.measurement =
+                            pick(&v, &options)?.ok_or_else(|| bad("measurement".into(), reason))?;
                     }
                     "discretisation" => {
-                        c.discretisation = match v.extract::<String>()?.as_str() {
-                            "euler" => Discretisation::Euler,
-                            "second_order" => Discretisation::SecondOrder,
-                            "midpoint" => Discretisation::Midpoint,
-                            _ => {
-                                return Err(bad(
-                                    "discretisation".into(),
-                                    "must be \"euler\", \"second_order\" or \"midpoint\"",
-                                ))
-                            }
-                        }
+                        let options = [
+                            ("euler", Discretisation::Euler),
+                            ("second_order", Discretisation::SecondOrder),
+                            ("midpoint", Discretisation::Midpoint),
+                        ];
+                        let reason = "must be \"euler\", \"second_order\" or \"midpoint\"";
+                        c.discretisation = pick(&v, &options)?
+                            .ok_or_else(|| bad("discretisation".into(), reason))?;
                     }
                     // A noise given by the user replaces the one taken from the data.
                     "position_noise" => {
@@ -681,16 +685,13 @@ fn parse_method(
                         s.noise_from_data = false;
                     }
                     "parameter_jacobian" => {
-                        c.parameter_jacobian = match v.extract::<String>()?.as_str() {
-                            "predicted" => ParameterJacobian::Predicted,
-                            "data_acceleration" => ParameterJacobian::DataAcceleration,
-                            _ => {
-                                return Err(bad(
-                                    "parameter_jacobian".into(),
-                                    "must be \"predicted\" or \"data_acceleration\"",
-                                ))
-                            }
-                        }
+                        let options = [
+                            ("predicted", ParameterJacobian::Predicted),
+                            ("data_acceleration", ParameterJacobian::DataAcceleration),
+                        ];
+                        let reason = "must be \"predicted\" or \"data_acceleration\"";
+                        c.parameter_jacobian = pick(&v, &options)?
+                            .ok_or_else(|| bad("parameter_jacobian".into(), reason))?;
                     }
                     "noise_from_data" => s.noise_from_data = v.extract()?,
                     "least_squares_prior_width" => s.least_squares_prior_width = f()?,

@@ -9,6 +9,9 @@
 //! and `ToPyResult`), `arrays` (numpy ⇄ nalgebra, shape checks, the batched loop) and
 //! `interrupt` (stop flags and progress). Layers: docs/architecture.md.
 
+#[macro_use]
+mod macros;
+
 mod arrays;
 mod data;
 mod errors;

@@ -6,7 +6,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::error::{PrrrpError, Result};
+use crate::error::{check_joints, PrrrpError, Result};
 use crate::models::chain::{BaseParameters, ChainDescription, DynChain, DynWorkspace};
 use crate::models::payload::Payload;
 
@@ -553,13 +553,7 @@ impl Predictor<'_> {
         self.chain
             .regressor_row_major_into(&mut self.ws, q, qd, qdd, &mut self.y)?;
         let (n, p) = (self.chain.dof(), self.chain.num_params());
-        if tau.len() != n {
-            return Err(PrrrpError::ShapeMismatch {
-                what: "tau".into(),
-                expected: format!("{n} entries (one per joint)"),
-                got: format!("{} entries", tau.len()),
-            });
-        }
+        check_joints("tau", tau.len(), n)?;
         let base = &self.model.base.independent;
         let payload = self.model.payload.as_ref();
         for (i, t) in tau.iter_mut().enumerate() {

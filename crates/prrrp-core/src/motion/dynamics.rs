@@ -12,7 +12,7 @@
 use nalgebra::allocator::Allocator;
 use nalgebra::{DefaultAllocator, Dim, OVector, U1};
 
-use crate::error::{PrrrpError, Result};
+use crate::error::{check_joints, PrrrpError, Result};
 use crate::models::chain::{DynChain, DynWorkspace};
 use crate::models::LinearModel;
 
@@ -221,15 +221,27 @@ where
     out: OVector<f64, N>,
 }
 
-fn check_len(what: &'static str, len: usize, n: usize) -> Result<()> {
-    if len != n {
-        return Err(PrrrpError::ShapeMismatch {
-            what: what.into(),
-            expected: format!("{n} entries (one per joint)"),
-            got: format!("{len} entries"),
-        });
+/// Checks that the three inputs and the output each have `n` entries (the first wrong one,
+/// in that order, is the error) and copies the inputs into the workspace's a, b, c.
+fn load<'w, W, N: Dim>(
+    ws: &'w mut ParameterisedWorkspace<W, N>,
+    n: usize,
+    inputs: [(&'static str, &[f64]); 3],
+    output: &'static str,
+    out: &[f64],
+) -> Result<&'w mut ParameterisedWorkspace<W, N>>
+where
+    DefaultAllocator: Allocator<N>,
+{
+    for (what, len) in inputs.map(|(what, v)| (what, v.len())) {
+        check_joints(what, len, n)?;
     }
-    Ok(())
+    check_joints(output, out.len(), n)?;
+    let [a, b, c] = inputs.map(|(_, v)| v);
+    ws.a.as_mut_slice().copy_from_slice(a);
+    ws.b.as_mut_slice().copy_from_slice(b);
+    ws.c.as_mut_slice().copy_from_slice(c);
+    Ok(ws)
 }
 
 impl<M, N: Dim, P: Dim> Dynamics for ParameterisedModel<M, N, P>
@@ -265,27 +277,17 @@ where
         qdd: &[f64],
         tau: &mut [f64],
     ) -> Result<()> {
-        let n = self.dof();
-        for (what, len) in [
-            ("q", q.len()),
-            ("qd", qd.len()),
-            ("qdd", qdd.len()),
-            ("tau", tau.len()),
-        ] {
-            check_len(what, len, n)?;
-        }
-        ws.a.as_mut_slice().copy_from_slice(q);
-        ws.b.as_mut_slice().copy_from_slice(qd);
-        ws.c.as_mut_slice().copy_from_slice(qdd);
-        self.model.inverse_dynamics_into(
-            &mut ws.model,
-            &ws.a,
-            &ws.b,
-            &ws.c,
-            &self.lambda,
-            &mut ws.out,
-        )?;
-        tau.copy_from_slice(ws.out.as_slice());
+        let inputs = [("q", q), ("qd", qd), ("qdd", qdd)];
+        let ParameterisedWorkspace {
+            model,
+            a,
+            b,
+            c,
+            out,
+        } = load(ws, self.dof(), inputs, "tau", tau)?;
+        self.model
+            .inverse_dynamics_into(model, a, b, c, &self.lambda, out)?;
+        tau.copy_from_slice(out.as_slice());
         Ok(())
     }
 
@@ -298,27 +300,17 @@ where
         tau: &[f64],
         qdd: &mut [f64],
     ) -> Result<()> {
-        let n = self.dof();
-        for (what, len) in [
-            ("q", q.len()),
-            ("qd", qd.len()),
-            ("tau", tau.len()),
-            ("qdd", qdd.len()),
-        ] {
-            check_len(what, len, n)?;
-        }
-        ws.a.as_mut_slice().copy_from_slice(q);
-        ws.b.as_mut_slice().copy_from_slice(qd);
-        ws.c.as_mut_slice().copy_from_slice(tau);
-        self.model.forward_dynamics_into(
-            &mut ws.model,
-            &ws.a,
-            &ws.b,
-            &ws.c,
-            &self.lambda,
-            &mut ws.out,
-        )?;
-        qdd.copy_from_slice(ws.out.as_slice());
+        let inputs = [("q", q), ("qd", qd), ("tau", tau)];
+        let ParameterisedWorkspace {
+            model,
+            a,
+            b,
+            c,
+            out,
+        } = load(ws, self.dof(), inputs, "qdd", qdd)?;
+        self.model
+            .forward_dynamics_into(model, a, b, c, &self.lambda, out)?;
+        qdd.copy_from_slice(out.as_slice());
         Ok(())
     }
 }

@@ -20,7 +20,7 @@ use rand_distr::{Distribution, Normal};
 use crate::data::dataset::Dataset;
 use crate::data::preprocess::{preprocess, PreprocessConfig};
 use crate::data::{preprocess_log, DynDataset, LogConfig, LogReport};
-use crate::error::{PrrrpError, Result};
+use crate::error::{check_joints, PrrrpError, Result};
 use crate::models::chain::{cholesky_in_place, cholesky_solve};
 use crate::models::prrrp::dynamics::PrrrpModel;
 use crate::models::prrrp::types::{Lambda, Vec5, NDOF};
@@ -210,13 +210,7 @@ impl DynSimulationConfig {
             vectors.push(("noise.qd_std", v.as_slice()));
         }
         for (name, v) in vectors {
-            if v.len() != n {
-                return Err(PrrrpError::ShapeMismatch {
-                    what: name.into(),
-                    expected: format!("{n} entries (one per joint)"),
-                    got: format!("{} entries", v.len()),
-                });
-            }
+            check_joints(name, v.len(), n)?;
             for (j, &x) in v.iter().enumerate() {
                 if !(x.is_finite() && x >= 0.0) {
                     return Err(bad(
@@ -397,17 +391,6 @@ impl<'c, C: Dynamics + ?Sized> DynComputedTorque<'c, C> {
         }
         Ok(())
     }
-}
-
-fn check_joints(what: &str, len: usize, n: usize) -> Result<()> {
-    if len != n {
-        return Err(PrrrpError::ShapeMismatch {
-            what: what.into(),
-            expected: format!("{n} entries (one per joint)"),
-            got: format!("{len} entries"),
-        });
-    }
-    Ok(())
 }
 
 /// Scratch entries per joint that [`rk4_step_into`] needs.

@@ -21,6 +21,33 @@ use crate::interrupt::interruptible;
 
 type Out<'py> = PyResult<Bound<'py, PyAny>>;
 
+/// The `#[pymethods]` of `SerialChain`: its own items, then one method per dynamics
+/// quantity `fn name(args) -> [shape] = fill;`, taking (n,) or (N, n) arguments, with
+/// `fill` writing sample `k` into `out` through chain `c` and its workspace `ws` (one
+/// per batch, the GIL released).
+macro_rules! chain_pymethods {
+    (|$c:ident, $ws:ident, $k:ident, $out:ident| { $($extra:tt)* }
+     $($(#[$doc:meta])* fn $name:ident($($arg:ident),+) -> [$($dim:expr),+] = $fill:expr;)*) => {
+        #[pymethods]
+        impl PySerialChain {
+            $($extra)*
+            $(
+            $(#[$doc])*
+            fn $name<'py>(&self, py: Python<'py>, $($arg: &Bound<'py, PyAny>),+) -> Out<'py> {
+                $(let $arg = self.joints($arg, stringify!($arg))?;)+
+                let n = batch_len(py, &[$(&$arg),+])?;
+                let $c = &self.inner;
+                let shape = [$($dim),+];
+                let [y] = map_samples_with(py, n, [&shape], $c.workspace(), |$ws, $k, [$out]| {
+                    $fill
+                })?;
+                Ok(y)
+            }
+            )*
+        }
+    };
+}
+
 /// Default rank tolerance and seed of `BaseOptions`, for the Python signature.
 const DEFAULT_SEED: u64 = 0x5EED_BA5E;
 const DEFAULT_RANK_TOLERANCE: f64 = 1e-8;
@@ -44,28 +71,23 @@ fn invalid(py: Python<'_>, field: &str, value: &str, reason: &'static str) -> Py
 /// Joint kinds from "RRP" or ["R", "revolute", "P", ...] (case-insensitive).
 fn joint_kinds(obj: &Bound<'_, PyAny>) -> PyResult<Vec<JointKind>> {
     let py = obj.py();
+    let not_names = || {
+        let reason = "must be a string such as 'RRP' or a list of 'R'/'P'";
+        invalid(
+            py,
+            "joint_types",
+            "not a string or a list of strings",
+            reason,
+        )
+    };
     let items: Vec<String> = if let Ok(s) = obj.cast::<PyString>() {
         s.to_str()?.chars().map(String::from).collect()
     } else {
         obj.try_iter()
-            .map_err(|_| {
-                invalid(
-                    py,
-                    "joint_types",
-                    "not a string or a list of strings",
-                    "must be a string such as 'RRP' or a list of 'R'/'P'",
-                )
-            })?
+            .map_err(|_| not_names())?
             .map(|x| x.and_then(|x| x.extract::<String>()))
             .collect::<PyResult<_>>()
-            .map_err(|_| {
-                invalid(
-                    py,
-                    "joint_types",
-                    "not a string or a list of strings",
-                    "must be a string such as 'RRP' or a list of 'R'/'P'",
-                )
-            })?
+            .map_err(|_| not_names())?
     };
     items
         .iter()
@@ -244,8 +266,8 @@ impl PySerialChain {
     }
 }
 
-#[pymethods]
-impl PySerialChain {
+chain_pymethods! {
+|c, ws, k, out| {
     /// See the class documentation in `_prrrp.pyi`.
     #[new]
     #[pyo3(signature = (dh, joint_types, *, convention="standard", inertial=None, gravity=None,
@@ -698,111 +720,6 @@ impl PySerialChain {
         self.inner.friction().coulomb_smoothing
     }
 
-    /// Inverse dynamics τ = M·q̈ + C·q̇ + G + τ_friction (N, N·m): (n,) or (N, n).
-    fn inverse_dynamics<'py>(
-        &self,
-        py: Python<'py>,
-        q: &Bound<'py, PyAny>,
-        qd: &Bound<'py, PyAny>,
-        qdd: &Bound<'py, PyAny>,
-    ) -> Out<'py> {
-        let (q, qd, qdd) = (
-            self.joints(q, "q")?,
-            self.joints(qd, "qd")?,
-            self.joints(qdd, "qdd")?,
-        );
-        let n = batch_len(py, &[&q, &qd, &qdd])?;
-        let c = &self.inner;
-        let [tau] = map_samples_with(py, n, [&[c.dof()]], c.workspace(), |ws, k, [out]| {
-            c.inverse_dynamics_into(ws, q.at(k), qd.at(k), qdd.at(k), out)
-        })?;
-        Ok(tau)
-    }
-
-    /// Nonlinear effects C(q, q̇)·q̇ + G(q) + τ_friction(q̇) (N, N·m): (n,) or (N, n).
-    fn nonlinear_effects<'py>(
-        &self,
-        py: Python<'py>,
-        q: &Bound<'py, PyAny>,
-        qd: &Bound<'py, PyAny>,
-    ) -> Out<'py> {
-        let (q, qd) = (self.joints(q, "q")?, self.joints(qd, "qd")?);
-        let n = batch_len(py, &[&q, &qd])?;
-        let c = &self.inner;
-        let [h] = map_samples_with(py, n, [&[c.dof()]], c.workspace(), |ws, k, [out]| {
-            c.nonlinear_effects_into(ws, q.at(k), qd.at(k), out)
-        })?;
-        Ok(h)
-    }
-
-    /// Gravity torques G(q) (N, N·m; no friction): (n,) or (N, n).
-    fn gravity_torques<'py>(&self, py: Python<'py>, q: &Bound<'py, PyAny>) -> Out<'py> {
-        let q = self.joints(q, "q")?;
-        let n = batch_len(py, &[&q])?;
-        let c = &self.inner;
-        let [g] = map_samples_with(py, n, [&[c.dof()]], c.workspace(), |ws, k, [out]| {
-            c.gravity_torques_into(ws, q.at(k), out)
-        })?;
-        Ok(g)
-    }
-
-    /// Mass matrix M(q): (n, n) or (N, n, n).
-    fn mass_matrix<'py>(&self, py: Python<'py>, q: &Bound<'py, PyAny>) -> Out<'py> {
-        let q = self.joints(q, "q")?;
-        let n = batch_len(py, &[&q])?;
-        let c = &self.inner;
-        let d = c.dof();
-        let [m] = map_samples_with(py, n, [&[d, d]], c.workspace(), |ws, k, [out]| {
-            c.mass_matrix_into(ws, q.at(k), out)
-        })?;
-        Ok(m)
-    }
-
-    /// Forward dynamics q̈ = M⁻¹(τ − C·q̇ − G − τ_friction): (n,) or (N, n). Raises
-    /// NotPositiveDefiniteError (with `.sample` for a batch) where M(q) is singular.
-    fn forward_dynamics<'py>(
-        &self,
-        py: Python<'py>,
-        q: &Bound<'py, PyAny>,
-        qd: &Bound<'py, PyAny>,
-        tau: &Bound<'py, PyAny>,
-    ) -> Out<'py> {
-        let (q, qd, tau) = (
-            self.joints(q, "q")?,
-            self.joints(qd, "qd")?,
-            self.joints(tau, "tau")?,
-        );
-        let n = batch_len(py, &[&q, &qd, &tau])?;
-        let c = &self.inner;
-        let [qdd] = map_samples_with(py, n, [&[c.dof()]], c.workspace(), |ws, k, [out]| {
-            c.forward_dynamics_into(ws, q.at(k), qd.at(k), tau.at(k), out)
-        })?;
-        Ok(qdd)
-    }
-
-    /// Full regressor Y (friction columns included) with τ = Y·parameters: (n, P) or
-    /// (N, n, P).
-    fn regressor<'py>(
-        &self,
-        py: Python<'py>,
-        q: &Bound<'py, PyAny>,
-        qd: &Bound<'py, PyAny>,
-        qdd: &Bound<'py, PyAny>,
-    ) -> Out<'py> {
-        let (q, qd, qdd) = (
-            self.joints(q, "q")?,
-            self.joints(qd, "qd")?,
-            self.joints(qdd, "qdd")?,
-        );
-        let n = batch_len(py, &[&q, &qd, &qdd])?;
-        let c = &self.inner;
-        let shape = [c.dof(), c.num_params()];
-        let [y] = map_samples_with(py, n, [&shape], c.workspace(), |ws, k, [out]| {
-            c.regressor_row_major_into(ws, q.at(k), qd.at(k), qdd.at(k), out)
-        })?;
-        Ok(y)
-    }
-
     /// Observation matrix W: the regressors of the samples stacked, shape (N·n, P); rows
     /// n·k..n·k+n hold sample k.
     fn observation_matrix<'py>(
@@ -993,6 +910,31 @@ impl PySerialChain {
     }
 }
 
+    /// Inverse dynamics τ = M·q̈ + C·q̇ + G + τ_friction (N, N·m): (n,) or (N, n).
+    fn inverse_dynamics(q, qd, qdd) -> [c.dof()] =
+        c.inverse_dynamics_into(ws, q.at(k), qd.at(k), qdd.at(k), out);
+
+    /// Nonlinear effects C(q, q̇)·q̇ + G(q) + τ_friction(q̇) (N, N·m): (n,) or (N, n).
+    fn nonlinear_effects(q, qd) -> [c.dof()] =
+        c.nonlinear_effects_into(ws, q.at(k), qd.at(k), out);
+
+    /// Gravity torques G(q) (N, N·m; no friction): (n,) or (N, n).
+    fn gravity_torques(q) -> [c.dof()] = c.gravity_torques_into(ws, q.at(k), out);
+
+    /// Mass matrix M(q): (n, n) or (N, n, n).
+    fn mass_matrix(q) -> [c.dof(), c.dof()] = c.mass_matrix_into(ws, q.at(k), out);
+
+    /// Forward dynamics q̈ = M⁻¹(τ − C·q̇ − G − τ_friction): (n,) or (N, n). Raises
+    /// NotPositiveDefiniteError (with `.sample` for a batch) where M(q) is singular.
+    fn forward_dynamics(q, qd, tau) -> [c.dof()] =
+        c.forward_dynamics_into(ws, q.at(k), qd.at(k), tau.at(k), out);
+
+    /// Full regressor Y (friction columns included) with τ = Y·parameters: (n, P) or
+    /// (N, n, P).
+    fn regressor(q, qd, qdd) -> [c.dof(), c.num_params()] =
+        c.regressor_row_major_into(ws, q.at(k), qd.at(k), qdd.at(k), out);
+}
+
 enum Source {
     Text(String),
     Path(std::path::PathBuf),
@@ -1044,26 +986,18 @@ fn index_array<'py>(py: Python<'py>, v: &[usize]) -> Bound<'py, PyArray1<i64>> {
     PyArray1::from_vec(py, v.iter().map(|&i| i as i64).collect())
 }
 
-#[pymethods]
-impl PyBaseParameters {
+pymethods_with_inner_getters!(PyBaseParameters {
     /// Number of base parameters b.
-    #[getter]
-    fn count(&self) -> usize {
-        self.inner.count()
-    }
-
+    count: usize = { count() }
     /// Number of standard parameters P.
-    #[getter]
-    fn num_params(&self) -> usize {
-        self.inner.num_standard()
-    }
-
+    num_params: usize = { num_standard() }
     /// Names of the standard parameters (length P).
-    #[getter]
-    fn names(&self) -> Vec<String> {
-        self.inner.names.clone()
-    }
-
+    names: Vec<String> = { names.clone() }
+    /// Each base parameter as a readable combination, e.g. 'Izz2 + 0.4318*mx2 + ...'.
+    combinations: Vec<String> = { combinations.clone() }
+    /// The rank tolerance used.
+    rank_tolerance: f64 = { rank_tolerance }
+} {
     /// Indices of the standard parameters kept as base parameters, increasing, (b,).
     #[getter]
     fn independent<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<i64>> {
@@ -1100,22 +1034,10 @@ impl PyBaseParameters {
         to_array(py, self.inner.map_row_major(), Some(b), &[p])
     }
 
-    /// Each base parameter as a readable combination, e.g. 'Izz2 + 0.4318*mx2 + ...'.
-    #[getter]
-    fn combinations(&self) -> Vec<String> {
-        self.inner.combinations.clone()
-    }
-
     /// Pivots |R_kk| of the scaled pivoted QR (the rank gap diagnostic).
     #[getter]
     fn pivots<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
         PyArray1::from_slice(py, &self.inner.pivots)
-    }
-
-    /// The rank tolerance used.
-    #[getter]
-    fn rank_tolerance(&self) -> f64 {
-        self.inner.rank_tolerance
     }
 
     /// β = K·π for standard parameters π of shape (P,) or (N, P): (b,) or (N, b).
@@ -1142,7 +1064,7 @@ impl PyBaseParameters {
             self.independent_names()
         )
     }
-}
+});
 
 pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PySerialChain>()?;

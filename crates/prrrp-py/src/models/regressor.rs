@@ -3,12 +3,13 @@
 //! `prrrp.singular_values`, `prrrp.condition_number`.
 
 use faer::Mat;
-use numpy::{AllowTypeChange, PyArray1, PyArrayLike2, PyUntypedArrayMethods};
+use numpy::ndarray::Ix2;
+use numpy::{PyArray1, PyUntypedArrayMethods};
 use prrrp_core::{PrrrpError, PrrrpModel, Vec5, NDOF, NPARAM, STANDARD_GRAVITY};
 use pyo3::prelude::*;
 
 use crate::arrays::{batch_len, map_samples, to_array, write_row_major, Samples};
-use crate::errors::{to_pyerr, Exc, ToPyResult};
+use crate::errors::{to_pyerr, ToPyResult};
 
 /// A model with gravity `g` (m/s², along −z), checked like `Robot`'s.
 pub(crate) fn model(py: Python<'_>, g: f64) -> PyResult<PrrrpModel> {
@@ -96,19 +97,8 @@ fn observation_matrix<'py>(
 
 /// Reads a 2-D matrix argument into faer.
 fn matrix(w: &Bound<'_, PyAny>, name: &str) -> PyResult<Mat<f64>> {
-    let py = w.py();
-    crate::arrays::reject_complex(w, name)?;
-    let arr = w
-        .extract::<PyArrayLike2<'_, f64, AllowTypeChange>>()
-        .map_err(|e| {
-            let err = Exc::InvalidInput.new_err(
-                py,
-                format!("`{name}` must be convertible to a 2-D float64 array (rows, cols): {e}"),
-                &[],
-            );
-            err.set_cause(py, Some(e));
-            err
-        })?;
+    let what = "a 2-D float64 array (rows, cols)";
+    let arr = crate::arrays::float_array_of::<Ix2>(w, name, what)?;
     let v = arr.as_array();
     Ok(Mat::from_fn(arr.shape()[0], arr.shape()[1], |i, j| {
         v[[i, j]]

@@ -2,6 +2,7 @@
 //! user-supplied λ (keyword `lam`), for one sample or a batch.
 
 use numpy::PyArray1;
+use prrrp_core::nalgebra::SMatrix;
 use prrrp_core::{JointKind, Robot, NPARAM, STANDARD_GRAVITY};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList, PyTuple};
@@ -32,8 +33,59 @@ impl PyRobot {
 
 type Out<'py> = PyResult<Bound<'py, PyAny>>;
 
-#[pymethods]
-impl PyRobot {
+/// A per-sample result written into its output row: a matrix or vector (row-major) or a
+/// scalar.
+trait Put {
+    fn put(&self, out: &mut [f64]);
+}
+
+impl<const R: usize, const C: usize> Put for SMatrix<f64, R, C> {
+    fn put(&self, out: &mut [f64]) {
+        write_row_major(self, out);
+    }
+}
+
+impl Put for f64 {
+    fn put(&self, out: &mut [f64]) {
+        out[0] = *self;
+    }
+}
+
+/// The `#[pymethods]` of `Robot`: its own items, then one method per dynamics quantity
+/// `fn name(args) -> [shape] = value;`, taking (5,) or (N, 5) arguments and the keyword
+/// `lam`, with `value` computed at sample `k` by `model` with the GIL released.
+macro_rules! robot_pymethods {
+    (|$model:ident, $k:ident, $lam:ident| { $($extra:tt)* }
+     $($(#[$doc:meta])* fn $name:ident($($arg:ident),+) -> [$($dim:expr),*] = $value:expr;)*) => {
+        #[pymethods]
+        impl PyRobot {
+            $($extra)*
+            $(
+            $(#[$doc])*
+            #[pyo3(signature = ($($arg),+, *, lam=None))]
+            fn $name<'py>(
+                &self,
+                py: Python<'py>,
+                $($arg: &Bound<'py, PyAny>,)+
+                lam: Option<&Bound<'py, PyAny>>,
+            ) -> Out<'py> {
+                $(let $arg = Samples::<5>::extract($arg, stringify!($arg))?;)+
+                let $lam = self.lam(lam)?;
+                let n = batch_len(py, &[$(&$arg,)+ &$lam])?;
+                let $model = self.inner.model();
+                let [out] = map_samples(py, n, [&[$($dim),*]], |$k, [row]| {
+                    $value.put(row);
+                    Ok(())
+                })?;
+                Ok(out)
+            }
+            )*
+        }
+    };
+}
+
+robot_pymethods! {
+|model, k, lam| {
     /// A robot from the paper's Table 2 quantities (keyword-only, SI units). Omitted
     /// arguments take the paper's values.
     #[new]
@@ -119,145 +171,6 @@ impl PyRobot {
         Ok(list)
     }
 
-    /// Mass matrix M(q, λ), shape (5, 5) or (N, 5, 5).
-    #[pyo3(signature = (q, *, lam=None))]
-    fn mass_matrix<'py>(
-        &self,
-        py: Python<'py>,
-        q: &Bound<'py, PyAny>,
-        lam: Option<&Bound<'py, PyAny>>,
-    ) -> Out<'py> {
-        let q = Samples::<5>::extract(q, "q")?;
-        let lam = self.lam(lam)?;
-        let n = batch_len(py, &[&q, &lam])?;
-        let model = self.inner.model();
-        let [m] = map_samples(py, n, [&[5, 5]], |k, [out]| {
-            write_row_major(&model.mass_matrix(q.at(k), lam.at(k)), out);
-            Ok(())
-        })?;
-        Ok(m)
-    }
-
-    /// Coriolis and centrifugal vector C(q, q̇, λ)·q̇ (N, N·m), shape (5,) or (N, 5).
-    #[pyo3(signature = (q, qd, *, lam=None))]
-    fn coriolis<'py>(
-        &self,
-        py: Python<'py>,
-        q: &Bound<'py, PyAny>,
-        qd: &Bound<'py, PyAny>,
-        lam: Option<&Bound<'py, PyAny>>,
-    ) -> Out<'py> {
-        let (q, qd) = (
-            Samples::<5>::extract(q, "q")?,
-            Samples::<5>::extract(qd, "qd")?,
-        );
-        let lam = self.lam(lam)?;
-        let n = batch_len(py, &[&q, &qd, &lam])?;
-        let model = self.inner.model();
-        let [h] = map_samples(py, n, [&[5]], |k, [out]| {
-            out.copy_from_slice(model.coriolis(q.at(k), qd.at(k), lam.at(k)).as_slice());
-            Ok(())
-        })?;
-        Ok(h)
-    }
-
-    /// Gravity vector G(λ) (N, N·m), shape (5,) or (N, 5). It does not depend on q for
-    /// this arm; q sets the output shape.
-    #[pyo3(signature = (q, *, lam=None))]
-    fn gravity<'py>(
-        &self,
-        py: Python<'py>,
-        q: &Bound<'py, PyAny>,
-        lam: Option<&Bound<'py, PyAny>>,
-    ) -> Out<'py> {
-        let q = Samples::<5>::extract(q, "q")?;
-        let lam = self.lam(lam)?;
-        let n = batch_len(py, &[&q, &lam])?;
-        let model = self.inner.model();
-        let [g] = map_samples(py, n, [&[5]], |k, [out]| {
-            out.copy_from_slice(model.gravity_vector(lam.at(k)).as_slice());
-            Ok(())
-        })?;
-        Ok(g)
-    }
-
-    /// Nonlinear effects C(q, q̇, λ)·q̇ + G(λ) (N, N·m), shape (5,) or (N, 5).
-    #[pyo3(signature = (q, qd, *, lam=None))]
-    fn nonlinear_effects<'py>(
-        &self,
-        py: Python<'py>,
-        q: &Bound<'py, PyAny>,
-        qd: &Bound<'py, PyAny>,
-        lam: Option<&Bound<'py, PyAny>>,
-    ) -> Out<'py> {
-        let (q, qd) = (
-            Samples::<5>::extract(q, "q")?,
-            Samples::<5>::extract(qd, "qd")?,
-        );
-        let lam = self.lam(lam)?;
-        let n = batch_len(py, &[&q, &qd, &lam])?;
-        let model = self.inner.model();
-        let [h] = map_samples(py, n, [&[5]], |k, [out]| {
-            let v = model.nonlinear_effects(q.at(k), qd.at(k), lam.at(k));
-            out.copy_from_slice(v.as_slice());
-            Ok(())
-        })?;
-        Ok(h)
-    }
-
-    /// Inverse dynamics τ = M·q̈ + C·q̇ + G (N, N·m), shape (5,) or (N, 5).
-    #[pyo3(signature = (q, qd, qdd, *, lam=None))]
-    fn inverse_dynamics<'py>(
-        &self,
-        py: Python<'py>,
-        q: &Bound<'py, PyAny>,
-        qd: &Bound<'py, PyAny>,
-        qdd: &Bound<'py, PyAny>,
-        lam: Option<&Bound<'py, PyAny>>,
-    ) -> Out<'py> {
-        let (q, qd, qdd) = (
-            Samples::<5>::extract(q, "q")?,
-            Samples::<5>::extract(qd, "qd")?,
-            Samples::<5>::extract(qdd, "qdd")?,
-        );
-        let lam = self.lam(lam)?;
-        let n = batch_len(py, &[&q, &qd, &qdd, &lam])?;
-        let model = self.inner.model();
-        let [tau] = map_samples(py, n, [&[5]], |k, [out]| {
-            let v = model.inverse_dynamics(q.at(k), qd.at(k), qdd.at(k), lam.at(k));
-            out.copy_from_slice(v.as_slice());
-            Ok(())
-        })?;
-        Ok(tau)
-    }
-
-    /// Forward dynamics q̈ = M⁻¹(τ − C·q̇ − G) (m/s², rad/s²), shape (5,) or (N, 5).
-    /// Raises NotPositiveDefiniteError if M(q, λ) is not positive definite (non-physical λ).
-    #[pyo3(signature = (q, qd, tau, *, lam=None))]
-    fn forward_dynamics<'py>(
-        &self,
-        py: Python<'py>,
-        q: &Bound<'py, PyAny>,
-        qd: &Bound<'py, PyAny>,
-        tau: &Bound<'py, PyAny>,
-        lam: Option<&Bound<'py, PyAny>>,
-    ) -> Out<'py> {
-        let (q, qd, tau) = (
-            Samples::<5>::extract(q, "q")?,
-            Samples::<5>::extract(qd, "qd")?,
-            Samples::<5>::extract(tau, "tau")?,
-        );
-        let lam = self.lam(lam)?;
-        let n = batch_len(py, &[&q, &qd, &tau, &lam])?;
-        let model = self.inner.model();
-        let [qdd] = map_samples(py, n, [&[5]], |k, [out]| {
-            let v = model.forward_dynamics(q.at(k), qd.at(k), tau.at(k), lam.at(k))?;
-            out.copy_from_slice(v.as_slice());
-            Ok(())
-        })?;
-        Ok(qdd)
-    }
-
     /// Regressor Φ(q, q̇, q̈) at this robot's gravity, shape (5, 8) or (N, 5, 8); τ = Φ·λ.
     fn regressor<'py>(
         &self,
@@ -267,49 +180,6 @@ impl PyRobot {
         qdd: &Bound<'py, PyAny>,
     ) -> Out<'py> {
         crate::models::regressor::regressor_at(py, self.inner.model(), q, qd, qdd)
-    }
-
-    /// Kinetic energy ½·q̇ᵀ·M(q, λ)·q̇ (J): a float, or shape (N,).
-    #[pyo3(signature = (q, qd, *, lam=None))]
-    fn kinetic_energy<'py>(
-        &self,
-        py: Python<'py>,
-        q: &Bound<'py, PyAny>,
-        qd: &Bound<'py, PyAny>,
-        lam: Option<&Bound<'py, PyAny>>,
-    ) -> Out<'py> {
-        let (q, qd) = (
-            Samples::<5>::extract(q, "q")?,
-            Samples::<5>::extract(qd, "qd")?,
-        );
-        let lam = self.lam(lam)?;
-        let n = batch_len(py, &[&q, &qd, &lam])?;
-        let model = self.inner.model();
-        let [e] = map_samples(py, n, [&[]], |k, [out]| {
-            out[0] = model.kinetic_energy(q.at(k), qd.at(k), lam.at(k));
-            Ok(())
-        })?;
-        Ok(e)
-    }
-
-    /// Potential energy g·(λ1·d1 + λ8·(d1 − d5)) (J), zero at d1 = d5 = 0: a float, or
-    /// shape (N,).
-    #[pyo3(signature = (q, *, lam=None))]
-    fn potential_energy<'py>(
-        &self,
-        py: Python<'py>,
-        q: &Bound<'py, PyAny>,
-        lam: Option<&Bound<'py, PyAny>>,
-    ) -> Out<'py> {
-        let q = Samples::<5>::extract(q, "q")?;
-        let lam = self.lam(lam)?;
-        let n = batch_len(py, &[&q, &lam])?;
-        let model = self.inner.model();
-        let [e] = map_samples(py, n, [&[]], |k, [out]| {
-            out[0] = model.potential_energy(q.at(k), lam.at(k));
-            Ok(())
-        })?;
-        Ok(e)
     }
 
     /// ∂τ/∂q and ∂τ/∂q̇ of the inverse dynamics at fixed q̈ and λ (analytic), each of shape
@@ -361,6 +231,36 @@ impl PyRobot {
         kw.set_item("gravity", self.inner.gravity)?;
         Ok((PyTuple::empty(py), kw))
     }
+}
+
+    /// Mass matrix M(q, λ), shape (5, 5) or (N, 5, 5).
+    fn mass_matrix(q) -> [5, 5] = model.mass_matrix(q.at(k), lam.at(k));
+
+    /// Coriolis and centrifugal vector C(q, q̇, λ)·q̇ (N, N·m), shape (5,) or (N, 5).
+    fn coriolis(q, qd) -> [5] = model.coriolis(q.at(k), qd.at(k), lam.at(k));
+
+    /// Gravity vector G(λ) (N, N·m), shape (5,) or (N, 5). It does not depend on q for
+    /// this arm; q sets the output shape.
+    fn gravity(q) -> [5] = model.gravity_vector(lam.at(k));
+
+    /// Nonlinear effects C(q, q̇, λ)·q̇ + G(λ) (N, N·m), shape (5,) or (N, 5).
+    fn nonlinear_effects(q, qd) -> [5] = model.nonlinear_effects(q.at(k), qd.at(k), lam.at(k));
+
+    /// Inverse dynamics τ = M·q̈ + C·q̇ + G (N, N·m), shape (5,) or (N, 5).
+    fn inverse_dynamics(q, qd, qdd) -> [5] =
+        model.inverse_dynamics(q.at(k), qd.at(k), qdd.at(k), lam.at(k));
+
+    /// Forward dynamics q̈ = M⁻¹(τ − C·q̇ − G) (m/s², rad/s²), shape (5,) or (N, 5).
+    /// Raises NotPositiveDefiniteError if M(q, λ) is not positive definite (non-physical λ).
+    fn forward_dynamics(q, qd, tau) -> [5] =
+        model.forward_dynamics(q.at(k), qd.at(k), tau.at(k), lam.at(k))?;
+
+    /// Kinetic energy ½·q̇ᵀ·M(q, λ)·q̇ (J): a float, or shape (N,).
+    fn kinetic_energy(q, qd) -> [] = model.kinetic_energy(q.at(k), qd.at(k), lam.at(k));
+
+    /// Potential energy g·(λ1·d1 + λ8·(d1 − d5)) (J), zero at d1 = d5 = 0: a float, or
+    /// shape (N,).
+    fn potential_energy(q) -> [] = model.potential_energy(q.at(k), lam.at(k));
 }
 
 pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {

@@ -12,7 +12,7 @@ use pyo3::exceptions::PyTypeError;
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyTuple};
 
-use crate::arrays::{any_array, fmt_shape, to_array, vector, UInt};
+use crate::arrays::{any_array, first_non_finite, fmt_shape, times, to_array, vector, UInt};
 use crate::data::dataset::PyDataset;
 use crate::errors::{shape_error, to_pyerr, ToPyResult};
 use crate::interrupt::interruptible;
@@ -97,18 +97,14 @@ fn table(
     }
 }
 
-fn sampled(
-    py: Python<'_>,
-    t: &Bound<'_, PyAny>,
-    q: &Bound<'_, PyAny>,
-    qd: &Bound<'_, PyAny>,
-    qdd: &Bound<'_, PyAny>,
-) -> PyResult<DynSampledTrajectory> {
+/// A recorded trajectory from its arguments [t (N,), q, qd, qdd (N, n)].
+fn sampled(args: [&Bound<'_, PyAny>; 4]) -> PyResult<DynSampledTrajectory> {
+    let [t, q, qd, qdd] = args;
     let t = vector(t, "t")?;
     let (rows, n, q) = table(q, "q", Some(t.len()), None)?;
     let (_, _, qd) = table(qd, "qd", Some(rows), Some(n))?;
     let (_, _, qdd) = table(qdd, "qdd", Some(rows), Some(n))?;
-    DynSampledTrajectory::new(n, t, q, qd, qdd).to_py(py)
+    DynSampledTrajectory::new(n, t, q, qd, qdd).to_py(args[0].py())
 }
 
 #[pymethods]
@@ -152,21 +148,15 @@ impl PyChainTrajectory {
             Some(p) => per_joint(p, "phase", n)?,
             None => vec![0.0; n],
         };
-        for (name, v) in [
-            ("offset", &offset),
-            ("amplitude", &amplitude),
-            ("omega", &omega),
-            ("phase", &phase),
-        ] {
-            if let Some(j) = v.iter().position(|x| !x.is_finite()) {
-                return Err(to_pyerr(
-                    py,
-                    &PrrrpError::NonFinite {
-                        what: format!("{name}[{j}]"),
-                        row: None,
-                    },
-                ));
-            }
+        let named = [
+            ("offset", &offset[..]),
+            ("amplitude", &amplitude[..]),
+            ("omega", &omega[..]),
+            ("phase", &phase[..]),
+        ];
+        if let Some((name, j, _)) = first_non_finite(named) {
+            let what = format!("{name}[{j}]");
+            return Err(to_pyerr(py, &PrrrpError::NonFinite { what, row: None }));
         }
         if n == 0 {
             return Err(shape_error(py, "offset", "(n,) with n >= 1", "(0,)"));
@@ -187,14 +177,13 @@ impl PyChainTrajectory {
     /// A recorded trajectory: t (N,) s and q, qd, qdd (N, n), interpolated by quintics.
     #[staticmethod]
     fn sampled(
-        py: Python<'_>,
         t: &Bound<'_, PyAny>,
         q: &Bound<'_, PyAny>,
         qd: &Bound<'_, PyAny>,
         qdd: &Bound<'_, PyAny>,
     ) -> PyResult<Self> {
         Ok(Self {
-            inner: Traj::Sampled(sampled(py, t, q, qd, qdd)?),
+            inner: Traj::Sampled(sampled([t, q, qd, qdd])?),
         })
     }
 
@@ -216,21 +205,7 @@ impl PyChainTrajectory {
         py: Python<'py>,
         t: &Bound<'py, PyAny>,
     ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>, Bound<'py, PyAny>)> {
-        let (shape, ts) = any_array(t, "t", "() or (N,)")?;
-        let batch = match *shape {
-            [] => None,
-            [k] => Some(k),
-            _ => return Err(shape_error(py, "t", "() or (N,)", fmt_shape(&shape))),
-        };
-        if let Some(k) = ts.iter().position(|x| !x.is_finite()) {
-            return Err(to_pyerr(
-                py,
-                &PrrrpError::NonFinite {
-                    what: "t".into(),
-                    row: batch.map(|_| k),
-                },
-            ));
-        }
+        let (ts, batch) = times(t)?;
         let n = self.inner.dof();
         let (mut q, mut qd, mut qdd) = (
             vec![0.0; n * ts.len()],
@@ -282,13 +257,8 @@ fn reference_from(obj: &Bound<'_, PyAny>) -> PyResult<Traj> {
     }
     if let Ok(tup) = obj.cast::<PyTuple>() {
         if tup.len() == 4 {
-            return Ok(Traj::Sampled(sampled(
-                py,
-                &tup.get_item(0)?,
-                &tup.get_item(1)?,
-                &tup.get_item(2)?,
-                &tup.get_item(3)?,
-            )?));
+            let [t, q, qd, qdd] = [0, 1, 2, 3].map(|i| tup.get_item(i));
+            return Ok(Traj::Sampled(sampled([&t?, &q?, &qd?, &qdd?])?));
         }
     }
     if let Ok(d) = obj.cast::<PyDict>() {
@@ -304,13 +274,8 @@ fn reference_from(obj: &Bound<'_, PyAny>) -> PyResult<Traj> {
                 )
             })
         };
-        return Ok(Traj::Sampled(sampled(
-            py,
-            &get("t")?,
-            &get("q")?,
-            &get("qd")?,
-            &get("qdd")?,
-        )?));
+        let [t, q, qd, qdd] = ["t", "q", "qd", "qdd"].map(get);
+        return Ok(Traj::Sampled(sampled([&t?, &q?, &qd?, &qdd?])?));
     }
     Err(PyTypeError::new_err(format!(
         "`reference` must be a prrrp.ChainTrajectory, a prrrp.Dataset, a dict with t, q, qd, \
@@ -387,8 +352,30 @@ impl PyChainSimulation {
     }
 }
 
-#[pymethods]
-impl PyChainSimulation {
+pymethods_with_getters!(PyChainSimulation {
+    table: [
+        /// True positions (N, n).
+        q,
+        /// True velocities (N, n).
+        qd,
+        /// True accelerations (N, n).
+        qdd,
+        /// Applied torques (N, n).
+        tau,
+        /// Measured positions (N, n).
+        q_measured,
+        /// Measured torques (N, n).
+        tau_measured,
+    ]
+    reference: [
+        /// Reference positions (N, n), None for open-loop runs.
+        q_ref,
+        /// Reference velocities (N, n), None for open-loop runs.
+        qd_ref,
+        /// Reference accelerations (N, n), None for open-loop runs.
+        qdd_ref,
+    ]
+} {
     /// Number of joints.
     #[getter]
     fn dof(&self) -> usize {
@@ -405,54 +392,6 @@ impl PyChainSimulation {
         to_array(py, self.inner.t.clone(), Some(self.inner.len()), &[])
     }
 
-    /// True positions (N, n).
-    #[getter]
-    fn q<'py>(&self, py: Python<'py>) -> Out<'py> {
-        self.table(py, &self.inner.q)
-    }
-
-    /// True velocities (N, n).
-    #[getter]
-    fn qd<'py>(&self, py: Python<'py>) -> Out<'py> {
-        self.table(py, &self.inner.qd)
-    }
-
-    /// True accelerations (N, n).
-    #[getter]
-    fn qdd<'py>(&self, py: Python<'py>) -> Out<'py> {
-        self.table(py, &self.inner.qdd)
-    }
-
-    /// Applied torques (N, n).
-    #[getter]
-    fn tau<'py>(&self, py: Python<'py>) -> Out<'py> {
-        self.table(py, &self.inner.tau)
-    }
-
-    /// Reference positions (N, n), None for open-loop runs.
-    #[getter]
-    fn q_ref<'py>(&self, py: Python<'py>) -> Out<'py> {
-        self.reference(py, &self.inner.q_ref)
-    }
-
-    /// Reference velocities (N, n), None for open-loop runs.
-    #[getter]
-    fn qd_ref<'py>(&self, py: Python<'py>) -> Out<'py> {
-        self.reference(py, &self.inner.qd_ref)
-    }
-
-    /// Reference accelerations (N, n), None for open-loop runs.
-    #[getter]
-    fn qdd_ref<'py>(&self, py: Python<'py>) -> Out<'py> {
-        self.reference(py, &self.inner.qdd_ref)
-    }
-
-    /// Measured positions (N, n).
-    #[getter]
-    fn q_measured<'py>(&self, py: Python<'py>) -> Out<'py> {
-        self.table(py, &self.inner.q_measured)
-    }
-
     /// Measured velocities (N, n), None unless `qd_noise` was given.
     #[getter]
     fn qd_measured<'py>(&self, py: Python<'py>) -> Out<'py> {
@@ -460,12 +399,6 @@ impl PyChainSimulation {
             Some(v) => self.table(py, v),
             None => Ok(py.None().into_bound(py)),
         }
-    }
-
-    /// Measured torques (N, n).
-    #[getter]
-    fn tau_measured<'py>(&self, py: Python<'py>) -> Out<'py> {
-        self.table(py, &self.inner.tau_measured)
     }
 
     /// The noise-free signals as a `Dataset`.
@@ -502,7 +435,7 @@ impl PyChainSimulation {
             self.inner.len()
         )
     }
-}
+});
 
 /// Simulates `chain` tracking `reference` under computed-torque control; see `_prrrp.pyi`.
 #[pyfunction]

@@ -11,8 +11,10 @@ use prrrp_core::{
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
-use crate::arrays::{any_array, fixed_or, fixed_vector, fmt_shape, rows_to_array, to_array, UInt};
-use crate::errors::{shape_error, to_pyerr, ToPyResult};
+use crate::arrays::{
+    first_non_finite, fixed_or, fixed_vector, rows_to_array, times, to_array, UInt,
+};
+use crate::errors::{to_pyerr, ToPyResult};
 use crate::interrupt::{with_progress, Callback};
 
 type Result = ExcitationResult<DEFAULT_EXCITATION_KNOTS>;
@@ -58,21 +60,8 @@ pub(crate) fn eval_at<'py, T: JointTrajectory + Sync>(
     traj: &T,
     t: &Bound<'py, PyAny>,
 ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>, Bound<'py, PyAny>)> {
-    let (shape, ts) = any_array(t, "t", "() or (N,)")?;
-    let batch = match shape.len() {
-        0 => false,
-        1 => true,
-        _ => return Err(shape_error(py, "t", "() or (N,)", fmt_shape(&shape))),
-    };
-    if let Some(k) = ts.iter().position(|x| !x.is_finite()) {
-        return Err(to_pyerr(
-            py,
-            &PrrrpError::NonFinite {
-                what: "t".into(),
-                row: batch.then_some(k),
-            },
-        ));
-    }
+    let (ts, batch) = times(t)?;
+    let batch = batch.is_some();
     let (mut q, mut qd, mut qdd) = (Vec::new(), Vec::new(), Vec::new());
     py.detach(|| {
         for &tk in &ts {
@@ -286,22 +275,21 @@ impl SinusoidReference {
         let w = fixed_vector::<NDOF>(omega, "omega")?;
         let p: [f64; NDOF] = fixed_or(phase, "phase", SVector::<f64, NDOF>::zeros())?.into();
         let py = offset.py();
-        for (name, v) in [
+        let named = [
             ("offset", &o),
             ("amplitude", &a),
             ("omega", &w),
             ("phase", &p),
-        ] {
-            if let Some(j) = v.iter().position(|x| !x.is_finite()) {
-                return Err(to_pyerr(
-                    py,
-                    &PrrrpError::InvalidParameter {
-                        field: format!("{name}[{j}]"),
-                        value: v[j],
-                        reason: "must be finite",
-                    },
-                ));
-            }
+        ];
+        if let Some((name, j, value)) = first_non_finite(named.map(|(n, v)| (n, &v[..]))) {
+            let field = format!("{name}[{j}]");
+            let reason = "must be finite";
+            let e = PrrrpError::InvalidParameter {
+                field,
+                value,
+                reason,
+            };
+            return Err(to_pyerr(py, &e));
         }
         Ok(Self {
             inner: std::array::from_fn(|j| Sinusoid {

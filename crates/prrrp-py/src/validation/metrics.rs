@@ -60,36 +60,31 @@ fn per_column<'py>(
     }
 }
 
-/// RMS of observed − predicted (eq. 45), in their units: a float for (N,) inputs, (C,) per
-/// column for (N, C).
-#[pyfunction]
-fn rms<'py>(
-    py: Python<'py>,
-    observed: &Bound<'py, PyAny>,
-    predicted: &Bound<'py, PyAny>,
-) -> PyResult<Bound<'py, PyAny>> {
-    per_column(py, observed, predicted, core_rms)
+/// One `#[pyfunction]` per index: `observed` and `predicted` (N,) or (N, C), the index of
+/// each column by `per_column`.
+macro_rules! per_column_functions {
+    ($($(#[$doc:meta])* $name:ident = $f:path;)*) => {$(
+        $(#[$doc])*
+        #[pyfunction]
+        fn $name<'py>(
+            py: Python<'py>,
+            observed: &Bound<'py, PyAny>,
+            predicted: &Bound<'py, PyAny>,
+        ) -> PyResult<Bound<'py, PyAny>> {
+            per_column(py, observed, predicted, $f)
+        }
+    )*};
 }
 
-/// Residual standard deviation relative to the observed series (eq. 46), dimensionless;
-/// float or (C,).
-#[pyfunction]
-fn rsd<'py>(
-    py: Python<'py>,
-    observed: &Bound<'py, PyAny>,
-    predicted: &Bound<'py, PyAny>,
-) -> PyResult<Bound<'py, PyAny>> {
-    per_column(py, observed, predicted, core_rsd)
-}
-
-/// Willmott's agreement index (eq. 47) in [0, 1]; float or (C,).
-#[pyfunction]
-fn agreement_index<'py>(
-    py: Python<'py>,
-    observed: &Bound<'py, PyAny>,
-    predicted: &Bound<'py, PyAny>,
-) -> PyResult<Bound<'py, PyAny>> {
-    per_column(py, observed, predicted, core_ai)
+per_column_functions! {
+    /// RMS of observed − predicted (eq. 45), in their units: a float for (N,) inputs, (C,) per
+    /// column for (N, C).
+    rms = core_rms;
+    /// Residual standard deviation relative to the observed series (eq. 46), dimensionless;
+    /// float or (C,).
+    rsd = core_rsd;
+    /// Willmott's agreement index (eq. 47) in [0, 1]; float or (C,).
+    agreement_index = core_ai;
 }
 
 /// The three indices as a dict `rms`, `rsd`, `ai`: floats for (N,) inputs, (C,) arrays

@@ -16,7 +16,7 @@ use super::derivatives::LinkTangent;
 use super::regressor::RegressorSink;
 use super::rnea::{ChainView, LinkState};
 use super::serial_chain::DynChain;
-use crate::error::{PrrrpError, Result};
+use crate::error::{check_joints, PrrrpError, Result};
 use crate::models::{ForwardDerivativesOf, LinearModel};
 
 /// The dynamics of a [`DynChain`] parametrised by its B base parameters β (from
@@ -197,15 +197,7 @@ impl DynChainBaseModel {
     }
 
     fn check_joint(&self, what: &str, len: usize) -> Result<()> {
-        let n = self.dof();
-        if len != n {
-            return Err(mismatch(
-                what,
-                format!("{n} entries (one per joint)"),
-                format!("{len} entries"),
-            ));
-        }
-        Ok(())
+        check_joints(what, len, self.dof())
     }
 
     fn check_beta(&self, len: usize) -> Result<()> {

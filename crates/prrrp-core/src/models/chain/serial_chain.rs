@@ -13,7 +13,7 @@ use super::joint::{Joint, JointGeom};
 use super::meta::{ChainMeta, JointInfo};
 use super::regressor::{ColumnMajorSink, FaerSink};
 use super::rnea::{ChainView, LinkState};
-use crate::error::{PrrrpError, Result};
+use crate::error::{check_joints, PrrrpError, Result};
 use crate::models::prrrp::robot::{DhRow, STANDARD_GRAVITY};
 
 /// A serial manipulator with `N` joints, sized at compile time: every per-sample method
@@ -301,17 +301,6 @@ fn parameter_vector(
         }
     }
     v
-}
-
-fn check_len(what: &str, len: usize, n: usize) -> Result<()> {
-    if len != n {
-        return Err(PrrrpError::ShapeMismatch {
-            what: what.into(),
-            expected: format!("{n} entries (one per joint)"),
-            got: format!("{len} entries"),
-        });
-    }
-    Ok(())
 }
 
 /// Stacks the full regressor (with friction) of `samples` samples into a faer matrix,
@@ -726,7 +715,7 @@ impl<const N: usize> SerialChain<N> {
         qdd: &SVector<f64, N>,
         out: &mut [f64],
     ) -> Result<()> {
-        check_len(
+        check_joints(
             "regressor output (column-major N × num_params)",
             out.len(),
             N * self.num_params(),
@@ -839,8 +828,8 @@ impl DynChain {
     /// # Errors
     /// [`PrrrpError::ShapeMismatch`] if `meta` does not name every joint and link.
     pub fn with_meta(mut self, meta: ChainMeta) -> Result<Self> {
-        check_len("meta.joints", meta.joints.len(), self.dof())?;
-        check_len("meta.links", meta.links.len(), self.dof())?;
+        check_joints("meta.joints", meta.joints.len(), self.dof())?;
+        check_joints("meta.links", meta.links.len(), self.dof())?;
         self.meta = meta;
         Ok(self)
     }
@@ -867,7 +856,7 @@ impl DynChain {
     /// for a non-finite entry. Non-physical parameters are accepted: see
     /// [`DynChain::non_physical_links`].
     pub fn with_inertial(mut self, inertial: Vec<[f64; 10]>) -> Result<Self> {
-        check_len("inertial", inertial.len(), self.dof())?;
+        check_joints("inertial", inertial.len(), self.dof())?;
         validate_inertial(&inertial)?;
         self.non_physical = non_physical_links(&inertial).first().copied();
         self.inertial = inertial;
@@ -889,7 +878,7 @@ impl DynChain {
     /// [`PrrrpError::ShapeMismatch`] for a wrong count, [`PrrrpError::InvalidParameter`]
     /// for a non-finite value or a negative smoothing.
     pub fn with_friction(mut self, model: FrictionModel, params: Vec<[f64; 3]>) -> Result<Self> {
-        check_len("friction params", params.len(), self.dof())?;
+        check_joints("friction params", params.len(), self.dof())?;
         validate_friction(&model, &params)?;
         self.friction = model;
         self.friction_params = params;
@@ -935,7 +924,7 @@ impl DynChain {
     /// # Errors
     /// [`PrrrpError::ShapeMismatch`] if the chain does not have N joints.
     pub fn to_fixed<const N: usize>(&self) -> Result<SerialChain<N>> {
-        check_len("chain joints", self.dof(), N)?;
+        check_joints("chain joints", self.dof(), N)?;
         let mut c = SerialChain::<N>::from_joints(std::array::from_fn(|i| self.joints[i]))?;
         c.dh = self
             .dh
@@ -1044,9 +1033,9 @@ impl DynChain {
 
     fn check3(&self, q: &[f64], qd: &[f64], qdd: &[f64]) -> Result<()> {
         let n = self.dof();
-        check_len("q", q.len(), n)?;
-        check_len("qd", qd.len(), n)?;
-        check_len("qdd", qdd.len(), n)
+        check_joints("q", q.len(), n)?;
+        check_joints("qd", qd.len(), n)?;
+        check_joints("qdd", qdd.len(), n)
     }
 
     /// Inverse dynamics τ (actuator terms included, see [`SerialChain::inverse_dynamics`])
@@ -1068,7 +1057,7 @@ impl DynChain {
     /// [`PrrrpError::ShapeMismatch`] if `q` does not have n entries.
     pub fn mass_matrix(&self, q: &[f64]) -> Result<DMatrix<f64>> {
         let n = self.dof();
-        check_len("q", q.len(), n)?;
+        check_joints("q", q.len(), n)?;
         let mut st = vec![LinkState::default(); n];
         let mut comp = vec![[0.0; 10]; n];
         let mut m = DMatrix::zeros(n, n);
