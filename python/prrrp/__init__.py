@@ -7,7 +7,11 @@ file — and every robot runs through the same functions: :func:`excite`, :func:
 :func:`identify_measurements` (an :class:`IdentifiedModel` that predicts torques and saves to
 JSON), :class:`OnlineIdentifier`, :func:`benchmark`, and the ``prrrp`` command. The paper's
 closed-form model in its 8 grouped parameters λ (:class:`Robot`, :func:`regressor`, …) is
-the fast path of its study (``prrrp reproduce``).
+the fast path of its study (``prrrp reproduce``); its functions are for that arm only, each
+beside the general one: :func:`regressor` (``SerialChain.regressor``), :func:`least_squares`
+(:func:`identify`), :func:`preprocess` (:func:`preprocess_log`), :func:`optimise_excitation`
+(:func:`excite`), :func:`simulate_closed_loop` (:func:`simulate`), :func:`validate`
+(:func:`validate_model`). A model of ``"paper"`` also reads in λ: :func:`paper_lambda`.
 
 Conventions: SI units (m and rad, N and N·m, kg, kg·m, kg·m²); world z up, gravity along -z
 (9.81 m/s² by default). Functions take numpy arrays (anything convertible to float64) for

@@ -279,12 +279,18 @@ class Robot:
 def regressor(
     q: _ArrayLike, qd: _ArrayLike, qdd: _ArrayLike, *, gravity: float = STANDARD_GRAVITY
 ) -> _F64:
-    """Φ(q, q̇, q̈) with τ = Φ·λ, shape (5, 8) or (N, 5, 8)."""
+    """Φ(q, q̇, q̈) with τ = Φ·λ, shape (5, 8) or (N, 5, 8).
+
+    The paper's arm in closed form only (its study); for any robot:
+    `SerialChain.regressor` / `base_regressor`."""
 
 def observation_matrix(
     q: _ArrayLike, qd: _ArrayLike, qdd: _ArrayLike, *, gravity: float = STANDARD_GRAVITY
 ) -> _F64:
-    """Stacked regressors W (eq. 35), shape (5·N, 8)."""
+    """Stacked regressors W (eq. 35), shape (5·N, 8).
+
+    The paper's arm in closed form only (its study); for any robot:
+    `SerialChain.base_regressor` stacked."""
 
 def singular_values(w: _ArrayLike) -> _F64:
     """Singular values of W, decreasing."""
@@ -369,7 +375,10 @@ def optimise_excitation(
     progress_every: int = ...,  # 100
 ) -> Excitation:
     """Minimises cond(W) within the joint limits. `progress(evaluations, max_evaluations,
-    best_cond)`; an exception it raises is re-raised when the search returns."""
+    best_cond)`; an exception it raises is re-raised when the search returns.
+
+    The paper's arm in closed form only (its study); for any robot:
+    `design_excitation` / `prrrp.excite`."""
 
 # --- simulation ---------------------------------------------------------------------------
 
@@ -399,7 +408,10 @@ def simulate_closed_loop(
     tau_noise: _ArrayLike | None = None,
     seed: int = ...,  # 0
 ) -> _Record:
-    """Computed-torque tracking of `reference`; arrays t (N,) and (N, 5) columns."""
+    """Computed-torque tracking of `reference`; arrays t (N,) and (N, 5) columns.
+
+    The paper's arm in closed form only (its study); for any robot:
+    `simulate_chain` / `prrrp.simulate`."""
 
 def simulate_open_loop(
     q0: _ArrayLike,
@@ -413,7 +425,10 @@ def simulate_open_loop(
     tau_noise: _ArrayLike | None = None,
     seed: int = ...,  # 0
 ) -> _Record:
-    """The robot under the torques tau (N, 5), zero-order hold; no *_ref keys."""
+    """The robot under the torques tau (N, 5), zero-order hold; no *_ref keys.
+
+    The paper's arm in closed form only (its study); for any robot:
+    `simulate_chain_open_loop`."""
 
 # --- preprocessing ------------------------------------------------------------------------
 
@@ -435,7 +450,10 @@ def preprocess(
     trim: int | None = None,
     decimate: int = ...,  # 1
 ) -> _Dataset:
-    """Zero-phase low-pass, central differences, trimming, decimation."""
+    """Zero-phase low-pass, central differences, trimming, decimation.
+
+    The paper's arm in closed form only (its study); for any robot:
+    `preprocess_log`."""
 
 # --- estimators ---------------------------------------------------------------------------
 
@@ -460,7 +478,10 @@ def least_squares(
     noise_variances: _ArrayLike | None = None,
     rank_tolerance: float = 1e-10,
 ) -> LeastSquaresResult:
-    """Least-squares λ (eq. 36) from (N, 5) columns."""
+    """Least-squares λ (eq. 36) from (N, 5) columns.
+
+    The paper's arm in closed form only (its study); for any robot:
+    `identify(robot, data, "ls")`."""
 
 class _OnlineEstimator:
     @property
@@ -1404,7 +1425,10 @@ class _TorquePrediction(TypedDict):
 def torque_prediction(
     data: Dataset | Mapping[str, _ArrayLike], lam: _ArrayLike, *, gravity: float = STANDARD_GRAVITY
 ) -> _TorquePrediction:
-    """Predicts data's torques with Φ(q, q̇, q̈)·lam (8,) and compares them with data.tau."""
+    """Predicts data's torques with Φ(q, q̇, q̈)·lam (8,) and compares them with data.tau.
+
+    The paper's arm in closed form only (its study); for any robot:
+    `IdentifiedModel.predict`."""
 
 class _ValidationIndices(TypedDict):
     rms: _F64
@@ -1448,7 +1472,10 @@ def validate(
     2.5 s) under the same computed-torque controller (controller_lam, default true_lam);
     trajectories are compared by RMS/RSD/AI and torques predicted on the true run. The true
     run has sensor noise (seed `seed`), the estimate runs none. Errors of the simulator
-    (NotPositiveDefiniteError for a non-physical λ̂, DivergedError)."""
+    (NotPositiveDefiniteError for a non-physical λ̂, DivergedError).
+
+    The paper's arm in closed form only (its study); for any robot:
+    `validate_model`."""
 
 class _Sensitivity(TypedDict):
     factors: _F64
