@@ -219,4 +219,47 @@ impl LinearModel<Dyn, Dyn> for TrackedModel {
             }
         }
     }
+
+    fn forward_derivatives_at_into(
+        &self,
+        ws: &mut TrackedWorkspace,
+        q: &DVector<f64>,
+        qd: &DVector<f64>,
+        qdd_lin: &DVector<f64>,
+        tau: &DVector<f64>,
+        lambda: &DVector<f64>,
+        tau_lin: &mut DVector<f64>,
+        out: &mut ForwardDerivativesOf<Dyn, Dyn>,
+    ) -> Result<()> {
+        match self {
+            Self::Full(b) => b.forward_derivatives_at_into(
+                &mut ws.base,
+                q,
+                qd,
+                qdd_lin,
+                tau,
+                lambda,
+                tau_lin,
+                out,
+            ),
+            Self::Payload { base, .. } => {
+                self.beta_into(lambda, &mut ws.beta);
+                base.forward_derivatives_at_into(
+                    &mut ws.base,
+                    q,
+                    qd,
+                    qdd_lin,
+                    tau,
+                    &ws.beta,
+                    tau_lin,
+                    &mut ws.fd,
+                )?;
+                out.qdd.copy_from(&ws.fd.qdd);
+                out.dqdd_dq.copy_from(&ws.fd.dqdd_dq);
+                out.dqdd_dqd.copy_from(&ws.fd.dqdd_dqd);
+                self.map_columns(&ws.fd.dqdd_dlambda, &mut out.dqdd_dlambda);
+                Ok(())
+            }
+        }
+    }
 }
