@@ -286,12 +286,15 @@ where
     linv1: OMatrix<f64, N, N>,
     prior_to_noise1: f64,
     innovation1: OVector<f64, N>,
+    /// The prior of two sequential updates of a small state, for a retry.
+    x_prior: OVector<f64, S>,
+    p_prior: OMatrix<f64, S, S>,
     /// max_j (H·P·Hᵀ)_jj / R_j of the last gain: how much the update cancels.
     prior_to_noise: f64,
     /// The covariance update's factors X and Y, P ← P − X·Yᵀ, with interleaved columns:
     /// [D₁, K'₁, D₂, …] and [K'₁, P_z₁, K'₂, …] for a Joseph update, W and W for the
     /// rank-N one, one update's after the other's (S×4N each at most), for the register
-    /// tiles of [`joseph_columns`] and [`subtract_factors`].
+    /// tiles of [`joseph_columns`] and [`joseph_upper`].
     jx: Vec<f64>,
     jy: Vec<f64>,
 }
@@ -330,6 +333,8 @@ where
             linv1: OMatrix::zeros_generic(n, n),
             prior_to_noise1: 0.0,
             innovation1: OVector::zeros_generic(n, U1),
+            x_prior: OVector::zeros_generic(s, U1),
+            p_prior: OMatrix::zeros_generic(s, s),
             prior_to_noise: 0.0,
             jx: vec![0.0; 4 * s.value() * n.value()],
             jy: vec![0.0; 4 * s.value() * n.value()],
@@ -788,8 +793,38 @@ where
         // final failure the filter is left at its prior.
         let mut alpha = 1.0;
         let mut attempt = 0;
-        if with_vel {
-            // Two sequential updates (positions, then velocities), formed before P is
+        if with_vel && self.x.nrows() <= ACC_ROWS {
+            // Small states (PRRRP, payload mode): two sequential updates, keeping the
+            // prior to retry both (a copy of an S×S of at most 32 states).
+            self.buf.x_prior.copy_from(&self.x);
+            self.buf.p_prior.copy_from(&self.p);
+            loop {
+                if q_ok {
+                    self.update::<FMA>(0, sample.q, false, alpha)?;
+                }
+                if qd_ok {
+                    self.update::<FMA>(n, sample.qd, true, alpha)?;
+                }
+                match self.derivatives(false, sample) {
+                    Ok(()) => break,
+                    Err(e) => {
+                        self.x.copy_from(&self.buf.x_prior);
+                        self.p.copy_from(&self.buf.p_prior);
+                        if attempt == MAX_GAIN_HALVINGS || !(q_ok || qd_ok) {
+                            if self.anchor.is_none() {
+                                return Err(e);
+                            }
+                            // The prior itself is outside at this configuration.
+                            self.pull_to_anchor(false, sample).map_err(|_| e)?;
+                            break;
+                        }
+                    }
+                }
+                alpha *= 0.5;
+                attempt += 1;
+            }
+        } else if with_vel {
+            // Chain-sized states: two sequential updates (positions, then velocities), formed before P is
             // touched: the velocity gain needs only the velocity columns of P after the
             // position update (S×N), so the candidate state is checked first, and P is
             // updated once, by both, in one pass (no copy of P for a retry, one pass
@@ -990,6 +1025,26 @@ where
         // gain and the prediction read whole columns.
     }
 
+    /// Full measurement update (state and covariance) with the gain α·K.
+    #[inline(always)]
+    fn update<const FMA: bool>(
+        &mut self,
+        o: usize,
+        z: &OVector<f64, N>,
+        velocity: bool,
+        alpha: f64,
+    ) -> Result<()> {
+        self.gain::<FMA>(o, velocity)?;
+        let n = self.n();
+        let b = &mut self.buf;
+        for i in 0..n {
+            b.innovation[i] = z[i] - self.x[o + i];
+        }
+        self.x.gemv(alpha, &b.k, &b.innovation, 1.0);
+        self.update_covariance::<FMA>(alpha);
+        Ok(())
+    }
+
     /// Gain and innovation of the position measurement z into the `…1` buffers (the
     /// first of two sequential updates).
     #[inline(always)]
@@ -1061,15 +1116,14 @@ where
         Ok(cols)
     }
 
-    /// P ← P − X·Yᵀ with the `cols` factor columns of [`Self::candidate_and_factors`]:
-    /// the upper triangle mirrored at a chain's size (exactly symmetric), whole columns
-    /// below (the triangles then differ by rounding; the prediction mirrors).
+    /// P ← P − X·Yᵀ with the `cols` factor columns of [`Self::candidate_and_factors`]
+    /// (chain-sized states): the upper triangle in register tiles, each entry mirrored as
+    /// written, so P stays exactly symmetric.
     #[inline(always)]
     fn subtract_factors<const FMA: bool>(&mut self, cols: usize) {
         let s = self.x.nrows();
-        self.p_symmetric &= s > ACC_ROWS;
         let b = &self.buf;
-        subtract_factors::<FMA>(&b.jx, &b.jy, self.p.as_mut_slice(), cols, s);
+        joseph_upper::<FMA>(&b.jx, &b.jy, self.p.as_mut_slice(), cols, s);
     }
 
     /// The model's forward dynamics and derivatives at the state (the candidate buffer
@@ -1660,30 +1714,6 @@ fn minus_factor_rows<const FMA: bool>(
     }
 }
 
-/// P ← P − X·Yᵀ with `cols` factor columns: whole columns up to [`ACC_ROWS`] states (each
-/// column summed in a stack accumulator, as [`joseph_columns`]), else the upper triangle
-/// in register tiles, mirrored ([`joseph_upper`]).
-#[inline(always)]
-fn subtract_factors<const FMA: bool>(jx: &[f64], jy: &[f64], p: &mut [f64], cols: usize, s: usize) {
-    if s > ACC_ROWS {
-        joseph_upper::<FMA>(jx, jy, p, cols, s);
-        return;
-    }
-    for j in 0..s {
-        let mut acc = [0.0f64; ACC_ROWS];
-        for k in 0..cols {
-            let f = jy[k * s + j];
-            let xc = &jx[k * s..k * s + s];
-            for r in 0..s {
-                acc[r] = madd::<FMA>(f, xc[r], acc[r]);
-            }
-        }
-        for (c, &v) in p[j * s..j * s + s].iter_mut().zip(acc.iter()) {
-            *c -= v;
-        }
-    }
-}
-
 /// Columns `c0..c0 + NC` of [`joseph_columns`]' upper triangle (rows up to the last
 /// column's diagonal) from its interleaved factors (`k2` columns each), mirrored into
 /// the lower triangle.
@@ -2044,9 +2074,9 @@ mod tests {
     /// is touched, the velocity gain from P's velocity columns after the first update, P
     /// updated once by both) against the textbook sequence on random data: K₁ = P·H₁ᵀ·
     /// (H₁·P·H₁ᵀ + R₁)⁻¹, the Joseph form (I − αK₁H₁)·P·(I − αK₁H₁)ᵀ + α²K₁R₁K₁ᵀ, then the
-    /// same for the velocities from that P, computed densely by nalgebra. A chain-sized
-    /// state (tiles, rank-N form at a low prior-to-noise ratio and α = 1) and the PRRRP's
-    /// 18 states (whole columns), damped and not.
+    /// same for the velocities from that P, computed densely by nalgebra, for a
+    /// chain-sized state (the rank-N form at a low prior-to-noise ratio and α = 1, the
+    /// Joseph form otherwise), damped and not.
     #[test]
     fn combined_updates_match_the_sequential_textbook_form() {
         use crate::{BaseOptions, SerialChain};
@@ -2104,9 +2134,7 @@ mod tests {
                 let gx = DMatrix::from_column_slice(s, 1, f.buf.candidate.as_slice());
                 let err = (&gx - &xw).amax() / xw.amax();
                 assert!(err <= 1e-12, "S {s}, noise {noise}, α {alpha}: x {err:e}");
-                if s > ACC_ROWS {
-                    assert_eq!(got, got.transpose(), "S {s}: not exactly symmetric");
-                }
+                assert_eq!(got, got.transpose(), "S {s}: not exactly symmetric");
             }
         }
         let chain = SerialChain::puma560().to_dyn();
@@ -2116,10 +2144,6 @@ mod tests {
         let mut big = DynEkf::new(model, beta, EkfConfig::default()).unwrap();
         assert!(big.x.nrows() > ACC_ROWS);
         check(&mut big, 0x1234_5678_9ABC_DEF1);
-        let robot = Robot::paper();
-        let mut small =
-            PrrrpEkf::new(robot.model(), robot.base_parameters(), EkfConfig::default()).unwrap();
-        check(&mut small, 0x0FED_CBA9_8765_4321);
     }
 
     /// The tiled P·Aᵀ of run-time sizes against nalgebra's product on random data (state
