@@ -158,3 +158,66 @@ fn velocity_derivative_vanishes_at_rest_without_friction() {
     assert!(fd.dqdd_dqd.amax() <= 1e-12 * fd.dqdd_dq.amax());
     assert!(fd.dqdd_dq.amax() > 1e-3);
 }
+
+/// `forward_derivatives_at_into` (one mass matrix: q̈ at τ, the derivatives at q̈_lin)
+/// against what it replaces, the inverse dynamics at q̈_lin, the derivatives at that
+/// torque and the forward dynamics at τ, on random states where q̈_lin and M⁻¹·(τ − bias)
+/// differ (so taking the derivatives at the wrong acceleration fails): the same values to
+/// round-off.
+#[test]
+fn derivatives_at_an_acceleration_equal_the_three_calls() {
+    for (name, chain, seed) in [
+        (
+            "PUMA 560",
+            with_friction(SerialChain::puma560().to_dyn()),
+            11,
+        ),
+        ("Panda-like", dyn_support::panda_like(), 12),
+    ] {
+        let m = model_of(&chain);
+        let (n, b) = (chain.dof(), m.count());
+        let beta_true = m.chain_base_values().clone();
+        let mut rng = StdRng::seed_from_u64(seed);
+        let mut ws = m.workspace();
+        let mut got = ForwardDerivativesOf::<Dyn, Dyn>::zeros(Dyn(n), Dyn(b));
+        let mut want = got.clone();
+        let mut tau_lin = DVector::zeros(n);
+        for trial in 0..8 {
+            let q = DVector::from_fn(n, |_, _| rng.random_range(-2.0..2.0));
+            let qd = DVector::from_fn(n, |_, _| rng.random_range(-2.0..2.0));
+            let qdd_lin = DVector::from_fn(n, |_, _| rng.random_range(-5.0..5.0));
+            let tau = DVector::from_fn(n, |_, _| rng.random_range(-5.0..5.0));
+            let beta = beta_true.map(|v| v * rng.random_range(0.95..1.05));
+            m.inverse_dynamics_into(&mut ws, &q, &qd, &qdd_lin, &beta, &mut tau_lin)
+                .unwrap();
+            m.forward_derivatives_into(&mut ws, &q, &qd, &tau_lin, &beta, &mut want)
+                .unwrap();
+            m.forward_dynamics_into(&mut ws, &q, &qd, &tau, &beta, &mut want.qdd)
+                .unwrap();
+            m.forward_derivatives_at_into(
+                &mut ws,
+                &q,
+                &qd,
+                &qdd_lin,
+                &tau,
+                &beta,
+                &mut tau_lin,
+                &mut got,
+            )
+            .unwrap();
+            let pairs: [(&str, &DMatrix<f64>, &DMatrix<f64>); 3] = [
+                ("dq̈/dq", &got.dqdd_dq, &want.dqdd_dq),
+                ("dq̈/dq̇", &got.dqdd_dqd, &want.dqdd_dqd),
+                ("dq̈/dβ", &got.dqdd_dlambda, &want.dqdd_dlambda),
+            ];
+            for (what, g, w) in pairs {
+                let err = (g - w).amax();
+                assert!(
+                    err <= 1e-10 * w.amax().max(1.0),
+                    "{name} trial {trial}: {what}: error {err:e}"
+                );
+            }
+            assert_eq!(got.qdd, want.qdd, "{name} trial {trial}: q̈ at τ");
+        }
+    }
+}

@@ -271,12 +271,23 @@ where
     apa: OMatrix<f64, N, N>,
     step: OVector<f64, S>,
     candidate: OVector<f64, S>,
+    /// The position update's gain, P_·z, S_z, L⁻¹, prior-to-noise ratio and innovation,
+    /// kept while the velocity update's are formed (measurement of q and q̇).
+    k1: OMatrix<f64, S, N>,
+    pz1: OMatrix<f64, S, N>,
+    sz1: OMatrix<f64, N, N>,
+    linv1: OMatrix<f64, N, N>,
+    prior_to_noise1: f64,
+    innovation1: OVector<f64, N>,
+    /// The prior of two sequential updates of a small state, for a retry.
     x_prior: OVector<f64, S>,
     p_prior: OMatrix<f64, S, S>,
     /// max_j (H·P·Hᵀ)_jj / R_j of the last gain: how much the update cancels.
     prior_to_noise: f64,
-    /// The Joseph update's factors with interleaved columns, [D₁, K'₁, D₂, …] and
-    /// [K'₁, P_z₁, K'₂, …] (S×2N each), for the register tiles of [`joseph_columns`].
+    /// The covariance update's factors X and Y, P ← P − X·Yᵀ, with interleaved columns:
+    /// [D₁, K'₁, D₂, …] and [K'₁, P_z₁, K'₂, …] for a Joseph update, W and W for the
+    /// rank-N one, one update's after the other's (S×4N each at most), for the register
+    /// tiles of [`joseph_columns`] and [`joseph_upper`].
     jx: Vec<f64>,
     jy: Vec<f64>,
 }
@@ -309,11 +320,17 @@ where
             apa: OMatrix::zeros_generic(n, n),
             step: OVector::zeros_generic(s, U1),
             candidate: OVector::zeros_generic(s, U1),
+            k1: OMatrix::zeros_generic(s, n),
+            pz1: OMatrix::zeros_generic(s, n),
+            sz1: OMatrix::zeros_generic(n, n),
+            linv1: OMatrix::zeros_generic(n, n),
+            prior_to_noise1: 0.0,
+            innovation1: OVector::zeros_generic(n, U1),
             x_prior: OVector::zeros_generic(s, U1),
             p_prior: OMatrix::zeros_generic(s, s),
             prior_to_noise: 0.0,
-            jx: vec![0.0; 2 * s.value() * n.value()],
-            jy: vec![0.0; 2 * s.value() * n.value()],
+            jx: vec![0.0; 4 * s.value() * n.value()],
+            jy: vec![0.0; 4 * s.value() * n.value()],
         }
     }
 }
@@ -769,8 +786,9 @@ where
         // final failure the filter is left at its prior.
         let mut alpha = 1.0;
         let mut attempt = 0;
-        if with_vel {
-            // Two sequential updates: keep the prior to retry both.
+        if with_vel && self.x.nrows() <= ACC_ROWS {
+            // Small states (PRRRP, payload mode): two sequential updates, keeping the
+            // prior to retry both (a copy of an S×S of at most 32 states).
             self.buf.x_prior.copy_from(&self.x);
             self.buf.p_prior.copy_from(&self.p);
             loop {
@@ -797,6 +815,49 @@ where
                 }
                 alpha *= 0.5;
                 attempt += 1;
+            }
+        } else if with_vel {
+            // Chain-sized states: two sequential updates (positions, then velocities), formed before P is
+            // touched: the velocity gain needs only the velocity columns of P after the
+            // position update (S×N), so the candidate state is checked first, and P is
+            // updated once, by both, in one pass (no copy of P for a retry, one pass
+            // over it instead of two).
+            if q_ok {
+                self.position_gain::<FMA>(sample.q)?;
+            }
+            let mut update = q_ok || qd_ok;
+            let mut cols = 0;
+            loop {
+                if update {
+                    cols =
+                        self.candidate_and_factors::<FMA>(q_ok, qd_ok.then_some(sample.qd), alpha)?;
+                } else {
+                    self.buf.candidate.copy_from(&self.x);
+                }
+                match self.derivatives(true, sample) {
+                    Ok(()) => {
+                        self.x.copy_from(&self.buf.candidate);
+                        break;
+                    }
+                    Err(e) if attempt == MAX_GAIN_HALVINGS || !update => {
+                        if self.anchor.is_none() {
+                            return Err(e);
+                        }
+                        // The prior itself is outside at this configuration: no update.
+                        self.buf.candidate.copy_from(&self.x);
+                        self.pull_to_anchor(true, sample).map_err(|_| e)?;
+                        self.x.copy_from(&self.buf.candidate);
+                        update = false;
+                        break;
+                    }
+                    Err(_) => {
+                        alpha *= 0.5;
+                        attempt += 1;
+                    }
+                }
+            }
+            if update {
+                self.subtract_factors::<FMA>(cols);
             }
         } else {
             // One update: try the candidate state before touching P.
@@ -873,12 +934,23 @@ where
     #[inline(always)]
     fn gain<const FMA: bool>(&mut self, o: usize, velocity: bool) -> Result<()> {
         let (n, s) = (self.n(), self.x.nrows());
+        self.buf
+            .pz
+            .as_mut_slice()
+            .copy_from_slice(&self.p.as_slice()[o * s..(o + n) * s]);
+        self.gain_from_pz::<FMA>(o, velocity)
+    }
+
+    /// [`Self::gain`] with P_·z (S×N, the columns o..o+N of P) in the buffers already.
+    #[inline(always)]
+    fn gain_from_pz<const FMA: bool>(&mut self, o: usize, velocity: bool) -> Result<()> {
+        let (n, s) = (self.n(), self.x.nrows());
         let r = if velocity { &self.r_vel } else { &self.r_pos };
         let b = &mut self.buf;
         b.prior_to_noise = 0.0;
         for j in 0..n {
             for i in 0..n {
-                b.sz[(i, j)] = self.p[(o + i, o + j)];
+                b.sz[(i, j)] = b.pz[(o + i, j)];
             }
             b.prior_to_noise = b.prior_to_noise.max(b.sz[(j, j)] / r[j]);
             b.sz[(j, j)] += r[j];
@@ -893,8 +965,6 @@ where
         // on K would chain every column to the previous one.
         lower_triangular_inverse(b.chol.as_slice(), n, b.linv.as_mut_slice());
         b.linv.tr_mul_to(&b.linv, &mut b.sinv);
-        let ps = self.p.as_slice();
-        b.pz.as_mut_slice().copy_from_slice(&ps[o * s..(o + n) * s]);
         b.k.fill(0.0);
         gain_columns::<FMA>(b.pz.as_slice(), b.sinv.as_slice(), b.k.as_mut_slice(), n, s);
         Ok(())
@@ -911,7 +981,7 @@ where
             b.damped_k.copy_from(&b.k);
             b.damped_k *= alpha;
         }
-        if alpha == 1.0 && s > ACC_ROWS && b.prior_to_noise <= RANK_N_MAX_PRIOR_TO_NOISE {
+        if rank_n_form(alpha, s, b.prior_to_noise) {
             // The optimal gain at a chain's size: P ← P − W·Wᵀ with W = P_·z·L⁻ᵀ (S_z =
             // L·Lᵀ), the symmetric rank-N form of P − K·S_z·Kᵀ, on the upper triangle: half
             // the multiply-adds of the Joseph form. Justified because K is not an
@@ -968,6 +1038,87 @@ where
         Ok(())
     }
 
+    /// Gain and innovation of the position measurement z into the `…1` buffers (the
+    /// first of two sequential updates).
+    #[inline(always)]
+    fn position_gain<const FMA: bool>(&mut self, z: &OVector<f64, N>) -> Result<()> {
+        self.gain::<FMA>(0, false)?;
+        let n = self.n();
+        let b = &mut self.buf;
+        std::mem::swap(&mut b.k, &mut b.k1);
+        std::mem::swap(&mut b.pz, &mut b.pz1);
+        std::mem::swap(&mut b.sz, &mut b.sz1);
+        std::mem::swap(&mut b.linv, &mut b.linv1);
+        b.prior_to_noise1 = b.prior_to_noise;
+        for i in 0..n {
+            b.innovation1[i] = z[i] - self.x[i];
+        }
+        Ok(())
+    }
+
+    /// The candidate state after the position update with gain α·K₁ (of
+    /// [`Self::position_gain`], if `positions`) and then the velocity update with α·K₂
+    /// (if `velocities` are given), K₂ from the velocity columns of P after the first
+    /// update; the factors of both covariance updates into `jx`, `jy` (their column
+    /// count returned), P untouched.
+    #[inline(always)]
+    fn candidate_and_factors<const FMA: bool>(
+        &mut self,
+        positions: bool,
+        velocities: Option<&OVector<f64, N>>,
+        alpha: f64,
+    ) -> Result<usize> {
+        let (n, s) = (self.n(), self.x.nrows());
+        let b = &mut self.buf;
+        b.candidate.copy_from(&self.x);
+        let mut cols = 0;
+        if positions {
+            b.candidate.gemv(alpha, &b.k1, &b.innovation1, 1.0);
+            cols = push_factors::<FMA>(
+                (b.k1.as_slice(), b.pz1.as_slice(), b.sz1.as_slice()),
+                rank_n_form(alpha, s, b.prior_to_noise1).then_some(b.linv1.as_slice()),
+                alpha,
+                (b.damped_k.as_mut_slice(), b.d.as_mut_slice()),
+                (&mut b.jx, &mut b.jy),
+                0,
+                (n, s),
+            );
+        }
+        let Some(z) = velocities else {
+            return Ok(cols);
+        };
+        // P's velocity columns after the first update, P_·v − Σ_k X_k·(Y_k)_vᵀ.
+        b.pz.as_mut_slice()
+            .copy_from_slice(&self.p.as_slice()[n * s..2 * n * s]);
+        minus_factor_rows::<FMA>(&b.jx, &b.jy, b.pz.as_mut_slice(), cols, n, s);
+        self.gain_from_pz::<FMA>(n, true)?;
+        let b = &mut self.buf;
+        for i in 0..n {
+            b.innovation[i] = z[i] - b.candidate[n + i];
+        }
+        b.candidate.gemv(alpha, &b.k, &b.innovation, 1.0);
+        cols += push_factors::<FMA>(
+            (b.k.as_slice(), b.pz.as_slice(), b.sz.as_slice()),
+            rank_n_form(alpha, s, b.prior_to_noise).then_some(b.linv.as_slice()),
+            alpha,
+            (b.damped_k.as_mut_slice(), b.d.as_mut_slice()),
+            (&mut b.jx, &mut b.jy),
+            cols,
+            (n, s),
+        );
+        Ok(cols)
+    }
+
+    /// P ← P − X·Yᵀ with the `cols` factor columns of [`Self::candidate_and_factors`]
+    /// (chain-sized states): the upper triangle in register tiles, each entry mirrored as
+    /// written, so P stays exactly symmetric.
+    #[inline(always)]
+    fn subtract_factors<const FMA: bool>(&mut self, cols: usize) {
+        let s = self.x.nrows();
+        let b = &self.buf;
+        joseph_upper::<FMA>(&b.jx, &b.jy, self.p.as_mut_slice(), cols, s);
+    }
+
     /// The model's forward dynamics and derivatives at the state (the candidate buffer
     /// if `candidate`, else x), into the buffers: q̈ from τ, and the Jacobian at the
     /// acceleration chosen by [`EkfConfig::parameter_jacobian`].
@@ -1000,19 +1151,18 @@ where
             && all_finite(qdd);
         let result = result.and_then(|()| {
             if at_data {
-                // The torque that produces q̈_data at the estimate: the derivatives taken
-                // at it are A at q̈_data exactly (including −M⁻¹·Φ(q̂, q̂̇, q̈_data)); the
-                // state is then propagated with the q̈ the measured τ produces.
-                self.model
-                    .inverse_dynamics_into(ws, &b.q, &b.v, qdd, &b.lam, &mut b.tau_lin)
-                    .and_then(|()| {
-                        self.model
-                            .forward_derivatives_into(ws, &b.q, &b.v, &b.tau_lin, &b.lam, &mut b.fd)
-                    })
-                    .and_then(|()| {
-                        self.model
-                            .forward_dynamics_into(ws, &b.q, &b.v, tau, &b.lam, &mut b.fd.qdd)
-                    })
+                // A at q̈_data (including −M⁻¹·Φ(q̂, q̂̇, q̈_data)); the state is then
+                // propagated with the q̈ the measured τ produces.
+                self.model.forward_derivatives_at_into(
+                    ws,
+                    &b.q,
+                    &b.v,
+                    qdd,
+                    tau,
+                    &b.lam,
+                    &mut b.tau_lin,
+                    &mut b.fd,
+                )
             } else {
                 self.model
                     .forward_derivatives_into(ws, &b.q, &b.v, tau, &b.lam, &mut b.fd)
@@ -1463,16 +1613,97 @@ fn joseph_columns<const FMA: bool>(
         jy[2 * m * s..(2 * m + 1) * s].copy_from_slice(&ks[m * s..m * s + s]);
         jy[(2 * m + 1) * s..(2 * m + 2) * s].copy_from_slice(&pzs[m * s..m * s + s]);
     }
-    let (jx, jy) = (&*jx, &*jy);
+    joseph_upper::<FMA>(jx, jy, p, 2 * n, s);
+}
+
+/// P ← P − X·Yᵀ on the upper triangle in register tiles, each entry mirrored as written,
+/// with X and Y given by `k2` S-long columns each.
+#[inline(always)]
+fn joseph_upper<const FMA: bool>(jx: &[f64], jy: &[f64], p: &mut [f64], k2: usize, s: usize) {
     let mut c0 = 0;
     while c0 < s {
         match s - c0 {
-            1 => joseph_upper_cols::<FMA, 1>(jx, jy, p, 2 * n, s, c0),
-            2 => joseph_upper_cols::<FMA, 2>(jx, jy, p, 2 * n, s, c0),
-            3 => joseph_upper_cols::<FMA, 3>(jx, jy, p, 2 * n, s, c0),
-            _ => joseph_upper_cols::<FMA, TILE_COLS>(jx, jy, p, 2 * n, s, c0),
+            1 => joseph_upper_cols::<FMA, 1>(jx, jy, p, k2, s, c0),
+            2 => joseph_upper_cols::<FMA, 2>(jx, jy, p, k2, s, c0),
+            3 => joseph_upper_cols::<FMA, 3>(jx, jy, p, k2, s, c0),
+            _ => joseph_upper_cols::<FMA, TILE_COLS>(jx, jy, p, k2, s, c0),
         }
         c0 += TILE_COLS;
+    }
+}
+
+/// Whether a covariance update takes the rank-N form P − W·Wᵀ (see
+/// `EkfOf::update_covariance`): the optimal gain (α = 1) at a chain's size with a
+/// prior-to-noise ratio up to [`RANK_N_MAX_PRIOR_TO_NOISE`]; the Joseph form otherwise.
+#[inline(always)]
+fn rank_n_form(alpha: f64, s: usize, prior_to_noise: f64) -> bool {
+    alpha == 1.0 && s > ACC_ROWS && prior_to_noise <= RANK_N_MAX_PRIOR_TO_NOISE
+}
+
+/// Writes the factors of one measurement update with gain α·K into columns `c0..` of the
+/// interleaved X = `jx`, Y = `jy` (S-long columns), so that the update is P ← P − X·Yᵀ,
+/// and returns their count: W = P_·z·L⁻ᵀ twice (N columns) when `linv` (L⁻¹ of S_z =
+/// L·Lᵀ) is given, the rank-N form; else the Joseph form's [D, K'] and [K', P_·z]
+/// interleaved (2N), K' = α·K and D = P_·z − K'·S_z, the same products in the same order
+/// as [`joseph_columns`]. `kd` and `d` are S×N scratch.
+#[inline(always)]
+fn push_factors<const FMA: bool>(
+    (k, pz, sz): (&[f64], &[f64], &[f64]),
+    linv: Option<&[f64]>,
+    alpha: f64,
+    (kd, d): (&mut [f64], &mut [f64]),
+    (jx, jy): (&mut [f64], &mut [f64]),
+    c0: usize,
+    (n, s): (usize, usize),
+) -> usize {
+    let col = |c: usize| (c0 + c) * s..(c0 + c + 1) * s;
+    if let Some(linv) = linv {
+        w_from_pz::<FMA>(pz, linv, d, n, s);
+        for m in 0..n {
+            jx[col(m)].copy_from_slice(&d[m * s..m * s + s]);
+            jy[col(m)].copy_from_slice(&d[m * s..m * s + s]);
+        }
+        return n;
+    }
+    let k: &[f64] = if alpha == 1.0 {
+        k
+    } else {
+        for (a, &b) in kd.iter_mut().zip(k) {
+            *a = b * alpha;
+        }
+        kd
+    };
+    d.copy_from_slice(pz);
+    minus_k_sz::<FMA>(k, sz, d, n, s);
+    for m in 0..n {
+        let c = m * s..m * s + s;
+        jx[col(2 * m)].copy_from_slice(&d[c.clone()]);
+        jx[col(2 * m + 1)].copy_from_slice(&k[c.clone()]);
+        jy[col(2 * m)].copy_from_slice(&k[c.clone()]);
+        jy[col(2 * m + 1)].copy_from_slice(&pz[c]);
+    }
+    2 * n
+}
+
+/// Columns N..2N of P − X·Yᵀ (`cols` factor columns) from those of P in `pv` (S×N):
+/// column j loses Σ_k X_·k·Y_(N+j)k.
+#[inline(always)]
+fn minus_factor_rows<const FMA: bool>(
+    jx: &[f64],
+    jy: &[f64],
+    pv: &mut [f64],
+    cols: usize,
+    n: usize,
+    s: usize,
+) {
+    for k in 0..cols {
+        let xc = &jx[k * s..k * s + s];
+        for j in 0..n {
+            let f = -jy[k * s + n + j];
+            for (pv, &xv) in pv[j * s..j * s + s].iter_mut().zip(xc) {
+                *pv = madd::<FMA>(f, xv, *pv);
+            }
+        }
     }
 }
 
@@ -1830,6 +2061,82 @@ mod tests {
             assert_eq!(a.covariance(), &a.covariance().transpose(), "k {k}");
         }
         assert!(a.p_symmetric);
+    }
+
+    /// The position and velocity updates as formed by the filter (both gains before P
+    /// is touched, the velocity gain from P's velocity columns after the first update, P
+    /// updated once by both) against the textbook sequence on random data: K₁ = P·H₁ᵀ·
+    /// (H₁·P·H₁ᵀ + R₁)⁻¹, the Joseph form (I − αK₁H₁)·P·(I − αK₁H₁)ᵀ + α²K₁R₁K₁ᵀ, then the
+    /// same for the velocities from that P, computed densely by nalgebra, for a
+    /// chain-sized state (the rank-N form at a low prior-to-noise ratio and α = 1, the
+    /// Joseph form otherwise), damped and not.
+    #[test]
+    fn combined_updates_match_the_sequential_textbook_form() {
+        use crate::{BaseOptions, SerialChain};
+        use nalgebra::DMatrix;
+        fn check<M, N: Dim, P: Dim, S: Dim>(f: &mut EkfOf<M, N, P, S>, seed: u64)
+        where
+            M: LinearModel<N, P>,
+            DefaultAllocator: EkfAllocator<N, P, S>,
+        {
+            let mut seed = seed;
+            let mut rnd = move || {
+                seed ^= seed << 13;
+                seed ^= seed >> 7;
+                seed ^= seed << 17;
+                (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+            };
+            let (n, s) = (f.n(), f.x.nrows());
+            let (nd, _) = f.model.dims();
+            // Noise levels giving prior-to-noise ratios around 1 (rank-N form) and 1e4
+            // (Joseph form).
+            for (noise, alpha) in [(1.0, 1.0), (1e-4, 1.0), (1.0, 0.5), (1e-4, 0.25)] {
+                let b = DMatrix::from_fn(s, s, |_, _| rnd());
+                let p = &b * b.transpose() + DMatrix::identity(s, s) * 0.1;
+                let x = DMatrix::from_fn(s, 1, |_, _| rnd());
+                let zq = DMatrix::from_fn(n, 1, |_, _| rnd());
+                let zv = DMatrix::from_fn(n, 1, |_, _| rnd());
+                let r1 = DMatrix::from_fn(n, 1, |i, _| noise * (1.0 + i as f64));
+                let r2 = DMatrix::from_fn(n, 1, |i, _| noise * (2.0 + 0.5 * i as f64));
+                f.p.as_mut_slice().copy_from_slice(p.as_slice());
+                f.x.as_mut_slice().copy_from_slice(x.as_slice());
+                f.r_pos.as_mut_slice().copy_from_slice(r1.as_slice());
+                f.r_vel.as_mut_slice().copy_from_slice(r2.as_slice());
+                f.p_symmetric = true;
+                let zq_n = OVector::<f64, N>::from_iterator_generic(nd, U1, zq.iter().copied());
+                let zv_n = OVector::<f64, N>::from_iterator_generic(nd, U1, zv.iter().copied());
+                f.position_gain::<false>(&zq_n).unwrap();
+                let cols = f
+                    .candidate_and_factors::<false>(true, Some(&zv_n), alpha)
+                    .unwrap();
+                f.subtract_factors::<false>(cols);
+
+                let (mut pw, mut xw) = (p.clone(), x.clone());
+                for (o, z, r) in [(0, &zq, &r1), (n, &zv, &r2)] {
+                    let h = DMatrix::from_fn(n, s, |i, j| if j == o + i { 1.0 } else { 0.0 });
+                    let rm = DMatrix::from_diagonal(&r.column(0).into_owned());
+                    let sz = &h * &pw * h.transpose() + &rm;
+                    let k = &pw * h.transpose() * sz.try_inverse().unwrap() * alpha;
+                    xw = &xw + &k * (z - &h * &xw);
+                    let ikh = DMatrix::identity(s, s) - &k * &h;
+                    pw = &ikh * &pw * ikh.transpose() + &k * &rm * k.transpose();
+                }
+                let got = DMatrix::from_column_slice(s, s, f.p.as_slice());
+                let err = (&got - &pw).amax() / pw.amax();
+                assert!(err <= 1e-12, "S {s}, noise {noise}, α {alpha}: P {err:e}");
+                let gx = DMatrix::from_column_slice(s, 1, f.buf.candidate.as_slice());
+                let err = (&gx - &xw).amax() / xw.amax();
+                assert!(err <= 1e-12, "S {s}, noise {noise}, α {alpha}: x {err:e}");
+                assert_eq!(got, got.transpose(), "S {s}: not exactly symmetric");
+            }
+        }
+        let chain = SerialChain::puma560().to_dyn();
+        let base = chain.base_parameters(&BaseOptions::default()).unwrap();
+        let model = chain.base_model(&base).unwrap();
+        let beta = model.chain_base_values().clone();
+        let mut big = DynEkf::new(model, beta, EkfConfig::default()).unwrap();
+        assert!(big.x.nrows() > ACC_ROWS);
+        check(&mut big, 0x1234_5678_9ABC_DEF1);
     }
 
     /// The tiled P·Aᵀ of run-time sizes against nalgebra's product on random data (state

@@ -244,6 +244,34 @@ where
         lambda: &OVector<f64, P>,
         out: &mut ForwardDerivativesOf<N, P>,
     ) -> Result<()>;
+
+    /// The forward dynamics at τ into `out.qdd`, and the derivatives of
+    /// [`LinearModel::forward_derivatives_into`] taken at the acceleration `qdd_lin`
+    /// instead (at the torque τ_lin = τ_ID(q, q̇, q̈_lin, λ) that produces it: ∂q̈/∂λ =
+    /// −M⁻¹·Φ(q, q̇, q̈_lin)). What the EKF linearised at the data's acceleration needs.
+    /// The default is those three calls (τ_lin into `tau_lin`); a model that keeps the
+    /// factor of M overrides it with one mass matrix and no inverse dynamics (the same
+    /// values to round-off).
+    ///
+    /// # Errors
+    /// As [`LinearModel::forward_dynamics_into`].
+    #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
+    fn forward_derivatives_at_into(
+        &self,
+        ws: &mut Self::Workspace,
+        q: &OVector<f64, N>,
+        qd: &OVector<f64, N>,
+        qdd_lin: &OVector<f64, N>,
+        tau: &OVector<f64, N>,
+        lambda: &OVector<f64, P>,
+        tau_lin: &mut OVector<f64, N>,
+        out: &mut ForwardDerivativesOf<N, P>,
+    ) -> Result<()> {
+        self.inverse_dynamics_into(ws, q, qd, qdd_lin, lambda, tau_lin)?;
+        self.forward_derivatives_into(ws, q, qd, tau_lin, lambda, out)?;
+        self.forward_dynamics_into(ws, q, qd, tau, lambda, &mut out.qdd)
+    }
 }
 
 /// Compile-time models: the fixed-size methods, copied into the buffers (a few dozen

@@ -218,4 +218,37 @@ impl LinearModel<Dyn, Dyn> for TrackedModel {
             }
         }
     }
+
+    fn forward_derivatives_at_into(
+        &self,
+        ws: &mut TrackedWorkspace,
+        q: &DVector<f64>,
+        qd: &DVector<f64>,
+        qdd_lin: &DVector<f64>,
+        tau: &DVector<f64>,
+        lambda: &DVector<f64>,
+        tau_lin: &mut DVector<f64>,
+        out: &mut ForwardDerivativesOf<Dyn, Dyn>,
+    ) -> Result<()> {
+        match self {
+            Self::Full(b) => b.forward_derivatives_at_into(
+                &mut ws.base,
+                q,
+                qd,
+                qdd_lin,
+                tau,
+                lambda,
+                tau_lin,
+                out,
+            ),
+            // The three calls of the default (the payload filter's bits unchanged: its
+            // test log is sensitive to round-off, see docs/online-speed.md).
+            Self::Payload { .. } => {
+                self.inverse_dynamics_into(ws, q, qd, qdd_lin, lambda, tau_lin)?;
+                self.forward_derivatives_into(ws, q, qd, tau_lin, lambda, out)?;
+                self.forward_dynamics_into(ws, q, qd, tau, lambda, &mut out.qdd)?;
+                Ok(())
+            }
+        }
+    }
 }

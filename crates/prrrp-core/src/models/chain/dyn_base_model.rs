@@ -303,6 +303,58 @@ impl DynChainBaseModel {
         cholesky_solve(m, n, out);
         Ok(())
     }
+
+    /// ∂q̈/∂q, ∂q̈/∂q̇ and ∂q̈/∂β at the acceleration `qdd`, with β loaded and M factorised
+    /// in `ws` (by [`Self::forward_loaded`]).
+    #[allow(clippy::too_many_arguments)]
+    fn derivatives_loaded(
+        &self,
+        ws: &mut DynBaseWorkspace,
+        q: &[f64],
+        qd: &[f64],
+        qdd: &[f64],
+        dqdd_dq: &mut DMatrix<f64>,
+        dqdd_dqd: &mut DMatrix<f64>,
+        dqdd_dlambda: &mut DMatrix<f64>,
+    ) {
+        let n = self.dof();
+        let DynBaseWorkspace {
+            st,
+            rig,
+            fr,
+            ia,
+            m,
+            minv,
+            tmp,
+            col,
+            tan,
+            ..
+        } = ws;
+        let full = self.view_with(rig, fr, ia);
+        let rigid = full.rigid();
+        // The primal pass at q̈ leaves the kinematics and joint forces that the tangent
+        // passes differentiate.
+        rigid.rnea(q, qd, qdd, st, tmp);
+        let dq = dqdd_dq.as_mut_slice();
+        let dqd = dqdd_dqd.as_mut_slice();
+        rigid.rnea_derivatives(rig, qd, st, tan, dq, dqd);
+        full.add_actuator_slope(fr, qd, dqd);
+        // Φ_b at q̈.
+        dqdd_dlambda.fill(0.0);
+        let mut sink = DynBaseSink {
+            out: dqdd_dlambda,
+            rigid_map: &self.rigid_map,
+            actuator_map: &self.actuator_map,
+        };
+        self.chain
+            .view()
+            .regressor_into(q, qd, qdd, true, st, &mut sink);
+        // −M⁻¹ times the 2N + B columns.
+        inverse_from_factor(m, n, minv);
+        minus_inverse_times(minv, n, dqdd_dq.as_mut_slice(), col);
+        minus_inverse_times(minv, n, dqdd_dqd.as_mut_slice(), col);
+        minus_inverse_times(minv, n, dqdd_dlambda.as_mut_slice(), col);
+    }
 }
 
 impl LinearModel<Dyn, Dyn> for DynChainBaseModel {
@@ -444,44 +496,64 @@ impl LinearModel<Dyn, Dyn> for DynChainBaseModel {
         self.equivalent(lambda, ws);
         let (q, qd) = (q.as_slice(), qd.as_slice());
         self.forward_loaded(ws, q, qd, tau.as_slice(), out.qdd.as_mut_slice())?;
-        let DynBaseWorkspace {
-            st,
-            rig,
-            fr,
-            ia,
-            m,
-            minv,
-            tmp,
-            col,
-            tan,
+        let ForwardDerivativesOf {
+            qdd,
+            dqdd_dq,
+            dqdd_dqd,
+            dqdd_dlambda,
+        } = out;
+        self.derivatives_loaded(ws, q, qd, qdd.as_slice(), dqdd_dq, dqdd_dqd, dqdd_dlambda);
+        Ok(())
+    }
+
+    /// One mass matrix and its factor for both: q̈ = M⁻¹·(τ − bias) as
+    /// [`LinearModel::forward_dynamics_into`], and the derivatives at `qdd_lin` directly
+    /// (the default's τ_lin would only reproduce `qdd_lin` through M⁻¹·(τ_lin − bias),
+    /// to round-off); `tau_lin` is not used.
+    fn forward_derivatives_at_into(
+        &self,
+        ws: &mut DynBaseWorkspace,
+        q: &DVector<f64>,
+        qd: &DVector<f64>,
+        qdd_lin: &DVector<f64>,
+        tau: &DVector<f64>,
+        lambda: &DVector<f64>,
+        _tau_lin: &mut DVector<f64>,
+        out: &mut ForwardDerivativesOf<Dyn, Dyn>,
+    ) -> Result<()> {
+        self.check_ws(ws)?;
+        for (what, v) in [
+            ("q", q),
+            ("qd", qd),
+            ("qdd_lin", qdd_lin),
+            ("tau", tau),
+            ("out.qdd", &out.qdd),
+        ] {
+            self.check_joint(what, v.len())?;
+        }
+        self.check_beta(lambda.len())?;
+        let n = self.dof();
+        self.check_matrix("out.dqdd_dq", &out.dqdd_dq, n)?;
+        self.check_matrix("out.dqdd_dqd", &out.dqdd_dqd, n)?;
+        self.check_matrix("out.dqdd_dlambda", &out.dqdd_dlambda, self.count())?;
+        self.equivalent(lambda, ws);
+        let (q, qd) = (q.as_slice(), qd.as_slice());
+        self.forward_loaded(ws, q, qd, tau.as_slice(), out.qdd.as_mut_slice())?;
+        let ForwardDerivativesOf {
+            dqdd_dq,
+            dqdd_dqd,
+            dqdd_dlambda,
             ..
-        } = ws;
-        let full = self.view_with(rig, fr, ia);
-        let rigid = full.rigid();
-        let qdd = out.qdd.as_slice();
-        // The primal pass at the q̈ just computed leaves the kinematics and joint forces
-        // that the tangent passes differentiate.
-        rigid.rnea(q, qd, qdd, st, tmp);
-        let dq = out.dqdd_dq.as_mut_slice();
-        let dqd = out.dqdd_dqd.as_mut_slice();
-        rigid.rnea_derivatives(rig, qd, st, tan, dq, dqd);
-        full.add_actuator_slope(fr, qd, dqd);
-        // Φ_b at the q̈ just computed.
-        let dl = &mut out.dqdd_dlambda;
-        dl.fill(0.0);
-        let mut sink = DynBaseSink {
-            out: dl,
-            rigid_map: &self.rigid_map,
-            actuator_map: &self.actuator_map,
-        };
-        self.chain
-            .view()
-            .regressor_into(q, qd, qdd, true, st, &mut sink);
-        // −M⁻¹ times the 2N + B columns.
-        inverse_from_factor(m, n, minv);
-        minus_inverse_times(minv, n, out.dqdd_dq.as_mut_slice(), col);
-        minus_inverse_times(minv, n, out.dqdd_dqd.as_mut_slice(), col);
-        minus_inverse_times(minv, n, out.dqdd_dlambda.as_mut_slice(), col);
+        } = out;
+        self.derivatives_loaded(
+            ws,
+            q,
+            qd,
+            qdd_lin.as_slice(),
+            dqdd_dq,
+            dqdd_dqd,
+            dqdd_dlambda,
+        );
         Ok(())
     }
 }
