@@ -23,6 +23,20 @@ def random_states(rng: np.random.Generator, n: int, scale: float = 1.0):
     return q, qd, qdd
 
 
+def paper_states(n: int, seed: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """n random (q, qd, qdd) of the paper's arm within its joint limits (the limits its
+    excitation is designed in), seeded."""
+    import prrrp
+
+    lim = prrrp.joint_limits()
+    rng = np.random.default_rng(seed)
+    lo, hi = np.asarray(lim["q_min"]), np.asarray(lim["q_max"])
+    q = lo + (hi - lo) * rng.random((n, 5))
+    qd = rng.uniform(-1, 1, (n, 5)) * np.asarray(lim["qd_max"])
+    qdd = rng.uniform(-1, 1, (n, 5)) * np.asarray(lim["qdd_max"])
+    return q, qd, qdd
+
+
 @pytest.fixture
 def rng() -> np.random.Generator:
     return np.random.default_rng(20170320)

@@ -9,24 +9,15 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import paper_states
 
 import prrrp
 from prrrp import cli, csvio
 
 
-def _states(n: int, seed: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    lim = prrrp.joint_limits()
-    rng = np.random.default_rng(seed)
-    lo, hi = np.asarray(lim["q_min"]), np.asarray(lim["q_max"])
-    q = lo + (hi - lo) * rng.random((n, 5))
-    qd = rng.uniform(-1, 1, (n, 5)) * np.asarray(lim["qd_max"])
-    qdd = rng.uniform(-1, 1, (n, 5)) * np.asarray(lim["qdd_max"])
-    return q, qd, qdd
-
-
 def test_the_built_in_paper_robot_is_the_closed_form_arm() -> None:
     chain = prrrp.load_robot("paper")
-    q, qd, qdd = _states(200, 1)
+    q, qd, qdd = paper_states(200, 1)
     closed = prrrp.Robot.paper().inverse_dynamics(q, qd, qdd)
     assert np.allclose(chain.inverse_dynamics(q, qd, qdd), closed, rtol=1e-10, atol=1e-10)
     # It carries the limits the paper's excitation is designed within.

@@ -9,18 +9,15 @@ import json
 from pathlib import Path
 
 import numpy as np
+from conftest import paper_states
 
 import prrrp
 from prrrp import cli
 
 
 def _closed_form_data(n: int, seed: int, noise: float) -> prrrp.Dataset:
-    lim = prrrp.joint_limits()
-    rng = np.random.default_rng(seed)
-    lo, hi = np.asarray(lim["q_min"]), np.asarray(lim["q_max"])
-    q = lo + (hi - lo) * rng.random((n, 5))
-    qd = rng.uniform(-1, 1, (n, 5)) * np.asarray(lim["qd_max"])
-    qdd = rng.uniform(-1, 1, (n, 5)) * np.asarray(lim["qdd_max"])
+    q, qd, qdd = paper_states(n, seed)
+    rng = np.random.default_rng(seed + 1000)
     tau = np.asarray(prrrp.Robot.paper().inverse_dynamics(q, qd, qdd))
     tau = tau + noise * rng.standard_normal(tau.shape)
     return prrrp.Dataset(np.arange(n) * 1e-2, q, qd, qdd, tau)

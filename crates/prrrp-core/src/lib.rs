@@ -65,6 +65,8 @@ pub mod models;
 pub mod motion;
 pub mod online;
 pub mod paper;
+#[cfg(test)]
+mod test_support;
 pub mod validation;
 
 pub use error::{PrrrpError, Result};

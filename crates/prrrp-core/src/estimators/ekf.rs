@@ -825,37 +825,12 @@ where
             if q_ok {
                 self.position_gain::<FMA>(sample.q)?;
             }
-            let mut update = q_ok || qd_ok;
-            let mut cols = 0;
-            loop {
-                if update {
-                    cols =
-                        self.candidate_and_factors::<FMA>(q_ok, qd_ok.then_some(sample.qd), alpha)?;
-                } else {
-                    self.buf.candidate.copy_from(&self.x);
-                }
-                match self.derivatives(true, sample) {
-                    Ok(()) => {
-                        self.x.copy_from(&self.buf.candidate);
-                        break;
-                    }
-                    Err(e) if attempt == MAX_GAIN_HALVINGS || !update => {
-                        if self.anchor.is_none() {
-                            return Err(e);
-                        }
-                        // The prior itself is outside at this configuration: no update.
-                        self.buf.candidate.copy_from(&self.x);
-                        self.pull_to_anchor(true, sample).map_err(|_| e)?;
-                        self.x.copy_from(&self.buf.candidate);
-                        update = false;
-                        break;
-                    }
-                    Err(_) => {
-                        alpha *= 0.5;
-                        attempt += 1;
-                    }
-                }
-            }
+            let qd = qd_ok.then_some(sample.qd);
+            // The factors carry the gain's α: P's update needs only `cols`.
+            let (update, _, k, cols) = self.damped_candidate(sample, q_ok || qd_ok, |s, a| {
+                s.candidate_and_factors::<FMA>(q_ok, qd, a)
+            })?;
+            attempt = k;
             if update {
                 self.subtract_factors::<FMA>(cols);
             }
@@ -871,33 +846,13 @@ where
             } else {
                 self.buf.step.fill(0.0);
             }
-            let mut update = q_ok;
-            loop {
-                let b = &mut self.buf;
-                b.candidate.copy_from(&self.x);
-                b.candidate.axpy(alpha, &b.step, 1.0);
-                match self.derivatives(true, sample) {
-                    Ok(()) => {
-                        self.x.copy_from(&self.buf.candidate);
-                        break;
-                    }
-                    Err(e) if attempt == MAX_GAIN_HALVINGS || !q_ok => {
-                        if self.anchor.is_none() {
-                            return Err(e);
-                        }
-                        // The prior itself is outside at this configuration: no update.
-                        self.buf.candidate.copy_from(&self.x);
-                        self.pull_to_anchor(true, sample).map_err(|_| e)?;
-                        self.x.copy_from(&self.buf.candidate);
-                        update = false;
-                        break;
-                    }
-                    Err(_) => {
-                        alpha *= 0.5;
-                        attempt += 1;
-                    }
-                }
-            }
+            let (update, a, k, ()) = self.damped_candidate(sample, q_ok, |s, a| {
+                let b = &mut s.buf;
+                b.candidate.copy_from(&s.x);
+                b.candidate.axpy(a, &b.step, 1.0);
+                Ok(())
+            })?;
+            (alpha, attempt) = (a, k);
             if update {
                 self.update_covariance::<FMA>(alpha);
             }
@@ -1117,6 +1072,51 @@ where
         let s = self.x.nrows();
         let b = &self.buf;
         joseph_upper::<FMA>(&b.jx, &b.jy, self.p.as_mut_slice(), cols, s);
+    }
+
+    /// The damped retry of a measurement update formed before P is touched: `form(self,
+    /// α)` writes the candidate state for the gain times α (and returns what the update
+    /// of P will need); while M(q, λ̂) is indefinite there, α is halved, up to
+    /// `MAX_GAIN_HALVINGS` times, after which (or at once without an update) λ̂ is pulled
+    /// towards the anchor and nothing is updated. Returns whether the update stands, its
+    /// α, the halvings taken and `form`'s last value.
+    #[inline(always)]
+    fn damped_candidate<T: Default>(
+        &mut self,
+        sample: SampleOf<'_, N>,
+        mut update: bool,
+        mut form: impl FnMut(&mut Self, f64) -> Result<T>,
+    ) -> Result<(bool, f64, u32, T)> {
+        let (mut alpha, mut attempt, mut out) = (1.0, 0, T::default());
+        loop {
+            if update {
+                out = form(self, alpha)?;
+            } else {
+                self.buf.candidate.copy_from(&self.x);
+            }
+            match self.derivatives(true, sample) {
+                Ok(()) => {
+                    self.x.copy_from(&self.buf.candidate);
+                    break;
+                }
+                Err(e) if attempt == MAX_GAIN_HALVINGS || !update => {
+                    if self.anchor.is_none() {
+                        return Err(e);
+                    }
+                    // The prior itself is outside at this configuration: no update.
+                    self.buf.candidate.copy_from(&self.x);
+                    self.pull_to_anchor(true, sample).map_err(|_| e)?;
+                    self.x.copy_from(&self.buf.candidate);
+                    update = false;
+                    break;
+                }
+                Err(_) => {
+                    alpha *= 0.5;
+                    attempt += 1;
+                }
+            }
+        }
+        Ok((update, alpha, attempt, out))
     }
 
     /// The model's forward dynamics and derivatives at the state (the candidate buffer
