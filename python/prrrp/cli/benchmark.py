@@ -10,37 +10,54 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
-from prrrp.cli.common import EXIT_FAILED, EXIT_OK, CliError, error, nonempty_path
+from prrrp.cli.common import (
+    EXIT_FAILED,
+    EXIT_OK,
+    CliError,
+    add_command,
+    add_out_argument,
+    add_robot_arguments,
+    error,
+)
+
+#: ``prrrp benchmark --help``.
+HELP = "Monte-Carlo benchmark of the estimators on every core or a Dask cluster"
+DESCRIPTION = (
+    "For each case (seed × noise scale × sampling rate): excitation, "
+    "closed-loop simulation, sensor noise, preprocessing, identification with each "
+    "method, torque prediction on a second trajectory. Writes results.csv (one row per "
+    "case × method), results.json, report.md and figures into DIR (built aside and "
+    "swapped in whole). Deterministic per seed whatever the worker count or engine. "
+    "A case whose worker dies or times out is retried once, then recorded as failed."
+)
 
 
-def _floats(what: str) -> Any:
-    def parse(text: str) -> list[float]:
+def _list_of(convert: Any, kind: str, what: str, at_least: int | None = None) -> Any:
+    """An argparse type: comma-separated values of `convert` (``kind`` names them in the
+    error), at least one, each at least ``at_least`` when given."""
+
+    def parse(text: str) -> list[Any]:
         try:
-            values = [float(x) for x in text.split(",") if x.strip()]
+            values = [convert(x) for x in text.split(",") if x.strip()]
         except ValueError:
             raise argparse.ArgumentTypeError(
-                f"not a comma-separated list of numbers: {text!r}"
+                f"not a comma-separated list of {kind}: {text!r}"
             ) from None
         if not values:
             raise argparse.ArgumentTypeError(f"no {what} given")
+        bad = [v for v in values if at_least is not None and v < at_least]
+        if bad:
+            raise argparse.ArgumentTypeError(f"must be at least {at_least}, got {bad[0]}")
         return values
 
     return parse
 
 
-def _positive_ints(text: str) -> list[int]:
-    try:
-        values = [int(x) for x in text.split(",") if x.strip()]
-    except ValueError:
-        raise argparse.ArgumentTypeError(
-            f"not a comma-separated list of integers: {text!r}"
-        ) from None
-    if not values:
-        raise argparse.ArgumentTypeError("no value given")
-    bad = [v for v in values if v < 1]
-    if bad:
-        raise argparse.ArgumentTypeError(f"must be at least 1, got {bad[0]}")
-    return values
+def _floats(what: str) -> Any:
+    return _list_of(float, "numbers", what)
+
+
+_positive_ints = _list_of(int, "integers", "value", at_least=1)
 
 
 def _positive_int(text: str) -> int:
@@ -56,29 +73,8 @@ def _positive_int(text: str) -> int:
 def add_parser(sub: Any) -> None:
     from prrrp.montecarlo import DEFAULT_METHODS, METHODS
 
-    p = sub.add_parser(
-        "benchmark",
-        help="Monte-Carlo benchmark of the estimators on every core or a Dask cluster",
-        description="For each case (seed × noise scale × sampling rate): excitation, "
-        "closed-loop simulation, sensor noise, preprocessing, identification with each "
-        "method, torque prediction on a second trajectory. Writes results.csv (one row per "
-        "case × method), results.json, report.md and figures into DIR (built aside and "
-        "swapped in whole). Deterministic per seed whatever the worker count or engine. "
-        "A case whose worker dies or times out is retried once, then recorded as failed.",
-    )
-    p.add_argument(
-        "--robot",
-        metavar="ROBOT",
-        help='robot file (.urdf or .toml) or "paper" (default: the paper\'s arm)',
-    )
-    p.add_argument(
-        "--base", metavar="LINK", help="URDF: first link of the chain (default: the root link)"
-    )
-    p.add_argument(
-        "--tip",
-        metavar="LINK",
-        help="URDF: last link of the chain (default: the end of the movable joints)",
-    )
+    p = add_command(sub, "benchmark", run, help=HELP, description=DESCRIPTION)
+    add_robot_arguments(p)
     p.add_argument(
         "--methods",
         default=",".join(DEFAULT_METHODS),
@@ -131,14 +127,7 @@ def add_parser(sub: Any) -> None:
         help="run on the Dask cluster at ADDRESS (tcp://host:8786; needs "
         "`pip install prrrp[cluster]`) (default: none, a local process pool)",
     )
-    p.add_argument(
-        "--out",
-        default="benchmark-out",
-        type=nonempty_path,
-        metavar="DIR",
-        help="output directory (default: ./benchmark-out)",
-    )
-    p.set_defaults(func=run)
+    add_out_argument(p, help="output directory (default: ./benchmark-out)", default="benchmark-out")
 
 
 @contextlib.contextmanager

@@ -13,7 +13,7 @@ from typing import Any, NoReturn
 
 import numpy as np
 
-from prrrp import signals
+from prrrp import bags, signals
 
 EXIT_OK = 0
 EXIT_FAILED = 1
@@ -171,14 +171,46 @@ def options(values: Sequence[str]) -> str:
     return values[0] if len(values) == 1 else ", ".join(values[:-1]) + " or " + values[-1]
 
 
-def add_robot_arguments(p: Any) -> None:
-    """``--robot`` (default: the paper's arm) and the ``--base``/``--tip`` links of a URDF,
-    as every command that loads a robot takes them."""
+def add_command(
+    sub: Any, name: str, run: Any, *, help: str, description: str, epilog: str | None = None
+) -> Parser:
+    """The parser of the command ``prrrp NAME``, which ``run(args) -> int`` carries out."""
+    p = sub.add_parser(name, help=help, description=description, epilog=epilog)
+    p.set_defaults(func=run)
+    return p
+
+
+def add_out_argument(
+    p: Any, metavar: str = "DIR", help: str = "output folder", default: str | None = None
+) -> None:
+    """``--out``: required unless it has a ``default`` (which ``help`` then names)."""
+    p.add_argument(
+        "--out",
+        required=default is None,
+        default=default,
+        type=nonempty_path,
+        metavar=metavar,
+        help=help,
+    )
+
+
+def add_topic_argument(p: Any) -> None:
+    """``--topic``: the JointState topic of a ROS 2 bag."""
+    p.add_argument(
+        "--topic",
+        default=bags.DEFAULT_TOPIC,
+        help=f"JointState topic of a bag (default: {bags.DEFAULT_TOPIC})",
+    )
+
+
+def add_robot_arguments(p: Any, default: str = DEFAULT_ROBOT) -> None:
+    """``--robot`` (``default`` says what a command without it loads: the paper's arm) and
+    the ``--base``/``--tip`` links of a URDF, as every command that loads a robot takes them."""
     p.add_argument(
         "--robot",
         metavar="ROBOT",
         help=f'robot file (.urdf or .toml), or "{DEFAULT_ROBOT}": the 5-joint arm of Urrea & '
-        f"Pascal 2017 (default: {DEFAULT_ROBOT})",
+        f"Pascal 2017 (default: {default})",
     )
     p.add_argument(
         "--base", metavar="LINK", help="URDF: first link of the chain (default: the root link)"

@@ -19,12 +19,23 @@ from prrrp.cli.common import (
     EXIT_OK,
     CliError,
     Progress,
+    add_command,
+    add_out_argument,
     add_robot_arguments,
     friction_terms,
-    nonempty_path,
     options,
     print_table,
     seed,
+)
+
+#: ``prrrp excite --help``.
+HELP = "design an exciting trajectory for a robot (DIR/trajectory.csv)"
+DESCRIPTION = (
+    "Designs per-joint Fourier series (Swevers 1997) whose coefficients "
+    "minimise cond(W_b) of the robot's base regressor (friction columns included when "
+    "asked), starting and ending at rest, within the position, velocity and acceleration "
+    "limits of the robot file, and writes DIR/trajectory.csv: t, q1..qN, qd1..qdN, "
+    "qdd1..qddN (SI units), for `prrrp simulate --trajectory`."
 )
 
 LIMIT_KEYS = ("lower", "upper", "velocity", "acceleration")
@@ -46,24 +57,11 @@ EXCITE_DEFAULTS = (
 
 
 def add_parser(sub: Any) -> None:
-    p = sub.add_parser(
-        "excite",
-        help="design an exciting trajectory for a robot (DIR/trajectory.csv)",
-        description="Designs per-joint Fourier series (Swevers 1997) whose coefficients "
-        "minimise cond(W_b) of the robot's base regressor (friction columns included when "
-        "asked), starting and ending at rest, within the position, velocity and acceleration "
-        "limits of the robot file, and writes DIR/trajectory.csv: t, q1..qN, qd1..qdN, "
-        "qdd1..qddN (SI units), for `prrrp simulate --trajectory`.",
-        epilog=deprecated.FILE_RULE,
+    p = add_command(
+        sub, "excite", run, help=HELP, description=DESCRIPTION, epilog=deprecated.FILE_RULE
     )
     add_robot_arguments(p)
-    p.add_argument(
-        "--out",
-        required=True,
-        type=nonempty_path,
-        metavar="DIR",
-        help="the output folder (built aside and swapped in whole)",
-    )
+    add_out_argument(p, help="the output folder (built aside and swapped in whole)")
     p.add_argument(
         "--duration", type=float, default=10.0, metavar="S", help="seconds (default: 10)"
     )
@@ -100,7 +98,6 @@ def add_parser(sub: Any) -> None:
         metavar="N",
         help="cost evaluations (default: 2000)",
     )
-    p.set_defaults(func=run)
 
 
 def _limits(text: str | None, n: int) -> dict[str, np.ndarray] | None:

@@ -10,24 +10,33 @@ from pathlib import Path
 from typing import Any
 
 import prrrp
-from prrrp import bags, drives, outdir
+from prrrp import drives, outdir
 from prrrp import payload as payloads
-from prrrp.cli.common import EXIT_OK, CliError, nonempty_path, print_table
+from prrrp.cli.common import (
+    EXIT_OK,
+    CliError,
+    add_command,
+    add_out_argument,
+    add_topic_argument,
+    print_table,
+)
 from prrrp.measurements import read_measurements
+
+#: ``prrrp payload --help``.
+HELP = "identify the payload an identified arm carries"
+DESCRIPTION = (
+    "Fits the payload's mass, centre of mass and inertia (about the centre of "
+    "mass) at the tip link from the torque that the arm model ARM.json (written by "
+    "`prrrp identify --out DIR`) does not explain in LOADED, a run with the payload (CSV or "
+    "ROS 2 bag, read and preprocessed as the arm model recorded), with the arm's friction "
+    "re-fitted. The result is physically consistent; a quantity the run cannot determine is "
+    "reported as not identifiable. Writes DIR/payload.json, DIR/model.json (arm + "
+    "payload, for `prrrp predict`), DIR/report.md and DIR/explained_torque.png."
+)
 
 
 def add_parser(sub: Any) -> None:
-    p = sub.add_parser(
-        "payload",
-        help="identify the payload an identified arm carries",
-        description="Fits the payload's mass, centre of mass and inertia (about the centre of "
-        "mass) at the tip link from the torque that the arm model ARM.json (written by "
-        "`prrrp identify --out DIR`) does not explain in LOADED, a run with the payload (CSV or "
-        "ROS 2 bag, read and preprocessed as the arm model recorded), with the arm's friction "
-        "re-fitted. The result is physically consistent; a quantity the run cannot determine is "
-        "reported as not identifiable. Writes DIR/payload.json, DIR/model.json (arm + "
-        "payload, for `prrrp predict`), DIR/report.md and DIR/explained_torque.png.",
-    )
+    p = add_command(sub, "payload", run, help=HELP, description=DESCRIPTION)
     p.add_argument("data", metavar="LOADED", help="run with the payload (CSV or ROS 2 bag)")
     p.add_argument("--model", required=True, metavar="ARM.json", help="the arm's identified model")
     p.add_argument(
@@ -44,13 +53,8 @@ def add_parser(sub: Any) -> None:
         metavar="LINK",
         help="the chain link that carries the payload (default: the last link)",
     )
-    p.add_argument("--out", required=True, type=nonempty_path, metavar="DIR", help="output folder")
-    p.add_argument(
-        "--topic",
-        default=bags.DEFAULT_TOPIC,
-        help=f"JointState topic of a bag (default: {bags.DEFAULT_TOPIC})",
-    )
-    p.set_defaults(func=run)
+    add_out_argument(p)
+    add_topic_argument(p)
 
 
 def run(args: argparse.Namespace) -> int:

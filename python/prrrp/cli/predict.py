@@ -13,40 +13,37 @@ from prrrp import bags, csvio, drives, prediction
 from prrrp.cli.common import (
     EXIT_OK,
     CliError,
+    add_command,
+    add_out_argument,
+    add_topic_argument,
     check_output_file,
     describe,
-    nonempty_path,
     print_table,
 )
 from prrrp.measurements import read_measurements
 
+#: ``prrrp predict --help``.
+HELP = "joint torques of an identified model for recorded states"
+DESCRIPTION = (
+    "Loads MODEL.json (written by `prrrp identify DATA --out DIR`) and "
+    "writes the model's joint torques at every row of DATA (a CSV file t, q1..qN and "
+    "optionally tau1..tauN, qd1..qdN, qdd1..qddN, or a ROS 2 bag) as t, tau1..tauN, edge: "
+    "the time stamps of DATA, row for row. When DATA has qd and qdd columns they are used "
+    "as given; otherwise the log is processed with the model's recorded preprocessing, "
+    "the model is evaluated on the processed signals and its torque interpolated to each "
+    "row's time stamp; rows in the filter's edge transient (a few cut-off periods at each "
+    "end) are predicted from signals the filter has not settled on and marked edge = 1. "
+    "When DATA has measured torques, prints the per-joint RMS error against them (edge "
+    "rows and repeated time stamps left out, and counted)."
+)
+
 
 def add_parser(sub: Any) -> None:
-    p = sub.add_parser(
-        "predict",
-        help="joint torques of an identified model for recorded states",
-        description="Loads MODEL.json (written by `prrrp identify DATA --out DIR`) and "
-        "writes the model's joint torques at every row of DATA (a CSV file t, q1..qN and "
-        "optionally tau1..tauN, qd1..qdN, qdd1..qddN, or a ROS 2 bag) as t, tau1..tauN, edge: "
-        "the time stamps of DATA, row for row. When DATA has qd and qdd columns they are used "
-        "as given; otherwise the log is processed with the model's recorded preprocessing, "
-        "the model is evaluated on the processed signals and its torque interpolated to each "
-        "row's time stamp; rows in the filter's edge transient (a few cut-off periods at each "
-        "end) are predicted from signals the filter has not settled on and marked edge = 1. "
-        "When DATA has measured torques, prints the per-joint RMS error against them (edge "
-        "rows and repeated time stamps left out, and counted).",
-    )
+    p = add_command(sub, "predict", run, help=HELP, description=DESCRIPTION)
     p.add_argument("model", metavar="MODEL.json", help="identified model")
     p.add_argument("data", metavar="DATA", help="measurement CSV file or ROS 2 bag")
-    p.add_argument(
-        "--out", required=True, type=nonempty_path, metavar="TAU.csv", help="CSV file to write"
-    )
-    p.add_argument(
-        "--topic",
-        default=bags.DEFAULT_TOPIC,
-        help=f"JointState topic of a bag (default: {bags.DEFAULT_TOPIC})",
-    )
-    p.set_defaults(func=run)
+    add_out_argument(p, "TAU.csv", "CSV file to write")
+    add_topic_argument(p)
 
 
 def predict_file(

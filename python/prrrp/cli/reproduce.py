@@ -12,31 +12,27 @@ from prrrp.cli.common import (
     EXIT_OK,
     CliError,
     Progress,
+    add_command,
+    add_out_argument,
     dump_json,
-    nonempty_path,
     seed,
+)
+
+#: ``prrrp reproduce --help``.
+HELP = "run the paper's whole study: tables, figures, results.json"
+DESCRIPTION = (
+    "Runs the paper's study (excitation optimisation, closed-loop simulation, "
+    "least squares, Adaline, Hopfield, EKF, validation, sensitivity) and writes "
+    "results.json, report.md and PNG figures into DIR. DIR is built aside and swapped "
+    "in whole when the run succeeds; a failed or interrupted run leaves it as it was. "
+    "An existing DIR must be empty or an earlier prrrp output."
 )
 
 
 def add_parser(sub: Any) -> None:
-    p = sub.add_parser(
-        "reproduce",
-        help="run the paper's whole study: tables, figures, results.json",
-        description="Runs the paper's study (excitation optimisation, closed-loop simulation, "
-        "least squares, Adaline, Hopfield, EKF, validation, sensitivity) and writes "
-        "results.json, report.md and PNG figures into DIR. DIR is built aside and swapped "
-        "in whole when the run succeeds; a failed or interrupted run leaves it as it was. "
-        "An existing DIR must be empty or an earlier prrrp output.",
-    )
-    p.add_argument(
-        "--out",
-        default="prrrp-out",
-        type=nonempty_path,
-        metavar="DIR",
-        help="output directory (default: ./prrrp-out)",
-    )
+    p = add_command(sub, "reproduce", run, help=HELP, description=DESCRIPTION)
+    add_out_argument(p, help="output directory (default: ./prrrp-out)", default="prrrp-out")
     p.add_argument("--seed", type=seed, default=0, help="random seed (default: 0)")
-    p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:

@@ -21,12 +21,22 @@ from prrrp.cli.common import (
     EXIT_OK,
     CliError,
     Progress,
+    add_command,
+    add_out_argument,
     add_robot_arguments,
     friction_terms,
-    nonempty_path,
     seed,
 )
 from prrrp.cli.deprecated import DEFAULT_Q_NOISE, DEFAULT_TAU_NOISE, reference_for
+
+#: ``prrrp simulate --help``.
+HELP = "simulate a robot's measurement log along a trajectory (DIR/data.csv)"
+DESCRIPTION = (
+    "Runs the robot (its file's inertials and friction) along TRAJ.csv, or "
+    "along an exciting trajectory designed first as `prrrp excite` does, under computed-"
+    "torque control with sensor noise, and writes DIR/data.csv (t, q1..qN, tau1..tauN; "
+    "SI units) for `prrrp identify`, and DIR/trajectory.csv when it designed one."
+)
 
 __all__ = [
     "DEFAULT_Q_NOISE",
@@ -48,22 +58,10 @@ DEFAULT_DURATION_S = 10.0
 
 
 def add_parser(sub: Any) -> None:
-    p = sub.add_parser(
-        "simulate",
-        help="simulate a robot's measurement log along a trajectory (DIR/data.csv)",
-        description="Runs the robot (its file's inertials and friction) along TRAJ.csv, or "
-        "along an exciting trajectory designed first as `prrrp excite` does, under computed-"
-        "torque control with sensor noise, and writes DIR/data.csv (t, q1..qN, tau1..tauN; "
-        "SI units) for `prrrp identify`, and DIR/trajectory.csv when it designed one.",
-        epilog=deprecated.SIMULATE_RULE,
+    p = add_command(
+        sub, "simulate", run, help=HELP, description=DESCRIPTION, epilog=deprecated.SIMULATE_RULE
     )
-    p.add_argument(
-        "--out",
-        required=True,
-        type=nonempty_path,
-        metavar="DIR",
-        help="the output folder (built aside and swapped in whole)",
-    )
+    add_out_argument(p, help="the output folder (built aside and swapped in whole)")
     add_robot_arguments(p)
     p.add_argument(
         "--trajectory",
@@ -101,7 +99,6 @@ def add_parser(sub: Any) -> None:
         "controller is computed torque with the robot's own model, friction compensated "
         "from the reference velocity",
     )
-    p.set_defaults(func=run)
 
 
 def _trajectory(args: argparse.Namespace, robot: Any) -> tuple[dict[str, np.ndarray], bool]:

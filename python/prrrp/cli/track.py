@@ -15,17 +15,34 @@ from typing import Any
 import numpy as np
 
 import prrrp
-from prrrp import bags, csvio, outdir, workflow
+from prrrp import csvio, outdir, workflow
 from prrrp.cli.common import (
     DEFAULT_ROBOT,
     EXIT_OK,
     CliError,
     Progress,
+    add_command,
+    add_out_argument,
+    add_robot_arguments,
+    add_topic_argument,
     friction_terms,
-    nonempty_path,
 )
 from prrrp.cli.predict import load_model
 from prrrp.measurements import read_measurements
+
+#: ``prrrp track --help``.
+HELP = "identify while the arm runs: a log fed one sample at a time"
+DESCRIPTION = (
+    "Feeds DATA (a CSV t, q1..qN, tau1..tauN, optional qd1..qdN, or a ROS 2 "
+    "bag) row by row to the online identifier, causally (no row sees a later one), and "
+    "writes DIR/model.json (the estimate at the end of the data, predictable with "
+    "`prrrp predict`), DIR/estimates.csv (t and each estimated parameter with σ over "
+    "time), DIR/prediction.csv (t, tau1..tauN: the one-step-ahead prediction of each "
+    "row from the estimate before it), DIR/track.png and DIR/report.md. With --payload "
+    "(needs --model): only the 10 inertial parameters of a payload at the tip link are "
+    "tracked on the prior arm, and DIR/payload.json gives its mass (kg), centre of mass "
+    "(m, tip frame) and inertia about it (kg·m²), each with σ."
+)
 
 METHODS = ("rls", "ekf", "adaline", "hopfield")
 
@@ -34,31 +51,9 @@ MAX_ESTIMATE_ROWS = 5000
 
 
 def add_parser(sub: Any) -> None:
-    p = sub.add_parser(
-        "track",
-        help="identify while the arm runs: a log fed one sample at a time",
-        description="Feeds DATA (a CSV t, q1..qN, tau1..tauN, optional qd1..qdN, or a ROS 2 "
-        "bag) row by row to the online identifier, causally (no row sees a later one), and "
-        "writes DIR/model.json (the estimate at the end of the data, predictable with "
-        "`prrrp predict`), DIR/estimates.csv (t and each estimated parameter with σ over "
-        "time), DIR/prediction.csv (t, tau1..tauN: the one-step-ahead prediction of each "
-        "row from the estimate before it), DIR/track.png and DIR/report.md. With --payload "
-        "(needs --model): only the 10 inertial parameters of a payload at the tip link are "
-        "tracked on the prior arm, and DIR/payload.json gives its mass (kg), centre of mass "
-        "(m, tip frame) and inertia about it (kg·m²), each with σ.",
-    )
+    p = add_command(sub, "track", run, help=HELP, description=DESCRIPTION)
     p.add_argument("data", metavar="DATA", help="measurement CSV file or ROS 2 bag")
-    p.add_argument(
-        "--robot",
-        metavar="ROBOT",
-        help='robot file (.urdf or .toml) or "paper" (default: the robot of --model, else paper)',
-    )
-    p.add_argument("--base", metavar="LINK", help="URDF: first link of the chain (default: root)")
-    p.add_argument(
-        "--tip",
-        metavar="LINK",
-        help="URDF: last link of the chain (default: the end of the movable joints)",
-    )
+    add_robot_arguments(p, default="the robot of --model, else paper")
     p.add_argument(
         "--friction",
         metavar="TERMS",
@@ -112,13 +107,8 @@ def add_parser(sub: Any) -> None:
         help="ekf: factor on the measurement noise of positions (1e-3 rad) and velocities "
         "(1e-2 rad/s) (default 1)",
     )
-    p.add_argument(
-        "--topic",
-        default=bags.DEFAULT_TOPIC,
-        help=f"JointState topic of a bag (default: {bags.DEFAULT_TOPIC})",
-    )
-    p.add_argument("--out", required=True, type=nonempty_path, metavar="DIR", help="output folder")
-    p.set_defaults(func=run)
+    add_topic_argument(p)
+    add_out_argument(p)
 
 
 def _positive(name: str, v: float | None) -> None:
