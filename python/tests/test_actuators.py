@@ -14,11 +14,11 @@ joint friction it is not, and a fake Coulomb term appears on joint 5.
 from __future__ import annotations
 
 import importlib.metadata
-import math
 from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import pin_configuration
 
 import prrrp
 from prrrp.cli import main
@@ -50,19 +50,6 @@ def pin_model(path: str, locked: tuple[str, ...] = ()) -> object:
     return model
 
 
-def pin_config(model: object, q: np.ndarray) -> np.ndarray:
-    """Pinocchio's configuration of joint angles q (continuous joints take cos, sin)."""
-    out = np.zeros(model.nq)
-    for j in range(1, model.njoints):
-        joint = model.joints[j]
-        qi = q[joint.idx_v]
-        if joint.nq == 2:
-            out[joint.idx_q : joint.idx_q + 2] = [math.cos(qi), math.sin(qi)]
-        else:
-            out[joint.idx_q] = qi
-    return out
-
-
 def multisine(seed: int, duration: float, rate: float, amplitude: np.ndarray):
     """t, q, q̇, q̈ of a sum of five harmonics per joint (exact derivatives)."""
     rng = np.random.default_rng(seed)
@@ -90,7 +77,7 @@ def pin_torques(model: object, q, qd, qdd) -> np.ndarray:
     data = model.createData()
     return np.array(
         [
-            pin.rnea(model, data, pin_config(model, a), b, c).copy()
+            pin.rnea(model, data, pin_configuration(model, a), b, c).copy()
             for a, b, c in zip(q, qd, qdd, strict=True)
         ]
     )
@@ -144,7 +131,7 @@ def test_armature_equals_pinocchio_model_armature():
     tau = chain.inverse_dynamics(q, qd, qdd)
     masses = chain.mass_matrix(q)
     for k in range(30):
-        qp = pin_config(model, q[k])
+        qp = pin_configuration(model, q[k])
         want = pin.rnea(model, data, qp, qd[k], qdd[k])
         assert np.allclose(tau[k], want, rtol=1e-10, atol=1e-10 * np.abs(want).max())
         m = pin.crba(model, data, qp)
@@ -163,7 +150,7 @@ def test_armature_equals_pinocchio_model_armature():
 
     def f(x, u):
         qq, vv = x[:6], x[6:]
-        return np.concatenate([vv, pin.aba(model, data, pin_config(model, qq), vv, u)])
+        return np.concatenate([vv, pin.aba(model, data, pin_configuration(model, qq), vv, u)])
 
     x = np.concatenate([q0, qd0])
     ours = np.asarray(sim.q)

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import shape_error_of_qd
 
 import prrrp
 
@@ -21,11 +22,7 @@ def chain():
     "bad", [np.zeros(5), np.zeros(7), np.zeros((3, 5)), np.zeros((2, 3, 6)), np.zeros(())]
 )
 def test_wrong_shape_names_argument(chain, bad):
-    ok = np.zeros(6)
-    with pytest.raises(prrrp.ShapeMismatchError, match=r"`qd`.*expected \(6,\) or \(N, 6\)") as e:
-        chain.inverse_dynamics(ok, bad, ok)
-    assert isinstance(e.value, ValueError)
-    assert e.value.what == "qd"
+    shape_error_of_qd(chain, 6, bad)
 
 
 def test_batch_lengths_must_agree(chain):

@@ -8,7 +8,7 @@ import numpy as np
 import pinocchio as pin
 import pinocchio_puma560 as puma
 import pytest
-from conftest import random_states
+from conftest import close_to_scale, random_states
 from pinocchio_prrrp import from_robot
 
 import prrrp
@@ -17,11 +17,7 @@ RTOL = 1e-9
 
 
 def close(actual, expected, rtol=RTOL):
-    """Relative agreement, with the absolute floor set by the size of the whole quantity
-    (entries that are zero in exact arithmetic come out as round-off in either library)."""
-    expected = np.asarray(expected)
-    atol = rtol * max(1.0, float(np.max(np.abs(expected))))
-    np.testing.assert_allclose(actual, expected, rtol=rtol, atol=atol)
+    close_to_scale(actual, expected, rtol)
 
 
 def crba(model, data, q):

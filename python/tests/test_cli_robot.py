@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import sine_motion
 
 import prrrp
 from prrrp import cli, csvio
@@ -27,10 +28,7 @@ def truth():
 def log(truth, path: Path, seed: int, seconds: float, noise: float = 0.02) -> None:
     rng = np.random.default_rng(seed)
     t = np.arange(0.0, seconds, 0.002)
-    w = 2 * np.pi * 0.2 * np.arange(1, 5)
-    a = rng.normal(0, 0.4, (7, 4)) / np.arange(1, 5)
-    s, c = np.sin(np.outer(t, w)), np.cos(np.outer(t, w))
-    q, qd, qdd = s @ a.T, (c * w) @ a.T, -(s * w**2) @ a.T
+    q, qd, qdd = sine_motion(rng, t)
     tau = truth.inverse_dynamics(q, qd, qdd) + rng.normal(0, noise, q.shape)
     rep = np.repeat(np.arange(len(t)), np.where(rng.random(len(t)) < 0.05, 2, 1))
     path.write_text(csvio.format_measurements(t[rep], q[rep], tau[rep]))

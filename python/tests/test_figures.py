@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import paper_friction_log
 
 import prrrp
 from prrrp import drawing, model_report
@@ -24,15 +25,7 @@ from prrrp import drawing, model_report
 def column_extremes(x, y, columns):
     """Per pixel column of [x0, x1]: (min, max) of y over the samples in it (a loop over
     the columns, independent of drawing.envelope's sort)."""
-    edges = x[0] + (x[-1] - x[0]) * np.arange(columns + 1) / columns
-    out = {}
-    for c in range(columns):
-        last = c == columns - 1
-        inside = (x >= edges[c]) & ((x <= edges[c + 1]) if last else (x < edges[c + 1]))
-        if inside.any():
-            v = y[inside]
-            out[c] = (np.min(v), np.max(v)) if np.isnan(v).all() else (np.nanmin(v), np.nanmax(v))
-    return out
+    return column_extremes_at(x, x, y, columns)
 
 
 @pytest.mark.parametrize("seed", [0, 1, 2])
@@ -60,7 +53,8 @@ def test_envelope_keeps_each_columns_min_and_max(seed):
 
 
 def column_extremes_at(x_full, xs, ys, columns):
-    """column_extremes of the reduced points, in the pixel columns of the full x range."""
+    """column_extremes of the (reduced) points xs, ys, in the pixel columns of the full x
+    range."""
     edges = x_full[0] + (x_full[-1] - x_full[0]) * np.arange(columns + 1) / columns
     out = {}
     for c in range(columns):
@@ -117,28 +111,12 @@ def test_thin_points_cover_every_pixel_the_cloud_covers():
 
 # --------------------------------------------------------------------------- figures
 
-FRICTION = np.array(
-    [[5.0, 8.0, 0.3], [0.4, 0.9, 0.02], [0.3, 0.7, 0.0], [0.2, 0.5, 0.0], [3.0, 6.0, 0.1]]
-)
-
 
 @pytest.fixture(scope="module")
 def run():
-    """The paper's arm (prismatic d1, d5; revolute θ2..θ4) with friction, identified from
-    a 6 s multi-sine log at 200 Hz with sensor noise."""
-    truth = prrrp.SerialChain.paper().with_friction(
-        "viscous+coulomb+offset", FRICTION, coulomb_smoothing=0.02
-    )
-    rng = np.random.default_rng(7)
-    t = np.arange(0.0, 6.0, 0.005)
-    w = 2 * np.pi * 0.5 * np.arange(1, 4)
-    a = rng.normal(0, 0.3, (5, 3)) / np.arange(1, 4)
-    a[[0, 4]] *= 0.1  # the prismatic joints move centimetres
-    s, c = np.sin(np.outer(t, w)), np.cos(np.outer(t, w))
-    q, qd, qdd = s @ a.T + 0.3, (c * w) @ a.T, -(s * w**2) @ a.T
-    tau = truth.inverse_dynamics(q, qd, qdd) + rng.normal(0, 0.05, q.shape)
-    raw = {"t": t, "q": q, "tau": tau}
-    robot = prrrp.SerialChain.paper().with_friction("viscous+coulomb+offset", None)
+    """The paper's arm with friction, identified from a 6 s multi-sine log at 200 Hz with
+    sensor noise."""
+    robot, raw = paper_friction_log(7)
     return prrrp.identify_measurements(robot, raw, "wls", coulomb_scale=0.02)
 
 

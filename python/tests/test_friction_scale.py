@@ -5,6 +5,7 @@ import importlib.metadata
 
 import numpy as np
 import pytest
+from conftest import sine_motion
 
 import prrrp
 from prrrp import model_report
@@ -25,10 +26,7 @@ def panda(v_s):
 def data(chain, seed, seconds, noise):
     rng = np.random.default_rng(seed)
     t = np.arange(0.0, seconds, 0.01)
-    w = 2 * np.pi * 0.2 * np.arange(1, 5)
-    a = rng.normal(0, 0.4, (7, 4)) / np.arange(1, 5)
-    s, c = np.sin(np.outer(t, w)), np.cos(np.outer(t, w))
-    q, qd, qdd = s @ a.T, (c * w) @ a.T, -(s * w**2) @ a.T
+    q, qd, qdd = sine_motion(rng, t)
     tau = chain.inverse_dynamics(q, qd, qdd) + rng.normal(0, noise, q.shape)
     return prrrp.Dataset(t, q, qd, qdd, tau)
 

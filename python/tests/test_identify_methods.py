@@ -10,6 +10,7 @@ import importlib.metadata
 import numpy as np
 import pinocchio as pin
 import pytest
+from conftest import fourier_motion
 
 import prrrp
 
@@ -36,16 +37,8 @@ def pin_model():
 
 
 def fourier(seed, samples, rate=100.0):
-    rng = np.random.default_rng(seed)
     t = np.arange(samples) / rate
-    w = 2 * np.pi * 0.1 * np.arange(1, 6)
-    a = rng.uniform(-1, 1, (7, 5)) * 0.8 / np.arange(1, 6)
-    b = rng.uniform(-1, 1, (7, 5)) * 0.8 / np.arange(1, 6)
-    s, c = np.sin(np.outer(t, w)), np.cos(np.outer(t, w))
-    q = s @ a.T + c @ b.T
-    qd = (c * w) @ a.T - (s * w) @ b.T
-    qdd = -(s * w**2) @ a.T - (c * w**2) @ b.T
-    return t, q, qd, qdd
+    return (t, *fourier_motion(seed, t))
 
 
 def reference_torques(pin_model, q, qd, qdd):

@@ -15,21 +15,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import TWO
 
 import prrrp
 from prrrp import cli, csvio, prediction, workflow
-
-TWO = """<robot name="two"><link name="base"/>
-  <link name="l1"><inertial><mass value="2"/><origin xyz="0.1 0 0"/>
-    <inertia ixx="0.01" ixy="0" ixz="0" iyy="0.01" iyz="0" izz="0.01"/></inertial></link>
-  <link name="l2"><inertial><mass value="1"/><origin xyz="0 0.1 0"/>
-    <inertia ixx="0.01" ixy="0" ixz="0" iyy="0.01" iyz="0" izz="0.01"/></inertial></link>
-  <joint name="j1" type="revolute"><parent link="base"/><child link="l1"/>
-    <axis xyz="0 0 1"/><limit lower="-1" upper="1" velocity="2" effort="10"/></joint>
-  <joint name="j2" type="revolute"><parent link="l1"/><child link="l2"/>
-    <origin xyz="0.3 0 0"/><axis xyz="0 1 0"/>
-    <limit lower="-1" upper="1" velocity="2" effort="10"/></joint>
-</robot>"""
 
 
 @pytest.fixture(scope="module")

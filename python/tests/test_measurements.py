@@ -69,25 +69,9 @@ def test_csv_errors_name_what_to_fix(tmp_path: Path, panda):
 
 
 def write_bag(path: Path, t, names, q, qd, tau, topic="/joint_states"):
-    from rosbags.rosbag2 import Writer
-    from rosbags.typesys import Stores, get_typestore
-
-    store = get_typestore(Stores.ROS2_HUMBLE)
-    js = store.types["sensor_msgs/msg/JointState"]
-    header = store.types["std_msgs/msg/Header"]
-    stamp = store.types["builtin_interfaces/msg/Time"]
-    with Writer(path, version=8) as writer:
-        conn = writer.add_connection(topic, js.__msgtype__, typestore=store)
-        for k, tk in enumerate(t):
-            sec = int(tk)
-            msg = js(
-                header=header(stamp=stamp(sec=sec, nanosec=round((tk - sec) * 1e9)), frame_id=""),
-                name=list(names),
-                position=q[k],
-                velocity=qd[k],
-                effort=tau[k],
-            )
-            writer.write(conn, round(tk * 1e9), store.serialize_cdr(msg, js.__msgtype__))
+    """A bag of one JointState message per row of q, qd and tau at times t."""
+    rows = ((tk, names, q[k], qd[k], tau[k]) for k, tk in enumerate(t))
+    write_messages(path, rows, topic)
 
 
 def test_bag_joints_matched_by_name(tmp_path: Path, panda):

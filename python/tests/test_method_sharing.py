@@ -6,30 +6,15 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import paper_friction_log
 
 import prrrp
 from prrrp import prediction, workflow
 
-FRICTION = np.array(
-    [[5.0, 8.0, 0.3], [0.4, 0.9, 0.02], [0.3, 0.7, 0.0], [0.2, 0.5, 0.0], [3.0, 6.0, 0.1]]
-)
-
 
 @pytest.fixture(scope="module")
 def log():
-    truth = prrrp.SerialChain.paper().with_friction(
-        "viscous+coulomb+offset", FRICTION, coulomb_smoothing=0.02
-    )
-    rng = np.random.default_rng(11)
-    t = np.arange(0.0, 6.0, 0.005)
-    w = 2 * np.pi * 0.5 * np.arange(1, 4)
-    a = rng.normal(0, 0.3, (5, 3)) / np.arange(1, 4)
-    a[[0, 4]] *= 0.1
-    s, c = np.sin(np.outer(t, w)), np.cos(np.outer(t, w))
-    q, qd, qdd = s @ a.T + 0.3, (c * w) @ a.T, -(s * w**2) @ a.T
-    tau = truth.inverse_dynamics(q, qd, qdd) + rng.normal(0, 0.05, q.shape)
-    robot = prrrp.SerialChain.paper().with_friction("viscous+coulomb+offset", None)
-    return robot, {"t": t, "q": q, "tau": tau}
+    return paper_friction_log(11)
 
 
 def test_every_method_gets_one_preprocessing_and_one_base_analysis(log, monkeypatch):

@@ -239,31 +239,11 @@ def test_payload_and_drive_gains_through_the_command_line(tmp_path, capsys):
         assert abs(g["values"][j] / ur.GAINS[j] - 1) < 0.02, g
     assert "Drive gains" in (gains_dir / "report.md").read_text()
     # The gains of the file, used for a later current log (all must be determined).
+    argv = ["identify", str(tmp_path / "u_i.csv"), *robot, "--drive-gains"]
+    code = main([*argv, str(gains_dir / "model.json"), "--out", str(tmp_path / "again")])
     if all(g["identifiable"]):
-        code = main(
-            [
-                "identify",
-                str(tmp_path / "u_i.csv"),
-                *robot,
-                "--drive-gains",
-                str(gains_dir / "model.json"),
-                "--out",
-                str(tmp_path / "again"),
-            ]
-        )
         assert code == 0, capsys.readouterr().err
     else:
-        code = main(
-            [
-                "identify",
-                str(tmp_path / "u_i.csv"),
-                *robot,
-                "--drive-gains",
-                str(gains_dir / "model.json"),
-                "--out",
-                str(tmp_path / "again"),
-            ]
-        )
         assert code == 2
         assert "did not determine" in capsys.readouterr().err
 
@@ -271,11 +251,10 @@ def test_payload_and_drive_gains_through_the_command_line(tmp_path, capsys):
 def test_readme_payload_tour_runs_as_written(tmp_path):
     """The README's "Payload" shell block, run by bash in a folder holding the logs it
     names (the UR10 stand-in's runs), with the installed `prrrp` on PATH."""
-    import os
     import re
-    import subprocess
-    import sys
     from pathlib import Path
+
+    from conftest import run_shell_block
 
     readme = Path(__file__).resolve().parents[2] / "README.md"
     text = readme.read_text(encoding="utf-8")
@@ -289,17 +268,7 @@ def test_readme_payload_tour_runs_as_written(tmp_path):
     uc, lc = ur.run(4, None, 40, duration=20.0), ur.run(4, ur.MOUNTINGS["A"], 41, duration=20.0)
     _write(tmp_path / "unloaded_i.csv", uc, {"i": ur.currents(uc["tau_true"], 0.05, 42)})
     _write(tmp_path / "loaded_i.csv", lc, {"i": ur.currents(lc["tau_true"], 0.05, 43)})
-    env = dict(os.environ)
-    env["PATH"] = str(Path(sys.executable).parent) + os.pathsep + env.get("PATH", "")
-    run = subprocess.run(
-        ["bash", "-e", "-c", block],
-        cwd=tmp_path,
-        env=env,
-        capture_output=True,
-        text=True,
-        timeout=600,
-    )
-    assert run.returncode == 0, run.stderr
+    run_shell_block(block, tmp_path)
     for name in ("tool/payload.json", "tool/report.md", "tool-known-mass/model.json", "tau.csv"):
         assert (tmp_path / name).is_file(), name
     assert json.loads((tmp_path / "gains/model.json").read_text())["drive_gains"]["values"]

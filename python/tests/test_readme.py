@@ -35,26 +35,14 @@ def test_readme_example_runs(needle):
 def test_your_robot_tour_runs_as_written(tmp_path):
     """The "Your robot" shell tour, run by bash in a fresh folder with the installed
     `prrrp` command on PATH."""
-    import os
-    import subprocess
-    import sys
+    from conftest import run_shell_block
 
     text = README.read_text(encoding="utf-8")
     section = text[text.index("## Your robot") :]
     block = re.search(r"```bash\n(.*?)```", section, re.S).group(1)
     assert "prrrp excite" in block
     assert "prrrp predict" in block
-    env = dict(os.environ)
-    env["PATH"] = str(Path(sys.executable).parent) + os.pathsep + env.get("PATH", "")
-    run = subprocess.run(
-        ["bash", "-e", "-c", block],
-        cwd=tmp_path,
-        env=env,
-        capture_output=True,
-        text=True,
-        timeout=600,
-    )
-    assert run.returncode == 0, run.stderr
+    run = run_shell_block(block, tmp_path)
     for name in (
         "traj/trajectory.csv",
         "data/data.csv",

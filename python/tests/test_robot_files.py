@@ -12,6 +12,7 @@ import math
 
 import numpy as np
 import pytest
+from conftest import pin_configuration
 
 import prrrp
 
@@ -52,20 +53,6 @@ def load_pinocchio(name):
         ids = [model.getJointId(j) for j in sorted(locked)]
         model = pin.buildReducedModel(model, ids, pin.neutral(model))
     return model
-
-
-def pin_configuration(model, q):
-    """Pinocchio's configuration vector of joint angles q: continuous joints take
-    (cos q, sin q)."""
-    out = np.zeros(model.nq)
-    for j in range(1, model.njoints):
-        joint = model.joints[j]
-        qi = q[joint.idx_v]
-        if joint.nq == 2:
-            out[joint.idx_q : joint.idx_q + 2] = [math.cos(qi), math.sin(qi)]
-        else:
-            out[joint.idx_q] = qi
-    return out
 
 
 def rel(a, b):

@@ -11,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import sine_motion
 
 import prrrp
 from prrrp import cli, csvio, prediction
@@ -30,10 +31,7 @@ def logs(tmp_path_factory):
     for name, seed, seconds in (("data.csv", 1, 16.0), ("val.csv", 2, 8.0)):
         rng = np.random.default_rng(seed)
         t = np.arange(0.0, seconds, 0.002)
-        w = 2 * np.pi * 0.2 * np.arange(1, 5)
-        a = rng.normal(0, 0.4, (7, 4)) / np.arange(1, 5)
-        s, c = np.sin(np.outer(t, w)), np.cos(np.outer(t, w))
-        q, qd, qdd = s @ a.T, (c * w) @ a.T, -(s * w**2) @ a.T
+        q, qd, qdd = sine_motion(rng, t)
         tau = truth.inverse_dynamics(q, qd, qdd) + rng.normal(0, 0.2, q.shape)
         rep = np.repeat(np.arange(len(t)), np.where(rng.random(len(t)) < 0.03, 2, 1))
         (folder / name).write_text(csvio.format_measurements(t[rep], q[rep], tau[rep]))
