@@ -511,8 +511,14 @@ class _OnlineEstimator:
     ) -> tuple[_F64, _F64]: ...
     def reset(self) -> None: ...
 
+class _TrainedEstimator(_OnlineEstimator):
+    def train(
+        self, q: _ArrayLike, qd: _ArrayLike, qdd: _ArrayLike, tau: _ArrayLike, epochs: int
+    ) -> _F64:
+        """RMS equation error per epoch, (epochs,)."""
+
 @final
-class Adaline(_OnlineEstimator):
+class Adaline(_TrainedEstimator):
     def __new__(
         cls,
         lam0: _ArrayLike | None = None,
@@ -531,13 +537,8 @@ class Adaline(_OnlineEstimator):
         (default `chain.base_parameters()`) and a positive column `scale` (b,) (default
         ones): the estimator trains on γ = β/scale and reports β."""
 
-    def train(
-        self, q: _ArrayLike, qd: _ArrayLike, qdd: _ArrayLike, tau: _ArrayLike, epochs: int
-    ) -> _F64:
-        """RMS equation error per epoch, (epochs,)."""
-
 @final
-class Hopfield(_OnlineEstimator):
+class Hopfield(_TrainedEstimator):
     def __new__(
         cls,
         lam0: _ArrayLike | None = None,
@@ -555,10 +556,6 @@ class Hopfield(_OnlineEstimator):
         `SerialChain` first; then `beta0` (b,) (default zeros), the analysis `base`
         (default `chain.base_parameters()`) and a positive column `scale` (b,) (default
         ones): the estimator trains on γ = β/scale and reports β."""
-
-    def train(
-        self, q: _ArrayLike, qd: _ArrayLike, qdd: _ArrayLike, tau: _ArrayLike, epochs: int
-    ) -> _F64: ...
 
 @final
 class Rls(_OnlineEstimator):
