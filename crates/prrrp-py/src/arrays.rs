@@ -155,6 +155,27 @@ pub(crate) fn batch_len(py: Python<'_>, args: &[&dyn AsArg]) -> PyResult<Option<
     Ok(first.map(|(n, _)| n))
 }
 
+/// K arguments of (D,) or (N, D), read in order (the first bad one raises, by its
+/// name), and the batch length they share with the arguments `with` ([`batch_len`]).
+pub(crate) fn samples_of<const D: usize, const K: usize>(
+    py: Python<'_>,
+    args: [&Bound<'_, PyAny>; K],
+    names: [&'static str; K],
+    with: &[&dyn AsArg],
+) -> PyResult<([Samples<D>; K], Option<usize>)> {
+    let mut read = Vec::with_capacity(K);
+    for (obj, name) in args.into_iter().zip(names) {
+        read.push(Samples::<D>::extract(obj, name)?);
+    }
+    let Ok(samples) = <[Samples<D>; K]>::try_from(read) else {
+        unreachable!("K arguments read as K sample sets")
+    };
+    let mut all: Vec<&dyn AsArg> = samples.iter().map(|s| s as &dyn AsArg).collect();
+    all.extend_from_slice(with);
+    let n = batch_len(py, &all)?;
+    Ok((samples, n))
+}
+
 pub(crate) fn fmt_shape(shape: &[usize]) -> String {
     match shape {
         [d] => format!("({d},)"),

@@ -32,8 +32,23 @@ fn table(obj: &Bound<'_, PyAny>, name: &'static str) -> PyResult<(usize, usize, 
     }
 }
 
-#[pymethods]
-impl PyDataset {
+pymethods_with_getters!(PyDataset {
+    column: [
+        /// Joint positions (m, rad), (N, n).
+        q(),
+        /// Joint velocities (m/s, rad/s), (N, n).
+        qd(),
+        /// Joint accelerations (m/s², rad/s²), (N, n).
+        qdd(),
+        /// Generalised forces (N, N·m), (N, n).
+        tau(),
+    ]
+} inner {
+    /// Number of joints n.
+    dof: usize = { dof() }
+    /// Time span t[-1] − t[0], s.
+    duration: f64 = { duration() }
+} {
     /// Smallest accepted number of samples (8, one per base parameter).
     #[classattr]
     const MIN_SAMPLES: usize = Dataset::MIN_SAMPLES;
@@ -87,36 +102,6 @@ impl PyDataset {
     #[getter]
     fn t<'py>(&self, py: Python<'py>) -> Out<'py> {
         to_array(py, self.inner.t().to_vec(), Some(self.inner.len()), &[])
-    }
-    /// Joint positions (m, rad), (N, n).
-    #[getter]
-    fn q<'py>(&self, py: Python<'py>) -> Out<'py> {
-        self.column(py, self.inner.q())
-    }
-    /// Joint velocities (m/s, rad/s), (N, n).
-    #[getter]
-    fn qd<'py>(&self, py: Python<'py>) -> Out<'py> {
-        self.column(py, self.inner.qd())
-    }
-    /// Joint accelerations (m/s², rad/s²), (N, n).
-    #[getter]
-    fn qdd<'py>(&self, py: Python<'py>) -> Out<'py> {
-        self.column(py, self.inner.qdd())
-    }
-    /// Generalised forces (N, N·m), (N, n).
-    #[getter]
-    fn tau<'py>(&self, py: Python<'py>) -> Out<'py> {
-        self.column(py, self.inner.tau())
-    }
-    /// Number of joints n.
-    #[getter]
-    fn dof(&self) -> usize {
-        self.inner.dof()
-    }
-    /// Time span t[-1] − t[0], s.
-    #[getter]
-    fn duration(&self) -> f64 {
-        self.inner.duration()
     }
 
     /// Samples start..stop (step 1) as a new validated data set; raises
@@ -192,7 +177,7 @@ impl PyDataset {
             self.inner.t()[self.inner.len() - 1]
         )
     }
-}
+});
 
 /// The values of a (N, n) argument whose joint count must match q's.
 fn columns_like(obj: &Bound<'_, PyAny>, name: &'static str, n: usize) -> PyResult<Vec<f64>> {

@@ -21,15 +21,16 @@ use crate::interrupt::interruptible;
 
 type Out<'py> = PyResult<Bound<'py, PyAny>>;
 
-/// The `#[pymethods]` of `SerialChain`: its own items, then one method per dynamics
+/// The `#[pymethods]` of `SerialChain`: its getters (as `pymethods_with_getters!` takes
+/// them), its own items, then one method per dynamics
 /// quantity `fn name(args) -> [shape] = fill;`, taking (n,) or (N, n) arguments, with
 /// `fill` writing sample `k` into `out` through chain `c` and its workspace `ws` (one
 /// per batch, the GIL released).
 macro_rules! chain_pymethods {
-    (|$c:ident, $ws:ident, $k:ident, $out:ident| { $($extra:tt)* }
+    (getters ($($getters:tt)*)
+     |$c:ident, $ws:ident, $k:ident, $out:ident| { $($extra:tt)* }
      $($(#[$doc:meta])* fn $name:ident($($arg:ident),+) -> [$($dim:expr),+] = $fill:expr;)*) => {
-        #[pymethods]
-        impl PySerialChain {
+        pymethods_with_getters!(PySerialChain $($getters)* {
             $($extra)*
             $(
             $(#[$doc])*
@@ -44,7 +45,7 @@ macro_rules! chain_pymethods {
                 Ok(y)
             }
             )*
-        }
+        });
     };
 }
 
@@ -267,6 +268,20 @@ impl PySerialChain {
 }
 
 chain_pymethods! {
+getters ({} inner {
+    /// Number of joints n.
+    dof: usize = { dof() }
+    /// Number of standard parameters P = 10·n + (friction terms per joint)·n.
+    num_params: usize = { num_params() }
+    /// Names of the standard parameters, e.g. ['m1', 'mx1', ..., 'Izz6', 'fv1', ...].
+    parameter_names: Vec<String> = { parameter_names() }
+    /// The robot's name (from its file; 'robot' otherwise).
+    name: String = { meta().name.clone() }
+    /// Movable joints of the source file held at zero and merged into the links.
+    locked_joints: Vec<String> = { meta().locked_joints.clone() }
+    /// Velocity scale of the smoothed Coulomb sign (0 = exact sign).
+    coulomb_smoothing: f64 = { friction().coulomb_smoothing }
+})
 |c, ws, k, out| {
     /// See the class documentation in `_prrrp.pyi`.
     #[new]
@@ -548,12 +563,6 @@ chain_pymethods! {
             .to_py(py)
     }
 
-    /// The robot's name (from its file; 'robot' otherwise).
-    #[getter]
-    fn name(&self) -> String {
-        self.inner.meta().name.clone()
-    }
-
     /// Joint names, base to tip.
     #[getter]
     fn joint_names(&self) -> Vec<String> {
@@ -572,12 +581,6 @@ chain_pymethods! {
         std::iter::once(m.base_link.clone())
             .chain(m.links.iter().cloned())
             .collect()
-    }
-
-    /// Movable joints of the source file held at zero and merged into the links.
-    #[getter]
-    fn locked_joints(&self) -> Vec<String> {
-        self.inner.meta().locked_joints.clone()
     }
 
     /// Joint limits from the robot file: a dict of arrays of shape (n,) 'lower', 'upper'
@@ -625,24 +628,6 @@ chain_pymethods! {
     #[staticmethod]
     fn puma560() -> Self {
         Self::wrap(SerialChain::puma560().to_dyn())
-    }
-
-    /// Number of joints n.
-    #[getter]
-    fn dof(&self) -> usize {
-        self.inner.dof()
-    }
-
-    /// Number of standard parameters P = 10·n + (friction terms per joint)·n.
-    #[getter]
-    fn num_params(&self) -> usize {
-        self.inner.num_params()
-    }
-
-    /// Names of the standard parameters, e.g. ['m1', 'mx1', ..., 'Izz6', 'fv1', ...].
-    #[getter]
-    fn parameter_names(&self) -> Vec<String> {
-        self.inner.parameter_names()
     }
 
     /// The standard parameter vector π, shape (P,).
@@ -712,12 +697,6 @@ chain_pymethods! {
             .copied()
             .collect();
         to_array(py, flat, Some(self.inner.dof()), &[3])
-    }
-
-    /// Velocity scale of the smoothed Coulomb sign (0 = exact sign).
-    #[getter]
-    fn coulomb_smoothing(&self) -> f64 {
-        self.inner.friction().coulomb_smoothing
     }
 
     /// Observation matrix W: the regressors of the samples stacked, shape (N·n, P); rows
@@ -986,7 +965,7 @@ fn index_array<'py>(py: Python<'py>, v: &[usize]) -> Bound<'py, PyArray1<i64>> {
     PyArray1::from_vec(py, v.iter().map(|&i| i as i64).collect())
 }
 
-pymethods_with_inner_getters!(PyBaseParameters {
+pymethods_with_getters!(PyBaseParameters {} inner {
     /// Number of base parameters b.
     count: usize = { count() }
     /// Number of standard parameters P.

@@ -7,80 +7,67 @@ use prrrp_core::{PrrrpModel, NPARAM};
 use pyo3::prelude::*;
 use pyo3::types::PyTuple;
 
-use crate::arrays::{batch_len, map_samples, write_row_major, Samples};
+use crate::arrays::{map_samples, samples_of, write_row_major, Samples};
 
-/// ∂τ/∂q and ∂τ/∂q̇ of the inverse dynamics at fixed q̈ and λ. Unpacks as
-/// `dtau_dq, dtau_dqd = ...`.
-#[pyclass(module = "prrrp", name = "InverseDerivatives", frozen)]
-pub(crate) struct PyInverseDerivatives {
-    /// ∂τ/∂q, shape (5, 5) or (N, 5, 5).
-    #[pyo3(get)]
-    dtau_dq: Py<PyAny>,
-    /// ∂τ/∂q̇, shape (5, 5) or (N, 5, 5).
-    #[pyo3(get)]
-    dtau_dqd: Py<PyAny>,
+/// A frozen result class of named arrays that unpacks like a tuple of them, in order:
+/// `__iter__`, `__len__` and a `Name(field=..., ...)` repr.
+macro_rules! unpackable {
+    ($(#[$doc:meta])* $ty:ident = $name:literal { $($(#[$fdoc:meta])* $field:ident,)+ }) => {
+        $(#[$doc])*
+        #[pyclass(module = "prrrp", name = $name, frozen)]
+        pub(crate) struct $ty {
+            $(
+            $(#[$fdoc])*
+            #[pyo3(get)]
+            $field: Py<PyAny>,
+            )+
+        }
+
+        #[pymethods]
+        impl $ty {
+            fn __iter__<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+                let t = PyTuple::new(py, [$(&self.$field),+])?;
+                Ok(t.try_iter()?.into_any())
+            }
+
+            fn __len__(&self) -> usize {
+                [$(stringify!($field)),+].len()
+            }
+
+            fn __repr__(&self, py: Python<'_>) -> PyResult<String> {
+                let fields = [$(format!(
+                    concat!(stringify!($field), "={}"),
+                    self.$field.bind(py).repr()?
+                )),+];
+                Ok(format!(concat!($name, "({})"), fields.join(", ")))
+            }
+        }
+    };
 }
 
-#[pymethods]
-impl PyInverseDerivatives {
-    fn __iter__<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
-        let t = PyTuple::new(py, [&self.dtau_dq, &self.dtau_dqd])?;
-        Ok(t.try_iter()?.into_any())
-    }
-
-    fn __len__(&self) -> usize {
-        2
-    }
-
-    fn __repr__(&self, py: Python<'_>) -> PyResult<String> {
-        Ok(format!(
-            "InverseDerivatives(dtau_dq={}, dtau_dqd={})",
-            self.dtau_dq.bind(py).repr()?,
-            self.dtau_dqd.bind(py).repr()?
-        ))
+unpackable! {
+    /// ∂τ/∂q and ∂τ/∂q̇ of the inverse dynamics at fixed q̈ and λ. Unpacks as
+    /// `dtau_dq, dtau_dqd = ...`.
+    PyInverseDerivatives = "InverseDerivatives" {
+        /// ∂τ/∂q, shape (5, 5) or (N, 5, 5).
+        dtau_dq,
+        /// ∂τ/∂q̇, shape (5, 5) or (N, 5, 5).
+        dtau_dqd,
     }
 }
 
-/// Forward dynamics q̈ and its derivatives at fixed τ. Unpacks as
-/// `qdd, dqdd_dq, dqdd_dqd, dqdd_dlambda = ...`.
-#[pyclass(module = "prrrp", name = "ForwardDerivatives", frozen)]
-pub(crate) struct PyForwardDerivatives {
-    /// q̈, shape (5,) or (N, 5).
-    #[pyo3(get)]
-    qdd: Py<PyAny>,
-    /// ∂q̈/∂q, shape (5, 5) or (N, 5, 5).
-    #[pyo3(get)]
-    dqdd_dq: Py<PyAny>,
-    /// ∂q̈/∂q̇, shape (5, 5) or (N, 5, 5).
-    #[pyo3(get)]
-    dqdd_dqd: Py<PyAny>,
-    /// ∂q̈/∂λ = −M⁻¹·Φ, shape (5, 8) or (N, 5, 8).
-    #[pyo3(get)]
-    dqdd_dlambda: Py<PyAny>,
-}
-
-#[pymethods]
-impl PyForwardDerivatives {
-    fn __iter__<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
-        let t = PyTuple::new(
-            py,
-            [&self.qdd, &self.dqdd_dq, &self.dqdd_dqd, &self.dqdd_dlambda],
-        )?;
-        Ok(t.try_iter()?.into_any())
-    }
-
-    fn __len__(&self) -> usize {
-        4
-    }
-
-    fn __repr__(&self, py: Python<'_>) -> PyResult<String> {
-        Ok(format!(
-            "ForwardDerivatives(qdd={}, dqdd_dq={}, dqdd_dqd={}, dqdd_dlambda={})",
-            self.qdd.bind(py).repr()?,
-            self.dqdd_dq.bind(py).repr()?,
-            self.dqdd_dqd.bind(py).repr()?,
-            self.dqdd_dlambda.bind(py).repr()?
-        ))
+unpackable! {
+    /// Forward dynamics q̈ and its derivatives at fixed τ. Unpacks as
+    /// `qdd, dqdd_dq, dqdd_dqd, dqdd_dlambda = ...`.
+    PyForwardDerivatives = "ForwardDerivatives" {
+        /// q̈, shape (5,) or (N, 5).
+        qdd,
+        /// ∂q̈/∂q, shape (5, 5) or (N, 5, 5).
+        dqdd_dq,
+        /// ∂q̈/∂q̇, shape (5, 5) or (N, 5, 5).
+        dqdd_dqd,
+        /// ∂q̈/∂λ = −M⁻¹·Φ, shape (5, 8) or (N, 5, 8).
+        dqdd_dlambda,
     }
 }
 
@@ -92,12 +79,7 @@ pub(crate) fn inverse_derivatives(
     qdd: &Bound<'_, PyAny>,
     lam: Samples<NPARAM>,
 ) -> PyResult<PyInverseDerivatives> {
-    let (q, qd, qdd) = (
-        Samples::<5>::extract(q, "q")?,
-        Samples::<5>::extract(qd, "qd")?,
-        Samples::<5>::extract(qdd, "qdd")?,
-    );
-    let n = batch_len(py, &[&q, &qd, &qdd, &lam])?;
+    let ([q, qd, qdd], n) = samples_of::<5, 3>(py, [q, qd, qdd], ["q", "qd", "qdd"], &[&lam])?;
     let [dq, dqd] = map_samples(py, n, [&[5, 5], &[5, 5]], |k, [dq, dqd]| {
         let d = model.inverse_derivatives(q.at(k), qd.at(k), qdd.at(k), lam.at(k));
         write_row_major(&d.dtau_dq, dq);
@@ -118,12 +100,7 @@ pub(crate) fn forward_derivatives(
     tau: &Bound<'_, PyAny>,
     lam: Samples<NPARAM>,
 ) -> PyResult<PyForwardDerivatives> {
-    let (q, qd, tau) = (
-        Samples::<5>::extract(q, "q")?,
-        Samples::<5>::extract(qd, "qd")?,
-        Samples::<5>::extract(tau, "tau")?,
-    );
-    let n = batch_len(py, &[&q, &qd, &tau, &lam])?;
+    let ([q, qd, tau], n) = samples_of::<5, 3>(py, [q, qd, tau], ["q", "qd", "tau"], &[&lam])?;
     let [qdd, dq, dqd, dl] = map_samples(
         py,
         n,

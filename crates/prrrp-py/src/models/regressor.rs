@@ -8,7 +8,7 @@ use numpy::{PyArray1, PyUntypedArrayMethods};
 use prrrp_core::{PrrrpError, PrrrpModel, Vec5, NDOF, NPARAM, STANDARD_GRAVITY};
 use pyo3::prelude::*;
 
-use crate::arrays::{batch_len, map_samples, to_array, write_row_major, Samples};
+use crate::arrays::{map_samples, samples_of, to_array, write_row_major, Samples};
 use crate::errors::{to_pyerr, ToPyResult};
 
 /// A model with gravity `g` (m/s², along −z), checked like `Robot`'s.
@@ -33,12 +33,7 @@ pub(crate) fn regressor_at<'py>(
     qd: &Bound<'py, PyAny>,
     qdd: &Bound<'py, PyAny>,
 ) -> PyResult<Bound<'py, PyAny>> {
-    let (q, qd, qdd) = (
-        Samples::<NDOF>::extract(q, "q")?,
-        Samples::<NDOF>::extract(qd, "qd")?,
-        Samples::<NDOF>::extract(qdd, "qdd")?,
-    );
-    let n = batch_len(py, &[&q, &qd, &qdd])?;
+    let ([q, qd, qdd], n) = samples_of::<NDOF, 3>(py, [q, qd, qdd], ["q", "qd", "qdd"], &[])?;
     let [phi] = map_samples(py, n, [&[NDOF, NPARAM]], |k, [out]| {
         write_row_major(&model.regressor(q.at(k), qd.at(k), qdd.at(k)), out);
         Ok(())
@@ -72,12 +67,8 @@ fn observation_matrix<'py>(
     gravity: f64,
 ) -> PyResult<Bound<'py, PyAny>> {
     let model = model(py, gravity)?;
-    let (q, qd, qdd) = (
-        Samples::<NDOF>::extract(q, "q")?,
-        Samples::<NDOF>::extract(qd, "qd")?,
-        Samples::<NDOF>::extract(qdd, "qdd")?,
-    );
-    let n = batch_len(py, &[&q, &qd, &qdd])?.unwrap_or(1);
+    let ([q, qd, qdd], n) = samples_of::<NDOF, 3>(py, [q, qd, qdd], ["q", "qd", "qdd"], &[])?;
+    let n = n.unwrap_or(1);
     // Single samples broadcast: materialise them so the core sees equal lengths.
     let full = |s: &Samples<NDOF>| -> Vec<Vec5> { (0..n).map(|k| *s.at(k)).collect() };
     let (q, qd, qdd) = (full(&q), full(&qd), full(&qdd));

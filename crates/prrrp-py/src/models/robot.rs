@@ -26,6 +26,11 @@ pub(crate) struct PyRobot {
 }
 
 impl PyRobot {
+    /// A parameter array (`array` getters).
+    fn array<'py>(&self, py: Python<'py>, values: &[f64]) -> Out<'py> {
+        Ok(PyArray1::from_slice(py, values).into_any())
+    }
+
     fn lam(&self, lam: Option<&Bound<'_, PyAny>>) -> PyResult<Samples<NPARAM>> {
         Samples::extract_or(lam, "lam", self.inner.base_parameters())
     }
@@ -51,14 +56,15 @@ impl Put for f64 {
     }
 }
 
-/// The `#[pymethods]` of `Robot`: its own items, then one method per dynamics quantity
+/// The `#[pymethods]` of `Robot`: its getters (as `pymethods_with_getters!` takes them), its
+/// own items, then one method per dynamics quantity
 /// `fn name(args) -> [shape] = value;`, taking (5,) or (N, 5) arguments and the keyword
 /// `lam`, with `value` computed at sample `k` by `model` with the GIL released.
 macro_rules! robot_pymethods {
-    (|$model:ident, $k:ident, $lam:ident| { $($extra:tt)* }
+    (getters ($($getters:tt)*)
+     |$model:ident, $k:ident, $lam:ident| { $($extra:tt)* }
      $($(#[$doc:meta])* fn $name:ident($($arg:ident),+) -> [$($dim:expr),*] = $value:expr;)*) => {
-        #[pymethods]
-        impl PyRobot {
+        pymethods_with_getters!(PyRobot $($getters)* {
             $($extra)*
             $(
             $(#[$doc])*
@@ -80,11 +86,26 @@ macro_rules! robot_pymethods {
                 Ok(out)
             }
             )*
-        }
+        });
     };
 }
 
 robot_pymethods! {
+getters ({
+    array: [
+        /// Link masses m1..m5, kg, shape (5,).
+        mass,
+        /// Link lengths l1..l5, m, shape (5,).
+        length,
+        /// Centre-of-mass distances lc2..lc4 from joints 2–4, m, shape (3,).
+        com,
+        /// Moments of inertia I2zz..I4zz about the centres of mass, kg·m², shape (3,).
+        inertia_zz,
+    ]
+} inner {
+    /// Gravitational acceleration g, m/s², acting along world −z.
+    g: f64 = { gravity }
+})
 |model, k, lam| {
     /// A robot from the paper's Table 2 quantities (keyword-only, SI units). Omitted
     /// arguments take the paper's values.
@@ -113,36 +134,6 @@ robot_pymethods! {
         Self {
             inner: Robot::paper(),
         }
-    }
-
-    /// Link masses m1..m5, kg, shape (5,).
-    #[getter]
-    fn mass<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
-        PyArray1::from_slice(py, &self.inner.mass)
-    }
-
-    /// Link lengths l1..l5, m, shape (5,).
-    #[getter]
-    fn length<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
-        PyArray1::from_slice(py, &self.inner.length)
-    }
-
-    /// Centre-of-mass distances lc2..lc4 from joints 2–4, m, shape (3,).
-    #[getter]
-    fn com<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
-        PyArray1::from_slice(py, &self.inner.com)
-    }
-
-    /// Moments of inertia I2zz..I4zz about the centres of mass, kg·m², shape (3,).
-    #[getter]
-    fn inertia_zz<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
-        PyArray1::from_slice(py, &self.inner.inertia_zz)
-    }
-
-    /// Gravitational acceleration g, m/s², acting along world −z.
-    #[getter]
-    fn g(&self) -> f64 {
-        self.inner.gravity
     }
 
     /// The 8 grouped base parameters λ (paper Table 3, corrected), shape (8,).

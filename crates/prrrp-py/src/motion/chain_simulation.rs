@@ -107,8 +107,12 @@ fn sampled(args: [&Bound<'_, PyAny>; 4]) -> PyResult<DynSampledTrajectory> {
     DynSampledTrajectory::new(n, t, q, qd, qdd).to_py(args[0].py())
 }
 
-#[pymethods]
-impl PyChainTrajectory {
+pymethods_with_getters!(PyChainTrajectory {} inner {
+    /// Number of joints.
+    dof: usize = { dof() }
+    /// Last time at which the trajectory is defined (s), or None.
+    end_time: Option<f64> = { end_time() }
+} {
     /// Per-joint Fourier series with base angular frequency `omega` (rad/s), offsets (n,)
     /// and sine/cosine coefficients `a`, `b` (n, H) in velocity units.
     #[staticmethod]
@@ -187,18 +191,6 @@ impl PyChainTrajectory {
         })
     }
 
-    /// Number of joints.
-    #[getter]
-    fn dof(&self) -> usize {
-        self.inner.dof()
-    }
-
-    /// Last time at which the trajectory is defined (s), or None.
-    #[getter]
-    fn end_time(&self) -> Option<f64> {
-        self.inner.end_time()
-    }
-
     /// (q, qd, qdd) at a scalar t (each (n,)) or at t of shape (N,) (each (N, n)).
     fn eval<'py>(
         &self,
@@ -234,7 +226,7 @@ impl PyChainTrajectory {
         };
         format!("ChainTrajectory({kind}, dof={})", self.inner.dof())
     }
-}
+});
 
 /// The reference of `simulate_chain`: a `ChainTrajectory`, a `Dataset`, a mapping with
 /// keys t, q, qd, qdd, or a tuple (t, q, qd, qdd).
@@ -375,13 +367,10 @@ pymethods_with_getters!(PyChainSimulation {
         /// Reference accelerations (N, n), None for open-loop runs.
         qdd_ref,
     ]
-} {
+} inner {
     /// Number of joints.
-    #[getter]
-    fn dof(&self) -> usize {
-        self.inner.dof()
-    }
-
+    dof: usize = { dof() }
+} {
     fn __len__(&self) -> usize {
         self.inner.len()
     }

@@ -95,11 +95,9 @@ fn simulate_closed_loop<'py>(
     tau_noise: Option<&Bound<'py, PyAny>>,
     seed: UInt<u64>,
 ) -> PyResult<Bound<'py, PyDict>> {
-    let substeps = substeps.0;
-    let seed = seed.0;
     let lam = lambda_or(lam, "lam")?;
     let ctrl = fixed_or::<NPARAM>(controller_lam, "controller_lam", lam)?;
-    let cfg = config(dt, substeps, kp, kd, q_noise, tau_noise, seed)?;
+    let cfg = config(dt, substeps.0, kp, kd, q_noise, tau_noise, seed.0)?;
     let model = Robot::paper().model();
     let rec = if let Ok(e) = reference.extract::<PyRef<'_, Excitation>>() {
         if let Some(r) = e.reflected_trajectory() {
@@ -147,8 +145,6 @@ fn simulate_open_loop<'py>(
     tau_noise: Option<&Bound<'py, PyAny>>,
     seed: UInt<u64>,
 ) -> PyResult<Bound<'py, PyDict>> {
-    let substeps = substeps.0;
-    let seed = seed.0;
     let lam = lambda_or(lam, "lam")?;
     let q0: Vec5 = fixed_or(Some(q0), "q0", Vec5::zeros())?;
     let qd0: Vec5 = fixed_or(Some(qd0), "qd0", Vec5::zeros())?;
@@ -156,12 +152,12 @@ fn simulate_open_loop<'py>(
     let zeros = Some(to_array(py, vec![0.0; NDOF], None, &[NDOF])?);
     let cfg = config(
         dt,
-        substeps,
+        substeps.0,
         None,
         None,
         q_noise.or(zeros.as_ref()),
         tau_noise.or(zeros.as_ref()),
-        seed,
+        seed.0,
     )?;
     let model = Robot::paper().model();
     let rec = interruptible(py, || core_open(&model, &lam, &q0, &qd0, &tau, &cfg))?;

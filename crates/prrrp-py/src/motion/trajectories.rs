@@ -104,33 +104,18 @@ impl Excitation {
     }
 }
 
-#[pymethods]
-impl Excitation {
+pymethods_with_getters!(Excitation {} inner {
     /// cond(W) of the initial guess.
-    #[getter]
-    fn cond_initial(&self) -> f64 {
-        self.inner.cond_initial
-    }
+    cond_initial: f64 = { cond_initial }
     /// cond(W) of the optimised trajectory.
-    #[getter]
-    fn cond_final(&self) -> f64 {
-        self.inner.cond_final
-    }
+    cond_final: f64 = { cond_final }
     /// Cost evaluations spent.
-    #[getter]
-    fn evaluations(&self) -> usize {
-        self.inner.evaluations
-    }
+    evaluations: usize = { evaluations }
     /// Whether every limit holds on the verification grid.
-    #[getter]
-    fn limits_satisfied(&self) -> bool {
-        self.inner.limits_satisfied
-    }
+    limits_satisfied: bool = { limits_satisfied }
     /// Number of samples in W (duration/dt + 1).
-    #[getter]
-    fn samples(&self) -> usize {
-        self.inner.samples
-    }
+    samples: usize = { samples }
+} {
     /// Horizon, s.
     #[getter]
     fn duration(&self) -> f64 {
@@ -199,7 +184,7 @@ impl Excitation {
             self.inner.evaluations
         )
     }
-}
+});
 
 /// Optimises the excitation trajectory (paper §4.1): minimises cond(W) of the sampled
 /// observation matrix within the joint limits. `duration` and `dt` in s; `limits` a dict
@@ -314,7 +299,7 @@ impl SinusoidReference {
         py: Python<'py>,
         t: &Bound<'py, PyAny>,
     ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>, Bound<'py, PyAny>)> {
-        eval_at(py, &self.inner, t)
+        self.eval(py, t)
     }
 }
 
