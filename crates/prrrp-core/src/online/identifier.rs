@@ -3,7 +3,7 @@
 use nalgebra::{DMatrix, DVector};
 use serde_json::json;
 
-use super::detector::{ChangeDetection, ChangeDetector};
+use super::detector::{ChangeDetection, ChangeDetector, ErrorCorrelation};
 use super::kinematics::{CausalKinematics, CausalLowPass};
 use super::payload::{project, summary_json, PAYLOAD_PARAMS};
 use super::tracked::{TrackedModel, TrackedWorkspace};
@@ -220,7 +220,9 @@ pub struct OnlineUpdate<'a> {
     pub estimate: &'a [f64],
     /// Standard deviation of each entry of `estimate`, where the method has one (RLS,
     /// EKF): the filter's own, which assumes white equation errors of the running joint
-    /// noise levels.
+    /// noise levels, times √κ, κ the errors' running correlation time in samples (the
+    /// regression data are low-passed, so their errors are not white; κ ≥ 1, estimated
+    /// by batch means over 0.5 s blocks).
     pub sigma: Option<&'a [f64]>,
     /// Whether a change of the dynamics was detected at this row (the covariance was
     /// opened).
@@ -273,6 +275,11 @@ struct EkfEngine {
 /// forward dynamics).
 const Q_REFRESH: usize = 16;
 
+/// Block length of the errors' correlation estimate, s: several cut-off periods.
+const CORRELATION_BLOCK: f64 = 0.5;
+/// Memory of the correlation estimate, s (at least the noise levels' `noise_window`).
+const CORRELATION_MEMORY: f64 = 10.0;
+
 /// Positions and velocities R of the EKF before `ekf_noise` (as `identify`'s defaults).
 const EKF_POSITION_NOISE: f64 = 1e-3;
 const EKF_VELOCITY_NOISE: f64 = 1e-2;
@@ -315,6 +322,8 @@ pub struct OnlineIdentifier {
     detector: Option<ChangeDetector>,
     /// Running noise variance per joint when change detection is off.
     noise: ChangeDetector,
+    /// The errors' correlation time, the factor on the filters' own variances.
+    correlation: ErrorCorrelation,
     n: usize,
     /// Variance cap of the opening (θ units); for the arm's scale s in payload mode 0
     /// (never opened).
@@ -556,6 +565,10 @@ impl OnlineIdentifier {
             tr: DVector::zeros(n),
             detector: detection.map(|d| ChangeDetector::new(n, d, init_sd.as_deref())),
             noise: ChangeDetector::new(n, noise_cfg, init_sd.as_deref()),
+            correlation: {
+                let w = detection.unwrap_or_default().noise_window;
+                ErrorCorrelation::new(n, CORRELATION_BLOCK, CORRELATION_MEMORY.max(w))
+            },
             n,
             cap,
             q: DVector::zeros(n),
@@ -773,6 +786,13 @@ impl OnlineIdentifier {
             } else {
                 self.noise.update(dt, &self.resid, &self.floor);
             }
+            let (var, settled) = match &self.detector {
+                Some(d) => (d.variances(), d.settled()),
+                None => (self.noise.variances(), self.noise.settled()),
+            };
+            if settled {
+                self.correlation.update(dt, &self.resid, var, &self.floor);
+            }
             if change {
                 self.changes += 1;
                 self.open_covariance()?;
@@ -958,6 +978,10 @@ impl OnlineIdentifier {
             }
             Engine::Adaline(_) | Engine::Hopfield(_) => self.has_sigma = false,
         }
+        let inflate = self.correlation.factor().sqrt();
+        for v in &mut self.out_sigma {
+            *v *= inflate;
+        }
     }
 
     /// Opens the covariance after a detected change: each parameter variance times
@@ -1095,10 +1119,13 @@ impl OnlineIdentifier {
         Some(v)
     }
 
-    /// The covariance of θ (θ units), where the method has one.
+    /// The covariance of θ (θ units), where the method has one: the filter's own times
+    /// the errors' correlation time κ (see [`OnlineUpdate::sigma`]).
     fn covariance_theta(&self) -> Option<DMatrix<f64>> {
         let p = self.theta.len();
         let s = &self.scale;
+        let k = self.correlation.factor();
+        let s = &(s * k.sqrt());
         match &self.engine {
             Engine::Rls(r) => {
                 let c = r.covariance();
@@ -1110,7 +1137,7 @@ impl OnlineIdentifier {
             }
             Engine::Ekf(e) => {
                 let o = 2 * self.n;
-                Some(e.ekf.covariance().view((o, o), (p, p)).clone_owned())
+                Some(e.ekf.covariance().view((o, o), (p, p)).clone_owned() * k)
             }
             _ => None,
         }
@@ -1153,6 +1180,7 @@ impl OnlineIdentifier {
             v["damped_updates"] = json!(e.ekf.damped_updates());
             v["anchored_updates"] = json!(e.ekf.anchored_updates());
         }
+        v["sigma_correlation_factor"] = json!(self.correlation.factor());
         v
     }
 }
