@@ -68,6 +68,7 @@ __all__ = [
     "optimise_excitation",
     "preprocess",
     "preprocess_log",
+    "read_numeric_csv",
     "regressor",
     "relative_errors_percent",
     "rms",
@@ -1387,6 +1388,10 @@ class _LogReport(TypedDict):
     output_rate_hz: float
     measured_velocity: bool
     rows_out: int
+
+def read_numeric_csv(data: bytes) -> tuple[str, int, _F64] | None:
+    """(header line, its 1-based line number, values (rows, cells)) of a plain numeric
+    CSV text, or None for anything else (for ``prrrp.csvio``'s general reader)."""
 
 def preprocess_log(
     t: _ArrayLike,
