@@ -383,7 +383,9 @@ def _start_server() -> bool:
         if pid == 0:
             os.close(jobs_write)
             os.close(results_read)
-            _serve(jobs_read, results_write, mask, parent)
+            # Its own failure (not a figure's) comes back on the results pipe, as text.
+            job = functools.partial(_serve, jobs_read, results_write)
+            _worker(job, results_write, mask, parent)
     finally:
         signal.pthread_sigmask(signal.SIG_SETMASK, mask)
     os.close(jobs_read)
@@ -396,41 +398,24 @@ def _start_server() -> bool:
     return True
 
 
-def _serve(jobs: int, results: int, mask: Any, parent: int) -> NoReturn:
-    """The process of :func:`figure_server`: imports matplotlib, reads the pickled calls
-    until the pipe ``jobs`` ends, draws them as :func:`draw_all` does here and writes the
-    pickled failures to ``results``; never returns into the parent's code."""
+def _serve(jobs: int, results: int) -> None:
+    """The work of the process of :func:`figure_server` (run by :func:`_worker`): imports
+    matplotlib, reads the pickled calls until the pipe ``jobs`` ends, draws them as
+    :func:`draw_all` does here and writes the pickled failures to ``results``."""
     import pickle
 
-    code = 1
     try:
-        _die_with(parent)
-        signal.signal(signal.SIGINT, signal.default_int_handler)
-        signal.signal(signal.SIGTERM, _exit_on_signal)
-        signal.pthread_sigmask(signal.SIG_SETMASK, mask)
-        try:
-            _preload_and_warm()
-            broken = None
-        except Exception as e:  # every figure fails with it, below
-            broken = _describe(e)
-        data = _read_all(jobs)
-        calls = pickle.loads(data) if data else []
-        if broken is not None:
-            failures = [(i, broken) for i in range(len(calls))]
-        else:
-            failures = _draw_jobs(calls, None)
-        _write_all(results, pickle.dumps(failures))
-        code = 0
-    except KeyboardInterrupt:
-        code = 130
-    except SystemExit as e:
-        code = e.code if isinstance(e.code, int) else 1
-    except BaseException as e:
-        with contextlib.suppress(OSError):
-            os.write(2, f"prrrp: the figure process failed: {_describe(e)}\n".encode())
-    finally:
-        _kill_children()  # none when its drawing ended normally
-        os._exit(code)
+        _preload_and_warm()
+        broken = None
+    except Exception as e:  # every figure fails with it, below
+        broken = _describe(e)
+    data = _read_all(jobs)
+    calls = pickle.loads(data) if data else []
+    if broken is not None:
+        failures = [(i, broken) for i in range(len(calls))]
+    else:
+        failures = _draw_jobs(calls, None)
+    _write_all(results, pickle.dumps(failures))
 
 
 def _read_all(fd: int) -> bytes:
@@ -486,8 +471,10 @@ def _draw_on_server(server: _Server, payload: bytes, count: int) -> list[tuple[i
     except Exception:
         failures = None
     if failures is None:
-        why = f"killed by signal {-code}" if code < 0 else f"exit code {code}"
-        failures = [(i, f"the figure process ended ({why})") for i in range(count)]
+        why = data.decode("utf-8", "replace").strip() or (
+            f"killed by signal {-code}" if code < 0 else f"exit code {code}"
+        )
+        failures = [(i, f"the figure process failed: {why}") for i in range(count)]
     return list(failures)
 
 
@@ -692,9 +679,11 @@ def _kill_children() -> None:
 
 
 def _worker(job: Callable[[], object], write: int, mask: Any, parent: int) -> NoReturn:
-    """A forked worker of :func:`draw_all`: runs ``job`` and exits (0, or with its error on
-    ``write``); never returns into the parent's code."""
+    """A forked worker of :func:`draw_all` (or the figure server): runs ``job`` and exits
+    (0, or with its error on ``write``), its own workers, if any, killed and reaped first;
+    never returns into the parent's code."""
     code = 1
+    _children.clear()  # the parent's, not this process's
     try:
         _die_with(parent)
         # Whatever this process's handlers were: stopped by an exception, which removes
@@ -712,6 +701,7 @@ def _worker(job: Callable[[], object], write: int, mask: Any, parent: int) -> No
         with contextlib.suppress(OSError):
             os.write(write, _describe(e).encode("utf-8", "replace")[:4000])
     finally:
+        _kill_children()  # none when its job ended normally
         os._exit(code)
 
 

@@ -403,3 +403,27 @@ def test_a_failed_figure_on_the_server_loses_only_itself(
     assert "figure 'broken' was not drawn: FileNotFoundError" in capfd.readouterr().err
     assert sorted(p.name for p in tmp_path.glob("*.png")) == ["a.png", "c.png"]
     assert children() <= before
+
+
+def test_a_server_without_matplotlib_fails_every_figure_and_nothing_else(
+    tmp_path: Path, monkeypatch, request
+) -> None:
+    """matplotlib cannot be imported in the server: each figure is reported failed with
+    why, the caller goes on, the server is reaped."""
+    if alone(request):
+        return
+    monkeypatch.setattr(drawing, "_default_workers", lambda: 4)
+
+    def no_matplotlib() -> None:
+        raise ImportError("No module named 'matplotlib'")
+
+    monkeypatch.setattr(drawing, "_preload_and_warm", no_matplotlib)
+    before = children()
+    with drawing.figure_server() as forked:
+        assert forked
+        jobs = [drawing.job("f", drawn_by_pid, tmp_path / f"f{k}.png", k) for k in range(2)]
+        failures = drawing.draw_all(jobs)
+    assert [i for i, _ in failures] == [0, 1]
+    assert all("No module named 'matplotlib'" in m for _, m in failures)
+    assert not list(tmp_path.iterdir())
+    assert children() <= before
