@@ -1389,9 +1389,10 @@ class _LogReport(TypedDict):
     measured_velocity: bool
     rows_out: int
 
-def read_numeric_csv(data: bytes) -> tuple[str, int, _F64] | None:
-    """(header line, its 1-based line number, values (rows, cells)) of a plain numeric
-    CSV text, or None for anything else (for ``prrrp.csvio``'s general reader)."""
+def read_numeric_csv(data: bytes) -> tuple[str, int, int, int, bytes] | None:
+    """(header line, its 1-based line number, rows, cells per row, the values as native
+    float64 bytes, row after row) of a plain numeric CSV text, or None for anything else
+    (for ``prrrp.csvio``'s general reader)."""
 
 def preprocess_log(
     t: _ArrayLike,

@@ -112,8 +112,8 @@ def _fast_table(path: Path, size: int) -> tuple[int, str, np.ndarray] | None:
     found = read_numeric_csv(path.read_bytes())
     if found is None:
         return None
-    header, lineno, table = found
-    return lineno, header, table
+    header, lineno, rows, width, values = found
+    return lineno, header, np.frombuffer(values, dtype=np.float64).reshape(rows, width)
 
 
 def _lines(path: Path) -> Iterator[tuple[int, str]]:

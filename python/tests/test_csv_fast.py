@@ -89,10 +89,10 @@ def test_the_fast_path_reads_a_plain_file_itself(tmp_path: Path) -> None:
     path.write_text(CASES["crlf, bom, comments, blanks"], encoding="utf-8")
     found = read_numeric_csv(path.read_bytes())
     assert found is not None
-    header, lineno, table = found
-    assert (header, lineno, table.shape) == (HEADER, 3, (30, 5))
+    header, lineno, count, width, values = found
+    assert (header, lineno, count, width) == (HEADER, 3, 30, 5)
     want = np.array([[float(x) for x in r.split(",")] for r in rows(30)])
-    assert table.tobytes() == want.tobytes()
+    assert values == want.tobytes()
     for name in ("nan", "quoted", "lone cr", "short row", "underscores", "empty"):
         assert read_numeric_csv(CASES[name].encode("utf-8")) is None, name
     assert read_numeric_csv(b"t,q1\n0,1\n# \xff\n") is None

@@ -1,26 +1,38 @@
 //! `prrrp._prrrp.read_numeric_csv`: the fast path of `prrrp.csvio.read_table`.
 
-use numpy::{PyArray1, PyArrayMethods};
 use prrrp_core::data::csv::parse_numeric_csv;
 use pyo3::prelude::*;
 use pyo3::types::PyBytes;
 
 /// The plain case of a measurement CSV file's bytes `data` (see
 /// `prrrp_core::data::csv::parse_numeric_csv`): `(header line, its 1-based line number,
-/// values (rows, width) float64)`, or None when the text holds anything else (quoted
-/// cells, a cell that is not a finite number, a row of another width, ...), for the
-/// general reader to say what is wrong. Parsed with the GIL released.
+/// rows, cells per row, the values as native-endian float64 bytes, row after row)`, or
+/// None when the text holds anything else (quoted cells, a cell that is not a finite
+/// number, a row of another width, ...), for the general reader to say what is wrong.
+/// Parsed with the GIL released. Bytes, not an array: the first array a process makes
+/// loads numpy's C API, which a Ctrl-C arriving then would turn into a panic.
 #[pyfunction]
 fn read_numeric_csv<'py>(
     py: Python<'py>,
     data: &Bound<'py, PyBytes>,
-) -> PyResult<Option<(String, usize, Bound<'py, PyAny>)>> {
+) -> PyResult<Option<(String, usize, usize, usize, Bound<'py, PyBytes>)>> {
     let bytes = data.as_bytes();
     let Some(table) = py.detach(|| parse_numeric_csv(bytes)) else {
         return Ok(None);
     };
-    let values = PyArray1::from_vec(py, table.values).reshape([table.rows, table.width])?;
-    Ok(Some((table.header, table.header_line, values.into_any())))
+    let values = PyBytes::new_with(py, 8 * table.values.len(), |buf| {
+        for (cell, x) in buf.chunks_exact_mut(8).zip(&table.values) {
+            cell.copy_from_slice(&x.to_ne_bytes());
+        }
+        Ok(())
+    })?;
+    Ok(Some((
+        table.header,
+        table.header_line,
+        table.rows,
+        table.width,
+        values,
+    )))
 }
 
 pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
