@@ -4,6 +4,10 @@ use prrrp_core::data::csv::parse_numeric_csv;
 use pyo3::prelude::*;
 use pyo3::types::PyBytes;
 
+/// What [`read_numeric_csv`] returns for a plain file: header line, its line number, rows,
+/// cells per row, values.
+type Plain<'py> = (String, usize, usize, usize, Bound<'py, PyBytes>);
+
 /// The plain case of a measurement CSV file's bytes `data` (see
 /// `prrrp_core::data::csv::parse_numeric_csv`): `(header line, its 1-based line number,
 /// rows, cells per row, the values as native-endian float64 bytes, row after row)`, or
@@ -15,7 +19,7 @@ use pyo3::types::PyBytes;
 fn read_numeric_csv<'py>(
     py: Python<'py>,
     data: &Bound<'py, PyBytes>,
-) -> PyResult<Option<(String, usize, usize, usize, Bound<'py, PyBytes>)>> {
+) -> PyResult<Option<Plain<'py>>> {
     let bytes = data.as_bytes();
     let Some(table) = py.detach(|| parse_numeric_csv(bytes)) else {
         return Ok(None);
