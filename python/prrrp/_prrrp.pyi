@@ -68,6 +68,7 @@ __all__ = [
     "optimise_excitation",
     "preprocess",
     "preprocess_log",
+    "read_numeric_csv",
     "regressor",
     "relative_errors_percent",
     "rms",
@@ -1384,6 +1385,11 @@ class _LogReport(TypedDict):
     output_rate_hz: float
     measured_velocity: bool
     rows_out: int
+
+def read_numeric_csv(data: bytes) -> tuple[str, int, int, int, bytes] | None:
+    """(header line, its 1-based line number, rows, cells per row, the values as native
+    float64 bytes, row after row) of a plain numeric CSV text, or None for anything else
+    (for ``prrrp.csvio``'s general reader)."""
 
 def preprocess_log(
     t: _ArrayLike,

@@ -82,7 +82,9 @@ MAX_JOINTS = 1000
 MAX_FILE_BYTES = 2 << 30
 
 
-def _lines(path: Path) -> Iterator[tuple[int, str]]:
+def _check_file(path: Path) -> int:
+    """The size of the regular file ``path``, bytes; InputError when there is none or it
+    is larger than :data:`MAX_FILE_BYTES`."""
     if not path.exists():
         raise InputError(f"{path}: no such file or directory")
     if not path.is_file():
@@ -90,6 +92,32 @@ def _lines(path: Path) -> Iterator[tuple[int, str]]:
     size = path.stat().st_size
     if size > MAX_FILE_BYTES:
         raise InputError(f"{path}: {size} bytes is more than the {MAX_FILE_BYTES} bytes accepted")
+    return size
+
+
+#: Largest file read whole by the native parser (:func:`_fast_table`), bytes; larger ones
+#: are read block by block (memory: the numbers, not the text as well).
+FAST_MAX_BYTES = 256 << 20
+
+
+def _fast_table(path: Path, size: int) -> tuple[int, str, np.ndarray] | None:
+    """(header line number, header line, numbers (rows × cells)) of a plain file, parsed
+    natively (``prrrp._prrrp.read_numeric_csv``, ~10× faster), or None: a file with
+    anything else (quoted cells, a bad cell, a row of another width, ...) is read by
+    :func:`_numbers`, whose messages say what is wrong and where."""
+    if size > FAST_MAX_BYTES:
+        return None
+    from prrrp._prrrp import read_numeric_csv
+
+    found = read_numeric_csv(path.read_bytes())
+    if found is None:
+        return None
+    header, lineno, rows, width, values = found
+    return lineno, header, np.frombuffer(values, dtype=np.float64).reshape(rows, width)
+
+
+def _lines(path: Path) -> Iterator[tuple[int, str]]:
+    _check_file(path)
     # utf-8-sig: spreadsheet programs often start a CSV with a byte-order mark.
     with path.open(newline="", encoding="utf-8-sig") as f:
         for lineno, line in enumerate(f, start=1):
@@ -143,11 +171,15 @@ def _dof_of(path: Path, header: list[str]) -> int:
 
 
 def _read(path: Path, dof: int | None, real_log: bool, need_tau: bool) -> dict[str, np.ndarray]:
+    fast = _fast_table(path, _check_file(path))
     rows = _lines(path)
-    try:
-        header_lineno, header_line = next(rows)
-    except StopIteration:
-        raise InputError(f"{path}: the file is empty; {_expected(dof)}") from None
+    if fast is not None:
+        header_lineno, header_line, _ = fast
+    else:
+        try:
+            header_lineno, header_line = next(rows)
+        except StopIteration:
+            raise InputError(f"{path}: the file is empty; {_expected(dof)}") from None
     header = [h.strip().lower() for h in next(csv.reader([header_line]))]
     seen: set[str] = set()
     for name in header:
@@ -197,7 +229,7 @@ def _read(path: Path, dof: int | None, real_log: bool, need_tau: bool) -> dict[s
                     f"{path}: missing column '{name}' (give all of {group[0]}..{group[-1]} or none)"
                 )
 
-    table = _numbers(path, rows, header, header_lineno)
+    table = fast[2] if fast is not None else _numbers(path, rows, header, header_lineno)
     n = len(table)
     if n < MIN_SAMPLES:
         raise InputError(f"{path}: too few samples ({n}); at least {MIN_SAMPLES} are needed")

@@ -18,13 +18,14 @@ measured by ``tight_layout``, which draws every text twice to find its size.
 from __future__ import annotations
 
 import contextlib
+import functools
 import importlib
 import os
 import signal
 import sys
 import threading
 import zlib
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from typing import Any, NoReturn
 
 import numpy as np
@@ -265,6 +266,15 @@ def save(fig: Any, path: str | os.PathLike[str] | Any) -> None:
     csvio.write_atomic(path, write)
 
 
+def job(name: str, draw: Callable[..., object], *args: Any) -> Callable[[], object]:
+    """``draw(*args)`` as a call for :func:`draw_all` named ``name`` (in its messages):
+    a ``functools.partial``, which pickles (with its name) when ``draw`` is a module-level
+    function and ``args`` pickle, so that a :func:`figure_server` can draw it."""
+    call = functools.partial(draw, *args)
+    call.__name__ = name  # type: ignore[attr-defined]
+    return call
+
+
 def draw_all(
     drawings: Sequence[Callable[[], object]], workers: int | None = None
 ) -> list[tuple[int, str]]:
@@ -280,22 +290,203 @@ def draw_all(
     leaves: no worker outlives the call (nor its process: they die with it) or writes after
     it, and a figure lands only whole.
 
+    With a :func:`figure_server` running (and calls that pickle, and no ``workers``
+    given), the calls are handed to it: it draws them the same way in its process and its
+    workers, with matplotlib imported while this process computed.
+
     Without ``os.fork`` (not Linux), while another thread runs (a fork copies the locks it
     holds), or with one worker or one call, the calls run here one after another, with the
     same handling of errors."""
     jobs = list(drawings)
-    wait_preload()  # also a thread that runs
-    if workers is None:
-        workers = _default_workers()
-    if sys.platform != "linux" or workers < 2 or len(jobs) < 2 or threading.active_count() > 1:
-        failures = [f for f in (_draw_here(i, job) for i, job in enumerate(jobs)) if f]
+    server = _take_server()
+    payload = _pickled(jobs) if server is not None and workers is None else None
+    if server is not None and payload is None:
+        _end_server(server)
+    if server is not None and payload is not None:
+        failures = _draw_on_server(server, payload, len(jobs))
     else:
-        failures = _draw_forked(jobs, workers)
+        failures = _draw_jobs(jobs, workers)
     for i, message in failures:
         name = getattr(jobs[i], "__name__", "")
         what = f"figure {name!r}" if name.isidentifier() else "a figure"
         print(f"prrrp: {what} was not drawn: {message}", file=sys.stderr)
     return failures
+
+
+def _draw_jobs(jobs: list[Callable[[], object]], workers: int | None) -> list[tuple[int, str]]:
+    """:func:`draw_all` in this process and its workers, without reporting the failures."""
+    wait_preload()  # also a thread that runs
+    if workers is None:
+        workers = _default_workers()
+    if sys.platform != "linux" or workers < 2 or len(jobs) < 2 or threading.active_count() > 1:
+        return [f for f in (_draw_here(i, job) for i, job in enumerate(jobs)) if f]
+    return _draw_forked(jobs, workers)
+
+
+class _Server:
+    """A forked process of :func:`figure_server`: its pid, the write end of the pipe that
+    takes the pickled calls, the read end of the one that returns the failures."""
+
+    def __init__(self, pid: int, jobs: int, results: int) -> None:
+        self.pid, self.jobs, self.results = pid, jobs, results
+
+
+_server: _Server | None = None
+
+
+@contextlib.contextmanager
+def figure_server() -> Iterator[bool]:
+    """Forks, now, a process that imports matplotlib and draws a first figure
+    (:func:`_warm`) while this one computes, and then waits for the calls of the next
+    :func:`draw_all`: in a process of its own the import does not compete with the
+    computation for the GIL, and uses a second CPU. Yields whether the process was started:
+    only on Linux, from a process without other threads, with a CPU to spare
+    (:func:`_default_workers` ≥ 2). On leaving, a process that was not used is ended
+    (SIGTERM) and reaped, also on Ctrl-C or an error before the figures."""
+    global _server
+    started = _server is None and _start_server()
+    try:
+        yield started
+    finally:
+        if started:
+            server = _take_server()
+            if server is not None:
+                _end_server(server)
+
+
+def _take_server() -> _Server | None:
+    global _server
+    server, _server = _server, None
+    return server
+
+
+def _start_server() -> bool:
+    global _server
+    if sys.platform != "linux" or threading.active_count() > 1 or _default_workers() < 2:
+        return False
+    import warnings
+
+    sys.stdout.flush()
+    sys.stderr.flush()
+    parent = os.getpid()
+    jobs_read, jobs_write = os.pipe()
+    results_read, results_write = os.pipe()
+    # Blocked across the fork, as for the workers of _draw_forked.
+    mask = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM})
+    try:
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", DeprecationWarning)
+                pid = os.fork()
+        except OSError:
+            pid = -1
+        if pid == 0:
+            os.close(jobs_write)
+            os.close(results_read)
+            # Its own failure (not a figure's) comes back on the results pipe, as text.
+            job = functools.partial(_serve, jobs_read, results_write)
+            _worker(job, results_write, mask, parent)
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, mask)
+    os.close(jobs_read)
+    os.close(results_write)
+    if pid < 0:
+        os.close(jobs_write)
+        os.close(results_read)
+        return False
+    _server = _Server(pid, jobs_write, results_read)
+    return True
+
+
+def _serve(jobs: int, results: int) -> None:
+    """The work of the process of :func:`figure_server` (run by :func:`_worker`): imports
+    matplotlib, reads the pickled calls until the pipe ``jobs`` ends, draws them as
+    :func:`draw_all` does here and writes the pickled failures to ``results``."""
+    import pickle
+
+    try:
+        _preload_and_warm()
+        broken = None
+    except Exception as e:  # every figure fails with it, below
+        broken = _describe(e)
+    data = _read_all(jobs)
+    calls = pickle.loads(data) if data else []
+    if broken is not None:
+        failures = [(i, broken) for i in range(len(calls))]
+    else:
+        failures = _draw_jobs(calls, None)
+    _write_all(results, pickle.dumps(failures))
+
+
+def _read_all(fd: int) -> bytes:
+    chunks = []
+    while chunk := os.read(fd, 1 << 20):
+        chunks.append(chunk)
+    return b"".join(chunks)
+
+
+def _write_all(fd: int, data: bytes) -> None:
+    view = memoryview(data)
+    while view:
+        view = view[os.write(fd, view) :]
+
+
+def _pickled(jobs: list[Callable[[], object]]) -> bytes | None:
+    """The calls pickled for the figure server, or None when one does not pickle (a
+    closure: drawn here instead)."""
+    import pickle
+
+    try:
+        return pickle.dumps(jobs, protocol=pickle.HIGHEST_PROTOCOL)
+    except (pickle.PicklingError, TypeError, AttributeError):
+        return None
+
+
+def _draw_on_server(server: _Server, payload: bytes, count: int) -> list[tuple[int, str]]:
+    """Hands the pickled calls to the server and waits for its failures; on Ctrl-C (or any
+    error here) the server, and with it its workers, is stopped and reaped."""
+    import pickle
+
+    from prrrp import signals
+
+    done = False
+    try:
+        with contextlib.suppress(BrokenPipeError):  # it died: said below, from its exit
+            _write_all(server.jobs, payload)
+        os.close(server.jobs)
+        server.jobs = -1
+        # End of file once the server and its workers (which share the pipe) have exited.
+        data = _read_all(server.results)
+        code = _reap(server.pid)
+        done = True
+    finally:
+        if done:
+            os.close(server.results)
+        else:
+            _end_server(server)
+    if code != 0:
+        signals.checkpoint()  # the server's Ctrl-C is also this process's
+    try:
+        failures = pickle.loads(data) if data else None
+    except Exception:
+        failures = None
+    if failures is None:
+        why = data.decode("utf-8", "replace").strip() or (
+            f"killed by signal {-code}" if code < 0 else f"exit code {code}"
+        )
+        failures = [(i, f"the figure process failed: {why}") for i in range(count)]
+    return list(failures)
+
+
+def _end_server(server: _Server) -> None:
+    """Stops the server (its drawing workers with it) and reaps it."""
+    if server.jobs >= 0:
+        with contextlib.suppress(OSError):
+            os.close(server.jobs)
+        server.jobs = -1
+    # Its own workers get STOP_GRACE_S from it: more for it, which reaps them (killed
+    # first, they would be left to init).
+    _stop({server.results: (server.pid, -1, bytearray())}, grace=3 * STOP_GRACE_S)
 
 
 def _default_workers() -> int:
@@ -377,6 +568,7 @@ def _draw_forked(jobs: list[Callable[[], object]], workers: int) -> list[tuple[i
                         _worker(job, write, mask, parent)
                     if pid > 0:
                         running[read] = (pid, index, bytearray())
+                        _children.add(pid)
                     os.close(write)
                 finally:
                     signal.pthread_sigmask(signal.SIG_SETMASK, mask)
@@ -415,9 +607,12 @@ def _draw_forked(jobs: list[Callable[[], object]], workers: int) -> list[tuple[i
 STOP_GRACE_S = 1.0
 
 
-def _stop(running: dict[int, tuple[int, int, bytearray]]) -> None:
-    """Ends the workers ``running`` (read end -> (pid, ...)): SIGTERM, up to
-    :data:`STOP_GRACE_S` for them to exit, then SIGKILL; reaps every one."""
+def _stop(running: dict[int, tuple[int, int, bytearray]], grace: float = STOP_GRACE_S) -> None:
+    """Ends the workers ``running`` (read end -> (pid, ...)): SIGTERM, up to ``grace``
+    seconds for them to exit, then SIGKILL; reaps every one. Ctrl-C and SIGTERM wait
+    until it is done (at most ``grace``): a second one (a terminal's Ctrl-C reaches the
+    whole group, a figure server's parent adds a SIGTERM) must not leave a worker
+    unreaped."""
     import select
     import time
 
@@ -426,33 +621,69 @@ def _stop(running: dict[int, tuple[int, int, bytearray]]) -> None:
             with contextlib.suppress(ProcessLookupError):
                 os.kill(pid, sig)  # also harmless on one that has exited, until reaped
 
-    kill(signal.SIGTERM)
+    mask = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM})
+    deferred: BaseException | None = None
     try:
-        deadline = time.monotonic() + STOP_GRACE_S
+        kill(signal.SIGTERM)
+        deadline = time.monotonic() + grace
         left = set(running)
         while left and (timeout := deadline - time.monotonic()) > 0:
             ready, _, _ = select.select(list(left), [], [], timeout)
             left -= {fd for fd in ready if not os.read(fd, 4096)}  # end of file: exited
+    except (KeyboardInterrupt, SystemExit) as e:  # a signal that arrived before the mask
+        deferred = e
     finally:
         kill(signal.SIGKILL)
         for fd, (pid, _, _) in running.items():
-            _reap(pid)
+            while True:
+                try:
+                    _reap(pid)
+                    break
+                except (KeyboardInterrupt, SystemExit) as e:
+                    deferred = deferred or e
             os.close(fd)
+        signal.pthread_sigmask(signal.SIG_SETMASK, mask)
+    if deferred is not None:
+        raise deferred
+
+
+#: The workers forked by :func:`_draw_forked` and not yet reaped.
+_children: set[int] = set()
 
 
 def _reap(pid: int) -> int:
     """Waits for the worker ``pid``: its exit code (−n for signal n; 0 when it was reaped
     elsewhere, e.g. with SIGCHLD ignored)."""
     try:
-        return os.waitstatus_to_exitcode(os.waitpid(pid, 0)[1])
+        code = os.waitstatus_to_exitcode(os.waitpid(pid, 0)[1])
     except ChildProcessError:
-        return 0
+        code = 0
+    _children.discard(pid)
+    return code
+
+
+def _kill_children() -> None:
+    """SIGKILLs and reaps the workers still in :data:`_children`, whatever signal arrives
+    meanwhile (blocked; one that had arrived before runs once and is retried past): the
+    last act of a figure server, whose workers would otherwise be left to init."""
+    while True:
+        try:
+            signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM})
+            for pid in list(_children):
+                with contextlib.suppress(ProcessLookupError):
+                    os.kill(pid, signal.SIGKILL)
+                _reap(pid)
+            return
+        except (KeyboardInterrupt, SystemExit):
+            continue
 
 
 def _worker(job: Callable[[], object], write: int, mask: Any, parent: int) -> NoReturn:
-    """A forked worker of :func:`draw_all`: runs ``job`` and exits (0, or with its error on
-    ``write``); never returns into the parent's code."""
+    """A forked worker of :func:`draw_all` (or the figure server): runs ``job`` and exits
+    (0, or with its error on ``write``), its own workers, if any, killed and reaped first;
+    never returns into the parent's code."""
     code = 1
+    _children.clear()  # the parent's, not this process's
     try:
         _die_with(parent)
         # Whatever this process's handlers were: stopped by an exception, which removes
@@ -470,6 +701,7 @@ def _worker(job: Callable[[], object], write: int, mask: Any, parent: int) -> No
         with contextlib.suppress(OSError):
             os.write(write, _describe(e).encode("utf-8", "replace")[:4000])
     finally:
+        _kill_children()  # none when its job ended normally
         os._exit(code)
 
 

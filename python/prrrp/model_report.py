@@ -25,6 +25,7 @@ from typing import Any
 
 import numpy as np
 
+from prrrp import drawing
 from prrrp._prrrp import Dataset, IdentifiedModel
 from prrrp.prediction import LogGrid, _at_rows, prepare, recorded_settings
 
@@ -87,20 +88,6 @@ def prediction_table(model: IdentifiedModel, data: DataLike) -> dict[str, Any]:
     (:meth:`prrrp.prediction.LogGrid.errors`)."""
     grid = as_grid(data, model)
     return grid.errors(grid.predict(model))
-
-
-def _shade_edges(ax: Any, grid: LogGrid) -> None:
-    """Grey spans over the rows in the filter's edge transient (not scored)."""
-    if not grid.edge.any():
-        return
-    t = grid.t
-    inside = t[~grid.edge]
-    if len(inside) == 0:
-        return
-    if t[0] < inside[0]:
-        ax.axvspan(t[0], inside[0], color="0.85", lw=0)
-    if t[-1] > inside[-1]:
-        ax.axvspan(inside[-1], t[-1], color="0.85", lw=0)
 
 
 #: A link whose identified mass is outside [1/MASS_FACTOR, MASS_FACTOR] times its robot
@@ -277,59 +264,41 @@ def figure_drawings(
     """The figures of :func:`figure_list` as calls that each draw one into ``directory``,
     in its order. What they plot (predictions, residuals) is computed here, at once: a
     call only draws, so that the calls can run in any order or in other processes
-    (:func:`prrrp.drawing.draw_all`)."""
+    (:func:`prrrp.drawing.draw_all`). Each call is a ``functools.partial`` of a function of
+    this module over arrays and strings, named by ``__name__``: it pickles, so that a
+    process started before the results existed can draw it."""
     joints = list(model.robot.joint_names)
     force_units, speed_units = _units(model)
     n = len(joints)
-    rows, cols = _grid(n)
     fit = as_grid(data, model)
     check = as_grid(validation, model) if validation is not None else fit
     pred = check.predict(model)
-    t = check.t
     cutoff = (check.report or {}).get("cutoff_hz")
     directory = Path(directory)
-
-    def torque() -> None:
-        from prrrp import drawing
-
-        fig, axes = drawing.figure(rows, cols, top=0.7)
-        for j in range(n):
-            ax = axes[j // cols][j % cols]
-            _shade_edges(ax, check)
-            drawing.lines(ax, t, check.measured[:, j], lw=0.6, color="0.55", label="measured")
-            if check.filtered is not None:
-                drawing.lines(
-                    ax,
-                    t,
-                    check.filtered[:, j],
-                    lw=0.8,
-                    color="tab:blue",
-                    label=f"measured, low-passed at {cutoff:.3g} Hz (fitted)",
-                )
-            drawing.lines(ax, t, pred[:, j], lw=0.8, ls="--", color="tab:red", label="predicted")
-            ax.set_title(joints[j], fontsize=9)
-            ax.set_xlabel("time (s)", fontsize=8)
-            ax.set_ylabel(f"torque ({force_units[j]})", fontsize=8)
-        _blank(axes, n, cols)
-        # Above the panels, never over the data.
-        handles, labels = axes[0][0].get_legend_handles_labels()
-        fig.legend(handles, labels, loc="upper center", ncol=3, fontsize=8, frameon=False)
-        drawing.save(fig, directory / "torque.png")
-
     k = check.scored
-    resid = check.measured[k] - pred[k]
-
-    def residual() -> None:
-        from prrrp import drawing
-
-        fig, axes = drawing.figure(rows, cols)
-        for j in range(n):
-            ax = axes[j // cols][j % cols]
-            _histogram(ax, resid[:, j], force_units[j], joints[j])
-        _blank(axes, n, cols)
-        drawing.save(fig, directory / "residual.png")
-
-    drawings = [torque, residual]
+    drawings = [
+        drawing.job(
+            "torque",
+            _torque_figure,
+            directory / "torque.png",
+            joints,
+            force_units,
+            check.t,
+            check.measured,
+            check.filtered,
+            pred,
+            _edge_spans(check),
+            cutoff,
+        ),
+        drawing.job(
+            "residual",
+            _residual_figure,
+            directory / "residual.png",
+            joints,
+            force_units,
+            check.measured[k] - pred[k],
+        ),
+    ]
     friction, mask = friction_split(model)
     if mask.any():
         v_s = float(model.robot.coulomb_smoothing)
@@ -347,32 +316,126 @@ def figure_drawings(
             qd = qd @ c.T
             points = np.linalg.solve(c.T, points.T).T
             titles = [f"actuator {m + 1}" for m in range(n)]
-
-        def friction_curves() -> None:
-            from prrrp import drawing
-
-            fig, axes = drawing.figure(rows, cols, panel=(3.6, 2.1))
-            for j in range(n):
-                ax = axes[j // cols][j % cols]
-                keep = drawing.thin_points(qd[:, j], points[:, j], drawing.pixels(ax))
-                ax.plot(qd[keep, j], points[keep, j], ".", ms=1.5, alpha=0.4, label="data")
-                span = max(float(np.abs(qd[:, j]).max()), 1e-6)
-                grid = np.linspace(-span, span, 401)
-                curve = friction_torque(friction[j : j + 1], grid[:, None], v_s)[:, 0]
-                ax.plot(grid, curve, "r", lw=1.2, label="model")
-                ax.set_title(titles[j], fontsize=9)
-                if coupling is None:
-                    ax.set_xlabel(f"joint velocity q̇ ({speed_units[j]})", fontsize=8)
-                    ax.set_ylabel(f"friction torque ({force_units[j]})", fontsize=8)
-                else:
-                    ax.set_xlabel("actuator velocity (C·q̇)ₘ (rad/s or m/s)", fontsize=8)
-                    ax.set_ylabel("friction torque (N·m or N)", fontsize=8)
-            _blank(axes, n, cols)
-            axes[0][0].legend(fontsize=7, loc="upper left", markerscale=4)
-            drawing.save(fig, directory / "friction.png")
-
-        drawings.append(friction_curves)
+        drawings.append(
+            drawing.job(
+                "friction_curves",
+                _friction_figure,
+                directory / "friction.png",
+                titles,
+                force_units,
+                speed_units,
+                qd,
+                points,
+                friction,
+                v_s,
+                coupling is not None,
+            )
+        )
     return drawings
+
+
+def _edge_spans(grid: LogGrid) -> list[tuple[float, float]]:
+    """The time spans (s) of the rows in the filter's edge transient (not scored)."""
+    t = grid.t
+    inside = t[~grid.edge]
+    if not grid.edge.any() or len(inside) == 0:
+        return []
+    spans = []
+    if t[0] < inside[0]:
+        spans.append((float(t[0]), float(inside[0])))
+    if t[-1] > inside[-1]:
+        spans.append((float(inside[-1]), float(t[-1])))
+    return spans
+
+
+def _torque_figure(
+    path: Path,
+    joints: list[str],
+    force_units: list[str],
+    t: np.ndarray,
+    measured: np.ndarray,
+    filtered: np.ndarray | None,
+    pred: np.ndarray,
+    edges: list[tuple[float, float]],
+    cutoff: float | None,
+) -> None:
+    """Measured, low-passed (fitted) and predicted torque per joint over time."""
+    n = len(joints)
+    rows, cols = _grid(n)
+    fig, axes = drawing.figure(rows, cols, top=0.7)
+    for j in range(n):
+        ax = axes[j // cols][j % cols]
+        for a, b in edges:
+            ax.axvspan(a, b, color="0.85", lw=0)
+        drawing.lines(ax, t, measured[:, j], lw=0.6, color="0.55", label="measured")
+        if filtered is not None:
+            drawing.lines(
+                ax,
+                t,
+                filtered[:, j],
+                lw=0.8,
+                color="tab:blue",
+                label=f"measured, low-passed at {cutoff:.3g} Hz (fitted)",
+            )
+        drawing.lines(ax, t, pred[:, j], lw=0.8, ls="--", color="tab:red", label="predicted")
+        ax.set_title(joints[j], fontsize=9)
+        ax.set_xlabel("time (s)", fontsize=8)
+        ax.set_ylabel(f"torque ({force_units[j]})", fontsize=8)
+    _blank(axes, n, cols)
+    # Above the panels, never over the data.
+    handles, labels = axes[0][0].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="upper center", ncol=3, fontsize=8, frameon=False)
+    drawing.save(fig, path)
+
+
+def _residual_figure(
+    path: Path, joints: list[str], force_units: list[str], resid: np.ndarray
+) -> None:
+    """Histogram of the torque residual per joint."""
+    n = len(joints)
+    rows, cols = _grid(n)
+    fig, axes = drawing.figure(rows, cols)
+    for j in range(n):
+        ax = axes[j // cols][j % cols]
+        _histogram(ax, resid[:, j], force_units[j], joints[j])
+    _blank(axes, n, cols)
+    drawing.save(fig, path)
+
+
+def _friction_figure(
+    path: Path,
+    titles: list[str],
+    force_units: list[str],
+    speed_units: list[str],
+    qd: np.ndarray,
+    points: np.ndarray,
+    friction: np.ndarray,
+    v_s: float,
+    coupled: bool,
+) -> None:
+    """The identified friction curve over the residual-corrected points, per joint (per
+    actuator when ``coupled``)."""
+    n = len(titles)
+    rows, cols = _grid(n)
+    fig, axes = drawing.figure(rows, cols, panel=(3.6, 2.1))
+    for j in range(n):
+        ax = axes[j // cols][j % cols]
+        keep = drawing.thin_points(qd[:, j], points[:, j], drawing.pixels(ax))
+        ax.plot(qd[keep, j], points[keep, j], ".", ms=1.5, alpha=0.4, label="data")
+        span = max(float(np.abs(qd[:, j]).max()), 1e-6)
+        grid = np.linspace(-span, span, 401)
+        curve = friction_torque(friction[j : j + 1], grid[:, None], v_s)[:, 0]
+        ax.plot(grid, curve, "r", lw=1.2, label="model")
+        ax.set_title(titles[j], fontsize=9)
+        if not coupled:
+            ax.set_xlabel(f"joint velocity q̇ ({speed_units[j]})", fontsize=8)
+            ax.set_ylabel(f"friction torque ({force_units[j]})", fontsize=8)
+        else:
+            ax.set_xlabel("actuator velocity (C·q̇)ₘ (rad/s or m/s)", fontsize=8)
+            ax.set_ylabel("friction torque (N·m or N)", fontsize=8)
+    _blank(axes, n, cols)
+    axes[0][0].legend(fontsize=7, loc="upper left", markerscale=4)
+    drawing.save(fig, path)
 
 
 def _blank(axes: Any, n: int, cols: int) -> None:
@@ -558,8 +621,6 @@ def comparison_section(
 def comparison_figure(runs: Sequence[dict[str, Any]], joints: Sequence[str], path: Path) -> None:
     """Bars of the torque error per joint (% of the measured torque's RMS), one bar per
     method that succeeded, on the held-out data when there is some."""
-    from prrrp import drawing
-
     ok = [r for r in runs if r["status"] == "ok"]
     held_out = any(r.get("validation") is not None for r in ok)
     key = "validation" if held_out else "identification"

@@ -201,23 +201,31 @@ from prrrp import drawing, signals
 
 folder = Path(sys.argv[1])
 
-def slow(k):
-    def draw():
-        # Says it runs, then saves a figure that takes long to draw.
-        (folder / f"worker-{k}.pid").write_text(str(os.getpid()))
-        fig, axes = drawing.figure(1, 1)
-        axes[0, 0].plot([0, 1], [0, 1])
-        real = fig.draw
-        def draw_slowly(renderer):
-            time.sleep(60)
-            real(renderer)
-        fig.draw = draw_slowly
-        drawing.save(fig, folder / f"figure-{k}.png")
-    return draw
+server = sys.argv[2] == "server"
+
+def slow_figure(k):
+    # Says it runs, then saves a figure that takes long to draw.
+    (folder / f"worker-{k}.tmp").write_text(str(os.getpid()))
+    os.replace(folder / f"worker-{k}.tmp", folder / f"worker-{k}.pid")  # whole when seen
+    fig, axes = drawing.figure(1, 1)
+    axes[0, 0].plot([0, 1], [0, 1])
+    real = fig.draw
+    def draw_slowly(renderer):
+        time.sleep(60)
+        real(renderer)
+    fig.draw = draw_slowly
+    drawing.save(fig, folder / f"figure-{k}.png")
 
 signals.install()
+drawing._default_workers = lambda: 4
 try:
-    drawing.draw_all([slow(0), slow(1), slow(2)], workers=4)
+    if server:
+        # Handed to a figure server, which draws them in its own process and workers.
+        with drawing.figure_server() as forked:
+            assert forked
+            drawing.draw_all([drawing.job("slow", slow_figure, k) for k in range(3)])
+    else:
+        drawing.draw_all([drawing.job("slow", slow_figure, k) for k in range(3)], workers=4)
 except KeyboardInterrupt:
     try:
         os.waitpid(-1, os.WNOHANG)
@@ -229,12 +237,14 @@ print("finished", flush=True)
 """
 
 
+@pytest.mark.parametrize("server", ["server", "workers"])
 @pytest.mark.parametrize("whole_group", [True, False])
-def test_ctrl_c_stops_every_worker(tmp_path: Path, whole_group: bool) -> None:
-    """Ctrl-C (to the whole process group, as a terminal sends it, or to the parent only):
-    the command ends with KeyboardInterrupt, no worker outlives it, no figure lands."""
+def test_ctrl_c_stops_every_worker(tmp_path: Path, whole_group: bool, server: str) -> None:
+    """Ctrl-C (to the whole process group, as a terminal sends it, or to the parent only),
+    with the figures drawn by this process's workers or by a figure server's: the command
+    ends with KeyboardInterrupt, no worker outlives it, no figure lands."""
     child = subprocess.Popen(
-        [sys.executable, "-c", textwrap.dedent(SLOW), str(tmp_path)],
+        [sys.executable, "-c", textwrap.dedent(SLOW), str(tmp_path), server],
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
@@ -261,7 +271,8 @@ def test_ctrl_c_stops_every_worker(tmp_path: Path, whole_group: bool) -> None:
     # orphans (each would sleep a minute).
     assert "interrupted, no worker left" in out, (out, err)
     for pid in workers:
-        assert not Path(f"/proc/{pid}").exists(), pid
+        stat = Path(f"/proc/{pid}/stat")
+        assert not stat.exists(), (pid, stat.read_text() if stat.exists() else "", out, err)
     assert not list(tmp_path.glob("*.png"))
     assert leftovers(tmp_path) == sorted(f"worker-{k}.pid" for k in range(3))
 
@@ -313,4 +324,106 @@ def test_identify_keeps_its_results_when_a_figure_fails(
     assert (out / "model.json").is_file()
     assert "torque.png" in (out / "report.md").read_text()
     assert sorted(p.name for p in out.glob("*.png")) == ["friction.png", "residual.png"]
+    assert children() <= before
+
+
+def drawn_by_pid(path: Path, seed: int) -> None:
+    """:func:`panel_figure`, and the pid of the process that drew it beside it."""
+    panel_figure(path, seed)
+    path.with_suffix(".pid").write_text(str(os.getpid()))
+
+
+@pytest.mark.parametrize("count", [1, 3])
+def test_the_figure_server_draws_what_this_process_draws(
+    tmp_path: Path, monkeypatch, count: int, request
+) -> None:
+    """Calls handed to a figure server (forked before they existed, its matplotlib
+    imported there) are drawn by it, to the same images as here; it is reaped."""
+    if alone(request):
+        return
+    monkeypatch.setattr(drawing, "_default_workers", lambda: 4)
+    before = children()
+    here, there = tmp_path / "here", tmp_path / "there"
+    here.mkdir()
+    there.mkdir()
+    names = [f"f{k}.png" for k in range(count)]
+    drawing.draw_all([drawing.job("f", drawn_by_pid, here / n, k) for k, n in enumerate(names)], 1)
+    with drawing.figure_server() as forked:
+        assert forked
+        # Made after the fork: the server cannot have them but from draw_all.
+        jobs = [drawing.job("f", drawn_by_pid, there / n, k) for k, n in enumerate(names)]
+        assert drawing.draw_all(jobs) == []
+    for n in names:
+        assert (here / n).read_bytes() == (there / n).read_bytes()
+        assert int((there / n).with_suffix(".pid").read_text()) != os.getpid()
+    assert children() <= before
+
+
+def test_a_figure_server_not_used_is_reaped(tmp_path: Path, monkeypatch, request) -> None:
+    """An error before the figures (or calls that do not pickle, drawn here instead):
+    the server ends with the block, also while it still imports matplotlib."""
+    if alone(request):
+        return
+    monkeypatch.setattr(drawing, "_default_workers", lambda: 4)
+    before = children()
+
+    def fail_in_the_block() -> None:
+        with drawing.figure_server() as forked:
+            assert forked
+            assert children() > before
+            raise RuntimeError("the fit failed")
+
+    with pytest.raises(RuntimeError, match="the fit failed"):
+        fail_in_the_block()
+    assert children() <= before
+    with drawing.figure_server() as forked:
+        assert forked
+        # A closure does not pickle: drawn in this process and its workers.
+        assert drawing.draw_all([job(tmp_path / "a.png"), job(tmp_path / "b.png", 1)]) == []
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.png", "b.png"]
+    assert children() <= before
+
+
+def test_a_failed_figure_on_the_server_loses_only_itself(
+    tmp_path: Path, monkeypatch, capfd, request
+) -> None:
+    if alone(request):
+        return
+    monkeypatch.setattr(drawing, "_default_workers", lambda: 4)
+    before = children()
+    with drawing.figure_server():
+        jobs = [
+            drawing.job("a", drawn_by_pid, tmp_path / "a.png", 0),
+            drawing.job("broken", drawn_by_pid, tmp_path / "no-such-folder" / "b.png", 1),
+            drawing.job("c", drawn_by_pid, tmp_path / "c.png", 2),
+        ]
+        failures = drawing.draw_all(jobs)
+    assert [i for i, _ in failures] == [1]
+    assert "FileNotFoundError" in failures[0][1]
+    assert "figure 'broken' was not drawn: FileNotFoundError" in capfd.readouterr().err
+    assert sorted(p.name for p in tmp_path.glob("*.png")) == ["a.png", "c.png"]
+    assert children() <= before
+
+
+def test_a_server_without_matplotlib_fails_every_figure_and_nothing_else(
+    tmp_path: Path, monkeypatch, request
+) -> None:
+    """matplotlib cannot be imported in the server: each figure is reported failed with
+    why, the caller goes on, the server is reaped."""
+    if alone(request):
+        return
+    monkeypatch.setattr(drawing, "_default_workers", lambda: 4)
+
+    def no_matplotlib() -> None:
+        raise ImportError("No module named 'matplotlib'")
+
+    monkeypatch.setattr(drawing, "_preload_and_warm", no_matplotlib)
+    before = children()
+    with drawing.figure_server() as forked:
+        assert forked
+        jobs = [drawing.job("f", drawn_by_pid, tmp_path / f"f{k}.png", k) for k in range(2)]
+        failures = drawing.draw_all(jobs)
+    assert [i for i, _ in failures] == [0, 1]
+    assert all("No module named 'matplotlib'" in m for _, m in failures)
+    assert not list(tmp_path.iterdir())
     assert children() <= before

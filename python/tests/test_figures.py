@@ -208,6 +208,24 @@ def test_report_defers_figures_to_the_caller(run, tmp_path):
     ]
 
 
+def test_deferred_figures_pickle_and_draw_from_the_copy(run, tmp_path):
+    """The calls write_report defers carry their data, not closures: a figure server
+    forked before the model existed draws them from a pickled copy (drawing.draw_all)."""
+    import pickle
+
+    drawings = []
+    model_report.write_report(run.model, tmp_path, run.raw, drawings=drawings)
+    copies = pickle.loads(pickle.dumps(drawings))
+    assert [d.__name__ for d in copies] == ["torque", "residual", "friction_curves"]
+    for draw in copies:
+        draw()
+    assert sorted(p.name for p in tmp_path.glob("*.png")) == [
+        "friction.png",
+        "residual.png",
+        "torque.png",
+    ]
+
+
 # -------------------------------------------------------------------------- rounding
 
 

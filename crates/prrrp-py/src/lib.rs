@@ -45,6 +45,7 @@ fn _prrrp(m: &Bound<'_, PyModule>) -> PyResult<()> {
     motion::chain_excitation::register(m)?;
     motion::simulation::register(m)?;
     data::preprocessing::register(m)?;
+    data::csv::register(m)?;
     estimators::register(m)?;
     validation::metrics::register(m)?;
     paper::study::register(m)?;

@@ -205,6 +205,19 @@ def run(args: argparse.Namespace) -> int:
         raise CliError("--out DIR is required (the model, report and figures)")
     out = Path(args.out)
     outdir.check(out)
+    if args.payload_run or args.payload_mass is not None:
+        return _run_drive_gains(args, *_setup(args), out)
+    # matplotlib's import (longer than drawing the figures) runs in a forked process while
+    # this one reads and identifies; the figures are handed to it. Without it (one CPU,
+    # threads, not Linux) on a thread here, while the identification releases the GIL.
+    with drawing.figure_server() as forked:
+        if not forked:
+            drawing.preload()
+        return _identify(args, out)
+
+
+def _setup(args: argparse.Namespace) -> tuple[Any, str | float, dict[str, Any]]:
+    """The robot, the Coulomb speed scale and the preprocessing settings of the command."""
     args.robot = args.robot or DEFAULT_ROBOT
     robot = workflow.load_robot(
         args.robot,
@@ -215,8 +228,12 @@ def run(args: argparse.Namespace) -> int:
     )
     scale = _coulomb_scale(args.coulomb_scale)
     pre = {"cutoff_hz": args.cutoff, "rate_hz": args.rate, "decimate_to_hz": args.decimate}
-    if args.payload_run or args.payload_mass is not None:
-        return _run_drive_gains(args, robot, scale, pre, out)
+    return robot, scale, pre
+
+
+def _identify(args: argparse.Namespace, out: Path) -> int:
+    """The command without --payload-run: one method or all, model(s), report, figures."""
+    robot, scale, pre = _setup(args)
     gains = None if args.drive_gains is None else drives.parse_gains(args.drive_gains, robot.dof)
     conversion = {"drive_gains": gains, "motor_side": args.motor_side}
     record = drives.record(gains, args.motor_side)
@@ -227,10 +244,6 @@ def run(args: argparse.Namespace) -> int:
         else None
     )
     methods = list(workflow.METHODS) if args.method == "all" else [args.method]
-    # matplotlib's import (longer than drawing the figures) runs while the identification,
-    # which releases the GIL, computes; the figures wait for it, a failed or interrupted
-    # run does not (Ctrl-C answers at once).
-    drawing.preload()
     ekf = _ekf_settings(args)
     progress = Progress()
     try:
@@ -298,7 +311,9 @@ def run(args: argparse.Namespace) -> int:
         if len(methods) > 1:
             joints = list(robot.joint_names)
             drawings.append(
-                lambda: model_report.comparison_figure(table, joints, tmp / "methods.png")
+                drawing.job(
+                    "methods", model_report.comparison_figure, table, joints, tmp / "methods.png"
+                )
             )
             figures.append(("methods.png", "Torque error per joint and method"))
             comparison = model_report.comparison_section(

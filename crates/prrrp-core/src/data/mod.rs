@@ -3,6 +3,7 @@
 //! [`Dataset`] and [`preprocess`] run on the same
 //! filtering core.
 
+pub mod csv;
 pub(crate) mod dataset;
 mod dyn_dataset;
 mod log;
