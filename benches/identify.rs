@@ -6,16 +6,27 @@
 //! - `preprocess_log`: the raw log to filtered q, q̇, q̈, τ (default settings);
 //! - `base_observation_matrix`: stacking the base regressor W_b of the preprocessed data;
 //! - `identify_wls`: the default method, joint-weighted least squares with its σ;
-//! - `coulomb_scale`: the cross-validated search of the Coulomb speed scale (defaults).
+//! - `coulomb_scale`: the cross-validated search of the Coulomb speed scale (defaults);
+//! - `identify_adaline`, `identify_hopfield`: the gradient methods with their defaults
+//!   (every epoch and step halving of the stopping rule);
+//! - group `gradient_epoch_ur5_20000`: one epoch of Adaline (delta rule) and of the
+//!   Hopfield network on the whitened base model, as `identify` runs them: `per_sample`
+//!   builds each sample's regressor in the epoch (the online form), `stored` reads it
+//!   from regressors built once.
 
 #[path = "../tests/dyn_support/mod.rs"]
 mod dyn_support;
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use dyn_support::DynFourier;
+use nalgebra::DVector;
 use prrrp_core::{
     identify, preprocess_log, select_coulomb_scale, BaseOptions, CoulombScaleConfig, DynChain,
     FrictionModel, LogConfig, Method,
+};
+use prrrp_core::{
+    AdalineConfig, AdalineRule, DynAdaline, DynHopfield, DynSamples, DynScaledModel,
+    HopfieldConfig, StoredRegressors,
 };
 use rand::rngs::StdRng;
 use rand::SeedableRng;
@@ -137,6 +148,86 @@ fn identify_core(c: &mut Criterion) {
             )
             .expect("search")
         })
+    });
+    for name in ["adaline", "hopfield"] {
+        let method = Method::parse(name).expect("method");
+        g.bench_function(format!("identify_{name}"), |b| {
+            b.iter(|| {
+                identify(
+                    &model,
+                    &base,
+                    black_box(&data),
+                    &method,
+                    serde_json::Value::Null,
+                )
+                .expect(name)
+            })
+        });
+    }
+    g.finish();
+
+    // One epoch of each gradient method on the whitened base model, with the settings
+    // `identify` starts from (step μ = 0.5 of the stability bound).
+    let rows = |flat: &[f64]| -> Vec<DVector<f64>> {
+        flat.chunks_exact(n)
+            .map(DVector::from_column_slice)
+            .collect()
+    };
+    let (q, qd, qdd, tau) = (
+        rows(data.q()),
+        rows(data.qd()),
+        rows(data.qdd()),
+        rows(data.tau()),
+    );
+    let samples = DynSamples::new(&q, &qd, &qdd, &tau).expect("samples");
+    let bm = model.base_model(&base).expect("base model");
+    let sm = DynScaledModel::whitened(bm, &samples).expect("whitened");
+    let p = base.count();
+    let (mut row_peak, mut frob_peak) = (0.0f64, 0.0f64);
+    {
+        use prrrp_core::LinearModel;
+        let mut ws = sm.workspace();
+        let mut phi = nalgebra::DMatrix::zeros(n, p);
+        for s in samples.iter() {
+            sm.regressor_into(&mut ws, s.q, s.qd, s.qdd, &mut phi)
+                .expect("regressor");
+            for r in phi.row_iter() {
+                row_peak = row_peak.max(r.norm_squared());
+            }
+            frob_peak = frob_peak.max(phi.norm_squared());
+        }
+    }
+    let adaline_cfg = AdalineConfig {
+        rule: AdalineRule::Delta,
+        learning_rate: 0.5 / row_peak,
+        ..AdalineConfig::default()
+    };
+    let hopfield_cfg = HopfieldConfig {
+        bound: 1e3,
+        beta: 1e3 * frob_peak / 0.5,
+        dt: 1.0,
+        stability_limit: 1.0,
+        max_substeps: 64,
+    };
+    let zeros = DVector::zeros(p);
+    let mut g = c.benchmark_group("gradient_epoch_ur5_20000");
+    g.sample_size(10);
+    g.bench_function("adaline_per_sample", |b| {
+        let mut est = DynAdaline::new(sm.clone(), zeros.clone(), adaline_cfg).expect("adaline");
+        b.iter(|| est.train(black_box(&samples), 1).expect("epoch"))
+    });
+    let stored = StoredRegressors::new(&sm, &samples, usize::MAX).expect("stored");
+    g.bench_function("adaline_stored", |b| {
+        let mut est = DynAdaline::new(sm.clone(), zeros.clone(), adaline_cfg).expect("adaline");
+        b.iter(|| est.train_stored(black_box(&stored), 1).expect("epoch"))
+    });
+    g.bench_function("hopfield_stored", |b| {
+        let mut est = DynHopfield::new(sm.clone(), zeros.clone(), hopfield_cfg).expect("hopfield");
+        b.iter(|| est.train_stored(black_box(&stored), 1).expect("epoch"))
+    });
+    g.bench_function("hopfield_per_sample", |b| {
+        let mut est = DynHopfield::new(sm.clone(), zeros.clone(), hopfield_cfg).expect("hopfield");
+        b.iter(|| est.train(black_box(&samples), 1).expect("epoch"))
     });
     g.finish();
 }

@@ -11,11 +11,12 @@
 //! every parameter outside its network.
 
 use nalgebra::allocator::Allocator;
-use nalgebra::{Const, DefaultAllocator, Dim, Dyn, OMatrix, OVector};
+use nalgebra::{Const, DefaultAllocator, Dim, Dyn, MatrixView, OMatrix, OVector};
 
-use super::estimator::{train_epochs, Estimator, TrainingReport};
+use super::estimator::{check_stored, train_epochs, Estimator, TrainingReport};
 use super::rls::check_lambda0;
 use super::samples::{SampleOf, SamplesOf};
+use super::stored::StoredRegressors;
 use crate::error::{PrrrpError, Result};
 use crate::models::LinearModel;
 
@@ -83,10 +84,7 @@ where
     lambda0: OVector<f64, P>,
     lambda: OVector<f64, P>,
     phi: OMatrix<f64, N, P>,
-    tau_scale: f64,
-    sse: f64,
-    equations: usize,
-    samples: usize,
+    progress: Progress,
 }
 
 impl<M, N: Dim, P: Dim> AdalineOf<M, N, P>
@@ -130,10 +128,7 @@ where
             lambda: lambda0.clone(),
             lambda0,
             phi: OMatrix::zeros_generic(n, p),
-            tau_scale: 0.0,
-            sse: 0.0,
-            equations: 0,
-            samples: 0,
+            progress: Progress::default(),
         })
     }
 
@@ -146,12 +141,38 @@ where
     /// in several calls instead); [`PrrrpError::Interrupted`] once [`crate::request_stop`]
     /// is called (polled every epoch and every 1024 samples).
     pub fn train(&mut self, data: &SamplesOf<'_, N>, epochs: usize) -> Result<TrainingReport> {
-        train_epochs(self, data, epochs, |e| (&mut e.sse, &mut e.equations))
+        train_epochs(self, data.len(), epochs, totals, |e, k| {
+            e.step(data.sample(k)).map(|_| ())
+        })
+    }
+
+    /// [`Self::train`] on regressors built once ([`StoredRegressors::new`] with this
+    /// estimator's model on the same data): the same weights, errors and report, to the
+    /// bit, without building each sample's regressor in every epoch.
+    ///
+    /// # Errors
+    /// As [`Self::train`]; [`PrrrpError::ShapeMismatch`] if the regressors are not N×P.
+    pub fn train_stored(
+        &mut self,
+        data: &StoredRegressors<N, P>,
+        epochs: usize,
+    ) -> Result<TrainingReport> {
+        check_stored(data, self.phi.shape())?;
+        train_epochs(self, data.len(), epochs, totals, |e, k| {
+            let tau = data.tau(k);
+            learn(
+                &e.config,
+                &mut e.lambda,
+                &mut e.progress,
+                data.regressor(k),
+                tau.as_slice(),
+            )
+        })
     }
 
     /// Number of samples consumed since construction or the last reset.
     pub fn samples(&self) -> usize {
-        self.samples
+        self.progress.samples
     }
 }
 
@@ -170,62 +191,18 @@ where
     /// delta-rule weight becomes non-finite (lower the learning rate, or use the
     /// normalised rule).
     fn step(&mut self, sample: SampleOf<'_, N>) -> Result<&OVector<f64, P>> {
-        let (n, np) = self.phi.shape();
-        sample.check(n)?;
+        let (n, p) = self.phi.shape_generic();
+        sample.check(n.value())?;
         self.model
             .regressor_into(&mut self.ws, sample.q, sample.qd, sample.qdd, &mut self.phi)?;
-        let c = self.config;
-        let phi = &self.phi;
-        for i in 0..n {
-            let tau = sample.tau[i];
-            self.tau_scale = self.tau_scale.max(tau.abs());
-            let (mut pred, mut norm2) = (0.0, 0.0);
-            for j in 0..np {
-                let x = phi[(i, j)];
-                pred += x * self.lambda[j];
-                norm2 += x * x;
-            }
-            let delta = tau - pred;
-            self.sse += delta * delta;
-            let gain = match c.rule {
-                AdalineRule::Delta => c.learning_rate,
-                AdalineRule::Normalised => c.step_size / (c.epsilon + norm2),
-            };
-            if gain.is_finite() {
-                let g = gain * delta;
-                for j in 0..np {
-                    self.lambda[j] += g * phi[(i, j)];
-                }
-            }
-            if !(delta.abs() <= c.divergence_ratio * self.tau_scale
-                || delta.abs() <= f64::MIN_POSITIVE)
-            {
-                return Err(PrrrpError::Diverged {
-                    what: "Adaline",
-                    at: self.samples,
-                    hint: "the equation error grows: lower the learning rate \
-                           (the delta rule needs γ·‖Φ_i‖² < 2) or use the normalised rule",
-                });
-            }
-        }
-        self.equations += n;
-        if !self.lambda.iter().all(|x| x.is_finite()) {
-            if c.rule == AdalineRule::Normalised {
-                // The normalised rule cannot diverge (μ < 2): the sample's values overflowed.
-                return Err(PrrrpError::NonFinite {
-                    what: "Adaline weights (the sample's magnitudes overflow f64 arithmetic: \
-                           remove or rescale rows with huge values)"
-                        .into(),
-                    row: None,
-                });
-            }
-            return Err(PrrrpError::Diverged {
-                what: "Adaline",
-                at: self.samples,
-                hint: "a weight became non-finite: lower the learning rate",
-            });
-        }
-        self.samples += 1;
+        let phi = MatrixView::from_slice_generic(self.phi.as_slice(), n, p);
+        learn(
+            &self.config,
+            &mut self.lambda,
+            &mut self.progress,
+            phi,
+            sample.tau.as_slice(),
+        )?;
         Ok(&self.lambda)
     }
 
@@ -235,9 +212,92 @@ where
 
     fn reset(&mut self) {
         self.lambda.copy_from(&self.lambda0);
-        self.tau_scale = 0.0;
-        self.sse = 0.0;
-        self.equations = 0;
-        self.samples = 0;
+        self.progress = Progress::default();
     }
+}
+
+/// The running error totals of an Adaline, for [`train_epochs`].
+fn totals<M, N: Dim, P: Dim>(e: &mut AdalineOf<M, N, P>) -> (&mut f64, &mut usize)
+where
+    M: LinearModel<N, P>,
+    DefaultAllocator: Allocator<N> + Allocator<P> + Allocator<N, N> + Allocator<N, P>,
+{
+    (&mut e.progress.sse, &mut e.progress.equations)
+}
+
+/// Counters of [`AdalineOf`] that the update advances.
+#[derive(Debug, Clone, Copy, Default)]
+struct Progress {
+    /// Largest |τ_i| seen (the divergence test's scale).
+    tau_scale: f64,
+    /// Sum of squared a-priori equation errors, and their count, since the last clear.
+    sse: f64,
+    equations: usize,
+    /// Samples consumed.
+    samples: usize,
+}
+
+/// The delta-rule update of one sample given its regressor Φ (N×P) and forces τ (N):
+/// the N equations one after the other (pattern by pattern). Both [`AdalineOf::step`]
+/// and [`AdalineOf::train_stored`] run it, so that they compute the same numbers.
+#[inline(always)]
+fn learn<N: Dim, P: Dim>(
+    c: &AdalineConfig,
+    lambda: &mut OVector<f64, P>,
+    st: &mut Progress,
+    phi: MatrixView<'_, f64, N, P>,
+    tau: &[f64],
+) -> Result<()>
+where
+    DefaultAllocator: Allocator<P>,
+{
+    let (n, np) = phi.shape();
+    for (i, &tau) in tau.iter().enumerate().take(n) {
+        st.tau_scale = st.tau_scale.max(tau.abs());
+        let (mut pred, mut norm2) = (0.0, 0.0);
+        for j in 0..np {
+            let x = phi[(i, j)];
+            pred += x * lambda[j];
+            norm2 += x * x;
+        }
+        let delta = tau - pred;
+        st.sse += delta * delta;
+        let gain = match c.rule {
+            AdalineRule::Delta => c.learning_rate,
+            AdalineRule::Normalised => c.step_size / (c.epsilon + norm2),
+        };
+        if gain.is_finite() {
+            let g = gain * delta;
+            for j in 0..np {
+                lambda[j] += g * phi[(i, j)];
+            }
+        }
+        if !(delta.abs() <= c.divergence_ratio * st.tau_scale || delta.abs() <= f64::MIN_POSITIVE) {
+            return Err(PrrrpError::Diverged {
+                what: "Adaline",
+                at: st.samples,
+                hint: "the equation error grows: lower the learning rate \
+                       (the delta rule needs γ·‖Φ_i‖² < 2) or use the normalised rule",
+            });
+        }
+    }
+    st.equations += n;
+    if !lambda.iter().all(|x| x.is_finite()) {
+        if c.rule == AdalineRule::Normalised {
+            // The normalised rule cannot diverge (μ < 2): the sample's values overflowed.
+            return Err(PrrrpError::NonFinite {
+                what: "Adaline weights (the sample's magnitudes overflow f64 arithmetic: \
+                       remove or rescale rows with huge values)"
+                    .into(),
+                row: None,
+            });
+        }
+        return Err(PrrrpError::Diverged {
+            what: "Adaline",
+            at: st.samples,
+            hint: "a weight became non-finite: lower the learning rate",
+        });
+    }
+    st.samples += 1;
+    Ok(())
 }

@@ -4,6 +4,7 @@ use nalgebra::allocator::Allocator;
 use nalgebra::{DefaultAllocator, Dim, OVector};
 
 use super::samples::{SampleOf, SamplesOf};
+use super::stored::StoredRegressors;
 use crate::error::{PrrrpError, Result};
 
 /// An online estimator of the P parameters of an N-joint model.
@@ -92,9 +93,10 @@ pub struct TrainingReport {
     pub rms_error: Vec<f64>,
 }
 
-/// The epoch loop shared by [`super::Adaline::train`] and [`super::Hopfield::train`]:
-/// `totals` gives the estimator's running sum of squared a-priori equation errors and its
-/// equation count, which are cleared before each epoch and read after it.
+/// The epoch loop shared by [`super::Adaline::train`] and [`super::Hopfield::train`]
+/// (and their `train_stored`): `step(est, k)` consumes sample k of `len`, and `totals`
+/// gives the estimator's running sum of squared a-priori equation errors and its equation
+/// count, which are cleared before each epoch and read after it.
 ///
 /// `epochs` above `MAX_EPOCHS` (1e7) is [`PrrrpError::InvalidParameter`] (before anything is
 /// allocated); the stop flag is polled every epoch and every [`CHECK_EVERY`] samples
@@ -102,9 +104,10 @@ pub struct TrainingReport {
 /// [`PrrrpError::NonFinite`].
 pub(crate) fn train_epochs<E, N: Dim, P: Dim>(
     est: &mut E,
-    data: &SamplesOf<'_, N>,
+    len: usize,
     epochs: usize,
     totals: fn(&mut E) -> (&mut f64, &mut usize),
+    mut step: impl FnMut(&mut E, usize) -> Result<()>,
 ) -> Result<TrainingReport>
 where
     E: Estimator<N, P>,
@@ -124,15 +127,35 @@ where
         crate::interrupt::check("training")?;
         let (sse, equations) = totals(est);
         (*sse, *equations) = (0.0, 0);
-        for (k, s) in data.iter().enumerate() {
+        for k in 0..len {
             if k % CHECK_EVERY == CHECK_EVERY - 1 {
                 crate::interrupt::check("training")?;
             }
-            est.step(s).map_err(|e| with_row(e, k))?;
+            step(est, k).map_err(|e| with_row(e, k))?;
         }
         check_estimate(est.estimate())?;
         let (sse, equations) = totals(est);
         rms_error.push((*sse / (*equations).max(1) as f64).sqrt());
     }
     Ok(TrainingReport { rms_error })
+}
+
+/// [`PrrrpError::ShapeMismatch`] unless the stored regressors are `shape` (N×P, the
+/// estimator's).
+pub(crate) fn check_stored<N: Dim, P: Dim>(
+    data: &StoredRegressors<N, P>,
+    shape: (usize, usize),
+) -> Result<()>
+where
+    DefaultAllocator: Allocator<N> + Allocator<P> + Allocator<N, N> + Allocator<N, P>,
+{
+    let got = data.shape();
+    if got == shape {
+        return Ok(());
+    }
+    Err(PrrrpError::ShapeMismatch {
+        what: "stored regressors".into(),
+        expected: format!("{}×{} (the estimator's model)", shape.0, shape.1),
+        got: format!("{}×{}", got.0, got.1),
+    })
 }

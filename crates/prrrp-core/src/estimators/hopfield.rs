@@ -14,11 +14,12 @@
 //! sub-steps as that bound requires.
 
 use nalgebra::allocator::Allocator;
-use nalgebra::{Const, DefaultAllocator, Dim, Dyn, OMatrix, OVector, U1};
+use nalgebra::{Const, DefaultAllocator, Dim, Dyn, MatrixView, OMatrix, OVector, U1};
 
-use super::estimator::{train_epochs, Estimator, TrainingReport};
+use super::estimator::{check_stored, train_epochs, Estimator, TrainingReport};
 use super::rls::check_lambda0;
 use super::samples::{SampleOf, SamplesOf};
+use super::stored::StoredRegressors;
 use crate::error::{PrrrpError, Result};
 use crate::models::LinearModel;
 
@@ -161,7 +162,51 @@ where
     /// # Errors
     /// As [`Estimator::step`], with the sample index in [`PrrrpError::NonFinite`].
     pub fn train(&mut self, data: &SamplesOf<'_, N>, epochs: usize) -> Result<TrainingReport> {
-        train_epochs(self, data, epochs, |e| (&mut e.sse, &mut e.equations))
+        train_epochs(self, data.len(), epochs, totals, |e, k| {
+            e.step(data.sample(k)).map(|_| ())
+        })
+    }
+
+    /// [`Self::train`] on regressors built once ([`StoredRegressors::new`] with this
+    /// network's model on the same data): the same trajectory, errors and report, to the
+    /// bit, without building each sample's regressor in every epoch.
+    ///
+    /// # Errors
+    /// As [`Self::train`]; [`PrrrpError::ShapeMismatch`] if the regressors are not N×P.
+    pub fn train_stored(
+        &mut self,
+        data: &StoredRegressors<N, P>,
+        epochs: usize,
+    ) -> Result<TrainingReport> {
+        check_stored(data, self.phi.shape())?;
+        let shape = self.phi.shape_generic();
+        train_epochs(self, data.len(), epochs, totals, |e, k| {
+            let net = Net {
+                cfg: &e.config,
+                gain_dt: e.gain_dt,
+                inner: e.inner,
+            };
+            let tau = data.tau(k);
+            let n = net.integrate(
+                &mut e.lambda,
+                &mut e.r,
+                &mut e.g,
+                &mut e.sse,
+                data.regressor_slice(k),
+                shape,
+                tau.as_slice(),
+            )?;
+            e.count(n);
+            Ok(())
+        })
+    }
+
+    /// Advances the counters after a sample integrated in `n` sub-steps.
+    #[inline(always)]
+    fn count(&mut self, n: u32) {
+        self.equations += self.phi.nrows();
+        self.substeps += u64::from(n);
+        self.samples += 1;
     }
 
     /// Number of samples consumed since construction or the last reset.
@@ -188,12 +233,11 @@ where
     /// (field `beta`) if the sample needs more than `max_substeps` sub-steps for a stable
     /// integration.
     fn step(&mut self, sample: SampleOf<'_, N>) -> Result<&OVector<f64, P>> {
-        let n_joints = self.phi.nrows();
-        sample.check(n_joints)?;
+        sample.check(self.phi.nrows())?;
         let Self {
             model,
             ws,
-            config: cfg,
+            config,
             lambda,
             phi: buf,
             r,
@@ -203,58 +247,24 @@ where
             sse,
             ..
         } = self;
+        let shape = buf.shape_generic();
         let n = model.with_regressor(ws, sample.q, sample.qd, sample.qdd, buf, |phi| {
-            let bound = *gain_dt * phi.norm_squared();
-            let n = if bound <= cfg.stability_limit {
-                1
-            } else {
-                let n = (bound / cfg.stability_limit).ceil();
-                if n.is_nan() || n > f64::from(cfg.max_substeps) {
-                    return Err(PrrrpError::InvalidParameter {
-                        field: "beta".into(),
-                        value: cfg.beta,
-                        reason: "this sample needs more than max_substeps Euler sub-steps for \
-                                 a stable integration: raise beta (slower learning) or \
-                                 max_substeps",
-                    });
-                }
-                n as u32
+            let net = Net {
+                cfg: config,
+                gain_dt: *gain_dt,
+                inner: *inner,
             };
-            let k = cfg.dt / f64::from(n) / (cfg.bound * cfg.beta);
-            let c2 = cfg.bound * cfg.bound;
-            let inner = *inner;
-            let (ps, tau) = (phi.as_slice(), sample.tau.as_slice());
-            // At compile-time sizes r and g are stack temporaries, which the optimiser
-            // keeps in registers (the buffers of `self` may alias λ for all it knows); at
-            // run-time sizes the preallocated buffers.
-            let (mut r_local, mut g_local);
-            let (r, g) = if N::try_to_usize().is_some() && P::try_to_usize().is_some() {
-                r_local = OVector::<f64, N>::zeros_generic(phi.shape_generic().0, U1);
-                g_local = OVector::<f64, P>::zeros_generic(phi.shape_generic().1, U1);
-                (r_local.as_mut_slice(), g_local.as_mut_slice())
-            } else {
-                (r.as_mut_slice(), g.as_mut_slice())
-            };
-            let lambda = lambda.as_mut_slice();
-            for s in 0..n {
-                let e2 = residual(ps, tau, lambda, r);
-                if s == 0 {
-                    *sse += e2;
-                }
-                // g = Φᵀ·r, column by column (contiguous).
-                for (gj, col) in g.iter_mut().zip(ps.chunks_exact(n_joints)) {
-                    *gj = col.iter().zip(r.iter()).map(|(a, b)| a * b).sum();
-                }
-                for (l, &gi) in lambda.iter_mut().zip(g.iter()) {
-                    let next = *l + k * (c2 - *l * *l) * gi;
-                    *l = next.clamp(-inner, inner);
-                }
-            }
-            Ok(n)
+            net.integrate(
+                lambda,
+                r,
+                g,
+                sse,
+                phi.as_slice(),
+                shape,
+                sample.tau.as_slice(),
+            )
         })??;
-        self.equations += n_joints;
-        self.substeps += u64::from(n);
-        self.samples += 1;
+        self.count(n);
         Ok(&self.lambda)
     }
 
@@ -268,6 +278,94 @@ where
         self.equations = 0;
         self.samples = 0;
         self.substeps = 0;
+    }
+}
+
+/// The running error totals of a network, for [`train_epochs`].
+fn totals<M, N: Dim, P: Dim>(e: &mut HopfieldOf<M, N, P>) -> (&mut f64, &mut usize)
+where
+    M: LinearModel<N, P>,
+    DefaultAllocator: Allocator<N> + Allocator<P> + Allocator<N, N> + Allocator<N, P>,
+{
+    (&mut e.sse, &mut e.equations)
+}
+
+/// The constants of one integration of eq. 19.
+struct Net<'a> {
+    cfg: &'a HopfieldConfig,
+    gain_dt: f64,
+    inner: f64,
+}
+
+impl Net<'_> {
+    /// Integrates eq. 19 over one sample period with Φ (N×P, column-major in `ps`) and τ
+    /// held, adding the first sub-step's ‖τ − Φ·λ̂‖² to `sse`; returns the sub-steps taken.
+    /// Both [`HopfieldOf::step`] and [`HopfieldOf::train_stored`] run it, so that they
+    /// compute the same numbers.
+    #[inline(always)]
+    #[allow(clippy::too_many_arguments)]
+    fn integrate<N: Dim, P: Dim>(
+        &self,
+        lambda: &mut OVector<f64, P>,
+        r: &mut OVector<f64, N>,
+        g: &mut OVector<f64, P>,
+        sse: &mut f64,
+        ps: &[f64],
+        (n_dim, p_dim): (N, P),
+        tau: &[f64],
+    ) -> Result<u32>
+    where
+        DefaultAllocator: Allocator<N> + Allocator<P>,
+    {
+        let cfg = self.cfg;
+        let n_joints = n_dim.value();
+        let phi = MatrixView::<f64, N, P>::from_slice_generic(ps, n_dim, p_dim);
+        let bound = self.gain_dt * phi.norm_squared();
+        let n = if bound <= cfg.stability_limit {
+            1
+        } else {
+            let n = (bound / cfg.stability_limit).ceil();
+            if n.is_nan() || n > f64::from(cfg.max_substeps) {
+                return Err(PrrrpError::InvalidParameter {
+                    field: "beta".into(),
+                    value: cfg.beta,
+                    reason: "this sample needs more than max_substeps Euler sub-steps for \
+                             a stable integration: raise beta (slower learning) or \
+                             max_substeps",
+                });
+            }
+            n as u32
+        };
+        let k = cfg.dt / f64::from(n) / (cfg.bound * cfg.beta);
+        let c2 = cfg.bound * cfg.bound;
+        let inner = self.inner;
+        // At compile-time sizes r and g are stack temporaries, which the optimiser keeps
+        // in registers (the buffers of `self` may alias λ for all it knows); at run-time
+        // sizes the preallocated buffers.
+        let (mut r_local, mut g_local);
+        let (r, g) = if N::try_to_usize().is_some() && P::try_to_usize().is_some() {
+            r_local = OVector::<f64, N>::zeros_generic(n_dim, U1);
+            g_local = OVector::<f64, P>::zeros_generic(p_dim, U1);
+            (r_local.as_mut_slice(), g_local.as_mut_slice())
+        } else {
+            (r.as_mut_slice(), g.as_mut_slice())
+        };
+        let lambda = lambda.as_mut_slice();
+        for s in 0..n {
+            let e2 = residual(ps, tau, lambda, r);
+            if s == 0 {
+                *sse += e2;
+            }
+            // g = Φᵀ·r, column by column (contiguous).
+            for (gj, col) in g.iter_mut().zip(ps.chunks_exact(n_joints)) {
+                *gj = col.iter().zip(r.iter()).map(|(a, b)| a * b).sum();
+            }
+            for (l, &gi) in lambda.iter_mut().zip(g.iter()) {
+                let next = *l + k * (c2 - *l * *l) * gi;
+                *l = next.clamp(-inner, inner);
+            }
+        }
+        Ok(n)
     }
 }
 

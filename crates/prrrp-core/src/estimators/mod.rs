@@ -20,6 +20,7 @@ mod least_squares;
 mod physical;
 mod rls;
 mod samples;
+mod stored;
 
 pub use adaline::{Adaline, AdalineConfig, AdalineOf, AdalineRule, DynAdaline};
 pub use coulomb_scale::{
@@ -46,3 +47,4 @@ pub use physical::{
 pub use rls::{DynRls, Forgetting, Rls, RlsConfig, RlsOf};
 pub(crate) use samples::len_mismatch;
 pub use samples::{DynSample, DynSamples, Sample, SampleOf, Samples, SamplesOf};
+pub use stored::{StoredRegressors, MAX_STORED_REGRESSOR_BYTES};

@@ -22,7 +22,7 @@
 //!
 //! Design, derivations and measurements: docs/design/identify-methods.md.
 
-use nalgebra::{DMatrix, DVector, Dyn};
+use nalgebra::{DMatrix, DMatrixView, DVector, Dyn};
 use serde_json::json;
 
 use super::IdentifiedModel;
@@ -30,7 +30,7 @@ use crate::error::{PrrrpError, Result};
 use crate::estimators::{
     AdalineConfig, AdalineRule, Discretisation, DynAdaline, DynEkf, DynHopfield, DynJointNoise,
     DynRls, DynSamples, EkfConfig, EkfMeasurement, Estimator, HopfieldConfig, LeastSquares,
-    LeastSquaresConfig, ParameterJacobian, RlsConfig,
+    LeastSquaresConfig, ParameterJacobian, RlsConfig, StoredRegressors, MAX_STORED_REGRESSOR_BYTES,
 };
 use crate::models::chain::{BaseOptions, BaseParameters, DynChain, DynChainBaseModel, SerialChain};
 use crate::models::prrrp::robot::Robot;
@@ -508,6 +508,7 @@ pub fn identify(
             &ls.lambda,
             ls.std_dev.as_slice(),
             ls_rms(&ls),
+            MAX_STORED_REGRESSOR_BYTES,
         )?,
         Method::Hopfield(s) => gradient(
             &model,
@@ -517,6 +518,7 @@ pub fn identify(
             &ls.lambda,
             ls.std_dev.as_slice(),
             ls_rms(&ls),
+            MAX_STORED_REGRESSOR_BYTES,
         )?,
         Method::Ekf(s) => {
             let run = |s: &EkfSettings| {
@@ -971,26 +973,51 @@ fn rls(model: &DynChainBaseModel, samples: &DynSamples<'_>, s: &RlsSettings) -> 
 }
 
 /// Largest squared norm of a regressor row and of a whole per-sample regressor of `m`
-/// along the data.
+/// along the data, from the stored regressors when there are.
 fn regressor_peaks<M: LinearModel<Dyn, Dyn>>(
     m: &M,
     samples: &DynSamples<'_>,
+    stored: Option<&StoredRegressors<Dyn, Dyn>>,
 ) -> Result<(f64, f64)> {
+    let mut peaks = (0.0f64, 0.0f64);
+    let mut add = |phi: DMatrixView<'_, f64>| {
+        for r in phi.row_iter() {
+            peaks.0 = peaks.0.max(r.norm_squared());
+        }
+        peaks.1 = peaks.1.max(phi.norm_squared());
+    };
+    if let Some(st) = stored {
+        (0..st.len()).for_each(|k| add(st.regressor(k)));
+        return Ok(peaks);
+    }
     let (n, p) = m.dims();
     let mut ws = m.workspace();
     let mut phi = DMatrix::zeros(n.0, p.0);
-    let (mut row, mut frob) = (0.0f64, 0.0f64);
     for (k, s) in samples.iter().enumerate() {
         if k % 1024 == 0 {
             crate::interrupt::check("identify")?;
         }
         m.regressor_into(&mut ws, s.q, s.qd, s.qdd, &mut phi)?;
-        for r in phi.row_iter() {
-            row = row.max(r.norm_squared());
-        }
-        frob = frob.max(phi.norm_squared());
+        add(phi.as_view());
     }
-    Ok((row, frob))
+    Ok(peaks)
+}
+
+/// The regressors of the network's model on the data, built once for every epoch, or
+/// `None` when they would take more than `max_bytes` ([`MAX_STORED_REGRESSOR_BYTES`] in
+/// [`identify`]; each epoch then builds them per sample: the same numbers, slower).
+fn store_regressors<M: LinearModel<Dyn, Dyn>>(
+    m: &M,
+    samples: &DynSamples<'_>,
+    max_bytes: usize,
+) -> Result<Option<StoredRegressors<Dyn, Dyn>>> {
+    let (n, p) = m.dims();
+    let fits = StoredRegressors::<Dyn, Dyn>::bytes(n.0, p.0, samples.len())
+        .is_some_and(|b| b <= max_bytes);
+    if !fits {
+        return Ok(None);
+    }
+    StoredRegressors::new(m, samples, max_bytes).map(Some)
 }
 
 fn invalid(field: &str, value: f64, reason: &'static str) -> PrrrpError {
@@ -1193,6 +1220,9 @@ fn anneal<E: Estimator<Dyn, Dyn>>(
     ))
 }
 
+/// Adaline (`hopfield` false) or the Hopfield network trained by [`anneal`], on
+/// regressors stored once when they take at most `max_stored_bytes`.
+#[allow(clippy::too_many_arguments)]
 fn gradient(
     model: &DynChainBaseModel,
     samples: &DynSamples<'_>,
@@ -1201,6 +1231,7 @@ fn gradient(
     beta_ls: &DVector<f64>,
     sigma_ls: &[f64],
     floor: f64,
+    max_stored_bytes: usize,
 ) -> Result<Fit> {
     let sm = scaled(model, samples, s.scale_columns, s.whiten)?;
     // Least squares' σ in the network's parameters γ (for the stopping rule): D⁻¹·σ_β
@@ -1220,8 +1251,10 @@ fn gradient(
         / (samples.len() * samples.tau()[0].len()) as f64)
         .sqrt();
     let p = model.count();
-    let (row_peak, frob_peak) = regressor_peaks(&sm, samples)?;
+    let stored = store_regressors(&sm, samples, max_stored_bytes)?;
+    let (row_peak, frob_peak) = regressor_peaks(&sm, samples, stored.as_ref())?;
     let mut settings = json!({
+        "stored_regressors": stored.is_some(),
         "scale_columns": s.scale_columns || sm.is_whitened(),
         "whiten": sm.is_whitened(),
         "max_epochs": s.max_epochs,
@@ -1285,7 +1318,12 @@ fn gradient(
             DynHopfield::new(sm.clone(), g0, cfg)
         };
         anneal(&s, p, floor, &sigma, tau_rms, make, |e| {
-            Ok(e.train(samples, 1)?.rms_error[0])
+            // `train_stored` computes what `train` does, to the bit.
+            let report = match &stored {
+                Some(st) => e.train_stored(st, 1)?,
+                None => e.train(samples, 1)?,
+            };
+            Ok(report.rms_error[0])
         })?
     } else {
         let rule = s.rule;
@@ -1306,7 +1344,12 @@ fn gradient(
             settings["learning_rate"] = json!(mu0 / row_peak);
         }
         anneal(&s, p, floor, &sigma, tau_rms, make, |e| {
-            Ok(e.train(samples, 1)?.rms_error[0])
+            // `train_stored` computes what `train` does, to the bit.
+            let report = match &stored {
+                Some(st) => e.train_stored(st, 1)?,
+                None => e.train(samples, 1)?,
+            };
+            Ok(report.rms_error[0])
         })?
     };
     settings["step_size"] = json!(mu0);
@@ -1659,6 +1702,50 @@ mod tests {
 
     fn close(a: &DMatrix<f64>, b: &DMatrix<f64>, rel: f64) -> bool {
         (a - b).amax() <= rel * b.amax()
+    }
+
+    /// Adaline and the Hopfield network through the whole stopping rule (every epoch,
+    /// halving and Anderson mixing) on stored regressors give the model that building
+    /// each sample's regressor in every epoch (the fallback above the memory bound) gives,
+    /// to the bit.
+    #[test]
+    fn gradient_methods_on_stored_regressors_equal_the_per_sample_form() {
+        let chain = puma(true);
+        let base = chain.base_parameters(&BaseOptions::default()).unwrap();
+        let model = chain.base_model(&base).unwrap();
+        let data = random_data(400, 8);
+        let rows = Rows::new(&data);
+        let samples = rows.samples().unwrap();
+        let ls = crate::least_squares(&model, &samples, &LeastSquaresConfig::default()).unwrap();
+        for hopfield in [false, true] {
+            let s = GradientSettings {
+                max_epochs: 40,
+                ..GradientSettings::adaline()
+            };
+            let fit = |cap| {
+                gradient(
+                    &model,
+                    &samples,
+                    &s,
+                    hopfield,
+                    &ls.lambda,
+                    ls.std_dev.as_slice(),
+                    ls_rms(&ls),
+                    cap,
+                )
+                .unwrap()
+            };
+            let (stored, per_sample) = (fit(usize::MAX), fit(0));
+            assert_eq!(stored.settings["stored_regressors"], json!(true));
+            assert_eq!(per_sample.settings["stored_regressors"], json!(false));
+            assert_eq!(stored.epochs, per_sample.epochs);
+            assert!(stored.epochs.unwrap() > 3);
+            let bits = |f: &Fit| f.beta.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+            assert_eq!(bits(&stored), bits(&per_sample), "hopfield: {hopfield}");
+            for key in ["final_rms_error", "final_step_size", "step_halvings"] {
+                assert_eq!(stored.settings[key], per_sample.settings[key], "{key}");
+            }
+        }
     }
 
     /// The Gram matrices, residual variances, correlation times and the weighted
