@@ -5,7 +5,12 @@
 //! `PRRRP_ROBOTS_DIR` to its `robots` folder elsewhere). Inputs are built outside the timed
 //! closures.
 
-use criterion::{criterion_group, criterion_main, Criterion};
+#[path = "../tests/dyn_support/mod.rs"]
+mod dyn_support;
+
+use criterion::measurement::WallTime;
+use criterion::{criterion_group, criterion_main, BenchmarkGroup, Criterion};
+use dyn_support::robots_dir;
 use prrrp_core::nalgebra::{SMatrix, SVector};
 use prrrp_core::{BaseOptions, DynChain, LinearDynamics, Robot, SerialChain, UrdfOptions};
 use std::hint::black_box;
@@ -14,6 +19,36 @@ use std::time::Duration;
 fn state<const N: usize>() -> [SVector<f64, N>; 3] {
     let v = |s: f64| SVector::<f64, N>::from_fn(|i, _| (s * (i + 1) as f64).sin());
     [v(0.7), v(1.3), v(2.1)]
+}
+
+/// Times `{prefix}inverse_dynamics` and the regressor (as `regressor`) of `chain` at
+/// [`state`], and with `forward` also `{prefix}mass_matrix` and `{prefix}forward_dynamics`.
+fn chain_benches<const N: usize, const P: usize>(
+    g: &mut BenchmarkGroup<'_, WallTime>,
+    prefix: &str,
+    regressor: &str,
+    chain: &SerialChain<N>,
+    forward: bool,
+) {
+    let [q, qd, qdd] = state::<N>();
+    g.bench_function(format!("{prefix}inverse_dynamics"), |b| {
+        b.iter(|| chain.inverse_dynamics(black_box(&q), black_box(&qd), black_box(&qdd)))
+    });
+    g.bench_function(regressor, |b| {
+        b.iter(|| -> SMatrix<f64, N, P> {
+            chain.regressor(black_box(&q), black_box(&qd), black_box(&qdd))
+        })
+    });
+    if !forward {
+        return;
+    }
+    let tau = chain.inverse_dynamics(&q, &qd, &qdd);
+    g.bench_function(format!("{prefix}mass_matrix"), |b| {
+        b.iter(|| chain.mass_matrix(black_box(&q)))
+    });
+    g.bench_function(format!("{prefix}forward_dynamics"), |b| {
+        b.iter(|| chain.forward_dynamics(black_box(&q), black_box(&qd), black_box(&tau)))
+    });
 }
 
 fn prrrp(c: &mut Criterion) {
@@ -28,22 +63,9 @@ fn prrrp(c: &mut Criterion) {
     let [q, qd, qdd] = state::<5>();
     let tau = chain.inverse_dynamics(&q, &qd, &qdd);
     let mut g = c.benchmark_group("prrrp");
-    g.bench_function("chain_inverse_dynamics", |b| {
-        b.iter(|| chain.inverse_dynamics(black_box(&q), black_box(&qd), black_box(&qdd)))
-    });
-    g.bench_function("chain_regressor_5x50", |b| {
-        b.iter(|| -> SMatrix<f64, 5, 50> {
-            chain.regressor(black_box(&q), black_box(&qd), black_box(&qdd))
-        })
-    });
+    chain_benches::<5, 50>(&mut g, "chain_", "chain_regressor_5x50", &chain, true);
     g.bench_function("chain_base_regressor_5x9", |b| {
         b.iter(|| bm.regressor(black_box(&q), black_box(&qd), black_box(&qdd)))
-    });
-    g.bench_function("chain_mass_matrix", |b| {
-        b.iter(|| chain.mass_matrix(black_box(&q)))
-    });
-    g.bench_function("chain_forward_dynamics", |b| {
-        b.iter(|| chain.forward_dynamics(black_box(&q), black_box(&qd), black_box(&tau)))
     });
     g.bench_function("base_model_forward_dynamics", |b| {
         b.iter(|| bm.forward_dynamics(black_box(&q), black_box(&qd), black_box(&tau), &beta))
@@ -59,23 +81,8 @@ fn prrrp(c: &mut Criterion) {
 
 fn puma(c: &mut Criterion) {
     let chain = SerialChain::puma560();
-    let [q, qd, qdd] = state::<6>();
-    let tau = chain.inverse_dynamics(&q, &qd, &qdd);
     let mut g = c.benchmark_group("puma560");
-    g.bench_function("inverse_dynamics", |b| {
-        b.iter(|| chain.inverse_dynamics(black_box(&q), black_box(&qd), black_box(&qdd)))
-    });
-    g.bench_function("regressor_6x60", |b| {
-        b.iter(|| -> SMatrix<f64, 6, 60> {
-            chain.regressor(black_box(&q), black_box(&qd), black_box(&qdd))
-        })
-    });
-    g.bench_function("mass_matrix", |b| {
-        b.iter(|| chain.mass_matrix(black_box(&q)))
-    });
-    g.bench_function("forward_dynamics", |b| {
-        b.iter(|| chain.forward_dynamics(black_box(&q), black_box(&qd), black_box(&tau)))
-    });
+    chain_benches::<6, 60>(&mut g, "", "regressor_6x60", &chain, true);
     g.finish();
     let mut g = c.benchmark_group("puma560_batch");
     g.sample_size(10);
@@ -85,18 +92,6 @@ fn puma(c: &mut Criterion) {
     g.finish();
 }
 
-/// The `robots` folder of `example-robot-data`, if installed.
-fn robots_dir() -> Option<std::path::PathBuf> {
-    let dir = std::env::var_os("PRRRP_ROBOTS_DIR")
-        .map(std::path::PathBuf::from)
-        .unwrap_or_else(|| {
-            std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join(
-                ".venv/lib/python3.11/site-packages/cmeel.prefix/share/example-robot-data/robots",
-            )
-        });
-    dir.is_dir().then_some(dir)
-}
-
 fn urdf_group<const N: usize, const P: usize>(c: &mut Criterion, name: &str, chain: &DynChain) {
     let fixed = chain.to_fixed::<N>().expect("joint count");
     let [q, qd, qdd] = state::<N>();
@@ -104,14 +99,7 @@ fn urdf_group<const N: usize, const P: usize>(c: &mut Criterion, name: &str, cha
     let mut tau = vec![0.0; N];
     let mut y = vec![0.0; N * chain.num_params()];
     let mut g = c.benchmark_group(name);
-    g.bench_function("inverse_dynamics", |b| {
-        b.iter(|| fixed.inverse_dynamics(black_box(&q), black_box(&qd), black_box(&qdd)))
-    });
-    g.bench_function("regressor", |b| {
-        b.iter(|| -> SMatrix<f64, N, P> {
-            fixed.regressor(black_box(&q), black_box(&qd), black_box(&qdd))
-        })
-    });
+    chain_benches::<N, P>(&mut g, "", "regressor", &fixed, false);
     g.bench_function("dyn_inverse_dynamics_into", |b| {
         b.iter(|| {
             chain.inverse_dynamics_into(

@@ -12,25 +12,27 @@ mod dyn_support;
 mod est_support;
 
 use criterion::{criterion_group, criterion_main, Criterion};
-use dyn_support::{exact_record, panda_like, DynFourier, DynRecord};
+use dyn_support::{exact_record, panda_like, DynFourier};
 use est_support::{closed_loop, excitation, paper, DT};
-use prrrp_core::nalgebra::{DVector, Dyn};
+use prrrp_core::nalgebra::allocator::Allocator;
+use prrrp_core::nalgebra::{DVector, DefaultAllocator, Dim};
 use prrrp_core::{
     least_squares, Adaline, AdalineConfig, AdalineRule, BaseOptions, Discretisation, DynAdaline,
     DynEkf, DynHopfield, DynScaledModel, EkfConfig, Estimator, Hopfield, HopfieldConfig, Lambda,
-    LeastSquares, LeastSquaresConfig, PrrrpEkf, Rls, RlsConfig,
+    LeastSquares, LeastSquaresConfig, PrrrpEkf, Rls, RlsConfig, SamplesOf,
 };
 use std::hint::black_box;
 
-/// Times `step` over the samples of `data` in turn (1000 samples = two periods of the
-/// excitation, so wrapping around is continuous).
-fn bench_steps<E: Estimator<prrrp_core::nalgebra::U5, prrrp_core::nalgebra::U8>>(
+/// Times `step` over the samples of `ds` in turn (1000 samples = whole periods of the
+/// excitation, so wrapping around is continuous), at compile-time or run-time sizes.
+fn bench_steps<N: Dim, P: Dim, E: Estimator<N, P>>(
     c: &mut Criterion,
     name: &str,
     est: &mut E,
-    data: &est_support::Data,
-) {
-    let ds = data.dataset();
+    ds: SamplesOf<'_, N>,
+) where
+    DefaultAllocator: Allocator<N> + Allocator<P>,
+{
     est.run(&ds).unwrap();
     let n = ds.len();
     let mut k = 0;
@@ -51,22 +53,27 @@ fn estimators(c: &mut Criterion) {
     let excite = excitation(1000, 1);
 
     let mut ekf = PrrrpEkf::new(model, lambda * 1.2, EkfConfig::default()).unwrap();
-    bench_steps(c, "ekf_step", &mut ekf, &closed_loop(1000, 1, 5, DT));
+    bench_steps(
+        c,
+        "ekf_step",
+        &mut ekf,
+        closed_loop(1000, 1, 5, DT).dataset(),
+    );
 
     let mut hn = Hopfield::new(model, Lambda::zeros(), HopfieldConfig::default()).unwrap();
-    bench_steps(c, "hopfield_step", &mut hn, &excite);
+    bench_steps(c, "hopfield_step", &mut hn, excite.dataset());
 
     let mut ad = Adaline::new(model, Lambda::zeros(), AdalineConfig::default()).unwrap();
-    bench_steps(c, "adaline_step_normalised", &mut ad, &excite);
+    bench_steps(c, "adaline_step_normalised", &mut ad, excite.dataset());
     let delta = AdalineConfig {
         rule: AdalineRule::Delta,
         ..Default::default()
     };
     let mut ad = Adaline::new(model, Lambda::zeros(), delta).unwrap();
-    bench_steps(c, "adaline_step_delta", &mut ad, &excite);
+    bench_steps(c, "adaline_step_delta", &mut ad, excite.dataset());
 
     let mut rls = Rls::new(model, Lambda::zeros(), RlsConfig::default()).unwrap();
-    bench_steps(c, "rls_step", &mut rls, &excite);
+    bench_steps(c, "rls_step", &mut rls, excite.dataset());
 
     // Building W included; the solver's buffers are reused (its intended use), and the
     // one-shot function pays for allocating W on every call.
@@ -78,28 +85,6 @@ fn estimators(c: &mut Criterion) {
     });
     c.bench_function("least_squares_5000_oneshot", |b| {
         b.iter(|| black_box(least_squares(&model, black_box(&big.dataset()), &cfg).unwrap()))
-    });
-}
-
-/// As [`bench_steps`], at run-time sizes.
-fn bench_dyn_steps<E: Estimator<Dyn, Dyn>>(
-    c: &mut Criterion,
-    name: &str,
-    est: &mut E,
-    data: &DynRecord,
-) {
-    let ds = data.samples();
-    est.run(&ds).unwrap();
-    let n = ds.len();
-    let mut k = 0;
-    c.bench_function(name, |b| {
-        b.iter(|| {
-            k += 1;
-            if k == n {
-                k = 0;
-            }
-            black_box(est.step(black_box(ds.sample(k))).unwrap()[0])
-        })
     });
 }
 
@@ -120,7 +105,7 @@ fn chain7(c: &mut Criterion) {
         ..Default::default()
     };
     let mut ekf = DynEkf::new(model.clone(), &beta * 1.02, cfg).unwrap();
-    bench_dyn_steps(c, "chain7_ekf_step", &mut ekf, &data);
+    bench_steps(c, "chain7_ekf_step", &mut ekf, data.samples());
 
     // Adaline and Hopfield on the column-equilibrated model, as they are meant to be used
     // (see ScaledModel); Hopfield sized as in chain_estimators.rs (c·dt·N·B).
@@ -133,9 +118,9 @@ fn chain7(c: &mut Criterion) {
         ..Default::default()
     };
     let mut hn = DynHopfield::new(scaled.clone(), DVector::zeros(b), hcfg).unwrap();
-    bench_dyn_steps(c, "chain7_hopfield_step", &mut hn, &data);
+    bench_steps(c, "chain7_hopfield_step", &mut hn, data.samples());
     let mut ad = DynAdaline::new(scaled, DVector::zeros(b), AdalineConfig::default()).unwrap();
-    bench_dyn_steps(c, "chain7_adaline_step", &mut ad, &data);
+    bench_steps(c, "chain7_adaline_step", &mut ad, data.samples());
 
     let big = exact_record(&chain, &DynFourier::seeded(11, 7, 1.0), 2000, 0.01);
     let mut solver = LeastSquares::new(LeastSquaresConfig::default()).unwrap();

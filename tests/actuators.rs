@@ -4,6 +4,8 @@
 //! the kinetic energy of the rotors, columns built by hand from the rigid regressor, and
 //! the base-parameter rank of that hand-built matrix.
 
+mod seeded_support;
+
 use nalgebra::{DMatrix, DVector};
 use prrrp_core::{Actuators, BaseOptions, DynChain, FrictionModel, PrrrpError, SerialChain};
 
@@ -167,13 +169,8 @@ fn hand_built(c: &DMatrix<f64>, states: &[[Vec<f64>; 3]]) -> DMatrix<f64> {
 }
 
 fn random_states(seed: u64, count: usize) -> Vec<[Vec<f64>; 3]> {
-    let mut x = seed;
-    let mut next = || {
-        x = x
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        ((x >> 11) as f64 / (1u64 << 53) as f64) * 2.0 - 1.0
-    };
+    let mut u = seeded_support::lcg(seed);
+    let mut next = || u() * 2.0 - 1.0;
     (0..count)
         .map(|_| {
             let mut s = || (0..6).map(|_| 2.0 * next()).collect::<Vec<_>>();

@@ -2,6 +2,8 @@
 //! section 4.1), a 6R arm (PUMA 560), the base-parameter model the estimators use, and
 //! end-to-end identification of the PUMA 560 by least squares.
 
+mod seeded_support;
+
 use prrrp_core::faer::linalg::solvers::SolveLstsq;
 use prrrp_core::faer::Mat;
 use prrrp_core::nalgebra::{SMatrix, SVector};
@@ -22,13 +24,8 @@ fn mat_from_rows(rows: &[Vec<f64>]) -> Mat<f64> {
 
 /// Random states from a small seeded LCG, independent of the library's sampler.
 fn states<const N: usize>(seed: u64, count: usize) -> Vec<[SVector<f64, N>; 3]> {
-    let mut s = seed;
-    let mut next = move || {
-        s = s
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        ((s >> 11) as f64 / (1u64 << 53) as f64) * 6.0 - 3.0
-    };
+    let mut u = seeded_support::lcg(seed);
+    let mut next = move || u() * 6.0 - 3.0;
     (0..count)
         .map(|_| {
             let mut v = || SVector::<f64, N>::from_fn(|_, _| next());

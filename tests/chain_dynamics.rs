@@ -234,18 +234,8 @@ fn random_chain() -> impl Strategy<Value = SerialChain<4>> {
             // inequality, which forward dynamics refuses).
             let sigma = lm * lm.transpose() + Matrix3::identity() * 0.005;
             let i = Matrix3::identity() * sigma.trace() - sigma;
-            inertial_parameters(
-                m,
-                c,
-                [
-                    i[(0, 0)],
-                    i[(0, 1)],
-                    i[(1, 1)],
-                    i[(0, 2)],
-                    i[(1, 2)],
-                    i[(2, 2)],
-                ],
-            )
+            let upper = [(0, 0), (0, 1), (1, 1), (0, 2), (1, 2), (2, 2)].map(|rc| i[rc]);
+            inertial_parameters(m, c, upper)
         });
     (
         prop::array::uniform4(row),

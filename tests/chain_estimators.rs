@@ -16,11 +16,11 @@ mod chain_support;
 
 use std::sync::OnceLock;
 
-use chain_support::{simulate, Fourier, Record, Run, SimConfig};
+use chain_support::{puma_base_model, simulate, Fourier, Record, Run, SimConfig};
 use prrrp_core::nalgebra::SVector;
 use prrrp_core::{
-    condition_number, least_squares, observation_matrix, Adaline, AdalineConfig, BaseOptions,
-    BaseParameters, ChainBaseModel, Estimator, Hopfield, HopfieldConfig, JointNoise, LeastSquares,
+    condition_number, least_squares, observation_matrix, Adaline, AdalineConfig, BaseParameters,
+    ChainBaseModel, Estimator, Hopfield, HopfieldConfig, JointNoise, LeastSquares,
     LeastSquaresConfig, LinearDynamics, Rls, RlsConfig, ScaledModel, SerialChain,
 };
 
@@ -60,12 +60,8 @@ fn reference(seed: u64) -> Fourier<6> {
 fn fixture() -> &'static Fixture {
     static F: OnceLock<Fixture> = OnceLock::new();
     F.get_or_init(|| {
-        let chain = SerialChain::puma560();
-        let base = chain
-            .base_parameters(&BaseOptions::default())
-            .expect("analysis");
+        let (chain, base, model) = puma_base_model::<B>();
         assert_eq!(base.count(), B);
-        let model = chain.base_model::<B>(&base).expect("36");
         let cfg = SimConfig::default();
         let mut best = (f64::INFINITY, 0.0, 0);
         for seed in 0..8 {
@@ -114,32 +110,16 @@ fn truth() -> Beta {
     fixture().model.chain_base_values()
 }
 
-/// Whether β_i is structurally zero (Corke's COMs and principal axes make 19 of the 36
-/// combinations vanish; two of them only up to round-off of K, ≈ 1e-19).
-fn is_zero(beta: &Beta, i: usize) -> bool {
-    beta[i].abs() <= 1e-12 * beta.amax()
-}
-
-/// Worst relative error over the nonzero β_i, and worst absolute error over the zero ones.
+/// Worst relative error over the nonzero β_i, and worst absolute error over the zero ones
+/// (Corke's COMs and principal axes make 19 of the 36 combinations vanish; two of them only
+/// up to round-off of K, ≈ 1e-19).
 fn errors(est: &Beta, beta: &Beta) -> (f64, f64) {
-    let (mut rel, mut abs) = (0.0f64, 0.0f64);
-    for i in 0..B {
-        let e = (est[i] - beta[i]).abs();
-        if is_zero(beta, i) {
-            abs = abs.max(e);
-        } else {
-            rel = rel.max(e / beta[i].abs());
-        }
-    }
-    (rel, abs)
+    chain_support::errors(est.as_slice(), beta.as_slice())
 }
 
 /// Smallest |β_i| among the nonzero ones (Izz6 = 4e-5 kg·m²).
 fn smallest_nonzero(beta: &Beta) -> f64 {
-    (0..B)
-        .filter(|&i| !is_zero(beta, i))
-        .map(|i| beta[i].abs())
-        .fold(f64::INFINITY, f64::min)
+    chain_support::smallest_nonzero(beta.as_slice())
 }
 
 /// A vector on one line.

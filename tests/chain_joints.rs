@@ -72,18 +72,8 @@ fn random_link(rng: &mut StdRng) -> [f64; 10] {
     .to_rotation_matrix()
     .into_inner();
     let i = r * d * r.transpose();
-    inertial_parameters(
-        m,
-        com,
-        [
-            i[(0, 0)],
-            i[(0, 1)],
-            i[(1, 1)],
-            i[(0, 2)],
-            i[(1, 2)],
-            i[(2, 2)],
-        ],
-    )
+    let upper = [(0, 0), (0, 1), (1, 1), (0, 2), (1, 2), (2, 2)].map(|rc| i[rc]);
+    inertial_parameters(m, com, upper)
 }
 
 fn random_chain(seed: u64) -> SerialChain<N> {

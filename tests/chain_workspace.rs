@@ -2,6 +2,8 @@
 //! the equations of motion (M·q̈ + h = τ, h at q̇ = 0 is gravity, Y·π = τ, Y_b·β = τ) and
 //! agreement with the fixed-size chain, on the PUMA 560 with friction.
 
+mod seeded_support;
+
 use prrrp_core::nalgebra::SVector;
 use prrrp_core::{BaseOptions, DynChain, FrictionModel, PrrrpError, SerialChain};
 
@@ -9,13 +11,8 @@ const N: usize = 6;
 
 /// Seeded states from a small LCG (independent of the library's sampler).
 fn states(seed: u64, count: usize) -> Vec<[[f64; N]; 3]> {
-    let mut s = seed;
-    let mut next = move || {
-        s = s
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        ((s >> 11) as f64 / (1u64 << 53) as f64) * 6.0 - 3.0
-    };
+    let mut u = seeded_support::lcg(seed);
+    let mut next = move || u() * 6.0 - 3.0;
     (0..count)
         .map(|_| std::array::from_fn(|_| std::array::from_fn(|_| next())))
         .collect()

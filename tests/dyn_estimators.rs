@@ -17,7 +17,7 @@ mod dyn_support;
 
 use std::sync::OnceLock;
 
-use chain_support::{simulate, Fourier, Run, SimConfig};
+use chain_support::{errors, puma_base_model, simulate, smallest_nonzero, Fourier, Run, SimConfig};
 use dyn_support::{exact_record, panda_like, DynFourier, DynRecord};
 use prrrp_core::nalgebra::{DMatrix, DVector, SVector};
 use prrrp_core::{
@@ -44,11 +44,7 @@ struct Fixture {
 fn fixture() -> &'static Fixture {
     static F: OnceLock<Fixture> = OnceLock::new();
     F.get_or_init(|| {
-        let chain = SerialChain::puma560();
-        let base = chain
-            .base_parameters(&BaseOptions::default())
-            .expect("analysis");
-        let model = chain.base_model::<B>(&base).expect("36");
+        let (chain, base, model) = puma_base_model::<B>();
         let dchain = chain.to_dyn();
         let dbase = dchain
             .base_parameters(&BaseOptions::default())
@@ -73,32 +69,6 @@ fn fixture() -> &'static Fixture {
 
 fn truth() -> DVector<f64> {
     fixture().dmodel.chain_base_values().clone()
-}
-
-fn is_zero(beta: &[f64], i: usize) -> bool {
-    let max = beta.iter().fold(0.0f64, |m, v| m.max(v.abs()));
-    beta[i].abs() <= 1e-12 * max
-}
-
-/// Worst relative error over the nonzero β_i, and worst absolute error over the zero ones.
-fn errors(est: &[f64], beta: &[f64]) -> (f64, f64) {
-    let (mut rel, mut abs) = (0.0f64, 0.0f64);
-    for i in 0..beta.len() {
-        let e = (est[i] - beta[i]).abs();
-        if is_zero(beta, i) {
-            abs = abs.max(e);
-        } else {
-            rel = rel.max(e / beta[i].abs());
-        }
-    }
-    (rel, abs)
-}
-
-fn smallest_nonzero(beta: &[f64]) -> f64 {
-    (0..beta.len())
-        .filter(|&i| !is_zero(beta, i))
-        .map(|i| beta[i].abs())
-        .fold(f64::INFINITY, f64::min)
 }
 
 /// max |a − b| / max |b|.

@@ -128,43 +128,33 @@ fn impossible_or_invalid_settings_are_typed_errors() {
     let r = optimise_excitation::<K>(&model, &ExcitationConfig { limits, ..config() }, |_| {});
     assert!(matches!(r, Err(PrrrpError::Infeasible { .. })), "{r:?}");
 
-    let mut limits = JointLimits::default();
-    limits.qd_max[1] = f64::NAN;
-    let r = optimise_excitation::<K>(&model, &ExcitationConfig { limits, ..config() }, |_| {});
-    assert!(
-        matches!(r, Err(PrrrpError::InvalidParameter { .. })),
-        "{r:?}"
-    );
-
     let r = optimise_excitation::<2>(&model, &config(), |_| {});
     assert!(
         matches!(r, Err(PrrrpError::InvalidParameter { .. })),
         "{r:?}"
     );
 
-    let r = optimise_excitation::<K>(
-        &model,
-        &ExcitationConfig {
+    let mut nan_limit = JointLimits::default();
+    nan_limit.qd_max[1] = f64::NAN;
+    let invalid = [
+        ExcitationConfig {
+            limits: nan_limit,
+            ..config()
+        },
+        ExcitationConfig {
             dt: -0.1,
             ..config()
         },
-        |_| {},
-    );
-    assert!(
-        matches!(r, Err(PrrrpError::InvalidParameter { .. })),
-        "{r:?}"
-    );
-
-    let r = optimise_excitation::<K>(
-        &model,
-        &ExcitationConfig {
+        ExcitationConfig {
             duration: 0.1,
             ..config()
         },
-        |_| {},
-    );
-    assert!(
-        matches!(r, Err(PrrrpError::InvalidParameter { .. })),
-        "{r:?}"
-    );
+    ];
+    for cfg in &invalid {
+        let r = optimise_excitation::<K>(&model, cfg, |_| {});
+        assert!(
+            matches!(r, Err(PrrrpError::InvalidParameter { .. })),
+            "{r:?}"
+        );
+    }
 }

@@ -6,7 +6,7 @@
 
 mod dyn_support;
 
-use dyn_support::fourier;
+use dyn_support::{fourier, robots_dir};
 use prrrp_core::{
     simulate_dyn_closed_loop, simulate_dyn_open_loop, validate_torque_prediction, DynChain,
     DynSampledTrajectory, DynSensorNoise, DynSimulationConfig, DynTrajectory, FrictionModel,
@@ -489,18 +489,6 @@ fn bad_inputs_are_typed_errors() {
         }
         other => panic!("expected a divergence error, got {other:?}"),
     }
-}
-
-/// The `robots` folder of `example-robot-data` in the test venv, if installed.
-fn robots_dir() -> Option<std::path::PathBuf> {
-    let dir = std::env::var_os("PRRRP_ROBOTS_DIR")
-        .map(std::path::PathBuf::from)
-        .unwrap_or_else(|| {
-            std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join(
-                ".venv/lib/python3.11/site-packages/cmeel.prefix/share/example-robot-data/robots",
-            )
-        });
-    dir.is_dir().then_some(dir)
 }
 
 /// The Panda of `example-robot-data` with friction tracks a Fourier excitation with its

@@ -8,10 +8,16 @@
 //!   of kinetic energy.
 #![allow(dead_code)]
 
+// Each support module is included on its own by tests and benches, so a test that takes
+// two of them holds two copies of these free functions.
+#[allow(clippy::duplicate_mod)]
+#[path = "../seeded_support/mod.rs"]
+mod seeded_support;
+
 use prrrp_core::nalgebra::SVector;
-use prrrp_core::{Samples, SerialChain};
+use prrrp_core::{BaseOptions, BaseParameters, ChainBaseModel, Samples, SerialChain};
 use rand::rngs::StdRng;
-use rand::{RngExt, SeedableRng};
+use rand::SeedableRng;
 use rand_distr::{Distribution, Normal};
 
 /// A periodic reference q_j(t) = c_j + Σ_k a_jk·sin(k·ω·t + φ_jk).
@@ -28,17 +34,9 @@ impl<const N: usize> Fourier<N> {
     /// j drawn in `scale[j]`·[0.3, 1]/k/2 (falling with k, so that accelerations stay
     /// moderate), phases uniform.
     pub fn seeded(seed: u64, period: f64, offset: [f64; N], scale: [f64; N]) -> Self {
-        let mut rng = StdRng::seed_from_u64(seed);
         let mut amp = [[0.0; 5]; N];
         let mut phase = [[0.0; 5]; N];
-        for j in 0..N {
-            for k in 0..5 {
-                let u: f64 = rng.random();
-                let p: f64 = rng.random();
-                amp[j][k] = scale[j] * (0.3 + 0.7 * u) / (k as f64 + 1.0) / 2.0;
-                phase[j][k] = 2.0 * std::f64::consts::PI * p;
-            }
-        }
+        seeded_support::draw(seed, &scale, &mut amp, &mut phase);
         Self {
             omega: 2.0 * std::f64::consts::PI / period,
             offset,
@@ -52,16 +50,9 @@ impl<const N: usize> Fourier<N> {
         let mut q = SVector::<f64, N>::from(self.offset);
         let mut qd = SVector::<f64, N>::zeros();
         let mut qdd = SVector::<f64, N>::zeros();
-        for j in 0..N {
-            for k in 0..5 {
-                let w = (k as f64 + 1.0) * self.omega;
-                let (s, c) = (w * t + self.phase[j][k]).sin_cos();
-                let a = self.amp[j][k];
-                q[j] += a * s;
-                qd[j] += a * w * c;
-                qdd[j] -= a * w * w * s;
-            }
-        }
+        let (amp, phase) = (&self.amp, &self.phase);
+        let (q_, qd_, qdd_) = (q.as_mut_slice(), qd.as_mut_slice(), qdd.as_mut_slice());
+        seeded_support::add(self.omega, amp, phase, t, q_, qd_, qdd_);
         [q, qd, qdd]
     }
 }
@@ -209,4 +200,44 @@ pub fn simulate<const N: usize>(
         max_tracking_error: max_err,
         record: rec,
     }
+}
+
+/// Whether β_i is structurally zero: |β_i| ≤ 1e-12·max|β| (a parameter that vanishes for
+/// the chain's geometry, up to round-off of the base-parameter map).
+pub fn is_zero(beta: &[f64], i: usize) -> bool {
+    let max = beta.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    beta[i].abs() <= 1e-12 * max
+}
+
+/// Worst relative error over the nonzero β_i, and worst absolute error over the zero ones.
+pub fn errors(est: &[f64], beta: &[f64]) -> (f64, f64) {
+    let (mut rel, mut abs) = (0.0f64, 0.0f64);
+    for i in 0..beta.len() {
+        let e = (est[i] - beta[i]).abs();
+        if is_zero(beta, i) {
+            abs = abs.max(e);
+        } else {
+            rel = rel.max(e / beta[i].abs());
+        }
+    }
+    (rel, abs)
+}
+
+/// Smallest |β_i| among the nonzero ones.
+pub fn smallest_nonzero(beta: &[f64]) -> f64 {
+    (0..beta.len())
+        .filter(|&i| !is_zero(beta, i))
+        .map(|i| beta[i].abs())
+        .fold(f64::INFINITY, f64::min)
+}
+
+/// The PUMA 560, its base-parameter analysis (default options) and its base model with B
+/// base parameters (36 for the PUMA).
+pub fn puma_base_model<const B: usize>() -> (SerialChain<6>, BaseParameters, ChainBaseModel<6, B>) {
+    let chain = SerialChain::puma560();
+    let base = chain
+        .base_parameters(&BaseOptions::default())
+        .expect("analysis");
+    let model = chain.base_model::<B>(&base).expect("B base parameters");
+    (chain, base, model)
 }

@@ -4,13 +4,17 @@
 //! compile-time records to run-time vectors. Shared by tests and benchmarks.
 #![allow(dead_code)]
 
+// Each support module is included on its own by tests and benches, so a test that takes
+// two of them holds two copies of these free functions.
+#[allow(clippy::duplicate_mod)]
+#[path = "../seeded_support/mod.rs"]
+mod seeded_support;
+
 use prrrp_core::nalgebra::{DVector, SVector};
 use prrrp_core::{
     inertial_parameters, DhConvention, DhRow, DynChain, DynSamples, FourierTrajectory,
     FrictionModel, JointKind,
 };
-use rand::rngs::StdRng;
-use rand::{RngExt, SeedableRng};
 
 /// Velocity scale of the smoothed Coulomb sign tanh(q̇/v_s), rad/s.
 pub const COULOMB_SMOOTHING: f64 = 0.02;
@@ -117,17 +121,9 @@ pub struct DynFourier {
 
 impl DynFourier {
     pub fn seeded(seed: u64, n: usize, scale: f64) -> Self {
-        let mut rng = StdRng::seed_from_u64(seed);
         let mut amp = vec![[0.0; 5]; n];
         let mut phase = vec![[0.0; 5]; n];
-        for j in 0..n {
-            for k in 0..5 {
-                let u: f64 = rng.random();
-                let p: f64 = rng.random();
-                amp[j][k] = scale * (0.3 + 0.7 * u) / (k as f64 + 1.0) / 2.0;
-                phase[j][k] = 2.0 * std::f64::consts::PI * p;
-            }
-        }
+        seeded_support::draw(seed, &vec![scale; n], &mut amp, &mut phase);
         Self {
             omega: 2.0 * std::f64::consts::PI / 10.0,
             amp,
@@ -138,16 +134,9 @@ impl DynFourier {
     pub fn eval(&self, t: f64) -> [DVector<f64>; 3] {
         let n = self.amp.len();
         let (mut q, mut qd, mut qdd) = (DVector::zeros(n), DVector::zeros(n), DVector::zeros(n));
-        for j in 0..n {
-            for k in 0..5 {
-                let w = (k as f64 + 1.0) * self.omega;
-                let (s, c) = (w * t + self.phase[j][k]).sin_cos();
-                let a = self.amp[j][k];
-                q[j] += a * s;
-                qd[j] += a * w * c;
-                qdd[j] -= a * w * w * s;
-            }
-        }
+        let (amp, phase) = (&self.amp, &self.phase);
+        let (q_, qd_, qdd_) = (q.as_mut_slice(), qd.as_mut_slice(), qdd.as_mut_slice());
+        seeded_support::add(self.omega, amp, phase, t, q_, qd_, qdd_);
         [q, qd, qdd]
     }
 }
@@ -186,4 +175,17 @@ pub fn fourier(n: usize, scale: f64) -> FourierTrajectory {
     }
     let offsets = (0..n).map(|j| 0.1 * j as f64 - 0.2).collect();
     FourierTrajectory::new(2.0 * std::f64::consts::PI * 0.2, offsets, a, b).unwrap()
+}
+
+/// The `robots` folder of `example-robot-data` (`PRRRP_ROBOTS_DIR`, else the test venv's),
+/// if installed.
+pub fn robots_dir() -> Option<std::path::PathBuf> {
+    let dir = std::env::var_os("PRRRP_ROBOTS_DIR")
+        .map(std::path::PathBuf::from)
+        .unwrap_or_else(|| {
+            std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join(
+                ".venv/lib/python3.11/site-packages/cmeel.prefix/share/example-robot-data/robots",
+            )
+        });
+    dir.is_dir().then_some(dir)
 }

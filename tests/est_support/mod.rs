@@ -6,9 +6,15 @@
 //!   held over each sample) for the Kalman filter, which only sees q and τ.
 #![allow(dead_code)]
 
+// Each support module is included on its own by tests and benches, so a test that takes
+// two of them holds two copies of these free functions.
+#[allow(clippy::duplicate_mod)]
+#[path = "../seeded_support/mod.rs"]
+mod seeded_support;
+
 use prrrp_core::{Lambda, PrrrpModel, Robot, Vec5};
 use rand::rngs::StdRng;
-use rand::{RngExt, SeedableRng};
+use rand::SeedableRng;
 use rand_distr::{Distribution, Normal};
 
 /// Sample period, s (the paper's).
@@ -33,20 +39,11 @@ pub struct Fourier {
 impl Fourier {
     /// Seeded coefficients; joint amplitudes ≈ 0.1 m (d1), 1 rad (θ2..θ4), 0.05 m (d5).
     pub fn new(seed: u64) -> Self {
-        let mut rng = StdRng::seed_from_u64(seed);
         let scale = [0.1, 1.0, 1.0, 1.0, 0.05];
         let offset = [0.2, 0.0, 0.3, -0.4, 0.05];
         let mut amp = [[0.0; 5]; 5];
         let mut phase = [[0.0; 5]; 5];
-        for j in 0..5 {
-            for k in 0..5 {
-                let u: f64 = rng.random();
-                let p: f64 = rng.random();
-                // Falling with the harmonic so accelerations stay moderate.
-                amp[j][k] = scale[j] * (0.3 + 0.7 * u) / (k as f64 + 1.0) / 2.0;
-                phase[j][k] = 2.0 * std::f64::consts::PI * p;
-            }
-        }
+        seeded_support::draw(seed, &scale, &mut amp, &mut phase);
         Self {
             omega: 2.0 * std::f64::consts::PI / 10.0,
             offset,
@@ -60,16 +57,9 @@ impl Fourier {
         let mut q = Vec5::from(self.offset);
         let mut qd = Vec5::zeros();
         let mut qdd = Vec5::zeros();
-        for j in 0..5 {
-            for k in 0..5 {
-                let w = (k as f64 + 1.0) * self.omega;
-                let (s, c) = (w * t + self.phase[j][k]).sin_cos();
-                let a = self.amp[j][k];
-                q[j] += a * s;
-                qd[j] += a * w * c;
-                qdd[j] -= a * w * w * s;
-            }
-        }
+        let (amp, phase) = (&self.amp, &self.phase);
+        let (q_, qd_, qdd_) = (q.as_mut_slice(), qd.as_mut_slice(), qdd.as_mut_slice());
+        seeded_support::add(self.omega, amp, phase, t, q_, qd_, qdd_);
         (q, qd, qdd)
     }
 }

@@ -206,15 +206,50 @@ impl std::error::Error for PrrrpError {}
 /// Shorthand for `Result<T, PrrrpError>`.
 pub type Result<T> = std::result::Result<T, PrrrpError>;
 
+impl PrrrpError {
+    /// A [`PrrrpError::ShapeMismatch`]: `what` has shape `got`, `expected` wanted.
+    pub(crate) fn shape(
+        what: impl Into<String>,
+        expected: impl Into<String>,
+        got: impl Into<String>,
+    ) -> Self {
+        Self::ShapeMismatch {
+            what: what.into(),
+            expected: expected.into(),
+            got: got.into(),
+        }
+    }
+}
+
+/// A [`PrrrpError::ShapeMismatch`] naming `what` unless its length `len` is `want`:
+/// expected "`want` `unit``note`", got "`len` `unit`" (`note` says what `want` counts,
+/// e.g. " (one per joint)"). Allocates only on the error.
+pub(crate) fn check_len(what: &str, len: usize, want: usize, unit: &str, note: &str) -> Result<()> {
+    if len != want {
+        return Err(PrrrpError::shape(
+            what,
+            format!("{want} {unit}{note}"),
+            format!("{len} {unit}"),
+        ));
+    }
+    Ok(())
+}
+
+/// [`check_len`] for each (what, len) of `pairs`, the first mismatch returned.
+pub(crate) fn check_lens(
+    pairs: &[(&str, usize)],
+    want: usize,
+    unit: &str,
+    note: &str,
+) -> Result<()> {
+    for &(what, len) in pairs {
+        check_len(what, len, want, unit, note)?;
+    }
+    Ok(())
+}
+
 /// A [`PrrrpError::ShapeMismatch`] naming `what` unless its length `len` is the joint
 /// count `n`.
 pub(crate) fn check_joints(what: &str, len: usize, n: usize) -> Result<()> {
-    if len != n {
-        return Err(PrrrpError::ShapeMismatch {
-            what: what.into(),
-            expected: format!("{n} entries (one per joint)"),
-            got: format!("{len} entries"),
-        });
-    }
-    Ok(())
+    check_len(what, len, n, "entries", " (one per joint)")
 }

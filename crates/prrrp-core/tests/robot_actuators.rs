@@ -5,20 +5,8 @@
 
 use prrrp_core::{Actuators, DynChain, UrdfOptions};
 
-fn data(name: &str) -> String {
-    format!("{}/tests/data/{name}", env!("CARGO_MANIFEST_DIR"))
-}
-
-fn three_joint_text() -> String {
-    std::fs::read_to_string(data("three_joint.urdf")).unwrap()
-}
-
-fn tip(name: &str) -> UrdfOptions {
-    UrdfOptions {
-        tip: Some(name.into()),
-        ..UrdfOptions::default()
-    }
-}
+mod files_support;
+use files_support::{three_joint_text, tip};
 
 /// A fresh folder under the target directory (no temp-file crate needed).
 fn folder(name: &str) -> std::path::PathBuf {

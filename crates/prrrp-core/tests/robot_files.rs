@@ -10,20 +10,8 @@ use prrrp_core::{
     JointType, PrrrpError, SerialChain, UrdfOptions,
 };
 
-fn data(name: &str) -> String {
-    format!("{}/tests/data/{name}", env!("CARGO_MANIFEST_DIR"))
-}
-
-fn three_joint_text() -> String {
-    std::fs::read_to_string(data("three_joint.urdf")).unwrap()
-}
-
-fn tip(name: &str) -> UrdfOptions {
-    UrdfOptions {
-        tip: Some(name.into()),
-        ..UrdfOptions::default()
-    }
-}
+mod files_support;
+use files_support::{data, three_joint_text, tip};
 
 // ---------------------------------------------------------------------------------------
 // Independent kinematics and inertia: explicit matrices, no nalgebra rotation helpers.

@@ -38,6 +38,55 @@ pub struct Dataset {
     tau: Vec<Vec5>,
 }
 
+/// The checks of a data set after its shapes, in this order: at least `min` samples (time
+/// stamps `t`), finite time stamps, finite values of each joint column (row-major, `n`
+/// per sample; the first bad value named `"col[j] (joint j+1)"` with its row), strictly
+/// increasing time stamps.
+pub(crate) fn check_series<'a, I: Iterator<Item = &'a f64>>(
+    t: &[f64],
+    min: usize,
+    n: usize,
+    columns: [(&str, I); 4],
+) -> Result<()> {
+    if t.len() < min {
+        return Err(PrrrpError::TooFewSamples {
+            needed: min,
+            got: t.len(),
+        });
+    }
+    if let Some(row) = t.iter().position(|x| !x.is_finite()) {
+        return Err(PrrrpError::NonFinite {
+            what: "t".into(),
+            row: Some(row),
+        });
+    }
+    for (name, col) in columns {
+        check_finite_values(name, col, n)?;
+    }
+    if let Some(k) = t.windows(2).position(|w| w[1] <= w[0]) {
+        return Err(PrrrpError::NonIncreasingTime { row: k + 1 });
+    }
+    Ok(())
+}
+
+/// The first non-finite value of a row-major column of `n` values per row, named
+/// `"name[j] (joint j+1)"` with its row.
+pub(crate) fn check_finite_values<'a>(
+    name: &str,
+    mut values: impl Iterator<Item = &'a f64>,
+    n: usize,
+) -> Result<()> {
+    if let Some(i) = values.position(|x| !x.is_finite()) {
+        let n = n.max(1);
+        let (row, joint) = (i / n, i % n);
+        return Err(PrrrpError::NonFinite {
+            what: format!("{name}[{joint}] (joint {})", joint + 1),
+            row: Some(row),
+        });
+    }
+    Ok(())
+}
+
 /// The columns of a [`Dataset`], moved out of it by [`Dataset::into_parts`].
 #[derive(Debug, Clone, PartialEq)]
 pub struct DatasetParts {
@@ -133,32 +182,10 @@ impl Dataset {
                 });
             }
         }
-        if n < Self::MIN_SAMPLES {
-            return Err(PrrrpError::TooFewSamples {
-                needed: Self::MIN_SAMPLES,
-                got: n,
-            });
-        }
-        if let Some(row) = self.t.iter().position(|x| !x.is_finite()) {
-            return Err(PrrrpError::NonFinite {
-                what: "t".into(),
-                row: Some(row),
-            });
-        }
-        for (name, col) in self.joint_columns() {
-            if let Some(row) = col.iter().position(|v| !v.iter().all(|x| x.is_finite())) {
-                // The sample is known to hold a non-finite entry.
-                let joint = col[row].iter().position(|x| !x.is_finite()).unwrap_or(0);
-                return Err(PrrrpError::NonFinite {
-                    what: format!("{name}[{joint}] (joint {})", joint + 1),
-                    row: Some(row),
-                });
-            }
-        }
-        if let Some(k) = self.t.windows(2).position(|w| w[1] <= w[0]) {
-            return Err(PrrrpError::NonIncreasingTime { row: k + 1 });
-        }
-        Ok(())
+        let columns = self
+            .joint_columns()
+            .map(|(name, col)| (name, col.iter().flat_map(|v| v.iter())));
+        check_series(&self.t, Self::MIN_SAMPLES, NDOF, columns)
     }
 
     fn joint_columns(&self) -> [(&'static str, &[Vec5]); 4] {

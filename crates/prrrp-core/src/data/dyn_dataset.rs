@@ -2,7 +2,7 @@
 
 use std::ops::Range;
 
-use crate::data::dataset::Dataset;
+use crate::data::dataset::{check_finite_values, check_series, Dataset};
 use crate::error::{PrrrpError, Result};
 use crate::models::chain::{FRICTION_PARAMETER_NAMES, LINK_PARAMS};
 use crate::models::prrrp::types::{Vec5, NDOF};
@@ -132,25 +132,8 @@ impl DynDataset {
         for (name, col) in self.joint_columns() {
             check_flat_len(name, col.len(), n, rows)?;
         }
-        if rows < self.min_samples {
-            return Err(PrrrpError::TooFewSamples {
-                needed: self.min_samples,
-                got: rows,
-            });
-        }
-        if let Some(row) = self.t.iter().position(|x| !x.is_finite()) {
-            return Err(PrrrpError::NonFinite {
-                what: "t".into(),
-                row: Some(row),
-            });
-        }
-        for (name, col) in self.joint_columns() {
-            check_finite_flat(name, col, n)?;
-        }
-        if let Some(k) = self.t.windows(2).position(|w| w[1] <= w[0]) {
-            return Err(PrrrpError::NonIncreasingTime { row: k + 1 });
-        }
-        Ok(())
+        let columns = self.joint_columns().map(|(name, col)| (name, col.iter()));
+        check_series(&self.t, self.min_samples, n, columns)
     }
 
     fn joint_columns(&self) -> [(&'static str, &[f64]); 4] {
@@ -369,13 +352,5 @@ pub(crate) fn check_flat_len(name: &str, len: usize, n: usize, rows: usize) -> R
 /// First non-finite value of a flat row-major column, named `"col[j] (joint j+1)"` with
 /// its row.
 pub(crate) fn check_finite_flat(name: &str, col: &[f64], n: usize) -> Result<()> {
-    if let Some(i) = col.iter().position(|x| !x.is_finite()) {
-        let n = n.max(1);
-        let (row, joint) = (i / n, i % n);
-        return Err(PrrrpError::NonFinite {
-            what: format!("{name}[{joint}] (joint {})", joint + 1),
-            row: Some(row),
-        });
-    }
-    Ok(())
+    check_finite_values(name, col.iter(), n)
 }

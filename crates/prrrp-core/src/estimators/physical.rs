@@ -671,14 +671,7 @@ pub fn base_feasibility(
 }
 
 fn check_len(what: &str, got: usize, want: usize) -> Result<()> {
-    if got != want {
-        return Err(PrrrpError::ShapeMismatch {
-            what: what.into(),
-            expected: format!("{want} entries"),
-            got: format!("{got} entries"),
-        });
-    }
-    Ok(())
+    crate::error::check_len(what, got, want, "entries", "")
 }
 
 /// s = ‖A‖²_F / P: the mean squared column norm, the scale the regularisers are relative to.

@@ -446,13 +446,8 @@ impl<M: LinearModel<Dyn, Dyn>> DynScaledModel<M> {
     }
 
     fn load(&self, ws: &mut DynScaledWorkspace<M::Workspace>, gamma: &DVector<f64>) -> Result<()> {
-        if gamma.len() != self.scale.len() {
-            return Err(PrrrpError::ShapeMismatch {
-                what: "lambda (scaled parameters)".into(),
-                expected: format!("{} entries", self.scale.len()),
-                got: format!("{} entries", gamma.len()),
-            });
-        }
+        let what = "lambda (scaled parameters)";
+        crate::error::check_len(what, gamma.len(), self.scale.len(), "entries", "")?;
         match &self.mix {
             Some((t, _)) => ws.lambda.gemv(1.0, t, gamma, 0.0),
             None => ws.lambda.copy_from(gamma),

@@ -20,7 +20,7 @@ use rand_distr::{Distribution, Normal};
 use crate::data::dataset::Dataset;
 use crate::data::preprocess::{preprocess, PreprocessConfig};
 use crate::data::{preprocess_log, DynDataset, LogConfig, LogReport};
-use crate::error::{check_joints, PrrrpError, Result};
+use crate::error::{check_joints, check_lens, PrrrpError, Result};
 use crate::models::chain::{cholesky_in_place, cholesky_solve};
 use crate::models::prrrp::dynamics::PrrrpModel;
 use crate::models::prrrp::types::{Lambda, Vec5, NDOF};
@@ -1089,16 +1089,7 @@ fn check_dofs(n: usize, pairs: &[(&str, usize)]) -> Result<()> {
             reason: "the simulated robot has no joints",
         });
     }
-    for &(what, m) in pairs {
-        if m != n {
-            return Err(PrrrpError::ShapeMismatch {
-                what: what.into(),
-                expected: format!("{n} joints (the simulated robot's)"),
-                got: format!("{m} joints"),
-            });
-        }
-    }
-    Ok(())
+    check_lens(pairs, n, "joints", " (the simulated robot's)")
 }
 
 /// Simulates the robot `plant` (n joints) following `reference` under computed-torque

@@ -88,14 +88,11 @@ fn invalid(field: impl Into<String>, value: f64, reason: &'static str) -> PrrrpE
 }
 
 fn check_count(what: &str, len: usize, n: usize) -> Result<()> {
-    if len != n {
-        return Err(PrrrpError::ShapeMismatch {
-            what: what.into(),
-            expected: format!("{n} entries (one per actuator: the chain has {n} joints)"),
-            got: format!("{len} entries"),
-        });
+    if len == n {
+        return Ok(());
     }
-    Ok(())
+    let note = format!(" (one per actuator: the chain has {n} joints)");
+    crate::error::check_len(what, len, n, "entries", &note)
 }
 
 impl Actuators {

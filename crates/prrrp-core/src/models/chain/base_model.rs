@@ -1,6 +1,8 @@
 //! A chain seen through its base parameters: the [`LinearDynamics`] model the estimators
 //! take, τ = Φ_b(q, q̇, q̈)·β.
 
+use std::ops::IndexMut;
+
 use nalgebra::{SMatrix, SVector};
 
 use super::actuators::ActuatorLayout;
@@ -44,13 +46,16 @@ pub struct ChainBaseModel<const N: usize, const B: usize> {
     beta: SVector<f64, B>,
 }
 
-struct BaseSink<'a, const N: usize, const B: usize> {
-    out: &'a mut SMatrix<f64, N, B>,
-    rigid_map: &'a [[usize; 10]; N],
-    actuator_map: &'a [[usize; 4]; N],
+/// Writes the base columns of the regressor: standard column (link, k) or (actuator,
+/// kind) goes to base column `rigid_map[link][k]` / `actuator_map[act][kind]` (none if
+/// [`NONE`]). `O` is the N×B output matrix, at compile-time or run-time size.
+struct BaseSink<'a, O> {
+    out: &'a mut O,
+    rigid_map: &'a [[usize; 10]],
+    actuator_map: &'a [[usize; 4]],
 }
 
-impl<const N: usize, const B: usize> RegressorSink for BaseSink<'_, N, B> {
+impl<O: IndexMut<(usize, usize), Output = f64>> RegressorSink for BaseSink<'_, O> {
     #[inline(always)]
     fn rigid(&mut self, row: usize, link: usize, k: usize, v: f64) {
         let c = self.rigid_map[link][k];
@@ -65,6 +70,86 @@ impl<const N: usize, const B: usize> RegressorSink for BaseSink<'_, N, B> {
             self.out[(row, c)] = v;
         }
     }
+}
+
+/// The base regressor Φ_b(q, q̇, q̈) (`x` = [q, q̇, q̈]) of `view`'s chain into `out` (N×B,
+/// zero on entry), through the column maps `maps` = (rigid, actuator) of [`BaseSink`].
+#[inline(always)]
+pub(super) fn base_regressor_into<O: IndexMut<(usize, usize), Output = f64>>(
+    view: ChainView<'_>,
+    maps: (&[[usize; 10]], &[[usize; 4]]),
+    x: [&[f64]; 3],
+    st: &mut [LinkState],
+    out: &mut O,
+) {
+    let (rigid_map, actuator_map) = maps;
+    let mut sink = BaseSink {
+        out,
+        rigid_map,
+        actuator_map,
+    };
+    view.regressor_into(x[0], x[1], x[2], true, st, &mut sink);
+}
+
+/// The column maps of a base model: for base column c (standard parameter
+/// `base.independent[c]` of a chain with `n` joints and actuator layout `layout`), its
+/// slot in `slots[c]` and c in `rigid_map` / `actuator_map` (the other entries stay as
+/// they are, [`NONE`]).
+pub(super) fn fill_maps(
+    base: &BaseParameters,
+    n: usize,
+    layout: &ActuatorLayout,
+    rigid_map: &mut [[usize; 10]],
+    actuator_map: &mut [[usize; 4]],
+    slots: &mut [Slot],
+) {
+    for (c, &idx) in base.independent.iter().enumerate() {
+        let slot = slot_of(idx, n, layout);
+        match slot {
+            Slot::Rigid(i, k) => rigid_map[i][k] = c,
+            Slot::Actuator(j, kind) => actuator_map[j][kind] = c,
+        }
+        slots[c] = slot;
+    }
+}
+
+/// Standard parameters of the equivalent chain with base parameters `beta` (base column c
+/// in `slots[c]`): inertial `rig`, friction `fr` and armature `ia`, zero where no base
+/// parameter lives.
+#[inline(always)]
+pub(super) fn load_equivalent(
+    slots: &[Slot],
+    beta: &[f64],
+    rig: &mut [[f64; 10]],
+    fr: &mut [[f64; 3]],
+    ia: &mut [f64],
+) {
+    rig.fill([0.0; 10]);
+    fr.fill([0.0; 3]);
+    ia.fill(0.0);
+    for (c, s) in slots.iter().enumerate() {
+        match *s {
+            Slot::Rigid(i, k) => rig[i][k] = beta[c],
+            Slot::Actuator(m, 3) => ia[m] = beta[c],
+            Slot::Actuator(m, kind) => fr[m][kind] = beta[c],
+        }
+    }
+}
+
+/// `v` with the standard parameters of an equivalent chain (see [`load_equivalent`]).
+#[inline(always)]
+pub(super) fn equivalent_view<'a>(
+    mut v: ChainView<'a>,
+    rig: &'a [[f64; 10]],
+    fr: &'a [[f64; 3]],
+    ia: &'a [f64],
+) -> ChainView<'a> {
+    v.inertial = rig;
+    v.friction_params = fr;
+    if v.armature.is_some() {
+        v.armature = Some(ia);
+    }
+    v
 }
 
 impl<const N: usize> SerialChain<N> {
@@ -90,14 +175,14 @@ impl<const N: usize> SerialChain<N> {
         let mut rigid_map = [[NONE; 10]; N];
         let mut actuator_map = [[NONE; 4]; N];
         let mut slots = [Slot::Rigid(0, 0); B];
-        for (c, &idx) in base.independent.iter().enumerate() {
-            let slot = slot_of(idx, N, &layout);
-            match slot {
-                Slot::Rigid(i, k) => rigid_map[i][k] = c,
-                Slot::Actuator(j, kind) => actuator_map[j][kind] = c,
-            }
-            slots[c] = slot;
-        }
+        fill_maps(
+            base,
+            N,
+            &layout,
+            &mut rigid_map,
+            &mut actuator_map,
+            &mut slots,
+        );
         let beta = SVector::from_vec(base.base_values(&self.parameters())?);
         Ok(ChainBaseModel {
             chain: *self,
@@ -130,25 +215,19 @@ impl<const N: usize, const B: usize> ChainBaseModel<N, B> {
             fr: [[0.0; 3]; N],
             ia: [0.0; N],
         };
-        for (c, s) in self.slots.iter().enumerate() {
-            match *s {
-                Slot::Rigid(i, k) => e.rig[i][k] = beta[c],
-                Slot::Actuator(m, 3) => e.ia[m] = beta[c],
-                Slot::Actuator(m, kind) => e.fr[m][kind] = beta[c],
-            }
-        }
+        load_equivalent(
+            &self.slots,
+            beta.as_slice(),
+            &mut e.rig,
+            &mut e.fr,
+            &mut e.ia,
+        );
         e
     }
 
     #[inline(always)]
     fn view_with<'a>(&'a self, e: &'a Equivalent<N>) -> ChainView<'a> {
-        let mut v = self.chain.view();
-        v.inertial = &e.rig;
-        v.friction_params = &e.fr;
-        if v.armature.is_some() {
-            v.armature = Some(&e.ia);
-        }
-        v
+        equivalent_view(self.chain.view(), &e.rig, &e.fr, &e.ia)
     }
 
     /// τ at β, by recursive Newton–Euler (rigid part only if `friction` is false).
@@ -215,19 +294,9 @@ impl<const N: usize, const B: usize> LinearDynamics<N, B> for ChainBaseModel<N, 
     ) -> SMatrix<f64, N, B> {
         let mut out = SMatrix::<f64, N, B>::zeros();
         let mut st = [LinkState::default(); N];
-        let mut sink = BaseSink {
-            out: &mut out,
-            rigid_map: &self.rigid_map,
-            actuator_map: &self.actuator_map,
-        };
-        self.chain.view().regressor_into(
-            q.as_slice(),
-            qd.as_slice(),
-            qdd.as_slice(),
-            true,
-            &mut st,
-            &mut sink,
-        );
+        let x = [q.as_slice(), qd.as_slice(), qdd.as_slice()];
+        let maps = (&self.rigid_map[..], &self.actuator_map[..]);
+        base_regressor_into(self.chain.view(), maps, x, &mut st, &mut out);
         out
     }
 

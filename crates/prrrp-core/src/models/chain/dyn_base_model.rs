@@ -9,14 +9,15 @@
 
 use nalgebra::{DMatrix, DVector, Dyn};
 
-use super::base_model::{slot_of, Slot, NONE};
+use super::base_model::{
+    base_regressor_into, equivalent_view, fill_maps, load_equivalent, Slot, NONE,
+};
 use super::base_params::BaseParameters;
 use super::crba::{cholesky_in_place, cholesky_solve, inverse_from_factor, minus_inverse_times};
 use super::derivatives::LinkTangent;
-use super::regressor::RegressorSink;
 use super::rnea::{ChainView, LinkState};
 use super::serial_chain::DynChain;
-use crate::error::{check_joints, PrrrpError, Result};
+use crate::error::{check_joints, check_len, PrrrpError, Result};
 use crate::models::{ForwardDerivativesOf, LinearModel};
 
 /// The dynamics of a [`DynChain`] parametrised by its B base parameters β (from
@@ -70,37 +71,6 @@ pub struct DynBaseWorkspace {
     tan: Vec<LinkTangent>,
 }
 
-struct DynBaseSink<'a> {
-    out: &'a mut DMatrix<f64>,
-    rigid_map: &'a [[usize; 10]],
-    actuator_map: &'a [[usize; 4]],
-}
-
-impl RegressorSink for DynBaseSink<'_> {
-    #[inline(always)]
-    fn rigid(&mut self, row: usize, link: usize, k: usize, v: f64) {
-        let c = self.rigid_map[link][k];
-        if c != NONE {
-            self.out[(row, c)] = v;
-        }
-    }
-    #[inline(always)]
-    fn actuator(&mut self, row: usize, act: usize, kind: usize, v: f64) {
-        let c = self.actuator_map[act][kind];
-        if c != NONE {
-            self.out[(row, c)] = v;
-        }
-    }
-}
-
-fn mismatch(what: &str, want: String, got: String) -> PrrrpError {
-    PrrrpError::ShapeMismatch {
-        what: what.into(),
-        expected: want,
-        got,
-    }
-}
-
 impl DynChain {
     /// The run-time base-parameter model of this chain for the analysis `base` (from
     /// [`DynChain::base_parameters`] of this chain).
@@ -113,15 +83,15 @@ impl DynChain {
         let layout = self.layout();
         base.check_layout(n, &layout)?;
         if base.count() == 0 {
-            return Err(mismatch(
+            return Err(PrrrpError::shape(
                 "base parameters",
-                "at least one identifiable parameter".into(),
-                "0 (the chain has no dynamics to identify)".into(),
+                "at least one identifiable parameter",
+                "0 (the chain has no dynamics to identify)",
             ));
         }
         let p = self.num_params();
         if let Some(&bad) = base.independent.iter().find(|&&i| i >= p) {
-            return Err(mismatch(
+            return Err(PrrrpError::shape(
                 "base parameter index",
                 format!("< {p} (standard parameters of this chain)"),
                 format!("{bad}"),
@@ -129,15 +99,15 @@ impl DynChain {
         }
         let mut rigid_map = vec![[NONE; 10]; n];
         let mut actuator_map = vec![[NONE; 4]; n];
-        let mut slots = Vec::with_capacity(base.count());
-        for (c, &idx) in base.independent.iter().enumerate() {
-            let slot = slot_of(idx, n, &layout);
-            match slot {
-                Slot::Rigid(i, k) => rigid_map[i][k] = c,
-                Slot::Actuator(j, kind) => actuator_map[j][kind] = c,
-            }
-            slots.push(slot);
-        }
+        let mut slots = vec![Slot::Rigid(0, 0); base.count()];
+        fill_maps(
+            base,
+            n,
+            &layout,
+            &mut rigid_map,
+            &mut actuator_map,
+            &mut slots,
+        );
         let beta = DVector::from_vec(base.base_values(&self.parameters())?);
         Ok(DynChainBaseModel {
             chain: self.clone(),
@@ -201,20 +171,45 @@ impl DynChainBaseModel {
     }
 
     fn check_beta(&self, len: usize) -> Result<()> {
-        let b = self.count();
-        if len != b {
-            return Err(mismatch(
-                "lambda (base parameters)",
-                format!("{b} entries (one per base parameter)"),
-                format!("{len} entries"),
-            ));
+        let note = " (one per base parameter)";
+        check_len(
+            "lambda (base parameters)",
+            len,
+            self.count(),
+            "entries",
+            note,
+        )
+    }
+
+    /// The checks of a per-sample call: the workspace, each vector of `joints` (one entry
+    /// per joint), the derivatives' output `out` if any, and λ (B entries).
+    fn check_call(
+        &self,
+        ws: &DynBaseWorkspace,
+        joints: &[(&str, &DVector<f64>)],
+        lambda: &DVector<f64>,
+        out: Option<&ForwardDerivativesOf<Dyn, Dyn>>,
+    ) -> Result<()> {
+        self.check_ws(ws)?;
+        for &(what, v) in joints {
+            self.check_joint(what, v.len())?;
+        }
+        if let Some(out) = out {
+            self.check_joint("out.qdd", out.qdd.len())?;
+        }
+        self.check_beta(lambda.len())?;
+        if let Some(out) = out {
+            let n = self.dof();
+            self.check_matrix("out.dqdd_dq", &out.dqdd_dq, n)?;
+            self.check_matrix("out.dqdd_dqd", &out.dqdd_dqd, n)?;
+            self.check_matrix("out.dqdd_dlambda", &out.dqdd_dlambda, self.count())?;
         }
         Ok(())
     }
 
     fn check_ws(&self, ws: &DynBaseWorkspace) -> Result<()> {
         if ws.n != self.dof() {
-            return Err(mismatch(
+            return Err(PrrrpError::shape(
                 "workspace",
                 format!("a workspace of this model ({} joints)", self.dof()),
                 format!("{} joints", ws.n),
@@ -226,7 +221,7 @@ impl DynChainBaseModel {
     fn check_matrix(&self, what: &str, m: &DMatrix<f64>, cols: usize) -> Result<()> {
         let n = self.dof();
         if m.shape() != (n, cols) {
-            return Err(mismatch(
+            return Err(PrrrpError::shape(
                 what,
                 format!("{n}×{cols}"),
                 format!("{}×{}", m.nrows(), m.ncols()),
@@ -238,20 +233,8 @@ impl DynChainBaseModel {
     /// Standard parameters of the equivalent chain with base parameters β, into `ws`.
     #[inline]
     fn equivalent(&self, beta: &DVector<f64>, ws: &mut DynBaseWorkspace) {
-        for r in ws.rig.iter_mut() {
-            *r = [0.0; 10];
-        }
-        for f in ws.fr.iter_mut() {
-            *f = [0.0; 3];
-        }
-        ws.ia.fill(0.0);
-        for (c, s) in self.slots.iter().enumerate() {
-            match *s {
-                Slot::Rigid(i, k) => ws.rig[i][k] = beta[c],
-                Slot::Actuator(m, 3) => ws.ia[m] = beta[c],
-                Slot::Actuator(m, kind) => ws.fr[m][kind] = beta[c],
-            }
-        }
+        let slots = &self.slots;
+        load_equivalent(slots, beta.as_slice(), &mut ws.rig, &mut ws.fr, &mut ws.ia);
     }
 
     #[inline]
@@ -261,13 +244,7 @@ impl DynChainBaseModel {
         fr: &'a [[f64; 3]],
         ia: &'a [f64],
     ) -> ChainView<'a> {
-        let mut v = self.chain.view();
-        v.inertial = rig;
-        v.friction_params = fr;
-        if v.armature.is_some() {
-            v.armature = Some(ia);
-        }
-        v
+        equivalent_view(self.chain.view(), rig, fr, ia)
     }
 
     /// q̈ = M⁻¹(τ − bias) at the β already loaded into `ws`; leaves the factor of M in
@@ -341,19 +318,40 @@ impl DynChainBaseModel {
         full.add_actuator_slope(fr, qd, dqd);
         // Φ_b at q̈.
         dqdd_dlambda.fill(0.0);
-        let mut sink = DynBaseSink {
-            out: dqdd_dlambda,
-            rigid_map: &self.rigid_map,
-            actuator_map: &self.actuator_map,
-        };
-        self.chain
-            .view()
-            .regressor_into(q, qd, qdd, true, st, &mut sink);
+        let maps = (&self.rigid_map[..], &self.actuator_map[..]);
+        base_regressor_into(self.chain.view(), maps, [q, qd, qdd], st, dqdd_dlambda);
         // −M⁻¹ times the 2N + B columns.
         inverse_from_factor(m, n, minv);
         minus_inverse_times(minv, n, dqdd_dq.as_mut_slice(), col);
         minus_inverse_times(minv, n, dqdd_dqd.as_mut_slice(), col);
         minus_inverse_times(minv, n, dqdd_dlambda.as_mut_slice(), col);
+    }
+
+    /// Loads β, then q̈ = M⁻¹·(τ − bias) into `out.qdd` and the derivatives at `qdd_lin`
+    /// (at that q̈ if `None`) into the rest of `out`; the arguments are checked.
+    #[allow(clippy::too_many_arguments)]
+    fn forward_and_derivatives(
+        &self,
+        ws: &mut DynBaseWorkspace,
+        q: &DVector<f64>,
+        qd: &DVector<f64>,
+        tau: &DVector<f64>,
+        lambda: &DVector<f64>,
+        qdd_lin: Option<&DVector<f64>>,
+        out: &mut ForwardDerivativesOf<Dyn, Dyn>,
+    ) -> Result<()> {
+        self.equivalent(lambda, ws);
+        let (q, qd) = (q.as_slice(), qd.as_slice());
+        self.forward_loaded(ws, q, qd, tau.as_slice(), out.qdd.as_mut_slice())?;
+        let ForwardDerivativesOf {
+            qdd,
+            dqdd_dq,
+            dqdd_dqd,
+            dqdd_dlambda,
+        } = out;
+        let at = qdd_lin.map_or(qdd.as_slice(), |v| v.as_slice());
+        self.derivatives_loaded(ws, q, qd, at, dqdd_dq, dqdd_dqd, dqdd_dlambda);
+        Ok(())
     }
 }
 
@@ -398,19 +396,9 @@ impl LinearModel<Dyn, Dyn> for DynChainBaseModel {
         }
         self.check_matrix("regressor output", out, self.count())?;
         out.fill(0.0);
-        let mut sink = DynBaseSink {
-            out,
-            rigid_map: &self.rigid_map,
-            actuator_map: &self.actuator_map,
-        };
-        self.chain.view().regressor_into(
-            q.as_slice(),
-            qd.as_slice(),
-            qdd.as_slice(),
-            true,
-            &mut ws.st,
-            &mut sink,
-        );
+        let x = [q.as_slice(), qd.as_slice(), qdd.as_slice()];
+        let maps = (&self.rigid_map[..], &self.actuator_map[..]);
+        base_regressor_into(self.chain.view(), maps, x, &mut ws.st, out);
         Ok(())
     }
 
@@ -425,11 +413,8 @@ impl LinearModel<Dyn, Dyn> for DynChainBaseModel {
         lambda: &DVector<f64>,
         out: &mut DVector<f64>,
     ) -> Result<()> {
-        self.check_ws(ws)?;
-        for (what, v) in [("q", q), ("qd", qd), ("qdd", qdd), ("out", &*out)] {
-            self.check_joint(what, v.len())?;
-        }
-        self.check_beta(lambda.len())?;
+        let joints = [("q", q), ("qd", qd), ("qdd", qdd), ("out", &*out)];
+        self.check_call(ws, &joints, lambda, None)?;
         self.equivalent(lambda, ws);
         let DynBaseWorkspace {
             st, rig, fr, ia, ..
@@ -455,11 +440,8 @@ impl LinearModel<Dyn, Dyn> for DynChainBaseModel {
         lambda: &DVector<f64>,
         out: &mut DVector<f64>,
     ) -> Result<()> {
-        self.check_ws(ws)?;
-        for (what, v) in [("q", q), ("qd", qd), ("tau", tau), ("out", &*out)] {
-            self.check_joint(what, v.len())?;
-        }
-        self.check_beta(lambda.len())?;
+        let joints = [("q", q), ("qd", qd), ("tau", tau), ("out", &*out)];
+        self.check_call(ws, &joints, lambda, None)?;
         self.equivalent(lambda, ws);
         self.forward_loaded(
             ws,
@@ -484,26 +466,9 @@ impl LinearModel<Dyn, Dyn> for DynChainBaseModel {
         lambda: &DVector<f64>,
         out: &mut ForwardDerivativesOf<Dyn, Dyn>,
     ) -> Result<()> {
-        self.check_ws(ws)?;
-        for (what, v) in [("q", q), ("qd", qd), ("tau", tau), ("out.qdd", &out.qdd)] {
-            self.check_joint(what, v.len())?;
-        }
-        self.check_beta(lambda.len())?;
-        let n = self.dof();
-        self.check_matrix("out.dqdd_dq", &out.dqdd_dq, n)?;
-        self.check_matrix("out.dqdd_dqd", &out.dqdd_dqd, n)?;
-        self.check_matrix("out.dqdd_dlambda", &out.dqdd_dlambda, self.count())?;
-        self.equivalent(lambda, ws);
-        let (q, qd) = (q.as_slice(), qd.as_slice());
-        self.forward_loaded(ws, q, qd, tau.as_slice(), out.qdd.as_mut_slice())?;
-        let ForwardDerivativesOf {
-            qdd,
-            dqdd_dq,
-            dqdd_dqd,
-            dqdd_dlambda,
-        } = out;
-        self.derivatives_loaded(ws, q, qd, qdd.as_slice(), dqdd_dq, dqdd_dqd, dqdd_dlambda);
-        Ok(())
+        let joints = [("q", q), ("qd", qd), ("tau", tau)];
+        self.check_call(ws, &joints, lambda, Some(out))?;
+        self.forward_and_derivatives(ws, q, qd, tau, lambda, None, out)
     }
 
     /// One mass matrix and its factor for both: q̈ = M⁻¹·(τ − bias) as
@@ -521,39 +486,8 @@ impl LinearModel<Dyn, Dyn> for DynChainBaseModel {
         _tau_lin: &mut DVector<f64>,
         out: &mut ForwardDerivativesOf<Dyn, Dyn>,
     ) -> Result<()> {
-        self.check_ws(ws)?;
-        for (what, v) in [
-            ("q", q),
-            ("qd", qd),
-            ("qdd_lin", qdd_lin),
-            ("tau", tau),
-            ("out.qdd", &out.qdd),
-        ] {
-            self.check_joint(what, v.len())?;
-        }
-        self.check_beta(lambda.len())?;
-        let n = self.dof();
-        self.check_matrix("out.dqdd_dq", &out.dqdd_dq, n)?;
-        self.check_matrix("out.dqdd_dqd", &out.dqdd_dqd, n)?;
-        self.check_matrix("out.dqdd_dlambda", &out.dqdd_dlambda, self.count())?;
-        self.equivalent(lambda, ws);
-        let (q, qd) = (q.as_slice(), qd.as_slice());
-        self.forward_loaded(ws, q, qd, tau.as_slice(), out.qdd.as_mut_slice())?;
-        let ForwardDerivativesOf {
-            dqdd_dq,
-            dqdd_dqd,
-            dqdd_dlambda,
-            ..
-        } = out;
-        self.derivatives_loaded(
-            ws,
-            q,
-            qd,
-            qdd_lin.as_slice(),
-            dqdd_dq,
-            dqdd_dqd,
-            dqdd_dlambda,
-        );
-        Ok(())
+        let joints = [("q", q), ("qd", qd), ("qdd_lin", qdd_lin), ("tau", tau)];
+        self.check_call(ws, &joints, lambda, Some(out))?;
+        self.forward_and_derivatives(ws, q, qd, tau, lambda, Some(qdd_lin), out)
     }
 }

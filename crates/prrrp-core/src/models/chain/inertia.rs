@@ -165,15 +165,10 @@ fn unpack_inertia(i: &[f64; 6]) -> Matrix3<f64> {
     Matrix3::new(i[0], i[1], i[3], i[1], i[2], i[4], i[3], i[4], i[5])
 }
 
+/// The upper triangle of a symmetric I in the order of [`unpack_inertia`]: Ixx, Ixy, Iyy,
+/// Ixz, Iyz, Izz.
 fn pack_inertia(i: &Matrix3<f64>) -> [f64; 6] {
-    [
-        i[(0, 0)],
-        i[(0, 1)],
-        i[(1, 1)],
-        i[(0, 2)],
-        i[(1, 2)],
-        i[(2, 2)],
-    ]
+    [(0, 0), (0, 1), (1, 1), (0, 2), (1, 2), (2, 2)].map(|rc| i[rc])
 }
 
 #[cfg(test)]

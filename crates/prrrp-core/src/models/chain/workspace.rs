@@ -10,7 +10,7 @@ use super::crba::{cholesky_in_place, cholesky_solve};
 use super::regressor::RegressorSink;
 use super::rnea::LinkState;
 use super::serial_chain::DynChain;
-use crate::error::{PrrrpError, Result};
+use crate::error::{check_len, check_lens, PrrrpError, Result};
 
 /// Scratch memory of the per-sample algorithms of one [`DynChain`], from
 /// [`DynChain::workspace`]. Its size depends only on the number of joints and the number
@@ -51,14 +51,7 @@ impl RegressorSink for RowMajorSink<'_> {
 }
 
 fn check(what: &str, len: usize, want: usize, unit: &str) -> Result<()> {
-    if len != want {
-        return Err(PrrrpError::ShapeMismatch {
-            what: what.into(),
-            expected: format!("{want} {unit}"),
-            got: format!("{len} {unit}"),
-        });
-    }
-    Ok(())
+    check_len(what, len, want, unit, "")
 }
 
 impl DynChain {
@@ -93,10 +86,7 @@ impl DynChain {
     }
 
     fn check_joint(&self, pairs: &[(&str, usize)]) -> Result<()> {
-        for &(what, len) in pairs {
-            check(what, len, self.dof(), "entries (one per joint)")?;
-        }
-        Ok(())
+        check_lens(pairs, self.dof(), "entries (one per joint)", "")
     }
 
     /// Inverse dynamics τ (N, N·m; friction included) into `tau` (n entries).

@@ -141,14 +141,5 @@ pub fn singular_values(w: &Mat<f64>) -> Result<Vec<f64>> {
 }
 
 pub(crate) fn check_lengths(n: usize, others: &[(&str, usize)]) -> Result<()> {
-    for &(name, len) in others {
-        if len != n {
-            return Err(PrrrpError::ShapeMismatch {
-                what: name.into(),
-                expected: format!("{n} samples (as q)"),
-                got: format!("{len} samples"),
-            });
-        }
-    }
-    Ok(())
+    crate::error::check_lens(others, n, "samples", " (as q)")
 }
