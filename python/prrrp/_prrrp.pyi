@@ -56,6 +56,7 @@ __all__ = [
     "TooFewSamplesError",
     "__version__",
     "agreement_index",
+    "clear_stop",
     "condition_number",
     "design_excitation",
     "error_indices",
@@ -71,6 +72,7 @@ __all__ = [
     "read_numeric_csv",
     "regressor",
     "relative_errors_percent",
+    "request_stop",
     "rms",
     "rsd",
     "run_study_json",
@@ -1385,6 +1387,15 @@ class _LogReport(TypedDict):
     output_rate_hz: float
     measured_velocity: bool
     rows_out: int
+
+def request_stop() -> None:
+    """Asks every running prrrp computation of this process, in any thread, to stop: each
+    raises ``KeyboardInterrupt`` at its next check (no partial result) and new ones stop
+    at once, until :func:`clear_stop`. For a host that runs computations in several
+    threads and must stop them all (a Ctrl-C reaches only the main thread's call)."""
+
+def clear_stop() -> None:
+    """Lowers the flag of :func:`request_stop`, so that new computations run."""
 
 def read_numeric_csv(data: bytes) -> tuple[str, int, int, int, bytes] | None:
     """(header line, its 1-based line number, rows, cells per row, the values as native

@@ -10,6 +10,7 @@ and report — what ``prrrp identify`` runs, for notebook users.
 
 from __future__ import annotations
 
+import concurrent.futures
 import dataclasses
 import math
 import os
@@ -27,8 +28,10 @@ from prrrp._prrrp import (
     InvalidInputError,
     PrrrpError,
     SerialChain,
+    clear_stop,
     design_excitation,
     identify,
+    request_stop,
     simulate_chain,
 )
 from prrrp.measurements import PREPROCESS_KEYS, measurements_to_dataset
@@ -273,6 +276,7 @@ def identify_methods(
     drives: dict[str, Any] | None = None,
     progress: Callable[[int, int], object] | None = None,
     per_method: dict[str, dict[str, Any]] | None = None,
+    workers: int | None = None,
     **settings: Any,
 ) -> list[MethodRun]:
     """:func:`identify_measurements` with several methods on one preprocessing, one
@@ -281,15 +285,17 @@ def identify_methods(
     that fails (a PrrrpError or ValueError: diverged, rank deficient, ...) is
     returned with its error and does not stop the others; errors of the shared
     preprocessing are raised. ``per_method``: settings of one method only (e.g.
-    ``{"ekf": {"least_squares_prior_width": 2.0}}``), added to ``settings`` for it."""
+    ``{"ekf": {"least_squares_prior_width": 2.0}}``), added to ``settings`` for it.
+    ``workers``: methods run at once on threads (default: the usable CPUs, at most
+    :data:`MAX_METHOD_WORKERS`; 1: one after another); each method's ``seconds`` is its
+    own wall time, shared CPUs included. Results come in the order of ``methods``,
+    equal whatever ``workers`` is."""
     prepared = _prepare(robot, raw, coulomb_scale, preprocessing, drives)
     if isinstance(prepared.robot, SerialChain) and settings.get("base") is None:
         # One base analysis for every method: the same base parameters to compare.
         settings["base"] = prepared.robot.base_parameters()
-    runs = []
-    for k, method in enumerate(methods):
-        if progress is not None:
-            progress(k, len(methods))
+
+    def run(method: str) -> MethodRun:
         t0 = time.perf_counter()
         try:
             own = {**settings, **(per_method or {}).get(method, {})}
@@ -298,13 +304,67 @@ def identify_methods(
             )
         except (PrrrpError, ValueError) as e:
             text = (str(e).strip() or type(e).__name__).splitlines()[0]
-            runs.append(MethodRun(method, None, text, time.perf_counter() - t0))
-        else:
-            seconds = time.perf_counter() - t0
-            runs.append(MethodRun(method, prepared.result(model), None, seconds))
+            return MethodRun(method, None, text, time.perf_counter() - t0)
+        seconds = time.perf_counter() - t0
+        return MethodRun(method, prepared.result(model), None, seconds)
+
+    if workers is None:
+        workers = min(len(methods), usable_cpus(), MAX_METHOD_WORKERS)
     if progress is not None:
-        progress(len(methods), len(methods))
-    return runs
+        progress(0, len(methods))
+    if workers <= 1:
+        runs = []
+        for k, method in enumerate(methods):
+            runs.append(run(method))
+            if progress is not None:
+                progress(k + 1, len(methods))
+        return runs
+    return _run_concurrently(run, methods, workers, progress)
+
+
+#: Most methods :func:`identify_methods` runs at once (each may hold its regressors,
+#: up to the core's MAX_STORED_REGRESSOR_BYTES).
+MAX_METHOD_WORKERS = 2
+
+
+def usable_cpus() -> int:
+    """CPUs this process may run on (its affinity where the system says, else the count)."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except (AttributeError, OSError):
+        return max(1, os.cpu_count() or 1)
+
+
+def _run_concurrently(
+    run: Callable[[str], MethodRun],
+    methods: Sequence[str],
+    workers: int,
+    progress: Callable[[int, int], object] | None,
+) -> list[MethodRun]:
+    """``run`` of every method on ``workers`` threads (each call computes with the GIL
+    released), in the order of ``methods``. A Ctrl-C reaches only the main thread, which
+    waits here: it asks every prrrp computation of the process to stop
+    (``request_stop``), waits for the threads (each ends at its next check) and
+    re-raises, so the run stops as fast as a single method would and leaves no thread."""
+    out: list[MethodRun | None] = [None] * len(methods)
+    pool = concurrent.futures.ThreadPoolExecutor(workers, thread_name_prefix="prrrp-method")
+    futures = {pool.submit(run, m): k for k, m in enumerate(methods)}
+    try:
+        for done, f in enumerate(concurrent.futures.as_completed(futures), start=1):
+            out[futures[f]] = f.result()
+            if progress is not None:
+                progress(done, len(methods))
+    except BaseException:
+        request_stop()
+        try:
+            for f in futures:
+                f.cancel()
+            pool.shutdown(wait=True)
+        finally:
+            clear_stop()
+        raise
+    pool.shutdown(wait=True)
+    return [r for r in out if r is not None]
 
 
 #: Most samples :func:`excite` makes (the core's MAX_SAMPLES).

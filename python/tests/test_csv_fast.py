@@ -22,7 +22,7 @@ def outcome(path: Path, fast: bool, monkeypatch: pytest.MonkeyPatch) -> object:
     """read_table's arrays, or its InputError's message, with or without the fast path."""
     with monkeypatch.context() as m:
         if not fast:
-            m.setattr(csvio, "_fast_table", lambda path, size: None)
+            m.setattr(csvio, "_fast_table", lambda path: None)
         try:
             out = csvio.read_table(path, 2, real_log=True)
         except csvio.InputError as e:
@@ -73,13 +73,36 @@ CASES = {
 }
 
 
+@pytest.mark.parametrize("block", [None, 64, 200])
 @pytest.mark.parametrize("name", list(CASES))
 def test_the_fast_path_reads_or_declines_like_the_general_reader(
-    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, name: str
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, name: str, block: int | None
 ) -> None:
+    """Whole, and in blocks of 64 and 200 bytes (lines longer than a block, blocks
+    ending inside a CRLF pair or a comment)."""
     path = tmp_path / "log.csv"
     path.write_bytes(CASES[name].encode("utf-8"))
+    if block is not None:
+        monkeypatch.setattr(csvio, "FAST_BLOCK_BYTES", block)
     assert outcome(path, True, monkeypatch) == outcome(path, False, monkeypatch)
+
+
+@pytest.mark.parametrize("name", ["plain", "crlf, bom, comments, blanks", "no final line end"])
+def test_blocks_are_read_natively(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, name: str
+) -> None:
+    """The block-by-block native read is not a decline in disguise: small blocks give the
+    numbers of one whole read."""
+    path = tmp_path / "log.csv"
+    path.write_bytes(CASES[name].encode("utf-8"))
+    whole = csvio._fast_table(path)
+    assert whole is not None
+    for block in (64, 200):
+        monkeypatch.setattr(csvio, "FAST_BLOCK_BYTES", block)
+        parts = csvio._fast_table(path)
+        assert parts is not None, block
+        assert parts[:2] == whole[:2]
+        assert parts[2].tobytes() == whole[2].tobytes()
 
 
 def test_the_fast_path_reads_a_plain_file_itself(tmp_path: Path) -> None:

@@ -169,3 +169,21 @@ where
         }
     })
 }
+
+/// Asks every running prrrp computation of the process to stop (see `_prrrp.pyi`).
+#[pyfunction]
+fn request_stop() {
+    prrrp_core::interrupt::request_stop();
+}
+
+/// Lowers the flag of `request_stop` (see `_prrrp.pyi`).
+#[pyfunction]
+fn clear_stop() {
+    prrrp_core::interrupt::clear_stop();
+}
+
+pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_function(wrap_pyfunction!(request_stop, m)?)?;
+    m.add_function(wrap_pyfunction!(clear_stop, m)?)?;
+    Ok(())
+}

@@ -50,5 +50,6 @@ fn _prrrp(m: &Bound<'_, PyModule>) -> PyResult<()> {
     validation::metrics::register(m)?;
     paper::study::register(m)?;
     online::register(m)?;
+    interrupt::register(m)?;
     Ok(())
 }
