@@ -10,7 +10,6 @@ and report — what ``prrrp identify`` runs, for notebook users.
 
 from __future__ import annotations
 
-import concurrent.futures
 import dataclasses
 import math
 import os
@@ -346,6 +345,8 @@ def _run_concurrently(
     waits here: it asks every prrrp computation of the process to stop
     (``request_stop``), waits for the threads (each ends at its next check) and
     re-raises, so the run stops as fast as a single method would and leaves no thread."""
+    import concurrent.futures  # only here: `prrrp --help` imports nothing heavy
+
     out: list[MethodRun | None] = [None] * len(methods)
     pool = concurrent.futures.ThreadPoolExecutor(workers, thread_name_prefix="prrrp-method")
     futures = {pool.submit(run, m): k for k, m in enumerate(methods)}
