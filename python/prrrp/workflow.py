@@ -309,6 +309,16 @@ def identify_methods(
 
     if workers is None:
         workers = min(len(methods), usable_cpus(), MAX_METHOD_WORKERS)
+        # Each running gradient method may hold the stored regressors (samples × joints ×
+        # parameters float64; above the core's MAX_STORED_REGRESSOR_BYTES it builds them per
+        # sample instead): run one at a time when two copies would not fit the memory share.
+        dof = len(prepared.data.q[0])
+        params = getattr(prepared.robot, "num_params", 10 * dof)
+        stored = len(prepared.data.t) * dof * params * 8
+        stored = stored if stored <= MAX_STORED_REGRESSOR_BYTES else 0
+        available = available_memory()
+        if available is not None and workers * stored > MEMORY_SHARE * available:
+            workers = 1
     if progress is not None:
         progress(0, len(methods))
     if workers <= 1:
@@ -320,6 +330,9 @@ def identify_methods(
         return runs
     return _run_concurrently(run, methods, workers, progress)
 
+
+#: The core's bound on the regressors a gradient method stores (1 GiB).
+MAX_STORED_REGRESSOR_BYTES = 1 << 30
 
 #: Most methods :func:`identify_methods` runs at once (each may hold its regressors,
 #: up to the core's MAX_STORED_REGRESSOR_BYTES).

@@ -87,3 +87,27 @@ def test_ctrl_c_stops_every_method_running_on_a_thread() -> None:
     word, took, _ = done.stdout.split()
     assert word == "ok"
     assert float(took) < 1.0, f"took {took} s to stop"
+
+
+def test_one_method_at_a_time_when_two_copies_of_the_regressors_would_not_fit(
+    monkeypatch,
+) -> None:
+    """The threads are used only when each running method's stored regressors fit in the
+    memory share twice over; otherwise the methods run one after another."""
+    robot = workflow.load_robot(str(UR5_LIKE))
+    data = _data(robot, 2000)
+    concurrent = []
+
+    def spy(run, methods, workers, progress):
+        concurrent.append(workers)
+        return [run(m) for m in methods]
+
+    monkeypatch.setattr(workflow, "_run_concurrently", spy)
+    monkeypatch.setattr(workflow, "usable_cpus", lambda: 2)
+    stored = 2000 * robot.dof * robot.num_params * 8
+    for available, threads in ((100 * stored, [2]), (2 * stored, [])):
+        concurrent.clear()
+        monkeypatch.setattr(workflow, "available_memory", lambda a=available: a)
+        runs = workflow.identify_methods(robot, data, ["ls", "wls"])
+        assert [r.error for r in runs] == [None, None]
+        assert concurrent == threads, available
