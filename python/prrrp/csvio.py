@@ -441,9 +441,11 @@ def atomic_path(path: str | os.PathLike[str]) -> Iterator[Path]:
     if path.is_symlink():
         path = Path(os.path.realpath(path))
     parent = path.parent if str(path.parent) else Path(".")
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=parent)
-    os.close(fd)
+    tmp = None
     try:
+        with signals.deferred():  # a Ctrl-C inside mkstemp would leave a file we cannot name
+            fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=parent)
+            os.close(fd)
         yield Path(tmp)
         # mkstemp makes the file private (0600); give it the permissions of a normal file.
         umask = os.umask(0)
@@ -452,8 +454,9 @@ def atomic_path(path: str | os.PathLike[str]) -> Iterator[Path]:
         signals.checkpoint()  # a Ctrl-C Python dropped must not let the file land
         os.replace(tmp, path)
     except BaseException:
-        with contextlib.suppress(OSError):
-            os.unlink(tmp)
+        if tmp is not None:
+            with contextlib.suppress(OSError):
+                os.unlink(tmp)
         raise
 
 

@@ -25,7 +25,7 @@ import signal
 import sys
 import threading
 import zlib
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from typing import Any, NoReturn
 
 import numpy as np
@@ -606,34 +606,44 @@ def _draw_forked(jobs: list[Callable[[], object]], workers: int) -> list[tuple[i
 #: under this) before they are killed.
 STOP_GRACE_S = 1.0
 
+#: Seconds between the SIGTERMs :func:`_stop` repeats during the grace: Python drops an
+#: exception raised inside a finaliser or while it prints an ignored one, so a worker can
+#: lose both a Ctrl-C and a first SIGTERM and draw on; one that is already unwinding
+#: ignores the repeats (:func:`_stop_unless_stopping`).
+STOP_RESEND_S = 0.05
+
 
 def _stop(running: dict[int, tuple[int, int, bytearray]], grace: float = STOP_GRACE_S) -> None:
-    """Ends the workers ``running`` (read end -> (pid, ...)): SIGTERM, up to ``grace``
-    seconds for them to exit, then SIGKILL; reaps every one. Ctrl-C and SIGTERM wait
+    """Ends the workers ``running`` (read end -> (pid, ...)): SIGTERM (repeated every
+    :data:`STOP_RESEND_S`), up to ``grace`` seconds for them to exit, then SIGKILL; reaps
+    every one. Ctrl-C and SIGTERM wait
     until it is done (at most ``grace``): a second one (a terminal's Ctrl-C reaches the
     whole group, a figure server's parent adds a SIGTERM) must not leave a worker
     unreaped."""
     import select
     import time
 
-    def kill(sig: int) -> None:
-        for pid, _, _ in running.values():
+    def kill(sig: int, fds: Iterable[int]) -> None:
+        for fd in fds:
+            # Also harmless on a worker that has exited, until it is reaped.
             with contextlib.suppress(ProcessLookupError):
-                os.kill(pid, sig)  # also harmless on one that has exited, until reaped
+                os.kill(running[fd][0], sig)
 
     mask = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM})
     deferred: BaseException | None = None
     try:
-        kill(signal.SIGTERM)
-        deadline = time.monotonic() + grace
         left = set(running)
+        kill(signal.SIGTERM, left)
+        deadline = time.monotonic() + grace
         while left and (timeout := deadline - time.monotonic()) > 0:
-            ready, _, _ = select.select(list(left), [], [], timeout)
+            ready, _, _ = select.select(list(left), [], [], min(timeout, STOP_RESEND_S))
             left -= {fd for fd in ready if not os.read(fd, 4096)}  # end of file: exited
+            if not ready:
+                kill(signal.SIGTERM, left)
     except (KeyboardInterrupt, SystemExit) as e:  # a signal that arrived before the mask
         deferred = e
     finally:
-        kill(signal.SIGKILL)
+        kill(signal.SIGKILL, running)
         for fd, (pid, _, _) in running.items():
             while True:
                 try:
@@ -688,8 +698,8 @@ def _worker(job: Callable[[], object], write: int, mask: Any, parent: int) -> No
         _die_with(parent)
         # Whatever this process's handlers were: stopped by an exception, which removes
         # the temporary file of a figure being saved.
-        signal.signal(signal.SIGINT, signal.default_int_handler)
-        signal.signal(signal.SIGTERM, _exit_on_signal)
+        signal.signal(signal.SIGINT, _stop_unless_stopping)
+        signal.signal(signal.SIGTERM, _stop_unless_stopping)
         signal.pthread_sigmask(signal.SIG_SETMASK, mask)
         job()
         code = 0
@@ -705,7 +715,17 @@ def _worker(job: Callable[[], object], write: int, mask: Any, parent: int) -> No
         os._exit(code)
 
 
-def _exit_on_signal(signum: int, _frame: Any) -> NoReturn:
+def _stop_unless_stopping(signum: int, _frame: Any) -> None:
+    """A worker's handler of SIGINT and SIGTERM: raises KeyboardInterrupt (SIGINT) or
+    SystemExit(128 + n), unless such an exception is already being handled. A terminal's
+    Ctrl-C and the SIGTERM of a stopping parent often arrive together, and a second
+    exception inside the first one's cleanup would skip the removal of the temporary file.
+    A first exception that Python dropped (raised inside a finaliser) is not being handled,
+    so the parent's SIGTERM still stops the worker."""
+    if isinstance(sys.exc_info()[1], KeyboardInterrupt | SystemExit):
+        return
+    if signum == signal.SIGINT:
+        raise KeyboardInterrupt
     raise SystemExit(128 + signum)
 
 

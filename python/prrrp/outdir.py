@@ -192,13 +192,14 @@ def write_dir(out: str | os.PathLike[str], build: Callable[[Path], _T]) -> _T:
     _cleanup(out)
     _check(out)
     tmp_prefix, old_prefix = _prefixes(out)
-    tmp = Path(tempfile.mkdtemp(prefix=_new_prefix(out), dir=out.parent))
-    lock = None
+    tmp, lock = None, None
     try:
-        lock = _lock(tmp)
-        locked = tmp.with_name(tmp_prefix + tmp.name[len(_new_prefix(out)) :])
-        tmp.rename(locked)
-        tmp = locked
+        with signals.deferred():  # interrupted in here, the cleanup would miss the folder
+            tmp = Path(tempfile.mkdtemp(prefix=_new_prefix(out), dir=out.parent))
+            lock = _lock(tmp)
+            locked = tmp.with_name(tmp_prefix + tmp.name[len(_new_prefix(out)) :])
+            tmp.rename(locked)
+            tmp = locked
         # mkdtemp makes the folder private (0700); the output is an ordinary folder.
         os.chmod(tmp, 0o777 & ~_umask())
         result = build(tmp)
@@ -216,7 +217,7 @@ def write_dir(out: str | os.PathLike[str], build: Callable[[Path], _T]) -> _T:
             shutil.rmtree(old, ignore_errors=True)
         return result
     finally:
-        if tmp.exists():
+        if tmp is not None and tmp.exists():
             shutil.rmtree(tmp, ignore_errors=True)
         if lock is not None:
             os.close(lock)

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import contextlib
 import signal
+from collections.abc import Iterator
 from types import FrameType
 from typing import NoReturn
 
@@ -59,3 +60,20 @@ def reset() -> None:
     """Forgets a received signal (for a caller that handled it and goes on)."""
     global _received
     _received = None
+
+
+@contextlib.contextmanager
+def deferred() -> Iterator[None]:
+    """Holds SIGINT and SIGTERM back (on this thread) inside the block; one that arrived
+    meanwhile is handled as the block ends, its exception raised from the end of the
+    ``with``. For steps that create something and record it, e.g. a temporary file and its
+    name: interrupted between the two, the cleanup would not know the file. Without
+    ``signal.pthread_sigmask`` (not POSIX) the block runs as it is."""
+    if not hasattr(signal, "pthread_sigmask"):
+        yield
+        return
+    mask = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM})
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, mask)  # runs a handler, which may raise
