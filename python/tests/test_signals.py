@@ -73,3 +73,36 @@ def test_without_a_signal_the_run_writes_its_output(tmp_path: Path) -> None:
     )
     assert child.returncode == 0, (child.stdout, child.stderr)
     assert out.exists()
+
+
+@pytest.mark.parametrize("maker", ["mkstemp", "mkdtemp"])
+def test_a_ctrl_c_while_a_temporary_is_created_leaves_nothing(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, maker: str
+) -> None:
+    """Ctrl-C arriving inside tempfile.mkstemp / mkdtemp, after the file or folder exists
+    but before its name is returned: the interrupted writer still removes it (without
+    `signals.deferred` the name was lost and the file stayed beside the output)."""
+    import tempfile
+
+    from prrrp import csvio, outdir
+
+    real = getattr(tempfile, maker)
+
+    def make_then_signal(*args, **kwargs):
+        made = real(*args, **kwargs)
+        signal.raise_signal(signal.SIGINT)  # default handler: KeyboardInterrupt
+        return made
+
+    monkeypatch.setattr(tempfile, maker, make_then_signal)
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    restore = previous if previous is not None else signal.default_int_handler
+    if maker == "mkstemp":
+        write = lambda: csvio.write_text_atomic(tmp_path / "model.json", "{}")  # noqa: E731
+    else:
+        write = lambda: outdir.write_dir(tmp_path / "out", lambda folder: None)  # noqa: E731
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            write()
+    finally:
+        signal.signal(signal.SIGINT, restore)
+    assert list(tmp_path.iterdir()) == []
