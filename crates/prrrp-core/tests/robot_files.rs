@@ -444,6 +444,30 @@ fn bodies_on_the_base_are_ignored() {
 }
 
 #[test]
+fn geometry_urdf_rs_would_refuse_does_not_stop_a_robot() {
+    // As in iCub's and Romeo's files (example-robot-data), which urdfdom and Pinocchio
+    // read: a `<texture />` without a file name, in the robot's material list and in a
+    // visual; also a mesh without one in a collision and an unknown geometry type.
+    let link1 = r#"<visual><geometry><box size="0.1 0.1 0.1"/></geometry>
+          <material name="metal"><texture /></material></visual>
+        <collision><geometry><mesh /></geometry></collision>
+        <collision><geometry><capsule radius="0.1" length="0.2"/></geometry></collision>
+        <inertial><origin xyz="0.1 0 0"/><mass value="2.0"/>
+          <inertia ixx="0.01" ixy="0" ixz="0" iyy="0.02" iyz="0" izz="0.03"/></inertial>"#;
+    let plain = r#"<inertial><origin xyz="0.1 0 0"/><mass value="2.0"/>
+          <inertia ixx="0.01" ixy="0" ixz="0" iyy="0.02" iyz="0" izz="0.03"/></inertial>"#;
+    let materials = r#"<material name="metal"><texture /></material><material name="x"/>"#;
+    let a =
+        DynChain::from_urdf_str(&two_joint_xml(link1, materials), &UrdfOptions::default()).unwrap();
+    let b = DynChain::from_urdf_str(&two_joint_xml(plain, ""), &UrdfOptions::default()).unwrap();
+    assert_eq!(a.inertial(), b.inertial());
+    assert_same_dynamics(&a, &b, 0.0, "with and without geometry");
+    // What matters is still read and checked: a broken inertial is an error.
+    let broken = two_joint_xml(&link1.replace(r#"value="2.0""#, r#"value="two""#), "");
+    assert!(DynChain::from_urdf_str(&broken, &UrdfOptions::default()).is_err());
+}
+
+#[test]
 fn base_option_and_default_tip_below_it() {
     // From link1 down: elbow and slide, fingers still branch below link3.
     let opts = UrdfOptions {

@@ -461,9 +461,9 @@ fn axis(joint: &urdf_rs::Joint, file: &str) -> Result<Vector3<f64>> {
 }
 
 pub(super) fn chain_from_urdf(xml: &str, file: &str, opts: &UrdfOptions) -> Result<DynChain> {
-    super::xml_scan::prescan(xml, file)?;
+    let filtered = super::xml_scan::prescan(xml, file)?;
     crate::interrupt::check("reading the URDF")?;
-    let robot = urdf_rs::read_from_string(xml).map_err(|e| {
+    let robot = urdf_rs::read_from_string(&filtered).map_err(|e| {
         file_error(
             file,
             "robot",

@@ -7,9 +7,14 @@
 //! element count first, and checks what urdf-rs would silently turn into the identity: a
 //! `quat_xyzw` that is NaN, infinite or zero (urdfdom's conversion maps every such
 //! quaternion to "no rotation").
+//!
+//! The same pass leaves out what the dynamics never read — `visual` and `collision`
+//! elements and the robot's `material` list — so that a geometry detail urdf-rs is
+//! stricter about than urdfdom (iCub's and Romeo's `<texture />` without a file name)
+//! does not refuse a robot whose kinematics and inertias are fine.
 
 use quick_xml::events::{BytesStart, Event};
-use quick_xml::Reader;
+use quick_xml::{Reader, Writer};
 
 use super::file_error;
 use crate::error::Result;
@@ -83,8 +88,19 @@ fn check_quaternion(text: &str, file: &str, element: impl FnOnce() -> String) ->
 /// # Errors
 /// [`crate::PrrrpError::RobotFile`] naming the limit that was exceeded, the malformed
 /// quaternion's element, or the XML error.
-pub(super) fn prescan(xml: &str, file: &str) -> Result<()> {
+/// Whether an element at `depth` (1 = the root `robot`, 2 = its children) is geometry or
+/// appearance only, left out of what urdf-rs reads.
+fn is_geometry(tag: &[u8], depth: usize) -> bool {
+    matches!(tag, b"visual" | b"collision") || (depth == 2 && tag == b"material")
+}
+
+/// Checks `xml` as the module docs say and returns it without its geometry elements
+/// ([`is_geometry`]), for urdf-rs.
+pub(super) fn prescan(xml: &str, file: &str) -> Result<String> {
     let mut reader = Reader::from_str(xml);
+    let mut writer = Writer::new(Vec::with_capacity(xml.len()));
+    // Depth at which the geometry element being skipped started, if any.
+    let mut skipping: Option<usize> = None;
     let mut depth = 0usize;
     let mut elements = 0usize;
     let mut quaternions = false;
@@ -105,14 +121,28 @@ pub(super) fn prescan(xml: &str, file: &str) -> Result<()> {
             Event::Start(e) => (e, false),
             Event::Empty(e) => (e, true),
             Event::End(_) => {
+                if skipping.is_none() {
+                    write(&mut writer, event.borrow(), file)?;
+                } else if skipping == Some(depth) {
+                    skipping = None;
+                }
                 depth = depth.saturating_sub(1);
                 if owner.as_ref().is_some_and(|o| o.2 > depth) {
                     owner = None;
                 }
                 continue;
             }
-            Event::Eof => return Ok(()),
-            _ => continue,
+            Event::Eof => {
+                return String::from_utf8(writer.into_inner()).map_err(|e| {
+                    file_error(file, "robot", format!("not UTF-8 after filtering ({e})"))
+                });
+            }
+            _ => {
+                if skipping.is_none() {
+                    write(&mut writer, event.borrow(), file)?;
+                }
+                continue;
+            }
         };
         elements += 1;
         if elements > MAX_URDF_ELEMENTS {
@@ -139,6 +169,14 @@ pub(super) fn prescan(xml: &str, file: &str) -> Result<()> {
             }
         }
         let tag = start.local_name();
+        let level = if empty { depth + 1 } else { depth };
+        if skipping.is_none() {
+            if is_geometry(tag.as_ref(), level) {
+                skipping = (!empty).then_some(depth);
+            } else {
+                write(&mut writer, event.borrow(), file)?;
+            }
+        }
         if tag.as_ref() == b"robot" && elements == 1 {
             quaternions = reads_quaternions(start);
         } else if let Some((t, n)) = owner_name(start) {
@@ -154,6 +192,12 @@ pub(super) fn prescan(xml: &str, file: &str) -> Result<()> {
             }
         }
     }
+}
+
+fn write(writer: &mut Writer<Vec<u8>>, event: Event<'_>, file: &str) -> Result<()> {
+    writer
+        .write_event(event)
+        .map_err(|e| file_error(file, "robot", format!("cannot copy the XML ({e})")))
 }
 
 #[cfg(test)]
