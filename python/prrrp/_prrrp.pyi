@@ -1701,8 +1701,8 @@ def design_excitation(
     Nelder–Mead from the best of `restarts` seeded random shapes, `max_evaluations` in all.
     Limits are the robot file's; `limits` overrides them ({"lower", "upper", "velocity",
     "acceleration"}: (n,) arrays, NaN = none). A joint whose limits do not bound its motion
-    (no speed limit, or neither position nor acceleration limit) is an
-    InvalidParameterError naming it. `progress(evaluations, max_evaluations)` is called
+    (no speed limit, or neither position nor acceleration limit) is an InfeasibleError
+    naming it and what is missing. `progress(evaluations, max_evaluations)` is called
     every few evaluations. Returns {"trajectory": ChainTrajectory, "omega" (rad/s),
     "offsets" (n,), "a", "b" (n, H), "period" (s), "cond_initial", "cond_final",
     "evaluations", "limit_usage" (n, 3): fraction of each limit used, NaN where none}."""

@@ -530,7 +530,8 @@ def _with_sigma(x: Any, sigma: Any, digits: int = 6) -> str:
 def _error_rows(joints: Sequence[str], p: dict[str, Any]) -> list[list[str]]:
     rows = []
     for i, j in enumerate(joints):
-        row = [j, _g(p["rms"][i]), _g(p["tau_rms"][i]), _g(p["percent"][i], 3)]
+        row = [j, _g(p["rms"][i]), _g(p["noise_rms"][i], 2), _g(p["tau_rms"][i])]
+        row.append(_g(p["percent"][i], 3))
         if p["filtered_percent"] is not None:
             row.append(_g(p["filtered_percent"][i], 3))
         rows.append(row)
@@ -546,14 +547,18 @@ def prediction_section(model: IdentifiedModel, tables: Sequence[tuple[str, LogGr
         "Errors against the torque as measured, at the rows it was measured (the model "
         "evaluated on the processed signals, mapped back to the log's time stamps). The last "
         "column, for reference only, scores against the low-passed torque the "
-        "identification fitted: it moves with the cut-off and flatters every model.",
+        "identification fitted: it moves with the cut-off and flatters every model. The "
+        "torque noise is estimated from the measured torque's third differences: an error "
+        "close to it is as small as this log can show, and a joint whose torque RMS is close "
+        "to it moved too little against its noise for its error % to say much.",
         "",
     ]
     for label, grid in tables:
         p = grid.errors(grid.predict(model))
         lines.append(f"On the {label}: {grid.describe()}.")
         lines.append("")
-        header = ["joint", "error RMS (N·m, N)", "measured torque RMS", "error % of measured"]
+        header = ["joint", "error RMS (N·m, N)", "torque noise RMS", "measured torque RMS"]
+        header.append("error % of measured")
         if p["filtered_percent"] is not None:
             cutoff = (grid.report or {}).get("cutoff_hz")
             header.append(f"error % vs low-passed at {_g(cutoff, 3)} Hz (reference only)")

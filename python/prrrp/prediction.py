@@ -78,8 +78,10 @@ class LogGrid:
 
     def errors(self, predicted: np.ndarray) -> dict[str, Any]:
         """Per joint over the scored rows: ``rms`` of measured − predicted (N·m, N),
-        ``tau_rms`` of the measured torque, ``percent`` = 100·rms/tau_rms; beside them,
-        labelled, ``filtered_rms`` and ``filtered_percent`` against the low-passed torque
+        ``tau_rms`` of the measured torque, ``percent`` = 100·rms/tau_rms, ``noise_rms``
+        the measured torque's noise (:func:`noise_rms`, over the rows with a new time
+        stamp): an error near it is as small as the log can show; beside them, labelled,
+        ``filtered_rms`` and ``filtered_percent`` against the low-passed torque
         identification fits (None when not processed); ``rows`` scored, ``rows_total``,
         ``edge_rows``, ``repeated_rows``, ``span`` (s)."""
         if self.measured is None:
@@ -91,6 +93,7 @@ class LogGrid:
             "rms": rms,
             "tau_rms": ref,
             "percent": _percent(rms, ref),
+            "noise_rms": noise_rms(self.measured[~self.repeated]),
             "filtered_rms": None,
             "filtered_percent": None,
             "rows": int(k.sum()),
@@ -119,6 +122,24 @@ class LogGrid:
         why = f"; not scored: {', '.join(parts)}" if parts else ""
         what = "; against the data set's own τ" if self.source == "dataset" else ""
         return f"{k} of {n} rows, t = {a:.6g}..{b:.6g} s{why}{what}"
+
+
+#: Σ of the squared coefficients of a third difference (1, −3, 3, −1).
+_THIRD_DIFFERENCE_GAIN = 20.0
+
+
+def noise_rms(tau: np.ndarray) -> np.ndarray:
+    """Per column of ``tau`` (S, n), sampled in order: the RMS of its white noise,
+    estimated from the third differences (which cancel a motion smooth over four samples
+    and multiply white noise's variance by 20) by their median absolute deviation (robust
+    to the few large ones of a jump). Motion faster than a few samples counts as noise:
+    at low sample rates this is an upper bound. NaN with fewer than 8 rows."""
+    tau = np.asarray(tau, dtype=float)
+    if tau.ndim != 2 or len(tau) < 8:
+        return np.full(tau.shape[-1] if tau.ndim == 2 else 1, np.nan)
+    d = np.diff(tau, 3, axis=0)
+    mad = np.median(np.abs(d - np.median(d, axis=0)), axis=0)
+    return 1.4826 * mad / np.sqrt(_THIRD_DIFFERENCE_GAIN)
 
 
 def _rms(x: np.ndarray) -> np.ndarray:

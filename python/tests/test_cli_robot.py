@@ -161,16 +161,29 @@ def test_excite_bad_input(tmp_path: Path, capsys):
     assert "KEY=VALUE" in capsys.readouterr().err
     assert not (tmp_path / "t.csv").exists()
     puma = tmp_path / "puma.toml"
-    # A DH robot file without limits: the error names the joint.
+    # A DH robot file without limits: the error names the joint and what is missing.
     puma.write_text(
-        'name = "two"\nconvention = "standard"\n'
-        '[[joints]]\nkind = "revolute"\nd = 0.0\na = 0.5\nalpha = 0.0\n'
-        "[joints.inertial]\nmass = 1.0\ncom = [-0.25, 0.0, 0.0]\n"
-        "inertia = [0.01, 0.0, 0.02, 0.0, 0.0, 0.02]\n"
+        'name = "one"\nconvention = "standard"\n'
+        '[[joint]]\nname = "elbow"\ntype = "revolute"\nd = 0.0\na = 0.5\nalpha = 0.0\ntheta = 0.0\n'
+        "inertial = [1.0, 0.25, 0.0, 0.0, 0.01, 0.0, 0.02, 0.0, 0.0, 0.02]\n"
     )
     code = cli.main(["excite", "--robot", str(puma), "--out", str(tmp_path / "t.csv")])
     err = capsys.readouterr().err
-    assert code in (1, 2), err
+    assert code == 2, err
+    assert "joint elbow has no speed limit and no position or acceleration limit" in err, err
+    assert "--limits velocity=" in err, err
+    # The Kinova Gen2 URDF: continuous joints, a speed limit only. The error names the
+    # first, says what is missing and how to give it; the override then works.
+    kinova = URDF.parent.parent.parent / "kinova_description" / "robots" / "kinova.urdf"
+    out = str(tmp_path / "kinova")
+    quick = ["--duration", "4", "--rate", "50", "--evaluations", "20", "--harmonics", "2"]
+    assert cli.main(["excite", "--robot", str(kinova), "--out", out, *quick]) == 2
+    err = capsys.readouterr().err
+    assert "joint j2s6s200_joint_1 has no position or acceleration limit" in err, err
+    assert not (tmp_path / "kinova").exists()
+    limits = ["--limits", "velocity=1,acceleration=4"]
+    assert cli.main(["excite", "--robot", str(kinova), "--out", out, *quick, *limits]) == 0
+    assert (tmp_path / "kinova" / "trajectory.csv").exists()
 
 
 def test_model_report_from_python(tmp_path: Path, truth):

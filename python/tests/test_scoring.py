@@ -15,6 +15,7 @@ from conftest import sine_motion
 
 import prrrp
 from prrrp import cli, csvio, prediction
+from prrrp.prediction import noise_rms
 
 URDF = importlib.metadata.distribution("example-robot-data").locate_file(
     "cmeel.prefix/share/example-robot-data/robots/panda_description/urdf/panda.urdf"
@@ -82,10 +83,12 @@ def independent_errors(model: prrrp.IdentifiedModel, csv: Path, cutoff: float | 
 
 
 def report_table(report: str, label: str) -> np.ndarray:
-    """The (error RMS, torque RMS, error %) columns of a report.md prediction table."""
+    """The (error RMS, torque RMS, error %, torque noise RMS) columns of a report.md
+    prediction table."""
     section = report[report.index(f"On the {label}") :]
     lines = [ln for ln in section.splitlines() if ln.startswith("| panda_joint")][:7]
-    return np.array([[float(c) for c in ln.split("|")[2:5]] for ln in lines])
+    cells = np.array([[float(c) for c in ln.split("|")[2:6]] for ln in lines])
+    return cells[:, [0, 2, 3, 1]]
 
 
 @pytest.mark.parametrize("cutoff", [None, 4.0])
@@ -106,8 +109,10 @@ def test_validation_figures_equal_numpy_against_the_measured_column(logs, cutoff
     assert np.allclose(table[:, 0], err, rtol=6e-4)
     assert np.allclose(table[:, 1], ref, rtol=6e-4)
     assert np.allclose(table[:, 2], 100 * err / ref, rtol=5.1e-3)  # 3 digits
-    # The sensor noise (0.2 N·m) is in the measured torque and so in every error.
+    # The sensor noise (0.2 N·m) is in the measured torque and so in every error; the
+    # report's estimate of it, from the torque alone, finds it.
     assert (err > 0.15).all(), err
+    assert np.allclose(table[:, 3], 0.2, rtol=0.1), table[:, 3]
 
 
 def test_the_reference_does_not_move_with_the_cutoff(logs):
@@ -194,3 +199,17 @@ def test_paper_arm_validation_is_against_the_measured_column(tmp_path, capsys):
     # Against the low-passed torque the numbers would be smaller: the sensor noise is gone.
     filtered = np.sqrt(np.mean((pred - pre["tau"]) ** 2, axis=0))
     assert (rms > filtered).all()
+
+
+def test_noise_estimate_finds_white_noise_under_smooth_motion() -> None:
+    """noise_rms against the noise it was given: white noise of known σ per column under
+    a smooth motion 10⁴ times larger, with a jump; and no noise at all."""
+    rng = np.random.default_rng(5)
+    t = np.arange(0.0, 10.0, 0.002)
+    smooth = np.column_stack([500 * np.sin(2 * np.pi * f * t) for f in (0.2, 1.0, 3.0)])
+    smooth[len(t) // 2 :, 0] += 50.0  # a step: three large third differences
+    sigma = np.array([0.01, 0.2, 1.0])
+    found = noise_rms(smooth + rng.normal(0.0, 1.0, smooth.shape) * sigma)
+    assert np.allclose(found, sigma, rtol=0.05), found
+    assert (noise_rms(smooth) < 0.01 * sigma).all()  # the motion alone: under 1 %
+    assert np.isnan(noise_rms(smooth[:5])).all()

@@ -9,7 +9,7 @@ import argparse
 import json
 import math
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -527,6 +527,7 @@ def _summary(
         f"({grid.describe()}):"
     )
     print_table(header, rows)
+    _say_noise_floor(robot.joint_names, [r[which] for r in table if r["status"] == "ok"])
     for r in table:
         if r["status"] == "ok" and not r["converged"]:
             print(
@@ -540,3 +541,28 @@ def _summary(
         default = workflow.DEFAULT_METHOD
         why = "" if main.model.method == default else f" (the default, {default}, failed)"
         print(f"model.json is the {main.model.method} model{why}")
+
+
+#: A joint is at its noise floor when every method's torque error is within this factor
+#: of the measured torque's noise and its error is at least NOISE_FLOOR_PERCENT %.
+NOISE_FLOOR_FACTOR = 1.25
+NOISE_FLOOR_PERCENT = 25.0
+
+
+def _say_noise_floor(joints: Sequence[str], errors: Sequence[dict[str, Any]]) -> None:
+    """Names the joints whose large error % is the log's torque noise, not the model's: a
+    98 % error on a wrist that barely moved says nothing about its parameters."""
+    if not errors:
+        return
+    noise = np.asarray(errors[0]["noise_rms"], dtype=float)
+    rms = np.max([e["rms"] for e in errors], axis=0)
+    percent = np.min([e["percent"] for e in errors], axis=0)
+    floor = (rms <= NOISE_FLOOR_FACTOR * noise) & (percent >= NOISE_FLOOR_PERCENT)
+    if not floor.any():
+        return
+    named = ", ".join(f"{j} (noise {noise[i]:.2g})" for i, j in enumerate(joints) if floor[i])
+    print(
+        f"at the noise floor: {named}: the error is the torque's own noise (estimated from "
+        "its third differences) and the torque hardly rises above it in this log, so the "
+        "error % says little about the model there; excite these joints harder to check them"
+    )

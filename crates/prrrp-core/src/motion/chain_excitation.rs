@@ -82,9 +82,10 @@ pub const MAX_EXCITATION_EVALUATIONS: usize = 10_000_000;
 /// few evaluations.
 ///
 /// # Errors
-/// [`PrrrpError::InvalidParameter`] for a bad setting or a joint whose limits do not bound
-/// its motion (named); [`PrrrpError::ShapeMismatch`] for a limit list of another length;
-/// [`PrrrpError::Infeasible`] when no shape gives a finite cond(W_b); an interrupt.
+/// [`PrrrpError::InvalidParameter`] for a bad setting; [`PrrrpError::Infeasible`] for a
+/// joint whose limits do not bound its motion (named, with what is missing) and when no
+/// shape gives a finite cond(W_b); [`PrrrpError::ShapeMismatch`] for a limit list of
+/// another length; an interrupt.
 pub fn optimise_chain_excitation(
     chain: &DynChain,
     base: &BaseParameters,
@@ -297,12 +298,20 @@ impl Shaper {
             let vel = l.velocity.is_finite() && l.velocity > 0.0;
             let acc = l.acceleration.is_finite() && l.acceleration > 0.0;
             if !vel || !(has_pos || acc) {
-                return Err(PrrrpError::InvalidParameter {
-                    field: format!("limits of joint {}", names[j]),
-                    value: f64::NAN,
-                    reason: "do not bound its motion: the excitation needs a speed limit and a \
-                             position or acceleration limit (give them in the robot file or \
-                             as an override)",
+                let missing = if vel {
+                    "position or acceleration limit"
+                } else if has_pos || acc {
+                    "speed limit"
+                } else {
+                    "speed limit and no position or acceleration limit"
+                };
+                return Err(PrrrpError::Infeasible {
+                    what: format!(
+                        "joint {} has no {missing}, so nothing bounds its excitation; give \
+                         them in the robot file (URDF <limit velocity=.. lower=.. upper=..>) \
+                         or as an override (prrrp excite --limits velocity=2,acceleration=8)",
+                        names[j]
+                    ),
                 });
             }
             offsets.push(if has_pos {
