@@ -527,7 +527,8 @@ def _summary(
         f"({grid.describe()}):"
     )
     print_table(header, rows)
-    _say_noise_floor(robot.joint_names, [r[which] for r in table if r["status"] == "ok"])
+    ok = [r[which] for r in table if r["status"] == "ok"]
+    _say_noise_floor(robot.joint_names, robot.joint_types, ok)
     for r in table:
         if r["status"] == "ok" and not r["converged"]:
             print(
@@ -549,7 +550,7 @@ NOISE_FLOOR_FACTOR = 1.25
 NOISE_FLOOR_PERCENT = 25.0
 
 
-def _say_noise_floor(joints: Sequence[str], errors: Sequence[dict[str, Any]]) -> None:
+def _say_noise_floor(joints: Sequence[str], types: str, errors: Sequence[dict[str, Any]]) -> None:
     """Names the joints whose large error % is the log's torque noise, not the model's: a
     98 % error on a wrist that barely moved says nothing about its parameters."""
     if not errors:
@@ -560,7 +561,11 @@ def _say_noise_floor(joints: Sequence[str], errors: Sequence[dict[str, Any]]) ->
     floor = (rms <= NOISE_FLOOR_FACTOR * noise) & (percent >= NOISE_FLOOR_PERCENT)
     if not floor.any():
         return
-    named = ", ".join(f"{j} (noise {noise[i]:.2g})" for i, j in enumerate(joints) if floor[i])
+    named = ", ".join(
+        f"{j} (noise {noise[i]:.2g} {'N' if types[i] == 'P' else 'N·m'})"
+        for i, j in enumerate(joints)
+        if floor[i]
+    )
     print(
         f"at the noise floor: {named}: the error is the torque's own noise (estimated from "
         "its third differences) and the torque hardly rises above it in this log, so the "
