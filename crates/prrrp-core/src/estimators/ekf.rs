@@ -1443,20 +1443,31 @@ fn solve_in_place(l: &mut [f64], n: usize, a: &mut [f64], b: &mut [f64]) -> bool
             b.swap(k, p);
         }
         let piv = l[k * n + k];
+        // The multipliers are kept in L's column k (below the diagonal, which the back
+        // substitution never reads) so that A is eliminated column by column: its
+        // columns are contiguous, rows are not (S columns of N, the stiff step's cost).
+        // Each entry gets the same operations in the same order as row by row.
         for i in k + 1..n {
             let f = l[k * n + i] / piv;
+            l[k * n + i] = f;
             if f == 0.0 {
                 continue;
             }
-            l[k * n + i] = 0.0;
             for j in k + 1..n {
                 l[j * n + i] -= f * l[j * n + k];
             }
-            for j in 0..m {
-                a[j * n + i] -= f * a[j * n + k];
-            }
             b[i] -= f * b[k];
         }
+        let fs = &l[k * n + k + 1..(k + 1) * n];
+        for col in a.chunks_exact_mut(n) {
+            let ak = col[k];
+            for (x, &f) in col[k + 1..].iter_mut().zip(fs) {
+                if f != 0.0 {
+                    *x -= f * ak;
+                }
+            }
+        }
+        l[k * n + k + 1..(k + 1) * n].fill(0.0);
     }
     let back = |x: &mut [f64]| {
         for i in (0..n).rev() {
@@ -2137,6 +2148,95 @@ mod tests {
         let mut big = DynEkf::new(model, beta, EkfConfig::default()).unwrap();
         assert!(big.x.nrows() > ACC_ROWS);
         check(&mut big, 0x1234_5678_9ABC_DEF1);
+    }
+
+    /// The stiff step's solve, eliminating A column by column, against the textbook
+    /// elimination row by row (bit for bit: the same operations on every entry, in the
+    /// same order) and against L·X = A (to round-off), on random systems that pivot and
+    /// have zero multipliers.
+    #[test]
+    fn column_wise_solve_matches_row_wise_elimination() {
+        use nalgebra::{DMatrix, DVector};
+        fn rows(l: &mut [f64], n: usize, a: &mut [f64], b: &mut [f64]) {
+            let m = a.len() / n;
+            for k in 0..n {
+                let mut p = k;
+                for i in k + 1..n {
+                    if l[k * n + i].abs() > l[k * n + p].abs() {
+                        p = i;
+                    }
+                }
+                if p != k {
+                    for j in 0..n {
+                        l.swap(j * n + k, j * n + p);
+                    }
+                    for j in 0..m {
+                        a.swap(j * n + k, j * n + p);
+                    }
+                    b.swap(k, p);
+                }
+                let piv = l[k * n + k];
+                for i in k + 1..n {
+                    let f = l[k * n + i] / piv;
+                    if f == 0.0 {
+                        continue;
+                    }
+                    l[k * n + i] = 0.0;
+                    for j in k + 1..n {
+                        l[j * n + i] -= f * l[j * n + k];
+                    }
+                    for j in 0..m {
+                        a[j * n + i] -= f * a[j * n + k];
+                    }
+                    b[i] -= f * b[k];
+                }
+            }
+            for x in a.chunks_exact_mut(n).chain(std::iter::once(b)) {
+                for i in (0..n).rev() {
+                    let mut v = x[i];
+                    for j in i + 1..n {
+                        v -= l[j * n + i] * x[j];
+                    }
+                    x[i] = v / l[i * n + i];
+                }
+            }
+        }
+        let mut seed = 0x6A09_E667_F3BC_C909u64;
+        let mut rnd = || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+        };
+        for (n, m, trial) in [(7usize, 78usize, 0), (7, 78, 1), (6, 45, 2), (1, 3, 3)] {
+            let l0 = DMatrix::from_fn(n, n, |i, j| {
+                // Some exact zeros below the diagonal (zero multipliers), and a weak
+                // diagonal so that rows are swapped.
+                if i > j && (i + j + trial) % 3 == 0 {
+                    0.0
+                } else if i == j {
+                    0.1 * rnd()
+                } else {
+                    rnd()
+                }
+            });
+            let a0 = DMatrix::from_fn(n, m, |_, _| rnd());
+            let b0 = DVector::from_fn(n, |_, _| rnd());
+            let (mut l, mut a, mut b) = (l0.clone(), a0.clone(), b0.clone());
+            assert!(solve_in_place(
+                l.as_mut_slice(),
+                n,
+                a.as_mut_slice(),
+                b.as_mut_slice()
+            ));
+            let (mut lr, mut ar, mut br) = (l0.clone(), a0.clone(), b0.clone());
+            rows(lr.as_mut_slice(), n, ar.as_mut_slice(), br.as_mut_slice());
+            assert_eq!(a, ar, "n {n}");
+            assert_eq!(b, br, "n {n}");
+            let res = (&l0 * &a - &a0).amax().max((&l0 * &b - &b0).amax());
+            let scale = a.amax().max(b.amax()) * l0.amax();
+            assert!(res <= 1e-13 * scale, "n {n}: residual {res:e}");
+        }
     }
 
     /// The tiled P·Aᵀ of run-time sizes against nalgebra's product on random data (state
