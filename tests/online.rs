@@ -229,6 +229,34 @@ fn payload_mode_ekf_tracks_a_gripped_part() {
     mass_within_5_percent(&r);
 }
 
+/// An empty gripper stays empty: on 10 s of the bare arm, payload mode (RLS and the EKF)
+/// ends below 25 g (1 % of the part) and physical; projecting the filter's own state onto
+/// the rigid bodies would rectify the noise at π = 0 and ratchet the mass up.
+#[test]
+fn payload_mode_without_a_payload_stays_empty() {
+    let chain = panda_like();
+    let base = chain.base_parameters(&BaseOptions::default()).unwrap();
+    let prior = prior_model(&chain, &base);
+    let lg = log(&chain, 41, 10.0, 500.0, None, (1e-5, 0.05));
+    for method in [OnlineMethod::Rls, OnlineMethod::Ekf] {
+        let cfg = OnlineConfig {
+            method,
+            payload: true,
+            ..Default::default()
+        };
+        let mut id = OnlineIdentifier::with_prior(&prior, cfg).unwrap();
+        for k in 0..lg.t.len() {
+            id.update(lg.t[k], &lg.q[k], &lg.tau[k], None).unwrap();
+        }
+        let m = id.parameters()[0];
+        eprintln!(
+            "{method:?}: empty gripper, mass {m} ± {}",
+            id.sigma().unwrap()[0]
+        );
+        assert!((0.0..0.025).contains(&m), "{method:?}: mass {m}");
+    }
+}
+
 /// The whole arm from no knowledge (RLS from β = 0; the EKF after 2 s of RLS): the grip
 /// is detected and the model at the end predicts the loaded motion within 3 %.
 #[test]

@@ -127,7 +127,8 @@ impl PayloadEkf {
             let h = Vec10::from_fn(|k, _| self.h[(j, k)] * self.sd0[k]);
             let ph = self.p * h;
             let s = h.dot(&ph) + 1.0 / w;
-            if !(s > 0.0) {
+            // A joint without information (or a NaN weight) updates nothing.
+            if s.is_nan() || s <= 0.0 {
                 continue;
             }
             let innovation = r[j] - h.dot(&self.gamma);
