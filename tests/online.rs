@@ -229,6 +229,20 @@ fn payload_mode_ekf_tracks_a_gripped_part() {
     mass_within_5_percent(&r);
 }
 
+/// Payload mode with `method` on the arm of `prior` over the whole of `lg`.
+fn payload_run(prior: &IdentifiedModel, method: OnlineMethod, lg: &Log) -> OnlineIdentifier {
+    let cfg = OnlineConfig {
+        method,
+        payload: true,
+        ..Default::default()
+    };
+    let mut id = OnlineIdentifier::with_prior(prior, cfg).unwrap();
+    for k in 0..lg.t.len() {
+        id.update(lg.t[k], &lg.q[k], &lg.tau[k], None).unwrap();
+    }
+    id
+}
+
 /// An empty gripper stays empty: on 10 s of the bare arm, payload mode (RLS and the EKF)
 /// ends below 25 g (1 % of the part) and physical; projecting the filter's own state onto
 /// the rigid bodies would rectify the noise at π = 0 and ratchet the mass up.
@@ -239,15 +253,7 @@ fn payload_mode_without_a_payload_stays_empty() {
     let prior = prior_model(&chain, &base);
     let lg = log(&chain, 41, 10.0, 500.0, None, (1e-5, 0.05));
     for method in [OnlineMethod::Rls, OnlineMethod::Ekf] {
-        let cfg = OnlineConfig {
-            method,
-            payload: true,
-            ..Default::default()
-        };
-        let mut id = OnlineIdentifier::with_prior(&prior, cfg).unwrap();
-        for k in 0..lg.t.len() {
-            id.update(lg.t[k], &lg.q[k], &lg.tau[k], None).unwrap();
-        }
+        let id = payload_run(&prior, method, &lg);
         let m = id.parameters()[0];
         eprintln!(
             "{method:?}: empty gripper, mass {m} ± {}",
@@ -555,15 +561,7 @@ fn ten_payload_logs(method: OnlineMethod) -> Vec<([f64; 10], [f64; 10])> {
     (0..10)
         .map(|seed| {
             let lg = log(&chain, 30 + seed, 10.0, 500.0, Some(0.0), (1e-5, 0.05));
-            let cfg = OnlineConfig {
-                method,
-                payload: true,
-                ..Default::default()
-            };
-            let mut id = OnlineIdentifier::with_prior(&prior, cfg).unwrap();
-            for k in 0..lg.t.len() {
-                id.update(lg.t[k], &lg.q[k], &lg.tau[k], None).unwrap();
-            }
+            let id = payload_run(&prior, method, &lg);
             let mut e = [0.0; 10];
             let mut s = [0.0; 10];
             e.copy_from_slice(id.parameters());
