@@ -73,6 +73,7 @@ fn update_allocates_nothing() {
         (OnlineMethod::Hopfield, false, None, true),
         (OnlineMethod::Rls, true, None, true),
         (OnlineMethod::Ekf, true, None, true),
+        (OnlineMethod::Ekf, true, Some(5.0), true),
     ];
     for (method, payload, forgetting, directional) in cases {
         for velocities in [false, true] {

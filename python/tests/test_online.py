@@ -77,24 +77,7 @@ def _rel_error(m: prrrp.IdentifiedModel, val) -> np.ndarray:
     return np.sqrt(np.mean(err**2, axis=0) / np.mean(val["exact"] ** 2, axis=0))
 
 
-@pytest.mark.parametrize(
-    "method",
-    [
-        "rls",
-        pytest.param(
-            "ekf",
-            # Not strict: the payload EKF's result depends on round-off (1e-12 changes of
-            # its start move the mass from 2.5 kg to 0.002 kg on the Rust test's arm), so
-            # a pass here would be luck, not a fix; see tests/online.rs.
-            marks=pytest.mark.xfail(
-                strict=False,
-                reason="known gap of issue 28: the payload EKF is not reliable (its mass "
-                "ranged from 0.05 to 2.49 kg on ten simulated logs of a 2.5 kg part, "
-                "docs/design/online.md); it passes on this log by chance",
-            ),
-        ),
-    ],
-)
+@pytest.mark.parametrize("method", ["rls", "ekf"])
 def test_payload_mode_finds_the_gripped_mass(setup, method):
     """Payload mode on a prior of the bare arm: the change is detected within a second of
     the grip, the mass is within 5 % (Pinocchio's torques, not prrrp's), and the model at
@@ -184,23 +167,6 @@ def test_track_command_writes_its_outputs(setup, tmp_path):
         main(["predict", str(out / "model.json"), str(data), "--out", str(tmp_path / "t.csv")]) == 0
     )
     assert main(["track", str(data), "--payload", "--robot", "x.urdf", "--out", str(out)]) == 2
-
-
-def test_track_warns_that_the_payload_ekf_is_not_reliable(setup, tmp_path, capsys):
-    """`prrrp track --payload --method ekf` says on stderr that the payload EKF is not
-    reliable yet (issue 28) and which method is; RLS payload mode says nothing of it."""
-    _chain, prior, run, _ = setup
-    data = tmp_path / "loaded.csv"
-    short = {k: v[: int((GRIP + 2) * RATE)] for k, v in run.items()}
-    _write_csv(data, short)
-    prior_path = tmp_path / "prior.json"
-    prior.save(prior_path)
-    for method, warned in (("ekf", True), ("rls", False)):
-        out = tmp_path / method
-        args = ["track", str(data), "--model", str(prior_path), "--payload", "--out", str(out)]
-        main([*args, "--method", method])
-        err = capsys.readouterr().err
-        assert ("payload EKF is not reliable" in err) == warned, err
 
 
 def test_identify_ekf_takes_the_options_its_errors_name(setup, tmp_path):

@@ -9,7 +9,6 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import sys
 from pathlib import Path
 from typing import Any
 
@@ -106,7 +105,8 @@ def add_parser(sub: Any) -> None:
         default=1.0,
         metavar="F",
         help="ekf: factor on the measurement noise of positions (1e-3 rad) and velocities "
-        "(1e-2 rad/s) (default 1)",
+        "(1e-2 rad/s) (default 1; not used with --payload, whose filter measures the "
+        "torque the arm does not explain, with the running torque noise)",
     )
     add_topic_argument(p)
     add_out_argument(p)
@@ -117,14 +117,6 @@ def _positive(name: str, v: float | None) -> None:
         raise CliError(f"{name} must be finite and > 0, got {v}")
 
 
-#: Printed when payload mode runs the EKF: it is not reliable yet (issue 28).
-PAYLOAD_EKF_WARNING = (
-    "warning: the payload EKF is not reliable yet: on ten simulated logs of a 2.5 kg part "
-    "its mass ranged from 0.05 to 2.49 kg (docs/design/online.md); RLS, the default "
-    "method, found it within 0.2 % on the same logs"
-)
-
-
 def run(args: argparse.Namespace) -> int:
     _positive("--forgetting", args.forgetting)
     _positive("--cutoff", args.cutoff)
@@ -132,8 +124,6 @@ def run(args: argparse.Namespace) -> int:
     _positive("--ekf-noise", args.ekf_noise)
     if args.payload and not args.model:
         raise CliError("--payload tracks a load on a known arm: give its model with --model")
-    if args.payload and args.method == "ekf":
-        print(PAYLOAD_EKF_WARNING, file=sys.stderr)
     prior = load_model(args.model) if args.model else None
     if prior is not None:
         if args.robot:

@@ -6,6 +6,7 @@ use serde_json::json;
 use super::detector::{ChangeDetection, ChangeDetector, ErrorCorrelation};
 use super::kinematics::{CausalKinematics, CausalLowPass};
 use super::payload::{project, summary_json, PAYLOAD_PARAMS};
+use super::payload_ekf::PayloadEkf;
 use super::tracked::{TrackedModel, TrackedWorkspace};
 use crate::error::{PrrrpError, Result};
 use crate::estimators::{
@@ -25,7 +26,8 @@ pub enum OnlineMethod {
     #[default]
     Rls,
     /// The extended Kalman filter on [q, q̇, θ] (the paper's), started inside the
-    /// physical region.
+    /// physical region; in payload mode a Kalman filter on the payload's parameters alone,
+    /// measuring the joint forces the prior arm does not explain.
     Ekf,
     /// Adaline networks (normalised delta rule, one step per sample).
     Adaline,
@@ -110,7 +112,8 @@ pub struct OnlineConfig {
     /// (default `2.0`; then also until M(q, θ̂) has been positive definite for 0.5 s).
     pub ekf_warmup: f64,
     /// EKF: factor on the measurement noise R of the positions (1e-3 rad or m) and
-    /// velocities (1e-2 rad/s or m/s) (default `1.0`).
+    /// velocities (1e-2 rad/s or m/s) (default `1.0`). Not used in payload mode, whose
+    /// filter measures joint forces with the running noise levels.
     pub ekf_noise: f64,
     /// Adaline's normalised step, Hopfield's gain as a fraction of its stability limit
     /// (dimensionless in (0, 2), default `0.5`).
@@ -239,6 +242,8 @@ enum Engine {
     Adaline(Box<DynAdaline<DynScaledModel<TrackedModel>>>),
     Hopfield(Box<DynHopfield<DynScaledModel<TrackedModel>>>),
     Ekf(Box<EkfEngine>),
+    /// Payload mode's EKF: on the payload's parameters alone (`payload_ekf`).
+    PayloadEkf(Box<PayloadEkf>),
 }
 
 /// The EKF and what it needs between samples.
@@ -478,6 +483,9 @@ impl OnlineIdentifier {
                     cfg,
                 )?))
             }
+            OnlineMethod::Ekf if config.payload => {
+                Engine::PayloadEkf(Box::new(PayloadEkf::new(&model, &cap)))
+            }
             OnlineMethod::Ekf => {
                 let cfg = EkfConfig {
                     dt: 1e-3,
@@ -664,6 +672,7 @@ impl OnlineIdentifier {
     /// Whether the EKF is running (false during its RLS warm-up, and for other methods).
     pub fn ekf_running(&self) -> bool {
         matches!(&self.engine, Engine::Ekf(e) if e.running)
+            || matches!(&self.engine, Engine::PayloadEkf(_))
     }
 
     /// Consumes one raw sample: time `t` (s, not decreasing), positions `q` (rad, m),
@@ -850,6 +859,18 @@ impl OnlineIdentifier {
             Engine::Hopfield(h) => {
                 h.step(sample)?;
             }
+            Engine::PayloadEkf(e) => {
+                e.update(
+                    &self.model,
+                    &self.qf,
+                    &self.vf,
+                    &self.af,
+                    &self.tr,
+                    &self.weights,
+                    dt,
+                    nu,
+                )?;
+            }
             Engine::Ekf(e) => {
                 if !e.running {
                     e.rls.update_weighted(sample, &self.weights, forgetting)?;
@@ -921,6 +942,10 @@ impl OnlineIdentifier {
             Engine::Rls(r) => self.gamma.copy_from(r.estimate()),
             Engine::Adaline(a) => self.gamma.copy_from(a.estimate()),
             Engine::Hopfield(h) => self.gamma.copy_from(h.estimate()),
+            Engine::PayloadEkf(e) => {
+                self.gamma.copy_from(e.estimate());
+                self.gamma.component_div_assign(&self.scale);
+            }
             Engine::Ekf(e) if !e.running => self.gamma.copy_from(e.rls.estimate()),
             Engine::Ekf(e) => {
                 self.theta.copy_from(e.ekf.estimate());
@@ -968,6 +993,11 @@ impl OnlineIdentifier {
                     *v = c[(i, i)].max(0.0).sqrt() * self.scale[i];
                 }
             }
+            Engine::PayloadEkf(e) => {
+                for (k, v) in self.out_sigma.iter_mut().enumerate() {
+                    *v = e.covariance(k, k).max(0.0).sqrt();
+                }
+            }
             Engine::Ekf(e) => {
                 let p = e.ekf.covariance();
                 let o = 2 * self.n;
@@ -1006,6 +1036,13 @@ impl OnlineIdentifier {
                     self.open[i] = opening(k, cap, p[(o + i, o + i)]);
                 }
                 e.ekf.scale_parameter_covariance(&self.open)?;
+            }
+            Engine::PayloadEkf(e) => {
+                // The cap is the prior variance, 1 in the filter's units.
+                for i in 0..self.open.len() {
+                    self.open[i] = opening(k, 1.0, e.relative_variance(i));
+                }
+                e.scale_covariance(&self.open);
             }
             Engine::Ekf(e) => {
                 let c = e.rls.covariance();
@@ -1139,6 +1176,7 @@ impl OnlineIdentifier {
                 let o = 2 * self.n;
                 Some(e.ekf.covariance().view((o, o), (p, p)).clone_owned() * k)
             }
+            Engine::PayloadEkf(e) => Some(DMatrix::from_fn(p, p, |i, j| e.covariance(i, j) * k)),
             _ => None,
         }
     }
@@ -1170,6 +1208,10 @@ impl OnlineIdentifier {
             v["change_threshold"] = json!(d.threshold);
             v["change_window_s"] = json!(d.window);
             v["noise_window_s"] = json!(d.noise_window);
+        }
+        if let Engine::PayloadEkf(_) = &self.engine {
+            v["ekf_state"] = json!("payload parameters (measurement: the residual of the arm)");
+            v["payload_drift_per_sqrt_s"] = json!(super::payload_ekf::PAYLOAD_DRIFT);
         }
         if let Engine::Ekf(e) = &self.engine {
             v["ekf_running"] = json!(e.running);

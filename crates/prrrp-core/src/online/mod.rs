@@ -17,6 +17,7 @@ mod detector;
 mod identifier;
 mod kinematics;
 mod payload;
+mod payload_ekf;
 mod tracked;
 
 pub use detector::{ChangeDetection, ChangeDetector};
