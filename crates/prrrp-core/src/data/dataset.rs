@@ -35,11 +35,8 @@ use crate::models::prrrp::types::{Vec5, NDOF, NPARAM};
 pub struct DatasetOf<N: Dim> {
     n: N,
     min_samples: usize,
-    t: Vec<f64>,
-    q: Vec<f64>,
-    qd: Vec<f64>,
-    qdd: Vec<f64>,
-    tau: Vec<f64>,
+    // `cols.dof` is `n.value()`: the columns travel as one value (into_parts, with_dim).
+    cols: DatasetParts,
 }
 
 /// The paper's arm: joint order [d1, θ2, θ3, θ4, d5], q in m and rad, q̇ in m/s and
@@ -120,14 +117,19 @@ impl<N: Dim> DatasetOf<N> {
         qdd: Vec<f64>,
         tau: Vec<f64>,
     ) -> Result<Self> {
-        let d = Self {
-            n,
-            min_samples: min_samples.max(1),
+        let dof = n.value();
+        let cols = DatasetParts {
+            dof,
             t,
             q,
             qd,
             qdd,
             tau,
+        };
+        let d = Self {
+            n,
+            min_samples: min_samples.max(1),
+            cols,
         };
         d.validate()?;
         Ok(d)
@@ -135,7 +137,7 @@ impl<N: Dim> DatasetOf<N> {
 
     /// The one implementation of the invariants, in the documented order.
     fn validate(&self) -> Result<()> {
-        let rows = self.t.len();
+        let rows = self.cols.t.len();
         check_dof(self.dof())?;
         for (name, col) in self.joint_columns() {
             check_flat_len(name, col.len(), self.n, rows)?;
@@ -146,7 +148,7 @@ impl<N: Dim> DatasetOf<N> {
                 got: rows,
             });
         }
-        if let Some(row) = self.t.iter().position(|x| !x.is_finite()) {
+        if let Some(row) = self.cols.t.iter().position(|x| !x.is_finite()) {
             return Err(PrrrpError::NonFinite {
                 what: "t".into(),
                 row: Some(row),
@@ -155,7 +157,7 @@ impl<N: Dim> DatasetOf<N> {
         for (name, col) in self.joint_columns() {
             check_finite_flat(name, col, self.dof())?;
         }
-        if let Some(k) = self.t.windows(2).position(|w| w[1] <= w[0]) {
+        if let Some(k) = self.cols.t.windows(2).position(|w| w[1] <= w[0]) {
             return Err(PrrrpError::NonIncreasingTime { row: k + 1 });
         }
         Ok(())
@@ -163,21 +165,21 @@ impl<N: Dim> DatasetOf<N> {
 
     fn joint_columns(&self) -> [(&'static str, &[f64]); 4] {
         [
-            ("q", &self.q),
-            ("qd", &self.qd),
-            ("qdd", &self.qdd),
-            ("tau", &self.tau),
+            ("q", &self.cols.q),
+            ("qd", &self.cols.qd),
+            ("qdd", &self.cols.qdd),
+            ("tau", &self.cols.tau),
         ]
     }
 
     /// Number of samples N (at least [`DatasetOf::min_samples`]).
     pub fn len(&self) -> usize {
-        self.t.len()
+        self.cols.t.len()
     }
 
     /// Always false: a valid data set has at least one sample.
     pub fn is_empty(&self) -> bool {
-        self.t.is_empty()
+        self.cols.t.is_empty()
     }
 
     /// Number of joints n.
@@ -193,7 +195,7 @@ impl<N: Dim> DatasetOf<N> {
 
     /// Time span `t[N−1] − t[0]`, s.
     pub fn duration(&self) -> f64 {
-        match (self.t.first(), self.t.last()) {
+        match (self.cols.t.first(), self.cols.t.last()) {
             (Some(a), Some(b)) => b - a,
             _ => 0.0,
         }
@@ -201,27 +203,27 @@ impl<N: Dim> DatasetOf<N> {
 
     /// Time stamps, s (strictly increasing).
     pub fn t(&self) -> &[f64] {
-        &self.t
+        &self.cols.t
     }
 
     /// Joint positions (m, rad), flat row-major N × n.
     pub fn q(&self) -> &[f64] {
-        &self.q
+        &self.cols.q
     }
 
     /// Joint velocities (m/s, rad/s), flat row-major N × n.
     pub fn qd(&self) -> &[f64] {
-        &self.qd
+        &self.cols.qd
     }
 
     /// Joint accelerations (m/s², rad/s²), flat row-major N × n.
     pub fn qdd(&self) -> &[f64] {
-        &self.qdd
+        &self.cols.qdd
     }
 
     /// Generalised forces (N, N·m), flat row-major N × n.
     pub fn tau(&self) -> &[f64] {
-        &self.tau
+        &self.cols.tau
     }
 
     /// Joint positions of sample `k` (n values, m or rad).
@@ -229,7 +231,7 @@ impl<N: Dim> DatasetOf<N> {
     /// # Panics
     /// If `k >= self.len()`, as slice indexing does.
     pub fn q_row(&self, k: usize) -> &[f64] {
-        self.row(&self.q, k)
+        self.row(&self.cols.q, k)
     }
 
     /// Joint velocities of sample `k` (n values, m/s or rad/s).
@@ -237,7 +239,7 @@ impl<N: Dim> DatasetOf<N> {
     /// # Panics
     /// If `k >= self.len()`, as slice indexing does.
     pub fn qd_row(&self, k: usize) -> &[f64] {
-        self.row(&self.qd, k)
+        self.row(&self.cols.qd, k)
     }
 
     /// Joint accelerations of sample `k` (n values, m/s² or rad/s²).
@@ -245,7 +247,7 @@ impl<N: Dim> DatasetOf<N> {
     /// # Panics
     /// If `k >= self.len()`, as slice indexing does.
     pub fn qdd_row(&self, k: usize) -> &[f64] {
-        self.row(&self.qdd, k)
+        self.row(&self.cols.qdd, k)
     }
 
     /// Generalised forces of sample `k` (n values, N or N·m).
@@ -253,7 +255,7 @@ impl<N: Dim> DatasetOf<N> {
     /// # Panics
     /// If `k >= self.len()`, as slice indexing does.
     pub fn tau_row(&self, k: usize) -> &[f64] {
-        self.row(&self.tau, k)
+        self.row(&self.cols.tau, k)
     }
 
     #[inline]
@@ -281,24 +283,17 @@ impl<N: Dim> DatasetOf<N> {
         Self::from_columns(
             self.n,
             self.min_samples,
-            self.t[range].to_vec(),
-            self.q[flat.clone()].to_vec(),
-            self.qd[flat.clone()].to_vec(),
-            self.qdd[flat.clone()].to_vec(),
-            self.tau[flat].to_vec(),
+            self.cols.t[range].to_vec(),
+            self.cols.q[flat.clone()].to_vec(),
+            self.cols.qd[flat.clone()].to_vec(),
+            self.cols.qdd[flat.clone()].to_vec(),
+            self.cols.tau[flat].to_vec(),
         )
     }
 
     /// Moves the columns out.
     pub fn into_parts(self) -> DatasetParts {
-        DatasetParts {
-            dof: self.dof(),
-            t: self.t,
-            q: self.q,
-            qd: self.qd,
-            qdd: self.qdd,
-            tau: self.tau,
-        }
+        self.cols
     }
 
     /// The same columns and minimum under another dimension type `m` (same n), e.g.
@@ -309,11 +304,7 @@ impl<N: Dim> DatasetOf<N> {
         DatasetOf {
             n: m,
             min_samples: self.min_samples,
-            t: self.t,
-            q: self.q,
-            qd: self.qd,
-            qdd: self.qdd,
-            tau: self.tau,
+            cols: self.cols,
         }
     }
 }
@@ -329,10 +320,10 @@ impl<const D: usize> DatasetOf<Const<D>> {
             bytemuck::cast_slice(c)
         }
         Samples::new(
-            rows(&self.q),
-            rows(&self.qd),
-            rows(&self.qdd),
-            rows(&self.tau),
+            rows(&self.cols.q),
+            rows(&self.cols.qd),
+            rows(&self.cols.qdd),
+            rows(&self.cols.tau),
         )
         .expect("a data set's columns have equal lengths by construction")
     }
