@@ -1,7 +1,7 @@
 //! Validation of `Dataset`: every kind of bad input gets a typed error naming the column
 //! and the first bad row.
 
-use prrrp_core::{Dataset, PrrrpError, Vec5};
+use prrrp_core::{Dataset, DynDataset, PrrrpError, Vec5};
 
 /// (t, q, qd, qdd, tau).
 type Columns = (Vec<f64>, Vec<Vec5>, Vec<Vec5>, Vec<Vec5>, Vec<Vec5>);
@@ -23,13 +23,18 @@ fn valid_dataset_keeps_its_columns() {
     assert_eq!(d.len(), 12);
     assert!(!d.is_empty());
     assert_eq!(d.t(), &t[..]);
-    assert_eq!(d.q(), &q[..]);
-    assert_eq!(d.qd(), &qd[..]);
-    assert_eq!(d.qdd(), &qdd[..]);
-    assert_eq!(d.tau(), &tau[..]);
+    let s = d.samples();
+    assert_eq!(s.q(), &q[..]);
+    assert_eq!(s.qd(), &qd[..]);
+    assert_eq!(s.qdd(), &qdd[..]);
+    assert_eq!(s.tau(), &tau[..]);
+    // The flat columns are the same values, row-major.
+    assert_eq!(d.tau()[5 * 7 + 3], tau[7][3]);
+    assert_eq!(d.qd_row(4), qd[4].as_slice());
     assert!((d.duration() - 0.22).abs() < 1e-12);
     let p = d.into_parts();
-    assert_eq!(p.tau, tau);
+    assert_eq!(p.dof, 5);
+    assert_eq!(p.tau, tau.iter().flatten().copied().collect::<Vec<_>>());
 }
 
 #[test]
@@ -111,7 +116,8 @@ fn row_major_constructor_matches_per_sample_one() {
     let b = Dataset::new(t.clone(), q.clone(), qd.clone(), qdd.clone(), tau.clone()).unwrap();
     assert_eq!(a, b);
     // Row-major: sample 3, joint 4 is flat entry 5·3 + 4.
-    assert_eq!(a.q()[3][4], flat(&q)[19]);
+    assert_eq!(a.q_row(3)[4], flat(&q)[19]);
+    assert_eq!(a.samples().q()[3][4], flat(&q)[19]);
 
     let mut short = flat(&qd);
     short.pop();
@@ -137,7 +143,7 @@ fn slice_is_validated() {
     let s = d.slice(10..20).unwrap();
     assert_eq!(s.len(), 10);
     assert_eq!(s.t()[0], d.t()[10]);
-    assert_eq!(s.tau()[9], d.tau()[19]);
+    assert_eq!(s.tau_row(9), d.tau_row(19));
     assert!(matches!(
         d.slice(25..31),
         Err(PrrrpError::ShapeMismatch { .. })
@@ -146,4 +152,30 @@ fn slice_is_validated() {
         d.slice(0..3),
         Err(PrrrpError::TooFewSamples { .. })
     ));
+}
+
+/// One validation serves both dimensions; the wording of a wrong column length stays
+/// what each path said before they were one type (the Python tests match it).
+#[test]
+fn column_length_messages_of_both_dimensions() {
+    let (t, q, ..) = columns(9);
+    let full: Vec<f64> = q.iter().flatten().copied().collect();
+    let mut short = full.clone();
+    short.pop();
+    assert_eq!(
+        Dataset::from_row_major(&t, &full, &short, &full, &full),
+        Err(PrrrpError::ShapeMismatch {
+            what: "qd".into(),
+            expected: "45 values (row-major, 5 joints per sample, 9 samples as t)".into(),
+            got: "44 values".into(),
+        })
+    );
+    assert_eq!(
+        DynDataset::with_min_samples(5, 1, t, full.clone(), short, full.clone(), full),
+        Err(PrrrpError::ShapeMismatch {
+            what: "qd".into(),
+            expected: "5·9 values (row-major, 5 joints per sample, 9 samples as t)".into(),
+            got: "44 values".into(),
+        })
+    );
 }

@@ -125,10 +125,10 @@ fn derivatives_of_an_analytic_signal_within_stated_bounds() {
     let (mut e1, mut e2): (f64, f64) = (0.0, 0.0);
     for k in 0..d.len() {
         let (_, v, a) = f(d.t()[k]);
-        e1 = e1.max((d.qd()[k][2] - v).abs());
-        e2 = e2.max((d.qdd()[k][2] - a).abs());
+        e1 = e1.max((d.qd_row(k)[2] - v).abs());
+        e2 = e2.max((d.qdd_row(k)[2] - a).abs());
         // The filtered position itself is essentially unchanged.
-        assert!((d.q()[k][2] - f(d.t()[k]).0).abs() < 1e-3);
+        assert!((d.q_row(k)[2] - f(d.t()[k]).0).abs() < 1e-3);
     }
     assert!(e1 <= bound_qd, "q̇ error {e1} > bound {bound_qd}");
     assert!(e2 <= bound_qdd, "q̈ error {e2} > bound {bound_qdd}");
@@ -145,7 +145,7 @@ fn derivatives_of_an_analytic_signal_within_stated_bounds() {
     )
     .unwrap();
     let e_raw = (0..raw.len())
-        .map(|k| (raw.qdd()[k][2] - f(raw.t()[k]).2).abs())
+        .map(|k| (raw.qdd_row(k)[2] - f(raw.t()[k]).2).abs())
         .fold(0.0, f64::max);
     assert!(e_raw > 100.0 * bound_qdd, "edge error {e_raw}");
 }
@@ -177,7 +177,7 @@ fn noise_gain_matches_the_frequency_domain_prediction() {
     let (v1, v2) = (sigma * sigma * v1 / m as f64, sigma * sigma * v2 / m as f64);
     for j in 0..5 {
         let ms = |c: &[Vec5]| c.iter().map(|v| v[j] * v[j]).sum::<f64>() / c.len() as f64;
-        let (r1, r2) = (ms(d.qd()) / v1, ms(d.qdd()) / v2);
+        let (r1, r2) = (ms(d.samples().qd()) / v1, ms(d.samples().qdd()) / v2);
         assert!(
             (r1 - 1.0).abs() < 0.25,
             "joint {j}: q̇ noise variance ratio {r1}"
@@ -237,7 +237,8 @@ fn least_squares_on_preprocessed_noisy_data_recovers_lambda() {
     }
 
     let d = sim.measured_dataset(&PreprocessConfig::default()).unwrap();
-    let est = ls(d.q(), d.qd(), d.qdd(), d.tau());
+    let s = d.samples();
+    let est = ls(s.q(), s.qd(), s.qdd(), s.tau());
     for i in 0..8 {
         let rel = (est[i] - lambda[i]).abs() / lambda[i];
         eprintln!("REL {i} {:.3}", rel * 100.0);
@@ -255,7 +256,7 @@ fn least_squares_on_preprocessed_noisy_data_recovers_lambda() {
     for j in 0..5 {
         let (mut e, mut s) = (0.0, 0.0);
         for k in 0..d.len() {
-            e += (d.qdd()[k][j] - sim.qdd[k + off][j]).powi(2);
+            e += (d.qdd_row(k)[j] - sim.qdd[k + off][j]).powi(2);
             s += sim.qdd[k + off][j].powi(2);
         }
         assert!(

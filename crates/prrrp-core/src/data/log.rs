@@ -1,9 +1,10 @@
 //! Preprocessing of real joint logs: repeated rows, timestamp jitter, gaps, resampling
 //! onto a uniform grid, then the shared zero-phase filtering and differentiation.
 
-use crate::data::dyn_dataset::{check_dof, check_finite_flat, check_flat_len, DynDataset};
+use crate::data::dataset::{check_dof, check_finite_flat, check_flat_len, DynDataset};
 use crate::data::pipeline::{filter_and_differentiate, FilterSettings, Grid, Signals, Source};
 use crate::error::{PrrrpError, Result};
+use nalgebra::Dyn;
 
 /// Default low-pass cut-off of [`preprocess_log`], Hz, before the cap at a tenth of the
 /// output rate (see [`LogConfig::cutoff_hz`]).
@@ -191,10 +192,10 @@ pub fn preprocess_log(
 ) -> Result<(DynDataset, LogReport)> {
     check_dof(n)?;
     let rows = t.len();
-    check_flat_len("q", q.len(), n, rows)?;
-    check_flat_len("tau", tau.len(), n, rows)?;
+    check_flat_len("q", q.len(), Dyn(n), rows)?;
+    check_flat_len("tau", tau.len(), Dyn(n), rows)?;
     if let Some(qd) = qd {
-        check_flat_len("qd", qd.len(), n, rows)?;
+        check_flat_len("qd", qd.len(), Dyn(n), rows)?;
     }
     if let Some(row) = t.iter().position(|x| !x.is_finite()) {
         return Err(PrrrpError::NonFinite {

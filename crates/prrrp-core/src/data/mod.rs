@@ -1,23 +1,21 @@
-//! Identification data: the validated [`DynDataset`] of any joint count and
-//! [`preprocess_log`], which turns a real, irregular log into one; the PRRRP's fixed-size
-//! [`Dataset`] and [`preprocess`] run on the same
-//! filtering core.
+//! Identification data: the validated [`DatasetOf`] — [`DynDataset`] for any joint
+//! count, [`Dataset`] for the paper's 5-joint arm — and [`preprocess_log`], which turns a
+//! real, irregular log into one; the PRRRP's [`preprocess`] runs on the same filtering
+//! core.
 
 pub mod csv;
 pub(crate) mod dataset;
-mod dyn_dataset;
 mod log;
 pub(crate) mod pipeline;
 pub(crate) mod preprocess;
 
-pub use dyn_dataset::{DynDataset, DynDatasetParts};
 pub use log::{
     preprocess_log, LogConfig, LogReport, DEFAULT_LOG_CUTOFF_HZ, LOG_MAX_UPSAMPLING,
     LOG_UNIFORM_TOLERANCE,
 };
 
 // The module's public API (also at the crate root through `prelude`).
-pub use dataset::{Dataset, DatasetParts};
+pub use dataset::{Dataset, DatasetOf, DatasetParts, DynDataset};
 pub use preprocess::{
     central_differences, preprocess, ButterworthLowPass, PreprocessConfig, MAX_BUTTERWORTH_ORDER,
 };

@@ -1,7 +1,7 @@
 //! The one filtering and differentiation core behind [`crate::preprocess()`] (5 joints,
 //! uniform samples) and [`crate::preprocess_log`] (n joints, resampled real logs).
 
-use crate::data::dyn_dataset::DynDataset;
+use crate::data::dataset::DynDataset;
 use crate::data::preprocess::ButterworthLowPass;
 use crate::error::{PrrrpError, Result};
 

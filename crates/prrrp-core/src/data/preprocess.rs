@@ -216,7 +216,7 @@ pub fn central_differences(x: &[Vec5], dt: f64) -> (Vec<Vec5>, Vec<Vec5>) {
 /// let data = preprocess(&t, &q, &tau, &PreprocessConfig::default())?;
 /// let k = data.len() / 2;
 /// let want = -1.69 * (1.3 * data.t()[k]).sin();
-/// assert!((data.qdd()[k][2] - want).abs() < 1e-3);
+/// assert!((data.qdd_row(k)[2] - want).abs() < 1e-3);
 /// # Ok::<(), prrrp_core::PrrrpError>(())
 /// ```
 ///

@@ -13,8 +13,9 @@
 //! agreement index per joint ([`TorqueValidation`]). The paper arm's functions run
 //! through the same prediction loop and per-joint indices.
 
-use crate::data::dataset::Dataset;
-use crate::data::DynDataset;
+use nalgebra::Dim;
+
+use crate::data::{Dataset, DatasetOf, DynDataset};
 use crate::error::{PrrrpError, Result};
 use crate::identification::IdentifiedModel;
 use crate::models::prrrp::dynamics::PrrrpModel;
@@ -97,8 +98,7 @@ pub fn torque_prediction(
     }
     let plant = ParameterisedModel::new(*model, *lambda)?;
     let mut ws = plant.workspace();
-    let rows = DynDataset::from(data);
-    let flat = predict_with(&rows, |q, qd, qdd, tau| {
+    let flat = predict_with(data, |q, qd, qdd, tau| {
         plant.inverse_dynamics_into(&mut ws, q, qd, qdd, tau)
     })?;
     let predicted: Vec<Vec5> = flat
@@ -110,7 +110,7 @@ pub fn torque_prediction(
     let mut relative_percent = [0.0; NDOF];
     for j in 0..NDOF {
         let (mut se, mut ss) = (0.0, 0.0);
-        for (p, m) in predicted.iter().zip(data.tau()) {
+        for (p, m) in predicted.iter().zip(data.samples().tau()) {
             se += (m[j] - p[j]).powi(2);
             ss += m[j] * m[j];
         }
@@ -287,8 +287,8 @@ pub fn per_joint_indices(
 
 /// Predicted torques of every sample of `data` (flat row-major samples × n) by `predict`,
 /// which writes τ̂(q, q̇, q̈) into its last argument without allocating.
-fn predict_with(
-    data: &DynDataset,
+fn predict_with<N: Dim>(
+    data: &DatasetOf<N>,
     mut predict: impl FnMut(&[f64], &[f64], &[f64], &mut [f64]) -> Result<()>,
 ) -> Result<Vec<f64>> {
     let n = data.dof();

@@ -2,7 +2,8 @@
 //! per-sample q, q̇, q̈, τ of n joints), wrapping the core's `DynDataset`; and
 //! `prrrp.preprocess_log`, which makes one from a real log.
 
-use prrrp_core::{preprocess_log, Dataset, DynDataset, LogConfig, PrrrpError};
+use prrrp_core::nalgebra::Dim;
+use prrrp_core::{preprocess_log, Dataset, DatasetOf, DynDataset, LogConfig, PrrrpError};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PySlice};
 
@@ -159,13 +160,7 @@ pymethods_with_getters!(PyDataset {
 
     /// The columns as a dict of arrays t, q, qd, qdd, tau.
     fn to_dict<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
-        let out = PyDict::new(py);
-        out.set_item("t", self.t(py)?)?;
-        out.set_item("q", self.q(py)?)?;
-        out.set_item("qd", self.qd(py)?)?;
-        out.set_item("qdd", self.qdd(py)?)?;
-        out.set_item("tau", self.tau(py)?)?;
-        Ok(out)
+        dataset_dict(py, &self.inner)
     }
 
     fn __repr__(&self) -> String {
@@ -202,6 +197,25 @@ impl PyDataset {
             &[self.inner.dof()],
         )
     }
+}
+
+/// The columns of a data set of any joint count as a dict of arrays t (N,) and q, qd,
+/// qdd, tau (N, n).
+pub(crate) fn dataset_dict<'py, N: Dim>(
+    py: Python<'py>,
+    d: &DatasetOf<N>,
+) -> PyResult<Bound<'py, PyDict>> {
+    let out = PyDict::new(py);
+    out.set_item("t", to_array(py, d.t().to_vec(), Some(d.len()), &[])?)?;
+    for (name, col) in [
+        ("q", d.q()),
+        ("qd", d.qd()),
+        ("qdd", d.qdd()),
+        ("tau", d.tau()),
+    ] {
+        out.set_item(name, to_array(py, col.to_vec(), Some(d.len()), &[d.dof()])?)?;
+    }
+    Ok(out)
 }
 
 /// A 5-joint core data set (the paper's arm) from a `prrrp.Dataset` or a mapping with keys

@@ -1,21 +1,12 @@
 //! `prrrp.preprocess`: measured (t, q, τ) → filtered q, q̇, q̈, τ.
 
-use prrrp_core::{preprocess as core_preprocess, Dataset, PreprocessConfig, NDOF};
+use prrrp_core::{preprocess as core_preprocess, PreprocessConfig, NDOF};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
-use crate::arrays::{rows_to_array, to_array, vector, Samples, UInt};
+use crate::arrays::{vector, Samples, UInt};
+use crate::data::dataset::dataset_dict;
 use crate::errors::ToPyResult;
-
-pub(crate) fn dataset_dict<'py>(py: Python<'py>, d: &Dataset) -> PyResult<Bound<'py, PyDict>> {
-    let out = PyDict::new(py);
-    out.set_item("t", to_array(py, d.t().to_vec(), Some(d.len()), &[])?)?;
-    out.set_item("q", rows_to_array(py, d.q())?)?;
-    out.set_item("qd", rows_to_array(py, d.qd())?)?;
-    out.set_item("qdd", rows_to_array(py, d.qdd())?)?;
-    out.set_item("tau", rows_to_array(py, d.tau())?)?;
-    Ok(out)
-}
 
 /// Turns uniformly sampled measurements `t` (N,) s, `q` (N, 5), `tau` (N, 5) into a dict of
 /// arrays `t`, `q`, `qd`, `qdd`, `tau`: zero-phase Butterworth low-pass (`cutoff_hz` Hz,
