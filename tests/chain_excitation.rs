@@ -98,7 +98,9 @@ fn a_robot_without_limits_is_refused_naming_the_joint() {
     )
     .unwrap_err();
     match err {
-        PrrrpError::InvalidParameter { field, .. } => assert!(field.contains("joint1"), "{field}"),
+        PrrrpError::Infeasible { what } => {
+            assert!(what.contains("joint joint1 has no speed limit"), "{what}")
+        }
         other => panic!("{other:?}"),
     }
     let bad = ChainExcitationConfig {
