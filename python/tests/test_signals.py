@@ -60,6 +60,35 @@ def test_a_dropped_signal_still_ends_the_run(tmp_path: Path, sig: int, code: int
     assert sorted(p.name for p in tmp_path.iterdir()) == []
 
 
+@pytest.mark.parametrize(("sig", "code"), [(signal.SIGINT, 130), (signal.SIGTERM, 143)])
+def test_an_error_after_a_dropped_signal_ends_for_the_signal(
+    tmp_path: Path, sig: int, code: int
+) -> None:
+    """After a dropped signal, the command fails (here a bad --duration; in CI, matplotlib
+    stopped halfway then raised "Invalid bounding box"): the exit code is the signal's,
+    not the error's 2."""
+    argv = ["simulate", "--duration", "0", "--out", str(tmp_path / "sim")]
+    source = CHILD.replace("SIG)", f"{int(sig)})").replace("ARGV", repr(argv))
+    child = subprocess.run(
+        [sys.executable, "-c", textwrap.dedent(source)],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert "survived" in child.stdout, (child.stdout, child.stderr)
+    assert child.returncode == code, (child.stdout, child.stderr)
+    # Without the signal, the same command is the usage error.
+    source = CHILD.replace("signal.raise_signal(SIG)", "pass").replace("ARGV", repr(argv))
+    plain = subprocess.run(
+        [sys.executable, "-c", textwrap.dedent(source)],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert plain.returncode == 2, (plain.stdout, plain.stderr)
+    assert "--duration must be a positive number" in plain.stderr
+
+
 def test_without_a_signal_the_run_writes_its_output(tmp_path: Path) -> None:
     # The same child with no signal: the check above fails for the signal, not the command.
     out = tmp_path / "sim"

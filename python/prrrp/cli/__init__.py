@@ -97,8 +97,15 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     signals.install()
     try:
-        check_chain_options(args)
-        code = int(args.func(args))
+        try:
+            check_chain_options(args)
+            code = int(args.func(args))
+        except Exception:
+            # An error after a signal whose exception Python dropped is the signal's
+            # aftermath (seen in CI: matplotlib, stopped halfway, then raised "Invalid
+            # bounding box"): the run ends for the signal, 130 / 143, not with exit 2.
+            signals.checkpoint()
+            raise
         # A signal whose exception Python dropped (see prrrp.signals) still ends the run.
         signals.checkpoint()
         return code
