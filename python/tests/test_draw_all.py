@@ -281,7 +281,9 @@ def test_ctrl_c_stops_every_worker(tmp_path: Path, whole_group: bool, server: st
     assert leftovers(tmp_path) == sorted(f"worker-{k}.pid" for k in range(3)), (out, err)
 
 
-ONE_WORKER = """
+# The scripts of the single-worker tests: a figure whose drawing first calls `before()`, then
+# sleeps in short steps (as in SLOW) before it draws, saved to folder/figure.png.
+SLOW_ONE_FIGURE = """
 import os, signal, sys, time
 from pathlib import Path
 from prrrp import drawing
@@ -293,25 +295,33 @@ def slow_figure():
     axes[0, 0].plot([0, 1], [0, 1])
     real = fig.draw
     def draw_slowly(renderer):
-        (folder / "drawing").write_text("")
-        if sys.argv[2] == "swallow":
-            # As Python does with an exception raised inside a finaliser.
-            try:
-                for _ in range(600):
-                    time.sleep(0.1)
-            except KeyboardInterrupt:
-                pass
-            (folder / "swallowed").write_text("")
-        for _ in range(600):  # short sleeps, as in SLOW
+        before()
+        for _ in range(600):
             time.sleep(0.1)
         real(renderer)
     fig.draw = draw_slowly
     drawing.save(fig, folder / "figure.png")
+"""
+
+ONE_WORKER = (
+    SLOW_ONE_FIGURE
+    + """
+def before():
+    (folder / "drawing").write_text("")
+    if sys.argv[2] == "swallow":
+        # As Python does with an exception raised inside a finaliser.
+        try:
+            for _ in range(600):
+                time.sleep(0.1)
+        except KeyboardInterrupt:
+            pass
+        (folder / "swallowed").write_text("")
 
 read, write = os.pipe()
 mask = signal.pthread_sigmask(signal.SIG_BLOCK, set())
 drawing._worker(slow_figure, write, mask, os.getppid())
 """
+)
 
 
 @pytest.mark.parametrize(("first", "second"), [("SIGINT", "SIGTERM"), ("SIGTERM", "SIGINT")])
@@ -374,32 +384,19 @@ def test_a_worker_whose_ctrl_c_was_dropped_is_stopped_by_sigterm(tmp_path: Path)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["drawing", "swallowed"], err
 
 
-LOSES_TWO = """
-import os, signal, sys, time
-from pathlib import Path
-from prrrp import drawing
-
-folder = Path(sys.argv[1])
-
-def slow_figure():
-    fig, axes = drawing.figure(1, 1)
-    axes[0, 0].plot([0, 1], [0, 1])
-    real = fig.draw
-    def draw_slowly(renderer):
-        for lost in range(2):  # as Python drops one raised inside a finaliser
-            try:
-                if lost == 0:
-                    (folder / "drawing").write_text("")
-                for _ in range(600):
-                    time.sleep(0.01)
-            except (KeyboardInterrupt, SystemExit):
-                pass
-            (folder / f"lost-{lost}").write_text("")
-        for _ in range(600):
-            time.sleep(0.1)
-        real(renderer)
-    fig.draw = draw_slowly
-    drawing.save(fig, folder / "figure.png")
+LOSES_TWO = (
+    SLOW_ONE_FIGURE
+    + """
+def before():
+    for lost in range(2):  # as Python drops one raised inside a finaliser
+        try:
+            if lost == 0:
+                (folder / "drawing").write_text("")
+            for _ in range(600):
+                time.sleep(0.01)
+        except (KeyboardInterrupt, SystemExit):
+            pass
+        (folder / f"lost-{lost}").write_text("")
 
 read, write = os.pipe()
 mask = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM})
@@ -417,6 +414,7 @@ start = time.monotonic()
 drawing._stop({read: (pid, 0, bytearray())})  # its first SIGTERM is lost too
 print(f"{time.monotonic() - start:.3f}")
 """
+)
 
 
 def test_stopping_workers_repeats_sigterm(tmp_path: Path) -> None:

@@ -42,17 +42,24 @@ sys.exit(cli.main(ARGV))
 """
 
 
-@pytest.mark.parametrize(("sig", "code"), [(signal.SIGINT, 130), (signal.SIGTERM, 143)])
-def test_a_dropped_signal_still_ends_the_run(tmp_path: Path, sig: int, code: int) -> None:
-    out = tmp_path / "sim"
-    argv = ["simulate", "--duration", "2", "--out", str(out)]
-    source = CHILD.replace("SIG)", f"{int(sig)})").replace("ARGV", repr(argv))
-    child = subprocess.run(
-        [sys.executable, "-c", textwrap.dedent(source)],
+def run_child(argv: list[str], sig: int | None) -> subprocess.CompletedProcess[str]:
+    """`prrrp ARGV` in a child where `sig` is raised and dropped right after the command
+    installs its handlers (with None, nothing is raised)."""
+    raised = "signal.raise_signal(SIG)"
+    source = CHILD.replace(raised, "pass" if sig is None else f"signal.raise_signal({int(sig)})")
+    return subprocess.run(
+        [sys.executable, "-c", textwrap.dedent(source.replace("ARGV", repr(argv)))],
         capture_output=True,
         text=True,
         timeout=300,
     )
+
+
+@pytest.mark.parametrize(("sig", "code"), [(signal.SIGINT, 130), (signal.SIGTERM, 143)])
+def test_a_dropped_signal_still_ends_the_run(tmp_path: Path, sig: int, code: int) -> None:
+    out = tmp_path / "sim"
+    argv = ["simulate", "--duration", "2", "--out", str(out)]
+    child = run_child(argv, sig)
     # The premise: the exception was dropped, and the script went on.
     assert "Exception ignored" in child.stderr, child.stderr
     assert "survived" in child.stdout, (child.stdout, child.stderr)
@@ -68,23 +75,11 @@ def test_an_error_after_a_dropped_signal_ends_for_the_signal(
     stopped halfway then raised "Invalid bounding box"): the exit code is the signal's,
     not the error's 2."""
     argv = ["simulate", "--duration", "0", "--out", str(tmp_path / "sim")]
-    source = CHILD.replace("SIG)", f"{int(sig)})").replace("ARGV", repr(argv))
-    child = subprocess.run(
-        [sys.executable, "-c", textwrap.dedent(source)],
-        capture_output=True,
-        text=True,
-        timeout=300,
-    )
+    child = run_child(argv, sig)
     assert "survived" in child.stdout, (child.stdout, child.stderr)
     assert child.returncode == code, (child.stdout, child.stderr)
     # Without the signal, the same command is the usage error.
-    source = CHILD.replace("signal.raise_signal(SIG)", "pass").replace("ARGV", repr(argv))
-    plain = subprocess.run(
-        [sys.executable, "-c", textwrap.dedent(source)],
-        capture_output=True,
-        text=True,
-        timeout=300,
-    )
+    plain = run_child(argv, None)
     assert plain.returncode == 2, (plain.stdout, plain.stderr)
     assert "--duration must be a positive number" in plain.stderr
 
@@ -93,13 +88,7 @@ def test_without_a_signal_the_run_writes_its_output(tmp_path: Path) -> None:
     # The same child with no signal: the check above fails for the signal, not the command.
     out = tmp_path / "sim"
     argv = ["simulate", "--duration", "2", "--out", str(out)]
-    source = CHILD.replace("signal.raise_signal(SIG)", "pass").replace("ARGV", repr(argv))
-    child = subprocess.run(
-        [sys.executable, "-c", textwrap.dedent(source)],
-        capture_output=True,
-        text=True,
-        timeout=300,
-    )
+    child = run_child(argv, None)
     assert child.returncode == 0, (child.stdout, child.stderr)
     assert out.exists()
 
