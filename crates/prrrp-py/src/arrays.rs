@@ -17,6 +17,12 @@ use pyo3::types::PyFloat;
 
 use crate::errors::{shape_error, to_pyerr, Exc};
 
+/// What most bindings return: any Python object (an array, a float, a dict ...).
+pub(crate) type Out<'py> = PyResult<Bound<'py, PyAny>>;
+
+/// `(q, qd, qdd)` of a trajectory evaluated at t.
+pub(crate) type Triple<'py> = PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>, Bound<'py, PyAny>)>;
+
 /// One sample or a batch of samples of a D-vector, from a numpy array-like argument.
 pub(crate) struct Samples<const D: usize> {
     name: &'static str,
@@ -292,7 +298,7 @@ pub(crate) fn to_array<'py>(
     buf: Vec<f64>,
     n: Option<usize>,
     shape: &[usize],
-) -> PyResult<Bound<'py, PyAny>> {
+) -> Out<'py> {
     if n.is_none() && shape.is_empty() {
         return Ok(PyFloat::new(py, buf.first().copied().unwrap_or(f64::NAN)).into_any());
     }
@@ -360,7 +366,7 @@ impl<const D: usize> Samples<D> {
 pub(crate) fn rows_to_array<'py, const D: usize>(
     py: Python<'py>,
     rows: &[SVector<f64, D>],
-) -> PyResult<Bound<'py, PyAny>> {
+) -> Out<'py> {
     let mut buf = Vec::with_capacity(rows.len() * D);
     for r in rows {
         buf.extend_from_slice(r.as_slice());

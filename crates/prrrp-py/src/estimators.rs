@@ -21,7 +21,7 @@ use pyo3::prelude::*;
 
 use crate::arrays::{
     any_array, batch_len, fixed_matrix, fixed_or, fixed_vector, fmt_shape, to_array, vector,
-    DynSamples, Samples, UInt,
+    DynSamples, Out, Samples, UInt,
 };
 use crate::errors::{shape_error, to_pyerr, Exc, ToPyResult};
 use crate::interrupt::interruptible;
@@ -36,7 +36,7 @@ fn lambda0(obj: Option<&Bound<'_, PyAny>>) -> PyResult<Lambda> {
     fixed_or::<NPARAM>(obj, "lam0", Robot::paper().base_parameters())
 }
 
-fn vec8<'py>(py: Python<'py>, v: &Lambda) -> PyResult<Bound<'py, PyAny>> {
+fn vec8<'py>(py: Python<'py>, v: &Lambda) -> Out<'py> {
     to_array(py, v.as_slice().to_vec(), None, &[NPARAM])
 }
 
@@ -328,7 +328,7 @@ fn step<'py, N: Read, P: Dim, E: Estimator<N, P>>(
     py: Python<'py>,
     c: &mut Est<E>,
     args: [&Bound<'py, PyAny>; 4],
-) -> PyResult<Bound<'py, PyAny>>
+) -> Out<'py>
 where
     DefaultAllocator: Allocator<N> + Allocator<N, N> + Allocator<P>,
 {
@@ -358,7 +358,7 @@ fn run<'py, N: Read, P: Dim, E: Estimator<N, P> + Send>(
     c: &mut Est<E>,
     args: [&Bound<'py, PyAny>; 4],
     history_every: Option<usize>,
-) -> PyResult<Bound<'py, PyAny>>
+) -> Out<'py>
 where
     DefaultAllocator: Allocator<N> + Allocator<N, N> + Allocator<P>,
     OVector<f64, N>: Sync,
@@ -423,7 +423,7 @@ fn train<'py, N: Read, E: Send>(
     c: &mut Est<E>,
     args: [&Bound<'py, PyAny>; 4],
     f: impl FnOnce(&mut E, &SamplesOf<'_, N>) -> Result<TrainingReport, PrrrpError> + Send,
-) -> PyResult<Bound<'py, PyAny>>
+) -> Out<'py>
 where
     DefaultAllocator: Allocator<N> + Allocator<N, N>,
     OVector<f64, N>: Sync,
@@ -437,9 +437,16 @@ where
 /// Generates the `#[pymethods]` of an online estimator: its own items, `train` when
 /// given (Adaline, Hopfield: its doc comment follows `train`), and the methods every
 /// online estimator shares (pyo3 allows one `#[pymethods]` block per class without the
-/// `multiple-pymethods` feature).
+/// `multiple-pymethods` feature). The first rule names the sample arguments of `step`,
+/// `run` and `train` (twice: macro_rules cannot repeat the first list inside the optional
+/// `train` group).
 macro_rules! estimator_pymethods {
     ($name:ident { $($extra:tt)* } $(train: $(#[$train_doc:meta])+)?) => {
+        estimator_pymethods!(@ [q, qd, qdd, tau] $name { $($extra)* }
+            $(train: [q, qd, qdd, tau] $(#[$train_doc])+)?);
+    };
+    (@ [$($s:ident),+] $name:ident { $($extra:tt)* }
+        $(train: [$($ts:ident),+] $(#[$train_doc:meta])+)?) => {
         #[pymethods]
         impl $name {
         $($extra)*
@@ -448,48 +455,34 @@ macro_rules! estimator_pymethods {
         fn train<'py>(
             &self,
             py: Python<'py>,
-            q: &Bound<'py, PyAny>,
-            qd: &Bound<'py, PyAny>,
-            qdd: &Bound<'py, PyAny>,
-            tau: &Bound<'py, PyAny>,
+            $($ts: &Bound<'py, PyAny>,)+
             epochs: UInt<usize>,
-        ) -> PyResult<Bound<'py, PyAny>> {
-            let args = [q, qd, qdd, tau];
+        ) -> Out<'py> {
             each!(&mut *lock(py, &self.inner)?, c => {
-                train(py, c, args, |e, s| e.train(s, epochs.0))
+                train(py, c, [$($ts),+], |e, s| e.train(s, epochs.0))
             })
         }
         )?
         /// Consumes one sample (each (5,)) and returns the updated λ̂ (8,).
-        fn step<'py>(
-            &self,
-            py: Python<'py>,
-            q: &Bound<'py, PyAny>,
-            qd: &Bound<'py, PyAny>,
-            qdd: &Bound<'py, PyAny>,
-            tau: &Bound<'py, PyAny>,
-        ) -> PyResult<Bound<'py, PyAny>> {
-            each!(&mut *lock(py, &self.inner)?, c => step(py, c, [q, qd, qdd, tau]))
+        fn step<'py>(&self, py: Python<'py>, $($s: &Bound<'py, PyAny>),+) -> Out<'py> {
+            each!(&mut *lock(py, &self.inner)?, c => step(py, c, [$($s),+]))
         }
         /// Steps over N samples ((N, 5) each) in Rust with the GIL released, continuing
         /// from the current state. Returns λ̂ (8,), or `(λ̂, history)` with `history`
         /// (M, 8) the estimate after every `history_every` samples.
-        #[pyo3(signature = (q, qd, qdd, tau, *, history_every=None))]
+        #[pyo3(signature = ($($s),+, *, history_every=None))]
         fn run<'py>(
             &self,
             py: Python<'py>,
-            q: &Bound<'py, PyAny>,
-            qd: &Bound<'py, PyAny>,
-            qdd: &Bound<'py, PyAny>,
-            tau: &Bound<'py, PyAny>,
+            $($s: &Bound<'py, PyAny>,)+
             history_every: Option<UInt<usize>>,
-        ) -> PyResult<Bound<'py, PyAny>> {
+        ) -> Out<'py> {
             let every = history_every.map(|u| u.0);
-            each!(&mut *lock(py, &self.inner)?, c => run(py, c, [q, qd, qdd, tau], every))
+            each!(&mut *lock(py, &self.inner)?, c => run(py, c, [$($s),+], every))
         }
         /// The current estimate λ̂, (8,).
         #[getter]
-        fn estimate<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        fn estimate<'py>(&self, py: Python<'py>) -> Out<'py> {
             each!(&*lock(py, &self.inner)?, c => vec_out(py, c.value()))
         }
         /// Returns to the state right after construction.
@@ -813,7 +806,7 @@ estimator_pymethods!(Ekf {
     }
     /// Standard deviations of λ̂ (β̂ for a chain) from the filter covariance, (P,).
     #[getter]
-    fn parameter_std<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+    fn parameter_std<'py>(&self, py: Python<'py>) -> Out<'py> {
         each!(&*lock(py, &self.inner)?, c => {
             vec_out(py, c.est.parameter_std().as_slice().to_vec())
         })
@@ -830,12 +823,12 @@ estimator_pymethods!(Ekf {
     }
     /// The state x = [q (n), q̇ (n), λ (P)] predicted for the next sample, (S,).
     #[getter]
-    fn state<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+    fn state<'py>(&self, py: Python<'py>) -> Out<'py> {
         each!(&*lock(py, &self.inner)?, c => vec_out(py, c.est.state().as_slice().to_vec()))
     }
     /// The state covariance P, (S, S), in the squares of the state's SI units.
     #[getter]
-    fn covariance<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+    fn covariance<'py>(&self, py: Python<'py>) -> Out<'py> {
         each!(&*lock(py, &self.inner)?, c => {
             let p = c.est.covariance();
             let s = p.nrows();

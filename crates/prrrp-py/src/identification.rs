@@ -7,11 +7,9 @@ use prrrp_core::{IdentifiedModel, PrrrpError};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
-use crate::arrays::{batch_len, map_samples_with, to_array, DynSamples};
+use crate::arrays::{batch_len, map_samples_with, to_array, DynSamples, Out};
 use crate::errors::{to_pyerr, Exc, ToPyResult};
 use crate::models::chain::PySerialChain;
-
-type Out<'py> = PyResult<Bound<'py, PyAny>>;
 
 /// Largest model file `IdentifiedModel.load` reads, bytes (256 MiB). A model of a 7-joint
 /// arm is ~30 kB; one of 100 joints with its full covariance ~40 MB. The bound keeps
@@ -191,7 +189,7 @@ impl PyIdentifiedModel {
         dir: PathBuf,
         data: &Bound<'py, PyAny>,
         validation: Option<&Bound<'py, PyAny>>,
-    ) -> PyResult<Bound<'py, PyAny>> {
+    ) -> Out<'py> {
         let py = slf.py();
         py.import("prrrp.model_report")?
             .call_method1("write_report_dir", (slf, dir, data, validation))

@@ -21,7 +21,7 @@ macro_rules! pymethods_with_getters {
             $($(
             $(#[$doc])*
             #[getter]
-            fn $field<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+            fn $field<'py>(&self, py: Python<'py>) -> crate::arrays::Out<'py> {
                 self.$read(py, &self.inner.$field$(($($arg)*))?)
             }
             )*)*

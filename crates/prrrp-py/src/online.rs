@@ -5,12 +5,10 @@ use prrrp_core::{ChangeDetection, OnlineConfig, OnlineIdentifier, OnlineMethod, 
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
-use crate::arrays::{to_array, vector};
+use crate::arrays::{to_array, vector, Out};
 use crate::errors::ToPyResult;
 use crate::identification::PyIdentifiedModel;
 use crate::models::chain::PySerialChain;
-
-type Out<'py> = PyResult<Bound<'py, PyAny>>;
 
 /// See the class documentation in `_prrrp.pyi`.
 #[pyclass(module = "prrrp", name = "OnlineIdentifier")]

@@ -7,10 +7,8 @@ use prrrp_core::{preprocess_log, Dataset, DatasetOf, DynDataset, LogConfig, Prrr
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PySlice};
 
-use crate::arrays::{any_array, to_array, vector, UInt};
+use crate::arrays::{any_array, to_array, vector, Out, UInt};
 use crate::errors::{to_pyerr, ToPyResult};
-
-type Out<'py> = PyResult<Bound<'py, PyAny>>;
 
 /// Time stamps t (N,) s and q, qd, qdd, tau (N, n), checked on creation: equal lengths,
 /// N ≥ 8, every value finite, t strictly increasing.

@@ -14,12 +14,11 @@ use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyString, PyTuple};
 
 use crate::arrays::{
-    batch_len, fixed_vector, map_samples, map_samples_with, matrix_rows, to_array, DynSamples, UInt,
+    batch_len, fixed_vector, map_samples, map_samples_with, matrix_rows, to_array, DynSamples, Out,
+    UInt,
 };
 use crate::errors::{shape_error, Exc, ToPyResult};
 use crate::interrupt::interruptible;
-
-type Out<'py> = PyResult<Bound<'py, PyAny>>;
 
 /// The `#[pymethods]` of `SerialChain`: its getters (as `pymethods_with_getters!` takes
 /// them), its own items, then one method per dynamics
@@ -803,7 +802,7 @@ getters ({} inner {
         folds: UInt<usize>,
         refine: bool,
         max_widenings: UInt<usize>,
-    ) -> PyResult<Bound<'py, PyAny>> {
+    ) -> Out<'py> {
         let base = self.default_base(py)?.clone();
         let config = prrrp_core::CoulombScaleConfig {
             candidates,

@@ -7,7 +7,7 @@ use prrrp_core::{PrrrpModel, NPARAM};
 use pyo3::prelude::*;
 use pyo3::types::PyTuple;
 
-use crate::arrays::{map_samples, samples_of, write_row_major, Samples};
+use crate::arrays::{map_samples, samples_of, write_row_major, Out, Samples};
 
 /// A frozen result class of named arrays that unpacks like a tuple of them, in order:
 /// `__iter__`, `__len__` and a `Name(field=..., ...)` repr.
@@ -25,7 +25,7 @@ macro_rules! unpackable {
 
         #[pymethods]
         impl $ty {
-            fn __iter__<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+            fn __iter__<'py>(&self, py: Python<'py>) -> Out<'py> {
                 let t = PyTuple::new(py, [$(&self.$field),+])?;
                 Ok(t.try_iter()?.into_any())
             }
@@ -71,15 +71,14 @@ unpackable! {
     }
 }
 
+/// `Robot.inverse_derivatives` at the arguments `[q, qd, qdd]`.
 pub(crate) fn inverse_derivatives(
     py: Python<'_>,
     model: PrrrpModel,
-    q: &Bound<'_, PyAny>,
-    qd: &Bound<'_, PyAny>,
-    qdd: &Bound<'_, PyAny>,
+    args: [&Bound<'_, PyAny>; 3],
     lam: Samples<NPARAM>,
 ) -> PyResult<PyInverseDerivatives> {
-    let ([q, qd, qdd], n) = samples_of::<5, 3>(py, [q, qd, qdd], ["q", "qd", "qdd"], &[&lam])?;
+    let ([q, qd, qdd], n) = samples_of::<5, 3>(py, args, ["q", "qd", "qdd"], &[&lam])?;
     let [dq, dqd] = map_samples(py, n, [&[5, 5], &[5, 5]], |k, [dq, dqd]| {
         let d = model.inverse_derivatives(q.at(k), qd.at(k), qdd.at(k), lam.at(k));
         write_row_major(&d.dtau_dq, dq);
@@ -92,15 +91,14 @@ pub(crate) fn inverse_derivatives(
     })
 }
 
+/// `Robot.forward_derivatives` at the arguments `[q, qd, tau]`.
 pub(crate) fn forward_derivatives(
     py: Python<'_>,
     model: PrrrpModel,
-    q: &Bound<'_, PyAny>,
-    qd: &Bound<'_, PyAny>,
-    tau: &Bound<'_, PyAny>,
+    args: [&Bound<'_, PyAny>; 3],
     lam: Samples<NPARAM>,
 ) -> PyResult<PyForwardDerivatives> {
-    let ([q, qd, tau], n) = samples_of::<5, 3>(py, [q, qd, tau], ["q", "qd", "tau"], &[&lam])?;
+    let ([q, qd, tau], n) = samples_of::<5, 3>(py, args, ["q", "qd", "tau"], &[&lam])?;
     let [qdd, dq, dqd, dl] = map_samples(
         py,
         n,

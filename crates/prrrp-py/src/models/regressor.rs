@@ -8,7 +8,7 @@ use numpy::{PyArray1, PyUntypedArrayMethods};
 use prrrp_core::{PrrrpError, PrrrpModel, Vec5, NDOF, NPARAM, STANDARD_GRAVITY};
 use pyo3::prelude::*;
 
-use crate::arrays::{map_samples, samples_of, to_array, write_row_major, Samples};
+use crate::arrays::{map_samples, samples_of, to_array, write_row_major, Out, Samples};
 use crate::errors::{to_pyerr, ToPyResult};
 
 /// A model with gravity `g` (m/s², along −z), checked like `Robot`'s.
@@ -26,14 +26,13 @@ pub(crate) fn model(py: Python<'_>, g: f64) -> PyResult<PrrrpModel> {
     Ok(PrrrpModel::new(g))
 }
 
+/// Φ at the arguments `[q, qd, qdd]`: (5, 8), or (N, 5, 8) for a batch.
 pub(crate) fn regressor_at<'py>(
     py: Python<'py>,
     model: PrrrpModel,
-    q: &Bound<'py, PyAny>,
-    qd: &Bound<'py, PyAny>,
-    qdd: &Bound<'py, PyAny>,
-) -> PyResult<Bound<'py, PyAny>> {
-    let ([q, qd, qdd], n) = samples_of::<NDOF, 3>(py, [q, qd, qdd], ["q", "qd", "qdd"], &[])?;
+    args: [&Bound<'py, PyAny>; 3],
+) -> Out<'py> {
+    let ([q, qd, qdd], n) = samples_of::<NDOF, 3>(py, args, ["q", "qd", "qdd"], &[])?;
     let [phi] = map_samples(py, n, [&[NDOF, NPARAM]], |k, [out]| {
         write_row_major(&model.regressor(q.at(k), qd.at(k), qdd.at(k)), out);
         Ok(())
@@ -51,8 +50,8 @@ fn regressor<'py>(
     qd: &Bound<'py, PyAny>,
     qdd: &Bound<'py, PyAny>,
     gravity: f64,
-) -> PyResult<Bound<'py, PyAny>> {
-    regressor_at(py, model(py, gravity)?, q, qd, qdd)
+) -> Out<'py> {
+    regressor_at(py, model(py, gravity)?, [q, qd, qdd])
 }
 
 /// Observation matrix W (eq. 35): the regressors of N samples stacked, shape (5·N, 8);
@@ -65,7 +64,7 @@ fn observation_matrix<'py>(
     qd: &Bound<'py, PyAny>,
     qdd: &Bound<'py, PyAny>,
     gravity: f64,
-) -> PyResult<Bound<'py, PyAny>> {
+) -> Out<'py> {
     let model = model(py, gravity)?;
     let ([q, qd, qdd], n) = samples_of::<NDOF, 3>(py, [q, qd, qdd], ["q", "qd", "qdd"], &[])?;
     let n = n.unwrap_or(1);

@@ -7,7 +7,7 @@ use prrrp_core::{JointKind, Robot, NPARAM, STANDARD_GRAVITY};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList, PyTuple};
 
-use crate::arrays::{batch_len, fixed_vector, map_samples, write_row_major, Samples};
+use crate::arrays::{batch_len, fixed_vector, map_samples, write_row_major, Out, Samples};
 use crate::errors::ToPyResult;
 use crate::models::derivatives::{
     forward_derivatives, inverse_derivatives, PyForwardDerivatives, PyInverseDerivatives,
@@ -36,8 +36,6 @@ impl PyRobot {
     }
 }
 
-type Out<'py> = PyResult<Bound<'py, PyAny>>;
-
 /// A per-sample result written into its output row: a matrix or vector (row-major) or a
 /// scalar.
 trait Put {
@@ -57,15 +55,29 @@ impl Put for f64 {
 }
 
 /// The `#[pymethods]` of `Robot`: its getters (as `pymethods_with_getters!` takes them), its
-/// own items, then one method per dynamics quantity
-/// `fn name(args) -> [shape] = value;`, taking (5,) or (N, 5) arguments and the keyword
-/// `lam`, with `value` computed at sample `k` by `model` with the GIL released.
+/// own items, the methods `at_lam { fn name(args) -> Type; }` returning what the function
+/// `name` computes from `[args]` at the keyword `lam`, then one method per dynamics
+/// quantity `fn name(args) -> [shape] = value;`, taking (5,) or (N, 5) arguments and the
+/// keyword `lam`, with `value` computed at sample `k` by `model` with the GIL released.
 macro_rules! robot_pymethods {
     (getters ($($getters:tt)*)
      |$model:ident, $k:ident, $lam:ident| { $($extra:tt)* }
+     at_lam { $($(#[$fdoc:meta])* fn $fname:ident($($farg:ident),+) -> $fty:ty;)* }
      $($(#[$doc:meta])* fn $name:ident($($arg:ident),+) -> [$($dim:expr),*] = $value:expr;)*) => {
         pymethods_with_getters!(PyRobot $($getters)* {
             $($extra)*
+            $(
+            $(#[$fdoc])*
+            #[pyo3(signature = ($($farg),+, *, lam=None))]
+            fn $fname(
+                &self,
+                py: Python<'_>,
+                $($farg: &Bound<'_, PyAny>,)+
+                lam: Option<&Bound<'_, PyAny>>,
+            ) -> PyResult<$fty> {
+                $fname(py, self.inner.model(), [$($farg),+], self.lam(lam)?)
+            }
+            )*
             $(
             $(#[$doc])*
             #[pyo3(signature = ($($arg),+, *, lam=None))]
@@ -170,35 +182,7 @@ getters ({
         qd: &Bound<'py, PyAny>,
         qdd: &Bound<'py, PyAny>,
     ) -> Out<'py> {
-        crate::models::regressor::regressor_at(py, self.inner.model(), q, qd, qdd)
-    }
-
-    /// ∂τ/∂q and ∂τ/∂q̇ of the inverse dynamics at fixed q̈ and λ (analytic), each of shape
-    /// (5, 5) or (N, 5, 5).
-    #[pyo3(signature = (q, qd, qdd, *, lam=None))]
-    fn inverse_derivatives(
-        &self,
-        py: Python<'_>,
-        q: &Bound<'_, PyAny>,
-        qd: &Bound<'_, PyAny>,
-        qdd: &Bound<'_, PyAny>,
-        lam: Option<&Bound<'_, PyAny>>,
-    ) -> PyResult<PyInverseDerivatives> {
-        inverse_derivatives(py, self.inner.model(), q, qd, qdd, self.lam(lam)?)
-    }
-
-    /// Forward dynamics and its derivatives at fixed τ: qdd (5,), dqdd_dq (5, 5),
-    /// dqdd_dqd (5, 5), dqdd_dlambda (5, 8), each with a leading N for a batch.
-    #[pyo3(signature = (q, qd, tau, *, lam=None))]
-    fn forward_derivatives(
-        &self,
-        py: Python<'_>,
-        q: &Bound<'_, PyAny>,
-        qd: &Bound<'_, PyAny>,
-        tau: &Bound<'_, PyAny>,
-        lam: Option<&Bound<'_, PyAny>>,
-    ) -> PyResult<PyForwardDerivatives> {
-        forward_derivatives(py, self.inner.model(), q, qd, tau, self.lam(lam)?)
+        crate::models::regressor::regressor_at(py, self.inner.model(), [q, qd, qdd])
     }
 
     fn __repr__(&self) -> String {
@@ -222,6 +206,15 @@ getters ({
         kw.set_item("gravity", self.inner.gravity)?;
         Ok((PyTuple::empty(py), kw))
     }
+}
+at_lam {
+    /// ∂τ/∂q and ∂τ/∂q̇ of the inverse dynamics at fixed q̈ and λ (analytic), each of shape
+    /// (5, 5) or (N, 5, 5).
+    fn inverse_derivatives(q, qd, qdd) -> PyInverseDerivatives;
+
+    /// Forward dynamics and its derivatives at fixed τ: qdd (5,), dqdd_dq (5, 5),
+    /// dqdd_dqd (5, 5), dqdd_dlambda (5, 8), each with a leading N for a batch.
+    fn forward_derivatives(q, qd, tau) -> PyForwardDerivatives;
 }
 
     /// Mass matrix M(q, λ), shape (5, 5) or (N, 5, 5).

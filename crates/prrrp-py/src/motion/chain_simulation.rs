@@ -12,13 +12,14 @@ use pyo3::exceptions::PyTypeError;
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyTuple};
 
-use crate::arrays::{any_array, first_non_finite, fmt_shape, times, to_array, vector, UInt};
+use crate::arrays::{
+    any_array, first_non_finite, fmt_shape, times, to_array, vector, Out, Triple, UInt,
+};
 use crate::data::dataset::PyDataset;
 use crate::errors::{shape_error, to_pyerr, ToPyResult};
 use crate::interrupt::interruptible;
 use crate::models::chain::PySerialChain;
-
-type Out<'py> = PyResult<Bound<'py, PyAny>>;
+use crate::motion::simulation::SimArgs;
 
 /// The trajectories a Python caller can build, dispatched to the core's.
 #[derive(Debug, Clone)]
@@ -196,7 +197,7 @@ pymethods_with_getters!(PyChainTrajectory {} inner {
         &self,
         py: Python<'py>,
         t: &Bound<'py, PyAny>,
-    ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>, Bound<'py, PyAny>)> {
+    ) -> Triple<'py> {
         let (ts, batch) = times(t)?;
         let n = self.inner.dof();
         let (mut q, mut qd, mut qdd) = (
@@ -277,16 +278,11 @@ fn reference_from(obj: &Bound<'_, PyAny>) -> PyResult<Traj> {
 }
 
 /// Simulation settings from the Python arguments (gains and noise: scalar or (n,)).
-#[allow(clippy::too_many_arguments)]
 fn config(
     n: usize,
     rate: f64,
     substeps: usize,
-    kp: Option<&Bound<'_, PyAny>>,
-    kd: Option<&Bound<'_, PyAny>>,
-    q_noise: Option<&Bound<'_, PyAny>>,
-    qd_noise: Option<&Bound<'_, PyAny>>,
-    tau_noise: Option<&Bound<'_, PyAny>>,
+    a: SimArgs<'_, '_>,
     seed: u64,
 ) -> PyResult<DynSimulationConfig> {
     let d = DynSimulationConfig::new(n);
@@ -298,12 +294,15 @@ fn config(
         // 1/rate: a bad rate (0, negative, NaN) becomes a bad dt that the core names.
         dt: 1.0 / rate,
         substeps,
-        kp: or(kp, "kp", d.kp)?,
-        kd: or(kd, "kd", d.kd)?,
+        kp: or(a.kp, "kp", d.kp)?,
+        kd: or(a.kd, "kd", d.kd)?,
         noise: DynSensorNoise {
-            q_std: or(q_noise, "q_noise", vec![0.0; n])?,
-            qd_std: qd_noise.map(|o| per_joint(o, "qd_noise", n)).transpose()?,
-            tau_std: or(tau_noise, "tau_noise", vec![0.0; n])?,
+            q_std: or(a.q_noise, "q_noise", vec![0.0; n])?,
+            qd_std: a
+                .qd_noise
+                .map(|o| per_joint(o, "qd_noise", n))
+                .transpose()?,
+            tau_std: or(a.tau_noise, "tau_noise", vec![0.0; n])?,
         },
         seed,
     })
@@ -450,17 +449,8 @@ fn simulate_chain(
     check_rate(py, rate)?;
     let reference = reference_from(reference)?;
     let plant = chain.chain();
-    let cfg = config(
-        plant.dof(),
-        rate,
-        substeps.0,
-        kp,
-        kd,
-        q_noise,
-        qd_noise,
-        tau_noise,
-        seed.0,
-    )?;
+    let args = SimArgs::gains(kp, kd).noise(q_noise, qd_noise, tau_noise);
+    let cfg = config(plant.dof(), rate, substeps.0, args, seed.0)?;
     let ctrl = controller.as_ref().map_or(plant, |c| c.chain());
     let inner = interruptible(py, || {
         simulate_dyn_closed_loop(plant, ctrl, &reference, duration, &cfg)
@@ -494,9 +484,8 @@ fn simulate_chain_open_loop(
     let q0 = vector(q0, "q0")?;
     let qd0 = vector(qd0, "qd0")?;
     let (_, _, tau) = table(tau, "tau", None, Some(n))?;
-    let cfg = config(
-        n, rate, substeps.0, None, None, q_noise, qd_noise, tau_noise, seed.0,
-    )?;
+    let args = SimArgs::gains(None, None).noise(q_noise, qd_noise, tau_noise);
+    let cfg = config(n, rate, substeps.0, args, seed.0)?;
     let inner =
         interruptible(py, || simulate_dyn_open_loop(plant, &q0, &qd0, &tau, &cfg))?.to_py(py)?;
     Ok(PyChainSimulation { inner })

@@ -44,25 +44,58 @@ fn lambda_or(obj: Option<&Bound<'_, PyAny>>, name: &'static str) -> PyResult<Lam
     fixed_or::<NPARAM>(obj, name, Robot::paper().base_parameters())
 }
 
-#[allow(clippy::too_many_arguments)]
+type Opt<'a, 'py> = Option<&'a Bound<'py, PyAny>>;
+
+/// The controller-gain and sensor-noise arguments of a simulation call, None where not
+/// given: read here for the paper's arm and in `chain_simulation` for any chain.
+#[derive(Clone, Copy, Default)]
+pub(crate) struct SimArgs<'a, 'py> {
+    pub(crate) kp: Opt<'a, 'py>,
+    pub(crate) kd: Opt<'a, 'py>,
+    pub(crate) q_noise: Opt<'a, 'py>,
+    /// Chains only: the paper's simulator measures no velocities.
+    pub(crate) qd_noise: Opt<'a, 'py>,
+    pub(crate) tau_noise: Opt<'a, 'py>,
+}
+
+impl<'a, 'py> SimArgs<'a, 'py> {
+    /// The controller gains `kp`, `kd`, no sensor noise given.
+    pub(crate) fn gains(kp: Opt<'a, 'py>, kd: Opt<'a, 'py>) -> Self {
+        Self {
+            kp,
+            kd,
+            ..Self::default()
+        }
+    }
+
+    /// With the sensor-noise arguments `q_noise`, `qd_noise`, `tau_noise`.
+    pub(crate) fn noise(self, q: Opt<'a, 'py>, qd: Opt<'a, 'py>, tau: Opt<'a, 'py>) -> Self {
+        Self {
+            q_noise: q,
+            qd_noise: qd,
+            tau_noise: tau,
+            ..self
+        }
+    }
+}
+
+/// The paper arm's simulation settings: gains and noise (5,) each, the core's defaults
+/// where not given.
 pub(crate) fn config(
     dt: f64,
     substeps: usize,
-    kp: Option<&Bound<'_, PyAny>>,
-    kd: Option<&Bound<'_, PyAny>>,
-    q_noise: Option<&Bound<'_, PyAny>>,
-    tau_noise: Option<&Bound<'_, PyAny>>,
+    a: SimArgs<'_, '_>,
     seed: u64,
 ) -> PyResult<SimulationConfig> {
     let d = SimulationConfig::default();
     Ok(SimulationConfig {
         dt,
         substeps,
-        kp: fixed_or(kp, "kp", d.kp)?,
-        kd: fixed_or(kd, "kd", d.kd)?,
+        kp: fixed_or(a.kp, "kp", d.kp)?,
+        kd: fixed_or(a.kd, "kd", d.kd)?,
         noise: SensorNoise {
-            q_std: fixed_or(q_noise, "q_noise", d.noise.q_std)?,
-            tau_std: fixed_or(tau_noise, "tau_noise", d.noise.tau_std)?,
+            q_std: fixed_or(a.q_noise, "q_noise", d.noise.q_std)?,
+            tau_std: fixed_or(a.tau_noise, "tau_noise", d.noise.tau_std)?,
         },
         seed,
     })
@@ -97,7 +130,8 @@ fn simulate_closed_loop<'py>(
 ) -> PyResult<Bound<'py, PyDict>> {
     let lam = lambda_or(lam, "lam")?;
     let ctrl = fixed_or::<NPARAM>(controller_lam, "controller_lam", lam)?;
-    let cfg = config(dt, substeps.0, kp, kd, q_noise, tau_noise, seed.0)?;
+    let args = SimArgs::gains(kp, kd).noise(q_noise, None, tau_noise);
+    let cfg = config(dt, substeps.0, args, seed.0)?;
     let model = Robot::paper().model();
     let rec = if let Ok(e) = reference.extract::<PyRef<'_, Excitation>>() {
         if let Some(r) = e.reflected_trajectory() {
@@ -150,15 +184,9 @@ fn simulate_open_loop<'py>(
     let qd0: Vec5 = fixed_or(Some(qd0), "qd0", Vec5::zeros())?;
     let tau = Samples::<NDOF>::extract_rows(tau, "tau")?;
     let zeros = Some(to_array(py, vec![0.0; NDOF], None, &[NDOF])?);
-    let cfg = config(
-        dt,
-        substeps.0,
-        None,
-        None,
-        q_noise.or(zeros.as_ref()),
-        tau_noise.or(zeros.as_ref()),
-        seed.0,
-    )?;
+    let (q_noise, tau_noise) = (q_noise.or(zeros.as_ref()), tau_noise.or(zeros.as_ref()));
+    let args = SimArgs::gains(None, None).noise(q_noise, None, tau_noise);
+    let cfg = config(dt, substeps.0, args, seed.0)?;
     let model = Robot::paper().model();
     let rec = interruptible(py, || core_open(&model, &lam, &q0, &qd0, &tau, &cfg))?;
     record_dict(py, &rec.to_py(py)?)

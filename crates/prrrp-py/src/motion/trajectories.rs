@@ -12,7 +12,7 @@ use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
 use crate::arrays::{
-    first_non_finite, fixed_or, fixed_vector, rows_to_array, times, to_array, UInt,
+    first_non_finite, fixed_or, fixed_vector, rows_to_array, times, to_array, Triple, UInt,
 };
 use crate::errors::{to_pyerr, ToPyResult};
 use crate::interrupt::{with_progress, Callback};
@@ -59,7 +59,7 @@ pub(crate) fn eval_at<'py, T: JointTrajectory + Sync>(
     py: Python<'py>,
     traj: &T,
     t: &Bound<'py, PyAny>,
-) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>, Bound<'py, PyAny>)> {
+) -> Triple<'py> {
     let (ts, batch) = times(t)?;
     let batch = batch.is_some();
     let (mut q, mut qd, mut qdd) = (Vec::new(), Vec::new(), Vec::new());
@@ -141,7 +141,7 @@ pymethods_with_getters!(Excitation {} inner {
         &self,
         py: Python<'py>,
         t: &Bound<'py, PyAny>,
-    ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>, Bound<'py, PyAny>)> {
+    ) -> Triple<'py> {
         match self.reflected_trajectory() {
             Some(r) => eval_at(py, &r.to_py(py)?, t),
             None => eval_at(py, &self.inner.trajectory, t),
@@ -152,7 +152,7 @@ pymethods_with_getters!(Excitation {} inner {
         &self,
         py: Python<'py>,
         t: &Bound<'py, PyAny>,
-    ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>, Bound<'py, PyAny>)> {
+    ) -> Triple<'py> {
         self.eval(py, t)
     }
     /// The same excitation played forward and backward in turn, defined for every t ≥ 0
@@ -286,19 +286,11 @@ impl SinusoidReference {
         })
     }
     /// (q, qd, qdd) at time t (s): (5,) arrays for a scalar t, (N, 5) for t of shape (N,).
-    fn eval<'py>(
-        &self,
-        py: Python<'py>,
-        t: &Bound<'py, PyAny>,
-    ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>, Bound<'py, PyAny>)> {
+    fn eval<'py>(&self, py: Python<'py>, t: &Bound<'py, PyAny>) -> Triple<'py> {
         eval_at(py, &self.inner, t)
     }
     /// Same as `eval`.
-    fn sample<'py>(
-        &self,
-        py: Python<'py>,
-        t: &Bound<'py, PyAny>,
-    ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>, Bound<'py, PyAny>)> {
+    fn sample<'py>(&self, py: Python<'py>, t: &Bound<'py, PyAny>) -> Triple<'py> {
         self.eval(py, t)
     }
 }

@@ -8,7 +8,7 @@ use prrrp_core::{
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
-use crate::arrays::{any_array, fmt_shape, to_array};
+use crate::arrays::{any_array, fmt_shape, to_array, Out};
 use crate::errors::{shape_error, ToPyResult};
 
 /// The columns of `observed` and `predicted`: shape (N,) → one series, (N, C) → C series.
@@ -48,7 +48,7 @@ fn per_column<'py>(
     observed: &Bound<'py, PyAny>,
     predicted: &Bound<'py, PyAny>,
     f: fn(&[f64], &[f64]) -> Result<f64, PrrrpError>,
-) -> PyResult<Bound<'py, PyAny>> {
+) -> Out<'py> {
     let (cols, c) = columns(observed, predicted)?;
     let mut out = Vec::with_capacity(cols.len());
     for (o, p) in &cols {
@@ -70,7 +70,7 @@ macro_rules! per_column_functions {
             py: Python<'py>,
             observed: &Bound<'py, PyAny>,
             predicted: &Bound<'py, PyAny>,
-        ) -> PyResult<Bound<'py, PyAny>> {
+        ) -> Out<'py> {
             per_column(py, observed, predicted, $f)
         }
     )*};
@@ -118,7 +118,7 @@ fn relative_errors<'py>(
     py: Python<'py>,
     estimate: &Bound<'py, PyAny>,
     truth: &Bound<'py, PyAny>,
-) -> PyResult<Bound<'py, PyAny>> {
+) -> Out<'py> {
     let e = crate::arrays::vector(estimate, "estimate")?;
     let t = crate::arrays::vector(truth, "truth")?;
     if e.len() != t.len() {

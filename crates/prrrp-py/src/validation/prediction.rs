@@ -19,7 +19,7 @@ use crate::errors::{to_pyerr, ToPyResult};
 use crate::identification::PyIdentifiedModel;
 use crate::interrupt::{interruptible, with_progress, Callback};
 use crate::models::chain::{PyBaseParameters, PySerialChain};
-use crate::motion::simulation::{config as sim_config, record_dict};
+use crate::motion::simulation::{config as sim_config, record_dict, SimArgs};
 use crate::motion::trajectories::SinusoidReference;
 
 fn paper_lambda() -> Lambda {
@@ -125,7 +125,8 @@ fn validate<'py>(
     let estimates = estimates_from(estimates)?;
     let truth = fixed_or::<NPARAM>(true_lam, "true_lam", paper_lambda())?;
     let ctrl = fixed_or::<NPARAM>(controller_lam, "controller_lam", truth)?;
-    let sim = sim_config(dt, substeps, kp, kd, q_noise, tau_noise, seed)?;
+    let args = SimArgs::gains(kp, kd).noise(q_noise, None, tau_noise);
+    let sim = sim_config(dt, substeps, args, seed)?;
     let cfg = validation_config(reference, duration, seed, sim);
     let model = Robot::paper().model();
     let known = relative_errors.then_some(truth);
@@ -201,7 +202,8 @@ fn sensitivity<'py>(
     let substeps = substeps.0;
     let nominal = fixed_or::<NPARAM>(nominal, "nominal", paper_lambda())?;
     // Sensor noise is not used by the sweep.
-    let sim = sim_config(dt, substeps, kp, kd, None, None, 0)?;
+    let args = SimArgs::gains(kp, kd);
+    let sim = sim_config(dt, substeps, args, 0)?;
     let d = SensitivityConfig::default();
     let cfg = SensitivityConfig {
         range,
