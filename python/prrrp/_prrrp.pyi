@@ -487,6 +487,12 @@ def least_squares(
     `identify(robot, data, "ls")`."""
 
 class _OnlineEstimator:
+    """The online estimators. Adaline, Hopfield and Rls are built for the paper's arm
+    (`lam0` (8,), default Table 3), or for any chain: pass a `SerialChain` first; then
+    `beta0` (b,) (default zeros), the analysis `base` (default `chain.base_parameters()`)
+    and a positive column `scale` (b,) (default ones): the estimator trains on
+    γ = β/scale and reports β. Ekf: see its constructor."""
+
     @property
     def estimate(self) -> _F64: ...
     def step(self, q: _ArrayLike, qd: _ArrayLike, qdd: _ArrayLike, tau: _ArrayLike) -> _F64:
@@ -534,11 +540,7 @@ class Adaline(_TrainedEstimator):
         beta0: _ArrayLike | None = None,
         base: BaseParameters | None = None,
         scale: _ArrayLike | None = None,
-    ) -> Self:
-        """The paper's arm (`lam0` (8,), default Table 3), or any chain: pass a
-        `SerialChain` first; then `beta0` (b,) (default zeros), the analysis `base`
-        (default `chain.base_parameters()`) and a positive column `scale` (b,) (default
-        ones): the estimator trains on γ = β/scale and reports β."""
+    ) -> Self: ...
 
 @final
 class Hopfield(_TrainedEstimator):
@@ -554,11 +556,7 @@ class Hopfield(_TrainedEstimator):
         beta0: _ArrayLike | None = None,
         base: BaseParameters | None = None,
         scale: _ArrayLike | None = None,
-    ) -> Self:
-        """The paper's arm (`lam0` (8,), default Table 3), or any chain: pass a
-        `SerialChain` first; then `beta0` (b,) (default zeros), the analysis `base`
-        (default `chain.base_parameters()`) and a positive column `scale` (b,) (default
-        ones): the estimator trains on γ = β/scale and reports β."""
+    ) -> Self: ...
 
 @final
 class Rls(_OnlineEstimator):
@@ -571,11 +569,7 @@ class Rls(_OnlineEstimator):
         beta0: _ArrayLike | None = None,
         base: BaseParameters | None = None,
         scale: _ArrayLike | None = None,
-    ) -> Self:
-        """The paper's arm (`lam0` (8,), default Table 3), or any chain: pass a
-        `SerialChain` first; then `beta0` (b,) (default zeros), the analysis `base`
-        (default `chain.base_parameters()`) and a positive column `scale` (b,) (default
-        ones): the estimator trains on γ = β/scale and reports β."""
+    ) -> Self: ...
 
 @final
 class Ekf(_OnlineEstimator):
