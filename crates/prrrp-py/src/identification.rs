@@ -495,9 +495,20 @@ fn identified_model_from_parts(
     Ok(PyIdentifiedModel { inner })
 }
 
+/// The settings of the gradient networks' step control and stopping rule
+/// (`GradientSettings`), which Adaline and Hopfield share.
+const GRADIENT_KEYS: &[&str] = &[
+    "max_epochs",
+    "halvings",
+    "parameter_tolerance",
+    "error_tolerance",
+    "scale_columns",
+    "whiten",
+];
+
 /// The settings keys each method accepts (besides `base` and `preprocessing`).
-fn valid_keys(method: &str) -> &'static [&'static str] {
-    match method {
+fn valid_keys(method: &str) -> Vec<&'static str> {
+    let own: &[&str] = match method {
         "ls" | "wls" => &["rank_tolerance"],
         "physical" => &[
             "rank_tolerance",
@@ -512,29 +523,8 @@ fn valid_keys(method: &str) -> &'static [&'static str] {
             "initial_covariance",
             "scale_columns",
         ],
-        "adaline" => &[
-            "rank_tolerance",
-            "rule",
-            "step_size",
-            "learning_rate",
-            "max_epochs",
-            "halvings",
-            "parameter_tolerance",
-            "error_tolerance",
-            "scale_columns",
-            "whiten",
-        ],
-        "hopfield" => &[
-            "rank_tolerance",
-            "step_size",
-            "bound",
-            "max_epochs",
-            "halvings",
-            "parameter_tolerance",
-            "error_tolerance",
-            "scale_columns",
-            "whiten",
-        ],
+        "adaline" => &["rank_tolerance", "rule", "step_size", "learning_rate"],
+        "hopfield" => &["rank_tolerance", "step_size", "bound"],
         _ => &[
             "rank_tolerance",
             "initial",
@@ -558,7 +548,12 @@ fn valid_keys(method: &str) -> &'static [&'static str] {
             "correlation_correction",
             "stiff_handling",
         ],
-    }
+    };
+    let shared = match method {
+        "adaline" | "hopfield" => GRADIENT_KEYS,
+        _ => &[],
+    };
+    [own, shared].concat()
 }
 
 /// `method` with its settings from the keyword arguments; unknown keys are a TypeError
