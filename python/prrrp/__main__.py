@@ -1,8 +1,6 @@
 """``python -m prrrp``: the same command line as the ``prrrp`` console script."""
 
-import sys
-
-from prrrp.cli import main
+from prrrp.cli import console
 
 if __name__ == "__main__":
-    sys.exit(main())
+    console()

@@ -132,7 +132,7 @@ def _reproduce(out: Path) -> subprocess.Popen[str]:
 
 @pytest.mark.usefixtures("cpu_hogs")
 @pytest.mark.parametrize(("sig", "code"), [(signal.SIGINT, 130), (signal.SIGTERM, 143)])
-def test_reproduce_answers_a_signal_within_a_second(tmp_path: Path, sig, code) -> None:
+def test_reproduce_ends_within_half_a_second_of_a_signal(tmp_path: Path, sig, code) -> None:
     out = tmp_path / "out"
     child = _reproduce(out)
     try:
@@ -145,7 +145,9 @@ def test_reproduce_answers_a_signal_within_a_second(tmp_path: Path, sig, code) -
     finally:
         child.kill()
     assert child.returncode == code, err
-    assert took < 1.0, f"took {took:.2f} s to stop"
+    # 0.06–0.09 s measured beside the hogs; 0.7–1.1 s when the exit waited for the
+    # interpreter's teardown (the matplotlib import thread, every module freed).
+    assert took < 0.5, f"took {took:.2f} s to stop"
     # Nothing half-written: no output folder, no staging folder left behind.
     assert sorted(p.name for p in tmp_path.iterdir()) == []
 

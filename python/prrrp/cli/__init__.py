@@ -34,7 +34,12 @@ interrupted. Errors are one line on stderr, never a traceback.
 from __future__ import annotations
 
 import argparse
+import atexit
+import contextlib
+import os
+import sys
 from collections.abc import Sequence
+from typing import NoReturn
 
 import prrrp
 from prrrp import signals
@@ -61,6 +66,7 @@ __all__ = [
     "EXIT_USAGE",
     "CliError",
     "build_parser",
+    "console",
     "main",
 ]
 
@@ -130,3 +136,27 @@ def main(argv: Sequence[str] | None = None) -> int:
     except prrrp.PrrrpError as e:
         error(describe(e))
         return EXIT_FAILED
+
+
+def console() -> NoReturn:
+    """The ``prrrp`` command (and ``python -m prrrp``): :func:`main`, then exit with its code.
+
+    A run ended by Ctrl-C or SIGTERM exits as soon as its cleanup is done: the atexit
+    handlers run, then the process ends without the interpreter's teardown, which waits for
+    the daemon thread still importing matplotlib (``drawing.preload``) and then frees every
+    module. Measured on `prrrp reproduce` stopped at 2.5 s beside two CPU hogs: 0.72–1.10 s
+    from the signal to the exit with the teardown (0.27–0.38 s without the thread),
+    0.06–0.09 s without it."""
+    try:
+        code = main()
+    except SystemExit as e:
+        if signals.received() is None:
+            raise  # argparse's --help, --version and usage errors
+        code = e.code if isinstance(e.code, int) else EXIT_INTERRUPTED
+    if signals.received() is None:
+        sys.exit(code)
+    atexit._run_exitfuncs()
+    for stream in (sys.stdout, sys.stderr):
+        with contextlib.suppress(Exception):
+            stream.flush()
+    os._exit(code)
