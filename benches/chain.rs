@@ -1,9 +1,10 @@
 //! Per-sample cost of the generic chain: inverse dynamics (RNEA), regressor, mass matrix
-//! (CRBA) and forward dynamics, for the PRRRP arm as a chain (against its closed form)
-//! for the 6R PUMA 560, and for the URDF robots of `example-robot-data` (Panda, UR5,
-//! Kinova Gen2) when that package is installed (the test venv has it; set
-//! `PRRRP_ROBOTS_DIR` to its `robots` folder elsewhere). Inputs are built outside the timed
-//! closures.
+//! (CRBA) and forward dynamics, for the PRRRP arm as a chain (against its closed form;
+//! also its compile-time base-parameter model: regressor, inverse and forward dynamics,
+//! derivatives), for the 6R PUMA 560, and for the URDF robots of `example-robot-data`
+//! (Panda, UR5, Kinova Gen2) when that package is installed (the test venv has it; set
+//! `PRRRP_ROBOTS_DIR` to its `robots` folder elsewhere). Inputs are built outside the
+//! timed closures.
 
 #[path = "../tests/dyn_support/mod.rs"]
 mod dyn_support;
@@ -69,6 +70,12 @@ fn prrrp(c: &mut Criterion) {
     });
     g.bench_function("base_model_forward_dynamics", |b| {
         b.iter(|| bm.forward_dynamics(black_box(&q), black_box(&qd), black_box(&tau), &beta))
+    });
+    g.bench_function("base_model_inverse_dynamics", |b| {
+        b.iter(|| bm.inverse_dynamics(black_box(&q), black_box(&qd), black_box(&qdd), &beta))
+    });
+    g.bench_function("base_model_forward_derivatives", |b| {
+        b.iter(|| bm.forward_derivatives(black_box(&q), black_box(&qd), black_box(&tau), &beta))
     });
     g.bench_function("closed_form_inverse_dynamics", |b| {
         b.iter(|| model.inverse_dynamics(black_box(&q), black_box(&qd), black_box(&qdd), &lambda))

@@ -25,11 +25,12 @@ use crate::error::Result;
 // The module's public API (also at the crate root through `prelude`).
 pub use chain::{
     com_and_inertia, inertial_parameters, is_physically_consistent, transform_inertial_parameters,
-    BaseOptions, BaseParameters, ChainBaseModel, ChainDescription, ChainMeta, DhConvention,
-    DhDescription, DynBaseWorkspace, DynChain, DynChainBaseModel, DynWorkspace, FrictionModel,
-    Joint, JointDescription, JointInfo, JointLimit, JointType, PoseDescription, SerialChain,
-    AXIS_UNIT_TOLERANCE, CHAIN_SCHEMA_VERSION, FRICTION_PARAMETER_NAMES, INERTIAL_PARAMETER_NAMES,
-    LINK_PARAMS, MAX_DOF, MAX_MATRIX_ENTRIES, PHYSICAL_TOLERANCE,
+    BaseOptions, BaseParameters, BaseWorkspaceOf, ChainBaseModel, ChainBaseModelOf,
+    ChainDescription, ChainDim, ChainMeta, DhConvention, DhDescription, DynBaseWorkspace, DynChain,
+    DynChainBaseModel, DynWorkspace, FrictionModel, Joint, JointDescription, JointInfo, JointLimit,
+    JointType, PoseDescription, SerialChain, AXIS_UNIT_TOLERANCE, CHAIN_SCHEMA_VERSION,
+    FRICTION_PARAMETER_NAMES, INERTIAL_PARAMETER_NAMES, LINK_PARAMS, MAX_DOF, MAX_MATRIX_ENTRIES,
+    PHYSICAL_TOLERANCE,
 };
 pub use chain::{
     pseudo_inertia, pseudo_inertia_to_parameters, standard_from_base, FeasibilityReport,

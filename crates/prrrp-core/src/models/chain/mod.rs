@@ -15,7 +15,6 @@ mod crba;
 mod derivatives;
 mod description;
 mod dh;
-mod dyn_base_model;
 mod feasibility;
 mod friction;
 mod inertia;
@@ -29,14 +28,16 @@ mod serial_chain;
 mod workspace;
 
 pub use actuators::{Actuators, ACTUATOR_PARAMETER_NAMES, COUPLING_CONDITION_LIMIT};
-pub use base_model::ChainBaseModel;
+pub use base_model::{
+    BaseWorkspaceOf, ChainBaseModel, ChainBaseModelOf, ChainDim, DynBaseWorkspace,
+    DynChainBaseModel,
+};
 pub use base_params::{BaseOptions, BaseParameters, MAX_MATRIX_ENTRIES};
 pub(crate) use crba::{cholesky_in_place, cholesky_solve};
 pub use description::{
     ChainDescription, DhDescription, JointDescription, PoseDescription, CHAIN_SCHEMA_VERSION,
 };
 pub use dh::DhConvention;
-pub use dyn_base_model::{DynBaseWorkspace, DynChainBaseModel};
 pub use feasibility::{
     standard_from_base, FeasibilityReport, JointFrictionFeasibility, LinkFeasibility,
 };
