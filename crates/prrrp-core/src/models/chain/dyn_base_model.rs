@@ -293,6 +293,7 @@ impl DynChainBaseModel {
         dqdd_dq: &mut DMatrix<f64>,
         dqdd_dqd: &mut DMatrix<f64>,
         dqdd_dlambda: &mut DMatrix<f64>,
+        minv_out: Option<&mut DMatrix<f64>>,
     ) {
         let n = self.dof();
         let DynBaseWorkspace {
@@ -324,7 +325,10 @@ impl DynChainBaseModel {
         inverse_from_factor(m, n, minv);
         minus_inverse_times(minv, n, dqdd_dq.as_mut_slice(), col);
         minus_inverse_times(minv, n, dqdd_dqd.as_mut_slice(), col);
-        minus_inverse_times(minv, n, dqdd_dlambda.as_mut_slice(), col);
+        match minv_out {
+            Some(out) => out.as_mut_slice().copy_from_slice(minv),
+            None => minus_inverse_times(minv, n, dqdd_dlambda.as_mut_slice(), col),
+        }
     }
 
     /// Loads β, then q̈ = M⁻¹·(τ − bias) into `out.qdd` and the derivatives at `qdd_lin`
@@ -338,6 +342,7 @@ impl DynChainBaseModel {
         tau: &DVector<f64>,
         lambda: &DVector<f64>,
         qdd_lin: Option<&DVector<f64>>,
+        minv: Option<&mut DMatrix<f64>>,
         out: &mut ForwardDerivativesOf<Dyn, Dyn>,
     ) -> Result<()> {
         self.equivalent(lambda, ws);
@@ -350,7 +355,7 @@ impl DynChainBaseModel {
             dqdd_dlambda,
         } = out;
         let at = qdd_lin.map_or(qdd.as_slice(), |v| v.as_slice());
-        self.derivatives_loaded(ws, q, qd, at, dqdd_dq, dqdd_dqd, dqdd_dlambda);
+        self.derivatives_loaded(ws, q, qd, at, dqdd_dq, dqdd_dqd, dqdd_dlambda, minv);
         Ok(())
     }
 }
@@ -468,7 +473,7 @@ impl LinearModel<Dyn, Dyn> for DynChainBaseModel {
     ) -> Result<()> {
         let joints = [("q", q), ("qd", qd), ("tau", tau)];
         self.check_call(ws, &joints, lambda, Some(out))?;
-        self.forward_and_derivatives(ws, q, qd, tau, lambda, None, out)
+        self.forward_and_derivatives(ws, q, qd, tau, lambda, None, None, out)
     }
 
     /// One mass matrix and its factor for both: q̈ = M⁻¹·(τ − bias) as
@@ -488,6 +493,29 @@ impl LinearModel<Dyn, Dyn> for DynChainBaseModel {
     ) -> Result<()> {
         let joints = [("q", q), ("qd", qd), ("qdd_lin", qdd_lin), ("tau", tau)];
         self.check_call(ws, &joints, lambda, Some(out))?;
-        self.forward_and_derivatives(ws, q, qd, tau, lambda, Some(qdd_lin), out)
+        self.forward_and_derivatives(ws, q, qd, tau, lambda, Some(qdd_lin), None, out)
+    }
+
+    /// As [`Self::forward_derivatives_at_into`] (or [`Self::forward_derivatives_into`]
+    /// without `qdd_lin`), with Φ_b in `out.dqdd_dlambda` and M⁻¹ in `minv`.
+    fn forward_derivatives_factored_into(
+        &self,
+        ws: &mut DynBaseWorkspace,
+        q: &DVector<f64>,
+        qd: &DVector<f64>,
+        qdd_lin: Option<&DVector<f64>>,
+        tau: &DVector<f64>,
+        lambda: &DVector<f64>,
+        minv: &mut DMatrix<f64>,
+        out: &mut ForwardDerivativesOf<Dyn, Dyn>,
+    ) -> Result<bool> {
+        let joints = [("q", q), ("qd", qd), ("tau", tau)];
+        self.check_call(ws, &joints, lambda, Some(out))?;
+        if let Some(v) = qdd_lin {
+            self.check_joint("qdd_lin", v.len())?;
+        }
+        self.check_matrix("minv", minv, self.dof())?;
+        self.forward_and_derivatives(ws, q, qd, tau, lambda, qdd_lin, Some(minv), out)?;
+        Ok(true)
     }
 }
