@@ -2364,11 +2364,36 @@ mod tests {
             (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
         };
         let cases = [
-            (ParameterJacobian::Predicted, Discretisation::Euler, 1e-3, false),
-            (ParameterJacobian::DataAcceleration, Discretisation::Euler, 1e-3, false),
-            (ParameterJacobian::DataAcceleration, Discretisation::SecondOrder, 1e-3, false),
-            (ParameterJacobian::DataAcceleration, Discretisation::Euler, 0.5, true),
-            (ParameterJacobian::Predicted, Discretisation::SecondOrder, 0.5, true),
+            (
+                ParameterJacobian::Predicted,
+                Discretisation::Euler,
+                1e-3,
+                false,
+            ),
+            (
+                ParameterJacobian::DataAcceleration,
+                Discretisation::Euler,
+                1e-3,
+                false,
+            ),
+            (
+                ParameterJacobian::DataAcceleration,
+                Discretisation::SecondOrder,
+                1e-3,
+                false,
+            ),
+            (
+                ParameterJacobian::DataAcceleration,
+                Discretisation::Euler,
+                0.5,
+                true,
+            ),
+            (
+                ParameterJacobian::Predicted,
+                Discretisation::SecondOrder,
+                0.5,
+                true,
+            ),
         ];
         for (jac, disc, dt, stiff) in cases {
             for fma in [false, true] {
@@ -2401,6 +2426,17 @@ mod tests {
                 // The model's factors: the same q, q̇ derivatives, −M⁻¹·Φ = ∂q̈/∂λ.
                 assert_eq!(f.buf.fd.dqdd_dq, r.buf.fd.dqdd_dq);
                 assert_eq!(f.buf.fd.dqdd_dqd, r.buf.fd.dqdd_dqd);
+                if jac == ParameterJacobian::DataAcceleration {
+                    // Φ at q̈_data, bit for bit the regressor's (the derivatives reuse the
+                    // Newton–Euler pass's kinematics).
+                    let mut phi = DMatrix::zeros(n, s - 2 * n);
+                    let mut ws = f.model.workspace();
+                    let (bq, bv) = (&f.buf.q, &f.buf.v);
+                    f.model
+                        .regressor_into(&mut ws, bq, bv, &qdd, &mut phi)
+                        .unwrap();
+                    assert_eq!(phi, f.buf.fd.dqdd_dlambda);
+                }
                 let dl = -&f.buf.minv * &f.buf.fd.dqdd_dlambda;
                 let err = (&dl - &r.buf.fd.dqdd_dlambda).amax();
                 assert!(err <= 1e-12 * dl.amax(), "∂q̈/∂λ: {err:e}");
@@ -2415,7 +2451,11 @@ mod tests {
                     f.predict::<false>();
                     r.predict::<false>();
                 }
-                assert_eq!(f.stiff_steps(), usize::from(stiff), "{jac:?} {disc:?} h {dt}");
+                assert_eq!(
+                    f.stiff_steps(),
+                    usize::from(stiff),
+                    "{jac:?} {disc:?} h {dt}"
+                );
                 assert_eq!(r.stiff_steps(), usize::from(stiff));
                 let err = (f.covariance() - r.covariance()).amax() / r.covariance().amax();
                 assert!(err <= 1e-12, "{jac:?} {disc:?} h {dt} fma {fma}: P {err:e}");

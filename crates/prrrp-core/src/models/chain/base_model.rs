@@ -73,7 +73,8 @@ impl<O: IndexMut<(usize, usize), Output = f64>> RegressorSink for BaseSink<'_, O
 }
 
 /// The base regressor Φ_b(q, q̇, q̈) (`x` = [q, q̇, q̈]) of `view`'s chain into `out` (N×B,
-/// zero on entry), through the column maps `maps` = (rigid, actuator) of [`BaseSink`].
+/// zero on entry), through the column maps `maps` = (rigid, actuator) of [`BaseSink`];
+/// `kinematics_done`: `st` holds the kinematics at `x` already.
 #[inline(always)]
 pub(super) fn base_regressor_into<O: IndexMut<(usize, usize), Output = f64>>(
     view: ChainView<'_>,
@@ -81,6 +82,7 @@ pub(super) fn base_regressor_into<O: IndexMut<(usize, usize), Output = f64>>(
     x: [&[f64]; 3],
     st: &mut [LinkState],
     out: &mut O,
+    kinematics_done: bool,
 ) {
     let (rigid_map, actuator_map) = maps;
     let mut sink = BaseSink {
@@ -88,7 +90,11 @@ pub(super) fn base_regressor_into<O: IndexMut<(usize, usize), Output = f64>>(
         rigid_map,
         actuator_map,
     };
-    view.regressor_into(x[0], x[1], x[2], true, st, &mut sink);
+    if kinematics_done {
+        view.regressor_at_kinematics(x[1], x[2], true, st, &mut sink);
+    } else {
+        view.regressor_into(x[0], x[1], x[2], true, st, &mut sink);
+    }
 }
 
 /// The column maps of a base model: for base column c (standard parameter
@@ -296,7 +302,7 @@ impl<const N: usize, const B: usize> LinearDynamics<N, B> for ChainBaseModel<N, 
         let mut st = [LinkState::default(); N];
         let x = [q.as_slice(), qd.as_slice(), qdd.as_slice()];
         let maps = (&self.rigid_map[..], &self.actuator_map[..]);
-        base_regressor_into(self.chain.view(), maps, x, &mut st, &mut out);
+        base_regressor_into(self.chain.view(), maps, x, &mut st, &mut out, false);
         out
     }
 

@@ -317,10 +317,17 @@ impl DynChainBaseModel {
         let dqd = dqdd_dqd.as_mut_slice();
         rigid.rnea_derivatives(rig, qd, st, tan, dq, dqd);
         full.add_actuator_slope(fr, qd, dqd);
-        // Φ_b at q̈.
+        // Φ_b at q̈, from the primal pass's kinematics (the tangent passes leave them).
         dqdd_dlambda.fill(0.0);
         let maps = (&self.rigid_map[..], &self.actuator_map[..]);
-        base_regressor_into(self.chain.view(), maps, [q, qd, qdd], st, dqdd_dlambda);
+        base_regressor_into(
+            self.chain.view(),
+            maps,
+            [q, qd, qdd],
+            st,
+            dqdd_dlambda,
+            true,
+        );
         // −M⁻¹ times the 2N + B columns.
         inverse_from_factor(m, n, minv);
         minus_inverse_times(minv, n, dqdd_dq.as_mut_slice(), col);
@@ -403,7 +410,7 @@ impl LinearModel<Dyn, Dyn> for DynChainBaseModel {
         out.fill(0.0);
         let x = [q.as_slice(), qd.as_slice(), qdd.as_slice()];
         let maps = (&self.rigid_map[..], &self.actuator_map[..]);
-        base_regressor_into(self.chain.view(), maps, x, &mut ws.st, out);
+        base_regressor_into(self.chain.view(), maps, x, &mut ws.st, out, false);
         Ok(())
     }
 
