@@ -1574,23 +1574,9 @@ fn p_lambda_phi_t_cols<const FMA: bool, const NC: usize>(
     s: usize,
     c0: usize,
 ) {
-    let mut r0 = 0;
-    while r0 < s {
-        let len = (s - r0).min(TILE_ROWS);
-        let (t0, skip) = full_tile(r0, len, s);
-        let acc = tile::<FMA, NC>(
-            p,
-            |k| (2 * n + nz[k]) * s,
-            t0,
-            len + skip,
-            nz.len(),
-            |k, c| phi[nz[k] * n + c0 + c],
-        );
-        for (c, av) in acc.iter().enumerate() {
-            t[(c0 + c) * s + r0..(c0 + c) * s + r0 + len].copy_from_slice(&av[skip..skip + len]);
-        }
-        r0 += len;
-    }
+    let xcol = |k: usize| (2 * n + nz[k]) * s;
+    let y = |k: usize, c: usize| phi[nz[k] * n + c0 + c];
+    product_cols::<FMA, NC>(p, xcol, nz.len(), y, t, s, c0);
 }
 
 /// Solves L·X = [A | b] in place (L column-major n×n, overwritten; A column-major n×m,
@@ -2083,20 +2069,28 @@ fn p_times_at_cols<const FMA: bool, const NC: usize>(
     (n, s, kdim): (usize, usize, usize),
     c0: usize,
 ) {
+    product_cols::<FMA, NC>(ps, |k| k * s, kdim, |k, c| a[k * n + c0 + c], gs, s, c0);
+}
+
+/// Columns `c0..c0 + NC` of C = X·Yᵀ (S-long columns) into `out`, whole columns in
+/// register tiles ([`tile`]; X's column k at `xcol(k)`, Y's entries `y(k, c)`, k < `kdim`).
+#[inline(always)]
+fn product_cols<const FMA: bool, const NC: usize>(
+    x: &[f64],
+    xcol: impl Fn(usize) -> usize,
+    kdim: usize,
+    y: impl Fn(usize, usize) -> f64,
+    out: &mut [f64],
+    s: usize,
+    c0: usize,
+) {
     let mut r0 = 0;
     while r0 < s {
         let len = (s - r0).min(TILE_ROWS);
         let (t0, skip) = full_tile(r0, len, s);
-        let acc = tile::<FMA, NC>(
-            ps,
-            |k| k * s,
-            t0,
-            len + skip,
-            kdim,
-            |k, c| a[k * n + c0 + c],
-        );
+        let acc = tile::<FMA, NC>(x, &xcol, t0, len + skip, kdim, &y);
         for (c, av) in acc.iter().enumerate() {
-            gs[(c0 + c) * s + r0..(c0 + c) * s + r0 + len].copy_from_slice(&av[skip..skip + len]);
+            out[(c0 + c) * s + r0..(c0 + c) * s + r0 + len].copy_from_slice(&av[skip..skip + len]);
         }
         r0 += len;
     }
