@@ -209,6 +209,9 @@ where
     /// the rows it changes (those of q and q̇), and whether P₀ is.
     p_symmetric: bool,
     p0_symmetric: bool,
+    /// Whether chain-sized states ask the model for ∂q̈/∂λ in factors (off only in tests,
+    /// for the reference).
+    use_factors: bool,
     buf: Buffers<N, P, S>,
 }
 
@@ -290,6 +293,16 @@ where
     /// tiles of [`joseph_columns`] and [`joseph_upper`].
     jx: Vec<f64>,
     jy: Vec<f64>,
+    /// Whether the derivatives came factored (chain-sized states): ∂q̈/∂λ = −M⁻¹·Φ with Φ
+    /// in `fd.dqdd_dlambda` and M⁻¹ in `minv`; see [`factored_time_products`].
+    factored: bool,
+    minv: OMatrix<f64, N, N>,
+    /// [A_q, A_v, −M⁻¹] (N×3N) of a factored step (L⁻¹ times it when stiff).
+    af: Vec<f64>,
+    /// [P_·q, P_·v, P_·λ·Φᵀ] (S×3N), Φ's non-zero columns of a tile, Φ·G_λ (N×N).
+    xg: Vec<f64>,
+    nz: Vec<usize>,
+    u: Vec<f64>,
 }
 
 impl<N: Dim, P: Dim, S: Dim> Buffers<N, P, S>
@@ -331,6 +344,12 @@ where
             prior_to_noise: 0.0,
             jx: vec![0.0; 4 * s.value() * n.value()],
             jy: vec![0.0; 4 * s.value() * n.value()],
+            factored: false,
+            minv: OMatrix::zeros_generic(n, n),
+            af: vec![0.0; 3 * n.value() * n.value()],
+            xg: vec![0.0; 3 * s.value() * n.value()],
+            nz: vec![0; p.value()],
+            u: vec![0.0; n.value() * n.value()],
         }
     }
 }
@@ -474,6 +493,7 @@ where
             avx2: cpu_has_avx2_fma(),
             p_symmetric: true,
             p0_symmetric: true,
+            use_factors: true,
             buf: Buffers::new(nd, pd, sd),
         })
     }
@@ -1149,8 +1169,23 @@ where
         }
         let at_data = self.config.parameter_jacobian == ParameterJacobian::DataAcceleration
             && all_finite(qdd);
+        let factors = self.use_factors && xs.len() > ACC_ROWS;
         let result = result.and_then(|()| {
-            if at_data {
+            // Chain-sized states take ∂q̈/∂λ in factors (see `factored_time_products`).
+            b.factored = factors
+                && self.model.forward_derivatives_factored_into(
+                    ws,
+                    &b.q,
+                    &b.v,
+                    at_data.then_some(qdd),
+                    tau,
+                    &b.lam,
+                    &mut b.minv,
+                    &mut b.fd,
+                )?;
+            if b.factored {
+                Ok(())
+            } else if at_data {
                 // A at q̈_data (including −M⁻¹·Φ(q̂, q̂̇, q̈_data)); the state is then
                 // propagated with the q̈ the measured τ produces.
                 self.model.forward_derivatives_at_into(
@@ -1190,9 +1225,15 @@ where
         let fd = &b.fd;
 
         // A = ∂q̈/∂x = [∂q̈/∂q, ∂q̈/∂q̇, ∂q̈/∂λ] (N×S) assembled contiguously (uniform
-        // column indexing in the loops below); then G = P·Aᵀ (S×N), skipping zero
-        // entries of A.
-        assemble_a(fd, b.a.as_mut_slice(), n);
+        // column indexing in the loops below), or [A_q, A_v, −M⁻¹] (N×3N) when the
+        // derivatives came factored; then G = P·Aᵀ (S×N), skipping zero entries of A.
+        let fac = b.factored;
+        let nn = n * n;
+        if fac {
+            assemble_factored(fd, b.minv.as_slice(), &mut b.af, n);
+        } else {
+            assemble_a(fd, b.a.as_mut_slice(), n);
+        }
         let midpoint = self.config.discretisation == Discretisation::Midpoint && !self.stiff;
         // Stiff dynamics (see `stiff_steps`): the linearly implicit θ-step of [q, q̇]
         // (θ = STIFF_THETA), whose velocity increment solves L·Δq̇ = h·(q̈ + θh·A_q·q̇) with
@@ -1211,12 +1252,13 @@ where
                     l[j * n + i] = d - th * fd.dqdd_dqd[(i, j)] - th * th * fd.dqdd_dq[(i, j)];
                 }
             }
-            let nn = n * n;
-            {
-                let a = b.a.as_mut_slice();
-                for k in 0..nn {
-                    a[nn + k] += th * a[k];
-                }
+            let a = if fac {
+                &mut b.af[..]
+            } else {
+                b.a.as_mut_slice()
+            };
+            for k in 0..nn {
+                a[nn + k] += th * a[k];
             }
             for i in 0..n {
                 let mut v = fd.qdd[i];
@@ -1227,24 +1269,41 @@ where
             }
             // L = M⁻¹·(M + h·D + h²·K) for damping D and stiffness K that only dissipate
             // and restore; a numerically singular L keeps the explicit step.
-            if solve_in_place(l, n, b.a.as_mut_slice(), b.innovation.as_mut_slice()) {
+            // With factors, L⁻¹ reaches ∂q̈/∂λ through −M⁻¹ (3N columns instead of S).
+            if solve_in_place(l, n, a, b.innovation.as_mut_slice()) {
                 b.fd.qdd.copy_from(&b.innovation);
                 self.stiff_steps += 1;
             } else {
-                assemble_a(&b.fd, b.a.as_mut_slice(), n);
+                if fac {
+                    assemble_factored(&b.fd, b.minv.as_slice(), &mut b.af, n);
+                } else {
+                    assemble_a(&b.fd, b.a.as_mut_slice(), n);
+                }
                 stiff = false;
             }
         }
         let fd = &b.fd;
-        let a = b.a.as_slice();
-        if s > ACC_ROWS {
-            p_times_at_blocked::<FMA>(self.p.as_slice(), a, b.g.as_mut_slice(), n, s);
+        if fac {
+            factored_time_products::<FMA>(
+                self.p.as_slice(),
+                &b.af,
+                fd.dqdd_dlambda.as_slice(),
+                (&mut b.xg, &mut b.nz, &mut b.u),
+                (b.g.as_mut_slice(), b.apa.as_mut_slice()),
+                n,
+                s,
+            );
         } else {
-            b.g.fill(0.0);
-            p_times_at::<FMA>(self.p.as_slice(), a, b.g.as_mut_slice(), n, s);
+            let a = b.a.as_slice();
+            if s > ACC_ROWS {
+                p_times_at_blocked::<FMA>(self.p.as_slice(), a, b.g.as_mut_slice(), n, s, s);
+            } else {
+                b.g.fill(0.0);
+                p_times_at::<FMA>(self.p.as_slice(), a, b.g.as_mut_slice(), n, s);
+            }
+            b.apa.fill(0.0);
+            a_times_g::<FMA>(a, b.g.as_slice(), b.apa.as_mut_slice(), n, s);
         }
-        b.apa.fill(0.0);
-        a_times_g::<FMA>(a, b.g.as_slice(), b.apa.as_mut_slice(), n, s);
 
         // F = I + E with E_q = [c·h·A_q, h·I + c·h·A_v, c·h·A_λ], E_v = h·A, E_λ = 0
         // (c = h/2 for the second-order position update, 0 for Euler), so
@@ -1413,6 +1472,111 @@ where
     a[..nn].copy_from_slice(fd.dqdd_dq.as_slice());
     a[nn..2 * nn].copy_from_slice(fd.dqdd_dqd.as_slice());
     a[2 * nn..].copy_from_slice(fd.dqdd_dlambda.as_slice());
+}
+
+/// [A_q, A_v, −M⁻¹] (N×3N, column-major) from factored derivatives and M⁻¹.
+#[inline(always)]
+fn assemble_factored<N: Dim, P: Dim>(
+    fd: &ForwardDerivativesOf<N, P>,
+    minv: &[f64],
+    af: &mut [f64],
+    n: usize,
+) where
+    DefaultAllocator: Allocator<N> + Allocator<N, N> + Allocator<N, P>,
+{
+    let nn = n * n;
+    af[..nn].copy_from_slice(fd.dqdd_dq.as_slice());
+    af[nn..2 * nn].copy_from_slice(fd.dqdd_dqd.as_slice());
+    for (c, &m) in af[2 * nn..3 * nn].iter_mut().zip(minv) {
+        *c = -m;
+    }
+}
+
+/// G = P·Aᵀ (S×N) and A·G (N×N) for A = [A_q, A_v, C·Φ] given as `af` = [A_q, A_v, C]
+/// (N×3N; C = −M⁻¹, or −L⁻¹·M⁻¹ in a stiff step) and Φ (N×P, column-major): G =
+/// [P_·q, P_·v, P_·λ·Φᵀ]·[A_q, A_v, C]ᵀ and A·G = [A_q, A_v, C]·[G_q; G_v; Φ·G_λ]. A
+/// chain's Φ is about half zeros (row j: the parameters of links ≥ j and of joint j's
+/// actuator), which P_·λ·Φᵀ skips column by column; the assembled A_λ = C·Φ is dense.
+/// So ≈ S·(2N² + nnz Φ + N²) multiply-adds instead of S²·N. `xg`, `nz`, `u`: scratch of
+/// S×3N, P and N×N.
+#[inline(always)]
+fn factored_time_products<const FMA: bool>(
+    p: &[f64],
+    af: &[f64],
+    phi: &[f64],
+    (xg, nz, u): (&mut [f64], &mut [usize], &mut [f64]),
+    (g, apa): (&mut [f64], &mut [f64]),
+    n: usize,
+    s: usize,
+) {
+    let np = s - 2 * n;
+    xg[..2 * n * s].copy_from_slice(&p[..2 * n * s]);
+    let t = &mut xg[2 * n * s..3 * n * s];
+    let mut c0 = 0;
+    while c0 < n {
+        let nc = (n - c0).min(TILE_COLS);
+        // The parameters that enter any of these rows of Φ.
+        let mut cnt = 0;
+        for k in 0..np {
+            if phi[k * n + c0..k * n + c0 + nc].iter().any(|&v| v != 0.0) {
+                nz[cnt] = k;
+                cnt += 1;
+            }
+        }
+        let nz = &nz[..cnt];
+        match nc {
+            1 => p_lambda_phi_t_cols::<FMA, 1>(p, phi, nz, t, n, s, c0),
+            2 => p_lambda_phi_t_cols::<FMA, 2>(p, phi, nz, t, n, s, c0),
+            3 => p_lambda_phi_t_cols::<FMA, 3>(p, phi, nz, t, n, s, c0),
+            _ => p_lambda_phi_t_cols::<FMA, TILE_COLS>(p, phi, nz, t, n, s, c0),
+        }
+        c0 += TILE_COLS;
+    }
+    p_times_at_blocked::<FMA>(xg, af, g, n, s, 3 * n);
+    u.fill(0.0);
+    for k in 0..np {
+        let pc = &phi[k * n..k * n + n];
+        if pc.iter().all(|&v| v == 0.0) {
+            continue;
+        }
+        for j in 0..n {
+            let gv = g[j * s + 2 * n + k];
+            for (x, &f) in u[j * n..j * n + n].iter_mut().zip(pc) {
+                *x = madd::<FMA>(f, gv, *x);
+            }
+        }
+    }
+    apa.fill(0.0);
+    for kk in 0..3 * n {
+        let ac = &af[kk * n..kk * n + n];
+        for j in 0..n {
+            let gv = if kk < 2 * n {
+                g[j * s + kk]
+            } else {
+                u[j * n + kk - 2 * n]
+            };
+            for (x, &a) in apa[j * n..j * n + n].iter_mut().zip(ac) {
+                *x = madd::<FMA>(a, gv, *x);
+            }
+        }
+    }
+}
+
+/// Columns `c0..c0 + NC` of T = P_·λ·Φᵀ (S×N) into `t`, summing over the parameters
+/// `nz` only (those with a non-zero in rows `c0..c0 + NC` of Φ), in register tiles.
+#[inline(always)]
+fn p_lambda_phi_t_cols<const FMA: bool, const NC: usize>(
+    p: &[f64],
+    phi: &[f64],
+    nz: &[usize],
+    t: &mut [f64],
+    n: usize,
+    s: usize,
+    c0: usize,
+) {
+    let xcol = |k: usize| (2 * n + nz[k]) * s;
+    let y = |k: usize, c: usize| phi[nz[k] * n + c0 + c];
+    product_cols::<FMA, NC>(p, xcol, nz.len(), y, t, s, c0);
 }
 
 /// Solves L·X = [A | b] in place (L column-major n×n, overwritten; A column-major n×m,
@@ -1735,7 +1899,7 @@ fn joseph_upper_cols<const FMA: bool, const NC: usize>(
     while r0 < end {
         let len = (end - r0).min(TILE_ROWS);
         let (t0, skip) = full_tile(r0, len, end);
-        let acc = tile::<FMA, NC>(jx, s, t0, len + skip, k2, |k, c| jy[k * s + c0 + c]);
+        let acc = tile::<FMA, NC>(jx, |k| k * s, t0, len + skip, k2, |k, c| jy[k * s + c0 + c]);
         for (c, a) in acc.iter().enumerate() {
             let j = c0 + c;
             for (r, &v) in a[skip..skip + len].iter().enumerate() {
@@ -1782,12 +1946,12 @@ const TILE_ROWS: usize = 8;
 const TILE_COLS: usize = 4;
 
 /// `C[r, c] = Σ_k X[r, k]·Y[c, k]` for one tile of up to [`TILE_ROWS`] rows from `r0` and
-/// `NC` columns from `c0`, X given by columns of length `ldx` (`xcols` of them), Y by its
-/// `ycol(k)` start: returns the accumulators. Shared by P·Aᵀ and W·Wᵀ.
+/// `NC` columns, X's column k starting at `xcol(k)` in `x`, Y's entries given by `y(k, c)`,
+/// k < `kdim`: returns the accumulators. Shared by P·Aᵀ and W·Wᵀ.
 #[inline(always)]
 fn tile<const FMA: bool, const NC: usize>(
     x: &[f64],
-    ldx: usize,
+    xcol: impl Fn(usize) -> usize,
     r0: usize,
     len: usize,
     kdim: usize,
@@ -1796,9 +1960,8 @@ fn tile<const FMA: bool, const NC: usize>(
     let mut acc = [[0.0f64; TILE_ROWS]; NC];
     if len == TILE_ROWS {
         for k in 0..kdim {
-            let xc: &[f64; TILE_ROWS] = x[k * ldx + r0..k * ldx + r0 + TILE_ROWS]
-                .try_into()
-                .unwrap_or(&[0.0; TILE_ROWS]);
+            let o = xcol(k) + r0;
+            let xc: &[f64; TILE_ROWS] = x[o..o + TILE_ROWS].try_into().unwrap_or(&[0.0; TILE_ROWS]);
             for (c, a) in acc.iter_mut().enumerate() {
                 let f = y(k, c);
                 for r in 0..TILE_ROWS {
@@ -1808,7 +1971,8 @@ fn tile<const FMA: bool, const NC: usize>(
         }
     } else {
         for k in 0..kdim {
-            let xc = &x[k * ldx + r0..k * ldx + r0 + len];
+            let o = xcol(k) + r0;
+            let xc = &x[o..o + len];
             for (c, a) in acc.iter_mut().enumerate() {
                 let f = y(k, c);
                 for (av, &xv) in a.iter_mut().zip(xc) {
@@ -1862,7 +2026,7 @@ fn minus_w_wt_cols<const FMA: bool, const NC: usize>(
     while r0 < s {
         let len = (s - r0).min(TILE_ROWS);
         let (t0, skip) = full_tile(r0, len, s);
-        let acc = tile::<FMA, NC>(ws, s, t0, len + skip, n, |m, c| ws[m * s + c0 + c]);
+        let acc = tile::<FMA, NC>(ws, |m| m * s, t0, len + skip, n, |m, c| ws[m * s + c0 + c]);
         for (c, a) in acc.iter().enumerate() {
             let col = &mut p[(c0 + c) * s + r0..(c0 + c) * s + r0 + len];
             for (pv, &av) in col.iter_mut().zip(&a[skip..]) {
@@ -1873,17 +2037,25 @@ fn minus_w_wt_cols<const FMA: bool, const NC: usize>(
     }
 }
 
-/// G = P·Aᵀ (S×N) on whole columns, tiled as [`minus_w_wt`]; for run-time sizes, where A
-/// (the chain's −M⁻¹·Φ and its q, q̇ derivatives) is dense and skipping zeros would not pay.
+/// G = X·Aᵀ (S×N) for X given by `kdim` S-long columns (P itself: `kdim` = S) and A (N×kdim)
+/// on whole columns, tiled as [`minus_w_wt`]; for run-time sizes, where A (the chain's
+/// −M⁻¹·Φ and its q, q̇ derivatives) is dense and skipping zeros would not pay.
 #[inline(always)]
-fn p_times_at_blocked<const FMA: bool>(ps: &[f64], a: &[f64], gs: &mut [f64], n: usize, s: usize) {
+fn p_times_at_blocked<const FMA: bool>(
+    ps: &[f64],
+    a: &[f64],
+    gs: &mut [f64],
+    n: usize,
+    s: usize,
+    kdim: usize,
+) {
     let mut c0 = 0;
     while c0 < n {
         match n - c0 {
-            1 => p_times_at_cols::<FMA, 1>(ps, a, gs, n, s, c0),
-            2 => p_times_at_cols::<FMA, 2>(ps, a, gs, n, s, c0),
-            3 => p_times_at_cols::<FMA, 3>(ps, a, gs, n, s, c0),
-            _ => p_times_at_cols::<FMA, TILE_COLS>(ps, a, gs, n, s, c0),
+            1 => p_times_at_cols::<FMA, 1>(ps, a, gs, (n, s, kdim), c0),
+            2 => p_times_at_cols::<FMA, 2>(ps, a, gs, (n, s, kdim), c0),
+            3 => p_times_at_cols::<FMA, 3>(ps, a, gs, (n, s, kdim), c0),
+            _ => p_times_at_cols::<FMA, TILE_COLS>(ps, a, gs, (n, s, kdim), c0),
         }
         c0 += TILE_COLS;
     }
@@ -1894,7 +2066,21 @@ fn p_times_at_cols<const FMA: bool, const NC: usize>(
     ps: &[f64],
     a: &[f64],
     gs: &mut [f64],
-    n: usize,
+    (n, s, kdim): (usize, usize, usize),
+    c0: usize,
+) {
+    product_cols::<FMA, NC>(ps, |k| k * s, kdim, |k, c| a[k * n + c0 + c], gs, s, c0);
+}
+
+/// Columns `c0..c0 + NC` of C = X·Yᵀ (S-long columns) into `out`, whole columns in
+/// register tiles ([`tile`]; X's column k at `xcol(k)`, Y's entries `y(k, c)`, k < `kdim`).
+#[inline(always)]
+fn product_cols<const FMA: bool, const NC: usize>(
+    x: &[f64],
+    xcol: impl Fn(usize) -> usize,
+    kdim: usize,
+    y: impl Fn(usize, usize) -> f64,
+    out: &mut [f64],
     s: usize,
     c0: usize,
 ) {
@@ -1902,9 +2088,9 @@ fn p_times_at_cols<const FMA: bool, const NC: usize>(
     while r0 < s {
         let len = (s - r0).min(TILE_ROWS);
         let (t0, skip) = full_tile(r0, len, s);
-        let acc = tile::<FMA, NC>(ps, s, t0, len + skip, s, |k, c| a[k * n + c0 + c]);
+        let acc = tile::<FMA, NC>(x, &xcol, t0, len + skip, kdim, &y);
         for (c, av) in acc.iter().enumerate() {
-            gs[(c0 + c) * s + r0..(c0 + c) * s + r0 + len].copy_from_slice(&av[skip..skip + len]);
+            out[(c0 + c) * s + r0..(c0 + c) * s + r0 + len].copy_from_slice(&av[skip..skip + len]);
         }
         r0 += len;
     }
@@ -2150,6 +2336,143 @@ mod tests {
         check(&mut big, 0x1234_5678_9ABC_DEF1);
     }
 
+    /// The time update with ∂q̈/∂λ in factors (P_·λ·Φᵀ over Φ's non-zeros, then −M⁻¹)
+    /// against the one with the model's assembled A = [A_q, A_v, −M⁻¹·Φ] (G = P·Aᵀ as
+    /// written), and for the explicit Euler step against F·P·Fᵀ + Q formed densely by
+    /// nalgebra: random SPD P and states on the PUMA 560 (S > 32), at the predicted and
+    /// the data's acceleration, stiff and not, plain and fused multiply-adds.
+    #[test]
+    fn factored_time_update_matches_the_assembled_one() {
+        use crate::{BaseOptions, SerialChain};
+        use nalgebra::{DMatrix, DVector};
+        let chain = SerialChain::puma560().to_dyn();
+        let base = chain.base_parameters(&BaseOptions::default()).unwrap();
+        let model = chain.base_model(&base).unwrap();
+        let beta = model.chain_base_values().clone();
+        let n = chain.dof();
+        let mut seed = 0xD1B5_4A32_D192_ED03u64;
+        let mut rnd = move || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+        };
+        let cases = [
+            (
+                ParameterJacobian::Predicted,
+                Discretisation::Euler,
+                1e-3,
+                false,
+            ),
+            (
+                ParameterJacobian::DataAcceleration,
+                Discretisation::Euler,
+                1e-3,
+                false,
+            ),
+            (
+                ParameterJacobian::DataAcceleration,
+                Discretisation::SecondOrder,
+                1e-3,
+                false,
+            ),
+            (
+                ParameterJacobian::DataAcceleration,
+                Discretisation::Euler,
+                0.5,
+                true,
+            ),
+            (
+                ParameterJacobian::Predicted,
+                Discretisation::SecondOrder,
+                0.5,
+                true,
+            ),
+        ];
+        for (jac, disc, dt, stiff) in cases {
+            for fma in [false, true] {
+                let cfg = EkfConfig {
+                    measurement: EkfMeasurement::PositionsVelocities,
+                    parameter_jacobian: jac,
+                    discretisation: disc,
+                    dt,
+                    ..EkfConfig::default()
+                };
+                let mut f = DynEkf::new(model.clone(), beta.clone(), cfg).unwrap();
+                f.set_stiff_handling(true);
+                let s = f.x.nrows();
+                assert!(s > ACC_ROWS);
+                let b = DMatrix::from_fn(s, s, |_, _| rnd());
+                let p = &b * b.transpose() * 1e-2 + DMatrix::identity(s, s) * 1e-3;
+                f.p.copy_from(&p);
+                f.p_symmetric = true;
+                for i in 0..2 * n {
+                    f.x[i] = 2.0 * rnd();
+                }
+                let v = |r: &mut dyn FnMut() -> f64| DVector::from_fn(n, |_, _| 4.0 * r());
+                let (q, qd, qdd, tau) = (v(&mut rnd), v(&mut rnd), v(&mut rnd), v(&mut rnd));
+                let sample = SampleOf::new(&q, &qd, &qdd, &tau);
+                let mut r = f.clone();
+                r.use_factors = false;
+                f.derivatives(false, sample).unwrap();
+                r.derivatives(false, sample).unwrap();
+                assert!(f.buf.factored && !r.buf.factored);
+                // The model's factors: the same q, q̇ derivatives, −M⁻¹·Φ = ∂q̈/∂λ.
+                assert_eq!(f.buf.fd.dqdd_dq, r.buf.fd.dqdd_dq);
+                assert_eq!(f.buf.fd.dqdd_dqd, r.buf.fd.dqdd_dqd);
+                if jac == ParameterJacobian::DataAcceleration {
+                    // Φ at q̈_data, bit for bit the regressor's (the derivatives reuse the
+                    // Newton–Euler pass's kinematics).
+                    let mut phi = DMatrix::zeros(n, s - 2 * n);
+                    let mut ws = f.model.workspace();
+                    let (bq, bv) = (&f.buf.q, &f.buf.v);
+                    f.model
+                        .regressor_into(&mut ws, bq, bv, &qdd, &mut phi)
+                        .unwrap();
+                    assert_eq!(phi, f.buf.fd.dqdd_dlambda);
+                }
+                let dl = -&f.buf.minv * &f.buf.fd.dqdd_dlambda;
+                let err = (&dl - &r.buf.fd.dqdd_dlambda).amax();
+                assert!(err <= 1e-12 * dl.amax(), "∂q̈/∂λ: {err:e}");
+                let a = DMatrix::from_column_slice(n, s, {
+                    assemble_a(&r.buf.fd, r.buf.a.as_mut_slice(), n);
+                    r.buf.a.as_slice()
+                });
+                if fma {
+                    f.predict::<true>();
+                    r.predict::<true>();
+                } else {
+                    f.predict::<false>();
+                    r.predict::<false>();
+                }
+                assert_eq!(
+                    f.stiff_steps(),
+                    usize::from(stiff),
+                    "{jac:?} {disc:?} h {dt}"
+                );
+                assert_eq!(r.stiff_steps(), usize::from(stiff));
+                let err = (f.covariance() - r.covariance()).amax() / r.covariance().amax();
+                assert!(err <= 1e-12, "{jac:?} {disc:?} h {dt} fma {fma}: P {err:e}");
+                assert_eq!(f.covariance(), &f.covariance().transpose());
+                let err = (f.state() - r.state()).amax() / r.state().amax();
+                assert!(err <= 1e-14, "{jac:?} h {dt}: x {err:e}");
+                if disc == Discretisation::Euler && !stiff {
+                    let mut fm = DMatrix::identity(s, s);
+                    for i in 0..n {
+                        fm[(i, n + i)] += dt;
+                        for k in 0..s {
+                            fm[(n + i, k)] += dt * a[(i, k)];
+                        }
+                    }
+                    let want = &fm * &p * fm.transpose()
+                        + DMatrix::from_diagonal(&DVector::from_column_slice(f.q_diag.as_slice()));
+                    let err = (f.covariance() - &want).amax() / want.amax();
+                    assert!(err <= 1e-12, "{jac:?} fma {fma}: F·P·Fᵀ + Q {err:e}");
+                }
+            }
+        }
+    }
+
     /// The stiff step's solve, eliminating A column by column, against the textbook
     /// elimination row by row (bit for bit: the same operations on every entry, in the
     /// same order) and against L·X = A (to round-off), on random systems that pivot and
@@ -2256,7 +2579,7 @@ mod tests {
             let a = DMatrix::from_fn(n, s, |_, _| rnd());
             let want = &p * a.transpose();
             let mut got = DMatrix::from_element(s, n, f64::NAN);
-            p_times_at_blocked::<false>(p.as_slice(), a.as_slice(), got.as_mut_slice(), n, s);
+            p_times_at_blocked::<false>(p.as_slice(), a.as_slice(), got.as_mut_slice(), n, s, s);
             let err = (&got - &want).amax();
             assert!(err <= 1e-14 * s as f64, "S {s}: {err:e}");
         }

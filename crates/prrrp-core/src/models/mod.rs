@@ -273,6 +273,33 @@ where
         self.forward_derivatives_into(ws, q, qd, tau_lin, lambda, out)?;
         self.forward_dynamics_into(ws, q, qd, tau, lambda, &mut out.qdd)
     }
+
+    /// The forward dynamics at τ and the derivatives at `qdd_lin` (as
+    /// [`LinearModel::forward_derivatives_at_into`]; at that q̈ when `None`, as
+    /// [`LinearModel::forward_derivatives_into`]) with ∂q̈/∂λ = −M⁻¹·Φ left as its
+    /// factors: Φ(q, q̇, q̈_lin) into `out.dqdd_dlambda`, M(q, λ)⁻¹ into `minv` (units of
+    /// q̈ per unit of τ). A chain's Φ is about half zeros (row j holds only the parameters
+    /// of links ≥ j and of joint j's actuator), which a product with it can skip. Returns
+    /// `Ok(false)`, computing nothing, when the model does not provide the factors (the
+    /// default).
+    ///
+    /// # Errors
+    /// As [`LinearModel::forward_dynamics_into`].
+    #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
+    fn forward_derivatives_factored_into(
+        &self,
+        _ws: &mut Self::Workspace,
+        _q: &OVector<f64, N>,
+        _qd: &OVector<f64, N>,
+        _qdd_lin: Option<&OVector<f64, N>>,
+        _tau: &OVector<f64, N>,
+        _lambda: &OVector<f64, P>,
+        _minv: &mut OMatrix<f64, N, N>,
+        _out: &mut ForwardDerivativesOf<N, P>,
+    ) -> Result<bool> {
+        Ok(false)
+    }
 }
 
 /// Compile-time models: the fixed-size methods, copied into the buffers (a few dozen

@@ -251,4 +251,30 @@ impl LinearModel<Dyn, Dyn> for TrackedModel {
             }
         }
     }
+
+    fn forward_derivatives_factored_into(
+        &self,
+        ws: &mut TrackedWorkspace,
+        q: &DVector<f64>,
+        qd: &DVector<f64>,
+        qdd_lin: Option<&DVector<f64>>,
+        tau: &DVector<f64>,
+        lambda: &DVector<f64>,
+        minv: &mut DMatrix<f64>,
+        out: &mut ForwardDerivativesOf<Dyn, Dyn>,
+    ) -> Result<bool> {
+        match self {
+            Self::Full(b) => b.forward_derivatives_factored_into(
+                &mut ws.base,
+                q,
+                qd,
+                qdd_lin,
+                tau,
+                lambda,
+                minv,
+                out,
+            ),
+            Self::Payload { .. } => Ok(false),
+        }
+    }
 }

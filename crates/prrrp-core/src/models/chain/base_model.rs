@@ -355,10 +355,16 @@ where
         load_equivalent(self.slots.as_slice(), beta, rig, fr, ia);
     }
 
-    /// The base regressor Φ_b(q, q̇, q̈) (`x` = [q, q̇, q̈]) into `out` (N×B, zero on entry).
+    /// The base regressor Φ_b(q, q̇, q̈) (`x` = [q, q̇, q̈]) into `out` (N×B, zero on entry);
+    /// `kinematics_done`: `st` holds the kinematics at `x` already (a Newton–Euler pass's).
     #[inline(always)]
-    fn regressor_in<O>(&self, x: [&[f64]; 3], st: &mut [LinkState], out: &mut O)
-    where
+    fn regressor_in<O>(
+        &self,
+        x: [&[f64]; 3],
+        st: &mut [LinkState],
+        out: &mut O,
+        kinematics_done: bool,
+    ) where
         O: IndexMut<(usize, usize), Output = f64>,
     {
         let mut sink = BaseSink {
@@ -366,8 +372,12 @@ where
             rigid_map: self.rigid_map.as_slice(),
             actuator_map: self.actuator_map.as_slice(),
         };
-        self.chain_view()
-            .regressor_into(x[0], x[1], x[2], true, st, &mut sink);
+        let view = self.chain_view();
+        if kinematics_done {
+            view.regressor_at_kinematics(x[1], x[2], true, st, &mut sink);
+        } else {
+            view.regressor_into(x[0], x[1], x[2], true, st, &mut sink);
+        }
     }
 
     /// τ = Φ_b·β (`x` = [q, q̇, q̈]) into `tau` by Newton–Euler on the equivalent chain.
@@ -460,7 +470,8 @@ where
     }
 
     /// ∂q̈/∂q, ∂q̈/∂q̇ and ∂q̈/∂β at the acceleration `qdd`, with β loaded and M factorised
-    /// in `ws` (by [`Self::forward_loaded`]).
+    /// in `ws` (by [`Self::forward_loaded`]). With `minv_out`, M⁻¹ goes there (column-major)
+    /// and `dqdd_dlambda` keeps Φ_b, not multiplied by −M⁻¹.
     #[allow(clippy::too_many_arguments)]
     #[inline(always)]
     fn derivatives_loaded(
@@ -472,6 +483,7 @@ where
         dqdd_dq: &mut OMatrix<f64, N, N>,
         dqdd_dqd: &mut OMatrix<f64, N, N>,
         dqdd_dlambda: &mut OMatrix<f64, N, B>,
+        minv_out: Option<&mut [f64]>,
     ) where
         DefaultAllocator: Allocator<N, B>,
     {
@@ -499,14 +511,17 @@ where
         let dqd = dqdd_dqd.as_mut_slice();
         rigid.rnea_derivatives(rig, qd, st, tan.as_mut_slice(), dq, dqd);
         full.add_actuator_slope(fr, qd, dqd);
-        // Φ_b at q̈.
+        // Φ_b at q̈, from the primal pass's kinematics (the tangent passes leave them).
         dqdd_dlambda.fill(0.0);
-        self.regressor_in([q, qd, qdd], st, dqdd_dlambda);
+        self.regressor_in([q, qd, qdd], st, dqdd_dlambda, true);
         // −M⁻¹ times the 2N + B columns.
         inverse_from_factor(m.as_slice(), n, minv);
         minus_inverse_times(minv, n, dqdd_dq.as_mut_slice(), col);
         minus_inverse_times(minv, n, dqdd_dqd.as_mut_slice(), col);
-        minus_inverse_times(minv, n, dqdd_dlambda.as_mut_slice(), col);
+        match minv_out {
+            Some(out) => out.copy_from_slice(minv),
+            None => minus_inverse_times(minv, n, dqdd_dlambda.as_mut_slice(), col),
+        }
     }
 
     /// Loads β, then q̈ = M⁻¹·(τ − bias) into `out.qdd` and the derivatives at `qdd_lin`
@@ -521,6 +536,7 @@ where
         tau: &[f64],
         lambda: &[f64],
         qdd_lin: Option<&[f64]>,
+        minv: Option<&mut [f64]>,
         out: &mut ForwardDerivativesOf<N, B>,
     ) -> Result<()>
     where
@@ -535,7 +551,7 @@ where
             dqdd_dlambda,
         } = out;
         let at = qdd_lin.unwrap_or(qdd.as_slice());
-        self.derivatives_loaded(ws, q, qd, at, dqdd_dq, dqdd_dqd, dqdd_dlambda);
+        self.derivatives_loaded(ws, q, qd, at, dqdd_dq, dqdd_dqd, dqdd_dlambda, minv);
         Ok(())
     }
 }
@@ -585,7 +601,7 @@ impl<const N: usize, const B: usize> LinearDynamics<N, B> for ChainBaseModel<N, 
         let mut out = SMatrix::<f64, N, B>::zeros();
         let mut st = [LinkState::default(); N];
         let x = [q.as_slice(), qd.as_slice(), qdd.as_slice()];
-        self.regressor_in(x, &mut st, &mut out);
+        self.regressor_in(x, &mut st, &mut out, false);
         out
     }
 
@@ -634,7 +650,7 @@ impl<const N: usize, const B: usize> LinearDynamics<N, B> for ChainBaseModel<N, 
         let mut ws = self.scratch();
         let mut out = ForwardDerivativesOf::zeros(Const::<N>, Const::<B>);
         let (q, qd, tau) = (q.as_slice(), qd.as_slice(), tau.as_slice());
-        self.forward_and_derivatives(&mut ws, q, qd, tau, lambda.as_slice(), None, &mut out)?;
+        self.forward_and_derivatives(&mut ws, q, qd, tau, lambda.as_slice(), None, None, &mut out)?;
         Ok(ForwardDerivatives {
             qdd: out.qdd,
             dqdd_dq: out.dqdd_dq,
@@ -775,7 +791,7 @@ impl LinearModel<Dyn, Dyn> for DynChainBaseModel {
         self.check_matrix("regressor output", out, self.count())?;
         out.fill(0.0);
         let x = [q.as_slice(), qd.as_slice(), qdd.as_slice()];
-        self.regressor_in(x, ws.st.as_mut_slice(), out);
+        self.regressor_in(x, ws.st.as_mut_slice(), out, false);
         Ok(())
     }
 
@@ -836,7 +852,7 @@ impl LinearModel<Dyn, Dyn> for DynChainBaseModel {
             tau.as_slice(),
             lambda.as_slice(),
         );
-        self.forward_and_derivatives(ws, q, qd, tau, lambda, None, out)
+        self.forward_and_derivatives(ws, q, qd, tau, lambda, None, None, out)
     }
 
     /// One mass matrix and its factor for both: q̈ = M⁻¹·(τ − bias) as
@@ -863,6 +879,36 @@ impl LinearModel<Dyn, Dyn> for DynChainBaseModel {
             lambda.as_slice(),
         );
         let at = Some(qdd_lin.as_slice());
-        self.forward_and_derivatives(ws, q, qd, tau, lambda, at, out)
+        self.forward_and_derivatives(ws, q, qd, tau, lambda, at, None, out)
+    }
+
+    /// As [`Self::forward_derivatives_at_into`] (or [`Self::forward_derivatives_into`]
+    /// without `qdd_lin`), with Φ_b in `out.dqdd_dlambda` and M⁻¹ in `minv`.
+    fn forward_derivatives_factored_into(
+        &self,
+        ws: &mut DynBaseWorkspace,
+        q: &DVector<f64>,
+        qd: &DVector<f64>,
+        qdd_lin: Option<&DVector<f64>>,
+        tau: &DVector<f64>,
+        lambda: &DVector<f64>,
+        minv: &mut DMatrix<f64>,
+        out: &mut ForwardDerivativesOf<Dyn, Dyn>,
+    ) -> Result<bool> {
+        let joints = [("q", q), ("qd", qd), ("tau", tau)];
+        self.check_call(ws, &joints, lambda, Some(out))?;
+        if let Some(v) = qdd_lin {
+            self.check_joint("qdd_lin", v.len())?;
+        }
+        self.check_matrix("minv", minv, self.dof())?;
+        let (q, qd, tau, lambda) = (
+            q.as_slice(),
+            qd.as_slice(),
+            tau.as_slice(),
+            lambda.as_slice(),
+        );
+        let at = qdd_lin.map(|v| v.as_slice());
+        self.forward_and_derivatives(ws, q, qd, tau, lambda, at, Some(minv.as_mut_slice()), out)?;
+        Ok(true)
     }
 }

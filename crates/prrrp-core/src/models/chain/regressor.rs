@@ -143,6 +143,20 @@ impl ChainView<'_> {
         sink: &mut S,
     ) {
         self.kinematics(q, qd, qdd, true, st);
+        self.regressor_at_kinematics(qd, qdd, friction, st, sink);
+    }
+
+    /// [`Self::regressor_into`] with the kinematics at (q, q̇, q̈) in `st` already (e.g. of
+    /// the Newton–Euler pass at that state).
+    #[inline]
+    pub(crate) fn regressor_at_kinematics<S: RegressorSink>(
+        &self,
+        qd: &[f64],
+        qdd: &[f64],
+        friction: bool,
+        st: &mut [LinkState],
+        sink: &mut S,
+    ) {
         let n = self.dof();
         // Joint j's motion subspace S_j, re-expressed frame by frame as i grows (kept in
         // st[j].s_*): the entry of row j and link i is S_jᵀ·A_i in frame i, one motion
