@@ -319,18 +319,23 @@ def _identify(args: argparse.Namespace, out: Path) -> int:
             comparison = model_report.comparison_section(
                 table, joints, main.model.method, "methods.png", default
             )
-        written += model_report.write_report(
-            main.model,
-            tmp,
-            fit_grid,
-            validation=val_grid,
-            log_report=main.log_report,
-            coulomb=main.coulomb,
-            sources=sources,
-            comparison=comparison,
-            figures=figures,
-            drawings=drawings,
-        )
+
+        def report(result: workflow.Identification, folder: Path, **extra: Any) -> list[Path]:
+            """report.md and figures of one method's result, on the logs every method
+            is scored on."""
+            return model_report.write_report(
+                result.model,
+                folder,
+                fit_grid,
+                validation=val_grid,
+                log_report=result.log_report,
+                coulomb=result.coulomb,
+                sources=sources,
+                drawings=drawings,
+                **extra,
+            )
+
+        written += report(main, tmp, comparison=comparison, figures=figures)
         physical = runs.get("physical")
         if physical is not None:
             (tmp / "robot.urdf").write_text(physical.model.to_urdf(), encoding="utf-8")
@@ -346,16 +351,7 @@ def _identify(args: argparse.Namespace, out: Path) -> int:
             if physical is not main:
                 report_dir = tmp / "physical"
                 report_dir.mkdir()
-                written += model_report.write_report(
-                    physical.model,
-                    report_dir,
-                    fit_grid,
-                    validation=val_grid,
-                    log_report=physical.log_report,
-                    coulomb=physical.coulomb,
-                    sources=sources,
-                    drawings=drawings,
-                )
+                written += report(physical, report_dir)
         drawing.draw_all(drawings)  # in parallel; a failed figure does not lose the rest
         return written
 
