@@ -54,6 +54,13 @@ def batch(request):
     return random_states(rng, 40, scale=request.param)
 
 
+@pytest.fixture
+def torques(batch, rng):
+    """(q, qd, tau): the batch's positions and velocities with random joint torques."""
+    q, qd, _ = batch
+    return q, qd, rng.normal(0.0, 5.0, q.shape)
+
+
 def crba(model, data, q):
     m = pin.crba(model, data, q)
     # Pinocchio fills only the upper triangle.
@@ -95,10 +102,9 @@ def test_inverse_dynamics(case, batch):
         close(tau[k], pin.rnea(model, data, q[k], qd[k], qdd[k]))
 
 
-def test_forward_dynamics(case, batch, rng):
+def test_forward_dynamics(case, torques):
     robot, model, data = case
-    q, qd, _ = batch
-    tau = rng.normal(0.0, 5.0, q.shape)
+    q, qd, tau = torques
     qdd = robot.forward_dynamics(q, qd, tau)
     for k in range(len(q)):
         close(qdd[k], pin.aba(model, data, q[k], qd[k], tau[k]))
@@ -146,10 +152,9 @@ def test_inverse_derivatives(case, batch):
         close(d.dtau_dqd[k], dv)
 
 
-def test_forward_derivatives(case, batch, rng):
+def test_forward_derivatives(case, torques):
     robot, model, data = case
-    q, qd, _ = batch
-    tau = rng.normal(0.0, 5.0, q.shape)
+    q, qd, tau = torques
     d = robot.forward_derivatives(q, qd, tau)
     for k in range(len(q)):
         ddq_dq, ddq_dv, _ = pin.computeABADerivatives(model, data, q[k], qd[k], tau[k])
