@@ -30,6 +30,13 @@ def fill(files: dict[str, str]):
     return build
 
 
+def earlier_run(tmp_path: Path, files: dict[str, str]) -> Path:
+    """``tmp_path/out`` as an earlier run left it: ``files`` and the marker."""
+    out = tmp_path / "out"
+    outdir.write_dir(out, fill(files))
+    return out
+
+
 def test_new_folder_then_replaced_whole(tmp_path: Path) -> None:
     out = tmp_path / "out"
     assert outdir.write_dir(out, fill({"a.txt": "1", "b.txt": "2"})) == 2
@@ -40,8 +47,7 @@ def test_new_folder_then_replaced_whole(tmp_path: Path) -> None:
 
 
 def test_failed_build_leaves_the_old_folder(tmp_path: Path) -> None:
-    out = tmp_path / "out"
-    outdir.write_dir(out, fill({"a.txt": "1"}))
+    out = earlier_run(tmp_path, {"a.txt": "1"})
     before = snapshot(out)
 
     def failing(tmp: Path) -> None:
@@ -68,8 +74,7 @@ def test_foreign_or_file_output_is_refused(tmp_path: Path) -> None:
 
 
 def test_leftovers_of_a_killed_run_are_cleaned_and_repaired(tmp_path: Path) -> None:
-    out = tmp_path / "out"
-    outdir.write_dir(out, fill({"a.txt": "1"}))
+    out = earlier_run(tmp_path, {"a.txt": "1"})
     # A run killed between the two renames of the fallback swap: `out` moved aside.
     tmp_prefix, old_prefix = outdir._prefixes(out)
     out.rename(tmp_path / f"{old_prefix}x")
@@ -80,8 +85,7 @@ def test_leftovers_of_a_killed_run_are_cleaned_and_repaired(tmp_path: Path) -> N
 
 
 def test_sigterm_during_reproduce_leaves_the_old_results(tmp_path: Path) -> None:
-    out = tmp_path / "out"
-    outdir.write_dir(out, fill({"results.json": "{}"}))
+    out = earlier_run(tmp_path, {"results.json": "{}"})
     before = snapshot(out)
     env = dict(os.environ)
     child = subprocess.Popen(
