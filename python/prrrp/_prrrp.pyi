@@ -154,19 +154,23 @@ class _DhRow(TypedDict):
     a: float
     alpha: float
 
+class _Derivatives:
+    """The derivative results: they unpack as a tuple of their arrays."""
+
+    def __iter__(self) -> Iterator[_F64]: ...
+    def __len__(self) -> int: ...
+
 @final
-class InverseDerivatives:
+class InverseDerivatives(_Derivatives):
     """∂τ/∂q and ∂τ/∂q̇ at fixed q̈ and λ; unpacks as (dtau_dq, dtau_dqd)."""
 
     @property
     def dtau_dq(self) -> _F64: ...
     @property
     def dtau_dqd(self) -> _F64: ...
-    def __iter__(self) -> Iterator[_F64]: ...
-    def __len__(self) -> int: ...
 
 @final
-class ForwardDerivatives:
+class ForwardDerivatives(_Derivatives):
     """q̈ and ∂q̈/∂q, ∂q̈/∂q̇, ∂q̈/∂λ at fixed τ; unpacks as
     (qdd, dqdd_dq, dqdd_dqd, dqdd_dlambda)."""
 
@@ -178,8 +182,6 @@ class ForwardDerivatives:
     def dqdd_dqd(self) -> _F64: ...
     @property
     def dqdd_dlambda(self) -> _F64: ...
-    def __iter__(self) -> Iterator[_F64]: ...
-    def __len__(self) -> int: ...
 
 @final
 class Robot:

@@ -30,10 +30,7 @@ URDF = str(
     )
 )
 NUMBERS = (
-    "max_param_error_percent",
-    "median_param_error_percent",
-    "param_error_norm_percent",
-    "torque_rms_relative_percent",
+    *bc.ERROR_COLUMNS,
     "converged",
     "epochs",
     "samples",

@@ -5,6 +5,7 @@ or as a zombie)."""
 
 from __future__ import annotations
 
+import contextlib
 import os
 import signal
 import subprocess
@@ -12,6 +13,7 @@ import sys
 import textwrap
 import threading
 import time
+from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
@@ -324,6 +326,32 @@ drawing._worker(slow_figure, write, mask, os.getppid())
 )
 
 
+@contextlib.contextmanager
+def one_worker(folder: Path, mode: str) -> Iterator[subprocess.Popen[str]]:
+    """ONE_WORKER drawing into ``folder`` in a child process (``mode``: "keep" or "swallow"),
+    killed if the test leaves it running."""
+    child = subprocess.Popen(
+        [sys.executable, "-c", textwrap.dedent(ONE_WORKER), str(folder), mode],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        yield child
+    finally:
+        if child.poll() is None:
+            child.kill()
+            child.wait()
+
+
+def wait_for_mark(child: subprocess.Popen[str], mark: Path, deadline: float) -> None:
+    """Until the worker has written ``mark``, while it runs, by ``deadline`` (monotonic s)."""
+    while not mark.exists():
+        assert child.poll() is None, child.communicate()
+        assert time.monotonic() < deadline, f"no {mark.name!r} from the worker"
+        time.sleep(0.02)
+
+
 @pytest.mark.parametrize(("first", "second"), [("SIGINT", "SIGTERM"), ("SIGTERM", "SIGINT")])
 def test_a_second_signal_does_not_stop_a_workers_cleanup(
     tmp_path: Path, first: str, second: str
@@ -331,25 +359,11 @@ def test_a_second_signal_does_not_stop_a_workers_cleanup(
     """A worker saving a figure gets two stop signals at once (a terminal's Ctrl-C and its
     parent's SIGTERM): the first ends it, the second must not interrupt the removal of the
     temporary file (found in CI: a `.figure-1.png.*.tmp` left behind)."""
-    child = subprocess.Popen(
-        [sys.executable, "-c", textwrap.dedent(ONE_WORKER), str(tmp_path), "keep"],
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-    )
-    try:
-        deadline = time.monotonic() + 120
-        while not (tmp_path / "drawing").exists():
-            assert child.poll() is None, child.communicate()
-            assert time.monotonic() < deadline, "the worker did not start drawing"
-            time.sleep(0.02)
+    with one_worker(tmp_path, "keep") as child:
+        wait_for_mark(child, tmp_path / "drawing", time.monotonic() + 120)
         child.send_signal(getattr(signal, first))
         child.send_signal(getattr(signal, second))
         _, err = child.communicate(timeout=60)
-    finally:
-        if child.poll() is None:
-            child.kill()
-            child.wait()
     # Both pending at once: Python runs the handlers in signal-number order, so either
     # may be the one that ends it.
     assert child.returncode in (130, 128 + signal.SIGTERM), err
@@ -361,25 +375,12 @@ def test_a_worker_whose_ctrl_c_was_dropped_is_stopped_by_sigterm(tmp_path: Path)
     """A worker whose KeyboardInterrupt was lost (Python drops one raised in a finaliser)
     draws on; the SIGTERM its stopping parent sends next must still end it and remove the
     temporary file (a worker that ignored every later signal would sleep until SIGKILL)."""
-    child = subprocess.Popen(
-        [sys.executable, "-c", textwrap.dedent(ONE_WORKER), str(tmp_path), "swallow"],
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-    )
-    try:
+    with one_worker(tmp_path, "swallow") as child:
         deadline = time.monotonic() + 120
         for mark, sig in (("drawing", signal.SIGINT), ("swallowed", signal.SIGTERM)):
-            while not (tmp_path / mark).exists():
-                assert child.poll() is None, child.communicate()
-                assert time.monotonic() < deadline, f"no {mark!r} from the worker"
-                time.sleep(0.02)
+            wait_for_mark(child, tmp_path / mark, deadline)
             child.send_signal(sig)
         _, err = child.communicate(timeout=30)
-    finally:
-        if child.poll() is None:
-            child.kill()
-            child.wait()
     assert child.returncode == 128 + signal.SIGTERM, err
     assert sorted(p.name for p in tmp_path.iterdir()) == ["drawing", "swallowed"], err
 

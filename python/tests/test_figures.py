@@ -194,18 +194,24 @@ def test_report_is_written_first_and_embeds_its_figures(run, tmp_path, monkeypat
     assert {p.name for p in written} == {"report.md", *linked}
 
 
+def deferred_report(run, folder: Path) -> list:
+    """``write_report`` of ``run`` into ``folder`` with the figures deferred: their calls."""
+    drawings: list = []
+    model_report.write_report(run.model, folder, run.raw, drawings=drawings)
+    return drawings
+
+
+def pngs(folder: Path) -> list[str]:
+    return sorted(p.name for p in folder.glob("*.png"))
+
+
 def test_report_defers_figures_to_the_caller(run, tmp_path):
-    drawings = []
-    model_report.write_report(run.model, tmp_path, run.raw, drawings=drawings)
+    drawings = deferred_report(run, tmp_path)
     assert (tmp_path / "report.md").is_file()
-    assert not list(tmp_path.glob("*.png"))
+    assert not pngs(tmp_path)
     for draw in drawings:
         draw()
-    assert sorted(p.name for p in tmp_path.glob("*.png")) == [
-        "friction.png",
-        "residual.png",
-        "torque.png",
-    ]
+    assert pngs(tmp_path) == ["friction.png", "residual.png", "torque.png"]
 
 
 def test_deferred_figures_pickle_and_draw_from_the_copy(run, tmp_path):
@@ -213,17 +219,11 @@ def test_deferred_figures_pickle_and_draw_from_the_copy(run, tmp_path):
     forked before the model existed draws them from a pickled copy (drawing.draw_all)."""
     import pickle
 
-    drawings = []
-    model_report.write_report(run.model, tmp_path, run.raw, drawings=drawings)
-    copies = pickle.loads(pickle.dumps(drawings))
+    copies = pickle.loads(pickle.dumps(deferred_report(run, tmp_path)))
     assert [d.__name__ for d in copies] == ["torque", "residual", "friction_curves"]
     for draw in copies:
         draw()
-    assert sorted(p.name for p in tmp_path.glob("*.png")) == [
-        "friction.png",
-        "residual.png",
-        "torque.png",
-    ]
+    assert pngs(tmp_path) == ["friction.png", "residual.png", "torque.png"]
 
 
 # -------------------------------------------------------------------------- rounding

@@ -30,18 +30,30 @@ def fill(files: dict[str, str]):
     return build
 
 
+def earlier_run(tmp_path: Path, files: dict[str, str]) -> Path:
+    """``tmp_path/out`` as an earlier run left it: ``files`` and the marker."""
+    out = tmp_path / "out"
+    outdir.write_dir(out, fill(files))
+    return out
+
+
+def write_replaces_whole(out: Path, files: dict[str, str]) -> None:
+    """``write_dir`` of ``files`` leaves ``out`` holding just them (and the marker), with
+    nothing temporary beside it."""
+    outdir.write_dir(out, fill(files))
+    assert set(snapshot(out)) == {*files, outdir.MARKER}
+    assert leftovers(out.parent) == []
+
+
 def test_new_folder_then_replaced_whole(tmp_path: Path) -> None:
     out = tmp_path / "out"
     assert outdir.write_dir(out, fill({"a.txt": "1", "b.txt": "2"})) == 2
     assert set(snapshot(out)) == {"a.txt", "b.txt", outdir.MARKER}
-    outdir.write_dir(out, fill({"c.txt": "3"}))
-    assert set(snapshot(out)) == {"c.txt", outdir.MARKER}
-    assert leftovers(tmp_path) == []
+    write_replaces_whole(out, {"c.txt": "3"})
 
 
 def test_failed_build_leaves_the_old_folder(tmp_path: Path) -> None:
-    out = tmp_path / "out"
-    outdir.write_dir(out, fill({"a.txt": "1"}))
+    out = earlier_run(tmp_path, {"a.txt": "1"})
     before = snapshot(out)
 
     def failing(tmp: Path) -> None:
@@ -68,20 +80,16 @@ def test_foreign_or_file_output_is_refused(tmp_path: Path) -> None:
 
 
 def test_leftovers_of_a_killed_run_are_cleaned_and_repaired(tmp_path: Path) -> None:
-    out = tmp_path / "out"
-    outdir.write_dir(out, fill({"a.txt": "1"}))
+    out = earlier_run(tmp_path, {"a.txt": "1"})
     # A run killed between the two renames of the fallback swap: `out` moved aside.
     tmp_prefix, old_prefix = outdir._prefixes(out)
     out.rename(tmp_path / f"{old_prefix}x")
     (tmp_path / f"{tmp_prefix}y").mkdir()
-    outdir.write_dir(out, fill({"b.txt": "2"}))
-    assert set(snapshot(out)) == {"b.txt", outdir.MARKER}
-    assert leftovers(tmp_path) == []
+    write_replaces_whole(out, {"b.txt": "2"})
 
 
 def test_sigterm_during_reproduce_leaves_the_old_results(tmp_path: Path) -> None:
-    out = tmp_path / "out"
-    outdir.write_dir(out, fill({"results.json": "{}"}))
+    out = earlier_run(tmp_path, {"results.json": "{}"})
     before = snapshot(out)
     env = dict(os.environ)
     child = subprocess.Popen(
@@ -162,12 +170,10 @@ def test_staging_folder_of_a_sigkilled_run_is_removed_and_reported(tmp_path: Pat
     child.send_signal(signal.SIGKILL)
     child.communicate(timeout=30)
     assert len(leftovers(tmp_path)) == 1
-    outdir.write_dir(out, fill({"a.txt": "1"}))
+    write_replaces_whole(out, {"a.txt": "1"})
     err = capsys.readouterr().err
     assert "removed 1 staging folder" in err
     assert "killed" in err
-    assert leftovers(tmp_path) == []
-    assert set(snapshot(out)) == {"a.txt", outdir.MARKER}
 
 
 @pytest.mark.parametrize("umask", [0o022, 0o077, 0o002])

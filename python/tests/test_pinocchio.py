@@ -54,6 +54,13 @@ def batch(request):
     return random_states(rng, 40, scale=request.param)
 
 
+def close_per_sample(ours, theirs, model, data, *inputs):
+    """``ours[k]`` against Pinocchio's ``theirs(model, data, x1[k], x2[k], ...)`` for the
+    ``inputs`` x1, x2, ... at every sample k of the batch."""
+    for k in range(len(inputs[0])):
+        close(ours[k], theirs(model, data, *(x[k] for x in inputs)))
+
+
 def crba(model, data, q):
     m = pin.crba(model, data, q)
     # Pinocchio fills only the upper triangle.
@@ -63,17 +70,13 @@ def crba(model, data, q):
 def test_mass_matrix(case, batch):
     robot, model, data = case
     q, _, _ = batch
-    mm = robot.mass_matrix(q)
-    for k in range(len(q)):
-        close(mm[k], crba(model, data, q[k]))
+    close_per_sample(robot.mass_matrix(q), crba, model, data, q)
 
 
 def test_nonlinear_effects(case, batch):
     robot, model, data = case
     q, qd, _ = batch
-    h = robot.nonlinear_effects(q, qd)
-    for k in range(len(q)):
-        close(h[k], pin.nonLinearEffects(model, data, q[k], qd[k]))
+    close_per_sample(robot.nonlinear_effects(q, qd), pin.nonLinearEffects, model, data, q, qd)
 
 
 def test_gravity_and_coriolis(case, batch):
@@ -90,27 +93,21 @@ def test_gravity_and_coriolis(case, batch):
 def test_inverse_dynamics(case, batch):
     robot, model, data = case
     q, qd, qdd = batch
-    tau = robot.inverse_dynamics(q, qd, qdd)
-    for k in range(len(q)):
-        close(tau[k], pin.rnea(model, data, q[k], qd[k], qdd[k]))
+    close_per_sample(robot.inverse_dynamics(q, qd, qdd), pin.rnea, model, data, q, qd, qdd)
 
 
 def test_forward_dynamics(case, batch, rng):
     robot, model, data = case
     q, qd, _ = batch
     tau = rng.normal(0.0, 5.0, q.shape)
-    qdd = robot.forward_dynamics(q, qd, tau)
-    for k in range(len(q)):
-        close(qdd[k], pin.aba(model, data, q[k], qd[k], tau[k]))
+    close_per_sample(robot.forward_dynamics(q, qd, tau), pin.aba, model, data, q, qd, tau)
 
 
 def test_regressor_times_lambda(case, batch):
     robot, model, data = case
     q, qd, qdd = batch
     phi = prrrp.regressor(q, qd, qdd, gravity=robot.g)
-    tau = phi @ robot.base_parameters()
-    for k in range(len(q)):
-        close(tau[k], pin.rnea(model, data, q[k], qd[k], qdd[k]))
+    close_per_sample(phi @ robot.base_parameters(), pin.rnea, model, data, q, qd, qdd)
 
 
 def test_model_at_a_user_lambda(batch):

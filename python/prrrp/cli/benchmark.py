@@ -10,15 +10,7 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
-from prrrp.cli.common import (
-    EXIT_FAILED,
-    EXIT_OK,
-    CliError,
-    add_command,
-    add_out_argument,
-    add_robot_arguments,
-    error,
-)
+from prrrp.cli import common
 
 #: ``prrrp benchmark --help``.
 HELP = "Monte-Carlo benchmark of the estimators on every core or a Dask cluster"
@@ -73,8 +65,8 @@ def _positive_int(text: str) -> int:
 def add_parser(sub: Any) -> None:
     from prrrp.montecarlo import DEFAULT_METHODS, METHODS
 
-    p = add_command(sub, "benchmark", run, help=HELP, description=DESCRIPTION)
-    add_robot_arguments(p)
+    p = common.add_command(sub, "benchmark", run, help=HELP, description=DESCRIPTION)
+    common.add_robot_arguments(p)
     p.add_argument(
         "--methods",
         default=",".join(DEFAULT_METHODS),
@@ -127,7 +119,9 @@ def add_parser(sub: Any) -> None:
         help="run on the Dask cluster at ADDRESS (tcp://host:8786; needs "
         "`pip install prrrp[cluster]`) (default: none, a local process pool)",
     )
-    add_out_argument(p, help="output directory (default: ./benchmark-out)", default="benchmark-out")
+    common.add_out_argument(
+        p, help="output directory (default: ./benchmark-out)", default="benchmark-out"
+    )
 
 
 @contextlib.contextmanager
@@ -135,11 +129,13 @@ def _dask_executor(address: str) -> Iterator[Any]:
     try:
         from distributed import Client
     except ImportError:
-        raise CliError("--dask needs dask.distributed: pip install 'prrrp[cluster]'") from None
+        raise common.CliError(
+            "--dask needs dask.distributed: pip install 'prrrp[cluster]'"
+        ) from None
     try:
         client = Client(address, timeout="10s")
     except (OSError, TimeoutError, ValueError) as e:
-        raise CliError(f"--dask {address}: cannot connect to the scheduler ({e})") from None
+        raise common.CliError(f"--dask {address}: cannot connect to the scheduler ({e})") from None
     try:
         yield client.get_executor()
     finally:
@@ -174,10 +170,10 @@ def run(args: argparse.Namespace) -> int:
         result.save(out)
     except (OSError, outdir.OutputDirError) as e:
         rescue = _rescue(result, out)
-        raise CliError(
+        raise common.CliError(
             f"--out {out}: the results could not be written there ({_oserror(e)}); "
             + (f"they are in {rescue}" if rescue else "and no rescue file could be written"),
-            code=EXIT_FAILED,
+            code=common.EXIT_FAILED,
         ) from None
     stats = result.stats
     budgets = len(result.config["excitation_evaluations"]) > 1
@@ -204,15 +200,15 @@ def run(args: argparse.Namespace) -> int:
         f"{stats.cases_per_second:.2f} cases/s on {stats.engine})"
     )
     for name, e in result.figure_errors.items():
-        error(f"figure {name} could not be drawn ({e}); the results are complete")
+        common.error(f"figure {name} could not be drawn ({e}); the results are complete")
     if stats.failed_cases == stats.cases:
         errors = sorted({r["error"] for r in result.rows if r.get("error")})
-        raise CliError(
+        raise common.CliError(
             f"every case failed ({stats.cases}); first error: {errors[0] if errors else '?'} "
             f"(all errors in {out}/report.md)",
-            code=EXIT_FAILED,
+            code=common.EXIT_FAILED,
         )
-    return EXIT_OK
+    return common.EXIT_OK
 
 
 def _oserror(e: Exception) -> str:

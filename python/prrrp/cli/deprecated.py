@@ -23,7 +23,7 @@ from typing import Any
 import numpy as np
 
 import prrrp
-from prrrp import csvio, lambda_view, paper
+from prrrp import csvio, lambda_view, outdir, paper
 from prrrp.cli.common import (
     EXIT_OK,
     CliError,
@@ -97,6 +97,18 @@ def robot_options(args: argparse.Namespace) -> list[str]:
 
 #: The one output file of a deprecated spelling: not a folder, in an existing folder.
 check_file = check_output_file
+
+
+def check_out(args: argparse.Namespace, old: bool) -> Path:
+    """``--out`` checked before any work: the one file of the previous release's spelling
+    (``old``, see :func:`file_spelling`), else the output folder (:func:`prrrp.outdir.check`)."""
+    out = Path(args.out)
+    if old:
+        check_file(out)
+    else:
+        outdir.check(out)
+    return out
+
 
 #: Methods of the paper's arm in the closed-form spelling.
 PAPER_METHODS = ("wls", "ls", "adaline", "hopfield", "ekf", "all")

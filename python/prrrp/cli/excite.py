@@ -7,26 +7,12 @@ from __future__ import annotations
 
 import argparse
 import math
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from prrrp import csvio, outdir, workflow
-from prrrp.cli import deprecated
-from prrrp.cli.common import (
-    DEFAULT_ROBOT,
-    EXIT_OK,
-    CliError,
-    Progress,
-    add_command,
-    add_out_argument,
-    add_robot_arguments,
-    friction_terms,
-    options,
-    print_table,
-    seed,
-)
+from prrrp.cli import common, deprecated
 
 #: ``prrrp excite --help``.
 HELP = "design an exciting trajectory for a robot (DIR/trajectory.csv)"
@@ -57,15 +43,17 @@ EXCITE_DEFAULTS = (
 
 
 def add_parser(sub: Any) -> None:
-    p = add_command(
+    p = common.add_command(
         sub, "excite", run, help=HELP, description=DESCRIPTION, epilog=deprecated.FILE_RULE
     )
-    add_robot_arguments(p)
-    add_out_argument(p, help="the output folder (built aside and swapped in whole)")
+    common.add_robot_arguments(p)
+    common.add_out_argument(p, help="the output folder (built aside and swapped in whole)")
     p.add_argument(
         "--duration", type=float, default=10.0, metavar="S", help="seconds (default: 10)"
     )
-    p.add_argument("--seed", type=seed, default=0, help="seed of the random shapes (default: 0)")
+    p.add_argument(
+        "--seed", type=common.seed, default=0, help="seed of the random shapes (default: 0)"
+    )
     p.add_argument("--harmonics", type=int, default=5, metavar="K", help="per joint (default: 5)")
     p.add_argument(
         "--base-freq",
@@ -108,13 +96,15 @@ def _limits(text: str | None, n: int) -> dict[str, np.ndarray] | None:
         key, sep, value = item.partition("=")
         key = key.strip()
         if not sep or key not in LIMIT_KEYS:
-            raise CliError(f"--limits: '{item}' is not KEY=VALUE with KEY {options(LIMIT_KEYS)}")
+            raise common.CliError(
+                f"--limits: '{item}' is not KEY=VALUE with KEY {common.options(LIMIT_KEYS)}"
+            )
         try:
             v = float(value)
         except ValueError:
-            raise CliError(f"--limits: {key}={value!r} is not a number") from None
+            raise common.CliError(f"--limits: {key}={value!r} is not a number") from None
         if not math.isfinite(v):
-            raise CliError(f"--limits: {key} must be finite")
+            raise common.CliError(f"--limits: {key} must be finite")
         out[key] = np.full(n, v)
     return out
 
@@ -130,14 +120,14 @@ def _check_size(duration: float, rate: float, n: int) -> None:
     if not (math.isfinite(samples) and samples > 0):
         return  # workflow.excite says what is wrong with the numbers
     if samples > workflow.MAX_SAMPLES:
-        raise CliError(
+        raise common.CliError(
             f"--rate {rate:g} Hz × --duration {duration:g} s = {samples:.3g} samples; at most "
             f"{workflow.MAX_SAMPLES:.0e}: lower --rate or --duration"
         )
     columns = 1 + 3 * n
     text = samples * columns * CSV_BYTES_PER_VALUE
     if text > csvio.MAX_FILE_BYTES:
-        raise CliError(
+        raise common.CliError(
             f"--rate {rate:g} Hz × --duration {duration:g} s = {samples:.3g} samples × {n} "
             f"joints make a CSV of about {text / 2**30:.3g} GiB, more than the "
             f"{csvio.MAX_FILE_BYTES / 2**30:.3g} GiB prrrp reads back: lower --rate or --duration"
@@ -148,18 +138,14 @@ def _check_size(duration: float, rate: float, n: int) -> None:
 
 def run(args: argparse.Namespace) -> int:
     old = deprecated.file_spelling(args)
-    out = Path(args.out)
-    if old:
-        deprecated.check_file(out)
-    else:
-        outdir.check(out)
-    args.robot = args.robot or DEFAULT_ROBOT
+    out = deprecated.check_out(args, old)
+    args.robot = args.robot or common.DEFAULT_ROBOT
     robot = workflow.load_robot(
-        args.robot, base=args.base, tip=args.tip, friction=friction_terms(args.friction)
+        args.robot, base=args.base, tip=args.tip, friction=common.friction_terms(args.friction)
     )
     limits = _limits(args.limits, robot.dof)
     _check_size(args.duration, args.rate, robot.dof)
-    progress = Progress()
+    progress = common.Progress()
     try:
         design = workflow.excite(
             robot,
@@ -175,7 +161,7 @@ def run(args: argparse.Namespace) -> int:
     except ValueError as e:
         if "prrrp" in type(e).__module__:
             raise
-        raise CliError(str(e)) from None
+        raise common.CliError(str(e)) from None
     finally:
         progress.close()
     groups = csvio.columns(robot.dof)
@@ -194,7 +180,7 @@ def run(args: argparse.Namespace) -> int:
         [j, *("-" if not np.isfinite(x) else f"{100 * x:.0f}%" for x in usage[i])]
         for i, j in enumerate(robot.joint_names)
     ]
-    print_table(["joint", "position", "velocity", "acceleration"], rows)
+    common.print_table(["joint", "position", "velocity", "acceleration"], rows)
     where = out if old else out / TRAJECTORY
     print(f"trajectory in {where} ({len(table)} samples over {args.duration:g} s)")
     if old:
@@ -203,4 +189,4 @@ def run(args: argparse.Namespace) -> int:
             new += deprecated.option(args, name, default)
         new += ["--out", deprecated.folder_for(args.out)]
         deprecated.notice(new, f"a folder: DIR/{TRAJECTORY}")
-    return EXIT_OK
+    return common.EXIT_OK

@@ -18,18 +18,7 @@ import numpy as np
 import prrrp
 from prrrp import bags, drawing, drives, lambda_view, model_report, outdir, prediction, workflow
 from prrrp import payload as payloads
-from prrrp.cli import deprecated
-from prrrp.cli.common import (
-    DEFAULT_ROBOT,
-    EXIT_FAILED,
-    EXIT_OK,
-    CliError,
-    Progress,
-    add_robot_arguments,
-    friction_terms,
-    nonempty_path,
-    print_table,
-)
+from prrrp.cli import common, deprecated
 from prrrp.measurements import measurements_to_dataset, read_measurements
 
 #: The core's default cut-off (DEFAULT_LOG_CUTOFF_HZ), Hz, before the cap at a tenth of the
@@ -69,7 +58,7 @@ def add_parser(sub: Any) -> None:
     )
     p.add_argument(
         "--out",
-        type=nonempty_path,
+        type=common.nonempty_path,
         metavar="DIR",
         help="the output folder (built aside and swapped in whole; a symbolic link is "
         "followed and kept) (required, no default)",
@@ -80,7 +69,7 @@ def add_parser(sub: Any) -> None:
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     g = p.add_argument_group("robot and log")
-    add_robot_arguments(g)
+    common.add_robot_arguments(g)
     g.add_argument(
         "--friction",
         metavar="TERMS",
@@ -178,9 +167,11 @@ def _coulomb_scale(text: str) -> str | float:
     try:
         v = float(text)
     except ValueError:
-        raise CliError(f"--coulomb-scale must be auto or a number (rad/s), got {text!r}") from None
+        raise common.CliError(
+            f"--coulomb-scale must be auto or a number (rad/s), got {text!r}"
+        ) from None
     if not (math.isfinite(v) and v >= 0):
-        raise CliError(f"--coulomb-scale must be finite and >= 0 rad/s, got {text}")
+        raise common.CliError(f"--coulomb-scale must be finite and >= 0 rad/s, got {text}")
     return v
 
 
@@ -189,7 +180,7 @@ def _ekf_settings(args: argparse.Namespace) -> dict[str, float]:
     out: dict[str, float] = {}
     for flag, v in (("--ekf-prior-width", args.ekf_prior_width), ("--ekf-noise", args.ekf_noise)):
         if v is not None and not (math.isfinite(v) and v > 0):
-            raise CliError(f"{flag} must be finite and > 0, got {v}")
+            raise common.CliError(f"{flag} must be finite and > 0, got {v}")
     if args.ekf_prior_width is not None:
         out["least_squares_prior_width"] = args.ekf_prior_width
     if args.ekf_noise is not None:
@@ -202,7 +193,7 @@ def run(args: argparse.Namespace) -> int:
     if deprecated.identify_spelling(args):
         return deprecated.identify(args)
     if not args.out:
-        raise CliError("--out DIR is required (the model, report and figures)")
+        raise common.CliError("--out DIR is required (the model, report and figures)")
     out = Path(args.out)
     outdir.check(out)
     if args.payload_run or args.payload_mass is not None:
@@ -218,12 +209,12 @@ def run(args: argparse.Namespace) -> int:
 
 def _setup(args: argparse.Namespace) -> tuple[Any, str | float, dict[str, Any]]:
     """The robot, the Coulomb speed scale and the preprocessing settings of the command."""
-    args.robot = args.robot or DEFAULT_ROBOT
+    args.robot = args.robot or common.DEFAULT_ROBOT
     robot = workflow.load_robot(
         args.robot,
         base=args.base,
         tip=args.tip,
-        friction=friction_terms(args.friction),
+        friction=common.friction_terms(args.friction),
         armature=True if args.armature else None,
     )
     scale = _coulomb_scale(args.coulomb_scale)
@@ -245,7 +236,7 @@ def _identify(args: argparse.Namespace, out: Path) -> int:
     )
     methods = list(workflow.METHODS) if args.method == "all" else [args.method]
     ekf = _ekf_settings(args)
-    progress = Progress()
+    progress = common.Progress()
     try:
         if len(methods) == 1:
             # One method asked for: its failure is the command's (typed, with its exit code).
@@ -275,9 +266,9 @@ def _identify(args: argparse.Namespace, out: Path) -> int:
         progress.close()
     runs = {r.method: r.result for r in method_runs if r.result is not None}
     if not runs:
-        raise CliError(
+        raise common.CliError(
             "every method failed: " + "; ".join(f"{r.method}: {r.error}" for r in method_runs),
-            code=EXIT_FAILED,
+            code=common.EXIT_FAILED,
         )
     default = workflow.DEFAULT_METHOD
     main = runs.get(default) or next(iter(runs.values()))
@@ -319,18 +310,23 @@ def _identify(args: argparse.Namespace, out: Path) -> int:
             comparison = model_report.comparison_section(
                 table, joints, main.model.method, "methods.png", default
             )
-        written += model_report.write_report(
-            main.model,
-            tmp,
-            fit_grid,
-            validation=val_grid,
-            log_report=main.log_report,
-            coulomb=main.coulomb,
-            sources=sources,
-            comparison=comparison,
-            figures=figures,
-            drawings=drawings,
-        )
+
+        def report(result: workflow.Identification, folder: Path, **extra: Any) -> list[Path]:
+            """report.md and figures of one method's result, on the logs every method
+            is scored on."""
+            return model_report.write_report(
+                result.model,
+                folder,
+                fit_grid,
+                validation=val_grid,
+                log_report=result.log_report,
+                coulomb=result.coulomb,
+                sources=sources,
+                drawings=drawings,
+                **extra,
+            )
+
+        written += report(main, tmp, comparison=comparison, figures=figures)
         physical = runs.get("physical")
         if physical is not None:
             (tmp / "robot.urdf").write_text(physical.model.to_urdf(), encoding="utf-8")
@@ -346,16 +342,7 @@ def _identify(args: argparse.Namespace, out: Path) -> int:
             if physical is not main:
                 report_dir = tmp / "physical"
                 report_dir.mkdir()
-                written += model_report.write_report(
-                    physical.model,
-                    report_dir,
-                    fit_grid,
-                    validation=val_grid,
-                    log_report=physical.log_report,
-                    coulomb=physical.coulomb,
-                    sources=sources,
-                    drawings=drawings,
-                )
+                written += report(physical, report_dir)
         drawing.draw_all(drawings)  # in parallel; a failed figure does not lose the rest
         return written
 
@@ -363,7 +350,7 @@ def _identify(args: argparse.Namespace, out: Path) -> int:
     _summary(main, table, fit_grid, val_grid)
     names = "model-<method>.json, model.json" if len(methods) > 1 else "model.json"
     print(f"results in {out}/ ({len(written)} files: {names}, report.md, figures)")
-    return EXIT_OK
+    return common.EXIT_OK
 
 
 def _run_drive_gains(
@@ -375,20 +362,20 @@ def _run_drive_gains(
 ) -> int:
     """``--payload-run``: drive gains, arm and payload from two current logs."""
     if not args.payload_run or args.payload_mass is None:
-        raise CliError("--payload-run LOADED and --payload-mass KG go together")
+        raise common.CliError("--payload-run LOADED and --payload-mass KG go together")
     mass = args.payload_mass
     if not (math.isfinite(mass) and mass > 0):
-        raise CliError(f"--payload-mass must be a positive number of kg, got {mass}")
+        raise common.CliError(f"--payload-mass must be a positive number of kg, got {mass}")
     if args.drive_gains is not None:
-        raise CliError("--payload-run identifies the drive gains: drop --drive-gains")
+        raise common.CliError("--payload-run identifies the drive gains: drop --drive-gains")
     if args.method not in (workflow.DEFAULT_METHOD, "wls"):
-        raise CliError(
+        raise common.CliError(
             "--payload-run has its own estimator (instrumental variables): drop --method"
         )
     conversion = {"motor_side": args.motor_side, "currents": True}
     raw_u = read_measurements(args.data, robot, topic=args.topic, **conversion)
     raw_l = read_measurements(args.payload_run, robot, topic=args.topic, **conversion)
-    progress = Progress()
+    progress = common.Progress()
     try:
         progress("identify", 0, 2)
         # The unloaded run in current units: the Coulomb speed scale and the base analysis.
@@ -448,7 +435,7 @@ def _run_drive_gains(
         value = f"{gains['values'][j]:.4g}" if ok else "not identifiable"
         rows.append([name, value, f"{gains['sigma'][j]:.2g}"])
     print(f"drive gains (N·m/A) from {args.data} and {args.payload_run} ({mass:g} kg payload):")
-    print_table(["actuator of", "K", "σ"], rows)
+    common.print_table(["actuator of", "K", "σ"], rows)
     bad = [joints[j] for j, ok in enumerate(gains["identifiable"]) if not ok]
     if bad:
         print(
@@ -457,7 +444,7 @@ def _run_drive_gains(
             "there are in doubt; give them with --drive-gains if known"
         )
     print(f"results in {out}/ ({len(written)} files: model.json, payload.json, report.md)")
-    return EXIT_OK
+    return common.EXIT_OK
 
 
 def _comparison_rows(
@@ -526,7 +513,7 @@ def _summary(
         f"torque-prediction error on the {which} data, % of the measured torque's RMS "
         f"({grid.describe()}):"
     )
-    print_table(header, rows)
+    common.print_table(header, rows)
     ok = [r[which] for r in table if r["status"] == "ok"]
     _say_noise_floor(robot.joint_names, robot.joint_types, ok)
     for r in table:

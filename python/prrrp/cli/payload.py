@@ -12,14 +12,7 @@ from typing import Any
 import prrrp
 from prrrp import drives, outdir
 from prrrp import payload as payloads
-from prrrp.cli.common import (
-    EXIT_OK,
-    CliError,
-    add_command,
-    add_out_argument,
-    add_topic_argument,
-    print_table,
-)
+from prrrp.cli import common
 from prrrp.measurements import read_measurements
 
 #: ``prrrp payload --help``.
@@ -36,7 +29,7 @@ DESCRIPTION = (
 
 
 def add_parser(sub: Any) -> None:
-    p = add_command(sub, "payload", run, help=HELP, description=DESCRIPTION)
+    p = common.add_command(sub, "payload", run, help=HELP, description=DESCRIPTION)
     p.add_argument("data", metavar="LOADED", help="run with the payload (CSV or ROS 2 bag)")
     p.add_argument("--model", required=True, metavar="ARM.json", help="the arm's identified model")
     p.add_argument(
@@ -53,17 +46,17 @@ def add_parser(sub: Any) -> None:
         metavar="LINK",
         help="the chain link that carries the payload (default: the last link)",
     )
-    add_out_argument(p)
-    add_topic_argument(p)
+    common.add_out_argument(p)
+    common.add_topic_argument(p)
 
 
 def run(args: argparse.Namespace) -> int:
     if args.mass is not None and not (math.isfinite(args.mass) and args.mass > 0):
-        raise CliError(f"--mass must be a positive number of kg, got {args.mass}")
+        raise common.CliError(f"--mass must be a positive number of kg, got {args.mass}")
     try:
         arm = prrrp.IdentifiedModel.load(args.model)
     except prrrp.PrrrpError as e:
-        raise CliError(f"{args.model}: not an identified model ({e})") from None
+        raise common.CliError(f"{args.model}: not an identified model ({e})") from None
     if arm.payload is not None:
         arm = arm.without_payload()
     raw = read_measurements(args.data, arm.robot, topic=args.topic, **drives.recorded(arm))
@@ -85,7 +78,7 @@ def run(args: argparse.Namespace) -> int:
     written = outdir.write_dir(out, build)
     _summary(payload)
     print(f"results in {out}/ ({len(written)} files: payload.json, model.json, report.md)")
-    return EXIT_OK
+    return common.EXIT_OK
 
 
 def _fmt(value: Any, sigma: Any, ok: bool, scale: float = 1.0) -> tuple[str, str]:
@@ -107,7 +100,7 @@ def _summary(p: dict[str, Any]) -> None:
     for k, name in enumerate(payloads.INERTIA_NAMES):
         rows.append([f"{name} (kg·m²)", *_fmt(inertia[k], ins[k], ident["inertia"][k])])
     print(f"payload at link {p['link']} (centre of mass and inertia in its frame):")
-    print_table(["quantity", "value", "σ"], rows)
+    common.print_table(["quantity", "value", "σ"], rows)
     if not all(ident["inertia"]):
         print(
             "note: this run does not determine the payload's inertia to the threshold; a "

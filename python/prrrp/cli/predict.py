@@ -10,16 +10,7 @@ import numpy as np
 
 import prrrp
 from prrrp import bags, csvio, drives, prediction
-from prrrp.cli.common import (
-    EXIT_OK,
-    CliError,
-    add_command,
-    add_out_argument,
-    add_topic_argument,
-    check_output_file,
-    describe,
-    print_table,
-)
+from prrrp.cli import common
 from prrrp.measurements import read_measurements
 
 #: ``prrrp predict --help``.
@@ -39,11 +30,11 @@ DESCRIPTION = (
 
 
 def add_parser(sub: Any) -> None:
-    p = add_command(sub, "predict", run, help=HELP, description=DESCRIPTION)
+    p = common.add_command(sub, "predict", run, help=HELP, description=DESCRIPTION)
     p.add_argument("model", metavar="MODEL.json", help="identified model")
     p.add_argument("data", metavar="DATA", help="measurement CSV file or ROS 2 bag")
-    add_out_argument(p, "TAU.csv", "CSV file to write")
-    add_topic_argument(p)
+    common.add_out_argument(p, "TAU.csv", "CSV file to write")
+    common.add_topic_argument(p)
 
 
 def predict_file(
@@ -61,17 +52,19 @@ def load_model(path: str) -> prrrp.IdentifiedModel:
     try:
         model = prrrp.IdentifiedModel.load(path)
     except prrrp.PrrrpError as e:
-        raise CliError(f"{path}: not a usable identified model: {describe(e)}") from None
+        raise common.CliError(
+            f"{path}: not a usable identified model: {common.describe(e)}"
+        ) from None
     try:
         prediction.recorded_settings(model)
     except ValueError as e:
-        raise CliError(f"{path}: {e}") from None
+        raise common.CliError(f"{path}: {e}") from None
     return model
 
 
 def run(args: argparse.Namespace) -> int:
     out = Path(args.out)
-    check_output_file(out)
+    common.check_output_file(out)
     model = load_model(args.model)
     grid = predict_file(model, args.data, args.topic)
     tau = grid.predict(model)
@@ -89,7 +82,7 @@ def run(args: argparse.Namespace) -> int:
         )
     if grid.measured is None:
         print(f"{len(table)} rows (every row of {args.data}){note}; torques in {out}")
-        return EXIT_OK
+        return common.EXIT_OK
     errors = grid.errors(tau)
     joints = list(model.robot.joint_names)
     print(f"{len(table)} rows (every row of {args.data}){note}")
@@ -98,6 +91,6 @@ def run(args: argparse.Namespace) -> int:
         [j, f"{r:.4g}", f"{p:.3g}" if np.isfinite(p) else "-"]
         for j, r, p in zip(joints, errors["rms"], errors["percent"], strict=True)
     ]
-    print_table(["joint", "RMS (N·m, N)", "% of measured RMS"], rows)
+    common.print_table(["joint", "RMS (N·m, N)", "% of measured RMS"], rows)
     print(f"torques in {out}")
-    return EXIT_OK
+    return common.EXIT_OK

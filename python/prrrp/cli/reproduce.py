@@ -7,16 +7,7 @@ from pathlib import Path
 from typing import Any
 
 import prrrp
-from prrrp.cli.common import (
-    EXIT_FAILED,
-    EXIT_OK,
-    CliError,
-    Progress,
-    add_command,
-    add_out_argument,
-    dump_json,
-    seed,
-)
+from prrrp.cli import common
 
 #: ``prrrp reproduce --help``.
 HELP = "run the paper's whole study: tables, figures, results.json"
@@ -30,18 +21,20 @@ DESCRIPTION = (
 
 
 def add_parser(sub: Any) -> None:
-    p = add_command(sub, "reproduce", run, help=HELP, description=DESCRIPTION)
-    add_out_argument(p, help="output directory (default: ./prrrp-out)", default="prrrp-out")
-    p.add_argument("--seed", type=seed, default=0, help="random seed (default: 0)")
+    p = common.add_command(sub, "reproduce", run, help=HELP, description=DESCRIPTION)
+    common.add_out_argument(p, help="output directory (default: ./prrrp-out)", default="prrrp-out")
+    p.add_argument("--seed", type=common.seed, default=0, help="random seed (default: 0)")
 
 
 def run(args: argparse.Namespace) -> int:
     from prrrp import drawing, outdir, plots, report
 
     if not hasattr(prrrp, "run_study"):
-        raise CliError("this build of prrrp has no run_study (reinstall the package)", EXIT_FAILED)
+        raise common.CliError(
+            "this build of prrrp has no run_study (reinstall the package)", common.EXIT_FAILED
+        )
     out = Path(args.out)
-    progress = Progress()
+    progress = common.Progress()
 
     # The folder is built aside and swapped in whole (outdir.write_dir): a failed or
     # interrupted run leaves the previous results exactly as they were.
@@ -50,7 +43,7 @@ def run(args: argparse.Namespace) -> int:
             results = prrrp.run_study(seed=args.seed, progress=progress)
         finally:
             progress.close()
-        dump_json(results, tmp / "results.json")
+        common.dump_json(results, tmp / "results.json")
         (tmp / "report.md").write_text(report.render(results), encoding="utf-8")
         return results, plots.write_all(results, tmp)
 
@@ -61,4 +54,4 @@ def run(args: argparse.Namespace) -> int:
     total = (results.get("timings_s") or {}).get("total")
     took = f" ({total:.1f} s)" if isinstance(total, int | float) else ""
     print(f"results in {out}/report.md, {out}/results.json and {len(figures)} figures{took}")
-    return EXIT_OK
+    return common.EXIT_OK

@@ -14,19 +14,7 @@ from typing import Any
 import numpy as np
 
 from prrrp import csvio, outdir, workflow
-from prrrp.cli import deprecated, excite
-from prrrp.cli.common import (
-    DEFAULT_ROBOT,
-    EXIT_FAILED,
-    EXIT_OK,
-    CliError,
-    Progress,
-    add_command,
-    add_out_argument,
-    add_robot_arguments,
-    friction_terms,
-    seed,
-)
+from prrrp.cli import common, deprecated, excite
 from prrrp.cli.deprecated import DEFAULT_Q_NOISE, DEFAULT_TAU_NOISE, reference_for
 
 #: ``prrrp simulate --help``.
@@ -58,11 +46,11 @@ DEFAULT_DURATION_S = 10.0
 
 
 def add_parser(sub: Any) -> None:
-    p = add_command(
+    p = common.add_command(
         sub, "simulate", run, help=HELP, description=DESCRIPTION, epilog=deprecated.SIMULATE_RULE
     )
-    add_out_argument(p, help="the output folder (built aside and swapped in whole)")
-    add_robot_arguments(p)
+    common.add_out_argument(p, help="the output folder (built aside and swapped in whole)")
+    common.add_robot_arguments(p)
     p.add_argument(
         "--trajectory",
         metavar="TRAJ.csv",
@@ -78,7 +66,7 @@ def add_parser(sub: Any) -> None:
         f"(default: {DEFAULT_DURATION_S:g})",
     )
     p.add_argument(
-        "--seed", type=seed, default=0, help="seed of the design and the noise (default: 0)"
+        "--seed", type=common.seed, default=0, help="seed of the design and the noise (default: 0)"
     )
     p.add_argument(
         "--noise",
@@ -105,20 +93,27 @@ def _trajectory(args: argparse.Namespace, robot: Any) -> tuple[dict[str, np.ndar
     """The reference to track, and whether it was designed here (no --trajectory)."""
     if args.trajectory:
         if args.duration is not None:
-            raise CliError("--duration is not used with --trajectory: the trajectory file sets it")
+            raise common.CliError(
+                "--duration is not used with --trajectory: the trajectory file sets it"
+            )
         traj = csvio.read_table(args.trajectory, robot.dof, need_tau=False)
         if "qd" not in traj or "qdd" not in traj:
-            raise CliError(f"{args.trajectory}: a trajectory needs qd1..qdN and qdd1..qddN columns")
+            raise common.CliError(
+                f"{args.trajectory}: a trajectory needs qd1..qdN and qdd1..qddN columns"
+            )
         return traj, False
     duration = DEFAULT_DURATION_S if args.duration is None else args.duration
     if not (math.isfinite(duration) and duration > 0):
-        raise CliError(f"--duration must be a positive number of seconds, got {duration}")
+        raise common.CliError(f"--duration must be a positive number of seconds, got {duration}")
     # Designed as `prrrp excite` does by default: friction columns in W_b (the simulated
     # robot keeps its file's friction values).
     design_robot = workflow.load_robot(
-        args.robot, base=args.base, tip=args.tip, friction=friction_terms(excite.DEFAULT_FRICTION)
+        args.robot,
+        base=args.base,
+        tip=args.tip,
+        friction=common.friction_terms(excite.DEFAULT_FRICTION),
     )
-    progress = Progress()
+    progress = common.Progress()
     try:
         design = workflow.excite(
             design_robot,
@@ -137,15 +132,11 @@ def run(args: argparse.Namespace) -> int:
         return deprecated.simulate_paper(args)
     bound = args.max_tracking_error
     if not (np.isfinite(bound) and bound > 0):
-        raise CliError(f"--max-tracking-error must be a positive number, got {bound}")
+        raise common.CliError(f"--max-tracking-error must be a positive number, got {bound}")
     if not (math.isfinite(args.noise) and args.noise >= 0):
-        raise CliError(f"--noise must be a finite number >= 0, got {args.noise}")
-    out = Path(args.out)
-    if old:
-        deprecated.check_file(out)
-    else:
-        outdir.check(out)
-    args.robot = args.robot or DEFAULT_ROBOT
+        raise common.CliError(f"--noise must be a finite number >= 0, got {args.noise}")
+    out = deprecated.check_out(args, old)
+    args.robot = args.robot or common.DEFAULT_ROBOT
     robot = workflow.load_robot(args.robot, base=args.base, tip=args.tip)
     traj, designed = _trajectory(args, robot)
     try:
@@ -153,17 +144,17 @@ def run(args: argparse.Namespace) -> int:
             robot, traj, noise=args.noise, seed=args.seed, max_tracking_error=bound
         )
     except workflow.TrackingError as e:
-        raise CliError(
+        raise common.CliError(
             f"the simulated {robot.name} strays {e.error:.3g} rad or m from the trajectory "
             f"(joint {e.joint + 1}, {e.joint_name}, at t = {e.t:g} s), more than "
             f"--max-tracking-error {bound:g}; no data written. Check the trajectory against "
             "the robot's limits and its inertials and friction",
-            EXIT_FAILED,
+            common.EXIT_FAILED,
         ) from None
     except ValueError as e:
         if "prrrp" in type(e).__module__:
             raise
-        raise CliError(f"{args.trajectory or 'the designed trajectory'}: {e}") from None
+        raise common.CliError(f"{args.trajectory or 'the designed trajectory'}: {e}") from None
     groups = csvio.columns(robot.dof)
     data_names = ["t", *groups["q"], *groups["tau"]]
     data = np.column_stack([rec["t"], rec["q"], rec["tau"]])
@@ -192,4 +183,4 @@ def run(args: argparse.Namespace) -> int:
         new += ["--out", deprecated.folder_for(args.out)]
         notice_what = "a folder: DIR/data.csv"
         deprecated.notice(new, notice_what)
-    return EXIT_OK
+    return common.EXIT_OK

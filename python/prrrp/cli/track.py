@@ -16,17 +16,7 @@ import numpy as np
 
 import prrrp
 from prrrp import csvio, outdir, workflow
-from prrrp.cli.common import (
-    DEFAULT_ROBOT,
-    EXIT_OK,
-    CliError,
-    Progress,
-    add_command,
-    add_out_argument,
-    add_robot_arguments,
-    add_topic_argument,
-    friction_terms,
-)
+from prrrp.cli import common
 from prrrp.cli.predict import load_model
 from prrrp.measurements import read_measurements
 
@@ -51,9 +41,9 @@ MAX_ESTIMATE_ROWS = 5000
 
 
 def add_parser(sub: Any) -> None:
-    p = add_command(sub, "track", run, help=HELP, description=DESCRIPTION)
+    p = common.add_command(sub, "track", run, help=HELP, description=DESCRIPTION)
     p.add_argument("data", metavar="DATA", help="measurement CSV file or ROS 2 bag")
-    add_robot_arguments(p, default="the robot of --model, else paper")
+    common.add_robot_arguments(p, default="the robot of --model, else paper")
     p.add_argument(
         "--friction",
         metavar="TERMS",
@@ -108,13 +98,13 @@ def add_parser(sub: Any) -> None:
         "(1e-2 rad/s) (default 1; not used with --payload, whose filter measures the "
         "torque the arm does not explain, with the running torque noise)",
     )
-    add_topic_argument(p)
-    add_out_argument(p)
+    common.add_topic_argument(p)
+    common.add_out_argument(p)
 
 
 def _positive(name: str, v: float | None) -> None:
     if v is not None and not (math.isfinite(v) and v > 0):
-        raise CliError(f"{name} must be finite and > 0, got {v}")
+        raise common.CliError(f"{name} must be finite and > 0, got {v}")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -123,18 +113,18 @@ def run(args: argparse.Namespace) -> int:
     _positive("--prior-width", args.prior_width)
     _positive("--ekf-noise", args.ekf_noise)
     if args.payload and not args.model:
-        raise CliError("--payload tracks a load on a known arm: give its model with --model")
+        raise common.CliError("--payload tracks a load on a known arm: give its model with --model")
     prior = load_model(args.model) if args.model else None
     if prior is not None:
         if args.robot:
-            raise CliError("--model carries its robot; --robot is not needed with it")
+            raise common.CliError("--model carries its robot; --robot is not needed with it")
         robot = prior.robot
     else:
         robot = workflow.load_robot(
-            args.robot or DEFAULT_ROBOT,
+            args.robot or common.DEFAULT_ROBOT,
             base=args.base,
             tip=args.tip,
-            friction=friction_terms(args.friction),
+            friction=common.friction_terms(args.friction),
         )
     outdir.check(args.out)
     raw = read_measurements(args.data, robot, topic=args.topic)
@@ -149,7 +139,7 @@ def run(args: argparse.Namespace) -> int:
         prior_width=args.prior_width,
         ekf_noise=args.ekf_noise,
     )
-    run_ = track(online, raw, Progress())
+    run_ = track(online, raw, common.Progress())
     model = online.estimate()
     payload = online.payload()
 
@@ -187,11 +177,13 @@ def run(args: argparse.Namespace) -> int:
     if payload is not None:
         print(f"payload: {_payload_line(payload)}")
     print(f"results in {args.out}/ ({len(written)} files: model.json, report.md, figures)")
-    return EXIT_OK
+    return common.EXIT_OK
 
 
 def track(
-    online: prrrp.OnlineIdentifier, raw: dict[str, np.ndarray], progress: Progress | None = None
+    online: prrrp.OnlineIdentifier,
+    raw: dict[str, np.ndarray],
+    progress: common.Progress | None = None,
 ) -> dict[str, Any]:
     """Feeds every row of ``raw`` (``t``, ``q``, ``tau``, optional ``qd``) to ``online``;
     returns the one-step-ahead ``prediction`` (S, N), ``estimates`` (rows of t, θ, σ;

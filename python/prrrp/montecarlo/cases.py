@@ -28,6 +28,14 @@ METHODS = ("ls", "wls", "rls", "adaline", "hopfield", "ekf", "physical")
 #: The issue's default selection: least squares and the four on-line methods.
 DEFAULT_METHODS = ("ls", "rls", "adaline", "hopfield", "ekf")
 
+#: The error columns of a row (%): base parameters against the truth
+#: (:func:`parameter_errors`) and torques on the validation data.
+ERROR_COLUMNS = (
+    "max_param_error_percent",
+    "median_param_error_percent",
+    "param_error_norm_percent",
+    "torque_rms_relative_percent",
+)
 #: Columns of ``results.csv``, in order (one row per case × method).
 COLUMNS = (
     "seed",
@@ -36,10 +44,7 @@ COLUMNS = (
     "excitation_evaluations",
     "method",
     "status",
-    "max_param_error_percent",
-    "median_param_error_percent",
-    "param_error_norm_percent",
-    "torque_rms_relative_percent",
+    *ERROR_COLUMNS,
     "converged",
     "epochs",
     "seconds",
