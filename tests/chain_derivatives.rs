@@ -11,11 +11,9 @@
 #[path = "dyn_support/mod.rs"]
 mod dyn_support;
 
+use dyn_support::{base_model, with_smoothed_friction};
 use prrrp_core::nalgebra::{DMatrix, DVector, Dyn};
-use prrrp_core::{
-    BaseOptions, DynChain, DynChainBaseModel, ForwardDerivativesOf, FrictionModel, LinearModel,
-    SerialChain,
-};
+use prrrp_core::{DynChain, DynChainBaseModel, ForwardDerivativesOf, LinearModel, SerialChain};
 use rand::rngs::StdRng;
 use rand::{RngExt, SeedableRng};
 
@@ -30,16 +28,7 @@ fn with_friction(chain: DynChain) -> DynChain {
             ]
         })
         .collect();
-    let model = FrictionModel {
-        coulomb_smoothing: 0.05,
-        ..FrictionModel::all()
-    };
-    chain.with_friction(model, params).expect("friction")
-}
-
-fn model_of(chain: &DynChain) -> DynChainBaseModel {
-    let base = chain.base_parameters(&BaseOptions::default()).unwrap();
-    chain.base_model(&base).unwrap()
+    with_smoothed_friction(chain, 0.05, params)
 }
 
 /// Forward dynamics at x = [q, q̇] with one entry moved by `dx`.
@@ -71,7 +60,7 @@ fn central(f: impl Fn(f64) -> DVector<f64>, h: f64) -> DVector<f64> {
 }
 
 fn check_chain(name: &str, chain: &DynChain, seed: u64) {
-    let m = model_of(chain);
+    let m = base_model(chain);
     let (n, b) = (chain.dof(), m.count());
     let beta_true = m.chain_base_values().clone();
     let mut rng = StdRng::seed_from_u64(seed);
@@ -145,7 +134,7 @@ fn prismatic_chain_matches_finite_differences() {
 #[test]
 fn velocity_derivative_vanishes_at_rest_without_friction() {
     let chain = SerialChain::puma560().to_dyn();
-    let m = model_of(&chain);
+    let m = base_model(&chain);
     let (n, b) = (chain.dof(), m.count());
     let beta = m.chain_base_values().clone();
     let mut ws = m.workspace();
@@ -174,7 +163,7 @@ fn derivatives_at_an_acceleration_equal_the_three_calls() {
         ),
         ("Panda-like", dyn_support::panda_like(), 12),
     ] {
-        let m = model_of(&chain);
+        let m = base_model(&chain);
         let (n, b) = (chain.dof(), m.count());
         let beta_true = m.chain_base_values().clone();
         let mut rng = StdRng::seed_from_u64(seed);

@@ -11,10 +11,10 @@ mod dyn_support;
 #[path = "est_support/mod.rs"]
 mod est_support;
 
-use dyn_support::{panda_like, DynRecord};
+use dyn_support::{base_model, panda_like, DynRecord};
 use prrrp_core::nalgebra::{DVector, Dyn};
 use prrrp_core::{
-    Adaline, AdalineConfig, AdalineRule, BaseOptions, DynAdaline, DynChainBaseModel, DynHopfield,
+    Adaline, AdalineConfig, AdalineRule, DynAdaline, DynChainBaseModel, DynHopfield,
     DynScaledModel, Estimator, Hopfield, HopfieldConfig, LinearModel, PrrrpError, StoredRegressors,
 };
 use rand::rngs::StdRng;
@@ -36,8 +36,7 @@ fn random_record(n: usize, samples: usize, seed: u64) -> DynRecord {
 
 fn whitened_panda(rec: &DynRecord) -> DynScaledModel<DynChainBaseModel> {
     let chain = panda_like();
-    let base = chain.base_parameters(&BaseOptions::default()).unwrap();
-    let model = chain.base_model(&base).unwrap();
+    let model = base_model(&chain);
     DynScaledModel::whitened(model, &rec.samples()).unwrap()
 }
 
@@ -238,7 +237,6 @@ fn five_joint_model(rec: &DynRecord) -> DynScaledModel<DynChainBaseModel> {
     let chain = prrrp_core::SerialChain::from_robot(&prrrp_core::Robot::paper())
         .unwrap()
         .to_dyn();
-    let base = chain.base_parameters(&BaseOptions::default()).unwrap();
-    let model = chain.base_model(&base).unwrap();
+    let model = base_model(&chain);
     DynScaledModel::equilibrated(model, &rec.samples()).unwrap()
 }
