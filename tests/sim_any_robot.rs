@@ -6,7 +6,7 @@
 
 mod dyn_support;
 
-use dyn_support::{base_model, fourier, robots_dir, with_smoothed_friction};
+use dyn_support::{base_model, fourier, robots_dir, three_joint_urdf, with_smoothed_friction};
 use prrrp_core::{
     simulate_dyn_closed_loop, simulate_dyn_open_loop, validate_torque_prediction, DynChain,
     DynSampledTrajectory, DynSensorNoise, DynSimulationConfig, DynTrajectory, ParameterisedModel,
@@ -159,12 +159,7 @@ fn base_model_controller_at_true_beta_equals_chain_controller() {
 /// trajectory sampled from arrays.
 #[test]
 fn urdf_fixture_follows_sinusoids_and_sampled_trajectory() {
-    let xml = include_str!("../crates/prrrp-core/tests/data/three_joint.urdf");
-    let opts = UrdfOptions {
-        tip: Some("link3".into()),
-        ..UrdfOptions::default()
-    };
-    let chain = DynChain::from_urdf_str(xml, &opts).unwrap();
+    let chain = three_joint_urdf();
     let sines: Vec<Sinusoid> = (0..3)
         .map(|j| Sinusoid {
             offset: 0.02 * j as f64,
@@ -393,14 +388,7 @@ fn torque_validation_of_simulated_data() {
         w.indices
     );
     // Joint-count mismatch is a typed error.
-    let three = DynChain::from_urdf_str(
-        include_str!("../crates/prrrp-core/tests/data/three_joint.urdf"),
-        &UrdfOptions {
-            tip: Some("link3".into()),
-            ..UrdfOptions::default()
-        },
-    )
-    .unwrap();
+    let three = three_joint_urdf();
     assert!(matches!(
         validate_torque_prediction(&three, &data),
         Err(PrrrpError::ShapeMismatch { .. })

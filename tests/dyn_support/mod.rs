@@ -13,7 +13,7 @@ mod seeded_support;
 use prrrp_core::nalgebra::{DVector, SVector};
 use prrrp_core::{
     inertial_parameters, BaseOptions, DhConvention, DhRow, DynChain, DynChainBaseModel, DynSamples,
-    FourierTrajectory, FrictionModel, JointKind,
+    FourierTrajectory, FrictionModel, JointKind, UrdfOptions,
 };
 
 /// Velocity scale of the smoothed Coulomb sign tanh(q̇/v_s), rad/s.
@@ -79,6 +79,17 @@ pub fn with_smoothed_friction(
         ..FrictionModel::all()
     };
     chain.with_friction(model, per_joint).expect("friction")
+}
+
+/// The three-joint URDF fixture of prrrp-core's tests (tilted axes, a prismatic joint,
+/// merged fixed bodies, locked fingers), ended at `link3`.
+pub fn three_joint_urdf() -> DynChain {
+    let opts = UrdfOptions {
+        tip: Some("link3".into()),
+        ..UrdfOptions::default()
+    };
+    let xml = include_str!("../../crates/prrrp-core/tests/data/three_joint.urdf");
+    DynChain::from_urdf_str(xml, &opts).expect("fixture loads")
 }
 
 /// The chain's base model under the default base-parameter analysis (the model an
