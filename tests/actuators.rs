@@ -67,15 +67,20 @@ fn mat(rows: &[Vec<f64>]) -> DMatrix<f64> {
     DMatrix::from_fn(rows.len(), rows.len(), |i, j| rows[i][j])
 }
 
+/// The PUMA with the wrist coupling, the rigid PUMA alone (no actuators), and the
+/// coupling matrix C.
+fn coupled_and_rigid() -> (DynChain, DynChain, DMatrix<f64>) {
+    let c = wrist_coupling();
+    let chain = coupled_puma(Some(c.clone()));
+    (chain, SerialChain::puma560().to_dyn(), mat(&c))
+}
+
 #[test]
 fn regressor_is_the_power_balance_of_the_energy() {
     // Lagrange: q̇ᵀτ = dE/dt + q̇ᵀ·Cᵀ·f(C·q̇) with E = T_links + T_rotors + V. The links'
     // kinetic energy comes from the rigid chain (M checked against Pinocchio elsewhere),
     // the rotors' from ½·Σ Iaₘ·(C·q̇)ₘ² written out here; the potential's rate is q̇ᵀ·G.
-    let c = wrist_coupling();
-    let chain = coupled_puma(Some(c.clone()));
-    let rigid = SerialChain::puma560().to_dyn();
-    let cm = mat(&c);
+    let (chain, rigid, cm) = coupled_and_rigid();
     let energy = |t: f64| {
         let [q, qd, _] = trajectory(t);
         let m = rigid.mass_matrix(&q).unwrap();
@@ -116,10 +121,7 @@ fn regressor_is_the_power_balance_of_the_energy() {
 
 #[test]
 fn mass_matrix_gains_the_reflected_rotor_inertia_and_forward_inverts_inverse() {
-    let c = wrist_coupling();
-    let chain = coupled_puma(Some(c.clone()));
-    let rigid = SerialChain::puma560().to_dyn();
-    let cm = mat(&c);
+    let (chain, rigid, cm) = coupled_and_rigid();
     let ia = DMatrix::from_diagonal(&DVector::from_row_slice(&ARMATURE));
     let want_extra = cm.transpose() * ia * &cm;
     for &t in &[0.3, 1.4] {

@@ -59,6 +59,16 @@ fn central(f: impl Fn(f64) -> DVector<f64>, h: f64) -> DVector<f64> {
     (d(h / 2.0) * 4.0 - d(h)) / 3.0
 }
 
+/// n numbers drawn uniformly in [−`limit`, `limit`).
+fn uniform(rng: &mut StdRng, n: usize, limit: f64) -> DVector<f64> {
+    DVector::from_fn(n, |_, _| rng.random_range(-limit..limit))
+}
+
+/// Parameters a little off `beta` (each within ±5 %; the EKF evaluates at estimates).
+fn near(beta: &DVector<f64>, rng: &mut StdRng) -> DVector<f64> {
+    beta.map(|v| v * rng.random_range(0.95..1.05))
+}
+
 fn check_chain(name: &str, chain: &DynChain, seed: u64) {
     let m = base_model(chain);
     let (n, b) = (chain.dof(), m.count());
@@ -67,11 +77,10 @@ fn check_chain(name: &str, chain: &DynChain, seed: u64) {
     let mut ws = m.workspace();
     let mut fd = ForwardDerivativesOf::<Dyn, Dyn>::zeros(Dyn(n), Dyn(b));
     for trial in 0..8 {
-        let q = DVector::from_fn(n, |_, _| rng.random_range(-2.0..2.0));
-        let qd = DVector::from_fn(n, |_, _| rng.random_range(-2.0..2.0));
-        let tau = DVector::from_fn(n, |_, _| rng.random_range(-5.0..5.0));
-        // Parameters a little off the chain's own (the EKF evaluates at estimates).
-        let beta = beta_true.map(|v| v * rng.random_range(0.95..1.05));
+        let q = uniform(&mut rng, n, 2.0);
+        let qd = uniform(&mut rng, n, 2.0);
+        let tau = uniform(&mut rng, n, 5.0);
+        let beta = near(&beta_true, &mut rng);
         m.forward_derivatives_into(&mut ws, &q, &qd, &tau, &beta, &mut fd)
             .unwrap();
         let qdd = qdd_at(&m, &q, &qd, &tau, &beta, (0, 0, 0.0));
@@ -172,11 +181,11 @@ fn derivatives_at_an_acceleration_equal_the_three_calls() {
         let mut want = got.clone();
         let mut tau_lin = DVector::zeros(n);
         for trial in 0..8 {
-            let q = DVector::from_fn(n, |_, _| rng.random_range(-2.0..2.0));
-            let qd = DVector::from_fn(n, |_, _| rng.random_range(-2.0..2.0));
-            let qdd_lin = DVector::from_fn(n, |_, _| rng.random_range(-5.0..5.0));
-            let tau = DVector::from_fn(n, |_, _| rng.random_range(-5.0..5.0));
-            let beta = beta_true.map(|v| v * rng.random_range(0.95..1.05));
+            let q = uniform(&mut rng, n, 2.0);
+            let qd = uniform(&mut rng, n, 2.0);
+            let qdd_lin = uniform(&mut rng, n, 5.0);
+            let tau = uniform(&mut rng, n, 5.0);
+            let beta = near(&beta_true, &mut rng);
             m.inverse_dynamics_into(&mut ws, &q, &qd, &qdd_lin, &beta, &mut tau_lin)
                 .unwrap();
             m.forward_derivatives_into(&mut ws, &q, &qd, &tau_lin, &beta, &mut want)
