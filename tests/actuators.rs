@@ -4,10 +4,12 @@
 //! the kinetic energy of the rotors, columns built by hand from the rigid regressor, and
 //! the base-parameter rank of that hand-built matrix.
 
+mod dyn_support;
 mod seeded_support;
 
+use dyn_support::with_smoothed_friction;
 use nalgebra::{DMatrix, DVector};
-use prrrp_core::{Actuators, BaseOptions, DynChain, FrictionModel, PrrrpError, SerialChain};
+use prrrp_core::{Actuators, BaseOptions, DynChain, PrrrpError, SerialChain};
 
 /// C of a six-axis arm whose sixth motor turns with q̇5 + q̇6 and whose fifth turns with
 /// q̇5 − 0.3·q̇4 (a second, asymmetric coupling so that Cᵀ ≠ C matters).
@@ -34,14 +36,8 @@ const FRICTION: [[f64; 3]; 6] = [
 const SMOOTHING: f64 = 0.02;
 
 fn coupled_puma(coupling: Option<Vec<Vec<f64>>>) -> DynChain {
-    let friction = FrictionModel {
-        coulomb_smoothing: SMOOTHING,
-        ..FrictionModel::all()
-    };
-    SerialChain::puma560()
-        .to_dyn()
-        .with_friction(friction, FRICTION.to_vec())
-        .unwrap()
+    let puma = SerialChain::puma560().to_dyn();
+    with_smoothed_friction(puma, SMOOTHING, FRICTION.to_vec())
         .with_actuators(Actuators {
             coupling,
             armature: true,

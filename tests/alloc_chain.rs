@@ -6,7 +6,7 @@ mod alloc_support;
 mod dyn_support;
 
 use alloc_support::allocations;
-use dyn_support::three_joint_urdf;
+use dyn_support::{three_joint_urdf, with_smoothed_friction};
 use prrrp_core::nalgebra::{SMatrix, SVector};
 use prrrp_core::{Actuators, BaseOptions, FrictionModel, LinearDynamics, LinearModel, SerialChain};
 
@@ -119,14 +119,8 @@ fn coupled_actuators_do_not_allocate() {
         r[i] = 1.0;
     }
     c[5][4] = 1.0;
-    let smooth = FrictionModel {
-        coulomb_smoothing: 0.02,
-        ..FrictionModel::all()
-    };
-    let chain = SerialChain::puma560()
-        .to_dyn()
-        .with_friction(smooth, vec![[0.5, 0.2, 0.01]; 6])
-        .expect("valid")
+    let puma = SerialChain::puma560().to_dyn();
+    let chain = with_smoothed_friction(puma, 0.02, vec![[0.5, 0.2, 0.01]; 6])
         .with_actuators(Actuators {
             coupling: Some(c),
             armature: true,
