@@ -7,20 +7,14 @@
 mod dyn_support;
 mod seeded_support;
 
-use dyn_support::with_smoothed_friction;
+use dyn_support::{coupling, with_smoothed_friction};
 use nalgebra::{DMatrix, DVector};
 use prrrp_core::{Actuators, BaseOptions, DynChain, PrrrpError, SerialChain};
 
 /// C of a six-axis arm whose sixth motor turns with q̇5 + q̇6 and whose fifth turns with
 /// q̇5 − 0.3·q̇4 (a second, asymmetric coupling so that Cᵀ ≠ C matters).
 fn wrist_coupling() -> Vec<Vec<f64>> {
-    let mut c = vec![vec![0.0; 6]; 6];
-    for (i, r) in c.iter_mut().enumerate() {
-        r[i] = 1.0;
-    }
-    c[5][4] = 1.0;
-    c[4][3] = -0.3;
-    c
+    coupling(6, &[(5, 4, 1.0), (4, 3, -0.3)])
 }
 
 /// Reflected rotor inertias of an industrial six-axis arm (kg·m², joint side).

@@ -6,7 +6,7 @@ mod alloc_support;
 mod dyn_support;
 
 use alloc_support::allocations;
-use dyn_support::{three_joint_urdf, with_smoothed_friction};
+use dyn_support::{coupling, three_joint_urdf, with_smoothed_friction};
 use prrrp_core::nalgebra::{SMatrix, SVector};
 use prrrp_core::{Actuators, BaseOptions, FrictionModel, LinearDynamics, LinearModel, SerialChain};
 
@@ -114,11 +114,8 @@ fn urdf_chain_does_not_allocate() {
 /// per-sample kernels, fixed-size and run-time, and the base models; still no allocation.
 #[test]
 fn coupled_actuators_do_not_allocate() {
-    let mut c = vec![vec![0.0; 6]; 6];
-    for (i, r) in c.iter_mut().enumerate() {
-        r[i] = 1.0;
-    }
-    c[5][4] = 1.0;
+    // The sixth motor turns with q̇5 + q̇6.
+    let c = coupling(6, &[(5, 4, 1.0)]);
     let puma = SerialChain::puma560().to_dyn();
     let chain = with_smoothed_friction(puma, 0.02, vec![[0.5, 0.2, 0.01]; 6])
         .with_actuators(Actuators {

@@ -112,35 +112,31 @@ fn dyn_base_model_equals_fixed_model() {
         for scale in [1.0, 1.2] {
             let bs = beta_s * scale;
             let bd = dvec(&bs);
+            // Run-time kernels into their buffers, the compile-time model on the same sample.
             m.regressor_into(&mut ws, q, qd, a, &mut phi).unwrap();
-            let phi_s =
-                prrrp_core::LinearDynamics::regressor(&f.model, &r.q[k], &r.qd[k], &r.qdd[k]);
-            worst = worst.max(rel_diff(phi.as_slice(), phi_s.as_slice()));
             m.inverse_dynamics_into(&mut ws, q, qd, a, &bd, &mut tau)
                 .unwrap();
-            let tau_s = prrrp_core::LinearDynamics::inverse_dynamics(
-                &f.model, &r.q[k], &r.qd[k], &r.qdd[k], &bs,
-            );
-            worst = worst.max(rel_diff(tau.as_slice(), tau_s.as_slice()));
             m.forward_dynamics_into(&mut ws, q, qd, t, &bd, &mut qdd)
                 .unwrap();
-            let qdd_s = prrrp_core::LinearDynamics::forward_dynamics(
-                &f.model, &r.q[k], &r.qd[k], &r.tau[k], &bs,
-            )
-            .unwrap();
-            worst = worst.max(rel_diff(qdd.as_slice(), qdd_s.as_slice()));
             m.forward_derivatives_into(&mut ws, q, qd, t, &bd, &mut fd)
                 .unwrap();
-            let fd_s = prrrp_core::LinearDynamics::forward_derivatives(
-                &f.model, &r.q[k], &r.qd[k], &r.tau[k], &bs,
-            )
-            .unwrap();
-            worst = worst.max(rel_diff(fd.dqdd_dq.as_slice(), fd_s.dqdd_dq.as_slice()));
-            worst = worst.max(rel_diff(fd.dqdd_dqd.as_slice(), fd_s.dqdd_dqd.as_slice()));
-            worst = worst.max(rel_diff(
-                fd.dqdd_dlambda.as_slice(),
-                fd_s.dqdd_dlambda.as_slice(),
-            ));
+            let (qs, qds, qdds, ts) = (&r.q[k], &r.qd[k], &r.qdd[k], &r.tau[k]);
+            let fm = &f.model;
+            let phi_s = prrrp_core::LinearDynamics::regressor(fm, qs, qds, qdds);
+            let tau_s = prrrp_core::LinearDynamics::inverse_dynamics(fm, qs, qds, qdds, &bs);
+            let qdd_s = prrrp_core::LinearDynamics::forward_dynamics(fm, qs, qds, ts, &bs).unwrap();
+            let fd_s =
+                prrrp_core::LinearDynamics::forward_derivatives(fm, qs, qds, ts, &bs).unwrap();
+            for (got, want) in [
+                (phi.as_slice(), phi_s.as_slice()),
+                (tau.as_slice(), tau_s.as_slice()),
+                (qdd.as_slice(), qdd_s.as_slice()),
+                (fd.dqdd_dq.as_slice(), fd_s.dqdd_dq.as_slice()),
+                (fd.dqdd_dqd.as_slice(), fd_s.dqdd_dqd.as_slice()),
+                (fd.dqdd_dlambda.as_slice(), fd_s.dqdd_dlambda.as_slice()),
+            ] {
+                worst = worst.max(rel_diff(got, want));
+            }
             // τ = Φ_b·β: the O(n) recursion on the equivalent chain is the regressor's.
             let lin = &phi * &bd;
             assert!(rel_diff(lin.as_slice(), tau.as_slice()) < 1e-12);
@@ -511,23 +507,16 @@ fn ekf_dyn_equals_fixed_and_moves_towards_truth() {
     let est = ekf.run(&rec.samples()).unwrap();
     let beta_s: Beta = f.model.chain_base_values();
     let mut ekf_s = Ekf::<_, 6, B, 48>::new(f.model, beta_s * 1.2, cfg).unwrap();
-    let (q, qd, qdd, tau): (Vec<_>, Vec<_>, Vec<_>, Vec<_>) = (
-        rec.q
-            .iter()
-            .map(|v| SVector::<f64, 6>::from_column_slice(v.as_slice()))
-            .collect(),
-        rec.qd
-            .iter()
-            .map(|v| SVector::<f64, 6>::from_column_slice(v.as_slice()))
-            .collect(),
-        rec.qdd
-            .iter()
-            .map(|v| SVector::<f64, 6>::from_column_slice(v.as_slice()))
-            .collect(),
-        rec.tau
-            .iter()
-            .map(|v| SVector::<f64, 6>::from_column_slice(v.as_slice()))
-            .collect(),
+    let fixed = |col: &[DVector<f64>]| -> Vec<SVector<f64, 6>> {
+        col.iter()
+            .map(|v| SVector::from_column_slice(v.as_slice()))
+            .collect()
+    };
+    let (q, qd, qdd, tau) = (
+        fixed(&rec.q),
+        fixed(&rec.qd),
+        fixed(&rec.qdd),
+        fixed(&rec.tau),
     );
     let est_s = ekf_s
         .run(&prrrp_core::Samples::new(&q, &qd, &qdd, &tau).unwrap())

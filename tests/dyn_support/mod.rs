@@ -92,6 +92,19 @@ pub fn three_joint_urdf() -> DynChain {
     DynChain::from_urdf_str(xml, &opts).expect("fixture loads")
 }
 
+/// An n×n motor-to-joint coupling C (motor velocities = C·q̇): the identity plus the
+/// off-diagonal `entries` (row, column, value).
+pub fn coupling(n: usize, entries: &[(usize, usize, f64)]) -> Vec<Vec<f64>> {
+    let mut c = vec![vec![0.0; n]; n];
+    for (i, r) in c.iter_mut().enumerate() {
+        r[i] = 1.0;
+    }
+    for &(i, j, v) in entries {
+        c[i][j] = v;
+    }
+    c
+}
+
 /// The chain's base model under the default base-parameter analysis (the model an
 /// identification fits); its true β is `chain_base_values()`.
 pub fn base_model(chain: &DynChain) -> DynChainBaseModel {
