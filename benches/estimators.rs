@@ -12,13 +12,13 @@ mod dyn_support;
 mod est_support;
 
 use criterion::{criterion_group, criterion_main, Criterion};
-use dyn_support::{exact_record, panda_like, DynFourier};
+use dyn_support::{base_model, exact_record, panda_like, DynFourier};
 use est_support::{closed_loop, excitation, paper, DT};
 use prrrp_core::nalgebra::allocator::Allocator;
 use prrrp_core::nalgebra::{DVector, DefaultAllocator, Dim};
 use prrrp_core::{
-    least_squares, Adaline, AdalineConfig, AdalineRule, BaseOptions, Discretisation, DynAdaline,
-    DynEkf, DynHopfield, DynScaledModel, EkfConfig, Estimator, Hopfield, HopfieldConfig, Lambda,
+    least_squares, Adaline, AdalineConfig, AdalineRule, Discretisation, DynAdaline, DynEkf,
+    DynHopfield, DynScaledModel, EkfConfig, Estimator, Hopfield, HopfieldConfig, Lambda,
     LeastSquares, LeastSquaresConfig, PrrrpEkf, Rls, RlsConfig, SamplesOf,
 };
 use std::hint::black_box;
@@ -90,8 +90,7 @@ fn estimators(c: &mut Criterion) {
 
 fn chain7(c: &mut Criterion) {
     let chain = panda_like();
-    let base = chain.base_parameters(&BaseOptions::default()).unwrap();
-    let model = chain.base_model(&base).unwrap();
+    let model = base_model(&chain);
     let beta = model.chain_base_values().clone();
     let b = model.count();
     // 1000 samples at 10 ms: one period of the excitation, so wrapping around is smooth.

@@ -4,21 +4,17 @@
 //! the kinetic energy of the rotors, columns built by hand from the rigid regressor, and
 //! the base-parameter rank of that hand-built matrix.
 
+mod dyn_support;
 mod seeded_support;
 
+use dyn_support::{coupling, with_smoothed_friction};
 use nalgebra::{DMatrix, DVector};
-use prrrp_core::{Actuators, BaseOptions, DynChain, FrictionModel, PrrrpError, SerialChain};
+use prrrp_core::{Actuators, BaseOptions, DynChain, PrrrpError, SerialChain};
 
 /// C of a six-axis arm whose sixth motor turns with q̇5 + q̇6 and whose fifth turns with
 /// q̇5 − 0.3·q̇4 (a second, asymmetric coupling so that Cᵀ ≠ C matters).
 fn wrist_coupling() -> Vec<Vec<f64>> {
-    let mut c = vec![vec![0.0; 6]; 6];
-    for (i, r) in c.iter_mut().enumerate() {
-        r[i] = 1.0;
-    }
-    c[5][4] = 1.0;
-    c[4][3] = -0.3;
-    c
+    coupling(6, &[(5, 4, 1.0), (4, 3, -0.3)])
 }
 
 /// Reflected rotor inertias of an industrial six-axis arm (kg·m², joint side).
@@ -34,14 +30,8 @@ const FRICTION: [[f64; 3]; 6] = [
 const SMOOTHING: f64 = 0.02;
 
 fn coupled_puma(coupling: Option<Vec<Vec<f64>>>) -> DynChain {
-    let friction = FrictionModel {
-        coulomb_smoothing: SMOOTHING,
-        ..FrictionModel::all()
-    };
-    SerialChain::puma560()
-        .to_dyn()
-        .with_friction(friction, FRICTION.to_vec())
-        .unwrap()
+    let puma = SerialChain::puma560().to_dyn();
+    with_smoothed_friction(puma, SMOOTHING, FRICTION.to_vec())
         .with_actuators(Actuators {
             coupling,
             armature: true,
@@ -67,15 +57,20 @@ fn mat(rows: &[Vec<f64>]) -> DMatrix<f64> {
     DMatrix::from_fn(rows.len(), rows.len(), |i, j| rows[i][j])
 }
 
+/// The PUMA with the wrist coupling, the rigid PUMA alone (no actuators), and the
+/// coupling matrix C.
+fn coupled_and_rigid() -> (DynChain, DynChain, DMatrix<f64>) {
+    let c = wrist_coupling();
+    let chain = coupled_puma(Some(c.clone()));
+    (chain, SerialChain::puma560().to_dyn(), mat(&c))
+}
+
 #[test]
 fn regressor_is_the_power_balance_of_the_energy() {
     // Lagrange: q̇ᵀτ = dE/dt + q̇ᵀ·Cᵀ·f(C·q̇) with E = T_links + T_rotors + V. The links'
     // kinetic energy comes from the rigid chain (M checked against Pinocchio elsewhere),
     // the rotors' from ½·Σ Iaₘ·(C·q̇)ₘ² written out here; the potential's rate is q̇ᵀ·G.
-    let c = wrist_coupling();
-    let chain = coupled_puma(Some(c.clone()));
-    let rigid = SerialChain::puma560().to_dyn();
-    let cm = mat(&c);
+    let (chain, rigid, cm) = coupled_and_rigid();
     let energy = |t: f64| {
         let [q, qd, _] = trajectory(t);
         let m = rigid.mass_matrix(&q).unwrap();
@@ -116,10 +111,7 @@ fn regressor_is_the_power_balance_of_the_energy() {
 
 #[test]
 fn mass_matrix_gains_the_reflected_rotor_inertia_and_forward_inverts_inverse() {
-    let c = wrist_coupling();
-    let chain = coupled_puma(Some(c.clone()));
-    let rigid = SerialChain::puma560().to_dyn();
-    let cm = mat(&c);
+    let (chain, rigid, cm) = coupled_and_rigid();
     let ia = DMatrix::from_diagonal(&DVector::from_row_slice(&ARMATURE));
     let want_extra = cm.transpose() * ia * &cm;
     for &t in &[0.3, 1.4] {

@@ -3,13 +3,12 @@
 //! not interfere).
 
 mod alloc_support;
+mod dyn_support;
 
 use alloc_support::allocations;
+use dyn_support::{coupling, three_joint_urdf, with_smoothed_friction};
 use prrrp_core::nalgebra::{SMatrix, SVector};
-use prrrp_core::{
-    Actuators, BaseOptions, DynChain, FrictionModel, LinearDynamics, LinearModel, SerialChain,
-    UrdfOptions,
-};
+use prrrp_core::{Actuators, BaseOptions, FrictionModel, LinearDynamics, LinearModel, SerialChain};
 
 /// Runs `f` once to warm up, then 20 times, and returns the allocations of the 20.
 fn count(mut f: impl FnMut(usize)) -> usize {
@@ -80,13 +79,7 @@ fn base_model_does_not_allocate() {
 /// workspace allocate nothing either.
 #[test]
 fn urdf_chain_does_not_allocate() {
-    let xml = include_str!("../crates/prrrp-core/tests/data/three_joint.urdf");
-    let opts = UrdfOptions {
-        tip: Some("link3".into()),
-        ..UrdfOptions::default()
-    };
-    let chain = DynChain::from_urdf_str(xml, &opts)
-        .expect("fixture loads")
+    let chain = three_joint_urdf()
         .with_friction(FrictionModel::all(), vec![[0.5, 0.2, 0.01]; 3])
         .expect("valid");
     let fixed = chain.to_fixed::<3>().expect("3 joints");
@@ -121,19 +114,10 @@ fn urdf_chain_does_not_allocate() {
 /// per-sample kernels, fixed-size and run-time, and the base models; still no allocation.
 #[test]
 fn coupled_actuators_do_not_allocate() {
-    let mut c = vec![vec![0.0; 6]; 6];
-    for (i, r) in c.iter_mut().enumerate() {
-        r[i] = 1.0;
-    }
-    c[5][4] = 1.0;
-    let smooth = FrictionModel {
-        coulomb_smoothing: 0.02,
-        ..FrictionModel::all()
-    };
-    let chain = SerialChain::puma560()
-        .to_dyn()
-        .with_friction(smooth, vec![[0.5, 0.2, 0.01]; 6])
-        .expect("valid")
+    // The sixth motor turns with q̇5 + q̇6.
+    let c = coupling(6, &[(5, 4, 1.0)]);
+    let puma = SerialChain::puma560().to_dyn();
+    let chain = with_smoothed_friction(puma, 0.02, vec![[0.5, 0.2, 0.01]; 6])
         .with_actuators(Actuators {
             coupling: Some(c),
             armature: true,

@@ -34,12 +34,52 @@ fn states<const N: usize>(seed: u64, count: usize) -> Vec<[SVector<f64, N>; 3]> 
         .collect()
 }
 
+/// The states of [`states`] as columns (q, q̇, q̈).
+type Columns<const N: usize> = [Vec<SVector<f64, N>>; 3];
+
+fn state_columns<const N: usize>(seed: u64, count: usize) -> Columns<N> {
+    let s = states::<N>(seed, count);
+    [0, 1, 2].map(|c| s.iter().map(|x| x[c]).collect())
+}
+
+/// The chain's base parameters under the default analysis.
+fn base_of<const N: usize>(chain: &SerialChain<N>) -> BaseParameters {
+    chain
+        .base_parameters(&BaseOptions::default())
+        .expect("analysis")
+}
+
+/// [`base_of`], listed on stdout as `name`'s and checked to number `count`.
+fn listed_base<const N: usize>(name: &str, chain: &SerialChain<N>, count: usize) -> BaseParameters {
+    let base = base_of(chain);
+    for c in &base.combinations {
+        println!("{name} base parameter: {c}");
+    }
+    assert_eq!(base.count(), count, "{name}");
+    base
+}
+
+/// `samples` samples every 20 ms of [`fourier`] with amplitude `amp` and the chain's exact
+/// torques: the columns (q, q̇, q̈) and τ.
+fn fourier_record<const N: usize>(
+    chain: &SerialChain<N>,
+    samples: usize,
+    amp: f64,
+) -> (Columns<N>, Vec<SVector<f64, N>>) {
+    let (mut q, mut qd, mut qdd, mut tau) = (vec![], vec![], vec![], vec![]);
+    for k in 0..samples {
+        let [a, b, c] = fourier::<N>(0.02 * k as f64, amp);
+        tau.push(chain.inverse_dynamics(&a, &b, &c));
+        q.push(a);
+        qd.push(b);
+        qdd.push(c);
+    }
+    ([q, qd, qdd], tau)
+}
+
 /// W·π and W_b·β agree on states the analysis never saw.
 fn check_reproduces<const N: usize>(chain: &SerialChain<N>, base: &BaseParameters) {
-    let s = states::<N>(42, 30);
-    let q: Vec<_> = s.iter().map(|x| x[0]).collect();
-    let qd: Vec<_> = s.iter().map(|x| x[1]).collect();
-    let qdd: Vec<_> = s.iter().map(|x| x[2]).collect();
+    let [q, qd, qdd] = state_columns::<N>(42, 30);
     let w = chain
         .observation_matrix(&q, &qd, &qdd)
         .expect("finite states");
@@ -83,13 +123,7 @@ fn check_reproduces<const N: usize>(chain: &SerialChain<N>, base: &BaseParameter
 #[test]
 fn prrrp_has_nine_base_parameters_spanning_the_papers() {
     let chain = SerialChain::paper();
-    let base = chain
-        .base_parameters(&BaseOptions::default())
-        .expect("analysis");
-    for c in &base.combinations {
-        println!("PRRRP base parameter: {c}");
-    }
-    assert_eq!(base.count(), 9);
+    let base = listed_base("PRRRP", &chain, 9);
     let l = chain.dh().expect("a DH chain").map(|r| r.a);
     let idx = |link: usize, k: usize| 10 * (link - 1) + k;
     let (m, mx, my, izz) = (0, 1, 2, 9);
@@ -178,17 +212,8 @@ fn prrrp_has_nine_base_parameters_spanning_the_papers() {
 #[test]
 fn puma_base_parameters() {
     let chain = SerialChain::puma560();
-    let base = chain
-        .base_parameters(&BaseOptions::default())
-        .expect("analysis");
-    for c in &base.combinations {
-        println!("PUMA 560 base parameter: {c}");
-    }
-    assert_eq!(base.count(), 36);
-    let s = states::<6>(7, 40);
-    let q: Vec<_> = s.iter().map(|x| x[0]).collect();
-    let qd: Vec<_> = s.iter().map(|x| x[1]).collect();
-    let qdd: Vec<_> = s.iter().map(|x| x[2]).collect();
+    let base = listed_base("PUMA 560", &chain, 36);
+    let [q, qd, qdd] = state_columns::<6>(7, 40);
     let w = chain.observation_matrix(&q, &qd, &qdd).expect("finite");
     // Scale columns (units differ) before the SVD rank; columns that are zero up to
     // round-off (≤ 1e-12 of the largest) stay zero instead of being blown up to unit norm.
@@ -214,9 +239,7 @@ fn puma_base_parameters() {
     let fr = chain
         .with_friction(FrictionModel::all(), [[1.0, 0.5, 0.1]; 6])
         .expect("valid");
-    let bf = fr
-        .base_parameters(&BaseOptions::default())
-        .expect("analysis");
+    let bf = base_of(&fr);
     assert_eq!(bf.count(), 36 + 18);
     check_reproduces(&fr, &bf);
     // The same through the run-time-size chain.
@@ -230,9 +253,7 @@ fn puma_base_parameters() {
 #[test]
 fn base_model_of_prrrp_is_a_linear_dynamics_model() {
     let chain = SerialChain::paper();
-    let base = chain
-        .base_parameters(&BaseOptions::default())
-        .expect("analysis");
+    let base = base_of(&chain);
     let model = chain.base_model::<9>(&base).expect("9 base parameters");
     let beta = model.chain_base_values();
     let want = base.base_values(&chain.parameters()).expect("p");
@@ -297,9 +318,7 @@ fn base_model_of_prrrp_is_a_linear_dynamics_model() {
         chain.base_model::<8>(&base),
         Err(PrrrpError::ShapeMismatch { .. })
     ));
-    let puma = SerialChain::puma560()
-        .base_parameters(&BaseOptions::default())
-        .expect("analysis");
+    let puma = base_of(&SerialChain::puma560());
     assert!(matches!(
         chain.base_model::<36>(&puma),
         Err(PrrrpError::ShapeMismatch { .. })
@@ -342,18 +361,9 @@ fn puma560_identification_end_to_end() {
     let chain = SerialChain::puma560()
         .with_friction(FrictionModel::viscous_coulomb(), fp)
         .expect("valid friction");
-    let base = chain
-        .base_parameters(&BaseOptions::default())
-        .expect("analysis");
+    let base = base_of(&chain);
     assert_eq!(base.count(), 48);
-    let (mut q, mut qd, mut qdd, mut tau) = (vec![], vec![], vec![], vec![]);
-    for k in 0..500 {
-        let [a, b, c] = fourier::<6>(0.02 * k as f64, 0.4);
-        tau.push(chain.inverse_dynamics(&a, &b, &c));
-        q.push(a);
-        qd.push(b);
-        qdd.push(c);
-    }
+    let ([q, qd, qdd], tau) = fourier_record(&chain, 500, 0.4);
     let wb = chain
         .base_observation_matrix(&base, &q, &qd, &qdd)
         .expect("finite");
@@ -379,18 +389,9 @@ fn puma560_identification_end_to_end() {
 #[test]
 fn prrrp_chain_identification_through_linear_dynamics() {
     let chain = SerialChain::paper();
-    let base = chain
-        .base_parameters(&BaseOptions::default())
-        .expect("analysis");
+    let base = base_of(&chain);
     let model = chain.base_model::<9>(&base).expect("9");
-    let (mut q, mut qd, mut qdd, mut tau) = (vec![], vec![], vec![], vec![]);
-    for k in 0..300 {
-        let [a, b, c] = fourier::<5>(0.02 * k as f64, 0.5);
-        tau.push(chain.inverse_dynamics(&a, &b, &c));
-        q.push(a);
-        qd.push(b);
-        qdd.push(c);
-    }
+    let ([q, qd, qdd], tau) = fourier_record(&chain, 300, 0.5);
     let w = observation_matrix(&model, &q, &qd, &qdd).expect("finite");
     let y = Mat::from_fn(w.nrows(), 1, |i, _| tau[i / 5][i % 5]);
     let beta_hat = w.qr().solve_lstsq(&y);

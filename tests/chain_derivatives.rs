@@ -11,11 +11,9 @@
 #[path = "dyn_support/mod.rs"]
 mod dyn_support;
 
+use dyn_support::{base_model, with_smoothed_friction};
 use prrrp_core::nalgebra::{DMatrix, DVector, Dyn};
-use prrrp_core::{
-    BaseOptions, DynChain, DynChainBaseModel, ForwardDerivativesOf, FrictionModel, LinearModel,
-    SerialChain,
-};
+use prrrp_core::{DynChain, DynChainBaseModel, ForwardDerivativesOf, LinearModel, SerialChain};
 use rand::rngs::StdRng;
 use rand::{RngExt, SeedableRng};
 
@@ -30,16 +28,7 @@ fn with_friction(chain: DynChain) -> DynChain {
             ]
         })
         .collect();
-    let model = FrictionModel {
-        coulomb_smoothing: 0.05,
-        ..FrictionModel::all()
-    };
-    chain.with_friction(model, params).expect("friction")
-}
-
-fn model_of(chain: &DynChain) -> DynChainBaseModel {
-    let base = chain.base_parameters(&BaseOptions::default()).unwrap();
-    chain.base_model(&base).unwrap()
+    with_smoothed_friction(chain, 0.05, params)
 }
 
 /// Forward dynamics at x = [q, q̇] with one entry moved by `dx`.
@@ -70,19 +59,28 @@ fn central(f: impl Fn(f64) -> DVector<f64>, h: f64) -> DVector<f64> {
     (d(h / 2.0) * 4.0 - d(h)) / 3.0
 }
 
+/// n numbers drawn uniformly in [−`limit`, `limit`).
+fn uniform(rng: &mut StdRng, n: usize, limit: f64) -> DVector<f64> {
+    DVector::from_fn(n, |_, _| rng.random_range(-limit..limit))
+}
+
+/// Parameters a little off `beta` (each within ±5 %; the EKF evaluates at estimates).
+fn near(beta: &DVector<f64>, rng: &mut StdRng) -> DVector<f64> {
+    beta.map(|v| v * rng.random_range(0.95..1.05))
+}
+
 fn check_chain(name: &str, chain: &DynChain, seed: u64) {
-    let m = model_of(chain);
+    let m = base_model(chain);
     let (n, b) = (chain.dof(), m.count());
     let beta_true = m.chain_base_values().clone();
     let mut rng = StdRng::seed_from_u64(seed);
     let mut ws = m.workspace();
     let mut fd = ForwardDerivativesOf::<Dyn, Dyn>::zeros(Dyn(n), Dyn(b));
     for trial in 0..8 {
-        let q = DVector::from_fn(n, |_, _| rng.random_range(-2.0..2.0));
-        let qd = DVector::from_fn(n, |_, _| rng.random_range(-2.0..2.0));
-        let tau = DVector::from_fn(n, |_, _| rng.random_range(-5.0..5.0));
-        // Parameters a little off the chain's own (the EKF evaluates at estimates).
-        let beta = beta_true.map(|v| v * rng.random_range(0.95..1.05));
+        let q = uniform(&mut rng, n, 2.0);
+        let qd = uniform(&mut rng, n, 2.0);
+        let tau = uniform(&mut rng, n, 5.0);
+        let beta = near(&beta_true, &mut rng);
         m.forward_derivatives_into(&mut ws, &q, &qd, &tau, &beta, &mut fd)
             .unwrap();
         let qdd = qdd_at(&m, &q, &qd, &tau, &beta, (0, 0, 0.0));
@@ -145,7 +143,7 @@ fn prismatic_chain_matches_finite_differences() {
 #[test]
 fn velocity_derivative_vanishes_at_rest_without_friction() {
     let chain = SerialChain::puma560().to_dyn();
-    let m = model_of(&chain);
+    let m = base_model(&chain);
     let (n, b) = (chain.dof(), m.count());
     let beta = m.chain_base_values().clone();
     let mut ws = m.workspace();
@@ -174,7 +172,7 @@ fn derivatives_at_an_acceleration_equal_the_three_calls() {
         ),
         ("Panda-like", dyn_support::panda_like(), 12),
     ] {
-        let m = model_of(&chain);
+        let m = base_model(&chain);
         let (n, b) = (chain.dof(), m.count());
         let beta_true = m.chain_base_values().clone();
         let mut rng = StdRng::seed_from_u64(seed);
@@ -183,11 +181,11 @@ fn derivatives_at_an_acceleration_equal_the_three_calls() {
         let mut want = got.clone();
         let mut tau_lin = DVector::zeros(n);
         for trial in 0..8 {
-            let q = DVector::from_fn(n, |_, _| rng.random_range(-2.0..2.0));
-            let qd = DVector::from_fn(n, |_, _| rng.random_range(-2.0..2.0));
-            let qdd_lin = DVector::from_fn(n, |_, _| rng.random_range(-5.0..5.0));
-            let tau = DVector::from_fn(n, |_, _| rng.random_range(-5.0..5.0));
-            let beta = beta_true.map(|v| v * rng.random_range(0.95..1.05));
+            let q = uniform(&mut rng, n, 2.0);
+            let qd = uniform(&mut rng, n, 2.0);
+            let qdd_lin = uniform(&mut rng, n, 5.0);
+            let tau = uniform(&mut rng, n, 5.0);
+            let beta = near(&beta_true, &mut rng);
             m.inverse_dynamics_into(&mut ws, &q, &qd, &qdd_lin, &beta, &mut tau_lin)
                 .unwrap();
             m.forward_derivatives_into(&mut ws, &q, &qd, &tau_lin, &beta, &mut want)

@@ -16,12 +16,15 @@ mod chain_support;
 
 use std::sync::OnceLock;
 
-use chain_support::{puma_base_model, simulate, Fourier, Record, Run, SimConfig};
+use chain_support::{
+    puma_adaline_config, puma_base_model, puma_hopfield_config, puma_reference, simulate, Record,
+    Run, SimConfig,
+};
 use prrrp_core::nalgebra::SVector;
 use prrrp_core::{
-    condition_number, least_squares, observation_matrix, Adaline, AdalineConfig, BaseParameters,
-    ChainBaseModel, Estimator, Hopfield, HopfieldConfig, JointNoise, LeastSquares,
-    LeastSquaresConfig, LinearDynamics, Rls, RlsConfig, ScaledModel, SerialChain,
+    condition_number, least_squares, observation_matrix, Adaline, BaseParameters, ChainBaseModel,
+    Estimator, Hopfield, JointNoise, LeastSquares, LeastSquaresConfig, LeastSquaresReport,
+    LinearDynamics, Rls, RlsConfig, Samples, ScaledModel, SerialChain, TrainingReport,
 };
 
 /// Base parameters of the PUMA 560 (links only).
@@ -43,17 +46,6 @@ struct Fixture {
     validation: Run<6>,
 }
 
-/// Joint offsets of the reference (rad): the arm about Corke's "ready" pose.
-const OFFSET: [f64; 6] = [0.0, 1.57, -1.57, 0.0, 0.0, 0.0];
-/// Amplitude scale (rad): harmonic amplitudes ≤ 0.75/k rad, so |q − offset| ≤ 1.71 rad
-/// — inside the PUMA's ±160°/±110°/±135°/±266°/±100°/±266° joint ranges about the pose.
-const SCALE: [f64; 6] = [1.5; 6];
-
-fn reference(seed: u64) -> Fourier<6> {
-    // 10 s fundamental: 1000 samples per period at 10 ms.
-    Fourier::seeded(seed, 10.0, OFFSET, SCALE)
-}
-
 /// The PUMA 560, its base model, and a closed-loop run on the best of 8 seeded Fourier
 /// excitations, chosen by cond of the column-equilibrated base regressor along the
 /// reference (what the gradient estimators see), plus a validation run on another seed.
@@ -65,7 +57,7 @@ fn fixture() -> &'static Fixture {
         let cfg = SimConfig::default();
         let mut best = (f64::INFINITY, 0.0, 0);
         for seed in 0..8 {
-            let r = reference(seed);
+            let r = puma_reference(seed);
             let (mut q, mut qd, mut qdd, mut tau) = (vec![], vec![], vec![], vec![]);
             for k in 0..cfg.samples {
                 let [a, b, c] = r.eval(k as f64 * DT);
@@ -86,12 +78,12 @@ fn fixture() -> &'static Fixture {
             }
         }
         let (cond_scaled, cond_raw, seed) = best;
-        let run = simulate(&chain, &reference(seed), &cfg);
+        let run = simulate(&chain, &puma_reference(seed), &cfg);
         let vcfg = SimConfig {
             samples: 500,
             ..cfg
         };
-        let validation = simulate(&chain, &reference(100), &vcfg);
+        let validation = simulate(&chain, &puma_reference(100), &vcfg);
         Fixture {
             chain,
             base,
@@ -141,6 +133,21 @@ fn prediction_errors(model: &Puma, est: &Beta, rec: &Record<6>) -> SVector<f64, 
     (se / rec.len() as f64)
         .map(f64::sqrt)
         .component_div(&rec.tau_rms())
+}
+
+/// The run's record with seeded torque noise of 2 % of each joint's RMS torque (seed 7),
+/// that σ per joint, and `solver`'s weighted least squares on it with the joint variances
+/// estimated (two steps).
+fn two_percent_noise_wls(
+    solver: &mut LeastSquares,
+) -> (Record<6>, SVector<f64, 6>, LeastSquaresReport<6, B>) {
+    let f = fixture();
+    let sigma = f.run.record.tau_rms() * 0.02;
+    let noisy = f.run.record.with_tau_noise(&sigma, 7);
+    let wls = solver
+        .solve_weighted(&f.model, &noisy.samples(), JointNoise::Estimated)
+        .expect("full rank");
+    (noisy, sigma, wls)
 }
 
 /// The simulated record is the robot's motion: (1) the kinetic energy gained equals the
@@ -212,12 +219,8 @@ fn least_squares_recovers_puma_base_parameters() {
         f.cond_raw
     );
 
-    let sigma = f.run.record.tau_rms() * 0.02;
-    let noisy = f.run.record.with_tau_noise(&sigma, 7);
     let mut solver = LeastSquares::new(LeastSquaresConfig::default()).expect("config");
-    let two_step = solver
-        .solve_weighted(&f.model, &noisy.samples(), JointNoise::Estimated)
-        .expect("full rank");
+    let (noisy, sigma, two_step) = two_percent_noise_wls(&mut solver);
     let ratio = two_step
         .joint_variances
         .map(f64::sqrt)
@@ -279,43 +282,59 @@ fn least_squares_recovers_puma_base_parameters() {
 /// on Ixz3; checked once on this fixture, not asserted).
 #[test]
 fn adaline_recovers_puma_base_parameters() {
+    assert_recovers("Adaline", adaline_estimate());
+}
+
+/// The checks of the gradient estimators, whose estimate `est` (and last-epoch RMS
+/// equation error `rms`) comes from `name`: every nonzero base parameter within 1e-3
+/// relative, the zero ones within 1e-3 of the smallest nonzero, validation torques within
+/// 1e-3 of their RMS per joint.
+fn assert_recovers(name: &str, (est, rms): &(Beta, f64)) {
     let f = fixture();
     let beta = truth();
-    let (est, rms) = adaline_estimate();
     let (rel, abs) = errors(est, &beta);
     println!(
-        "Adaline: worst rel {rel:.2e}, worst abs on zero β {abs:.2e}, final RMS equation \
+        "{name}: worst rel {rel:.2e}, worst abs on zero β {abs:.2e}, final RMS equation \
          error {rms:.2e} N·m"
     );
-    assert!(rel < 1e-3);
-    assert!(abs < 1e-3 * smallest_nonzero(&beta));
+    assert!(rel < 1e-3, "{name}: worst relative error {rel:e}");
+    assert!(
+        abs < 1e-3 * smallest_nonzero(&beta),
+        "{name}: worst error on a zero β {abs:e}"
+    );
     let pe = prediction_errors(&f.model, est, &f.validation.record);
-    println!("Adaline: validation error / RMS τ per joint {}", line(&pe));
-    assert!(pe.max() < 1e-3);
+    println!("{name}: validation error / RMS τ per joint {}", line(&pe));
+    assert!(pe.max() < 1e-3, "{name}: validation errors {}", line(&pe));
 }
 
 const ADALINE_EPOCHS: usize = 150;
 const HOPFIELD_EPOCHS: usize = 150;
 
+/// Trains an estimator on the column-equilibrated base model over the run's record with
+/// `train` (given the model and the data, returns the estimate γ̂ in scaled units and the
+/// training report of `epochs` epochs); checks that the a-priori error fell by 1e-3 over
+/// the epochs and returns β̂ and the last-epoch RMS equation error.
+fn scaled_estimate(
+    epochs: usize,
+    train: impl FnOnce(ScaledModel<Puma, B>, &Samples<'_, 6>) -> (Beta, TrainingReport),
+) -> (Beta, f64) {
+    let f = fixture();
+    let data = f.run.record.samples();
+    let sm = ScaledModel::equilibrated(f.model, &data).expect("excited");
+    let (gamma, rep) = train(sm, &data);
+    assert!(rep.rms_error[epochs - 1] < 1e-3 * rep.rms_error[0]);
+    (sm.to_model(&gamma), rep.rms_error[epochs - 1])
+}
+
 /// Adaline's estimate of β and its last-epoch RMS equation error (computed once).
 fn adaline_estimate() -> &'static (Beta, f64) {
     static A: OnceLock<(Beta, f64)> = OnceLock::new();
     A.get_or_init(|| {
-        let f = fixture();
-        let data = f.run.record.samples();
-        let sm = ScaledModel::equilibrated(f.model, &data).expect("excited");
-        let cfg = AdalineConfig {
-            step_size: 0.5,
-            ..Default::default()
-        };
-        let mut ad = Adaline::new(sm, Beta::zeros(), cfg).expect("config");
-        let rep = ad.train(&data, ADALINE_EPOCHS).expect("converges");
-        // The a-priori error falls over the epochs.
-        assert!(rep.rms_error[ADALINE_EPOCHS - 1] < 1e-3 * rep.rms_error[0]);
-        (
-            sm.to_model(ad.estimate()),
-            rep.rms_error[ADALINE_EPOCHS - 1],
-        )
+        scaled_estimate(ADALINE_EPOCHS, |sm, data| {
+            let mut ad = Adaline::new(sm, Beta::zeros(), puma_adaline_config()).expect("config");
+            let rep = ad.train(data, ADALINE_EPOCHS).expect("converges");
+            (*ad.estimate(), rep)
+        })
     })
 }
 
@@ -332,44 +351,20 @@ fn adaline_estimate() -> &'static (Beta, f64) {
 /// torques within 1e-3 of their RMS per joint.
 #[test]
 fn hopfield_recovers_puma_base_parameters() {
-    let f = fixture();
-    let beta = truth();
-    let (est, rms) = hopfield_estimate();
-    let (rel, abs) = errors(est, &beta);
-    println!(
-        "Hopfield: worst rel {rel:.2e}, worst abs on zero β {abs:.2e}, final RMS equation \
-         error {rms:.2e} N·m"
-    );
-    assert!(rel < 1e-3);
-    assert!(abs < 1e-3 * smallest_nonzero(&beta));
-    let pe = prediction_errors(&f.model, est, &f.validation.record);
-    println!("Hopfield: validation error / RMS τ per joint {}", line(&pe));
-    assert!(pe.max() < 1e-3);
+    assert_recovers("Hopfield", hopfield_estimate());
 }
 
 fn hopfield_estimate() -> &'static (Beta, f64) {
     static H: OnceLock<(Beta, f64)> = OnceLock::new();
     H.get_or_init(|| {
-        let f = fixture();
-        let data = f.run.record.samples();
-        let sm = ScaledModel::equilibrated(f.model, &data).expect("excited");
-        let c = 100.0;
-        let cfg = HopfieldConfig {
-            bound: c,
-            beta: c * DT * (6 * B) as f64,
-            dt: DT,
-            max_substeps: 64,
-            ..Default::default()
-        };
-        let mut hn = Hopfield::new(sm, Beta::zeros(), cfg).expect("config");
-        let rep = hn.train(&data, HOPFIELD_EPOCHS).expect("stable");
-        let per_sample = hn.substeps() as f64 / hn.samples() as f64;
-        println!("Hopfield: {per_sample:.2} Euler sub-steps per sample");
-        assert!(rep.rms_error[HOPFIELD_EPOCHS - 1] < 1e-3 * rep.rms_error[0]);
-        (
-            sm.to_model(hn.estimate()),
-            rep.rms_error[HOPFIELD_EPOCHS - 1],
-        )
+        scaled_estimate(HOPFIELD_EPOCHS, |sm, data| {
+            let cfg = puma_hopfield_config(B, DT);
+            let mut hn = Hopfield::new(sm, Beta::zeros(), cfg).expect("config");
+            let rep = hn.train(data, HOPFIELD_EPOCHS).expect("stable");
+            let per_sample = hn.substeps() as f64 / hn.samples() as f64;
+            println!("Hopfield: {per_sample:.2} Euler sub-steps per sample");
+            (*hn.estimate(), rep)
+        })
     })
 }
 
@@ -406,12 +401,8 @@ fn puma560_estimates_table() {
     let f = fixture();
     let beta = truth();
     let data = f.run.record.samples();
-    let sigma = f.run.record.tau_rms() * 0.02;
-    let noisy = f.run.record.with_tau_noise(&sigma, 7);
     let mut solver = LeastSquares::new(LeastSquaresConfig::default()).expect("config");
-    let wls = solver
-        .solve_weighted(&f.model, &noisy.samples(), JointNoise::Estimated)
-        .expect("full rank");
+    let (_, _, wls) = two_percent_noise_wls(&mut solver);
     let ls = least_squares(&f.model, &data, &LeastSquaresConfig::default()).expect("rank");
     let (ad, _) = adaline_estimate();
     let (hn, _) = hopfield_estimate();

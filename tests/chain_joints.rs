@@ -111,6 +111,17 @@ fn random_state(rng: &mut StdRng) -> [SVector<f64, N>; 3] {
     std::array::from_fn(|_| SVector::from_fn(|_, _| rng.random_range(-1.5..1.5)))
 }
 
+/// For seed in 0..`count`: the chain `random_chain(first + seed)` and a random state, the
+/// states drawn in turn from one generator seeded with `state_seed`.
+type Case = (u64, SerialChain<N>, [SVector<f64, N>; 3]);
+
+fn random_cases(state_seed: u64, first: u64, count: u64) -> Vec<Case> {
+    let mut rng = StdRng::seed_from_u64(state_seed);
+    (0..count)
+        .map(|seed| (seed, random_chain(first + seed), random_state(&mut rng)))
+        .collect()
+}
+
 /// Link poses in the world frame, composed from the joints' definitions.
 fn poses(chain: &SerialChain<N>, q: &SVector<f64, N>) -> [Isometry3<f64>; N] {
     let mut t = Isometry3::identity();
@@ -183,10 +194,7 @@ fn energy(chain: &SerialChain<N>, q: &SVector<f64, N>, qd: &SVector<f64, N>) -> 
 
 #[test]
 fn mass_matrix_equals_the_jacobian_sum_of_the_composed_poses() {
-    let mut rng = StdRng::seed_from_u64(11);
-    for seed in 0..6 {
-        let chain = random_chain(seed);
-        let [q, _, _] = random_state(&mut rng);
+    for (seed, chain, [q, _, _]) in random_cases(11, 0, 6) {
         let cw = com_world(&chain, &q);
         let mut want = SMatrix::<f64, N, N>::zeros();
         for (i, (jv, jw)) in jacobians(&chain, &q).into_iter().enumerate() {
@@ -204,10 +212,7 @@ fn mass_matrix_equals_the_jacobian_sum_of_the_composed_poses() {
 
 #[test]
 fn power_balance_along_a_trajectory() {
-    let mut rng = StdRng::seed_from_u64(5);
-    for seed in 0..4 {
-        let chain = random_chain(100 + seed);
-        let [q0, qd0, qdd] = random_state(&mut rng);
+    for (seed, chain, [q0, qd0, qdd]) in random_cases(5, 100, 4) {
         // q(t) = q0 + q̇0·t + ½·q̈·t²: d(T+V)/dt at t = 0 by central differences.
         let at = |t: f64| (q0 + qd0 * t + qdd * (0.5 * t * t), qd0 + qdd * t);
         let h = 1e-4;
@@ -228,10 +233,7 @@ fn power_balance_along_a_trajectory() {
 
 #[test]
 fn regressor_forward_dynamics_and_dynamic_size_agree() {
-    let mut rng = StdRng::seed_from_u64(9);
-    for seed in 0..6 {
-        let chain = random_chain(200 + seed);
-        let [q, qd, qdd] = random_state(&mut rng);
+    for (_, chain, [q, qd, qdd]) in random_cases(9, 200, 6) {
         let tau = chain.inverse_dynamics(&q, &qd, &qdd);
         let y: SMatrix<f64, N, 50> = chain.regressor(&q, &qd, &qdd);
         let pi = chain.inertial_vector::<50>();

@@ -8,6 +8,9 @@
 //! wrist, and the exact sign forced on smooth data must leave a larger error — so the gain
 //! is measured here, not assumed.
 
+mod dyn_support;
+
+use dyn_support::with_smoothed_friction;
 use prrrp_core::{
     identify_least_squares, select_coulomb_scale, BaseOptions, CoulombScaleConfig, DynChain,
     DynDataset, FrictionModel, LeastSquaresConfig, PrrrpError, SerialChain, COULOMB_SCALE_RANGE,
@@ -21,10 +24,6 @@ const N: usize = 6;
 const NOISE: f64 = 0.005;
 
 fn chain(v_s: f64) -> DynChain {
-    let friction = FrictionModel {
-        coulomb_smoothing: v_s,
-        ..FrictionModel::all()
-    };
     // Wrist friction (joints 4–6) dominates their tiny link inertias.
     let params = vec![
         [0.8, 0.6, 0.05],
@@ -34,10 +33,7 @@ fn chain(v_s: f64) -> DynChain {
         [0.04, 0.1, -0.01],
         [0.03, 0.08, 0.005],
     ];
-    SerialChain::puma560()
-        .to_dyn()
-        .with_friction(friction, params)
-        .expect("valid friction")
+    with_smoothed_friction(SerialChain::puma560().to_dyn(), v_s, params)
 }
 
 /// A multi-sine per joint whose speed reverses many times, sampled at 200 Hz.

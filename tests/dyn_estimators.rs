@@ -17,8 +17,11 @@ mod dyn_support;
 
 use std::sync::OnceLock;
 
-use chain_support::{errors, puma_base_model, simulate, smallest_nonzero, Fourier, Run, SimConfig};
-use dyn_support::{exact_record, panda_like, DynFourier, DynRecord};
+use chain_support::{
+    errors, puma_adaline_config, puma_base_model, puma_hopfield_config, puma_reference, simulate,
+    smallest_nonzero, Run, SimConfig,
+};
+use dyn_support::{base_model, exact_record, panda_like, DynFourier, DynRecord};
 use prrrp_core::nalgebra::{DMatrix, DVector, SVector};
 use prrrp_core::{
     least_squares, Adaline, AdalineConfig, BaseOptions, BaseParameters, ChainBaseModel,
@@ -52,8 +55,7 @@ fn fixture() -> &'static Fixture {
         assert_eq!(dbase.independent, base.independent);
         let dmodel = dchain.base_model(&dbase).expect("layout");
         // The excitation chosen in chain_estimators.rs (best cond of 8 seeds).
-        let reference = Fourier::seeded(6, 10.0, [0.0, 1.57, -1.57, 0.0, 0.0, 0.0], [1.5; 6]);
-        let run = simulate(&chain, &reference, &SimConfig::default());
+        let run = simulate(&chain, &puma_reference(6), &SimConfig::default());
         let r = &run.record;
         let rec = DynRecord::from_fixed(&r.q, &r.qd, &r.qdd, &r.tau);
         Fixture {
@@ -110,35 +112,31 @@ fn dyn_base_model_equals_fixed_model() {
         for scale in [1.0, 1.2] {
             let bs = beta_s * scale;
             let bd = dvec(&bs);
+            // Run-time kernels into their buffers, the compile-time model on the same sample.
             m.regressor_into(&mut ws, q, qd, a, &mut phi).unwrap();
-            let phi_s =
-                prrrp_core::LinearDynamics::regressor(&f.model, &r.q[k], &r.qd[k], &r.qdd[k]);
-            worst = worst.max(rel_diff(phi.as_slice(), phi_s.as_slice()));
             m.inverse_dynamics_into(&mut ws, q, qd, a, &bd, &mut tau)
                 .unwrap();
-            let tau_s = prrrp_core::LinearDynamics::inverse_dynamics(
-                &f.model, &r.q[k], &r.qd[k], &r.qdd[k], &bs,
-            );
-            worst = worst.max(rel_diff(tau.as_slice(), tau_s.as_slice()));
             m.forward_dynamics_into(&mut ws, q, qd, t, &bd, &mut qdd)
                 .unwrap();
-            let qdd_s = prrrp_core::LinearDynamics::forward_dynamics(
-                &f.model, &r.q[k], &r.qd[k], &r.tau[k], &bs,
-            )
-            .unwrap();
-            worst = worst.max(rel_diff(qdd.as_slice(), qdd_s.as_slice()));
             m.forward_derivatives_into(&mut ws, q, qd, t, &bd, &mut fd)
                 .unwrap();
-            let fd_s = prrrp_core::LinearDynamics::forward_derivatives(
-                &f.model, &r.q[k], &r.qd[k], &r.tau[k], &bs,
-            )
-            .unwrap();
-            worst = worst.max(rel_diff(fd.dqdd_dq.as_slice(), fd_s.dqdd_dq.as_slice()));
-            worst = worst.max(rel_diff(fd.dqdd_dqd.as_slice(), fd_s.dqdd_dqd.as_slice()));
-            worst = worst.max(rel_diff(
-                fd.dqdd_dlambda.as_slice(),
-                fd_s.dqdd_dlambda.as_slice(),
-            ));
+            let (qs, qds, qdds, ts) = (&r.q[k], &r.qd[k], &r.qdd[k], &r.tau[k]);
+            let fm = &f.model;
+            let phi_s = prrrp_core::LinearDynamics::regressor(fm, qs, qds, qdds);
+            let tau_s = prrrp_core::LinearDynamics::inverse_dynamics(fm, qs, qds, qdds, &bs);
+            let qdd_s = prrrp_core::LinearDynamics::forward_dynamics(fm, qs, qds, ts, &bs).unwrap();
+            let fd_s =
+                prrrp_core::LinearDynamics::forward_derivatives(fm, qs, qds, ts, &bs).unwrap();
+            for (got, want) in [
+                (phi.as_slice(), phi_s.as_slice()),
+                (tau.as_slice(), tau_s.as_slice()),
+                (qdd.as_slice(), qdd_s.as_slice()),
+                (fd.dqdd_dq.as_slice(), fd_s.dqdd_dq.as_slice()),
+                (fd.dqdd_dqd.as_slice(), fd_s.dqdd_dqd.as_slice()),
+                (fd.dqdd_dlambda.as_slice(), fd_s.dqdd_dlambda.as_slice()),
+            ] {
+                worst = worst.max(rel_diff(got, want));
+            }
             // τ = Φ_b·β: the O(n) recursion on the equivalent chain is the regressor's.
             let lin = &phi * &bd;
             assert!(rel_diff(lin.as_slice(), tau.as_slice()) < 1e-12);
@@ -157,8 +155,7 @@ fn dyn_base_model_equals_fixed_model() {
 #[test]
 fn panda_like_base_model_dynamics_and_derivatives() {
     let chain = panda_like();
-    let base = chain.base_parameters(&BaseOptions::default()).unwrap();
-    let m = chain.base_model(&base).unwrap();
+    let m = base_model(&chain);
     let beta = m.chain_base_values().clone();
     let (n, b) = m.dims();
     println!("Panda-like: {} joints, {} base parameters", n.0, b.0);
@@ -179,56 +176,32 @@ fn panda_like_base_model_dynamics_and_derivatives() {
         m.forward_derivatives_into(&mut ws, &q, &qd, &tau, &beta, &mut fd)
             .unwrap();
         assert!(rel_diff(fd.qdd.as_slice(), qdd.as_slice()) < 1e-9);
-        let mut check =
-            |col: &mut dyn FnMut(usize, f64) -> (DVector<f64>, DVector<f64>, DVector<f64>),
-             want: &DMatrix<f64>,
-             h: &dyn Fn(usize) -> f64,
-             what: &str| {
-                let mut num = DMatrix::zeros(7, want.ncols());
-                for j in 0..want.ncols() {
-                    let hj = h(j);
-                    let (qa, va, la) = col(j, hj);
-                    m.forward_dynamics_into(&mut ws, &qa, &va, &tau, &la, &mut plus)
+        // Central differences in one argument of q̈(q, q̇, τ, β) at a time.
+        let point = [&q, &qd, &beta];
+        for (arg, want, what) in [
+            (0, &fd.dqdd_dq, "∂q̈/∂q"),
+            (1, &fd.dqdd_dqd, "∂q̈/∂q̇"),
+            (2, &fd.dqdd_dlambda, "∂q̈/∂β"),
+        ] {
+            let mut num = DMatrix::zeros(7, want.ncols());
+            for j in 0..want.ncols() {
+                let h = if arg == 2 {
+                    1e-6 * (1.0 + beta[j].abs())
+                } else {
+                    1e-5
+                };
+                for (step, out) in [(h, &mut plus), (-h, &mut minus)] {
+                    let mut x = point.map(|v| v.clone());
+                    x[arg][j] += step;
+                    m.forward_dynamics_into(&mut ws, &x[0], &x[1], &tau, &x[2], out)
                         .unwrap();
-                    let (qb, vb, lb) = col(j, -hj);
-                    m.forward_dynamics_into(&mut ws, &qb, &vb, &tau, &lb, &mut minus)
-                        .unwrap();
-                    num.set_column(j, &((&plus - &minus) / (2.0 * hj)));
                 }
-                let d = rel_diff(want.as_slice(), num.as_slice());
-                println!("sample {k}: {what} vs central differences: {d:.1e}");
-                assert!(d < 1e-6, "{what}: {d}");
-            };
-        check(
-            &mut |j, h| {
-                let mut qa = q.clone();
-                qa[j] += h;
-                (qa, qd.clone(), beta.clone())
-            },
-            &fd.dqdd_dq,
-            &|_| 1e-5,
-            "∂q̈/∂q",
-        );
-        check(
-            &mut |j, h| {
-                let mut va = qd.clone();
-                va[j] += h;
-                (q.clone(), va, beta.clone())
-            },
-            &fd.dqdd_dqd,
-            &|_| 1e-5,
-            "∂q̈/∂q̇",
-        );
-        check(
-            &mut |j, h| {
-                let mut la = beta.clone();
-                la[j] += h;
-                (q.clone(), qd.clone(), la)
-            },
-            &fd.dqdd_dlambda,
-            &|j| 1e-6 * (1.0 + beta[j].abs()),
-            "∂q̈/∂β",
-        );
+                num.set_column(j, &((&plus - &minus) / (2.0 * h)));
+            }
+            let d = rel_diff(want.as_slice(), num.as_slice());
+            println!("sample {k}: {what} vs central differences: {d:.1e}");
+            assert!(d < 1e-6, "{what}: {d}");
+        }
     }
 }
 
@@ -263,8 +236,7 @@ fn least_squares_dyn_recovers_puma_and_equals_fixed() {
 #[test]
 fn least_squares_dyn_recovers_panda_like_with_friction() {
     let chain = panda_like();
-    let base = chain.base_parameters(&BaseOptions::default()).unwrap();
-    let m = chain.base_model(&base).unwrap();
+    let m = base_model(&chain);
     let beta = m.chain_base_values().clone();
     let rec = exact_record(&chain, &DynFourier::seeded(11, 7, 1.0), 2000, DT);
     let ls = least_squares(&m, &rec.samples(), &LeastSquaresConfig::default()).expect("rank");
@@ -313,43 +285,35 @@ fn adaline_and_hopfield_dyn_equal_fixed_and_converge() {
     let dm = DynScaledModel::equilibrated(f.dmodel.clone(), &data).unwrap();
     let sm = ScaledModel::equilibrated(f.model, &sdata).unwrap();
     assert!(rel_diff(dm.scale().as_slice(), sm.scale().as_slice()) <= 1e-15);
-
-    let cfg = AdalineConfig {
-        step_size: 0.5,
-        ..Default::default()
+    // The `Dyn` estimate γ̂ (scaled units) of `name` against the `Const` one, and β̂ = D·γ̂
+    // against the truth.
+    let check = |name: &str, gamma: &DVector<f64>, gamma_s: &Beta| {
+        let est = dm.to_model(gamma);
+        let diff = rel_diff(gamma.as_slice(), gamma_s.as_slice());
+        let (rel, abs) = errors(est.as_slice(), beta.as_slice());
+        println!("Dyn {name}: worst rel {rel:.2e}, abs {abs:.2e}; Dyn vs Const {diff:.1e}");
+        assert!(diff <= 1e-12, "{name}: {diff}");
+        assert!(rel < 1e-3, "{name}: {rel}");
+        assert!(
+            abs < 1e-3 * smallest_nonzero(beta.as_slice()),
+            "{name}: {abs}"
+        );
     };
+
+    let cfg = puma_adaline_config();
     let mut ad = DynAdaline::new(dm.clone(), DVector::zeros(B), cfg).unwrap();
     ad.train(&data, 150).unwrap();
     let mut ad_s = Adaline::new(sm, Beta::zeros(), cfg).unwrap();
     ad_s.train(&sdata, 150).unwrap();
-    let est = dm.to_model(ad.estimate());
-    let diff = rel_diff(ad.estimate().as_slice(), ad_s.estimate().as_slice());
-    let (rel, abs) = errors(est.as_slice(), beta.as_slice());
-    println!("Dyn Adaline: worst rel {rel:.2e}, abs {abs:.2e}; Dyn vs Const {diff:.1e}");
-    assert!(diff <= 1e-12, "{diff}");
-    assert!(rel < 1e-3);
-    assert!(abs < 1e-3 * smallest_nonzero(beta.as_slice()));
+    check("Adaline", ad.estimate(), ad_s.estimate());
 
-    let c = 100.0;
-    let cfg = HopfieldConfig {
-        bound: c,
-        beta: c * DT * (6 * B) as f64,
-        dt: DT,
-        max_substeps: 64,
-        ..Default::default()
-    };
+    let cfg = puma_hopfield_config(B, DT);
     let mut hn = DynHopfield::new(dm.clone(), DVector::zeros(B), cfg).unwrap();
     hn.train(&data, 150).unwrap();
     let mut hn_s = Hopfield::new(sm, Beta::zeros(), cfg).unwrap();
     hn_s.train(&sdata, 150).unwrap();
-    let est = dm.to_model(hn.estimate());
-    let diff = rel_diff(hn.estimate().as_slice(), hn_s.estimate().as_slice());
-    let (rel, abs) = errors(est.as_slice(), beta.as_slice());
-    println!("Dyn Hopfield: worst rel {rel:.2e}, abs {abs:.2e}; Dyn vs Const {diff:.1e}");
     assert_eq!(hn.substeps(), hn_s.substeps());
-    assert!(diff <= 1e-12, "{diff}");
-    assert!(rel < 1e-3);
-    assert!(abs < 1e-3 * smallest_nonzero(beta.as_slice()));
+    check("Hopfield", hn.estimate(), hn_s.estimate());
 }
 
 /// The whitened model (λ = D·T·γ, `DynScaledModel::whitened`) on the PUMA's record: its
@@ -464,7 +428,7 @@ fn whitened_model_is_orthogonal_and_speeds_up_the_gradient_methods() {
 fn zoh_record(m: &DynChainBaseModel, samples: usize) -> DynRecord {
     let beta = m.chain_base_values();
     let mut ws = m.workspace();
-    let reference = Fourier::<6>::seeded(6, 10.0, [0.0, 1.57, -1.57, 0.0, 0.0, 0.0], [1.5; 6]);
+    let reference = puma_reference(6);
     let [q0, v0, _] = reference.eval(0.0);
     let (mut q, mut v) = (dvec(&q0), dvec(&v0));
     let (kp, kd) = (400.0, 40.0);
@@ -543,23 +507,16 @@ fn ekf_dyn_equals_fixed_and_moves_towards_truth() {
     let est = ekf.run(&rec.samples()).unwrap();
     let beta_s: Beta = f.model.chain_base_values();
     let mut ekf_s = Ekf::<_, 6, B, 48>::new(f.model, beta_s * 1.2, cfg).unwrap();
-    let (q, qd, qdd, tau): (Vec<_>, Vec<_>, Vec<_>, Vec<_>) = (
-        rec.q
-            .iter()
-            .map(|v| SVector::<f64, 6>::from_column_slice(v.as_slice()))
-            .collect(),
-        rec.qd
-            .iter()
-            .map(|v| SVector::<f64, 6>::from_column_slice(v.as_slice()))
-            .collect(),
-        rec.qdd
-            .iter()
-            .map(|v| SVector::<f64, 6>::from_column_slice(v.as_slice()))
-            .collect(),
-        rec.tau
-            .iter()
-            .map(|v| SVector::<f64, 6>::from_column_slice(v.as_slice()))
-            .collect(),
+    let fixed = |col: &[DVector<f64>]| -> Vec<SVector<f64, 6>> {
+        col.iter()
+            .map(|v| SVector::from_column_slice(v.as_slice()))
+            .collect()
+    };
+    let (q, qd, qdd, tau) = (
+        fixed(&rec.q),
+        fixed(&rec.qd),
+        fixed(&rec.qdd),
+        fixed(&rec.tau),
     );
     let est_s = ekf_s
         .run(&prrrp_core::Samples::new(&q, &qd, &qdd, &tau).unwrap())
@@ -732,8 +689,7 @@ fn ekf_time_update_on_a_damped_rotor_matches_its_exact_decay() {
         vec![[fv, 0.0, 0.0]],
     )
     .unwrap();
-    let base = chain.base_parameters(&BaseOptions::default()).unwrap();
-    let model = chain.base_model(&base).unwrap();
+    let model = base_model(&chain);
     let beta = model.chain_base_values().clone();
     // (q, q̇) after one prediction from the state the first step left.
     let predict = |h: f64, stiff_handling: bool| {

@@ -1,5 +1,8 @@
 //! Physics checks of the closed-form PRRRP model over wide random states (proptest).
 
+mod est_support;
+
+use est_support::paper;
 use nalgebra::SMatrix;
 use proptest::prelude::*;
 use prrrp_core::{Lambda, Mat5, PrrrpError, PrrrpModel, Robot, Vec5};
@@ -87,9 +90,7 @@ proptest! {
 
     #[test]
     fn inverse_derivatives_match_finite_differences((q, qd, qdd) in state()) {
-        let r = Robot::paper();
-        let lambda = r.base_parameters();
-        let model = r.model();
+        let (model, lambda) = paper();
         let d = model.inverse_derivatives(&q, &qd, &qdd, &lambda);
         let fd_q = central_diff(|x| model.inverse_dynamics(&x, &qd, &qdd, &lambda), q, 1e-6);
         let fd_qd = central_diff(|x| model.inverse_dynamics(&q, &x, &qdd, &lambda), qd, 1e-6);
@@ -99,9 +100,7 @@ proptest! {
 
     #[test]
     fn forward_derivatives_match_finite_differences((q, qd, qdd) in state()) {
-        let r = Robot::paper();
-        let lambda = r.base_parameters();
-        let model = r.model();
+        let (model, lambda) = paper();
         let tau = model.inverse_dynamics(&q, &qd, &qdd, &lambda);
         let d = model.forward_derivatives(&q, &qd, &tau, &lambda).unwrap();
         let fdyn = |q: &Vec5, qd: &Vec5, l: &Lambda| model.forward_dynamics(q, qd, &tau, l).unwrap();
@@ -275,9 +274,7 @@ fn non_physical_lambda_gives_typed_error() {
 
 #[test]
 fn potential_energy_gradient_is_gravity() {
-    let r = Robot::paper();
-    let lambda = r.base_parameters();
-    let model = r.model();
+    let (model, lambda) = paper();
     let q = Vec5::new(0.3, 1.0, -2.0, 0.5, 0.05);
     let grad = central_diff(
         |x| Vec5::from_element(model.potential_energy(&x, &lambda)),

@@ -303,6 +303,17 @@ fn the_paper_arm_identifies_through_its_chain() {
 fn bad_input_is_a_typed_error() {
     let f = fixture();
     let ls = Method::parse("ls").unwrap();
+    // Every method's error on `data`, with the method's name.
+    let every_method = |data: &DynDataset| {
+        METHOD_NAMES.map(|name| {
+            let m = method(name);
+            let e = identify(&f.chain, &f.base, data, &m, serde_json::json!({})).unwrap_err();
+            (name, e)
+        })
+    };
+    // The error of method `m` on the exact data.
+    let exact_error =
+        |m: &Method| identify(&f.chain, &f.base, &f.exact, m, serde_json::json!({})).unwrap_err();
     // Wrong joint count.
     let puma = SerialChain::puma560().to_dyn();
     let pbase = puma.base_parameters(&BaseOptions::default()).unwrap();
@@ -320,15 +331,7 @@ fn bad_input_is_a_typed_error() {
         f.exact.tau()[r].to_vec(),
     )
     .unwrap();
-    for name in METHOD_NAMES {
-        let e = identify(
-            &f.chain,
-            &f.base,
-            &few,
-            &method(name),
-            serde_json::json!({}),
-        )
-        .unwrap_err();
+    for (name, e) in every_method(&few) {
         assert!(matches!(e, PrrrpError::TooFewSamples { .. }), "{name}: {e}");
     }
     // NaN never reaches identify: the data set refuses it, naming joint and row.
@@ -366,7 +369,7 @@ fn bad_input_is_a_typed_error() {
             ..GradientSettings::adaline()
         }),
     ] {
-        let e = identify(&f.chain, &f.base, &f.exact, &m, serde_json::json!({})).unwrap_err();
+        let e = exact_error(&m);
         assert!(matches!(e, PrrrpError::InvalidParameter { .. }), "{e}");
         println!("{e}");
     }
@@ -381,40 +384,18 @@ fn bad_input_is_a_typed_error() {
         f.exact.tau().to_vec(),
     )
     .unwrap();
-    for name in METHOD_NAMES {
-        let e = identify(
-            &f.chain,
-            &f.base,
-            &rest,
-            &method(name),
-            serde_json::json!({}),
-        )
-        .unwrap_err();
+    for (name, e) in every_method(&rest) {
         assert!(matches!(e, PrrrpError::RankDeficient { .. }), "{name}: {e}");
     }
     // An EKF β0 of the wrong length; an EKF from −β (not a physical mass matrix) diverges.
-    let e = identify(
-        &f.chain,
-        &f.base,
-        &f.exact,
-        &Method::Ekf(EkfSettings {
-            initial: EkfStart::Given(vec![1.0; 3]),
+    let ekf_from = |beta0: Vec<f64>| {
+        exact_error(&Method::Ekf(EkfSettings {
+            initial: EkfStart::Given(beta0),
             ..EkfSettings::default()
-        }),
-        serde_json::json!({}),
-    )
-    .unwrap_err();
+        }))
+    };
+    let e = ekf_from(vec![1.0; 3]);
     assert!(matches!(e, PrrrpError::ShapeMismatch { .. }), "{e}");
-    let e = identify(
-        &f.chain,
-        &f.base,
-        &f.exact,
-        &Method::Ekf(EkfSettings {
-            initial: EkfStart::Given(f.truth.iter().map(|b| -b).collect()),
-            ..EkfSettings::default()
-        }),
-        serde_json::json!({}),
-    )
-    .unwrap_err();
+    let e = ekf_from(f.truth.iter().map(|b| -b).collect());
     assert!(matches!(e, PrrrpError::Diverged { .. }), "{e}");
 }

@@ -139,12 +139,7 @@ fn reported_std_dev_matches_monte_carlo_spread() {
         let mut reported = SVector::<f64, 8>::zeros();
         for seed in 0..runs {
             let data = if weighted {
-                let noise = Noise {
-                    q: 0.0,
-                    qd: 0.0,
-                    qdd: 0.0,
-                    tau_rel: 0.05,
-                };
+                let noise = Noise::torque_only(0.05);
                 add_noise(&clean, noise, 1000 + seed).0
             } else {
                 let mut rng = StdRng::seed_from_u64(2000 + seed);
@@ -182,41 +177,14 @@ fn reported_std_dev_matches_monte_carlo_spread() {
 fn weighted_with_given_variances_downweights_the_noisy_joint() {
     let (model, lambda) = paper();
     let clean = excitation(1000, 5);
-    let (mut data, _) = add_noise(
-        &clean,
-        Noise {
-            q: 0.0,
-            qd: 0.0,
-            qdd: 0.0,
-            tau_rel: 0.01,
-        },
-        21,
-    );
+    let (mut data, _) = add_noise(&clean, Noise::torque_only(0.01), 21);
     // Joint 3 gets a hundred times more torque noise.
-    let (noisy3, sigma3) = add_noise(
-        &clean,
-        Noise {
-            q: 0.0,
-            qd: 0.0,
-            qdd: 0.0,
-            tau_rel: 1.0,
-        },
-        22,
-    );
+    let (noisy3, sigma3) = add_noise(&clean, Noise::torque_only(1.0), 22);
     for k in 0..data.len() {
         data.tau[k][2] = noisy3.tau[k][2];
     }
     let mut var = Vec5::zeros();
-    let (_, sigma_others) = add_noise(
-        &clean,
-        Noise {
-            q: 0.0,
-            qd: 0.0,
-            qdd: 0.0,
-            tau_rel: 0.01,
-        },
-        0,
-    );
+    let (_, sigma_others) = add_noise(&clean, Noise::torque_only(0.01), 0);
     for j in 0..5 {
         var[j] = if j == 2 {
             sigma3[j].powi(2)

@@ -8,12 +8,16 @@ mod dyn_support;
 #[path = "est_support/mod.rs"]
 mod est_support;
 
-use dyn_support::{exact_record, panda_like, DynFourier};
+use dyn_support::{base_model, exact_record, panda_like, DynFourier};
 use est_support::{add_noise, excitation, paper, Noise};
-use prrrp_core::nalgebra::{DMatrix, DVector, SVector, U5, U8};
+use prrrp_core::nalgebra::allocator::Allocator;
+use prrrp_core::nalgebra::{DMatrix, DVector, DefaultAllocator, Dim, SVector, U5, U8};
 use prrrp_core::{
-    BaseOptions, JointNoise, LeastSquares, LeastSquaresConfig, LinearModel, ScaledModel,
+    JointNoise, LeastSquares, LeastSquaresConfig, LeastSquaresReportOf, LinearModel, PrrrpError,
+    ScaledModel,
 };
+
+type PResult<T> = Result<T, PrrrpError>;
 
 const EPS: f64 = f64::EPSILON;
 
@@ -42,18 +46,36 @@ fn qr_config(cond: f64) -> LeastSquaresConfig {
     }
 }
 
+/// Runs `solve` with the default configuration, which must take the normal equations,
+/// then with a fresh solver forced onto the QR path at the first solve's cond. Returns the
+/// default solver, both reports and the bound 10·cond²·ε on their difference.
+fn fast_and_qr<N: Dim, P: Dim>(
+    solve: impl Fn(&mut LeastSquares) -> PResult<LeastSquaresReportOf<N, P>>,
+) -> (
+    LeastSquares,
+    LeastSquaresReportOf<N, P>,
+    LeastSquaresReportOf<N, P>,
+    f64,
+)
+where
+    DefaultAllocator: Allocator<N> + Allocator<P>,
+{
+    let mut fast = LeastSquares::new(LeastSquaresConfig::default()).unwrap();
+    let f = solve(&mut fast).unwrap();
+    assert!(fast.used_normal_equations());
+    let mut qr = LeastSquares::new(qr_config(f.cond)).unwrap();
+    let q = solve(&mut qr).unwrap();
+    assert!(!qr.used_normal_equations());
+    let bound = 10.0 * f.cond * f.cond * EPS;
+    (fast, f, q, bound)
+}
+
 #[test]
 fn fast_path_agrees_with_qr_on_noisy_prrrp_data() {
     let (model, _) = paper();
     let (data, _) = add_noise(&excitation(5000, 2), Noise::realistic(), 3);
     let ds = data.dataset();
-    let mut fast = LeastSquares::new(LeastSquaresConfig::default()).unwrap();
-    let f = fast.solve(&model, &ds).unwrap();
-    assert!(fast.used_normal_equations());
-    let mut qr = LeastSquares::new(qr_config(f.cond)).unwrap();
-    let q = qr.solve(&model, &ds).unwrap();
-    assert!(!qr.used_normal_equations());
-    let bound = 10.0 * f.cond * f.cond * EPS;
+    let (_, f, q, bound) = fast_and_qr(|s| s.solve(&model, &ds));
     println!("cond {:.1}, bound {bound:.1e}", f.cond);
     let d = rel(f.lambda.as_slice(), q.lambda.as_slice());
     println!("λ: {d:.1e}");
@@ -88,13 +110,7 @@ fn weighted_fast_path_agrees_with_qr() {
     let (data, sigma) = add_noise(&excitation(3000, 4), Noise::realistic(), 5);
     let ds = data.dataset();
     let var = JointNoise::<5>::Variances(sigma.map(|s| s * s));
-    let mut fast = LeastSquares::new(LeastSquaresConfig::default()).unwrap();
-    let f = fast.solve_weighted(&model, &ds, var).unwrap();
-    assert!(fast.used_normal_equations());
-    let mut qr = LeastSquares::new(qr_config(f.cond)).unwrap();
-    let q = qr.solve_weighted(&model, &ds, var).unwrap();
-    assert!(!qr.used_normal_equations());
-    let bound = 10.0 * f.cond * f.cond * EPS;
+    let (mut fast, f, q, bound) = fast_and_qr(|s| s.solve_weighted(&model, &ds, var));
     let d = rel(f.lambda.as_slice(), q.lambda.as_slice());
     println!("WLS cond {:.1}: λ {d:.1e}", f.cond);
     assert!(d <= bound, "{d}");
@@ -121,16 +137,9 @@ fn weighted_fast_path_agrees_with_qr() {
 #[test]
 fn fast_path_agrees_with_qr_on_the_panda_like_chain() {
     let chain = panda_like();
-    let base = chain.base_parameters(&BaseOptions::default()).unwrap();
-    let model = chain.base_model(&base).unwrap();
+    let model = base_model(&chain);
     let rec = exact_record(&chain, &DynFourier::seeded(11, 7, 1.0), 2000, 0.01);
-    let mut fast = LeastSquares::new(LeastSquaresConfig::default()).unwrap();
-    let f = fast.solve(&model, &rec.samples()).unwrap();
-    assert!(fast.used_normal_equations());
-    let mut qr = LeastSquares::new(qr_config(f.cond)).unwrap();
-    let q = qr.solve(&model, &rec.samples()).unwrap();
-    assert!(!qr.used_normal_equations());
-    let bound = 10.0 * f.cond * f.cond * EPS;
+    let (_, f, q, bound) = fast_and_qr(|s| s.solve(&model, &rec.samples()));
     let d = rel(f.lambda.as_slice(), q.lambda.as_slice());
     println!("chain cond {:.1}, bound {bound:.1e}: λ {d:.1e}", f.cond);
     assert!(d <= bound, "{d}");

@@ -94,6 +94,14 @@ fn rel_error(m: &IdentifiedModel, val: &Log) -> Vec<f64> {
     (0..n).map(|j| (e[j] / r[j]).sqrt()).collect()
 }
 
+/// The Panda-like arm, its base parameters and [`prior_model`] of it.
+fn panda_with_prior() -> (DynChain, BaseParameters, IdentifiedModel) {
+    let chain = panda_like();
+    let base = chain.base_parameters(&BaseOptions::default()).unwrap();
+    let prior = prior_model(&chain, &base);
+    (chain, base, prior)
+}
+
 fn prior_model(chain: &DynChain, base: &BaseParameters) -> IdentifiedModel {
     let un = log(chain, 11, 20.0, 200.0, None, (1e-5, 0.05));
     let flat = |v: &Vec<Vec<f64>>| v.iter().flatten().copied().collect::<Vec<f64>>();
@@ -126,9 +134,7 @@ struct Tracked {
 }
 
 fn track(method: OnlineMethod, payload: bool) -> Tracked {
-    let chain = panda_like();
-    let base = chain.base_parameters(&BaseOptions::default()).unwrap();
-    let prior = prior_model(&chain, &base);
+    let (chain, base, prior) = panda_with_prior();
     let grip = GRIP;
     let lg = log(&chain, 5, 24.0, 500.0, Some(grip), (1e-5, 0.05));
     let val = log(&chain, 21, 10.0, 100.0, Some(0.0), (0.0, 0.0));
@@ -210,7 +216,12 @@ fn mass_within_5_percent(r: &Tracked) {
 /// 3 % of each joint's RMS torque (the bars of issue 28); the mass is within 5 %.
 #[test]
 fn payload_mode_rls_tracks_a_gripped_part() {
-    let r = track(OnlineMethod::Rls, true);
+    tracks_a_gripped_part(OnlineMethod::Rls);
+}
+
+/// The bars of payload mode with `method` on the gripped part (see the tests).
+fn tracks_a_gripped_part(method: OnlineMethod) {
+    let r = track(method, true);
     detected(&r);
     below(&r.after3, 0.15, "3 s after the grip");
     below(&r.end, 0.03, "at the end");
@@ -222,11 +233,7 @@ fn payload_mode_rls_tracks_a_gripped_part() {
 /// bars. The joint-state EKF it replaced ended at 0.026 kg on this log.
 #[test]
 fn payload_mode_ekf_tracks_a_gripped_part() {
-    let r = track(OnlineMethod::Ekf, true);
-    detected(&r);
-    below(&r.after3, 0.15, "3 s after the grip");
-    below(&r.end, 0.03, "at the end");
-    mass_within_5_percent(&r);
+    tracks_a_gripped_part(OnlineMethod::Ekf);
 }
 
 /// Payload mode with `method` on the arm of `prior` over the whole of `lg`.
@@ -248,9 +255,7 @@ fn payload_run(prior: &IdentifiedModel, method: OnlineMethod, lg: &Log) -> Onlin
 /// the rigid bodies would rectify the noise at π = 0 and ratchet the mass up.
 #[test]
 fn payload_mode_without_a_payload_stays_empty() {
-    let chain = panda_like();
-    let base = chain.base_parameters(&BaseOptions::default()).unwrap();
-    let prior = prior_model(&chain, &base);
+    let (chain, _, prior) = panda_with_prior();
     let lg = log(&chain, 41, 10.0, 500.0, None, (1e-5, 0.05));
     for method in [OnlineMethod::Rls, OnlineMethod::Ekf] {
         let id = payload_run(&prior, method, &lg);
@@ -300,9 +305,7 @@ fn ekf_meets_the_issue_bars_after_a_grip() {
 /// show after k0, so the comparison can fail).
 #[test]
 fn future_samples_do_not_change_past_estimates() {
-    let chain = panda_like();
-    let base = chain.base_parameters(&BaseOptions::default()).unwrap();
-    let prior = prior_model(&chain, &base);
+    let (chain, _, prior) = panda_with_prior();
     let a = log(&chain, 7, 4.0, 500.0, None, (1e-5, 0.05));
     let k0 = 1200;
     let mut b_tau = a.tau.clone();
@@ -353,9 +356,7 @@ fn future_samples_do_not_change_past_estimates() {
 /// changes nothing; the estimate still predicts a held-out motion within 3 %.
 #[test]
 fn repeated_rows_and_irregular_clocks() {
-    let chain = panda_like();
-    let base = chain.base_parameters(&BaseOptions::default()).unwrap();
-    let prior = prior_model(&chain, &base);
+    let (chain, _, prior) = panda_with_prior();
     let f = DynFourier::seeded(9, 7, 1.0);
     let mut id = OnlineIdentifier::with_prior(&prior, OnlineConfig::default()).unwrap();
     let mut t = 0.0;
@@ -450,9 +451,7 @@ fn directional_forgetting_does_not_wind_up() {
 /// (the bar of `prrrp track`'s model).
 #[test]
 fn ekf_from_a_least_squares_prior_starts_at_once() {
-    let chain = panda_like();
-    let base = chain.base_parameters(&BaseOptions::default()).unwrap();
-    let prior = prior_model(&chain, &base);
+    let (chain, _, prior) = panda_with_prior();
     let lg = log(&chain, 8, 6.0, 500.0, None, (1e-5, 0.05));
     let cfg = OnlineConfig {
         method: OnlineMethod::Ekf,
@@ -555,9 +554,7 @@ fn bad_input_is_refused() {
 /// at 500 Hz) through payload mode with `method`: per log the estimate at the end and
 /// its σ.
 fn ten_payload_logs(method: OnlineMethod) -> Vec<([f64; 10], [f64; 10])> {
-    let chain = panda_like();
-    let base = chain.base_parameters(&BaseOptions::default()).unwrap();
-    let prior = prior_model(&chain, &base);
+    let (chain, _, prior) = panda_with_prior();
     (0..10)
         .map(|seed| {
             let lg = log(&chain, 30 + seed, 10.0, 500.0, Some(0.0), (1e-5, 0.05));

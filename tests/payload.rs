@@ -191,21 +191,8 @@ fn drive_gains_of_exact_currents_are_recovered() {
     let chain = puma();
     let gains = [12.0, 13.5, 11.0, 9.0, 8.5, 10.0];
     let to_currents = |d: &DynDataset| {
-        let cur: Vec<f64> = d
-            .tau()
-            .iter()
-            .enumerate()
-            .map(|(k, t)| t / gains[k % N])
-            .collect();
-        DynDataset::new(
-            N,
-            d.t().to_vec(),
-            d.q().to_vec(),
-            d.qd().to_vec(),
-            d.qdd().to_vec(),
-            cur,
-        )
-        .unwrap()
+        let cur = d.tau().iter().enumerate().map(|(k, t)| t / gains[k % N]);
+        with_efforts(d, cur.collect())
     };
     let unloaded = to_currents(&run(&chain, 1500, 0.0));
     let loaded = to_currents(&run(&loaded_chain(&chain, &truth()), 1500, 0.0));
@@ -240,13 +227,18 @@ fn noisy_currents(d: &DynDataset, gains: &[f64; N], rel: f64, rng: &mut ChaCha8R
         .enumerate()
         .map(|(k, t)| t / gains[k % N] + rel * rms[k % N].sqrt() * unit.sample(rng))
         .collect();
+    with_efforts(d, cur)
+}
+
+/// `d` with its efforts column (torques or currents, row-major) replaced by `effort`.
+fn with_efforts(d: &DynDataset, effort: Vec<f64>) -> DynDataset {
     DynDataset::new(
         N,
         d.t().to_vec(),
         d.q().to_vec(),
         d.qd().to_vec(),
         d.qdd().to_vec(),
-        cur,
+        effort,
     )
     .unwrap()
 }

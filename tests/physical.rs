@@ -15,9 +15,9 @@ mod dyn_support;
 use dyn_support::{exact_record, panda_like, DynFourier, DynRecord};
 use prrrp_core::faer::Mat;
 use prrrp_core::{
-    base_feasibility, identify_physical, inertial_parameters, standard_from_base, DynChain,
-    FeasibilityReport, FrictionModel, LinkFeasibility, PhysicalConfig, PhysicalProblem, PrrrpError,
-    SerialChain,
+    base_feasibility, identify_physical, inertial_parameters, standard_from_base, BaseParameters,
+    DynChain, FeasibilityReport, FrictionModel, LinkFeasibility, PhysicalConfig, PhysicalEstimate,
+    PhysicalProblem, PrrrpError, SerialChain,
 };
 use rand::rngs::StdRng;
 use rand::SeedableRng;
@@ -29,6 +29,22 @@ struct Flat {
     qd: Vec<f64>,
     qdd: Vec<f64>,
     tau: Vec<f64>,
+}
+
+impl Flat {
+    /// The physical-identification problem of these samples.
+    fn problem(&self, chain: &DynChain, cfg: &PhysicalConfig) -> PhysicalProblem {
+        PhysicalProblem::new(chain, &self.q, &self.qd, &self.qdd, &self.tau, cfg).unwrap()
+    }
+
+    /// [`identify_physical`] on these samples.
+    fn identify(
+        &self,
+        chain: &DynChain,
+        cfg: &PhysicalConfig,
+    ) -> Result<PhysicalEstimate, PrrrpError> {
+        identify_physical(chain, &self.q, &self.qd, &self.qdd, &self.tau, cfg)
+    }
 }
 
 fn flat(rec: &DynRecord) -> Flat {
@@ -50,12 +66,14 @@ fn data(chain: &DynChain, seed: u64, samples: usize, dt: f64) -> Flat {
     flat(&exact_record(chain, &reference, samples, dt))
 }
 
-fn add_noise(tau: &mut [f64], sigma: f64, seed: u64) {
+/// `d` with seeded Gaussian noise of standard deviation `sigma` (N·m) on every torque.
+fn with_noise(mut d: Flat, sigma: f64, seed: u64) -> Flat {
     let mut rng = StdRng::seed_from_u64(seed);
     let normal = Normal::new(0.0, sigma).unwrap();
-    for t in tau {
+    for t in &mut d.tau {
         *t += normal.sample(&mut rng);
     }
+    d
 }
 
 /// max_r |a_r − b_r| / max(|b_r|, 1e-4·max|b|): entries that vanish for the true robot (e.g.
@@ -68,6 +86,43 @@ fn max_rel(a: &[f64], b: &[f64]) -> f64 {
         .fold(0.0, f64::max)
 }
 
+/// The chain's standard parameters with every link's ten inertial entries times `inertial`
+/// and every friction coefficient times `friction`: another robot, consistent when both
+/// factors are positive.
+fn scaled_parameters(chain: &DynChain, inertial: f64, friction: f64) -> Vec<f64> {
+    let links = 10 * chain.dof();
+    chain
+        .parameters()
+        .iter()
+        .enumerate()
+        .map(|(k, v)| {
+            if k < links {
+                inertial * v
+            } else {
+                friction * v
+            }
+        })
+        .collect()
+}
+
+/// The standard vector identified on `d` with `prior` at `prior_weight`, and its largest
+/// relative distance ([`max_rel`]) to `expected`.
+fn prior_estimate_error(
+    chain: &DynChain,
+    d: &Flat,
+    prior: Vec<f64>,
+    prior_weight: f64,
+    expected: &[f64],
+) -> f64 {
+    let cfg = PhysicalConfig {
+        prior: Some(prior),
+        prior_weight,
+        ..PhysicalConfig::default()
+    };
+    let est = d.identify(chain, &cfg).unwrap();
+    max_rel(&est.parameters, expected)
+}
+
 /// RMS of W·π − τ on a record.
 fn rms_error(w: &Mat<f64>, pi: &[f64], tau: &[f64]) -> f64 {
     let mut s = 0.0;
@@ -78,17 +133,30 @@ fn rms_error(w: &Mat<f64>, pi: &[f64], tau: &[f64]) -> f64 {
     (s / w.nrows() as f64).sqrt()
 }
 
+/// RMS torque errors on a held-out trajectory (seed 77, exact torques) of the standard
+/// vector `pi` and of the base values `beta`.
+fn held_out_rms(
+    chain: &DynChain,
+    base: &BaseParameters,
+    pi: &[f64],
+    beta: &[f64],
+    samples: usize,
+    dt: f64,
+) -> (f64, f64) {
+    let test = data(chain, 77, samples, dt);
+    let w = chain
+        .observation_matrix(&test.q, &test.qd, &test.qdd)
+        .unwrap();
+    let wb = base.select_columns(&w).unwrap();
+    (
+        rms_error(&w, pi, &test.tau),
+        rms_error(&wb, beta, &test.tau),
+    )
+}
+
 fn exact_recovery(chain: &DynChain, samples: usize) {
     let d = data(chain, 11, samples, 0.02);
-    let est = identify_physical(
-        chain,
-        &d.q,
-        &d.qd,
-        &d.qdd,
-        &d.tau,
-        &PhysicalConfig::default(),
-    )
-    .unwrap();
+    let est = d.identify(chain, &PhysicalConfig::default()).unwrap();
     let truth = est
         .base_parameters
         .base_values(&chain.parameters())
@@ -130,12 +198,8 @@ fn prior_fixes_unidentifiable_directions() {
     let chain = panda_like();
     let d = data(&chain, 5, 200, 0.05);
     let truth = chain.parameters();
-    let cfg = PhysicalConfig {
-        prior: Some(truth.clone()),
-        ..PhysicalConfig::default()
-    };
-    let est = identify_physical(&chain, &d.q, &d.qd, &d.qdd, &d.tau, &cfg).unwrap();
-    let err = max_rel(&est.parameters, &truth);
+    let weight = PhysicalConfig::default().prior_weight;
+    let err = prior_estimate_error(&chain, &d, truth.clone(), weight, &truth);
     assert!(err < 1e-6, "standard parameters off by {err:e}");
 }
 
@@ -150,19 +214,13 @@ fn prior_fixes_unidentifiable_directions() {
 fn divergence_prior_is_the_maximum_a_posteriori_estimate() {
     use prrrp_core::nalgebra::{DMatrix, DVector, Matrix4};
     let chain = panda_like();
-    let mut d = data(&chain, 8, 2000, 0.01);
-    add_noise(&mut d.tau, 0.005, 3);
-    let prior: Vec<f64> = chain
-        .parameters()
-        .iter()
-        .enumerate()
-        .map(|(k, v)| if k < 70 { 1.2 * v } else { *v })
-        .collect();
+    let d = with_noise(data(&chain, 8, 2000, 0.01), 0.005, 3);
+    let prior = scaled_parameters(&chain, 1.2, 1.0);
     let cfg = PhysicalConfig {
         prior: Some(prior.clone()),
         ..PhysicalConfig::default()
     };
-    let problem = PhysicalProblem::new(&chain, &d.q, &d.qd, &d.qdd, &d.tau, &cfg).unwrap();
+    let problem = d.problem(&chain, &cfg);
     let est = problem.solve(&cfg).unwrap();
     let base = problem.base_parameters().clone();
     let bf = base_feasibility(&base, &est.ls_base, &PhysicalConfig::default()).unwrap();
@@ -235,19 +293,8 @@ fn heavy_prior_weight_returns_the_prior() {
     let d = data(&chain, 5, 100, 0.05);
     // A different consistent robot as prior: every mass doubled (with first and second
     // moments), friction halved.
-    let prior: Vec<f64> = chain
-        .parameters()
-        .iter()
-        .enumerate()
-        .map(|(k, v)| if k < 70 { 2.0 * v } else { 0.5 * v })
-        .collect();
-    let cfg = PhysicalConfig {
-        prior: Some(prior.clone()),
-        prior_weight: 1e8,
-        ..PhysicalConfig::default()
-    };
-    let est = identify_physical(&chain, &d.q, &d.qd, &d.qdd, &d.tau, &cfg).unwrap();
-    let err = max_rel(&est.parameters, &prior);
+    let prior = scaled_parameters(&chain, 2.0, 0.5);
+    let err = prior_estimate_error(&chain, &d, prior.clone(), 1e8, &prior);
     assert!(err < 1e-3, "estimate {err:e} away from the prior");
 }
 
@@ -256,14 +303,13 @@ fn heavy_prior_weight_returns_the_prior() {
 #[test]
 fn joint_weights() {
     let chain = panda_like();
-    let mut d = data(&chain, 3, 120, 0.05);
-    add_noise(&mut d.tau, 0.3, 9);
+    let d = with_noise(data(&chain, 3, 120, 0.05), 0.3, 9);
     let solve = |w: Option<Vec<f64>>| {
         let cfg = PhysicalConfig {
             joint_weights: w,
             ..PhysicalConfig::default()
         };
-        identify_physical(&chain, &d.q, &d.qd, &d.qdd, &d.tau, &cfg).unwrap()
+        d.identify(&chain, &cfg).unwrap()
     };
     let plain = solve(None);
     let scaled = solve(Some(vec![4.0; 7]));
@@ -278,17 +324,8 @@ fn joint_weights() {
 #[test]
 fn few_noisy_samples() {
     let chain = panda_like();
-    let mut train = data(&chain, 21, 60, 0.15);
-    add_noise(&mut train.tau, 0.5, 1);
-    let problem = PhysicalProblem::new(
-        &chain,
-        &train.q,
-        &train.qd,
-        &train.qdd,
-        &train.tau,
-        &PhysicalConfig::default(),
-    )
-    .unwrap();
+    let train = with_noise(data(&chain, 21, 60, 0.15), 0.5, 1);
+    let problem = train.problem(&chain, &PhysicalConfig::default());
     let base = problem.base_parameters().clone();
     let (ls_beta, ls_res) = problem.least_squares();
 
@@ -319,13 +356,7 @@ fn few_noisy_samples() {
     assert!(est.residual_increase_percent > 0.0);
 
     // Held-out trajectory, exact torques.
-    let test = data(&chain, 77, 400, 0.025);
-    let w = chain
-        .observation_matrix(&test.q, &test.qd, &test.qdd)
-        .unwrap();
-    let wb = base.select_columns(&w).unwrap();
-    let e_phys = rms_error(&w, &est.parameters, &test.tau);
-    let e_ls = rms_error(&wb, &ls_beta, &test.tau);
+    let (e_phys, e_ls) = held_out_rms(&chain, &base, &est.parameters, &ls_beta, 400, 0.025);
     assert!(
         e_phys <= 1.1 * e_ls,
         "held-out RMS: consistent {e_phys:.4} vs least squares {e_ls:.4}"
@@ -345,12 +376,7 @@ fn base_feasibility_of_true_values() {
     assert!(bf.report.is_feasible());
     // Scaling all masses by −1 gives base values of a robot with negative masses: not
     // reachable.
-    let neg: Vec<f64> = chain
-        .parameters()
-        .iter()
-        .enumerate()
-        .map(|(k, v)| if k < 70 { -v } else { *v })
-        .collect();
+    let neg = scaled_parameters(&chain, -1.0, 1.0);
     let beta_neg = base.base_values(&neg).unwrap();
     let bf = base_feasibility(&base, &beta_neg, &PhysicalConfig::default()).unwrap();
     assert!(!bf.feasible && bf.max_relative_mismatch > 1e-2);
@@ -473,7 +499,7 @@ fn report_of_known_bodies() {
 fn bad_input_is_a_typed_error() {
     let chain = panda_like();
     let d = data(&chain, 2, 30, 0.1);
-    let run = |cfg: &PhysicalConfig| identify_physical(&chain, &d.q, &d.qd, &d.qdd, &d.tau, cfg);
+    let run = |cfg: &PhysicalConfig| d.identify(&chain, cfg);
     let err = |cfg: PhysicalConfig| run(&cfg).unwrap_err();
 
     assert!(matches!(
@@ -586,28 +612,15 @@ fn bad_input_is_a_typed_error() {
 #[ignore]
 fn measure_chain7_2000() {
     let chain = panda_like();
-    let mut train = data(&chain, 21, 2000, 0.01);
-    add_noise(&mut train.tau, 0.5, 1);
+    let train = with_noise(data(&chain, 21, 2000, 0.01), 0.5, 1);
     let t0 = std::time::Instant::now();
-    let est = identify_physical(
-        &chain,
-        &train.q,
-        &train.qd,
-        &train.qdd,
-        &train.tau,
-        &PhysicalConfig::default(),
-    )
-    .unwrap();
+    let est = train.identify(&chain, &PhysicalConfig::default()).unwrap();
     let dt = t0.elapsed();
     let base = &est.base_parameters;
     let bf = base_feasibility(base, &est.ls_base, &PhysicalConfig::default()).unwrap();
     let anchored = standard_from_base(base, &est.ls_base, &chain.parameters()).unwrap();
     let rep = FeasibilityReport::new(&anchored, 7, &chain.friction()).unwrap();
-    let test = data(&chain, 77, 1000, 0.01);
-    let w = chain
-        .observation_matrix(&test.q, &test.qd, &test.qdd)
-        .unwrap();
-    let wb = base.select_columns(&w).unwrap();
+    let (e_phys, e_ls) = held_out_rms(&chain, base, &est.parameters, &est.ls_base, 1000, 0.01);
     println!("solve time {dt:?}, iterations {}", est.iterations);
     println!(
         "LS: base feasible {} (mismatch {:.3e}); anchored standard vector: infeasible links {:?}, joints {:?}",
@@ -620,9 +633,5 @@ fn measure_chain7_2000() {
         "residual {:.4} vs LS {:.4}: +{:.4} %",
         est.residual, est.ls_residual, est.residual_increase_percent
     );
-    println!(
-        "held-out RMS: consistent {:.5}, LS {:.5}",
-        rms_error(&w, &est.parameters, &test.tau),
-        rms_error(&wb, &est.ls_base, &test.tau)
-    );
+    println!("held-out RMS: consistent {e_phys:.5}, LS {e_ls:.5}");
 }

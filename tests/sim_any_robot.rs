@@ -6,11 +6,11 @@
 
 mod dyn_support;
 
-use dyn_support::{fourier, robots_dir};
+use dyn_support::{base_model, fourier, robots_dir, three_joint_urdf, with_smoothed_friction};
 use prrrp_core::{
     simulate_dyn_closed_loop, simulate_dyn_open_loop, validate_torque_prediction, DynChain,
-    DynSampledTrajectory, DynSensorNoise, DynSimulationConfig, DynTrajectory, FrictionModel,
-    ParameterisedModel, PrrrpError, SerialChain, Sinusoid, UrdfOptions,
+    DynSampledTrajectory, DynSensorNoise, DynSimulationConfig, DynTrajectory, ParameterisedModel,
+    PrrrpError, SerialChain, Sinusoid, UrdfOptions,
 };
 
 /// PUMA 560 with viscous, smoothed-Coulomb and offset friction on every joint, sized to
@@ -18,23 +18,18 @@ use prrrp_core::{
 /// friction slope (fv + fc/v_s) over the inertia is a pole the integrator must resolve
 /// (RK4 needs |λ|·h < 2.8).
 fn puma() -> DynChain {
-    SerialChain::puma560()
-        .to_dyn()
-        .with_friction(
-            FrictionModel {
-                coulomb_smoothing: 0.1,
-                ..FrictionModel::all()
-            },
-            vec![
-                [1.0, 0.4, 0.05],
-                [1.0, 0.4, 0.05],
-                [0.5, 0.2, 0.02],
-                [0.005, 0.002, 0.001],
-                [0.005, 0.002, 0.001],
-                [0.002, 0.001, 0.0005],
-            ],
-        )
-        .unwrap()
+    with_smoothed_friction(
+        SerialChain::puma560().to_dyn(),
+        0.1,
+        vec![
+            [1.0, 0.4, 0.05],
+            [1.0, 0.4, 0.05],
+            [0.5, 0.2, 0.02],
+            [0.005, 0.002, 0.001],
+            [0.005, 0.002, 0.001],
+            [0.002, 0.001, 0.0005],
+        ],
+    )
 }
 
 fn noiseless(n: usize) -> DynSimulationConfig {
@@ -150,8 +145,7 @@ fn puma_exact_model_tracks_and_wrong_model_does_not() {
 #[test]
 fn base_model_controller_at_true_beta_equals_chain_controller() {
     let chain = puma();
-    let base = chain.base_parameters(&Default::default()).unwrap();
-    let model = chain.base_model(&base).unwrap();
+    let model = base_model(&chain);
     let beta = model.chain_base_values().clone();
     let ctrl = ParameterisedModel::new(model, beta).unwrap();
     let reference = fourier(6, 0.8);
@@ -165,12 +159,7 @@ fn base_model_controller_at_true_beta_equals_chain_controller() {
 /// trajectory sampled from arrays.
 #[test]
 fn urdf_fixture_follows_sinusoids_and_sampled_trajectory() {
-    let xml = include_str!("../crates/prrrp-core/tests/data/three_joint.urdf");
-    let opts = UrdfOptions {
-        tip: Some("link3".into()),
-        ..UrdfOptions::default()
-    };
-    let chain = DynChain::from_urdf_str(xml, &opts).unwrap();
+    let chain = three_joint_urdf();
     let sines: Vec<Sinusoid> = (0..3)
         .map(|j| Sinusoid {
             offset: 0.02 * j as f64,
@@ -399,14 +388,7 @@ fn torque_validation_of_simulated_data() {
         w.indices
     );
     // Joint-count mismatch is a typed error.
-    let three = DynChain::from_urdf_str(
-        include_str!("../crates/prrrp-core/tests/data/three_joint.urdf"),
-        &UrdfOptions {
-            tip: Some("link3".into()),
-            ..UrdfOptions::default()
-        },
-    )
-    .unwrap();
+    let three = three_joint_urdf();
     assert!(matches!(
         validate_torque_prediction(&three, &data),
         Err(PrrrpError::ShapeMismatch { .. })
@@ -503,24 +485,19 @@ fn panda_urdf_tracks_with_exact_model() {
         tip: Some("panda_link8".into()),
         ..UrdfOptions::default()
     };
-    let panda = DynChain::from_urdf_file(dir.join("panda_description/urdf/panda.urdf"), &opts)
-        .unwrap()
-        .with_friction(
-            FrictionModel {
-                coulomb_smoothing: 0.1,
-                ..FrictionModel::all()
-            },
-            vec![
-                [0.6, 0.4, 0.05],
-                [0.6, 0.4, 0.05],
-                [0.6, 0.4, 0.05],
-                [0.6, 0.4, 0.05],
-                [0.1, 0.05, 0.01],
-                [0.1, 0.05, 0.01],
-                [0.02, 0.01, 0.005],
-            ],
-        )
-        .unwrap();
+    let panda = with_smoothed_friction(
+        DynChain::from_urdf_file(dir.join("panda_description/urdf/panda.urdf"), &opts).unwrap(),
+        0.1,
+        vec![
+            [0.6, 0.4, 0.05],
+            [0.6, 0.4, 0.05],
+            [0.6, 0.4, 0.05],
+            [0.6, 0.4, 0.05],
+            [0.1, 0.05, 0.01],
+            [0.1, 0.05, 0.01],
+            [0.02, 0.01, 0.005],
+        ],
+    );
     let err = tracking_converges(&panda, &fourier(7, 0.5), 5.0);
     assert!(err < 1e-3, "Panda tracking error {err}");
     eprintln!("Panda tracking error with the exact model: {err:.2e} rad");

@@ -233,17 +233,15 @@ fn bad_settings_are_typed_errors() {
         }),
         Err(PrrrpError::InvalidParameter { .. })
     ));
+    // An open-loop run from rest under `tau`.
+    let from_rest = |l: &Lambda, tau: &[Vec5]| {
+        let rest = Vec5::zeros();
+        simulate_open_loop(&model, l, &rest, &rest, tau, &Default::default())
+    };
     let mut tau = vec![Vec5::zeros(); 10];
     tau[6][2] = f64::NAN;
     assert_eq!(
-        simulate_open_loop(
-            &model,
-            &lambda,
-            &Vec5::zeros(),
-            &Vec5::zeros(),
-            &tau,
-            &Default::default()
-        ),
+        from_rest(&lambda, &tau),
         Err(PrrrpError::NonFinite {
             what: "tau".into(),
             row: Some(6)
@@ -252,14 +250,7 @@ fn bad_settings_are_typed_errors() {
     let mut l = lambda;
     l[4] = -1.0;
     assert_eq!(
-        simulate_open_loop(
-            &model,
-            &l,
-            &Vec5::zeros(),
-            &Vec5::zeros(),
-            &[Vec5::zeros(); 3],
-            &Default::default()
-        ),
+        from_rest(&l, &[Vec5::zeros(); 3]),
         Err(PrrrpError::NotPositiveDefinite {
             what: "mass matrix M(q, λ)"
         })

@@ -11,10 +11,10 @@ mod dyn_support;
 #[path = "est_support/mod.rs"]
 mod est_support;
 
-use dyn_support::{panda_like, DynRecord};
+use dyn_support::{base_model, panda_like, DynRecord};
 use prrrp_core::nalgebra::{DVector, Dyn};
 use prrrp_core::{
-    Adaline, AdalineConfig, AdalineRule, BaseOptions, DynAdaline, DynChainBaseModel, DynHopfield,
+    Adaline, AdalineConfig, AdalineRule, DynAdaline, DynChainBaseModel, DynHopfield,
     DynScaledModel, Estimator, Hopfield, HopfieldConfig, LinearModel, PrrrpError, StoredRegressors,
 };
 use rand::rngs::StdRng;
@@ -36,9 +36,38 @@ fn random_record(n: usize, samples: usize, seed: u64) -> DynRecord {
 
 fn whitened_panda(rec: &DynRecord) -> DynScaledModel<DynChainBaseModel> {
     let chain = panda_like();
-    let base = chain.base_parameters(&BaseOptions::default()).unwrap();
-    let model = chain.base_model(&base).unwrap();
+    let model = base_model(&chain);
     DynScaledModel::whitened(model, &rec.samples()).unwrap()
+}
+
+/// A random 7-joint record and what the tests build on it.
+struct Case {
+    rec: DynRecord,
+    /// The Panda-like chain's whitened base model on the record.
+    sm: DynScaledModel<DynChainBaseModel>,
+    /// [`peaks`] of `sm` on the record.
+    row: f64,
+    frob: f64,
+    /// Number of (scaled) parameters.
+    p: usize,
+    /// `sm`'s regressors on the record, stored.
+    st: StoredRegressors<Dyn, Dyn>,
+}
+
+fn case(samples: usize, seed: u64) -> Case {
+    let rec = random_record(7, samples, seed);
+    let sm = whitened_panda(&rec);
+    let (row, frob) = peaks(&sm, &rec);
+    let p = sm.dims().1 .0;
+    let st = StoredRegressors::new(&sm, &rec.samples(), usize::MAX).unwrap();
+    Case {
+        rec,
+        sm,
+        row,
+        frob,
+        p,
+        st,
+    }
 }
 
 /// Largest ‖row‖² and ‖Φ‖_F² of the model's regressors on the data (the step bounds).
@@ -55,6 +84,26 @@ fn peaks<M: LinearModel<Dyn, Dyn>>(m: &M, rec: &DynRecord) -> (f64, f64) {
     (row, frob)
 }
 
+/// Trains `$online` on `$samples` and `$stored` on the stored regressors `$st` with each
+/// of `$epochs` in turn, each call continuing from the last, and asserts the same
+/// per-epoch errors and estimates to the bit; `$case` names the case in failures. (A macro:
+/// `train` and `train_stored` are inherent methods of each estimator, no shared trait.)
+macro_rules! assert_same_training {
+    ($case:expr, $epochs:expr, $online:ident, $samples:expr, $stored:ident, $st:expr) => {
+        for e in $epochs {
+            let a = $online.train($samples, e).unwrap();
+            let b = $stored.train_stored($st, e).unwrap();
+            assert_eq!(bits(&a.rms_error), bits(&b.rms_error), "{}", $case);
+            assert_eq!(
+                bits($online.estimate().as_slice()),
+                bits($stored.estimate().as_slice()),
+                "{}",
+                $case
+            );
+        }
+    };
+}
+
 fn bits(v: &[f64]) -> Vec<u64> {
     v.iter().map(|x| x.to_bits()).collect()
 }
@@ -62,11 +111,14 @@ fn bits(v: &[f64]) -> Vec<u64> {
 #[test]
 fn adaline_on_stored_regressors_equals_adaline_on_samples_to_the_bit() {
     for seed in [1, 2] {
-        let rec = random_record(7, 600, seed);
-        let sm = whitened_panda(&rec);
-        let (row, _) = peaks(&sm, &rec);
-        let p = sm.dims().1 .0;
-        let st = StoredRegressors::new(&sm, &rec.samples(), usize::MAX).unwrap();
+        let Case {
+            rec,
+            sm,
+            row,
+            p,
+            st,
+            ..
+        } = case(600, seed);
         assert_eq!((st.len(), st.shape()), (600, (7, p)));
         for (rule, mu) in [(AdalineRule::Delta, 0.5), (AdalineRule::Normalised, 0.7)] {
             let cfg = AdalineConfig {
@@ -79,16 +131,14 @@ fn adaline_on_stored_regressors_equals_adaline_on_samples_to_the_bit() {
             let mut online = DynAdaline::new(sm.clone(), start.clone(), cfg).unwrap();
             let mut stored = DynAdaline::new(sm.clone(), start.clone(), cfg).unwrap();
             // Two calls: the second continues from the weights of the first.
-            for epochs in [3, 2] {
-                let a = online.train(&rec.samples(), epochs).unwrap();
-                let b = stored.train_stored(&st, epochs).unwrap();
-                assert_eq!(bits(&a.rms_error), bits(&b.rms_error), "{rule:?}");
-                assert_eq!(
-                    bits(online.estimate().as_slice()),
-                    bits(stored.estimate().as_slice()),
-                    "{rule:?}"
-                );
-            }
+            assert_same_training!(
+                format!("{rule:?}"),
+                [3, 2],
+                online,
+                &rec.samples(),
+                stored,
+                &st
+            );
             assert_eq!(online.samples(), stored.samples());
             // The estimate moved: the comparison is not of two untouched starts.
             assert!((online.estimate() - &start).amax() > 1e-2);
@@ -98,11 +148,14 @@ fn adaline_on_stored_regressors_equals_adaline_on_samples_to_the_bit() {
 
 #[test]
 fn hopfield_on_stored_regressors_equals_hopfield_on_samples_to_the_bit() {
-    let rec = random_record(7, 500, 3);
-    let sm = whitened_panda(&rec);
-    let (_, frob) = peaks(&sm, &rec);
-    let p = sm.dims().1 .0;
-    let st = StoredRegressors::new(&sm, &rec.samples(), usize::MAX).unwrap();
+    let Case {
+        rec,
+        sm,
+        frob,
+        p,
+        st,
+        ..
+    } = case(500, 3);
     // μ = 0.5 per sample as `identify` starts, and μ = 4 (several sub-steps per sample),
     // with a tight bound so that the box and its clamp act.
     for (mu, bound) in [(0.5, 1e3), (4.0, 30.0)] {
@@ -115,16 +168,14 @@ fn hopfield_on_stored_regressors_equals_hopfield_on_samples_to_the_bit() {
         };
         let mut online = DynHopfield::new(sm.clone(), DVector::zeros(p), cfg).unwrap();
         let mut stored = DynHopfield::new(sm.clone(), DVector::zeros(p), cfg).unwrap();
-        for epochs in [2, 3] {
-            let a = online.train(&rec.samples(), epochs).unwrap();
-            let b = stored.train_stored(&st, epochs).unwrap();
-            assert_eq!(bits(&a.rms_error), bits(&b.rms_error), "μ = {mu}");
-            assert_eq!(
-                bits(online.estimate().as_slice()),
-                bits(stored.estimate().as_slice()),
-                "μ = {mu}"
-            );
-        }
+        assert_same_training!(
+            format!("μ = {mu}"),
+            [2, 3],
+            online,
+            &rec.samples(),
+            stored,
+            &st
+        );
         assert_eq!(online.substeps(), stored.substeps());
         assert_eq!(online.samples(), stored.samples());
         assert!(online.estimate().amax() > 1e-2);
@@ -144,18 +195,12 @@ fn compile_time_sizes_agree_to_the_bit() {
     let cfg = AdalineConfig::default();
     let mut a: Adaline<_, 5, 8> = Adaline::new(model, Default::default(), cfg).unwrap();
     let mut b = a.clone();
-    let ra = a.train(&samples, 3).unwrap();
-    let rb = b.train_stored(&st, 3).unwrap();
-    assert_eq!(bits(&ra.rms_error), bits(&rb.rms_error));
-    assert_eq!(bits(a.estimate().as_slice()), bits(b.estimate().as_slice()));
+    assert_same_training!("Adaline", [3], a, &samples, b, &st);
 
     let cfg = HopfieldConfig::default();
     let mut a: Hopfield<_, 5, 8> = Hopfield::new(model, Default::default(), cfg).unwrap();
     let mut b = a.clone();
-    let ra = a.train(&samples, 2).unwrap();
-    let rb = b.train_stored(&st, 2).unwrap();
-    assert_eq!(bits(&ra.rms_error), bits(&rb.rms_error));
-    assert_eq!(bits(a.estimate().as_slice()), bits(b.estimate().as_slice()));
+    assert_same_training!("Hopfield", [2], a, &samples, b, &st);
     assert_eq!(a.substeps(), b.substeps());
     assert!(a.estimate().amax() > 0.0);
 }
@@ -163,11 +208,14 @@ fn compile_time_sizes_agree_to_the_bit() {
 /// The same errors, at the same sample: a divergence of the delta rule, and a NaN.
 #[test]
 fn errors_are_the_same_and_name_the_sample() {
-    let rec = random_record(7, 300, 4);
-    let sm = whitened_panda(&rec);
-    let (row, _) = peaks(&sm, &rec);
-    let p = sm.dims().1 .0;
-    let st = StoredRegressors::new(&sm, &rec.samples(), usize::MAX).unwrap();
+    let Case {
+        rec,
+        sm,
+        row,
+        p,
+        st,
+        ..
+    } = case(300, 4);
     // γ·‖x‖² = 50 > 2 on the largest row: the delta rule diverges.
     let cfg = AdalineConfig {
         rule: AdalineRule::Delta,
@@ -238,7 +286,6 @@ fn five_joint_model(rec: &DynRecord) -> DynScaledModel<DynChainBaseModel> {
     let chain = prrrp_core::SerialChain::from_robot(&prrrp_core::Robot::paper())
         .unwrap()
         .to_dyn();
-    let base = chain.base_parameters(&BaseOptions::default()).unwrap();
-    let model = chain.base_model(&base).unwrap();
+    let model = base_model(&chain);
     DynScaledModel::equilibrated(model, &rec.samples()).unwrap()
 }

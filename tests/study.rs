@@ -1,5 +1,8 @@
 //! The validation functions, the sensitivity sweep and the whole study (paper section 5).
 
+mod est_support;
+
+use est_support::paper;
 use prrrp_core::{
     run_study, sensitivity, simulate_closed_loop, torque_prediction, validate, Dataset, Lambda,
     Robot, SensitivityConfig, SimulationConfig, StudyConfig, StudyResult, ValidationConfig,
@@ -7,9 +10,7 @@ use prrrp_core::{
 
 #[test]
 fn validating_the_truth_gives_perfect_indices_and_a_wrong_model_does_not() {
-    let robot = Robot::paper();
-    let model = robot.model();
-    let truth = robot.base_parameters();
+    let (model, truth) = paper();
     let wrong = truth * 1.5;
     let cfg = ValidationConfig {
         duration: 4.0,
@@ -48,9 +49,7 @@ fn validating_the_truth_gives_perfect_indices_and_a_wrong_model_does_not() {
 
 #[test]
 fn torque_prediction_is_zero_on_consistent_noise_free_data() {
-    let robot = Robot::paper();
-    let model = robot.model();
-    let truth = robot.base_parameters();
+    let (model, truth) = paper();
     let sim = SimulationConfig {
         noise: prrrp_core::SensorNoise::none(),
         ..SimulationConfig::default()
@@ -66,9 +65,7 @@ fn torque_prediction_is_zero_on_consistent_noise_free_data() {
 
 #[test]
 fn sensitivity_is_zero_at_nominal_grows_with_variation_and_flags_non_physical_lambda() {
-    let robot = Robot::paper();
-    let model = robot.model();
-    let truth = robot.base_parameters();
+    let (model, truth) = paper();
     let cfg = SensitivityConfig {
         points: 5,
         validation: ValidationConfig {

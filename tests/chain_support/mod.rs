@@ -15,7 +15,10 @@
 mod seeded_support;
 
 use prrrp_core::nalgebra::SVector;
-use prrrp_core::{BaseOptions, BaseParameters, ChainBaseModel, Samples, SerialChain};
+use prrrp_core::{
+    AdalineConfig, BaseOptions, BaseParameters, ChainBaseModel, HopfieldConfig, Samples,
+    SerialChain,
+};
 use rand::rngs::StdRng;
 use rand::SeedableRng;
 use rand_distr::{Distribution, Normal};
@@ -240,4 +243,35 @@ pub fn puma_base_model<const B: usize>() -> (SerialChain<6>, BaseParameters, Cha
         .expect("analysis");
     let model = chain.base_model::<B>(&base).expect("B base parameters");
     (chain, base, model)
+}
+
+/// The PUMA's excitation of seed `seed`: a 10 s fundamental (1000 samples per period at
+/// 10 ms) about Corke's "ready" pose (0, 1.57, −1.57, 0, 0, 0) rad with amplitude scale
+/// 1.5 rad, so harmonic amplitudes ≤ 0.75/k rad and |q − offset| ≤ 1.71 rad — inside the
+/// PUMA's ±160°/±110°/±135°/±266°/±100°/±266° joint ranges about the pose.
+pub fn puma_reference(seed: u64) -> Fourier<6> {
+    Fourier::seeded(seed, 10.0, [0.0, 1.57, -1.57, 0.0, 0.0, 0.0], [1.5; 6])
+}
+
+/// Adaline on the PUMA's equilibrated base model: the normalised rule with μ = 0.5
+/// (reasoned in chain_estimators.rs).
+pub fn puma_adaline_config() -> AdalineConfig {
+    AdalineConfig {
+        step_size: 0.5,
+        ..Default::default()
+    }
+}
+
+/// The Hopfield network on the PUMA's equilibrated base model with `b` base parameters
+/// sampled every `dt` s: bound c = 100 (a few times the largest RMS joint torque), slope
+/// c·dt·6·b, at most 64 Euler sub-steps per sample (reasoned in chain_estimators.rs).
+pub fn puma_hopfield_config(b: usize, dt: f64) -> HopfieldConfig {
+    let c = 100.0;
+    HopfieldConfig {
+        bound: c,
+        beta: c * dt * (6 * b) as f64,
+        dt,
+        max_substeps: 64,
+        ..Default::default()
+    }
 }

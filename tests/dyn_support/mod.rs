@@ -12,8 +12,8 @@ mod seeded_support;
 
 use prrrp_core::nalgebra::{DVector, SVector};
 use prrrp_core::{
-    inertial_parameters, DhConvention, DhRow, DynChain, DynSamples, FourierTrajectory,
-    FrictionModel, JointKind,
+    inertial_parameters, BaseOptions, DhConvention, DhRow, DynChain, DynChainBaseModel, DynSamples,
+    FourierTrajectory, FrictionModel, JointKind, UrdfOptions,
 };
 
 /// Velocity scale of the smoothed Coulomb sign tanh(q̇/v_s), rad/s.
@@ -60,16 +60,58 @@ pub fn panda_like() -> DynChain {
             [0.5 * s, 0.8 * s, if j % 2 == 0 { 0.1 } else { -0.05 } * s]
         })
         .collect();
-    let model = FrictionModel {
-        coulomb_smoothing: COULOMB_SMOOTHING,
-        ..FrictionModel::all()
-    };
-    DynChain::new(dh, DhConvention::Modified)
+    let chain = DynChain::new(dh, DhConvention::Modified)
         .expect("DH table")
         .with_inertial(inertial)
-        .expect("inertials")
-        .with_friction(model, friction)
-        .expect("friction")
+        .expect("inertials");
+    with_smoothed_friction(chain, COULOMB_SMOOTHING, friction)
+}
+
+/// `chain` with viscous (N·m·s/rad), Coulomb (N·m, sign smoothed as tanh(q̇/v_s) with
+/// v_s = `smoothing` rad/s) and offset (N·m) friction, one `[fv, fc, fo]` per joint.
+pub fn with_smoothed_friction(
+    chain: DynChain,
+    smoothing: f64,
+    per_joint: Vec<[f64; 3]>,
+) -> DynChain {
+    let model = FrictionModel {
+        coulomb_smoothing: smoothing,
+        ..FrictionModel::all()
+    };
+    chain.with_friction(model, per_joint).expect("friction")
+}
+
+/// The three-joint URDF fixture of prrrp-core's tests (tilted axes, a prismatic joint,
+/// merged fixed bodies, locked fingers), ended at `link3`.
+pub fn three_joint_urdf() -> DynChain {
+    let opts = UrdfOptions {
+        tip: Some("link3".into()),
+        ..UrdfOptions::default()
+    };
+    let xml = include_str!("../../crates/prrrp-core/tests/data/three_joint.urdf");
+    DynChain::from_urdf_str(xml, &opts).expect("fixture loads")
+}
+
+/// An n×n motor-to-joint coupling C (motor velocities = C·q̇): the identity plus the
+/// off-diagonal `entries` (row, column, value).
+pub fn coupling(n: usize, entries: &[(usize, usize, f64)]) -> Vec<Vec<f64>> {
+    let mut c = vec![vec![0.0; n]; n];
+    for (i, r) in c.iter_mut().enumerate() {
+        r[i] = 1.0;
+    }
+    for &(i, j, v) in entries {
+        c[i][j] = v;
+    }
+    c
+}
+
+/// The chain's base model under the default base-parameter analysis (the model an
+/// identification fits); its true β is `chain_base_values()`.
+pub fn base_model(chain: &DynChain) -> DynChainBaseModel {
+    let base = chain
+        .base_parameters(&BaseOptions::default())
+        .expect("base-parameter analysis");
+    chain.base_model(&base).expect("base model")
 }
 
 /// Owned run-time columns of a record.

@@ -122,6 +122,16 @@ impl Noise {
             tau_rel: 0.03,
         }
     }
+
+    /// Torque noise only, `tau_rel` times each joint's RMS torque; exact q, q̇, q̈.
+    pub fn torque_only(tau_rel: f64) -> Self {
+        Self {
+            q: 0.0,
+            qd: 0.0,
+            qdd: 0.0,
+            tau_rel,
+        }
+    }
 }
 
 /// Adds seeded Gaussian noise; returns the noisy copy and the per-joint τ noise σ used.

@@ -508,6 +508,12 @@ fn negative_masses_load() {
 fn urdf_errors_name_file_and_element() {
     let text = three_joint_text();
     let default = UrdfOptions::default();
+    // The fixture with `from` replaced by `to`, loaded up to link3, names every needle.
+    let edited = |from: &str, to: &str, needles: &[&str]| {
+        let bad = text.replace(from, to);
+        assert_ne!(bad, text, "`{from}` not in the fixture");
+        assert_error_names(DynChain::from_urdf_str(&bad, &tip("link3")), needles);
+    };
     // Several candidate tips: both finger links listed.
     assert_error_names(
         DynChain::from_urdf_str(&text, &default),
@@ -537,9 +543,9 @@ fn urdf_errors_name_file_and_element() {
         ..tip("link3")
     };
     assert_error_names(DynChain::from_urdf_str(&text, &opts), &["ghost_base"]);
-    let broken = text.replace("<parent link=\"link2\"/>", "<parent link=\"ghost\"/>");
-    assert_error_names(
-        DynChain::from_urdf_str(&broken, &tip("link3")),
+    edited(
+        "<parent link=\"link2\"/>",
+        "<parent link=\"ghost\"/>",
         &["joint[slide]/parent", "ghost"],
     );
     // Tip not below base.
@@ -550,30 +556,24 @@ fn urdf_errors_name_file_and_element() {
     assert_error_names(DynChain::from_urdf_str(&text, &opts), &["link1", "link2"]);
     // Zero and non-unit axes.
     for axis in ["0 0 0", "0 2 0", "0 0.9 0"] {
-        let bad = text.replace("<axis xyz=\"0 1 0\"/>", &format!("<axis xyz=\"{axis}\"/>"));
-        assert_error_names(
-            DynChain::from_urdf_str(&bad, &tip("link3")),
+        edited(
+            "<axis xyz=\"0 1 0\"/>",
+            &format!("<axis xyz=\"{axis}\"/>"),
             &["joint[slide]/axis"],
         );
     }
     // Floating and planar joints on the path.
     for ty in ["floating", "planar"] {
-        let bad = text.replace(
+        edited(
             "name=\"slide\" type=\"prismatic\"",
             &format!("name=\"slide\" type=\"{ty}\""),
-        );
-        assert_error_names(
-            DynChain::from_urdf_str(&bad, &tip("link3")),
             &["joint[slide]", ty],
         );
     }
     // A floating joint off the path below a moving link.
-    let bad = text.replace(
+    edited(
         "name=\"tool_mount\" type=\"fixed\"",
         "name=\"tool_mount\" type=\"floating\"",
-    );
-    assert_error_names(
-        DynChain::from_urdf_str(&bad, &tip("link3")),
         &["joint[tool_mount]", "floating"],
     );
     // A mimic joint on the path.
@@ -582,29 +582,26 @@ fn urdf_errors_name_file_and_element() {
         &["joint[finger_right_joint]/mimic"],
     );
     // NaN values.
-    let bad = text.replace("<mass value=\"1.8\"/>", "<mass value=\"nan\"/>");
-    assert_error_names(
-        DynChain::from_urdf_str(&bad, &tip("link3")),
+    edited(
+        "<mass value=\"1.8\"/>",
+        "<mass value=\"nan\"/>",
         &["link[link2]/inertial/mass"],
     );
-    let bad = text.replace(
+    edited(
         "<origin xyz=\"0.4 0.02 -0.01\"",
         "<origin xyz=\"0.4 NaN -0.01\"",
-    );
-    assert_error_names(
-        DynChain::from_urdf_str(&bad, &tip("link3")),
         &["joint[slide]/origin/xyz"],
     );
-    let bad = text.replace("ixx=\"0.004\"", "ixx=\"inf\"");
-    assert_error_names(
-        DynChain::from_urdf_str(&bad, &tip("link3")),
+    edited(
+        "ixx=\"0.004\"",
+        "ixx=\"inf\"",
         &["link[link2]/inertial/inertia"],
     );
     // Tip equal to base, duplicate names.
     assert_error_names(DynChain::from_urdf_str(&text, &tip("base_link")), &["tip"]);
-    let dup = text.replace("<link name=\"tool\">", "<link name=\"link2\">");
-    assert_error_names(
-        DynChain::from_urdf_str(&dup, &tip("link3")),
+    edited(
+        "<link name=\"tool\">",
+        "<link name=\"link2\">",
         &["link[link2]"],
     );
 }
@@ -784,6 +781,12 @@ fn toml_defaults_friction_and_standard_convention() {
 #[test]
 fn toml_errors_name_the_key() {
     let good = panda_toml();
+    // The file with the first `from` replaced by `to` names every needle.
+    let edited = |from: &str, to: &str, needles: &[&str]| {
+        let bad = good.replacen(from, to, 1);
+        assert_ne!(bad, good, "`{from}` not in the file");
+        assert_error_names(DynChain::from_toml_str(&bad), needles);
+    };
     // Unknown keys, top level and in a joint.
     assert_error_names(
         DynChain::from_toml_str(&format!("colour = 1\n{good}")),
@@ -792,19 +795,29 @@ fn toml_errors_name_the_key() {
     let bad = good.replacen("theta = 0\n", "theta = 0\nmass = 3\n", 3);
     assert_error_names(DynChain::from_toml_str(&bad), &["joint[0].mass"]);
     // Wrong types and lengths.
-    let bad = good.replacen("a = 0.0825", "a = \"0.0825\"", 1);
-    assert_error_names(DynChain::from_toml_str(&bad), &["joint[3].a", "string"]);
-    let bad = good.replacen("inertial = [7, ", "inertial = [", 1);
-    assert_error_names(DynChain::from_toml_str(&bad), &["joint[0].inertial", "10"]);
-    let bad = good.replacen("inertial = [6, ", "inertial = [true, ", 1);
-    assert_error_names(DynChain::from_toml_str(&bad), &["joint[1].inertial[0]"]);
-    let bad = good.replacen("convention = \"modified\"", "convention = \"craig\"", 1);
-    assert_error_names(DynChain::from_toml_str(&bad), &["convention", "craig"]);
-    let bad = good.replacen("type = \"revolute\"", "type = \"ball\"", 1);
-    assert_error_names(DynChain::from_toml_str(&bad), &["joint[0].type", "ball"]);
+    edited("a = 0.0825", "a = \"0.0825\"", &["joint[3].a", "string"]);
+    edited(
+        "inertial = [7, ",
+        "inertial = [",
+        &["joint[0].inertial", "10"],
+    );
+    edited(
+        "inertial = [6, ",
+        "inertial = [true, ",
+        &["joint[1].inertial[0]"],
+    );
+    edited(
+        "convention = \"modified\"",
+        "convention = \"craig\"",
+        &["convention", "craig"],
+    );
+    edited(
+        "type = \"revolute\"",
+        "type = \"ball\"",
+        &["joint[0].type", "ball"],
+    );
     // Missing keys.
-    let bad = good.replacen("d = 0.316\n", "", 1);
-    assert_error_names(DynChain::from_toml_str(&bad), &["joint[2].d", "missing"]);
+    edited("d = 0.316\n", "", &["joint[2].d", "missing"]);
     assert_error_names(
         DynChain::from_toml_str(&good.replacen("convention = \"modified\"\n", "", 1)),
         &["convention"],
@@ -814,27 +827,28 @@ fn toml_errors_name_the_key() {
         &["joint"],
     );
     // Non-finite numbers, bad limits.
-    let bad = good.replacen("d = 0.333", "d = nan", 1);
-    assert_error_names(DynChain::from_toml_str(&bad), &["joint[0].d"]);
-    let bad = good.replacen("gravity = [0, 0, -9.80665]", "gravity = [0, inf, 0]", 1);
-    assert_error_names(DynChain::from_toml_str(&bad), &["gravity[1]"]);
+    edited("d = 0.333", "d = nan", &["joint[0].d"]);
+    edited(
+        "gravity = [0, 0, -9.80665]",
+        "gravity = [0, inf, 0]",
+        &["gravity[1]"],
+    );
     // A negative mass loads (a file's inertials are only a prior) and is reported.
     let neg = good.replacen("inertial = [7, ", "inertial = [-7, ", 1);
     let chain = DynChain::from_toml_str(&neg).unwrap();
     assert!(chain.non_physical_links().contains(&0));
     let ok = DynChain::from_toml_str(&good).unwrap();
     assert!(!ok.non_physical_links().contains(&0));
-    let bad = good.replacen("lower = -2.8973", "lower = 3", 1);
-    assert_error_names(DynChain::from_toml_str(&bad), &["joint[0].lower"]);
+    edited("lower = -2.8973", "lower = 3", &["joint[0].lower"]);
     // Repeated names.
-    let bad = good.replacen("link = \"panda_link2\"", "link = \"panda_link1\"", 1);
-    assert_error_names(
-        DynChain::from_toml_str(&bad),
+    edited(
+        "link = \"panda_link2\"",
+        "link = \"panda_link1\"",
         &["joint[1].link", "panda_link1"],
     );
-    let bad = good.replacen("name = \"panda_joint3\"", "name = \"panda_joint1\"", 1);
-    assert_error_names(
-        DynChain::from_toml_str(&bad),
+    edited(
+        "name = \"panda_joint3\"",
+        "name = \"panda_joint1\"",
         &["joint[2].name", "panda_joint1"],
     );
     // Syntax errors.
