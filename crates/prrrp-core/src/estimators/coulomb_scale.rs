@@ -151,13 +151,7 @@ pub fn select_coulomb_scale(
         ));
     }
     let n = chain.dof();
-    if data.dof() != n {
-        return Err(PrrrpError::ShapeMismatch {
-            what: "data".into(),
-            expected: format!("{n} joints (the robot's)"),
-            got: format!("{} joints", data.dof()),
-        });
-    }
+    data.check_dof(n, "the robot's")?;
     let grid = config
         .candidates
         .clone()

@@ -421,13 +421,7 @@ pub fn identify(
     preprocessing: serde_json::Value,
 ) -> Result<IdentifiedModel> {
     let n = chain.dof();
-    if data.dof() != n {
-        return Err(PrrrpError::ShapeMismatch {
-            what: "data".into(),
-            expected: format!("{n} joints (the robot's)"),
-            got: format!("{} joints", data.dof()),
-        });
-    }
+    data.check_dof(n, "the robot's")?;
     let model = chain.base_model(base)?;
     let b = model.count();
     // One equation more than unknowns, so that the residual variance is defined.
