@@ -26,7 +26,7 @@ use nalgebra::{DMatrix, DMatrixView, DVector, Dyn};
 use serde_json::json;
 
 use super::IdentifiedModel;
-use crate::error::{PrrrpError, Result};
+use crate::error::{invalid, PrrrpError, Result};
 use crate::estimators::{
     AdalineConfig, AdalineRule, Discretisation, DynAdaline, DynEkf, DynHopfield, DynJointNoise,
     DynRls, DynSamples, EkfConfig, EkfMeasurement, Estimator, HopfieldConfig, LeastSquares,
@@ -1012,14 +1012,6 @@ fn store_regressors<M: LinearModel<Dyn, Dyn>>(
         return Ok(None);
     }
     StoredRegressors::new(m, samples, max_bytes).map(Some)
-}
-
-fn invalid(field: &str, value: f64, reason: &'static str) -> PrrrpError {
-    PrrrpError::InvalidParameter {
-        field: field.into(),
-        value,
-        reason,
-    }
 }
 
 /// What the epoch loop did.
