@@ -221,6 +221,16 @@ impl PrrrpError {
     }
 }
 
+/// A [`PrrrpError::InvalidParameter`]: setting `field` has the value `value`, which `reason`
+/// says is out of range.
+pub(crate) fn invalid(field: impl Into<String>, value: f64, reason: &'static str) -> PrrrpError {
+    PrrrpError::InvalidParameter {
+        field: field.into(),
+        value,
+        reason,
+    }
+}
+
 /// A [`PrrrpError::ShapeMismatch`] naming `what` unless its length `len` is `want`:
 /// expected "`want` `unit``note`", got "`len` `unit`" (`note` says what `want` counts,
 /// e.g. " (one per joint)"). Allocates only on the error.

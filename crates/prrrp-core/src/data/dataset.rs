@@ -408,6 +408,19 @@ impl DynDataset {
     /// which the least-squares noise estimate σ² = ‖τ − Wλ‖²/(rows − params) needs.
     pub const DEFAULT_MIN_SAMPLES: usize = LINK_PARAMS + FRICTION_PARAMETER_NAMES.len() + 1;
 
+    /// [`PrrrpError::ShapeMismatch`] unless the data have the `n` joints of what they are
+    /// used with (`whose` names it in the message, e.g. "the robot's").
+    pub(crate) fn check_dof(&self, n: usize, whose: &str) -> Result<()> {
+        if self.dof() != n {
+            return Err(PrrrpError::ShapeMismatch {
+                what: "data".into(),
+                expected: format!("{n} joints ({whose})"),
+                got: format!("{} joints", self.dof()),
+            });
+        }
+        Ok(())
+    }
+
     /// Builds a data set of `n` joints from flat row-major columns, requiring at least
     /// [`DynDataset::DEFAULT_MIN_SAMPLES`] samples.
     ///

@@ -3,7 +3,7 @@
 
 use crate::data::dataset::{check_dof, check_finite_flat, check_flat_len, DynDataset};
 use crate::data::pipeline::{filter_and_differentiate, FilterSettings, Grid, Signals, Source};
-use crate::error::{PrrrpError, Result};
+use crate::error::{invalid, PrrrpError, Result};
 use nalgebra::Dyn;
 
 /// Default low-pass cut-off of [`preprocess_log`], Hz, before the cap at a tenth of the
@@ -117,14 +117,6 @@ pub struct LogReport {
     pub measured_velocity: bool,
     /// Samples in the returned data set.
     pub rows_out: usize,
-}
-
-fn invalid(field: &str, value: f64, reason: &'static str) -> PrrrpError {
-    PrrrpError::InvalidParameter {
-        field: field.into(),
-        value,
-        reason,
-    }
 }
 
 /// Turns a real joint log of `n` joints into a [`DynDataset`] of q, q̇, q̈, τ on a
@@ -314,7 +306,7 @@ pub fn preprocess_log(
     let max_gap = config.max_gap_s.unwrap_or(0.5 / cutoff);
     if gap > max_gap {
         return Err(invalid(
-            &format!("t[{gap_row}]"),
+            format!("t[{gap_row}]"),
             gap,
             "the time step ending at this row exceeds max_gap_s (default half a cut-off \
              period, 1/(2·cutoff_hz)); split the log there or raise max_gap_s",

@@ -11,13 +11,12 @@
 //! every parameter outside its network.
 
 use nalgebra::allocator::Allocator;
-use nalgebra::{Const, DefaultAllocator, Dim, Dyn, MatrixView, OMatrix, OVector};
+use nalgebra::{Const, DefaultAllocator, Dim, Dyn, MatrixView, OVector};
 
-use super::estimator::{check_stored, train_epochs, Estimator, TrainingReport};
-use super::rls::check_lambda0;
+use super::estimator::{check_stored, train_epochs, Estimator, ModelFit, TrainingReport};
 use super::samples::{SampleOf, SamplesOf};
 use super::stored::StoredRegressors;
-use crate::error::{PrrrpError, Result};
+use crate::error::{invalid, PrrrpError, Result};
 use crate::models::LinearModel;
 
 /// Adaline for a compile-time-size model (e.g. the PRRRP arm).
@@ -78,12 +77,8 @@ where
     M: LinearModel<N, P>,
     DefaultAllocator: Allocator<N> + Allocator<P> + Allocator<N, N> + Allocator<N, P>,
 {
-    model: M,
-    ws: M::Workspace,
+    fit: ModelFit<M, N, P>,
     config: AdalineConfig,
-    lambda0: OVector<f64, P>,
-    lambda: OVector<f64, P>,
-    phi: OMatrix<f64, N, P>,
     progress: Progress,
 }
 
@@ -99,35 +94,34 @@ where
     /// outside (0, 2), a negative ε, a divergence ratio ≤ 1 or a non-finite λ₀;
     /// [`PrrrpError::ShapeMismatch`] if λ₀ does not have one entry per model parameter.
     pub fn new(model: M, lambda0: OVector<f64, P>, config: AdalineConfig) -> Result<Self> {
-        let bad = |field: &str, value: f64, reason: &'static str| {
-            Err(PrrrpError::InvalidParameter {
-                field: field.into(),
-                value,
-                reason,
-            })
-        };
         let c = &config;
         if !(c.learning_rate.is_finite() && c.learning_rate > 0.0) {
-            return bad("learning_rate", c.learning_rate, "must be finite and > 0");
+            return Err(invalid(
+                "learning_rate",
+                c.learning_rate,
+                "must be finite and > 0",
+            ));
         }
         if !(c.step_size > 0.0 && c.step_size < 2.0) {
-            return bad("step_size", c.step_size, "must be in (0, 2) for stability");
+            return Err(invalid(
+                "step_size",
+                c.step_size,
+                "must be in (0, 2) for stability",
+            ));
         }
         if !(c.epsilon.is_finite() && c.epsilon >= 0.0) {
-            return bad("epsilon", c.epsilon, "must be finite and >= 0");
+            return Err(invalid("epsilon", c.epsilon, "must be finite and >= 0"));
         }
         if c.divergence_ratio.is_nan() || c.divergence_ratio <= 1.0 {
-            return bad("divergence_ratio", c.divergence_ratio, "must be > 1");
+            return Err(invalid(
+                "divergence_ratio",
+                c.divergence_ratio,
+                "must be > 1",
+            ));
         }
-        let (n, p) = model.dims();
-        check_lambda0(&lambda0, n.value(), p.value())?;
         Ok(Self {
-            ws: model.workspace(),
-            model,
+            fit: ModelFit::new(model, lambda0)?,
             config,
-            lambda: lambda0.clone(),
-            lambda0,
-            phi: OMatrix::zeros_generic(n, p),
             progress: Progress::default(),
         })
     }
@@ -157,12 +151,12 @@ where
         data: &StoredRegressors<N, P>,
         epochs: usize,
     ) -> Result<TrainingReport> {
-        check_stored(data, self.phi.shape())?;
+        check_stored(data, self.fit.phi.shape())?;
         train_epochs(self, data.len(), epochs, totals, |e, k| {
             let tau = data.tau(k);
             learn(
                 &e.config,
-                &mut e.lambda,
+                &mut e.fit.lambda,
                 &mut e.progress,
                 data.regressor(k),
                 tau.as_slice(),
@@ -191,27 +185,26 @@ where
     /// delta-rule weight becomes non-finite (lower the learning rate, or use the
     /// normalised rule).
     fn step(&mut self, sample: SampleOf<'_, N>) -> Result<&OVector<f64, P>> {
-        let (n, p) = self.phi.shape_generic();
+        let (n, p) = self.fit.phi.shape_generic();
         sample.check(n.value())?;
-        self.model
-            .regressor_into(&mut self.ws, sample.q, sample.qd, sample.qdd, &mut self.phi)?;
-        let phi = MatrixView::from_slice_generic(self.phi.as_slice(), n, p);
+        self.fit.load_regressor(&sample)?;
+        let phi = MatrixView::from_slice_generic(self.fit.phi.as_slice(), n, p);
         learn(
             &self.config,
-            &mut self.lambda,
+            &mut self.fit.lambda,
             &mut self.progress,
             phi,
             sample.tau.as_slice(),
         )?;
-        Ok(&self.lambda)
+        Ok(&self.fit.lambda)
     }
 
     fn estimate(&self) -> &OVector<f64, P> {
-        &self.lambda
+        &self.fit.lambda
     }
 
     fn reset(&mut self) {
-        self.lambda.copy_from(&self.lambda0);
+        self.fit.reset();
         self.progress = Progress::default();
     }
 }

@@ -20,7 +20,7 @@ use nalgebra::{DMatrix, DVector};
 use serde::{Deserialize, Serialize};
 
 use crate::data::DynDataset;
-use crate::error::{PrrrpError, Result};
+use crate::error::{invalid, PrrrpError, Result};
 use crate::models::chain::{BaseParameters, DynChain, FrictionModel};
 use crate::models::LinearModel;
 
@@ -151,13 +151,7 @@ pub fn select_coulomb_scale(
         ));
     }
     let n = chain.dof();
-    if data.dof() != n {
-        return Err(PrrrpError::ShapeMismatch {
-            what: "data".into(),
-            expected: format!("{n} joints (the robot's)"),
-            got: format!("{} joints", data.dof()),
-        });
-    }
+    data.check_dof(n, "the robot's")?;
     let grid = config
         .candidates
         .clone()
@@ -931,14 +925,6 @@ fn sig3(x: f64) -> String {
     }
     let decimals = (2 - x.abs().log10().floor() as i32).max(0) as usize;
     format!("{x:.decimals$}")
-}
-
-fn invalid(field: &str, value: f64, reason: &'static str) -> PrrrpError {
-    PrrrpError::InvalidParameter {
-        field: field.into(),
-        value,
-        reason,
-    }
 }
 
 #[cfg(test)]

@@ -1,11 +1,13 @@
 //! The common shape of the online estimators.
 
 use nalgebra::allocator::Allocator;
-use nalgebra::{DefaultAllocator, Dim, OVector};
+use nalgebra::{DefaultAllocator, Dim, OMatrix, OVector};
 
+use super::rls::check_lambda0;
 use super::samples::{SampleOf, SamplesOf};
 use super::stored::StoredRegressors;
 use crate::error::{PrrrpError, Result};
+use crate::models::LinearModel;
 
 /// An online estimator of the P parameters of an N-joint model.
 ///
@@ -73,6 +75,56 @@ where
                 .into(),
             row: None,
         })
+    }
+}
+
+/// What the inverse-model estimators ([`super::RlsOf`], [`super::AdalineOf`],
+/// [`super::HopfieldOf`]) keep alike: the model and its workspace, λ₀, the estimate λ̂ and
+/// the buffer of one sample's regressor Φ (N×P), all sized at construction.
+#[derive(Debug, Clone)]
+pub(crate) struct ModelFit<M, N: Dim, P: Dim>
+where
+    M: LinearModel<N, P>,
+    DefaultAllocator: Allocator<N> + Allocator<P> + Allocator<N, N> + Allocator<N, P>,
+{
+    pub(crate) model: M,
+    pub(crate) ws: M::Workspace,
+    pub(crate) lambda0: OVector<f64, P>,
+    pub(crate) lambda: OVector<f64, P>,
+    pub(crate) phi: OMatrix<f64, N, P>,
+}
+
+impl<M, N: Dim, P: Dim> ModelFit<M, N, P>
+where
+    M: LinearModel<N, P>,
+    DefaultAllocator: Allocator<N> + Allocator<P> + Allocator<N, N> + Allocator<N, P>,
+{
+    /// λ̂ = λ₀ for `model`.
+    ///
+    /// # Errors
+    /// As [`check_lambda0`].
+    pub(crate) fn new(model: M, lambda0: OVector<f64, P>) -> Result<Self> {
+        let (n, p) = model.dims();
+        check_lambda0(&lambda0, n.value(), p.value())?;
+        Ok(Self {
+            ws: model.workspace(),
+            model,
+            lambda: lambda0.clone(),
+            lambda0,
+            phi: OMatrix::zeros_generic(n, p),
+        })
+    }
+
+    /// Φ(q, q̇, q̈) of `sample` into `phi`.
+    #[inline(always)]
+    pub(crate) fn load_regressor(&mut self, sample: &SampleOf<'_, N>) -> Result<()> {
+        self.model
+            .regressor_into(&mut self.ws, sample.q, sample.qd, sample.qdd, &mut self.phi)
+    }
+
+    /// λ̂ ← λ₀.
+    pub(crate) fn reset(&mut self) {
+        self.lambda.copy_from(&self.lambda0);
     }
 }
 

@@ -14,13 +14,12 @@
 //! sub-steps as that bound requires.
 
 use nalgebra::allocator::Allocator;
-use nalgebra::{Const, DefaultAllocator, Dim, Dyn, MatrixView, OMatrix, OVector, U1};
+use nalgebra::{Const, DefaultAllocator, Dim, Dyn, MatrixView, OVector, U1};
 
-use super::estimator::{check_stored, train_epochs, Estimator, TrainingReport};
-use super::rls::check_lambda0;
+use super::estimator::{check_stored, train_epochs, Estimator, ModelFit, TrainingReport};
 use super::samples::{SampleOf, SamplesOf};
 use super::stored::StoredRegressors;
-use crate::error::{PrrrpError, Result};
+use crate::error::{invalid, PrrrpError, Result};
 use crate::models::LinearModel;
 
 /// Hopfield network for a compile-time-size model (e.g. the PRRRP arm).
@@ -71,12 +70,8 @@ where
     M: LinearModel<N, P>,
     DefaultAllocator: Allocator<N> + Allocator<P> + Allocator<N, N> + Allocator<N, P>,
 {
-    model: M,
-    ws: M::Workspace,
+    fit: ModelFit<M, N, P>,
     config: HopfieldConfig,
-    lambda0: OVector<f64, P>,
-    lambda: OVector<f64, P>,
-    phi: OMatrix<f64, N, P>,
     /// Residual τ − Φ·λ̂ of the current sub-step.
     r: OVector<f64, N>,
     /// Φᵀ·r.
@@ -104,47 +99,36 @@ where
     /// stability limit outside (0, 2), zero sub-steps, or a λ₀ outside (−c, c);
     /// [`PrrrpError::ShapeMismatch`] if λ₀ does not have one entry per model parameter.
     pub fn new(model: M, lambda0: OVector<f64, P>, config: HopfieldConfig) -> Result<Self> {
-        let bad = |field: String, value: f64, reason: &'static str| {
-            Err(PrrrpError::InvalidParameter {
-                field,
-                value,
-                reason,
-            })
-        };
         let c = &config;
         for (name, v) in [("bound", c.bound), ("beta", c.beta), ("dt", c.dt)] {
             if !(v.is_finite() && v > 0.0) {
-                return bad(name.into(), v, "must be finite and > 0");
+                return Err(invalid(name, v, "must be finite and > 0"));
             }
         }
         if !(c.stability_limit > 0.0 && c.stability_limit < 2.0) {
-            return bad(
-                "stability_limit".into(),
+            return Err(invalid(
+                "stability_limit",
                 c.stability_limit,
                 "must be in (0, 2): explicit Euler is unstable beyond 2",
-            );
+            ));
         }
         if c.max_substeps == 0 {
-            return bad("max_substeps".into(), 0.0, "must be at least 1");
+            return Err(invalid("max_substeps", 0.0, "must be at least 1"));
         }
-        let (n, p) = model.dims();
-        check_lambda0(&lambda0, n.value(), p.value())?;
-        for (i, &l) in lambda0.iter().enumerate() {
+        let fit = ModelFit::new(model, lambda0)?;
+        for (i, &l) in fit.lambda0.iter().enumerate() {
             if !(l.is_finite() && l.abs() < c.bound) {
-                return bad(
+                return Err(invalid(
                     format!("lambda0[{i}]"),
                     l,
                     "must be finite and inside (−bound, bound)",
-                );
+                ));
             }
         }
+        let (n, p) = fit.phi.shape_generic();
         Ok(Self {
-            ws: model.workspace(),
-            model,
+            fit,
             config,
-            lambda: lambda0.clone(),
-            lambda0,
-            phi: OMatrix::zeros_generic(n, p),
             r: OVector::zeros_generic(n, U1),
             g: OVector::zeros_generic(p, U1),
             inner: c.bound * (1.0 - 1e-9),
@@ -178,8 +162,8 @@ where
         data: &StoredRegressors<N, P>,
         epochs: usize,
     ) -> Result<TrainingReport> {
-        check_stored(data, self.phi.shape())?;
-        let shape = self.phi.shape_generic();
+        check_stored(data, self.fit.phi.shape())?;
+        let shape = self.fit.phi.shape_generic();
         train_epochs(self, data.len(), epochs, totals, |e, k| {
             let net = Net {
                 cfg: &e.config,
@@ -188,7 +172,7 @@ where
             };
             let tau = data.tau(k);
             let n = net.integrate(
-                &mut e.lambda,
+                &mut e.fit.lambda,
                 &mut e.r,
                 &mut e.g,
                 &mut e.sse,
@@ -204,7 +188,7 @@ where
     /// Advances the counters after a sample integrated in `n` sub-steps.
     #[inline(always)]
     fn count(&mut self, n: u32) {
-        self.equations += self.phi.nrows();
+        self.equations += self.fit.phi.nrows();
         self.substeps += u64::from(n);
         self.samples += 1;
     }
@@ -233,13 +217,17 @@ where
     /// (field `beta`) if the sample needs more than `max_substeps` sub-steps for a stable
     /// integration.
     fn step(&mut self, sample: SampleOf<'_, N>) -> Result<&OVector<f64, P>> {
-        sample.check(self.phi.nrows())?;
+        sample.check(self.fit.phi.nrows())?;
         let Self {
-            model,
-            ws,
+            fit:
+                ModelFit {
+                    model,
+                    ws,
+                    lambda,
+                    phi: buf,
+                    ..
+                },
             config,
-            lambda,
-            phi: buf,
             r,
             g,
             gain_dt,
@@ -265,15 +253,15 @@ where
             )
         })??;
         self.count(n);
-        Ok(&self.lambda)
+        Ok(&self.fit.lambda)
     }
 
     fn estimate(&self) -> &OVector<f64, P> {
-        &self.lambda
+        &self.fit.lambda
     }
 
     fn reset(&mut self) {
-        self.lambda.copy_from(&self.lambda0);
+        self.fit.reset();
         self.sse = 0.0;
         self.equations = 0;
         self.samples = 0;

@@ -556,33 +556,17 @@ impl LeastSquares {
         let mut lam = wty;
         solve(&mut lam);
         self.resid.resize_with(nj * n, 1, |_, _| 0.0);
+        let (w, y, resid) = (&self.w, &self.y, &mut self.resid);
+        let mut residual_at = |lam: &Mat<f64>, wtr: Option<&mut Mat<f64>>| {
+            residual(w, y, masks, row_scale, n, &mut runs_buf, lam, resid, wtr);
+        };
         if smax > UNREFINED_MAX_COND * smin {
             let mut delta = Mat::<f64>::zeros(p, 1);
-            residual(
-                &self.w,
-                &self.y,
-                masks,
-                row_scale,
-                n,
-                &mut runs_buf,
-                &lam,
-                &mut self.resid,
-                Some(&mut delta),
-            );
+            residual_at(&lam, Some(&mut delta));
             solve(&mut delta);
             lam += &delta;
         }
-        residual(
-            &self.w,
-            &self.y,
-            masks,
-            row_scale,
-            n,
-            &mut runs_buf,
-            &lam,
-            &mut self.resid,
-            None,
-        );
+        residual_at(&lam, None);
         let lambda = OVector::<f64, P>::from_fn_generic(pd, U1, |k, _| lam[(k, 0)]);
         // (G⁻¹)_kk = d_k²·‖column k of L⁻¹‖², as ‖row k of R⁻¹‖² in the QR path.
         let mut linv = Mat::<f64>::identity(p, p);
@@ -597,17 +581,9 @@ impl LeastSquares {
             row_scale[i] * row_scale[i] * rho[i * n..i * n + n].iter().map(|v| v * v).sum::<f64>()
         });
         let sigma2 = joint_ss.sum() / (nj * n - p) as f64;
-        let std_dev = rinv_norm2.map(|v| (sigma2 * v).sqrt());
         let singular_values = OVector::<f64, P>::from_fn_generic(pd, U1, |i, _| sv[i]);
-        Some((
-            Solution {
-                lambda,
-                singular_values,
-                sigma2,
-                std_dev,
-            },
-            joint_ss,
-        ))
+        let solution = Solution::new(lambda, singular_values, sigma2, &rinv_norm2);
+        Some((solution, joint_ss))
     }
 
     /// Least squares block by block. After permuting rows and columns, W is block diagonal:
@@ -791,16 +767,8 @@ impl LeastSquares {
         }
         let rss = joint_ss.sum();
         let sigma2 = rss / (total_rows - P) as f64;
-        let std_dev = rinv_norm2.map(|v| (sigma2 * v).sqrt());
-        Ok((
-            Solution {
-                lambda,
-                singular_values,
-                sigma2,
-                std_dev,
-            },
-            joint_ss,
-        ))
+        let solution = Solution::new(lambda, singular_values, sigma2, &rinv_norm2);
+        Ok((solution, joint_ss))
     }
 }
 
@@ -903,6 +871,23 @@ impl<P: Dim> Solution<P>
 where
     DefaultAllocator: Allocator<P>,
 {
+    /// The solution with std(λ̂_k) = σ·‖row k of R⁻¹‖ from `rinv_norm2`, the squared norms
+    /// ((WᵀW)⁻¹_kk).
+    fn new(
+        lambda: OVector<f64, P>,
+        singular_values: OVector<f64, P>,
+        sigma2: f64,
+        rinv_norm2: &OVector<f64, P>,
+    ) -> Self {
+        let std_dev = rinv_norm2.map(|v| (sigma2 * v).sqrt());
+        Self {
+            lambda,
+            singular_values,
+            sigma2,
+            std_dev,
+        }
+    }
+
     /// The report, or [`PrrrpError::NonFinite`] when λ̂, σ_i or σ² overflowed (finite data
     /// whose magnitudes, e.g. τ = 1e308, are beyond what f64 arithmetic can square and sum).
     fn report<N: Dim>(

@@ -4,7 +4,7 @@
 use nalgebra::allocator::Allocator;
 use nalgebra::{Const, DefaultAllocator, Dim, Dyn, OMatrix, OVector};
 
-use super::estimator::Estimator;
+use super::estimator::{Estimator, ModelFit};
 use super::samples::SampleOf;
 use crate::error::{PrrrpError, Result};
 use crate::models::LinearModel;
@@ -81,15 +81,11 @@ where
     DefaultAllocator:
         Allocator<N> + Allocator<P> + Allocator<N, N> + Allocator<N, P> + Allocator<P, P>,
 {
-    model: M,
-    ws: M::Workspace,
+    fit: ModelFit<M, N, P>,
     config: RlsConfig,
-    lambda0: OVector<f64, P>,
-    lambda: OVector<f64, P>,
     cov: OMatrix<f64, P, P>,
     /// P₀ (δ·I unless set by [`RlsOf::set_initial_covariance`]).
     cov0: OMatrix<f64, P, P>,
-    phi: OMatrix<f64, N, P>,
     p_phi: OVector<f64, P>,
     /// √|c|·P·φ of the rank-1 covariance update ([`sym_rank1_sub`]).
     q_phi: OVector<f64, P>,
@@ -131,18 +127,14 @@ where
                 reason: "must be finite and > 0",
             });
         }
-        let (n, p) = model.dims();
-        check_lambda0(&lambda0, n.value(), p.value())?;
+        let fit = ModelFit::new(model, lambda0)?;
+        let (n, p) = fit.phi.shape_generic();
         let cov = OMatrix::identity_generic(p, p) * d;
         Ok(Self {
-            ws: model.workspace(),
-            model,
+            fit,
             config,
-            lambda: lambda0.clone(),
-            lambda0,
             cov0: cov.clone(),
             cov,
-            phi: OMatrix::zeros_generic(n, p),
             p_phi: OVector::zeros_generic(p, nalgebra::U1),
             q_phi: OVector::zeros_generic(p, nalgebra::U1),
             avx2: cpu_has_avx2(),
@@ -171,7 +163,7 @@ where
     /// NaN/∞, [`PrrrpError::InvalidParameter`] if it is not symmetric,
     /// [`PrrrpError::NotPositiveDefinite`] if it is not positive definite.
     pub fn set_initial_covariance(&mut self, p0: &OMatrix<f64, P, P>) -> Result<()> {
-        let p = self.lambda.nrows();
+        let p = self.fit.lambda.nrows();
         if p0.nrows() != p || p0.ncols() != p {
             return Err(PrrrpError::ShapeMismatch {
                 what: "initial covariance".into(),
@@ -198,9 +190,9 @@ where
     /// # Errors
     /// [`PrrrpError::ShapeMismatch`] / [`PrrrpError::InvalidParameter`] as for λ₀.
     pub fn set_estimate(&mut self, lambda: &OVector<f64, P>) -> Result<()> {
-        let (n, p) = self.model.dims();
+        let (n, p) = self.fit.model.dims();
         check_lambda0(lambda, n.value(), p.value())?;
-        self.lambda.copy_from(lambda);
+        self.fit.lambda.copy_from(lambda);
         Ok(())
     }
 
@@ -208,7 +200,7 @@ where
     /// semidefinite). Opens the covariance after a detected change of the dynamics (d > 1
     /// on the parameters that may have changed), allocation-free.
     pub fn scale_covariance(&mut self, d: &OVector<f64, P>) {
-        let p = self.lambda.nrows();
+        let p = self.fit.lambda.nrows();
         for j in 0..p {
             for i in 0..p {
                 self.cov[(i, j)] *= d[i] * d[j];
@@ -231,7 +223,7 @@ where
         weights: &OVector<f64, N>,
         forgetting: Forgetting,
     ) -> Result<&OVector<f64, P>> {
-        let n = self.phi.nrows();
+        let n = self.fit.phi.nrows();
         sample.check(n)?;
         let nu = forgetting.factor();
         if !(nu > 0.0 && nu <= 1.0) {
@@ -251,9 +243,8 @@ where
                 reason: "joint weights must be finite and >= 0",
             });
         }
-        self.model
-            .regressor_into(&mut self.ws, sample.q, sample.qd, sample.qdd, &mut self.phi)?;
-        self.pred.gemv(1.0, &self.phi, &self.lambda, 0.0);
+        self.fit.load_regressor(&sample)?;
+        self.pred.gemv(1.0, &self.fit.phi, &self.fit.lambda, 0.0);
         let directional = match forgetting {
             Forgetting::Directional(nu) if nu < 1.0 => Some(nu),
             _ => None,
@@ -265,7 +256,7 @@ where
             }
             let s = w.sqrt();
             if s != 1.0 {
-                self.phi.row_mut(i).scale_mut(s);
+                self.fit.phi.row_mut(i).scale_mut(s);
             }
             let ok = match directional {
                 Some(nu) => self.update_row_directional(i, sample.tau[i] * s, nu),
@@ -280,11 +271,11 @@ where
                 self.cov /= nu;
             }
         }
-        if !(self.lambda.iter().all(|x| x.is_finite()) && self.cov[(0, 0)].is_finite()) {
+        if !(self.fit.lambda.iter().all(|x| x.is_finite()) && self.cov[(0, 0)].is_finite()) {
             return Err(diverged(self.samples));
         }
         self.samples += 1;
-        Ok(&self.lambda)
+        Ok(&self.fit.lambda)
     }
 
     /// The scalar update with row `row` and directional forgetting ν (see
@@ -293,13 +284,13 @@ where
     /// direction already known exactly) is the plain update.
     #[inline(always)]
     fn update_row_directional(&mut self, row: usize, tau: f64, nu: f64) -> bool {
-        let np = self.lambda.nrows();
-        let (phi, cov, p_phi) = (&self.phi, &mut self.cov, &mut self.p_phi);
+        let np = self.fit.lambda.nrows();
+        let (phi, cov, p_phi) = (&self.fit.phi, &mut self.cov, &mut self.p_phi);
         cov_times_row(self.avx2, cov.as_slice(), phi, row, p_phi.as_mut_slice());
         let (mut r, mut pred) = (0.0, 0.0);
         for j in 0..np {
             r += phi[(row, j)] * p_phi[j];
-            pred += phi[(row, j)] * self.lambda[j];
+            pred += phi[(row, j)] * self.fit.lambda[j];
         }
         if !r.is_finite() || r < 0.0 {
             return false;
@@ -310,7 +301,7 @@ where
             (1.0 + r, 1.0)
         };
         let e = tau - pred;
-        self.lambda.axpy(e / den, p_phi, 1.0);
+        self.fit.lambda.axpy(e / den, p_phi, 1.0);
         sym_rank1_sub(
             self.avx2,
             cov.as_mut_slice(),
@@ -324,20 +315,20 @@ where
     /// The scalar update with row `row` of the stored regressor.
     #[inline(always)]
     fn update_row(&mut self, row: usize, tau: f64) -> bool {
-        let np = self.lambda.nrows();
-        let (phi, cov, p_phi) = (&self.phi, &mut self.cov, &mut self.p_phi);
+        let np = self.fit.lambda.nrows();
+        let (phi, cov, p_phi) = (&self.fit.phi, &mut self.cov, &mut self.p_phi);
         cov_times_row(self.avx2, cov.as_slice(), phi, row, p_phi.as_mut_slice());
         let (mut den, mut pred) = (1.0, 0.0);
         for j in 0..np {
             den += phi[(row, j)] * p_phi[j];
-            pred += phi[(row, j)] * self.lambda[j];
+            pred += phi[(row, j)] * self.fit.lambda[j];
         }
         if !(den > 0.0 && den.is_finite()) {
             return false;
         }
         let e = tau - pred;
         let inv = 1.0 / den;
-        self.lambda.axpy(e * inv, p_phi, 1.0);
+        self.fit.lambda.axpy(e * inv, p_phi, 1.0);
         sym_rank1_sub(
             self.avx2,
             cov.as_mut_slice(),
@@ -454,10 +445,9 @@ where
     /// covariance lost positive definiteness or the estimate became non-finite (with
     /// ν < 1 and poor excitation P grows without bound: raise ν or excite more).
     fn step(&mut self, sample: SampleOf<'_, N>) -> Result<&OVector<f64, P>> {
-        let n = self.phi.nrows();
+        let n = self.fit.phi.nrows();
         sample.check(n)?;
-        self.model
-            .regressor_into(&mut self.ws, sample.q, sample.qd, sample.qdd, &mut self.phi)?;
+        self.fit.load_regressor(&sample)?;
         for i in 0..n {
             if !self.update_row(i, sample.tau[i]) {
                 return Err(diverged(self.samples));
@@ -466,19 +456,19 @@ where
         if self.config.forgetting != 1.0 {
             self.cov /= self.config.forgetting;
         }
-        if !(self.lambda.iter().all(|x| x.is_finite()) && self.cov[(0, 0)].is_finite()) {
+        if !(self.fit.lambda.iter().all(|x| x.is_finite()) && self.cov[(0, 0)].is_finite()) {
             return Err(diverged(self.samples));
         }
         self.samples += 1;
-        Ok(&self.lambda)
+        Ok(&self.fit.lambda)
     }
 
     fn estimate(&self) -> &OVector<f64, P> {
-        &self.lambda
+        &self.fit.lambda
     }
 
     fn reset(&mut self) {
-        self.lambda.copy_from(&self.lambda0);
+        self.fit.reset();
         self.cov.copy_from(&self.cov0);
         self.samples = 0;
     }

@@ -26,7 +26,7 @@ use nalgebra::{DMatrix, DMatrixView, DVector, Dyn};
 use serde_json::json;
 
 use super::IdentifiedModel;
-use crate::error::{PrrrpError, Result};
+use crate::error::{invalid, PrrrpError, Result};
 use crate::estimators::{
     AdalineConfig, AdalineRule, Discretisation, DynAdaline, DynEkf, DynHopfield, DynJointNoise,
     DynRls, DynSamples, EkfConfig, EkfMeasurement, Estimator, HopfieldConfig, LeastSquares,
@@ -421,13 +421,7 @@ pub fn identify(
     preprocessing: serde_json::Value,
 ) -> Result<IdentifiedModel> {
     let n = chain.dof();
-    if data.dof() != n {
-        return Err(PrrrpError::ShapeMismatch {
-            what: "data".into(),
-            expected: format!("{n} joints (the robot's)"),
-            got: format!("{} joints", data.dof()),
-        });
-    }
+    data.check_dof(n, "the robot's")?;
     let model = chain.base_model(base)?;
     let b = model.count();
     // One equation more than unknowns, so that the residual variance is defined.
@@ -1018,14 +1012,6 @@ fn store_regressors<M: LinearModel<Dyn, Dyn>>(
         return Ok(None);
     }
     StoredRegressors::new(m, samples, max_bytes).map(Some)
-}
-
-fn invalid(field: &str, value: f64, reason: &'static str) -> PrrrpError {
-    PrrrpError::InvalidParameter {
-        field: field.into(),
-        value,
-        reason,
-    }
 }
 
 /// What the epoch loop did.

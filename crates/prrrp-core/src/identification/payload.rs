@@ -668,14 +668,7 @@ fn arm_covariance(model: &IdentifiedModel, rows: &[usize]) -> Option<DMatrix<f64
 }
 
 fn check_shapes(model: &IdentifiedModel, chain: &DynChain, data: &DynDataset) -> Result<()> {
-    let n = chain.dof();
-    if data.dof() != n {
-        return Err(PrrrpError::ShapeMismatch {
-            what: "data".into(),
-            expected: format!("{n} joints (the model's robot)"),
-            got: format!("{} joints", data.dof()),
-        });
-    }
+    data.check_dof(chain.dof(), "the model's robot")?;
     if chain.num_params() != model.base.standard_names.len() {
         return Err(PrrrpError::ShapeMismatch {
             what: "model base.standard_names".into(),

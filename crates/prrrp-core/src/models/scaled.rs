@@ -12,10 +12,13 @@
 //! [`ScaledModel::to_model`] maps their γ̂ back to λ̂ = D·γ̂. Least squares is invariant
 //! under the scaling (up to round-off).
 
-use nalgebra::{DMatrix, DVector, Dim, Dyn, SMatrix, SVector};
+use nalgebra::allocator::Allocator;
+use nalgebra::{
+    DMatrix, DVector, DefaultAllocator, Dim, Dyn, OMatrix, OVector, SMatrix, SVector, U1,
+};
 
 use crate::error::{PrrrpError, Result};
-use crate::estimators::{DynSamples, Samples};
+use crate::estimators::{DynSamples, Samples, SamplesOf};
 use crate::models::{ForwardDerivatives, ForwardDerivativesOf, LinearDynamics, LinearModel};
 
 /// A [`LinearDynamics`] model whose parameters are γ = D⁻¹·λ for the parameters λ of an
@@ -33,17 +36,7 @@ impl<M, const P: usize> ScaledModel<M, P> {
     /// # Errors
     /// [`PrrrpError::InvalidParameter`] if an entry of `scale` is not finite and > 0.
     pub fn new(inner: M, scale: SVector<f64, P>) -> Result<Self> {
-        if let Some((j, &s)) = scale
-            .iter()
-            .enumerate()
-            .find(|(_, &s)| !(s.is_finite() && s > 0.0))
-        {
-            return Err(PrrrpError::InvalidParameter {
-                field: format!("scale[{j}]"),
-                value: s,
-                reason: "must be finite and > 0",
-            });
-        }
+        check_scale(scale.as_slice())?;
         Ok(Self { inner, scale })
     }
 
@@ -82,29 +75,62 @@ impl<M, const P: usize> ScaledModel<M, P> {
     where
         M: LinearDynamics<N, P>,
     {
-        if data.is_empty() {
-            return Err(PrrrpError::TooFewSamples { needed: 1, got: 0 });
-        }
-        let mut ss = SVector::<f64, P>::zeros();
-        for (k, s) in data.iter().enumerate() {
-            s.check_finite()
-                .map_err(|e| crate::estimators::with_row(e, k))?;
-            let phi: SMatrix<f64, N, P> = inner.regressor(s.q, s.qd, s.qdd);
-            for (j, col) in phi.column_iter().enumerate() {
-                ss[j] += col.norm_squared();
-            }
-        }
-        let rows = (N * data.len()) as f64;
-        if let Some(j) = ss.iter().position(|&v| v <= 0.0) {
-            return Err(PrrrpError::InvalidParameter {
-                field: format!("regressor column {j}"),
-                value: 0.0,
-                reason: "is zero along the whole of the data: that parameter is not excited",
-            });
-        }
-        let scale = ss.map(|v| (rows / v).sqrt());
+        let scale = equilibrating_scale(&inner, data)?;
         Self::new(inner, scale)
     }
+}
+
+/// D_j = 1/RMS of column j of the stacked regressor of `inner` along `data`, the scale of
+/// both [`ScaledModel::equilibrated`] and [`DynScaledModel::equilibrated`] (their errors).
+fn equilibrating_scale<M, N: Dim, P: Dim>(
+    inner: &M,
+    data: &SamplesOf<'_, N>,
+) -> Result<OVector<f64, P>>
+where
+    M: LinearModel<N, P>,
+    DefaultAllocator: Allocator<N> + Allocator<P> + Allocator<N, N> + Allocator<N, P>,
+{
+    if data.is_empty() {
+        return Err(PrrrpError::TooFewSamples { needed: 1, got: 0 });
+    }
+    let (n, p) = inner.dims();
+    let mut ws = inner.workspace();
+    let mut phi = OMatrix::<f64, N, P>::zeros_generic(n, p);
+    let mut ss = OVector::<f64, P>::zeros_generic(p, U1);
+    for (k, s) in data.iter().enumerate() {
+        s.check(n.value())
+            .map_err(|e| crate::estimators::with_row(e, k))?;
+        inner.regressor_into(&mut ws, s.q, s.qd, s.qdd, &mut phi)?;
+        for (j, col) in phi.column_iter().enumerate() {
+            ss[j] += col.norm_squared();
+        }
+    }
+    let rows = (n.value() * data.len()) as f64;
+    if let Some(j) = ss.iter().position(|&v| v <= 0.0) {
+        return Err(PrrrpError::InvalidParameter {
+            field: format!("regressor column {j}"),
+            value: 0.0,
+            reason: "is zero along the whole of the data: that parameter is not excited",
+        });
+    }
+    Ok(ss.map(|v| (rows / v).sqrt()))
+}
+
+/// The [`PrrrpError::InvalidParameter`] of the first entry of a scale D that is not finite
+/// and > 0.
+fn check_scale(scale: &[f64]) -> Result<()> {
+    if let Some((j, &s)) = scale
+        .iter()
+        .enumerate()
+        .find(|(_, &s)| !(s.is_finite() && s > 0.0))
+    {
+        return Err(PrrrpError::InvalidParameter {
+            field: format!("scale[{j}]"),
+            value: s,
+            reason: "must be finite and > 0",
+        });
+    }
+    Ok(())
 }
 
 impl<M: LinearDynamics<N, P>, const N: usize, const P: usize> LinearDynamics<N, P>
@@ -303,17 +329,7 @@ impl<M: LinearModel<Dyn, Dyn>> DynScaledModel<M> {
                 got: format!("{} entries", scale.len()),
             });
         }
-        if let Some((j, &s)) = scale
-            .iter()
-            .enumerate()
-            .find(|(_, &s)| !(s.is_finite() && s > 0.0))
-        {
-            return Err(PrrrpError::InvalidParameter {
-                field: format!("scale[{j}]"),
-                value: s,
-                reason: "must be finite and > 0",
-            });
-        }
+        check_scale(scale.as_slice())?;
         Ok(Self {
             inner,
             scale,
@@ -331,30 +347,7 @@ impl<M: LinearModel<Dyn, Dyn>> DynScaledModel<M> {
     /// [`PrrrpError::InvalidParameter`] (field `regressor column j`) if column j is zero
     /// along the whole of `data` (that parameter is not excited).
     pub fn equilibrated(inner: M, data: &DynSamples<'_>) -> Result<Self> {
-        if data.is_empty() {
-            return Err(PrrrpError::TooFewSamples { needed: 1, got: 0 });
-        }
-        let (n, p) = inner.dims();
-        let mut ws = inner.workspace();
-        let mut phi = DMatrix::zeros(n.value(), p.value());
-        let mut ss = DVector::<f64>::zeros(p.value());
-        for (k, s) in data.iter().enumerate() {
-            s.check(n.value())
-                .map_err(|e| crate::estimators::with_row(e, k))?;
-            inner.regressor_into(&mut ws, s.q, s.qd, s.qdd, &mut phi)?;
-            for (j, col) in phi.column_iter().enumerate() {
-                ss[j] += col.norm_squared();
-            }
-        }
-        let rows = (n.value() * data.len()) as f64;
-        if let Some(j) = ss.iter().position(|&v| v <= 0.0) {
-            return Err(PrrrpError::InvalidParameter {
-                field: format!("regressor column {j}"),
-                value: 0.0,
-                reason: "is zero along the whole of the data: that parameter is not excited",
-            });
-        }
-        let scale = ss.map(|v| (rows / v).sqrt());
+        let scale = equilibrating_scale(&inner, data)?;
         Self::new(inner, scale)
     }
 

@@ -17,7 +17,7 @@ use argmin::solver::neldermead::NelderMead;
 use rand::rngs::ChaCha8Rng;
 use rand::{RngExt, SeedableRng};
 
-use crate::error::{PrrrpError, Result};
+use crate::error::{invalid, PrrrpError, Result};
 use crate::models::chain::{BaseParameters, DynChain, JointLimit};
 use crate::motion::dyn_trajectory::FourierTrajectory;
 use crate::motion::excitation::Params;
@@ -104,62 +104,59 @@ pub fn optimise_chain_excitation(
         });
     }
     let c = config;
-    let bad = |field: &str, value: f64, reason: &'static str| {
-        Err(PrrrpError::InvalidParameter {
-            field: field.into(),
-            value,
-            reason,
-        })
-    };
     if !(2..=100).contains(&c.harmonics) {
-        return bad("harmonics", c.harmonics as f64, "must be between 2 and 100");
+        return Err(invalid(
+            "harmonics",
+            c.harmonics as f64,
+            "must be between 2 and 100",
+        ));
     }
     if !(c.base_frequency_hz.is_finite() && c.base_frequency_hz > 0.0) {
-        return bad(
+        return Err(invalid(
             "base_frequency_hz",
             c.base_frequency_hz,
             "must be finite and > 0 Hz",
-        );
+        ));
     }
     let period = 1.0 / c.base_frequency_hz;
     if !(c.sample_rate_hz.is_finite() && c.sample_rate_hz > 0.0) {
-        return bad(
+        return Err(invalid(
             "sample_rate_hz",
             c.sample_rate_hz,
             "must be finite and > 0 Hz",
-        );
+        ));
     }
     let samples = (period * c.sample_rate_hz).round() as usize;
     if samples > crate::interrupt::MAX_SAMPLES {
-        return bad(
+        return Err(invalid(
             "sample_rate_hz",
             c.sample_rate_hz,
             "gives more than MAX_SAMPLES (1e7) samples per period",
-        );
+        ));
     }
     if !(0.0..1.0).contains(&c.margin) {
-        return bad("margin", c.margin, "must be in [0, 1)");
+        return Err(invalid("margin", c.margin, "must be in [0, 1)"));
     }
     if c.restarts == 0 {
-        return bad("restarts", 0.0, "must be at least 1");
+        return Err(invalid("restarts", 0.0, "must be at least 1"));
     }
     if c.max_evaluations > MAX_EXCITATION_EVALUATIONS {
-        return bad(
+        return Err(invalid(
             "max_evaluations",
             c.max_evaluations as f64,
             "exceeds MAX_EXCITATION_EVALUATIONS (1e7)",
-        );
+        ));
     }
     let names: Vec<String> = chain.joint_names().iter().map(|s| s.to_string()).collect();
     let shaper = Shaper::new(limits, &names, c, period)?;
     let h = c.harmonics;
     let vars = n * 2 * (h - 1);
     if samples * n < base.count() + 1 {
-        return bad(
+        return Err(invalid(
             "sample_rate_hz",
             c.sample_rate_hz,
             "gives fewer equations per period than base parameters: raise it",
-        );
+        ));
     }
     let problem = Problem {
         chain,

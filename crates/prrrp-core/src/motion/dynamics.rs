@@ -205,6 +205,48 @@ where
     pub fn parameters(&self) -> &OVector<f64, P> {
         &self.lambda
     }
+
+    /// Checks that the three inputs and the output each have n entries (the first wrong
+    /// one, in that order, is the error), copies the inputs into the workspace's vectors,
+    /// runs `method` of the model on them at λ and copies its result into `out`.
+    #[inline]
+    fn run(
+        &self,
+        ws: &mut ParameterisedWorkspace<M::Workspace, N>,
+        inputs: [(&'static str, &[f64]); 3],
+        output: &'static str,
+        out: &mut [f64],
+        method: impl FnOnce(
+            &M,
+            &mut M::Workspace,
+            &OVector<f64, N>,
+            &OVector<f64, N>,
+            &OVector<f64, N>,
+            &OVector<f64, P>,
+            &mut OVector<f64, N>,
+        ) -> Result<()>,
+    ) -> Result<()> {
+        let n = self.n.value();
+        for (what, len) in inputs.map(|(what, v)| (what, v.len())) {
+            check_joints(what, len, n)?;
+        }
+        check_joints(output, out.len(), n)?;
+        let [a, b, c] = inputs.map(|(_, v)| v);
+        ws.a.as_mut_slice().copy_from_slice(a);
+        ws.b.as_mut_slice().copy_from_slice(b);
+        ws.c.as_mut_slice().copy_from_slice(c);
+        method(
+            &self.model,
+            &mut ws.model,
+            &ws.a,
+            &ws.b,
+            &ws.c,
+            &self.lambda,
+            &mut ws.out,
+        )?;
+        out.copy_from_slice(ws.out.as_slice());
+        Ok(())
+    }
 }
 
 /// Workspace of a [`ParameterisedModel`]: the model's own plus the vectors the slices are
@@ -219,29 +261,6 @@ where
     b: OVector<f64, N>,
     c: OVector<f64, N>,
     out: OVector<f64, N>,
-}
-
-/// Checks that the three inputs and the output each have `n` entries (the first wrong one,
-/// in that order, is the error) and copies the inputs into the workspace's a, b, c.
-fn load<'w, W, N: Dim>(
-    ws: &'w mut ParameterisedWorkspace<W, N>,
-    n: usize,
-    inputs: [(&'static str, &[f64]); 3],
-    output: &'static str,
-    out: &[f64],
-) -> Result<&'w mut ParameterisedWorkspace<W, N>>
-where
-    DefaultAllocator: Allocator<N>,
-{
-    for (what, len) in inputs.map(|(what, v)| (what, v.len())) {
-        check_joints(what, len, n)?;
-    }
-    check_joints(output, out.len(), n)?;
-    let [a, b, c] = inputs.map(|(_, v)| v);
-    ws.a.as_mut_slice().copy_from_slice(a);
-    ws.b.as_mut_slice().copy_from_slice(b);
-    ws.c.as_mut_slice().copy_from_slice(c);
-    Ok(ws)
 }
 
 impl<M, N: Dim, P: Dim> Dynamics for ParameterisedModel<M, N, P>
@@ -278,17 +297,7 @@ where
         tau: &mut [f64],
     ) -> Result<()> {
         let inputs = [("q", q), ("qd", qd), ("qdd", qdd)];
-        let ParameterisedWorkspace {
-            model,
-            a,
-            b,
-            c,
-            out,
-        } = load(ws, self.dof(), inputs, "tau", tau)?;
-        self.model
-            .inverse_dynamics_into(model, a, b, c, &self.lambda, out)?;
-        tau.copy_from_slice(out.as_slice());
-        Ok(())
+        self.run(ws, inputs, "tau", tau, M::inverse_dynamics_into)
     }
 
     #[inline]
@@ -301,16 +310,6 @@ where
         qdd: &mut [f64],
     ) -> Result<()> {
         let inputs = [("q", q), ("qd", qd), ("tau", tau)];
-        let ParameterisedWorkspace {
-            model,
-            a,
-            b,
-            c,
-            out,
-        } = load(ws, self.dof(), inputs, "qdd", qdd)?;
-        self.model
-            .forward_dynamics_into(model, a, b, c, &self.lambda, out)?;
-        qdd.copy_from_slice(out.as_slice());
-        Ok(())
+        self.run(ws, inputs, "qdd", qdd, M::forward_dynamics_into)
     }
 }

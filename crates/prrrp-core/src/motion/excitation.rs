@@ -20,7 +20,7 @@ use nalgebra::{SMatrix, SymmetricEigen};
 use rand::rngs::ChaCha8Rng;
 use rand::{RngExt, SeedableRng};
 
-use crate::error::{PrrrpError, Result};
+use crate::error::{invalid, PrrrpError, Result};
 use crate::models::prrrp::dynamics::PrrrpModel;
 use crate::models::prrrp::regressor::{condition_number, observation_matrix};
 use crate::models::prrrp::types::NPARAM;
@@ -286,13 +286,8 @@ struct Shaper<const K: usize> {
 
 impl<const K: usize> Shaper<K> {
     fn new(c: &ExcitationConfig) -> Result<Self> {
-        let bad = |field: &str, value: f64, reason: &'static str| PrrrpError::InvalidParameter {
-            field: field.into(),
-            value,
-            reason,
-        };
         if K < 3 {
-            return Err(bad(
+            return Err(invalid(
                 "K",
                 K as f64,
                 "at least 3 knots are needed: a single rest-to-rest quintic scaled to the \
@@ -300,16 +295,16 @@ impl<const K: usize> Shaper<K> {
             ));
         }
         if !(c.duration.is_finite() && c.duration > 0.0) {
-            return Err(bad("duration", c.duration, "must be finite and > 0 s"));
+            return Err(invalid("duration", c.duration, "must be finite and > 0 s"));
         }
         if !(c.dt.is_finite() && c.dt > 0.0) {
-            return Err(bad("dt", c.dt, "must be finite and > 0 s"));
+            return Err(invalid("dt", c.dt, "must be finite and > 0 s"));
         }
         if !(c.margin.is_finite() && (0.0..0.5).contains(&c.margin)) {
-            return Err(bad("margin", c.margin, "must be in [0, 0.5)"));
+            return Err(invalid("margin", c.margin, "must be in [0, 0.5)"));
         }
         if !(c.simplex_step.is_finite() && c.simplex_step > 0.0) {
-            return Err(bad(
+            return Err(invalid(
                 "simplex_step",
                 c.simplex_step,
                 "must be finite and > 0",
@@ -317,8 +312,8 @@ impl<const K: usize> Shaper<K> {
         }
         for (i, &p) in c.prismatic_periods.iter().enumerate() {
             if p == 0 {
-                return Err(bad(
-                    &format!("prismatic_periods[{i}]"),
+                return Err(invalid(
+                    format!("prismatic_periods[{i}]"),
                     0.0,
                     "needs at least one whole period to start and end at rest",
                 ));
@@ -333,7 +328,7 @@ impl<const K: usize> Shaper<K> {
              duration or raise dt",
         )?;
         if samples < NPARAM {
-            return Err(bad(
+            return Err(invalid(
                 "duration",
                 c.duration,
                 "must span at least 8 samples of dt (one per parameter)",

@@ -20,7 +20,7 @@ use rand_distr::{Distribution, Normal};
 use crate::data::dataset::Dataset;
 use crate::data::preprocess::{preprocess, PreprocessConfig};
 use crate::data::{preprocess_log, DynDataset, LogConfig, LogReport};
-use crate::error::{check_joints, check_lens, PrrrpError, Result};
+use crate::error::{check_joints, check_lens, invalid, PrrrpError, Result};
 use crate::models::chain::{cholesky_in_place, cholesky_solve};
 use crate::models::prrrp::dynamics::PrrrpModel;
 use crate::models::prrrp::types::{Lambda, Vec5, NDOF};
@@ -189,16 +189,11 @@ impl DynSimulationConfig {
     /// internal step too long for the gains; [`PrrrpError::ShapeMismatch`] for a gain or
     /// noise vector without n entries.
     pub fn validate(&self, n: usize) -> Result<()> {
-        let bad = |field: String, value: f64, reason: &'static str| PrrrpError::InvalidParameter {
-            field,
-            value,
-            reason,
-        };
         if !(self.dt.is_finite() && self.dt > 0.0) {
-            return Err(bad("dt".into(), self.dt, "must be finite and > 0 s"));
+            return Err(invalid("dt", self.dt, "must be finite and > 0 s"));
         }
         if self.substeps == 0 {
-            return Err(bad("substeps".into(), 0.0, "must be at least 1"));
+            return Err(invalid("substeps", 0.0, "must be at least 1"));
         }
         let mut vectors = vec![
             ("kp", self.kp.as_slice()),
@@ -213,7 +208,7 @@ impl DynSimulationConfig {
             check_joints(name, v.len(), n)?;
             for (j, &x) in v.iter().enumerate() {
                 if !(x.is_finite() && x >= 0.0) {
-                    return Err(bad(
+                    return Err(invalid(
                         format!("{name}[{j}] (joint {})", j + 1),
                         x,
                         "must be finite and >= 0",
@@ -227,8 +222,8 @@ impl DynSimulationConfig {
         let max = |v: &[f64]| v.iter().copied().fold(0.0, f64::max);
         let worst = (max(&self.kd) * h).max(max(&self.kp) * h * h);
         if worst > 1.0 {
-            return Err(bad(
-                "substeps".into(),
+            return Err(invalid(
+                "substeps",
                 self.substeps as f64,
                 "the internal step dt/substeps is too long for the PD gains \
                  (need kd·h <= 1 and kp·h² <= 1): increase substeps or lower the gains",

@@ -25,6 +25,15 @@ pub struct TrajectoryPoint {
     pub qdd: Vec5,
 }
 
+impl TrajectoryPoint {
+    /// All joints at rest at zero, the start of a point filled joint by joint.
+    const ZERO: Self = Self {
+        q: Vec5::new(0.0, 0.0, 0.0, 0.0, 0.0),
+        qd: Vec5::new(0.0, 0.0, 0.0, 0.0, 0.0),
+        qdd: Vec5::new(0.0, 0.0, 0.0, 0.0, 0.0),
+    };
+}
+
 /// A one-joint trajectory: position, velocity and acceleration at time t (s).
 pub trait ScalarTrajectory {
     /// (q, q̇, q̈) at time `t`, s. Must not allocate.
@@ -119,11 +128,7 @@ impl<S: ScalarTrajectory> DynTrajectory for Vec<S> {
 impl<S: ScalarTrajectory> JointTrajectory for [S; NDOF] {
     #[inline]
     fn eval(&self, t: f64) -> TrajectoryPoint {
-        let mut p = TrajectoryPoint {
-            q: Vec5::zeros(),
-            qd: Vec5::zeros(),
-            qdd: Vec5::zeros(),
-        };
+        let mut p = TrajectoryPoint::ZERO;
         for (j, s) in self.iter().enumerate() {
             (p.q[j], p.qd[j], p.qdd[j]) = s.eval(t);
         }
@@ -419,11 +424,7 @@ impl<const K: usize> ExcitationTrajectory<K> {
 impl<const K: usize> JointTrajectory for ExcitationTrajectory<K> {
     #[inline]
     fn eval(&self, t: f64) -> TrajectoryPoint {
-        let mut p = TrajectoryPoint {
-            q: Vec5::zeros(),
-            qd: Vec5::zeros(),
-            qdd: Vec5::zeros(),
-        };
+        let mut p = TrajectoryPoint::ZERO;
         (p.q[0], p.qd[0], p.qdd[0]) = self.prismatic[0].eval(t);
         (p.q[4], p.qd[4], p.qdd[4]) = self.prismatic[1].eval(t);
         for (i, r) in self.revolute.iter().enumerate() {

@@ -8,7 +8,7 @@ use super::kinematics::{CausalKinematics, CausalLowPass};
 use super::payload::{project, summary_json, PAYLOAD_PARAMS};
 use super::payload_ekf::PayloadEkf;
 use super::tracked::{TrackedModel, TrackedWorkspace};
-use crate::error::{PrrrpError, Result};
+use crate::error::{invalid, PrrrpError, Result};
 use crate::estimators::{
     AdalineConfig, AdalineRule, Discretisation, DynAdaline, DynEkf, DynHopfield, DynRls,
     DynSamples, EkfConfig, EkfMeasurement, Estimator, Forgetting, HopfieldConfig,
@@ -199,14 +199,6 @@ impl OnlineConfig {
             }
         }
         Ok(())
-    }
-}
-
-fn invalid(field: &str, value: f64, reason: &'static str) -> PrrrpError {
-    PrrrpError::InvalidParameter {
-        field: field.into(),
-        value,
-        reason,
     }
 }
 

@@ -349,17 +349,6 @@ impl TorqueValidation {
     }
 }
 
-fn check_dof(model: usize, data: &DynDataset) -> Result<()> {
-    if data.dof() != model {
-        return Err(PrrrpError::ShapeMismatch {
-            what: "data".into(),
-            expected: format!("{model} joints (the model's)"),
-            got: format!("{} joints", data.dof()),
-        });
-    }
-    Ok(())
-}
-
 fn report(data: &DynDataset, predicted: Vec<f64>) -> Result<TorqueValidation> {
     let indices = per_joint_indices(data.dof(), data.tau(), &predicted)?;
     Ok(TorqueValidation {
@@ -400,7 +389,7 @@ pub fn validate_torque_prediction<D: Dynamics + ?Sized>(
     model: &D,
     data: &DynDataset,
 ) -> Result<TorqueValidation> {
-    check_dof(model.dof(), data)?;
+    data.check_dof(model.dof(), "the model's")?;
     let mut ws = model.workspace();
     let predicted = predict_with(data, |q, qd, qdd, tau| {
         model.inverse_dynamics_into(&mut ws, q, qd, qdd, tau)
@@ -419,7 +408,7 @@ pub fn validate_identified_model(
     data: &DynDataset,
 ) -> Result<TorqueValidation> {
     let mut p = model.predictor()?;
-    check_dof(p.chain().dof(), data)?;
+    data.check_dof(p.chain().dof(), "the model's")?;
     let predicted = predict_with(data, |q, qd, qdd, tau| p.predict_into(q, qd, qdd, tau))?;
     report(data, predicted)
 }

@@ -18,7 +18,7 @@
 use nalgebra::DMatrix;
 use serde::{Deserialize, Serialize};
 
-use crate::error::{PrrrpError, Result};
+use crate::error::{invalid, PrrrpError, Result};
 
 /// Names of the per-actuator parameters in their order (viscous, Coulomb, offset,
 /// armature); the chain appends the 1-based actuator number (e.g. `Ia6`).
@@ -77,14 +77,6 @@ pub struct Actuators {
     /// used only to map motor-side measurements to the joint side. `None` = not known.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub gear_ratios: Option<Vec<f64>>,
-}
-
-fn invalid(field: impl Into<String>, value: f64, reason: &'static str) -> PrrrpError {
-    PrrrpError::InvalidParameter {
-        field: field.into(),
-        value,
-        reason,
-    }
 }
 
 fn check_count(what: &str, len: usize, n: usize) -> Result<()> {

@@ -736,6 +736,24 @@ impl DynChainBaseModel {
         Ok(())
     }
 
+    /// [`ChainBaseModelOf::forward_and_derivatives`] on the vectors of a checked call
+    /// (`x` = q, q̇, τ).
+    #[inline(always)]
+    fn derivatives_of(
+        &self,
+        ws: &mut DynBaseWorkspace,
+        x: [&DVector<f64>; 3],
+        lambda: &DVector<f64>,
+        qdd_lin: Option<&DVector<f64>>,
+        minv: Option<&mut DMatrix<f64>>,
+        out: &mut ForwardDerivativesOf<Dyn, Dyn>,
+    ) -> Result<()> {
+        let [q, qd, tau] = x.map(|v| v.as_slice());
+        let at = qdd_lin.map(|v| v.as_slice());
+        let minv = minv.map(|m| m.as_mut_slice());
+        self.forward_and_derivatives(ws, q, qd, tau, lambda.as_slice(), at, minv, out)
+    }
+
     fn check_ws(&self, ws: &DynBaseWorkspace) -> Result<()> {
         let got = ws.st.nrows();
         if got != self.dof() {
@@ -846,13 +864,7 @@ impl LinearModel<Dyn, Dyn> for DynChainBaseModel {
     ) -> Result<()> {
         let joints = [("q", q), ("qd", qd), ("tau", tau)];
         self.check_call(ws, &joints, lambda, Some(out))?;
-        let (q, qd, tau, lambda) = (
-            q.as_slice(),
-            qd.as_slice(),
-            tau.as_slice(),
-            lambda.as_slice(),
-        );
-        self.forward_and_derivatives(ws, q, qd, tau, lambda, None, None, out)
+        self.derivatives_of(ws, [q, qd, tau], lambda, None, None, out)
     }
 
     /// One mass matrix and its factor for both: q̈ = M⁻¹·(τ − bias) as
@@ -872,14 +884,7 @@ impl LinearModel<Dyn, Dyn> for DynChainBaseModel {
     ) -> Result<()> {
         let joints = [("q", q), ("qd", qd), ("qdd_lin", qdd_lin), ("tau", tau)];
         self.check_call(ws, &joints, lambda, Some(out))?;
-        let (q, qd, tau, lambda) = (
-            q.as_slice(),
-            qd.as_slice(),
-            tau.as_slice(),
-            lambda.as_slice(),
-        );
-        let at = Some(qdd_lin.as_slice());
-        self.forward_and_derivatives(ws, q, qd, tau, lambda, at, None, out)
+        self.derivatives_of(ws, [q, qd, tau], lambda, Some(qdd_lin), None, out)
     }
 
     /// As [`Self::forward_derivatives_at_into`] (or [`Self::forward_derivatives_into`]
@@ -901,14 +906,7 @@ impl LinearModel<Dyn, Dyn> for DynChainBaseModel {
             self.check_joint("qdd_lin", v.len())?;
         }
         self.check_matrix("minv", minv, self.dof())?;
-        let (q, qd, tau, lambda) = (
-            q.as_slice(),
-            qd.as_slice(),
-            tau.as_slice(),
-            lambda.as_slice(),
-        );
-        let at = qdd_lin.map(|v| v.as_slice());
-        self.forward_and_derivatives(ws, q, qd, tau, lambda, at, Some(minv.as_mut_slice()), out)?;
+        self.derivatives_of(ws, [q, qd, tau], lambda, qdd_lin, Some(minv), out)?;
         Ok(true)
     }
 }

@@ -13,7 +13,7 @@ use super::joint::{Joint, JointGeom};
 use super::meta::{ChainMeta, JointInfo};
 use super::regressor::{ColumnMajorSink, FaerSink};
 use super::rnea::{ChainView, LinkState};
-use crate::error::{check_joints, PrrrpError, Result};
+use crate::error::{check_joints, invalid, PrrrpError, Result};
 use crate::models::prrrp::robot::{DhRow, STANDARD_GRAVITY};
 
 /// A serial manipulator with `N` joints, sized at compile time: every per-sample method
@@ -106,14 +106,6 @@ pub struct DynChain {
     actuators: Actuators,
     coupling: Option<Vec<f64>>,
     armature_values: Vec<f64>,
-}
-
-fn invalid(field: String, value: f64, reason: &'static str) -> PrrrpError {
-    PrrrpError::InvalidParameter {
-        field,
-        value,
-        reason,
-    }
 }
 
 /// Most movable joints a chain may have: 64. The longest serial chains built (snake and
@@ -213,7 +205,7 @@ fn validate_friction(model: &FrictionModel, p: &[[f64; 3]]) -> Result<()> {
     let s = model.coulomb_smoothing;
     if !(s.is_finite() && s >= 0.0) {
         return Err(invalid(
-            "friction.coulomb_smoothing".into(),
+            "friction.coulomb_smoothing",
             s,
             "must be finite and >= 0 (rad/s or m/s; 0 = exact sign)",
         ));
