@@ -4,6 +4,7 @@
 //! closed form was never fitted on, and every change that makes the chain another robot
 //! returns it to those algorithms.
 
+mod dyn_support;
 mod seeded_support;
 
 use prrrp_core::nalgebra::{DMatrix, DVector, Dyn, SVector};
@@ -382,4 +383,43 @@ fn mutations_drop_the_closed_form() {
         .mass_matrix(&q)
         .unwrap();
     assert!((m1[(0, 0)] - m0[(0, 0)] - 0.01).abs() < 1e-12);
+}
+
+/// `identify` on the paper's arm gives the recursive chain's β̂ and σ: least squares and
+/// the EKF (which runs the base model's forward dynamics and derivatives every sample).
+#[test]
+fn identification_matches_the_recursive_chain() {
+    use prrrp_core::{identify, DynDataset, Method};
+    let (c, r) = (DynChain::paper(), DynChain::paper().recursive());
+    let rec = dyn_support::exact_record(&r, &dyn_support::DynFourier::seeded(4, 5, 0.3), 400, 0.02);
+    let flat =
+        |v: &[DVector<f64>]| -> Vec<f64> { v.iter().flat_map(|x| x.iter().copied()).collect() };
+    let mut u = seeded_support::lcg(9);
+    let tau: Vec<f64> = flat(&rec.tau)
+        .iter()
+        .map(|t| t + 0.02 * (u() - 0.5))
+        .collect();
+    let t = (0..rec.len()).map(|k| k as f64 * 0.02).collect();
+    let d = DynDataset::new(5, t, flat(&rec.q), flat(&rec.qd), flat(&rec.qdd), tau).unwrap();
+    let base = r.base_parameters(&BaseOptions::default()).unwrap();
+    for name in ["ls", "ekf"] {
+        let m = Method::parse(name).unwrap();
+        let a = identify(&c, &base, &d, &m, serde_json::json!({})).unwrap();
+        let b = identify(&r, &base, &d, &m, serde_json::json!({})).unwrap();
+        let rel = |x: &[f64], y: &[f64]| {
+            x.iter()
+                .zip(y)
+                .map(|(p, q)| (p - q).abs() / q.abs().max(1e-6))
+                .fold(0.0, f64::max)
+        };
+        assert!(
+            rel(&a.beta, &b.beta) < 1e-9,
+            "{name} β: {:e}",
+            rel(&a.beta, &b.beta)
+        );
+        assert!(name != "ls" || a.sigma.is_some(), "least squares reports σ");
+        if let (Some(sa), Some(sb)) = (&a.sigma, &b.sigma) {
+            assert!(rel(sa, sb) < 1e-9, "{name} σ: {:e}", rel(sa, sb));
+        }
+    }
 }
