@@ -12,8 +12,10 @@ mod dyn_support;
 use criterion::measurement::WallTime;
 use criterion::{criterion_group, criterion_main, BenchmarkGroup, Criterion};
 use dyn_support::robots_dir;
-use prrrp_core::nalgebra::{SMatrix, SVector};
-use prrrp_core::{BaseOptions, DynChain, LinearDynamics, Robot, SerialChain, UrdfOptions};
+use prrrp_core::nalgebra::{DMatrix, DVector, SMatrix, SVector};
+use prrrp_core::{
+    BaseOptions, DynChain, LinearDynamics, LinearModel, Robot, SerialChain, UrdfOptions,
+};
 use std::hint::black_box;
 use std::time::Duration;
 
@@ -83,6 +85,83 @@ fn prrrp(c: &mut Criterion) {
     g.bench_function("closed_form_regressor_5x8", |b| {
         b.iter(|| model.regressor(black_box(&q), black_box(&qd), black_box(&qdd)))
     });
+    g.finish();
+}
+
+/// The paper's arm as a chain in closed form (`closed_*`, what `SerialChain::paper()` and
+/// `DynChain::paper()` evaluate) against the same chain by the recursive algorithms
+/// (`recursive_*`): compile-time chain and base model, and the run-time chain, workspace
+/// and base model the command line and the estimators use.
+fn paper_closed_form(c: &mut Criterion) {
+    let mut g = c.benchmark_group("paper_chain");
+    let [q, qd, qdd] = state::<5>();
+    let (sq, sqd, sqdd) = (q.as_slice(), qd.as_slice(), qdd.as_slice());
+    let (dq, dqd, dqdd) = (
+        DVector::from_column_slice(sq),
+        DVector::from_column_slice(sqd),
+        DVector::from_column_slice(sqdd),
+    );
+    for (name, chain) in [
+        ("closed", SerialChain::paper()),
+        ("recursive", SerialChain::paper().recursive()),
+    ] {
+        chain_benches::<5, 50>(
+            &mut g,
+            &format!("{name}_"),
+            &format!("{name}_regressor_5x50"),
+            &chain,
+            true,
+        );
+        let base = chain
+            .base_parameters(&BaseOptions::default())
+            .expect("analysis");
+        let bm = chain.base_model::<9>(&base).expect("9");
+        g.bench_function(format!("{name}_base_regressor_5x9"), |b| {
+            b.iter(|| bm.regressor(black_box(&q), black_box(&qd), black_box(&qdd)))
+        });
+        let dynamic = chain.to_dyn();
+        let mut ws = dynamic.workspace();
+        let mut tau = vec![0.0; 5];
+        g.bench_function(format!("{name}_dyn_inverse_dynamics_into"), |b| {
+            b.iter(|| {
+                dynamic.inverse_dynamics_into(
+                    &mut ws,
+                    black_box(sq),
+                    black_box(sqd),
+                    black_box(sqdd),
+                    &mut tau,
+                )
+            })
+        });
+        let dm = dynamic.base_model(&base).expect("same chain");
+        let mut dws = dm.workspace();
+        let mut phi = DMatrix::zeros(5, base.count());
+        g.bench_function(format!("{name}_dyn_base_regressor_into"), |b| {
+            b.iter(|| {
+                dm.regressor_into(
+                    &mut dws,
+                    black_box(&dq),
+                    black_box(&dqd),
+                    black_box(&dqdd),
+                    &mut phi,
+                )
+            })
+        });
+        let beta = dm.chain_base_values().clone();
+        let mut out = DVector::zeros(5);
+        g.bench_function(format!("{name}_dyn_base_inverse_dynamics_into"), |b| {
+            b.iter(|| {
+                dm.inverse_dynamics_into(
+                    &mut dws,
+                    black_box(&dq),
+                    black_box(&dqd),
+                    black_box(&dqdd),
+                    &beta,
+                    &mut out,
+                )
+            })
+        });
+    }
     g.finish();
 }
 
@@ -157,6 +236,6 @@ criterion_group! {
     config = Criterion::default()
         .warm_up_time(Duration::from_secs(1))
         .measurement_time(Duration::from_secs(3));
-    targets = prrrp, puma, urdf_robots
+    targets = prrrp, paper_closed_form, puma, urdf_robots
 }
 criterion_main!(benches);

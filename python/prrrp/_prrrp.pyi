@@ -837,6 +837,9 @@ class SerialChain:
         a negative mass, an inertia breaking the triangle inequality)."""
     def is_physically_consistent(self) -> bool:
         """True when `non_physical_links` is empty."""
+    @property
+    def is_closed_form(self) -> bool:
+        """Whether the chain is evaluated in closed form (the paper's arm; read-only)."""
     @staticmethod
     def paper() -> SerialChain:
         """The paper's PRRRP arm (Tables 1–2, g = 9.81 m/s²) as a chain: same dynamics as

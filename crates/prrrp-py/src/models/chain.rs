@@ -616,6 +616,14 @@ getters ({} inner {
         self.inner.is_physically_consistent()
     }
 
+    /// Whether the chain is evaluated in closed form (the paper's arm: same values as the
+    /// recursive algorithms, a fraction of the time); any change of its inertial
+    /// parameters, gravity or actuators turns it off.
+    #[getter]
+    fn is_closed_form(&self) -> bool {
+        self.inner.is_closed_form()
+    }
+
     /// The paper's PRRRP arm (Tables 1–2, g = 9.81 m/s²) as a chain, with the joint
     /// limits of its excitation.
     #[staticmethod]

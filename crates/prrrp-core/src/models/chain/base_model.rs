@@ -503,7 +503,8 @@ where
         let (rig, fr, ia) = (rig.as_slice(), fr.as_slice(), ia.as_slice());
         let (st, minv, col) = (st.as_mut_slice(), minv.as_mut_slice(), col.as_mut_slice());
         let full = equivalent_view(self.chain_view(), rig, fr, ia);
-        let rigid = full.rigid();
+        // Recursive even for the paper's arm: the tangent passes read its link states.
+        let rigid = full.rigid().recursive();
         // The primal pass at q̈ leaves the kinematics and joint forces that the tangent
         // passes differentiate.
         rigid.rnea(q, qd, qdd, st, tmp.as_mut_slice());

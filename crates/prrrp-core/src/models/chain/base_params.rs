@@ -468,7 +468,7 @@ impl<const N: usize> SerialChain<N> {
     /// [`PrrrpError::InvalidParameter`] for a bad tolerance,
     /// [`PrrrpError::TooFewSamples`] if `samples`·N < number of parameters.
     pub fn base_parameters(&self, opts: &BaseOptions) -> Result<BaseParameters> {
-        analyse(&self.view(), opts)
+        analyse(&self.view().recursive(), opts)
     }
 
     /// The base observation matrix W_b (N·samples × b): the base columns of
@@ -495,7 +495,7 @@ impl DynChain {
     /// # Errors
     /// As [`SerialChain::base_parameters`].
     pub fn base_parameters(&self, opts: &BaseOptions) -> Result<BaseParameters> {
-        analyse(&self.view(), opts)
+        analyse(&self.view().recursive(), opts)
     }
 
     /// The base observation matrix W_b from flat row-major (samples × n) inputs.

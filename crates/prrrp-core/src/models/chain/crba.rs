@@ -20,6 +20,9 @@ impl ChainView<'_> {
         composite: &mut [[f64; 10]],
         m: &mut [f64],
     ) {
+        if let Some(cf) = self.closed {
+            return cf.mass_matrix(self, inertial, q, m);
+        }
         let n = self.dof();
         self.placements(q, st);
         composite[..n].copy_from_slice(&inertial[..n]);

@@ -142,6 +142,9 @@ impl ChainView<'_> {
         st: &mut [LinkState],
         sink: &mut S,
     ) {
+        if let Some(cf) = self.closed {
+            return cf.regressor(self, q, qd, qdd, friction, sink);
+        }
         self.kinematics(q, qd, qdd, true, st);
         self.regressor_at_kinematics(qd, qdd, friction, st, sink);
     }
@@ -176,25 +179,32 @@ impl ChainView<'_> {
             }
         }
         if friction {
-            // Actuator m's column of term k is Cᵀ times its feature at (C·q̇)ₘ, (C·q̈)ₘ:
-            // rows j with C[m][j] ≠ 0.
-            let en = self.friction.enabled();
-            let arm = self.armature.is_some();
-            for m in 0..n {
-                let f = self.friction.features(self.actuator_rate(m, qd));
-                let feat = [f[0], f[1], f[2], self.actuator_rate(m, qdd)];
-                let on = [en[0], en[1], en[2], arm];
-                for kind in 0..4 {
-                    if !on[kind] {
-                        continue;
-                    }
-                    match self.coupling {
-                        None => sink.actuator(m, m, kind, feat[kind]),
-                        Some(c) => {
-                            for (j, &cj) in c[m * n..m * n + n].iter().enumerate() {
-                                if cj != 0.0 {
-                                    sink.actuator(j, m, kind, cj * feat[kind]);
-                                }
+            self.actuator_columns(qd, qdd, sink);
+        }
+    }
+
+    /// The enabled actuator columns (friction and armature) into `sink`.
+    #[inline]
+    pub(crate) fn actuator_columns<S: RegressorSink>(&self, qd: &[f64], qdd: &[f64], sink: &mut S) {
+        let n = self.dof();
+        // Actuator m's column of term k is Cᵀ times its feature at (C·q̇)ₘ, (C·q̈)ₘ:
+        // rows j with C[m][j] ≠ 0.
+        let en = self.friction.enabled();
+        let arm = self.armature.is_some();
+        for m in 0..n {
+            let f = self.friction.features(self.actuator_rate(m, qd));
+            let feat = [f[0], f[1], f[2], self.actuator_rate(m, qdd)];
+            let on = [en[0], en[1], en[2], arm];
+            for kind in 0..4 {
+                if !on[kind] {
+                    continue;
+                }
+                match self.coupling {
+                    None => sink.actuator(m, m, kind, feat[kind]),
+                    Some(c) => {
+                        for (j, &cj) in c[m * n..m * n + n].iter().enumerate() {
+                            if cj != 0.0 {
+                                sink.actuator(j, m, kind, cj * feat[kind]);
                             }
                         }
                     }

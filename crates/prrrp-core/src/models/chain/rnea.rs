@@ -9,6 +9,7 @@ use nalgebra::{Matrix3, Vector3};
 use super::friction::FrictionModel;
 use super::inertia::{first_moment, inertia_times};
 use super::joint::JointGeom;
+use super::paper::PaperClosedForm;
 
 /// A borrowed view of a chain: what every algorithm needs, whatever the storage.
 #[derive(Debug, Clone, Copy)]
@@ -23,6 +24,9 @@ pub(crate) struct ChainView<'a> {
     pub(crate) coupling: Option<&'a [f64]>,
     /// Reflected rotor inertias Ia (one per actuator) when the armature term is on.
     pub(crate) armature: Option<&'a [f64]>,
+    /// The closed form of the paper's arm, when the chain is that arm: Newton–Euler, the
+    /// mass matrix and the regressor then dispatch to it (see `super::paper`).
+    pub(crate) closed: Option<&'static PaperClosedForm>,
 }
 
 /// Per-link kinematic state of one sample, in frame i.
@@ -151,6 +155,9 @@ impl ChainView<'_> {
         st: &mut [LinkState],
         tau: &mut [f64],
     ) {
+        if let Some(cf) = self.closed {
+            return cf.rnea(self, inertial, fric, q, qd, qdd, gravity, tau);
+        }
         self.kinematics(q, qd, qdd, gravity, st);
         let n = self.dof();
         let mut f_c = Vector3::zeros();
@@ -189,6 +196,14 @@ impl ChainView<'_> {
     pub(crate) fn rigid(mut self) -> Self {
         self.friction = FrictionModel::default();
         self.armature = None;
+        self
+    }
+
+    /// The view evaluated by the recursive algorithms even for the paper's arm: for the
+    /// kernels that read the link states a Newton–Euler pass leaves (the derivatives).
+    #[inline(always)]
+    pub(crate) fn recursive(mut self) -> Self {
+        self.closed = None;
         self
     }
 

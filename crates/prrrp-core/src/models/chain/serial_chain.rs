@@ -11,6 +11,7 @@ use super::friction::{FrictionModel, FRICTION_PARAMETER_NAMES};
 use super::inertia::INERTIAL_PARAMETER_NAMES;
 use super::joint::{Joint, JointGeom};
 use super::meta::{ChainMeta, JointInfo};
+use super::paper::ClosedBackend;
 use super::regressor::{ColumnMajorSink, FaerSink};
 use super::rnea::{ChainView, LinkState};
 use crate::error::{check_joints, invalid, PrrrpError, Result};
@@ -82,6 +83,8 @@ pub struct SerialChain<const N: usize> {
     armature: bool,
     armature_values: [f64; N],
     gear_ratios: Option<[f64; N]>,
+    /// The closed form while the chain is exactly the paper's arm (see `super::paper`).
+    pub(super) closed: ClosedBackend,
 }
 
 /// A serial manipulator whose number of joints is known only at run time (e.g. read from
@@ -106,6 +109,8 @@ pub struct DynChain {
     actuators: Actuators,
     coupling: Option<Vec<f64>>,
     armature_values: Vec<f64>,
+    /// See [`SerialChain`]'s field of the same name.
+    pub(super) closed: ClosedBackend,
 }
 
 /// Most movable joints a chain may have: 64. The longest serial chains built (snake and
@@ -364,6 +369,7 @@ impl<const N: usize> SerialChain<N> {
             armature: false,
             armature_values: [0.0; N],
             gear_ratios: None,
+            closed: ClosedBackend::default(),
         })
     }
 
@@ -387,6 +393,7 @@ impl<const N: usize> SerialChain<N> {
             armature: false,
             armature_values: [0.0; N],
             gear_ratios: None,
+            closed: ClosedBackend::default(),
         }
     }
 
@@ -399,6 +406,7 @@ impl<const N: usize> SerialChain<N> {
     /// [`SerialChain::non_physical_links`].
     pub fn with_inertial(mut self, inertial: [[f64; 10]; N]) -> Result<Self> {
         validate_inertial(&inertial)?;
+        self.closed = ClosedBackend::default();
         self.non_physical = non_physical_links(&inertial).first().copied();
         self.inertial = inertial;
         Ok(self)
@@ -410,6 +418,7 @@ impl<const N: usize> SerialChain<N> {
     /// [`PrrrpError::InvalidParameter`] for a non-finite entry.
     pub fn with_gravity(mut self, gravity: [f64; 3]) -> Result<Self> {
         self.gravity = validate_gravity(gravity)?;
+        self.closed = ClosedBackend::default();
         Ok(self)
     }
 
@@ -447,6 +456,10 @@ impl<const N: usize> SerialChain<N> {
             .gear_ratios
             .as_ref()
             .map(|r| std::array::from_fn(|m| r[m]));
+        // Gear ratios alone leave the dynamics the arm's; a coupling or an armature not.
+        if self.coupling.is_some() || self.armature {
+            self.closed = ClosedBackend::default();
+        }
         Ok(self)
     }
 
@@ -559,6 +572,7 @@ impl<const N: usize> SerialChain<N> {
             gravity: self.gravity,
             coupling: self.coupling.as_ref().map(|c| c.as_flattened()),
             armature: self.armature.then_some(&self.armature_values[..]),
+            closed: self.closed.0,
         }
     }
 
@@ -772,6 +786,7 @@ impl<const N: usize> SerialChain<N> {
             actuators: self.actuators(),
             coupling: self.coupling.map(|c| c.as_flattened().to_vec()),
             armature_values: self.armature_values.to_vec(),
+            closed: self.closed,
         }
     }
 }
@@ -812,6 +827,7 @@ impl DynChain {
             actuators: Actuators::default(),
             coupling: None,
             armature_values: vec![0.0; n],
+            closed: ClosedBackend::default(),
         })
     }
 
@@ -850,6 +866,7 @@ impl DynChain {
     pub fn with_inertial(mut self, inertial: Vec<[f64; 10]>) -> Result<Self> {
         check_joints("inertial", inertial.len(), self.dof())?;
         validate_inertial(&inertial)?;
+        self.closed = ClosedBackend::default();
         self.non_physical = non_physical_links(&inertial).first().copied();
         self.inertial = inertial;
         Ok(self)
@@ -861,6 +878,7 @@ impl DynChain {
     /// [`PrrrpError::InvalidParameter`] for a non-finite entry.
     pub fn with_gravity(mut self, gravity: [f64; 3]) -> Result<Self> {
         self.gravity = validate_gravity(gravity)?;
+        self.closed = ClosedBackend::default();
         Ok(self)
     }
 
@@ -894,6 +912,10 @@ impl DynChain {
             .clone()
             .unwrap_or_else(|| vec![0.0; n]);
         self.actuators = actuators;
+        // Gear ratios alone leave the dynamics the arm's; a coupling or an armature not.
+        if self.coupling.is_some() || self.actuators.armature {
+            self.closed = ClosedBackend::default();
+        }
         Ok(self)
     }
 
@@ -927,6 +949,7 @@ impl DynChain {
         c.friction = self.friction;
         c.friction_params = std::array::from_fn(|i| self.friction_params[i]);
         c.gravity = self.gravity;
+        c.closed = self.closed;
         c.with_actuators(&self.actuators)
     }
 
@@ -1020,6 +1043,7 @@ impl DynChain {
             gravity: self.gravity,
             coupling: self.coupling.as_deref(),
             armature: self.actuators.armature.then_some(&self.armature_values[..]),
+            closed: self.closed.0,
         }
     }
 

@@ -262,22 +262,13 @@ impl PrrrpModel {
     }
 }
 
+/// M(q, λ): the extended form's ([`super::extended::mass_matrix`]) with μ = 0, which
+/// adds exact zeros.
 #[inline(always)]
 pub(crate) fn mass_matrix_trig(t: &Trig, l: &Lambda) -> Mat5 {
-    let (l2, l3, l4, l5, l6, l7) = (l[1], l[2], l[3], l[4], l[5], l[6]);
-    let m22 = l2 + l3 + l5 + 2.0 * (l4 * t.c3 + l6 * t.c34 + l7 * t.c4);
-    let m23 = l3 + l5 + l4 * t.c3 + l6 * t.c34 + 2.0 * l7 * t.c4;
-    let m24 = l5 + l6 * t.c34 + l7 * t.c4;
-    let m33 = l3 + l5 + 2.0 * l7 * t.c4;
-    let m34 = l5 + l7 * t.c4;
-    let (m11, m15) = (l[0] + l[7], -l[7]);
-    Mat5::new(
-        m11, 0.0, 0.0, 0.0, m15, //
-        0.0, m22, m23, m24, 0.0, //
-        0.0, m23, m33, m34, 0.0, //
-        0.0, m24, m34, l5, 0.0, //
-        m15, 0.0, 0.0, 0.0, l[7],
-    )
+    let mut ext = [0.0; super::extended::NEXT];
+    ext[..l.len()].copy_from_slice(l.as_slice());
+    super::extended::mass_matrix(t, &ext)
 }
 
 #[cfg(test)]
