@@ -338,8 +338,8 @@ fn full_model_rls_meets_the_issue_bars_after_a_grip() {
     whole_arm_meets_the_issue_bars(OnlineMethod::Rls);
 }
 
-/// As above for the whole-arm EKF. Known not to hold yet (measured 3 s after the grip:
-/// 7.5–200 % off, five joints above 15 %; within 2.4 % at the end).
+/// As above for the whole-arm EKF. Known not to hold yet (measured: 19–200 % off 3 s after
+/// the grip; within 3 % at the end).
 #[test]
 #[ignore = "known gap of issue 28: fast re-convergence of the whole-arm EKF"]
 fn full_model_ekf_meets_the_issue_bars_after_a_grip() {
