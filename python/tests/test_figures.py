@@ -148,29 +148,69 @@ def test_every_panel_has_labels_with_units(run, tmp_path, monkeypatch):
         assert (tmp_path / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
+def rigid_points(model, grid):
+    """The friction figure's points by their definition: the measured torque minus the
+    prediction of the model with its friction base parameters zeroed (a second model)."""
+    from prrrp._prrrp import identified_model_from_parts
+
+    _, mask = model_report.friction_split(model)
+    rigid = identified_model_from_parts(model.robot, np.where(mask, 0.0, model.beta))
+    k = grid.scored
+    points = grid.measured[k] - grid.predict(rigid)[k]
+    qd = prrrp.prediction._at_rows(
+        np.asarray(grid.processed.t), np.asarray(grid.processed.qd), grid.t
+    )[k]
+    c = model.robot.actuators["coupling"]
+    if c is not None:
+        c = np.asarray(c)
+        qd = qd @ c.T
+        points = np.linalg.solve(c.T, points.T).T
+    return qd, points
+
+
+def test_friction_points_are_the_torque_less_the_rigid_model(run):
+    grid = model_report.as_grid(run.raw, run.model)
+    qd, points = model_report.friction_points(run.model, grid)
+    want_qd, want = rigid_points(run.model, grid)
+    assert np.array_equal(qd, want_qd)
+    scale = np.abs(grid.measured).max()
+    assert np.abs(points - want).max() < 1e-10 * scale
+    # Not the measured torque itself: the rigid part was taken out.
+    assert np.abs(points - grid.measured[grid.scored]).max() > 1e-3 * scale
+
+
+def overlaps(a, b) -> bool:
+    """Whether the boxes (x0, y0, x1, y1) share more than an edge."""
+    return a[0] < b[2] and b[0] < a[2] and a[1] < b[3] and b[1] < a[3]
+
+
 def test_no_tick_labels_overlap(run, tmp_path, monkeypatch):
     """Within each axis the tick labels do not overlap, nor do a panel's labels and title
-    reach into another panel."""
+    reach into another panel or out of the image."""
     saved = []
     monkeypatch.setattr(drawing, "save", lambda fig, path: saved.append(fig))
     model_report.write_figures(run.model, run.raw, tmp_path)
+    assert len(saved) == 3
     for fig in saved:
-        renderer = fig.canvas.get_renderer()
-        fig.draw(renderer)
-        boxes = []
-        for ax in (a for a in fig.axes if a.axison):
-            for axis in (ax.xaxis, ax.yaxis):
-                texts = [t for t in axis.get_ticklabels() if t.get_visible() and t.get_text()]
-                ext = sorted(
-                    (t.get_window_extent(renderer) for t in texts),
-                    key=lambda b: (b.x0, b.y0),
-                )
+        texts = fig.layout()
+        shown = [i for i, ax in enumerate(fig.panels) if ax.axison]
+        tight = {i: fig.panels[i].box for i in shown}
+        for i in shown:
+            for kind in ("xtick", "ytick"):
+                ext = sorted(b for j, k, b in texts if j == i and k == kind)
+                assert len(ext) >= 2, (i, kind)
                 for a, b in itertools.pairwise(ext):
-                    assert not a.overlaps(b), (a, b)
-            boxes.append(ax.get_tightbbox(renderer))
-        for i, a in enumerate(boxes):
-            for b in boxes[i + 1 :]:
-                assert not a.overlaps(b), (a, b)
+                    assert not overlaps(a, b), (a, b)
+        for i, _, b in texts:
+            a = tight[i]
+            tight[i] = (min(a[0], b[0]), min(a[1], b[1]), max(a[2], b[2]), max(a[3], b[3]))
+        for i in shown:
+            x0, y0, x1, y1 = tight[i]
+            assert 0 <= x0 < x1 <= fig.width, (i, tight[i])
+            assert 0 <= y0 < y1 <= fig.height, (i, tight[i])
+            for j in shown:
+                if j > i:
+                    assert not overlaps(tight[i], tight[j]), (i, j, tight[i], tight[j])
 
 
 def test_report_is_written_first_and_embeds_its_figures(run, tmp_path, monkeypatch):
