@@ -590,13 +590,17 @@ def _draw_axes(c: Any, ax: Axes) -> None:
                         color,
                     )
     c.set_clip(None)
-    # Frame and ticks, over the data as matplotlib's spines are.
-    c.stroke_rect(x0, y0, x1, y1, BLACK, px(SPINE_WIDTH))
+    # Frame and ticks, over the data as matplotlib's spines are, on pixel centres (as
+    # matplotlib snaps them): a 1.1-pixel line between two pixels would be a grey 2.
+    f0, g0, f1, g1 = (_snap(v) for v in (x0, y0, x1, y1))
+    c.stroke_rect(f0, g0, f1, g1, BLACK, px(SPINE_WIDTH))
     tick = px(TICK_LENGTH)
     for p in xp:
-        c.polyline(np.array([p, p]), np.array([y1, y1 + tick]), BLACK, px(TICK_WIDTH))
+        p = _snap(p)
+        c.polyline(np.array([p, p]), np.array([g1, g1 + tick]), BLACK, px(TICK_WIDTH))
     for p in yp:
-        c.polyline(np.array([x0 - tick, x0]), np.array([p, p]), BLACK, px(TICK_WIDTH))
+        p = _snap(p)
+        c.polyline(np.array([f0 - tick, f0]), np.array([p, p]), BLACK, px(TICK_WIDTH))
     below = y1 + tick + px(TICK_PAD)
     for p, s in zip(xp, xl, strict=True):
         if rot:
@@ -621,6 +625,11 @@ def _draw_axes(c: Any, ax: Axes) -> None:
         _draw_title(c, ax)
     if ax.legend_spec is not None:
         _axes_legend(c, ax, ax.legend_spec)
+
+
+def _snap(v: float) -> float:
+    """The centre of the pixel ``v`` falls in."""
+    return math.floor(float(v)) + 0.5
 
 
 def _dot_radius(ms: float) -> float:

@@ -1,6 +1,10 @@
 """What every figure of prrrp shares: a figure of panels laid out once with fixed margins,
 traces reduced to what the saved image can show, and the PNG writer.
 
+The report figures of ``prrrp identify`` are :class:`prrrp.canvas.Figure` objects, drawn
+natively without matplotlib (:func:`save` takes both kinds); the study figures of
+:mod:`prrrp.plots` are matplotlib's, made here.
+
 matplotlib is imported here only when a figure is made (it costs more than the rest of a
 ``prrrp identify`` run on a small log); :func:`preload` imports it on a background thread
 while the caller computes. Figures are ``matplotlib.figure.Figure`` objects on their own
