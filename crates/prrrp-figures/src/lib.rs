@@ -297,7 +297,10 @@ impl Canvas {
     }
 
     /// A filled disc of `radius` pixels at each point (non-finite points skipped), each
-    /// drawn over the others (translucent colours darken where discs overlap).
+    /// drawn over the others (translucent colours darken where discs overlap), inside the
+    /// clip. Each pixel gets the disc's coverage estimated from its centre's distance,
+    /// clamp(r + ½ − d, 0, 1): a few operations per pixel where a path per disc cost
+    /// ~1.5 µs (the friction figure draws tens of thousands).
     pub fn markers(
         &mut self,
         xs: &[f64],
@@ -312,16 +315,45 @@ impl Canvas {
             });
         }
         check_positive("a marker radius", radius)?;
-        let Some(disc) = PathBuilder::from_circle(0.0, 0.0, radius) else {
-            return Ok(());
+        let (w, h) = self.size();
+        let [cx0, cy0, cx1, cy1] = match &self.clip {
+            Some((k, _)) => *k,
+            None => [0, 0, w as i32, h as i32],
         };
-        let p = paint(color);
-        let mask = self.clip.as_ref().map(|(_, m)| m);
+        let (lo_x, lo_y) = (cx0.max(0), cy0.max(0));
+        let (hi_x, hi_y) = (cx1.min(w as i32), cy1.min(h as i32));
+        let alpha = f32::from(color[3]) / 255.0;
+        let src = [color[0], color[1], color[2]].map(|c| f32::from(c) * alpha);
+        let reach = radius + 0.5;
+        let data = self.pixmap.data_mut();
         for (&x, &y) in xs.iter().zip(ys) {
-            if x.is_finite() && y.is_finite() {
-                let at = Transform::from_translate(x as f32, y as f32);
-                self.pixmap
-                    .fill_path(&disc, &p, FillRule::Winding, at, mask);
+            if !(x.is_finite() && y.is_finite()) {
+                continue;
+            }
+            let (x, y) = (x as f32, y as f32);
+            let px0 = ((x - reach).floor() as i32).max(lo_x);
+            let px1 = ((x + reach).ceil() as i32).min(hi_x);
+            let py0 = ((y - reach).floor() as i32).max(lo_y);
+            let py1 = ((y + reach).ceil() as i32).min(hi_y);
+            for py in py0..py1 {
+                let dy = py as f32 + 0.5 - y;
+                for px in px0..px1 {
+                    let dx = px as f32 + 0.5 - x;
+                    let cover = (reach - (dx * dx + dy * dy).sqrt()).clamp(0.0, 1.0);
+                    if cover <= 0.0 {
+                        continue;
+                    }
+                    // Source over, premultiplied RGBA bytes.
+                    let a = alpha * cover;
+                    let at = 4 * (py as usize * w as usize + px as usize);
+                    let pixel = &mut data[at..at + 4];
+                    for (d, s) in pixel[..3].iter_mut().zip(src) {
+                        *d = (s * cover + f32::from(*d) * (1.0 - a)).round().min(255.0) as u8;
+                    }
+                    pixel[3] = (255.0 * a + f32::from(pixel[3]) * (1.0 - a))
+                        .round()
+                        .min(255.0) as u8;
+                }
             }
         }
         Ok(())
@@ -556,6 +588,30 @@ mod tests {
         assert!(ink(85, 100, 45, 100) > 50);
         assert_eq!(ink(101, 200, 0, 200), 0);
         assert_eq!(ink(0, 200, 101, 200), 0);
+    }
+
+    #[test]
+    fn a_marker_inks_its_disc_and_overlaps_darken() {
+        let mut c = Canvas::new(40, 20).unwrap();
+        let blue: Rgba = [0, 0, 255, 102];
+        c.markers(&[10.5], &[10.5], 3.0, blue).unwrap();
+        // Ink (coverage) summed over the pixels ≈ the disc's area π·r².
+        let ink: f32 = (0..40)
+            .flat_map(|x| (0..20).map(move |y| (x, y)))
+            .map(|(x, y)| (255.0 - f32::from(c.pixel(x, y).unwrap()[0])) / 102.0)
+            .sum();
+        let area = std::f32::consts::PI * 9.0;
+        assert!((ink - area).abs() < 0.05 * area, "{ink} vs {area}");
+        assert_eq!(c.pixel(10, 14).map(|p| p[0]), Some(255)); // outside r + ½
+        let once = c.pixel(10, 10).unwrap();
+        c.markers(&[10.5], &[10.5], 3.0, blue).unwrap();
+        let twice = c.pixel(10, 10).unwrap();
+        assert!(twice[0] < once[0], "{once:?} {twice:?}");
+        // Clipped: nothing right of x = 20.
+        c.set_clip(Some([0.0, 0.0, 20.0, 20.0]));
+        c.markers(&[20.0], &[10.5], 3.0, [0, 0, 0, 255]).unwrap();
+        assert_eq!(c.pixel(19, 10).unwrap()[0], 0);
+        assert_eq!(c.pixel(20, 10).unwrap()[0], 255);
     }
 
     #[test]
