@@ -351,6 +351,48 @@ def test_identifying_in_python_does_not_import_matplotlib():
     assert "matplotlib" not in loaded
 
 
+def test_identify_draws_its_figures_without_matplotlib(tmp_path):
+    """`prrrp identify` writes its three figures natively (prrrp.canvas): matplotlib (and
+    PIL, its image writer) is never imported, nor a process forked to import it."""
+    robot_file = Path(__file__).resolve().parents[2] / "tests" / "data" / "ur5_like_friction.toml"
+    out = tmp_path / "out"
+    loaded = modules_after(
+        f"""
+        import contextlib, io, os
+        import numpy as np, prrrp
+        from prrrp.cli import main
+        robot = prrrp.SerialChain.from_file({str(robot_file)!r})
+        t = np.arange(0.0, 6.0, 0.004)
+        w = 2 * np.pi * 0.3 * np.arange(1, 4)
+        a = np.random.default_rng(3).normal(0, 0.4, (robot.dof, 3)) / np.arange(1, 4)
+        s, c = np.sin(np.outer(t, w)), np.cos(np.outer(t, w))
+        q, qd, qdd = s @ a.T, (c * w) @ a.T, -(s * w**2) @ a.T
+        tau = robot.inverse_dynamics(q, qd, qdd)
+        n = robot.dof
+        names = [*(f"q{{j + 1}}" for j in range(n)), *(f"tau{{j + 1}}" for j in range(n))]
+        head = ",".join(["t", *names])
+        np.savetxt({str(tmp_path / "log.csv")!r}, np.column_stack([t, q, tau]), delimiter=",",
+                   header=head, comments="")
+        forks = []
+        real_fork = os.fork
+        os.fork = lambda: forks.append(1) or real_fork()
+        argv = ["identify", {str(tmp_path / "log.csv")!r}, "--robot", {str(robot_file)!r},
+                "--out", {str(out)!r}, "--coulomb-scale", "0"]
+        with contextlib.redirect_stdout(io.StringIO()):
+            assert main(argv) == 0
+        assert not forks, forks
+        """
+    )
+    assert sorted(p.name for p in out.glob("*.png")) == [
+        "friction.png",
+        "residual.png",
+        "torque.png",
+    ]
+    for name in ("friction.png", "residual.png", "torque.png"):
+        assert (out / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert not loaded & {"matplotlib", "PIL"}, loaded & {"matplotlib", "PIL"}
+
+
 # ------------------------------------------------------------------- paper's study
 
 
