@@ -106,3 +106,37 @@ def test_bad_canvas_input_is_a_typed_error():
     with pytest.raises(prrrp.InvalidInputError, match="ha must be"):
         c.text("a", 1.0, 1.0, 8.0, "middle")
     assert c.text_extent("", 10.0)[0] == 0.0
+
+
+def test_method_bars_keep_their_slanted_names_clear_of_the_axis_label(tmp_path, monkeypatch):
+    from prrrp import drawing, model_report
+
+    joints = ["shoulder_pan_joint", "shoulder_lift_joint", "elbow_joint", "wrist_1_joint"]
+    runs = [
+        {
+            "method": m,
+            "status": "ok",
+            "converged": True,
+            "validation": None,
+            "identification": {"percent": np.arange(1.0, 5.0) * (k + 1)},
+        }
+        for k, m in enumerate(["ls", "wls", "ekf"])
+    ]
+    runs.append({"method": "rls", "status": "failed"})
+    saved = []
+    monkeypatch.setattr(drawing, "save", lambda fig, path: saved.append(fig))
+    model_report.comparison_figure(runs, joints, tmp_path / "methods.png")
+    (fig,) = saved
+    ax = fig.panels[0]
+    bars = [a for kind, a in ax.artists if kind == "bars"]
+    assert [a["label"] for a in bars] == ["ls", "wls", "ekf"]
+    assert np.array_equal(bars[2]["h"], np.arange(1.0, 5.0) * 3)
+    texts = fig.layout()
+    names = [b for _, kind, b in texts if kind == "xtick"]
+    (label,) = [b for _, kind, b in texts if kind == "xlabel"]
+    assert len(names) == len(joints)
+    assert all(b[3] <= label[1] for b in names), (names, label)
+    for _, kind, (a, b, c, d) in texts:
+        assert 0 <= a < c <= fig.width, kind
+        assert 0 <= b < d <= fig.height, kind
+    assert fig.png()[:8] == b"\x89PNG\r\n\x1a\n"
