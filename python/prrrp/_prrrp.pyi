@@ -27,6 +27,7 @@ __all__ = [
     "STANDARD_GRAVITY",
     "Adaline",
     "BaseParameters",
+    "Canvas",
     "ChainSimulation",
     "ChainTrajectory",
     "Dataset",
@@ -1705,3 +1706,52 @@ def design_excitation(
     every few evaluations. Returns {"trajectory": ChainTrajectory, "omega" (rad/s),
     "offsets" (n,), "a", "b" (n, H), "period" (s), "cond_initial", "cond_final",
     "evaluations", "limit_usage" (n, 3): fraction of each limit used, NaN where none}."""
+
+_Rgba = tuple[int, int, int, int]
+
+@final
+class Canvas:
+    """A white RGBA image of width × height pixels (1..16384 each) to draw on, in pixel
+    coordinates (x right, y down from the top-left corner); colours (r, g, b, a) of
+    0..255. The native part of :mod:`prrrp.canvas` (the report figures without
+    matplotlib). Errors: InvalidInputError."""
+
+    def __new__(cls, width: int, height: int) -> Self: ...
+    @property
+    def size(self) -> tuple[int, int]:
+        """(width, height), pixels."""
+    def set_clip(self, rect: tuple[float, float, float, float] | None) -> None:
+        """Shapes drawn next stay inside the rectangle (x0, y0, x1, y1); None lifts it."""
+    def polyline(
+        self, xs: _ArrayLike, ys: _ArrayLike, color: _Rgba, width: float, dash: list[float] = ...
+    ) -> None:
+        """A line through (xs[i], ys[i]), ``width`` pixels wide; ``dash``: on/off lengths
+        (pixels; empty: solid). NaN breaks the line."""
+    def fill_rect(self, x0: float, y0: float, x1: float, y1: float, color: _Rgba) -> None:
+        """A filled rectangle between the corners (x0, y0) and (x1, y1)."""
+    def stroke_rect(
+        self, x0: float, y0: float, x1: float, y1: float, color: _Rgba, width: float
+    ) -> None:
+        """A rectangle's outline, ``width`` pixels wide."""
+    def fill_polygon(self, xs: _ArrayLike, ys: _ArrayLike, color: _Rgba) -> None:
+        """The closed polygon through (xs[i], ys[i]), filled."""
+    def markers(self, xs: _ArrayLike, ys: _ArrayLike, radius: float, color: _Rgba) -> None:
+        """A filled disc of ``radius`` pixels at each (xs[i], ys[i])."""
+    def text(
+        self,
+        text: str,
+        x: float,
+        y: float,
+        size: float,
+        ha: str = "left",
+        va: str = "baseline",
+        rotation: float = 0.0,
+        color: _Rgba = ...,
+    ) -> None:
+        """``text`` at ``size`` pixels per em anchored (ha: left/center/right, va:
+        top/center/baseline/bottom) at (x, y), rotated ``rotation`` degrees
+        counter-clockwise, in ``color`` (default black)."""
+    def text_extent(self, text: str, size: float) -> tuple[float, float, float]:
+        """(width, ascent, descent) of ``text`` at ``size`` pixels per em, pixels."""
+    def png(self) -> bytes:
+        """The image as PNG bytes."""

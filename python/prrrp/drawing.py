@@ -1,6 +1,10 @@
 """What every figure of prrrp shares: a figure of panels laid out once with fixed margins,
 traces reduced to what the saved image can show, and the PNG writer.
 
+The report figures of ``prrrp identify`` are :class:`prrrp.canvas.Figure` objects, drawn
+natively without matplotlib (:func:`save` takes both kinds); the study figures of
+:mod:`prrrp.plots` are matplotlib's, made here.
+
 matplotlib is imported here only when a figure is made (it costs more than the rest of a
 ``prrrp identify`` run on a small log); :func:`preload` imports it on a background thread
 while the caller computes. Figures are ``matplotlib.figure.Figure`` objects on their own
@@ -254,14 +258,23 @@ def save(fig: Any, path: str | os.PathLike[str] | Any) -> None:
     """Writes ``fig`` as a PNG at :data:`DPI` to ``path``, through a temporary file beside
     it that is renamed to ``path`` once complete: a failed or interrupted drawing leaves
     no half-written PNG (and an existing one as it was). ``path`` may be a binary file
-    object (written directly)."""
+    object (written directly). ``fig`` is a matplotlib figure or a
+    :class:`prrrp.canvas.Figure` (drawn natively: no matplotlib)."""
+    native = hasattr(fig, "png")
+
+    def write(f: Any) -> None:
+        if not native:
+            fig.savefig(f, dpi=DPI, format="png", pil_kwargs=PNG_OPTIONS)
+        elif isinstance(f, str | os.PathLike):
+            with open(f, "wb") as out:
+                out.write(fig.png())
+        else:
+            f.write(fig.png())
+
     if not isinstance(path, str | os.PathLike):
-        fig.savefig(path, dpi=DPI, format="png", pil_kwargs=PNG_OPTIONS)
+        write(path)
         return
     from prrrp import csvio
-
-    def write(tmp: Any) -> None:
-        fig.savefig(tmp, dpi=DPI, format="png", pil_kwargs=PNG_OPTIONS)
 
     csvio.write_atomic(path, write)
 

@@ -25,7 +25,7 @@ from typing import Any
 
 import numpy as np
 
-from prrrp import drawing
+from prrrp import canvas, drawing
 from prrrp._prrrp import Dataset, IdentifiedModel
 from prrrp.prediction import LogGrid, _at_rows, prepare, recorded_settings
 
@@ -302,20 +302,9 @@ def figure_drawings(
     friction, mask = friction_split(model)
     if mask.any():
         v_s = float(model.robot.coulomb_smoothing)
-        beta_rigid = np.where(mask, 0.0, model.beta)
-        k = fit.scored
-        rigid = fit.predict(_with_beta(model, beta_rigid))[k]
-        points = fit.measured[k] - rigid
-        p = fit.processed
-        qd = _at_rows(np.asarray(p.t), np.asarray(p.qd), fit.t)[k]
+        qd, points = friction_points(model, fit)
         coupling = model.robot.actuators["coupling"]
-        titles = joints
-        if coupling is not None:
-            # Per actuator: its velocity C·q̇ and its friction C⁻ᵀ·(τ − τ̂_rigid).
-            c = np.asarray(coupling)
-            qd = qd @ c.T
-            points = np.linalg.solve(c.T, points.T).T
-            titles = [f"actuator {m + 1}" for m in range(n)]
+        titles = joints if coupling is None else [f"actuator {m + 1}" for m in range(n)]
         drawings.append(
             drawing.job(
                 "friction_curves",
@@ -332,6 +321,33 @@ def figure_drawings(
             )
         )
     return drawings
+
+
+def friction_points(model: IdentifiedModel, grid: LogGrid) -> tuple[np.ndarray, np.ndarray]:
+    """The friction figure's points on the scored rows of ``grid``: (velocity, friction the
+    data show) per joint, (k, n) each — q̇ and τ − τ̂_rigid, τ̂_rigid the model's torque
+    without its friction base parameters (:func:`friction_split`); per actuator with a
+    coupling C: C·q̇ and C⁻ᵀ·(τ − τ̂_rigid). τ̂_rigid is the model's prediction minus
+    those terms' torque Cᵀ·f(C·q̇), on the processed signals like the prediction: the
+    same numbers as predicting with them zeroed, without a second model and
+    prediction."""
+    friction, _ = friction_split(model)
+    v_s = float(model.robot.coulomb_smoothing)
+    p = grid.processed
+    t, qd = np.asarray(p.t), np.asarray(p.qd)
+    coupling = model.robot.actuators["coupling"]
+    c = None if coupling is None else np.asarray(coupling, dtype=float)
+    speed = qd if c is None else qd @ c.T
+    f = friction_torque(friction, speed, v_s)
+    if c is not None:
+        f = f @ c  # Cᵀ·f per sample
+    k = grid.scored
+    points = grid.measured[k] - grid.predict(model)[k] + _at_rows(t, f, grid.t)[k]
+    speed = _at_rows(t, qd, grid.t)[k]
+    if c is not None:
+        speed = speed @ c.T
+        points = np.linalg.solve(c.T, points.T).T
+    return speed, points
 
 
 def _edge_spans(grid: LogGrid) -> list[tuple[float, float]]:
@@ -362,29 +378,28 @@ def _torque_figure(
     """Measured, low-passed (fitted) and predicted torque per joint over time."""
     n = len(joints)
     rows, cols = _grid(n)
-    fig, axes = drawing.figure(rows, cols, top=0.7)
+    fig, axes = canvas.figure(rows, cols, top=0.7)
     for j in range(n):
         ax = axes[j // cols][j % cols]
         for a, b in edges:
-            ax.axvspan(a, b, color="0.85", lw=0)
-        drawing.lines(ax, t, measured[:, j], lw=0.6, color="0.55", label="measured")
+            ax.axvspan(a, b, color="0.85")
+        ax.lines(t, measured[:, j], lw=0.6, color="0.55", label="measured")
         if filtered is not None:
-            drawing.lines(
-                ax,
+            ax.lines(
                 t,
                 filtered[:, j],
                 lw=0.8,
                 color="tab:blue",
                 label=f"measured, low-passed at {cutoff:.3g} Hz (fitted)",
             )
-        drawing.lines(ax, t, pred[:, j], lw=0.8, ls="--", color="tab:red", label="predicted")
+        ax.lines(t, pred[:, j], lw=0.8, ls="--", color="tab:red", label="predicted")
         ax.set_title(joints[j], fontsize=9)
         ax.set_xlabel("time (s)", fontsize=8)
         ax.set_ylabel(f"torque ({force_units[j]})", fontsize=8)
     _blank(axes, n, cols)
     # Above the panels, never over the data.
     handles, labels = axes[0][0].get_legend_handles_labels()
-    fig.legend(handles, labels, loc="upper center", ncol=3, fontsize=8, frameon=False)
+    fig.legend(handles, labels, ncol=3, fontsize=8)
     drawing.save(fig, path)
 
 
@@ -394,7 +409,7 @@ def _residual_figure(
     """Histogram of the torque residual per joint."""
     n = len(joints)
     rows, cols = _grid(n)
-    fig, axes = drawing.figure(rows, cols)
+    fig, axes = canvas.figure(rows, cols)
     for j in range(n):
         ax = axes[j // cols][j % cols]
         _histogram(ax, resid[:, j], force_units[j], joints[j])
@@ -417,15 +432,15 @@ def _friction_figure(
     actuator when ``coupled``)."""
     n = len(titles)
     rows, cols = _grid(n)
-    fig, axes = drawing.figure(rows, cols, panel=(3.6, 2.1))
+    fig, axes = canvas.figure(rows, cols, panel=(3.6, 2.1))
     for j in range(n):
         ax = axes[j // cols][j % cols]
-        keep = drawing.thin_points(qd[:, j], points[:, j], drawing.pixels(ax))
-        ax.plot(qd[keep, j], points[keep, j], ".", ms=1.5, alpha=0.4, label="data")
+        keep = drawing.thin_points(qd[:, j], points[:, j], ax.pixels())
+        ax.points(qd[keep, j], points[keep, j], ms=1.5, color="tab:blue", alpha=0.4, label="data")
         span = max(float(np.abs(qd[:, j]).max()), 1e-6)
         grid = np.linspace(-span, span, 401)
         curve = friction_torque(friction[j : j + 1], grid[:, None], v_s)[:, 0]
-        ax.plot(grid, curve, "r", lw=1.2, label="model")
+        ax.plot(grid, curve, color="r", lw=1.2, label="model")
         ax.set_title(titles[j], fontsize=9)
         if not coupled:
             ax.set_xlabel(f"joint velocity q̇ ({speed_units[j]})", fontsize=8)
@@ -434,7 +449,7 @@ def _friction_figure(
             ax.set_xlabel("actuator velocity (C·q̇)ₘ (rad/s or m/s)", fontsize=8)
             ax.set_ylabel("friction torque (N·m or N)", fontsize=8)
     _blank(axes, n, cols)
-    axes[0][0].legend(fontsize=7, loc="upper left", markerscale=4)
+    axes[0][0].legend(fontsize=7, markerscale=4)
     drawing.save(fig, path)
 
 
@@ -464,20 +479,13 @@ def _histogram(ax: Any, r: np.ndarray, unit: str, joint: str) -> None:
     pad = 0.1 * (hi - lo) if hi > lo else max(abs(hi), 1e-12)
     lo, hi = lo - pad, hi + pad
     counts, edges = np.histogram(r, bins=HIST_BINS, range=(lo, hi))
-    # One artist for all the bars (ax.hist makes one patch per bar).
-    ax.stairs(counts, edges, fill=True, color="tab:blue")
+    ax.stairs(counts, edges, color="tab:blue")
     outside = len(r) - int(counts.sum())
     if outside:
         title += f" ({outside} rows off scale)"
     ax.set_title(title, fontsize=9)
     ax.set_xlabel(f"measured − predicted torque ({unit})", fontsize=8)
     ax.set_ylabel("rows per bin", fontsize=8)
-
-
-def _with_beta(model: IdentifiedModel, beta: np.ndarray) -> IdentifiedModel:
-    from prrrp._prrrp import identified_model_from_parts
-
-    return identified_model_from_parts(model.robot, beta)
 
 
 def _table(header: Sequence[str], rows: Sequence[Sequence[str]]) -> list[str]:
@@ -631,7 +639,7 @@ def comparison_figure(runs: Sequence[dict[str, Any]], joints: Sequence[str], pat
     key = "validation" if held_out else "identification"
     width_in = 0.9 + 0.3 * len(joints) * max(len(ok), 1)
     # Legend on the right, outside the bars; room below for the slanted joint names.
-    fig, axes = drawing.figure(1, 1, panel=(width_in, 2.6), bottom=1.1, right=2.0, top=0.4)
+    fig, axes = canvas.figure(1, 1, panel=(width_in, 2.6), bottom=1.1, right=2.0, top=0.4)
     ax = axes[0][0]
     width = 0.8 / max(len(ok), 1)
     x = np.arange(len(joints))
@@ -639,13 +647,12 @@ def comparison_figure(runs: Sequence[dict[str, Any]], joints: Sequence[str], pat
         values = np.asarray(r[key]["percent"], dtype=float)
         label = r["method"] + ("" if r["converged"] else " (not converged)")
         ax.bar(x + (k - (len(ok) - 1) / 2) * width, values, width, label=label)
-    ax.set_xticks(x)
-    ax.set_xticklabels(joints, rotation=30, ha="right", fontsize=8)
+    ax.set_xticks(x, list(joints), rotation=30, fontsize=8)
     ax.set_xlabel("joint", fontsize=8)
     ax.set_ylabel("torque error (% of measured RMS)", fontsize=8)
     ax.set_title("held-out validation data" if held_out else "identification data", fontsize=9)
-    ax.grid(True, axis="y", alpha=0.3)
-    ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.02, 1.0), frameon=False)
+    ax.grid_y = True
+    ax.legend(fontsize=7, outside=True, frameon=False)
     drawing.save(fig, path)
 
 

@@ -54,6 +54,9 @@ class LogGrid:
     _predicted: dict[int, tuple[IdentifiedModel, np.ndarray]] = dataclasses.field(
         default_factory=dict, repr=False, compare=False
     )
+    #: The measured torque's noise (:func:`noise_rms`, two medians over the whole log):
+    #: the same for every model scored here, computed once.
+    _noise: np.ndarray | None = dataclasses.field(default=None, repr=False, compare=False)
 
     @property
     def scored(self) -> np.ndarray:
@@ -93,7 +96,7 @@ class LogGrid:
             "rms": rms,
             "tau_rms": ref,
             "percent": _percent(rms, ref),
-            "noise_rms": noise_rms(self.measured[~self.repeated]),
+            "noise_rms": self._noise_rms(),
             "filtered_rms": None,
             "filtered_percent": None,
             "rows": int(k.sum()),
@@ -107,6 +110,12 @@ class LogGrid:
             out["filtered_rms"] = f
             out["filtered_percent"] = _percent(f, _rms(self.filtered[k]))
         return out
+
+    def _noise_rms(self) -> np.ndarray:
+        if self._noise is None:
+            assert self.measured is not None
+            self._noise = noise_rms(self.measured[~self.repeated])
+        return self._noise.copy()
 
     def describe(self) -> str:
         """One line: which rows are scored, and why the others are not."""

@@ -233,6 +233,19 @@ def test_rigid_model_fails_on_the_coupled_wrist(geared):
     assert np.abs(fc_rigid - FC[4:]).max() > 0.3
 
 
+def test_friction_figure_points_per_actuator(geared):
+    """With a coupling the friction figure's points are per actuator: C·q̇ and
+    C⁻ᵀ·(τ − τ̂_rigid), the same as predicting with the friction zeroed."""
+    from test_figures import rigid_points
+
+    model = geared["with"]
+    grid = prrrp.model_report.as_grid(prrrp.Dataset(*geared["test"]), model)
+    qd, points = prrrp.model_report.friction_points(model, grid)
+    want_qd, want = rigid_points(model, grid)
+    assert np.allclose(qd, want_qd, rtol=0, atol=1e-12 * np.abs(want_qd).max())
+    assert np.abs(points - want).max() < 1e-9 * np.abs(want).max()
+
+
 def test_identified_rotor_inertias_and_report(geared):
     """Ia3..Ia6 are base parameters on their own and come out near the truth with σ; Ia1
     (fixed axis) and Ia2 (axis perpendicular to it) join their links' inertia."""

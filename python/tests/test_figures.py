@@ -148,29 +148,69 @@ def test_every_panel_has_labels_with_units(run, tmp_path, monkeypatch):
         assert (tmp_path / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
+def rigid_points(model, grid):
+    """The friction figure's points by their definition: the measured torque minus the
+    prediction of the model with its friction base parameters zeroed (a second model)."""
+    from prrrp._prrrp import identified_model_from_parts
+
+    _, mask = model_report.friction_split(model)
+    rigid = identified_model_from_parts(model.robot, np.where(mask, 0.0, model.beta))
+    k = grid.scored
+    points = grid.measured[k] - grid.predict(rigid)[k]
+    qd = prrrp.prediction._at_rows(
+        np.asarray(grid.processed.t), np.asarray(grid.processed.qd), grid.t
+    )[k]
+    c = model.robot.actuators["coupling"]
+    if c is not None:
+        c = np.asarray(c)
+        qd = qd @ c.T
+        points = np.linalg.solve(c.T, points.T).T
+    return qd, points
+
+
+def test_friction_points_are_the_torque_less_the_rigid_model(run):
+    grid = model_report.as_grid(run.raw, run.model)
+    qd, points = model_report.friction_points(run.model, grid)
+    want_qd, want = rigid_points(run.model, grid)
+    assert np.array_equal(qd, want_qd)
+    scale = np.abs(grid.measured).max()
+    assert np.abs(points - want).max() < 1e-10 * scale
+    # Not the measured torque itself: the rigid part was taken out.
+    assert np.abs(points - grid.measured[grid.scored]).max() > 1e-3 * scale
+
+
+def overlaps(a, b) -> bool:
+    """Whether the boxes (x0, y0, x1, y1) share more than an edge."""
+    return a[0] < b[2] and b[0] < a[2] and a[1] < b[3] and b[1] < a[3]
+
+
 def test_no_tick_labels_overlap(run, tmp_path, monkeypatch):
     """Within each axis the tick labels do not overlap, nor do a panel's labels and title
-    reach into another panel."""
+    reach into another panel or out of the image."""
     saved = []
     monkeypatch.setattr(drawing, "save", lambda fig, path: saved.append(fig))
     model_report.write_figures(run.model, run.raw, tmp_path)
+    assert len(saved) == 3
     for fig in saved:
-        renderer = fig.canvas.get_renderer()
-        fig.draw(renderer)
-        boxes = []
-        for ax in (a for a in fig.axes if a.axison):
-            for axis in (ax.xaxis, ax.yaxis):
-                texts = [t for t in axis.get_ticklabels() if t.get_visible() and t.get_text()]
-                ext = sorted(
-                    (t.get_window_extent(renderer) for t in texts),
-                    key=lambda b: (b.x0, b.y0),
-                )
+        texts = fig.layout()
+        shown = [i for i, ax in enumerate(fig.panels) if ax.axison]
+        tight = {i: fig.panels[i].box for i in shown}
+        for i in shown:
+            for kind in ("xtick", "ytick"):
+                ext = sorted(b for j, k, b in texts if j == i and k == kind)
+                assert len(ext) >= 2, (i, kind)
                 for a, b in itertools.pairwise(ext):
-                    assert not a.overlaps(b), (a, b)
-            boxes.append(ax.get_tightbbox(renderer))
-        for i, a in enumerate(boxes):
-            for b in boxes[i + 1 :]:
-                assert not a.overlaps(b), (a, b)
+                    assert not overlaps(a, b), (a, b)
+        for i, _, b in texts:
+            a = tight[i]
+            tight[i] = (min(a[0], b[0]), min(a[1], b[1]), max(a[2], b[2]), max(a[3], b[3]))
+        for i in shown:
+            x0, y0, x1, y1 = tight[i]
+            assert 0 <= x0 < x1 <= fig.width, (i, tight[i])
+            assert 0 <= y0 < y1 <= fig.height, (i, tight[i])
+            for j in shown:
+                if j > i:
+                    assert not overlaps(tight[i], tight[j]), (i, j, tight[i], tight[j])
 
 
 def test_report_is_written_first_and_embeds_its_figures(run, tmp_path, monkeypatch):
@@ -309,6 +349,48 @@ def test_identifying_in_python_does_not_import_matplotlib():
         """
     )
     assert "matplotlib" not in loaded
+
+
+def test_identify_draws_its_figures_without_matplotlib(tmp_path):
+    """`prrrp identify` writes its three figures natively (prrrp.canvas): matplotlib (and
+    PIL, its image writer) is never imported, nor a process forked to import it."""
+    robot_file = Path(__file__).resolve().parents[2] / "tests" / "data" / "ur5_like_friction.toml"
+    out = tmp_path / "out"
+    loaded = modules_after(
+        f"""
+        import contextlib, io, os
+        import numpy as np, prrrp
+        from prrrp.cli import main
+        robot = prrrp.SerialChain.from_file({str(robot_file)!r})
+        t = np.arange(0.0, 6.0, 0.004)
+        w = 2 * np.pi * 0.3 * np.arange(1, 4)
+        a = np.random.default_rng(3).normal(0, 0.4, (robot.dof, 3)) / np.arange(1, 4)
+        s, c = np.sin(np.outer(t, w)), np.cos(np.outer(t, w))
+        q, qd, qdd = s @ a.T, (c * w) @ a.T, -(s * w**2) @ a.T
+        tau = robot.inverse_dynamics(q, qd, qdd)
+        n = robot.dof
+        names = [*(f"q{{j + 1}}" for j in range(n)), *(f"tau{{j + 1}}" for j in range(n))]
+        head = ",".join(["t", *names])
+        np.savetxt({str(tmp_path / "log.csv")!r}, np.column_stack([t, q, tau]), delimiter=",",
+                   header=head, comments="")
+        forks = []
+        real_fork = os.fork
+        os.fork = lambda: forks.append(1) or real_fork()
+        argv = ["identify", {str(tmp_path / "log.csv")!r}, "--robot", {str(robot_file)!r},
+                "--out", {str(out)!r}, "--coulomb-scale", "0"]
+        with contextlib.redirect_stdout(io.StringIO()):
+            assert main(argv) == 0
+        assert not forks, forks
+        """
+    )
+    assert sorted(p.name for p in out.glob("*.png")) == [
+        "friction.png",
+        "residual.png",
+        "torque.png",
+    ]
+    for name in ("friction.png", "residual.png", "torque.png"):
+        assert (out / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert not loaded & {"matplotlib", "PIL"}, loaded & {"matplotlib", "PIL"}
 
 
 # ------------------------------------------------------------------- paper's study

@@ -16,6 +16,7 @@ mod arrays;
 mod data;
 mod errors;
 mod estimators;
+mod figures;
 mod identification;
 mod interrupt;
 mod models;
@@ -51,5 +52,6 @@ fn _prrrp(m: &Bound<'_, PyModule>) -> PyResult<()> {
     paper::study::register(m)?;
     online::register(m)?;
     interrupt::register(m)?;
+    figures::register(m)?;
     Ok(())
 }

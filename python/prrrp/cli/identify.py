@@ -198,13 +198,8 @@ def run(args: argparse.Namespace) -> int:
     outdir.check(out)
     if args.payload_run or args.payload_mass is not None:
         return _run_drive_gains(args, *_setup(args), out)
-    # matplotlib's import (longer than drawing the figures) runs in a forked process while
-    # this one reads and identifies; the figures are handed to it. Without it (one CPU,
-    # threads, not Linux) on a thread here, while the identification releases the GIL.
-    with drawing.figure_server() as forked:
-        if not forked:
-            drawing.preload()
-        return _identify(args, out)
+    # The figures are drawn natively (prrrp.canvas): no matplotlib to import or to wait for.
+    return _identify(args, out)
 
 
 def _setup(args: argparse.Namespace) -> tuple[Any, str | float, dict[str, Any]]:
@@ -343,7 +338,9 @@ def _identify(args: argparse.Namespace, out: Path) -> int:
                 report_dir = tmp / "physical"
                 report_dir.mkdir()
                 written += report(physical, report_dir)
-        drawing.draw_all(drawings)  # in parallel; a failed figure does not lose the rest
+        # Here, one after another (a few ms each: a worker's fork would cost more); a
+        # failed figure does not lose the rest.
+        drawing.draw_all(drawings, workers=1)
         return written
 
     written = outdir.write_dir(out, build)

@@ -1,0 +1,173 @@
+//! `prrrp._prrrp.Canvas`: the raster canvas of `prrrp-figures` (the report figures of
+//! `prrrp identify` without matplotlib; laid out by python/prrrp/canvas.py).
+
+use prrrp_figures::{Canvas as Inner, CanvasError, HAlign, Rgba, VAlign};
+use pyo3::prelude::*;
+use pyo3::types::PyBytes;
+
+use crate::arrays::vector;
+use crate::errors::Exc;
+
+fn err(py: Python<'_>, e: CanvasError) -> PyErr {
+    Exc::InvalidInput.new_err(py, e.to_string(), &[])
+}
+
+fn halign(py: Python<'_>, ha: &str) -> PyResult<HAlign> {
+    match ha {
+        "left" => Ok(HAlign::Left),
+        "center" => Ok(HAlign::Center),
+        "right" => Ok(HAlign::Right),
+        _ => Err(Exc::InvalidInput.new_err(
+            py,
+            format!("ha must be left, center or right, got {ha:?}"),
+            &[],
+        )),
+    }
+}
+
+fn valign(py: Python<'_>, va: &str) -> PyResult<VAlign> {
+    match va {
+        "top" => Ok(VAlign::Top),
+        "center" => Ok(VAlign::Center),
+        "baseline" => Ok(VAlign::Baseline),
+        "bottom" => Ok(VAlign::Bottom),
+        _ => Err(Exc::InvalidInput.new_err(
+            py,
+            format!("va must be top, center, baseline or bottom, got {va:?}"),
+            &[],
+        )),
+    }
+}
+
+/// A white RGBA image of `width` × `height` pixels to draw on, in pixel coordinates (x
+/// right, y down from the top-left corner); colours are (r, g, b, a) of 0..255.
+#[pyclass(name = "Canvas", module = "prrrp._prrrp")]
+pub(crate) struct Canvas(Inner);
+
+#[pymethods]
+impl Canvas {
+    #[new]
+    fn new(py: Python<'_>, width: u32, height: u32) -> PyResult<Self> {
+        Inner::new(width, height).map(Self).map_err(|e| err(py, e))
+    }
+
+    /// (width, height), pixels.
+    #[getter]
+    fn size(&self) -> (u32, u32) {
+        self.0.size()
+    }
+
+    /// Shapes drawn next stay inside the rectangle (x0, y0, x1, y1); None lifts it.
+    #[pyo3(signature = (rect))]
+    fn set_clip(&mut self, rect: Option<(f32, f32, f32, f32)>) {
+        self.0.set_clip(rect.map(|(a, b, c, d)| [a, b, c, d]));
+    }
+
+    /// A line through (xs[i], ys[i]), `width` pixels wide; `dash` = on/off lengths
+    /// (pixels; empty: solid). NaN breaks the line.
+    #[pyo3(signature = (xs, ys, color, width, dash = Vec::new()))]
+    fn polyline(
+        &mut self,
+        py: Python<'_>,
+        xs: &Bound<'_, PyAny>,
+        ys: &Bound<'_, PyAny>,
+        color: Rgba,
+        width: f32,
+        dash: Vec<f32>,
+    ) -> PyResult<()> {
+        let (xs, ys) = (vector(xs, "xs")?, vector(ys, "ys")?);
+        self.0
+            .polyline(&xs, &ys, color, width, &dash)
+            .map_err(|e| err(py, e))
+    }
+
+    /// A filled rectangle between the corners (x0, y0) and (x1, y1).
+    fn fill_rect(&mut self, x0: f32, y0: f32, x1: f32, y1: f32, color: Rgba) {
+        self.0.fill_rect(x0, y0, x1, y1, color);
+    }
+
+    /// A rectangle's outline, `width` pixels wide.
+    #[allow(clippy::too_many_arguments)]
+    fn stroke_rect(
+        &mut self,
+        py: Python<'_>,
+        x0: f32,
+        y0: f32,
+        x1: f32,
+        y1: f32,
+        color: Rgba,
+        width: f32,
+    ) -> PyResult<()> {
+        self.0
+            .stroke_rect(x0, y0, x1, y1, color, width)
+            .map_err(|e| err(py, e))
+    }
+
+    /// The closed polygon through (xs[i], ys[i]), filled.
+    fn fill_polygon(
+        &mut self,
+        py: Python<'_>,
+        xs: &Bound<'_, PyAny>,
+        ys: &Bound<'_, PyAny>,
+        color: Rgba,
+    ) -> PyResult<()> {
+        let (xs, ys) = (vector(xs, "xs")?, vector(ys, "ys")?);
+        self.0.fill_polygon(&xs, &ys, color).map_err(|e| err(py, e))
+    }
+
+    /// A filled disc of `radius` pixels at each (xs[i], ys[i]).
+    fn markers(
+        &mut self,
+        py: Python<'_>,
+        xs: &Bound<'_, PyAny>,
+        ys: &Bound<'_, PyAny>,
+        radius: f32,
+        color: Rgba,
+    ) -> PyResult<()> {
+        let (xs, ys) = (vector(xs, "xs")?, vector(ys, "ys")?);
+        self.0
+            .markers(&xs, &ys, radius, color)
+            .map_err(|e| err(py, e))
+    }
+
+    /// `text` at `size` pixels per em, anchored (`ha`: left/center/right, `va`:
+    /// top/center/baseline/bottom) at (x, y), rotated `rotation` degrees
+    /// counter-clockwise.
+    #[allow(clippy::too_many_arguments)]
+    #[pyo3(signature = (text, x, y, size, ha = "left", va = "baseline", rotation = 0.0, color = (0, 0, 0, 255)))]
+    fn text(
+        &mut self,
+        py: Python<'_>,
+        text: &str,
+        x: f32,
+        y: f32,
+        size: f32,
+        ha: &str,
+        va: &str,
+        rotation: f32,
+        color: (u8, u8, u8, u8),
+    ) -> PyResult<()> {
+        let (ha, va) = (halign(py, ha)?, valign(py, va)?);
+        let c = [color.0, color.1, color.2, color.3];
+        self.0
+            .text(text, x, y, size, ha, va, rotation, c)
+            .map_err(|e| err(py, e))
+    }
+
+    /// (width, ascent, descent) of `text` at `size` pixels per em, pixels.
+    fn text_extent(&self, text: &str, size: f32) -> (f32, f32, f32) {
+        let e = self.0.text_extent(text, size);
+        (e.width, e.ascent, e.descent)
+    }
+
+    /// The image as PNG bytes.
+    fn png<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyBytes>> {
+        let bytes = py.detach(|| self.0.png()).map_err(|e| err(py, e))?;
+        Ok(PyBytes::new(py, &bytes))
+    }
+}
+
+pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_class::<Canvas>()?;
+    Ok(())
+}
