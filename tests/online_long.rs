@@ -124,11 +124,11 @@ fn run(id: &mut OnlineIdentifier, rp: &Replay, rows: usize, grip: bool) -> Resul
             let m = id.estimate()?;
             let tau = &rp.tau[held(rows - 1)];
             let (mut e, mut r) = (vec![0.0; n], vec![0.0; n]);
-            for i in 0..len {
+            for (i, t) in tau.iter().enumerate() {
                 let p = m.predict(&rp.q[i], &rp.qd[i], &rp.qdd[i])?;
                 for j in 0..n {
-                    e[j] += (p[j] - tau[i][j]).powi(2);
-                    r[j] += tau[i][j].powi(2);
+                    e[j] += (p[j] - t[j]).powi(2);
+                    r[j] += t[j].powi(2);
                 }
             }
             Some((0..n).map(|j| (e[j] / r[j]).sqrt()).collect())

@@ -251,8 +251,8 @@ fn cholesky_scaled(w: &mut DMatrix<f64>, d: &mut DVector<f64>) -> bool {
         for r in 0..j {
             s -= w[(j, r)] * w[(j, r)];
         }
-        // A correlation matrix's pivots are ≤ 1; one below 1e-14 is round-off.
-        if !(s > 1e-14) {
+        // A correlation matrix's pivots are ≤ 1; one below 1e-14 (or NaN) is round-off.
+        if s.is_nan() || s <= 1e-14 {
             return false;
         }
         let l = s.sqrt();
