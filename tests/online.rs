@@ -394,9 +394,9 @@ fn full_model_follows_a_friction_jump() {
 
 /// A change of the link before the tip (the part clamped to link 6 instead of the tip
 /// link 7) is detected, partly explained by the tip's directions, and caught by the second
-/// look over the noise window: the model at the end predicts the changed arm within 3 %
-/// (the second look over one hold-off with a 3× threshold let it through: 24 % at the
-/// end).
+/// look: the model at the end predicts the changed arm within 3 %. (A shorter look, over
+/// the second hold-off with a 3× threshold, also catches this one; it does not catch the
+/// part on link 5, docs/design/online.md.)
 #[test]
 fn full_model_follows_a_change_of_the_link_before_the_tip() {
     let chain = panda_like();
