@@ -44,13 +44,25 @@ fn log(
     grip: Option<f64>,
     noise: (f64, f64),
 ) -> Log {
+    log_changed(chain, &loaded(chain, &part()), seed, dur, rate, grip, noise)
+}
+
+/// As [`log`], with the arm becoming `with` at `grip` s.
+fn log_changed(
+    chain: &DynChain,
+    with: &DynChain,
+    seed: u64,
+    dur: f64,
+    rate: f64,
+    grip: Option<f64>,
+    noise: (f64, f64),
+) -> Log {
     let f = DynFourier::seeded(seed, chain.dof(), 1.0);
     let mut rng = StdRng::seed_from_u64(seed + 100);
     let (nq, nt) = (
         Normal::new(0.0, noise.0).unwrap(),
         Normal::new(0.0, noise.1).unwrap(),
     );
-    let with = loaded(chain, &part());
     let mut out = Log {
         t: vec![],
         q: vec![],
@@ -62,7 +74,7 @@ fn log(
         let t = k as f64 / rate;
         let [q, qd, qdd] = f.eval(t);
         let c = if grip.is_some_and(|g| t >= g) {
-            &with
+            with
         } else {
             chain
         };
@@ -279,25 +291,124 @@ fn full_model_follows_a_gripped_part() {
     }
 }
 
-/// The issue's bars 3 s after a grip for the whole-arm modes (payload mode meets them:
-/// the two tests above). Known not to hold yet (measured: the whole arm relearned in
-/// 3 s by RLS is 18–21 % off on three joints, the EKF worse).
-#[test]
-#[ignore = "known gap of issue 28: fast re-convergence of the whole arm and of the EKF"]
-fn ekf_meets_the_issue_bars_after_a_grip() {
-    for (method, payload) in [(OnlineMethod::Rls, false), (OnlineMethod::Ekf, false)] {
-        let r = track(method, payload);
-        below(
-            &r.after3,
-            0.15,
-            &format!("{method:?} payload={payload} 3 s after"),
-        );
-        below(
-            &r.end,
-            0.03,
-            &format!("{method:?} payload={payload} at the end"),
-        );
+/// The whole arm from no knowledge, RLS, on a log of `chain` (seed `seed`, 24 s at 500 Hz,
+/// noise 1e-5 rad and 0.05 N·m) that becomes `with` at 12 s: the detected changes and the
+/// per-joint errors on a motion of `with` (another seed) 3 s after the change and at the
+/// end.
+fn whole_arm_rls(chain: &DynChain, with: &DynChain, seed: u64) -> Tracked {
+    let base = chain.base_parameters(&BaseOptions::default()).unwrap();
+    let lg = log_changed(chain, with, seed, 24.0, 500.0, Some(GRIP), (1e-5, 0.05));
+    let val = log_changed(chain, with, seed + 16, 10.0, 100.0, Some(0.0), (0.0, 0.0));
+    let mut id = OnlineIdentifier::new(chain, &base, OnlineConfig::default()).unwrap();
+    let mut after3 = None;
+    let mut changes = vec![];
+    for k in 0..lg.t.len() {
+        if id
+            .update(lg.t[k], &lg.q[k], &lg.tau[k], None)
+            .unwrap()
+            .change
+        {
+            changes.push(lg.t[k]);
+        }
+        if after3.is_none() && lg.t[k] >= GRIP + 3.0 {
+            after3 = Some(id.estimate().unwrap());
+        }
     }
+    let out = Tracked {
+        changes,
+        after3: rel_error(&after3.unwrap(), &val),
+        end: rel_error(&id.estimate().unwrap(), &val),
+        payload: None,
+    };
+    eprintln!(
+        "whole-arm RLS, seed {seed}: changes at {:?}\n  +3 s {:.4?}\n  end {:.4?}",
+        out.changes, out.after3, out.end
+    );
+    out
+}
+
+/// The defaults are not tuned to the Panda-like arm: on the PUMA 560 (6R, its wrist links
+/// 0.09–0.82 kg, so the 2.5 kg part dominates the wrist) and on the three-joint URDF
+/// fixture (tilted axes, a prismatic joint), two logs each, the whole-arm RLS from no
+/// knowledge ends within 3 % after the grip (the rule before, every direction opened at
+/// once: 20–31 % at the end on the PUMA's wrist). Not asserted: 3 s after the grip the
+/// PUMA's wrist is still 22–36 % off (docs/design/online.md).
+#[test]
+fn full_model_rls_follows_a_grip_on_other_arms() {
+    let puma = SerialChain::puma560().to_dyn();
+    let three = dyn_support::three_joint_urdf();
+    for chain in [&puma, &three] {
+        for seed in [5, 6] {
+            let r = whole_arm_rls(chain, &loaded(chain, &part()), seed);
+            detected(&r);
+            below(
+                &r.end,
+                0.03,
+                &format!("{} joints, seed {seed}, at the end", chain.dof()),
+            );
+        }
+    }
+}
+
+/// The issue's bars for the whole arm relearned by RLS from no knowledge (the part gripped
+/// at 12 s of 24 s, as above): 3 s after the grip the model predicts a different loaded
+/// motion within 15 % of each joint's RMS torque, at the end within 3 %. The first opening
+/// after the change is along the tip link's directions; opening every direction at once
+/// (the earlier rule) left three joints 18–21 % off 3 s after the grip.
+#[test]
+fn full_model_rls_meets_the_issue_bars_after_a_grip() {
+    let r = track(OnlineMethod::Rls, false);
+    detected(&r);
+    below(&r.after3, 0.15, "3 s after");
+    below(&r.end, 0.03, "at the end");
+}
+
+/// As above for the whole-arm EKF. Known not to hold yet (measured: 7.5–200 % off 3 s
+/// after the grip; within 3 % at the end).
+#[test]
+#[ignore = "known gap of issue 28: fast re-convergence of the whole-arm EKF"]
+fn full_model_ekf_meets_the_issue_bars_after_a_grip() {
+    let r = track(OnlineMethod::Ekf, false);
+    below(&r.after3, 0.15, "3 s after");
+    below(&r.end, 0.03, "at the end");
+}
+
+/// A jump that is not a payload (joint 3's viscous and Coulomb friction four times as
+/// large at 12 s, a dragging brake) is still followed by the whole-arm RLS: the opening
+/// along the tip link's directions cannot explain it, the second look opens every
+/// direction, and the model at the end predicts the changed arm within 3 %.
+#[test]
+fn full_model_follows_a_friction_jump() {
+    let chain = panda_like();
+    let mut params = chain.friction_params().to_vec();
+    params[2][0] *= 4.0;
+    params[2][1] *= 4.0;
+    let changed = chain
+        .clone()
+        .with_friction(chain.friction(), params)
+        .unwrap();
+    let r = whole_arm_rls(&chain, &changed, 5);
+    detected(&r);
+    below(&r.end, 0.03, "at the end");
+}
+
+/// A change of the link before the tip (the part clamped to link 6 instead of the tip
+/// link 7) is detected, partly explained by the tip's directions, and caught by the second
+/// look: the model at the end predicts the changed arm within 3 %. (A shorter look, over
+/// the second hold-off with a 3× threshold, also catches this one; it does not catch the
+/// part on link 5, docs/design/online.md.)
+#[test]
+fn full_model_follows_a_change_of_the_link_before_the_tip() {
+    let chain = panda_like();
+    let mut inertial = chain.inertial().to_vec();
+    let pi = part();
+    for k in 0..10 {
+        inertial[5][k] += pi[k];
+    }
+    let changed = chain.clone().with_inertial(inertial).unwrap();
+    let r = whole_arm_rls(&chain, &changed, 5);
+    detected(&r);
+    below(&r.end, 0.03, "at the end");
 }
 
 /// Changing the samples after row k0 changes nothing before it: predictions, estimates

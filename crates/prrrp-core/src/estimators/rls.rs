@@ -208,6 +208,13 @@ where
         }
     }
 
+    /// P ← P + `m` (units of P), `m` symmetric: opens the covariance along chosen
+    /// directions after a detected change. The caller keeps P positive definite (e.g. `m`
+    /// from a congruence, T·P·Tᵀ − P). Allocation-free.
+    pub fn add_covariance(&mut self, m: &OMatrix<f64, P, P>) {
+        self.cov += m;
+    }
+
     /// One sample with joint weights and forgetting: each joint's equation is weighted by
     /// `weights[j]` (1/σ_j² for a joint force noise σ_j: the weighted errors have unit
     /// variance, so P is the covariance of λ̂), then old data are discounted by

@@ -7,6 +7,7 @@ use super::detector::{ChangeDetection, ChangeDetector, ErrorCorrelation};
 use super::kinematics::{CausalKinematics, CausalLowPass};
 use super::payload::{project, summary_json, PAYLOAD_PARAMS};
 use super::payload_ekf::PayloadEkf;
+use super::tip::{Look, TipOpening};
 use super::tracked::{TrackedModel, TrackedWorkspace};
 use crate::error::{invalid, PrrrpError, Result};
 use crate::estimators::{
@@ -94,7 +95,12 @@ pub struct OnlineConfig {
     pub change_detection: Option<ChangeDetection>,
     /// Factor on the parameter variances when a change is detected (default `1e3`: the
     /// data before the change keep a thousandth of their weight), capped at the initial
-    /// (prior) variances.
+    /// (prior) variances. Whole-arm RLS (and the EKF's RLS warm-up) first opens only the
+    /// directions a payload at the tip link moves the base parameters (by this factor on
+    /// their variance given the rest of the arm, capped at the payload prior
+    /// `payload_mass_std`, `payload_size`), and every direction when the errors have not
+    /// come back to their level before the change over the `noise_window` after the
+    /// first `holdoff`, or the change is flagged again meanwhile.
     pub open_factor: f64,
     /// RLS initial covariance δ of the equilibrated parameters (N²·m² per unit weighted
     /// error², default `1e6`: a prior σ of 1000 N·m on the torque each parameter
@@ -325,6 +331,9 @@ pub struct OnlineIdentifier {
     /// Variance cap of the opening (θ units); for the arm's scale s in payload mode 0
     /// (never opened).
     cap: DVector<f64>,
+    /// Whole-arm modes: the opening along the tip link's directions and its second look
+    /// (`None` in payload mode, or for a chain without tip link columns).
+    tip: Option<TipOpening>,
     q: DVector<f64>,
     qd: DVector<f64>,
     qdd: DVector<f64>,
@@ -417,15 +426,7 @@ impl OnlineIdentifier {
         let mut p0: Option<DMatrix<f64>> = None;
         let mut cap = DVector::from_fn(p, |i, _| scale[i] * scale[i] * config.initial_covariance);
         if config.payload {
-            let (ms, l) = (config.payload_mass_std, config.payload_size);
-            let mut var = DVector::zeros(p);
-            var[0] = ms * ms;
-            for k in 1..4 {
-                var[k] = (ms * l).powi(2);
-            }
-            for k in 4..PAYLOAD_PARAMS {
-                var[k] = (ms * l * l).powi(2);
-            }
+            let var = DVector::from_row_slice(&payload_prior_variances(&config));
             cap.copy_from(&var);
             p0 = Some(DMatrix::from_diagonal(&var));
         } else if let Some(pr) = &prior {
@@ -537,6 +538,11 @@ impl OnlineIdentifier {
                 Engine::Ekf(Box::new(e))
             }
         };
+        let tip = if config.payload {
+            None
+        } else {
+            TipOpening::new(base, n, &scale, payload_prior_variances(&config))
+        };
         let detection = config.change_detection;
         let init_sd = prior
             .as_ref()
@@ -571,6 +577,7 @@ impl OnlineIdentifier {
             },
             n,
             cap,
+            tip,
             q: DVector::zeros(n),
             qd: DVector::zeros(n),
             qdd: DVector::zeros(n),
@@ -796,7 +803,9 @@ impl OnlineIdentifier {
             }
             if change {
                 self.changes += 1;
-                self.open_covariance()?;
+                self.open_after_change()?;
+            } else {
+                self.second_look(dt)?;
             }
             self.step_engine(dt)?;
             updated = true;
@@ -1004,6 +1013,57 @@ impl OnlineIdentifier {
         for v in &mut self.out_sigma {
             *v *= inflate;
         }
+    }
+
+    /// After a detected change, whole-arm RLS (and the EKF's RLS warm-up): first along the
+    /// directions a payload at the tip opens (a part gripped or released, the common jump
+    /// of a rigid arm), keeping what the data say of the rest of the arm (`tip`); a second
+    /// alarm while the second look is pending opens every direction. The running EKF and
+    /// payload mode open every direction at once (docs/design/online.md).
+    fn open_after_change(&mut self) -> Result<()> {
+        let k = self.config.open_factor;
+        let tipped = match (&mut self.tip, &self.detector, rls_of(&mut self.engine)) {
+            (Some(tip), Some(d), Some(rls)) => {
+                if tip.looking() {
+                    tip.cancel();
+                    false
+                } else if tip.prepare(rls.covariance(), k, d.variances()) {
+                    rls.add_covariance(tip.increment());
+                    true
+                } else {
+                    false
+                }
+            }
+            _ => false,
+        };
+        if tipped {
+            Ok(())
+        } else {
+            self.open_covariance()
+        }
+    }
+
+    /// The second look after an opening along the tip (`tip::TipOpening::row`): every
+    /// direction is opened when the errors have stayed up.
+    fn second_look(&mut self, dt: f64) -> Result<()> {
+        let (Some(tip), Some(d), Some(c)) =
+            (&mut self.tip, &self.detector, self.config.change_detection)
+        else {
+            return Ok(());
+        };
+        let look = tip.row(
+            dt,
+            &self.resid,
+            &self.floor,
+            d.last(),
+            d.settled(),
+            c.holdoff,
+            c.noise_window,
+        );
+        if look == Look::OpenAll {
+            self.open_covariance()?;
+        }
+        Ok(())
     }
 
     /// Opens the covariance after a detected change: each parameter variance times
@@ -1217,6 +1277,31 @@ impl OnlineIdentifier {
         v["sigma_correlation_factor"] = json!(self.correlation.factor());
         v
     }
+}
+
+/// The RLS of the whole-arm RLS engine or of the EKF's warm-up, the estimators the tip
+/// opening applies to.
+fn rls_of(engine: &mut Engine) -> Option<&mut DynRls<DynScaledModel<TrackedModel>>> {
+    match engine {
+        Engine::Rls(r) => Some(r.as_mut()),
+        Engine::Ekf(e) if !e.running => Some(&mut e.rls),
+        _ => None,
+    }
+}
+
+/// Prior variances of a payload's 10 parameters (kg², (kg·m)², (kg·m²)²): mass σ
+/// `payload_mass_std`, first moments σ·size, inertia σ·size².
+fn payload_prior_variances(config: &OnlineConfig) -> [f64; PAYLOAD_PARAMS] {
+    let (ms, l) = (config.payload_mass_std, config.payload_size);
+    let mut var = [0.0; PAYLOAD_PARAMS];
+    var[0] = ms * ms;
+    for v in &mut var[1..4] {
+        *v = (ms * l).powi(2);
+    }
+    for v in &mut var[4..] {
+        *v = (ms * l * l).powi(2);
+    }
+    var
 }
 
 /// The factor d (on σ) that multiplies a variance `var` by `k`, at most up to `cap`.

@@ -7,7 +7,7 @@
 //! accelerations come from a per-joint Kalman tracker ([`CausalKinematics`]); RLS, the EKF,
 //! Adaline and Hopfield step once per sample ([`OnlineMethod`]); a jump of the prediction
 //! errors ([`ChangeDetector`]) reopens the covariance so that the estimate follows a gripped
-//! part; payload mode (`OnlineConfig::payload`) estimates only a tip payload on a prior arm.
+//! part (the whole-arm RLS first along the tip link's directions, `tip`); payload mode (`OnlineConfig::payload`) estimates only a tip payload on a prior arm.
 //! [`OnlineIdentifier::estimate`] is an [`crate::IdentifiedModel`] at any moment. Per-sample
 //! cost is allocation-free (`tests/alloc_online.rs`).
 //!
@@ -18,6 +18,7 @@ mod identifier;
 mod kinematics;
 mod payload;
 mod payload_ekf;
+mod tip;
 mod tracked;
 
 pub use detector::{ChangeDetection, ChangeDetector};
