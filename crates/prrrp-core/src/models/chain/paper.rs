@@ -4,12 +4,10 @@ use std::sync::OnceLock;
 
 use nalgebra::DMatrix;
 
-use super::actuators::ActuatorLayout;
 use super::dh::DhConvention;
-use super::friction::FrictionModel;
 use super::inertia::inertial_parameters;
 use super::meta::{ChainMeta, JointLimit};
-use super::regressor::{ColumnMajorSink, RegressorSink};
+use super::regressor::RegressorSink;
 use super::rnea::{ChainView, LinkState};
 use super::serial_chain::{DynChain, SerialChain};
 use crate::error::Result;
@@ -184,20 +182,12 @@ fn fit(chain: &SerialChain<5>, gravity: f64) -> Option<PaperClosedForm> {
             y.view_mut((5 * s, 0), (5, NEXT)).copy_from(&ext);
             let mut st = [LinkState::default(); 5];
             let mut block = [0.0; 250];
-            let mut sink = ColumnMajorSink {
-                data: &mut block,
-                ld: 5,
-                row0: 0,
-                n: 5,
-                layout: ActuatorLayout::new(&FrictionModel::default(), false),
-            };
-            recursive.regressor_into(
+            recursive.rigid_regressor_into(
                 q.as_slice(),
                 qd.as_slice(),
                 qdd.as_slice(),
-                false,
                 &mut st,
-                &mut sink,
+                &mut block,
             );
             full.view_mut((5 * s, 0), (5, 50))
                 .copy_from(&DMatrix::from_column_slice(5, 50, &block));

@@ -10,6 +10,7 @@
 use nalgebra::Vector3;
 
 use super::actuators::ActuatorLayout;
+use super::friction::FrictionModel;
 use super::rnea::{ChainView, LinkState};
 
 /// Receives the entries of a regressor as they are computed. Entries never reported are
@@ -130,6 +131,28 @@ impl LinkColumns {
 }
 
 impl ChainView<'_> {
+    /// Computes the inertial regressor Y alone (no actuator columns) into `out`,
+    /// column-major with n rows and 10·n columns; `out` must be zero on entry.
+    #[inline]
+    pub(crate) fn rigid_regressor_into(
+        &self,
+        q: &[f64],
+        qd: &[f64],
+        qdd: &[f64],
+        st: &mut [LinkState],
+        out: &mut [f64],
+    ) {
+        let n = self.dof();
+        let mut sink = ColumnMajorSink {
+            data: out,
+            ld: n,
+            row0: 0,
+            n,
+            layout: ActuatorLayout::new(&FrictionModel::default(), false),
+        };
+        self.regressor_into(q, qd, qdd, false, st, &mut sink);
+    }
+
     /// Computes Y (and, if `friction`, the enabled actuator columns: friction and armature)
     /// into `sink`.
     #[inline]

@@ -690,20 +690,12 @@ impl<const N: usize> SerialChain<N> {
         const { assert!(P == 10 * N, "P must equal 10·N") };
         let mut st = [LinkState::default(); N];
         let mut y = SMatrix::<f64, N, P>::zeros();
-        let mut sink = ColumnMajorSink {
-            data: y.as_mut_slice(),
-            ld: N,
-            row0: 0,
-            n: N,
-            layout: ActuatorLayout::new(&FrictionModel::default(), false),
-        };
-        self.view().regressor_into(
+        self.view().rigid_regressor_into(
             q.as_slice(),
             qd.as_slice(),
             qdd.as_slice(),
-            false,
             &mut st,
-            &mut sink,
+            y.as_mut_slice(),
         );
         y
     }
