@@ -8,7 +8,7 @@ use super::dh::DhConvention;
 use super::inertia::inertial_parameters;
 use super::meta::{ChainMeta, JointLimit};
 use super::regressor::RegressorSink;
-use super::rnea::{ChainView, LinkState};
+use super::rnea::ChainView;
 use super::serial_chain::{DynChain, SerialChain};
 use crate::error::Result;
 use crate::models::prrrp::extended::{self, ExtLambda, NEXT};
@@ -180,13 +180,12 @@ fn fit(chain: &SerialChain<5>, gravity: f64) -> Option<PaperClosedForm> {
             let [q, qd, qdd] = fit_state(k);
             let ext = extended::regressor(gravity, &Trig::new(&q), &qd, &qdd);
             y.view_mut((5 * s, 0), (5, NEXT)).copy_from(&ext);
-            let mut st = [LinkState::default(); 5];
             let mut block = [0.0; 250];
-            recursive.rigid_regressor_into(
+            recursive.column_major_regressor_into::<5>(
                 q.as_slice(),
                 qd.as_slice(),
                 qdd.as_slice(),
-                &mut st,
+                false,
                 &mut block,
             );
             full.view_mut((5 * s, 0), (5, 50))

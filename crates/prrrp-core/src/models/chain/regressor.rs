@@ -10,7 +10,6 @@
 use nalgebra::Vector3;
 
 use super::actuators::ActuatorLayout;
-use super::friction::FrictionModel;
 use super::rnea::{ChainView, LinkState};
 
 /// Receives the entries of a regressor as they are computed. Entries never reported are
@@ -131,26 +130,28 @@ impl LinkColumns {
 }
 
 impl ChainView<'_> {
-    /// Computes the inertial regressor Y alone (no actuator columns) into `out`,
-    /// column-major with n rows and 10·n columns; `out` must be zero on entry.
+    /// Computes Y (and, if `friction`, the enabled actuator columns) of this N-joint view
+    /// into `out`, column-major with N rows in the chain's parameter order; `out` must be
+    /// zero on entry.
     #[inline]
-    pub(crate) fn rigid_regressor_into(
+    pub(crate) fn column_major_regressor_into<const N: usize>(
         &self,
         q: &[f64],
         qd: &[f64],
         qdd: &[f64],
-        st: &mut [LinkState],
+        friction: bool,
         out: &mut [f64],
     ) {
-        let n = self.dof();
+        debug_assert_eq!(self.dof(), N);
+        let mut st = [LinkState::default(); N];
         let mut sink = ColumnMajorSink {
             data: out,
-            ld: n,
+            ld: N,
             row0: 0,
-            n,
-            layout: ActuatorLayout::new(&FrictionModel::default(), false),
+            n: N,
+            layout: self.layout(),
         };
-        self.regressor_into(q, qd, qdd, false, st, &mut sink);
+        self.regressor_into(q, qd, qdd, friction, &mut st, &mut sink);
     }
 
     /// Computes Y (and, if `friction`, the enabled actuator columns: friction and armature)
