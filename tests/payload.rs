@@ -232,15 +232,7 @@ fn noisy_currents(d: &DynDataset, gains: &[f64; N], rel: f64, rng: &mut ChaCha8R
 
 /// `d` with its efforts column (torques or currents, row-major) replaced by `effort`.
 fn with_efforts(d: &DynDataset, effort: Vec<f64>) -> DynDataset {
-    DynDataset::new(
-        N,
-        d.t().to_vec(),
-        d.q().to_vec(),
-        d.qd().to_vec(),
-        d.qdd().to_vec(),
-        effort,
-    )
-    .unwrap()
+    d.with_tau(effort).unwrap()
 }
 
 #[test]

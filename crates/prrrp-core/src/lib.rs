@@ -61,6 +61,7 @@ mod error;
 pub mod estimators;
 pub mod identification;
 pub mod interrupt;
+mod json;
 pub mod models;
 pub mod motion;
 pub mod online;

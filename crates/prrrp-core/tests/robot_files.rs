@@ -602,7 +602,18 @@ fn urdf_errors_name_file_and_element() {
     edited(
         "<link name=\"tool\">",
         "<link name=\"link2\">",
-        &["link[link2]"],
+        &[
+            "link[link2]",
+            "two links have this name; link names must be unique",
+        ],
+    );
+    edited(
+        "name=\"tool_mount\" type=\"fixed\"",
+        "name=\"slide\" type=\"fixed\"",
+        &[
+            "joint[slide]",
+            "two joints have this name; joint names must be unique",
+        ],
     );
 }
 

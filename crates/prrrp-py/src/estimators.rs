@@ -51,6 +51,28 @@ fn invalid(py: Python<'_>, field: &str, reason: &'static str) -> PyErr {
     )
 }
 
+/// The EKF's measurement settings by their Python names, for the `Ekf` class and for
+/// `identify`'s EKF settings alike.
+pub(crate) const EKF_MEASUREMENTS: [(&str, EkfMeasurement); 2] = [
+    ("positions", EkfMeasurement::Positions),
+    ("positions_velocities", EkfMeasurement::PositionsVelocities),
+];
+/// What a measurement setting not in [`EKF_MEASUREMENTS`] is told.
+pub(crate) const EKF_MEASUREMENT_REASON: &str = "must be \"positions\" or \"positions_velocities\"";
+/// Adaline's learning rules by their Python names (either spelling of "normalised").
+pub(crate) const ADALINE_RULES: [(&str, AdalineRule); 3] = [
+    ("normalised", AdalineRule::Normalised),
+    ("normalized", AdalineRule::Normalised),
+    ("delta", AdalineRule::Delta),
+];
+/// What a rule not in [`ADALINE_RULES`] is told.
+pub(crate) const ADALINE_RULE_REASON: &str = "must be \"normalised\" or \"delta\"";
+
+/// The value `name` stands for among `options` (Python name, value), if any.
+pub(crate) fn choose<T: Copy>(name: &str, options: &[(&str, T)]) -> Option<T> {
+    options.iter().find(|(k, _)| *k == name).map(|&(_, t)| t)
+}
+
 /// Locks an estimator's state. A second thread using the same estimator while a call
 /// runs (e.g. `step` during another thread's `run`, which releases the GIL) gets a
 /// `prrrp.PrrrpError` instead of waiting or corrupting the state.
@@ -669,11 +691,8 @@ online_estimator! {
             epsilon=1e-9, divergence_ratio=1e6))]
         fn new(py, rule: &str, learning_rate: f64, step_size: f64, epsilon: f64,
             divergence_ratio: f64) {
-            let rule = match rule {
-                "normalised" | "normalized" => AdalineRule::Normalised,
-                "delta" => AdalineRule::Delta,
-                _ => return Err(invalid(py, "rule", "must be \"normalised\" or \"delta\"")),
-            };
+            let rule = choose(rule, &ADALINE_RULES)
+                .ok_or_else(|| invalid(py, "rule", ADALINE_RULE_REASON))?;
             AdalineConfig { rule, learning_rate, step_size, epsilon, divergence_ratio }
         }
     }
@@ -745,28 +764,16 @@ estimator_pymethods!(Ekf {
         beta0: Option<&Bound<'_, PyAny>>,
         base: Option<&crate::models::chain::PyBaseParameters>,
     ) -> PyResult<Self> {
-        let measurement = match measurement {
-            "positions" => EkfMeasurement::Positions,
-            "positions_velocities" => EkfMeasurement::PositionsVelocities,
-            _ => {
-                return Err(invalid(
-                    py,
-                    "measurement",
-                    "must be \"positions\" or \"positions_velocities\"",
-                ))
-            }
-        };
-        let discretisation = match discretisation {
-            "euler" => Discretisation::Euler,
-            "second_order" => Discretisation::SecondOrder,
-            _ => {
-                return Err(invalid(
-                    py,
-                    "discretisation",
-                    "must be \"euler\" or \"second_order\"",
-                ))
-            }
-        };
+        let measurement = choose(measurement, &EKF_MEASUREMENTS)
+            .ok_or_else(|| invalid(py, "measurement", EKF_MEASUREMENT_REASON))?;
+        let discretisation = choose(
+            discretisation,
+            &[
+                ("euler", Discretisation::Euler),
+                ("second_order", Discretisation::SecondOrder),
+            ],
+        )
+        .ok_or_else(|| invalid(py, "discretisation", "must be \"euler\" or \"second_order\""))?;
         let config = EkfConfig {
             dt,
             discretisation,

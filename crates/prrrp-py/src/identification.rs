@@ -101,8 +101,7 @@ pub(crate) struct PyIdentifiedModel {
 
 /// The value the string `v` names among `options`, or None for any other string.
 fn pick<T: Copy>(v: &Bound<'_, PyAny>, options: &[(&str, T)]) -> PyResult<Option<T>> {
-    let name = v.extract::<String>()?;
-    Ok(options.iter().find(|(k, _)| *k == name).map(|&(_, t)| t))
+    Ok(crate::estimators::choose(&v.extract::<String>()?, options))
 }
 
 /// An optional value's JSON (from `serde_json::to_value`) as its Python form (dicts, lists,
@@ -563,9 +562,10 @@ fn parse_method(
     method: &str,
     settings: Option<&Bound<'_, PyDict>>,
 ) -> PyResult<prrrp_core::Method> {
-    use prrrp_core::{
-        AdalineRule, Discretisation, EkfMeasurement, EkfStart, Method, ParameterJacobian,
+    use crate::estimators::{
+        ADALINE_RULES, ADALINE_RULE_REASON, EKF_MEASUREMENTS, EKF_MEASUREMENT_REASON,
     };
+    use prrrp_core::{Discretisation, EkfStart, Method, ParameterJacobian};
     let mut m = Method::parse(method).to_py(py)?;
     let Some(settings) = settings else {
         return Ok(m);
@@ -613,11 +613,8 @@ fn parse_method(
             (Method::Rls(s), "scale_columns") => s.scale_columns = v.extract()?,
             (Method::Adaline(s) | Method::Hopfield(s), k) => match k {
                 "rule" => {
-                    s.rule = match v.extract::<String>()?.as_str() {
-                        "normalised" | "normalized" => AdalineRule::Normalised,
-                        "delta" => AdalineRule::Delta,
-                        _ => return Err(bad("rule".into(), "must be \"normalised\" or \"delta\"")),
-                    }
+                    s.rule = pick(&v, &ADALINE_RULES)?
+                        .ok_or_else(|| bad("rule".into(), ADALINE_RULE_REASON))?;
                 }
                 "step_size" => s.step_size = f()?,
                 "learning_rate" => s.learning_rate = Some(f()?),
@@ -650,13 +647,8 @@ fn parse_method(
                     }
                     "dt" => s.dt = Some(f()?),
                     "measurement" => {
-                        let options = [
-                            ("positions", EkfMeasurement::Positions),
-                            ("positions_velocities", EkfMeasurement::PositionsVelocities),
-                        ];
-                        let reason = "must be \"positions\" or \"positions_velocities\"";
-                        c.measurement =
-                            pick(&v, &options)?.ok_or_else(|| bad("measurement".into(), reason))?;
+                        c.measurement = pick(&v, &EKF_MEASUREMENTS)?
+                            .ok_or_else(|| bad("measurement".into(), EKF_MEASUREMENT_REASON))?;
                     }
                     "discretisation" => {
                         let options = [

@@ -291,6 +291,25 @@ impl<N: Dim> DatasetOf<N> {
         )
     }
 
+    /// The same samples with the generalised forces replaced by `tau` (N, N·m; row-major
+    /// samples × n, e.g. torques computed from measured currents), with the same minimum
+    /// sample count.
+    ///
+    /// # Errors
+    /// As [`DatasetOf::from_columns`]: [`PrrrpError::ShapeMismatch`] if `tau` is not
+    /// samples × n long, [`PrrrpError::NonFinite`] for NaN or ±∞ in it.
+    pub fn with_tau(&self, tau: Vec<f64>) -> Result<Self> {
+        Self::from_columns(
+            self.n,
+            self.min_samples,
+            self.cols.t.clone(),
+            self.cols.q.clone(),
+            self.cols.qd.clone(),
+            self.cols.qdd.clone(),
+            tau,
+        )
+    }
+
     /// Moves the columns out.
     pub fn into_parts(self) -> DatasetParts {
         self.cols

@@ -484,10 +484,7 @@ impl IdentifiedModel {
         if let Some(p) = out.payload.as_mut() {
             p.derive();
         }
-        serde_json::to_string_pretty(&out).map_err(|_| PrrrpError::NonFinite {
-            what: "identified model (JSON has no NaN or infinity)".into(),
-            row: None,
-        })
+        crate::json::to_pretty(&out, "identified model")
     }
 
     /// A model from the JSON of [`IdentifiedModel::to_json`], checked.
@@ -496,11 +493,11 @@ impl IdentifiedModel {
     /// [`PrrrpError::InvalidParameter`] naming the JSON problem, and the errors of
     /// [`IdentifiedModel::new`].
     pub fn from_json(text: &str) -> Result<Self> {
-        let mut m: Self = serde_json::from_str(text).map_err(|e| PrrrpError::InvalidParameter {
-            field: format!("model JSON (line {}, column {})", e.line(), e.column()),
-            value: f64::NAN,
-            reason: "not a prrrp model file; write it with IdentifiedModel::to_json",
-        })?;
+        let mut m: Self = crate::json::parse(
+            text,
+            "model",
+            "not a prrrp model file; write it with IdentifiedModel::to_json",
+        )?;
         m.validate()?;
         m.chain()?;
         // A file of any version this prrrp reads is held in this version's layout (as a

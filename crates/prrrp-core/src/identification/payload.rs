@@ -316,8 +316,17 @@ fn check_mass(m: f64) -> Result<()> {
     Ok(())
 }
 
-/// Base parameters that are friction terms only (viscous, Coulomb, offset): the ones a
-/// loaded run re-fits.
+/// The base parameters a loaded run re-fits: with `refit`, the ones that are friction
+/// terms only (viscous, Coulomb, offset); none without.
+fn refit_rows(model: &IdentifiedModel, refit: bool) -> Vec<usize> {
+    if refit {
+        friction_rows(model)
+    } else {
+        Vec::new()
+    }
+}
+
+/// Base parameters that are friction terms only (viscous, Coulomb, offset).
 fn friction_rows(model: &IdentifiedModel) -> Vec<usize> {
     let names = &model.base.standard_names;
     let p = names.len();
@@ -415,28 +424,16 @@ pub fn identify_payload(
     data: &DynDataset,
     settings: &PayloadSettings,
 ) -> Result<IdentifiedModel> {
-    let chain = model.chain()?;
-    let (n, p) = (chain.dof(), chain.num_params());
-    check_shapes(model, &chain, data)?;
+    let (chain, n, p) = checked_chain(model, &[data])?;
     let l = check_link(settings.link, n)?;
     if let Some(m) = settings.mass {
         check_mass(m)?;
     }
-    let refit = if settings.refit_friction {
-        friction_rows(model)
-    } else {
-        Vec::new()
-    };
+    let refit = refit_rows(model, settings.refit_friction);
     let np = if settings.mass.is_some() { 9 } else { 10 };
     let first = 10 - np;
     let k = np + refit.len();
-    let needed = (k + 1).div_ceil(n);
-    if data.len() < needed {
-        return Err(PrrrpError::TooFewSamples {
-            needed,
-            got: data.len(),
-        });
-    }
+    check_samples(k, n, data.len())?;
     let indep = &model.base.independent;
     let fixed: Vec<usize> = (0..indep.len()).filter(|r| !refit.contains(r)).collect();
     let mut ws = chain.workspace();
@@ -538,12 +535,7 @@ pub fn identify_payload(
     for c in 0..np {
         pi_hat[first + c] = fit.x[c];
     }
-    let mut metric = vec![0.0; 100];
-    for r in 0..np {
-        for c in 0..np {
-            metric[(first + r) * 10 + first + c] = schur[(r, c)];
-        }
-    }
+    let metric = payload_block(first, np, |r, c| schur[(r, c)]);
     let physical_fit = crate::models::payload::is_physical(&pi_hat);
     let pi = if pi_hat[0] <= 0.0 && settings.mass.is_none() {
         // A non-positive mass: the projection would give a massless "payload".
@@ -563,20 +555,9 @@ pub fn identify_payload(
     for c in 0..np {
         x[c] = pi[first + c];
     }
-    let mut pcov = vec![0.0; 100];
-    for r in 0..np {
-        for c in 0..np {
-            pcov[(first + r) * 10 + first + c] = cov[(r, c)];
-        }
-    }
-    let link = chain
-        .meta()
-        .links
-        .get(l)
-        .cloned()
-        .unwrap_or_else(|| format!("link{}", l + 1));
+    let pcov = payload_block(first, np, |r, c| cov[(r, c)]);
     let mut payload = if pi[0] > 0.0 {
-        Payload::from_parameters(&link, l, pi, Some(pcov))?
+        Payload::from_parameters(&link_name(&chain, l), l, pi, Some(pcov))?
     } else {
         return Err(PrrrpError::InvalidParameter {
             field: "payload mass".into(),
@@ -667,16 +648,35 @@ fn arm_covariance(model: &IdentifiedModel, rows: &[usize]) -> Option<DMatrix<f64
     }))
 }
 
-fn check_shapes(model: &IdentifiedModel, chain: &DynChain, data: &DynDataset) -> Result<()> {
-    data.check_dof(chain.dof(), "the model's robot")?;
-    if chain.num_params() != model.base.standard_names.len() {
-        return Err(PrrrpError::ShapeMismatch {
-            what: "model base.standard_names".into(),
-            expected: format!("{} (the robot's standard parameters)", chain.num_params()),
-            got: format!("{}", model.base.standard_names.len()),
-        });
+/// [`PrrrpError::TooFewSamples`] unless `got` samples of n equations each give at least
+/// one more equation than the `k` unknowns.
+fn check_samples(k: usize, n: usize, got: usize) -> Result<()> {
+    let needed = (k + 1).div_ceil(n);
+    if got < needed {
+        return Err(PrrrpError::TooFewSamples { needed, got });
     }
     Ok(())
+}
+
+/// The model's chain with its joint count n and standard parameter count p, checked
+/// against each run's joint count and the model's base analysis.
+fn checked_chain(
+    model: &IdentifiedModel,
+    runs: &[&DynDataset],
+) -> Result<(DynChain, usize, usize)> {
+    let chain = model.chain()?;
+    let (n, p) = (chain.dof(), chain.num_params());
+    for data in runs {
+        data.check_dof(n, "the model's robot")?;
+        if p != model.base.standard_names.len() {
+            return Err(PrrrpError::ShapeMismatch {
+                what: "model base.standard_names".into(),
+                expected: format!("{p} (the robot's standard parameters)"),
+                got: format!("{}", model.base.standard_names.len()),
+            });
+        }
+    }
+    Ok((chain, n, p))
 }
 
 fn residual_rms(model: &IdentifiedModel, data: &DynDataset) -> Result<Vec<f64>> {
@@ -712,31 +712,18 @@ pub fn identify_drive_gains(
     loaded: &DynDataset,
     settings: &DriveGainSettings,
 ) -> Result<DriveGainsFit> {
-    let chain = model.chain()?;
-    let (n, p) = (chain.dof(), chain.num_params());
-    check_shapes(model, &chain, unloaded)?;
-    check_shapes(model, &chain, loaded)?;
+    let (chain, n, p) = checked_chain(model, &[unloaded, loaded])?;
     check_mass(settings.mass)?;
     let l = check_link(settings.link, n)?;
     let coupling = chain.actuators().coupling_row_major(n);
     let indep = model.base.independent.clone();
     let b = indep.len();
-    let refit = if settings.refit_friction {
-        friction_rows(model)
-    } else {
-        Vec::new()
-    };
+    let refit = refit_rows(model, settings.refit_friction);
     let nf = refit.len();
     // x = [K (n) | β (b) | loaded-run friction (nf) | payload without its mass (9)].
     let k = n + b + nf + 9;
     let (nu, nl) = (unloaded.len(), loaded.len());
-    let needed = (k + 1).div_ceil(n);
-    if nu + nl < needed {
-        return Err(PrrrpError::TooFewSamples {
-            needed,
-            got: nu + nl,
-        });
-    }
+    check_samples(k, n, nu + nl)?;
     let mut ws = chain.workspace();
     let mut yf = vec![0.0; n * p];
     let mass = settings.mass;
@@ -884,35 +871,16 @@ pub fn identify_drive_gains(
     for c in 0..9 {
         pi[1 + c] = x[n + b + nf + c];
     }
-    let mut pcov = vec![0.0; 100];
     let off = n + b + nf;
-    for r in 0..9 {
-        for c in 0..9 {
-            pcov[(1 + r) * 10 + 1 + c] = cov[(off + r, off + c)];
-        }
-    }
-    let mut metric = vec![0.0; 100];
+    let pcov = payload_block(1, 9, |r, c| cov[(off + r, off + c)]);
     let info_inv = cov.view((off, off), (9, 9)).into_owned();
-    if let Some(info) = info_inv.clone().try_inverse() {
-        for r in 0..9 {
-            for c in 0..9 {
-                metric[(1 + r) * 10 + 1 + c] = info[(r, c)];
-            }
-        }
-    } else {
-        for r in 1..10 {
-            metric[r * 11] = 1.0;
-        }
-    }
+    let metric = match info_inv.clone().try_inverse() {
+        Some(info) => payload_block(1, 9, |r, c| info[(r, c)]),
+        None => payload_block(1, 9, |r, c| if r == c { 1.0 } else { 0.0 }),
+    };
     let projected = !crate::models::payload::is_physical(&pi);
     let pi = project_physical(&pi, &metric, true)?;
-    let link = chain
-        .meta()
-        .links
-        .get(l)
-        .cloned()
-        .unwrap_or_else(|| format!("link{}", l + 1));
-    let mut payload = Payload::from_parameters(&link, l, pi, Some(pcov))?;
+    let mut payload = Payload::from_parameters(&link_name(&chain, l), l, pi, Some(pcov))?;
     payload.mass_given = true;
     payload.classify(&settings.thresholds);
     let mut undetermined = [false; LINK_PARAMS];
@@ -931,6 +899,28 @@ pub fn identify_drive_gains(
     })
 }
 
+/// A 10×10 matrix over a payload's inertial parameters (row-major), zero but for the
+/// m×m block from parameter `first` on, whose entry (r, c) is `f(r, c)`.
+fn payload_block(first: usize, m: usize, f: impl Fn(usize, usize) -> f64) -> Vec<f64> {
+    let mut out = vec![0.0; LINK_PARAMS * LINK_PARAMS];
+    for r in 0..m {
+        for c in 0..m {
+            out[(first + r) * LINK_PARAMS + first + c] = f(r, c);
+        }
+    }
+    out
+}
+
+/// The name of link `l` (0-based) of `chain`, or `link{l+1}` for a chain without one.
+fn link_name(chain: &DynChain, l: usize) -> String {
+    chain
+        .meta()
+        .links
+        .get(l)
+        .cloned()
+        .unwrap_or_else(|| format!("link{}", l + 1))
+}
+
 /// A copy of `data` whose currents (A) are joint torques Cᵀ·(K∘i).
 fn to_torques(data: &DynDataset, coupling: &[f64], gains: &[f64]) -> Result<DynDataset> {
     let n = data.dof();
@@ -942,13 +932,5 @@ fn to_torques(data: &DynDataset, coupling: &[f64], gains: &[f64]) -> Result<DynD
                 .sum();
         }
     }
-    DynDataset::with_min_samples(
-        n,
-        1,
-        data.t().to_vec(),
-        data.q().to_vec(),
-        data.qd().to_vec(),
-        data.qdd().to_vec(),
-        tau,
-    )
+    data.with_tau(tau)
 }

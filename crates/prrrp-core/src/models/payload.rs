@@ -297,10 +297,7 @@ impl Payload {
     pub fn to_json(&self) -> Result<String> {
         let mut out = self.clone();
         out.derive();
-        serde_json::to_string_pretty(&out).map_err(|_| PrrrpError::NonFinite {
-            what: "payload (JSON has no NaN or infinity)".into(),
-            row: None,
-        })
+        crate::json::to_pretty(&out, "payload")
     }
 
     /// A payload from the JSON of [`Payload::to_json`], checked.
@@ -308,11 +305,11 @@ impl Payload {
     /// # Errors
     /// [`PrrrpError::InvalidParameter`] naming the JSON problem, and as [`Payload::new`].
     pub fn from_json(text: &str) -> Result<Self> {
-        let mut p: Self = serde_json::from_str(text).map_err(|e| PrrrpError::InvalidParameter {
-            field: format!("payload JSON (line {}, column {})", e.line(), e.column()),
-            value: f64::NAN,
-            reason: "not a prrrp payload; write it with Payload::to_json",
-        })?;
+        let mut p: Self = crate::json::parse(
+            text,
+            "payload",
+            "not a prrrp payload; write it with Payload::to_json",
+        )?;
         p.validate()?;
         p.derive();
         Ok(p)

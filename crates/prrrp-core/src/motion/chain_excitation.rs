@@ -12,15 +12,14 @@
 use std::cell::RefCell;
 use std::f64::consts::PI;
 
-use argmin::core::{CostFunction, Error as ArgminError, Executor};
-use argmin::solver::neldermead::NelderMead;
+use argmin::core::{CostFunction, Error as ArgminError};
 use rand::rngs::ChaCha8Rng;
 use rand::{RngExt, SeedableRng};
 
 use crate::error::{invalid, PrrrpError, Result};
 use crate::models::chain::{BaseParameters, DynChain, JointLimit};
 use crate::motion::dyn_trajectory::FourierTrajectory;
-use crate::motion::excitation::Params;
+use crate::motion::excitation::{nelder_mead_run, Params};
 use crate::motion::trajectory::DynTrajectory;
 
 /// Settings of [`optimise_chain_excitation`]; every field has a documented default.
@@ -192,23 +191,7 @@ pub fn optimise_chain_excitation(
             s.best_x.clone()
         };
         let before = problem.state.borrow().evaluations;
-        let simplex: Vec<Params> = std::iter::once(Params(start.clone()))
-            .chain((0..vars).map(|i| {
-                let mut v = start.clone();
-                v[i] += 0.3;
-                Params(v)
-            }))
-            .collect();
-        let solver = NelderMead::new(simplex)
-            .with_sd_tolerance(1e-6)
-            .map_err(|_| PrrrpError::InvalidParameter {
-                field: "sd_tolerance".into(),
-                value: 1e-6,
-                reason: "rejected by the Nelder-Mead solver",
-            })?;
-        let _ = Executor::new(&problem, solver)
-            .configure(|st| st.max_iters(u64::MAX))
-            .run();
+        nelder_mead_run(&problem, &start, 0.3, 1e-6)?;
         if problem.state.borrow().evaluations == before {
             break;
         }

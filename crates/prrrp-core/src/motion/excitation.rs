@@ -167,12 +167,7 @@ pub fn optimise_excitation<const K: usize>(
     for v in x0.iter_mut().take(n - 2) {
         *v = rng.random_range(-1.0..1.0);
     }
-    let initial = shaper
-        .build(&x0, SCAN_FINAL)
-        .ok_or_else(|| PrrrpError::Infeasible {
-            what: "the initial guess cannot be scaled into the limits".into(),
-        })?;
-    let cond_initial = shaper.reported_cond(model, &initial)?;
+    let (_, cond_initial) = shaper.final_shape(model, &x0, "the initial guess")?;
 
     let problem = Problem {
         shaper: &shaper,
@@ -200,26 +195,7 @@ pub fn optimise_excitation<const K: usize>(
             s.run = run;
             s.best_x.clone()
         };
-        let simplex: Vec<Params> = std::iter::once(Params(start.clone()))
-            .chain((0..n).map(|i| {
-                let mut v = start.clone();
-                v[i] += config.simplex_step;
-                Params(v)
-            }))
-            .collect();
-        let solver = NelderMead::new(simplex)
-            .with_sd_tolerance(1e-9)
-            .map_err(|_| PrrrpError::InvalidParameter {
-                field: "sd_tolerance".into(),
-                value: 1e-9,
-                reason: "rejected by the Nelder-Mead solver",
-            })?;
-        // The run ends at convergence or when the budget is spent (the cost function then
-        // returns an error, which stops the executor); the best point is tracked in the
-        // problem either way.
-        let _ = Executor::new(&problem, solver)
-            .configure(|st| st.max_iters(u64::MAX))
-            .run();
+        nelder_mead_run(&problem, &start, config.simplex_step, 1e-9)?;
     }
     crate::interrupt::check("excitation optimisation")?;
     let SearchState {
@@ -234,12 +210,7 @@ pub fn optimise_excitation<const K: usize>(
             what: "no trajectory with a finite cond(W) was found within the limits".into(),
         });
     }
-    let trajectory = shaper
-        .build(&best_x, SCAN_FINAL)
-        .ok_or_else(|| PrrrpError::Infeasible {
-            what: "the optimised shape cannot be scaled into the limits".into(),
-        })?;
-    let cond_final = shaper.reported_cond(model, &trajectory)?;
+    let (trajectory, cond_final) = shaper.final_shape(model, &best_x, "the optimised shape")?;
     let usage = limit_usage(
         &trajectory,
         &config.limits,
@@ -445,6 +416,24 @@ impl<const K: usize> Shaper<K> {
         }
     }
 
+    /// The trajectory of `x` on the final scan grid and its reported cond(W);
+    /// [`PrrrpError::Infeasible`] naming `what` (the shape) if it cannot be scaled into the
+    /// limits.
+    fn final_shape(
+        &self,
+        model: &PrrrpModel,
+        x: &[f64],
+        what: &str,
+    ) -> Result<(ExcitationTrajectory<K>, f64)> {
+        let traj = self
+            .build(x, SCAN_FINAL)
+            .ok_or_else(|| PrrrpError::Infeasible {
+                what: format!("{what} cannot be scaled into the limits"),
+            })?;
+        let cond = self.reported_cond(model, &traj)?;
+        Ok((traj, cond))
+    }
+
     /// cond(W) from the SVD of the stacked observation matrix.
     fn reported_cond(&self, model: &PrrrpModel, traj: &ExcitationTrajectory<K>) -> Result<f64> {
         let s = sample_trajectory(traj, 0.0, self.dt, self.samples)?;
@@ -527,4 +516,41 @@ impl ArgminMul<f64, Params> for Params {
     fn mul(&self, other: &f64) -> Params {
         Params(self.0.iter().map(|a| a * other).collect())
     }
+}
+
+/// One Nelder–Mead run of `problem` from `start`, the initial simplex stepping each
+/// coordinate by `step` (units of the decision vector), until the simplex's spread of
+/// costs falls below `sd_tolerance` or the cost function returns an error (both designs'
+/// costs do once their evaluation budget is spent, which stops the executor). The best
+/// point is tracked by the problem itself, so the run's own result is dropped.
+///
+/// # Errors
+/// [`PrrrpError::InvalidParameter`] if the solver rejects `sd_tolerance`.
+pub(crate) fn nelder_mead_run<O>(
+    problem: O,
+    start: &[f64],
+    step: f64,
+    sd_tolerance: f64,
+) -> Result<()>
+where
+    O: CostFunction<Param = Params, Output = f64>,
+{
+    let simplex: Vec<Params> = std::iter::once(Params(start.to_vec()))
+        .chain((0..start.len()).map(|i| {
+            let mut v = start.to_vec();
+            v[i] += step;
+            Params(v)
+        }))
+        .collect();
+    let solver = NelderMead::new(simplex)
+        .with_sd_tolerance(sd_tolerance)
+        .map_err(|_| PrrrpError::InvalidParameter {
+            field: "sd_tolerance".into(),
+            value: sd_tolerance,
+            reason: "rejected by the Nelder-Mead solver",
+        })?;
+    let _ = Executor::new(problem, solver)
+        .configure(|st| st.max_iters(u64::MAX))
+        .run();
+    Ok(())
 }

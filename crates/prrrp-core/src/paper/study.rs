@@ -372,38 +372,26 @@ pub fn run_study(
             4,
         )
     };
-    // Workers stop with the caller's stop flag.
+    let est = Estimation {
+        model: &model,
+        data: &data,
+        lambda0: &lambda0,
+        config,
+    };
+    // Each worker runs under the caller's stop flag and counts itself done.
     let flag = crate::interrupt::current();
+    let worker = |run: &dyn Fn() -> Result<MethodEstimate>| {
+        crate::interrupt::within(flag.clone(), || {
+            let r = run();
+            tick();
+            r
+        })
+    };
     let (ls, ad, hn, ekf) = std::thread::scope(|s| {
-        let ls = s.spawn(|| {
-            crate::interrupt::within(flag.clone(), || {
-                let r = run_least_squares(&model, &data, &config.least_squares);
-                tick();
-                r
-            })
-        });
-        let ad = s.spawn(|| {
-            crate::interrupt::within(flag.clone(), || {
-                let r = run_adaline(&model, &data, &lambda0, config);
-                tick();
-                r
-            })
-        });
-        let hn = s.spawn(|| {
-            crate::interrupt::within(flag.clone(), || {
-                let r = run_hopfield(&model, &data, &lambda0, config);
-                tick();
-                r
-            })
-        });
-        let ekf = run_ekf(
-            &model,
-            &raw,
-            &lambda0,
-            &config.ekf,
-            config.history_points,
-            sim_cfg.dt,
-        );
+        let ls = s.spawn(|| worker(&|| est.least_squares()));
+        let ad = s.spawn(|| worker(&|| est.adaline()));
+        let hn = s.spawn(|| worker(&|| est.hopfield()));
+        let ekf = est.ekf(&raw, sim_cfg.dt);
         tick();
         (join(ls), join(ad), join(hn), ekf)
     });
@@ -524,48 +512,79 @@ fn empty(method: &str) -> MethodEstimate {
     }
 }
 
-fn run_least_squares(
-    model: &crate::PrrrpModel,
-    data: &Dataset,
-    config: &LeastSquaresConfig,
-) -> Result<MethodEstimate> {
-    let t0 = Instant::now();
-    let r = least_squares(model, &data.samples(), config)?;
-    Ok(MethodEstimate {
-        lambda: arr8(&r.lambda),
-        std: Some(arr8(&r.std_dev)),
-        rsd_percent: Some(arr8(&r.rel_std_dev)),
-        cond: Some(r.cond),
-        sigma2: Some(r.sigma2),
-        seconds: t0.elapsed().as_secs_f64(),
-        ..empty(METHODS[0])
-    })
+/// What the study's estimators share: the model, the preprocessed data, the rough
+/// initial guess λ0 and the study's settings (each estimator reads its own).
+struct Estimation<'a> {
+    model: &'a crate::PrrrpModel,
+    data: &'a Dataset,
+    lambda0: &'a Lambda,
+    config: &'a StudyConfig,
 }
 
-fn run_adaline(
-    model: &crate::PrrrpModel,
-    data: &Dataset,
-    lambda0: &Lambda,
-    config: &StudyConfig,
-) -> Result<MethodEstimate> {
-    let t0 = Instant::now();
-    let mut net = Adaline::new(*model, *lambda0, config.adaline)?;
-    let samples = data.samples();
-    let mut history = History {
-        t: vec![0.0],
-        lambda: vec![arr8(lambda0)],
-    };
-    for epoch in 0..config.adaline_epochs {
-        net.train(&samples, 1)?;
-        history.t.push((epoch + 1) as f64);
-        history.lambda.push(arr8(net.estimate()));
+impl Estimation<'_> {
+    fn least_squares(&self) -> Result<MethodEstimate> {
+        let t0 = Instant::now();
+        let r = least_squares(self.model, &self.data.samples(), &self.config.least_squares)?;
+        Ok(MethodEstimate {
+            lambda: arr8(&r.lambda),
+            std: Some(arr8(&r.std_dev)),
+            rsd_percent: Some(arr8(&r.rel_std_dev)),
+            cond: Some(r.cond),
+            sigma2: Some(r.sigma2),
+            seconds: t0.elapsed().as_secs_f64(),
+            ..empty(METHODS[0])
+        })
     }
-    Ok(MethodEstimate {
-        lambda: arr8(net.estimate()),
+
+    fn adaline(&self) -> Result<MethodEstimate> {
+        let t0 = Instant::now();
+        let mut net = Adaline::new(*self.model, *self.lambda0, self.config.adaline)?;
+        let samples = self.data.samples();
+        let mut history = History {
+            t: vec![0.0],
+            lambda: vec![arr8(self.lambda0)],
+        };
+        for epoch in 0..self.config.adaline_epochs {
+            net.train(&samples, 1)?;
+            history.t.push((epoch + 1) as f64);
+            history.lambda.push(arr8(net.estimate()));
+        }
+        Ok(online_estimate(METHODS[1], t0, net.estimate(), history))
+    }
+
+    fn hopfield(&self) -> Result<MethodEstimate> {
+        let t0 = Instant::now();
+        let hcfg: HopfieldConfig = self.config.hopfield;
+        let mut net = Hopfield::new(*self.model, *self.lambda0, hcfg)?;
+        let history = run_online(
+            &mut net,
+            &self.data.samples(),
+            self.config.hopfield_epochs,
+            self.config.history_points,
+            hcfg.dt,
+        )?;
+        Ok(online_estimate(METHODS[2], t0, net.estimate(), history))
+    }
+
+    /// The EKF on the raw measured positions `raw` (sampled every `dt` s), not on the
+    /// preprocessed data.
+    fn ekf(&self, raw: &Samples<'_, NDOF>, dt: f64) -> Result<MethodEstimate> {
+        let t0 = Instant::now();
+        let mut ekf: Ekf<crate::PrrrpModel, NDOF, NPARAM, { 2 * NDOF + NPARAM }> =
+            Ekf::new(*self.model, *self.lambda0, self.config.ekf)?;
+        let history = run_online(&mut ekf, raw, 1, self.config.history_points, dt)?;
+        Ok(online_estimate(METHODS[3], t0, ekf.estimate(), history))
+    }
+}
+
+/// The estimate `method` ended at, with its history, timed from `t0`.
+fn online_estimate(method: &str, t0: Instant, lambda: &Lambda, history: History) -> MethodEstimate {
+    MethodEstimate {
+        lambda: arr8(lambda),
         history: Some(history),
         seconds: t0.elapsed().as_secs_f64(),
-        ..empty(METHODS[1])
-    })
+        ..empty(method)
+    }
 }
 
 /// Runs an online estimator over `passes` passes of `data`, keeping about `points`
@@ -596,48 +615,4 @@ fn run_online<E: Estimator<nalgebra::Const<NDOF>, nalgebra::Const<NPARAM>>>(
         }
     }
     Ok(history)
-}
-
-fn run_hopfield(
-    model: &crate::PrrrpModel,
-    data: &Dataset,
-    lambda0: &Lambda,
-    config: &StudyConfig,
-) -> Result<MethodEstimate> {
-    let t0 = Instant::now();
-    let hcfg: HopfieldConfig = config.hopfield;
-    let mut net = Hopfield::new(*model, *lambda0, hcfg)?;
-    let history = run_online(
-        &mut net,
-        &data.samples(),
-        config.hopfield_epochs,
-        config.history_points,
-        hcfg.dt,
-    )?;
-    Ok(MethodEstimate {
-        lambda: arr8(net.estimate()),
-        history: Some(history),
-        seconds: t0.elapsed().as_secs_f64(),
-        ..empty(METHODS[2])
-    })
-}
-
-fn run_ekf(
-    model: &crate::PrrrpModel,
-    raw: &Samples<'_, NDOF>,
-    lambda0: &Lambda,
-    config: &EkfConfig,
-    points: usize,
-    dt: f64,
-) -> Result<MethodEstimate> {
-    let t0 = Instant::now();
-    let mut ekf: Ekf<crate::PrrrpModel, NDOF, NPARAM, { 2 * NDOF + NPARAM }> =
-        Ekf::new(*model, *lambda0, *config)?;
-    let history = run_online(&mut ekf, raw, 1, points, dt)?;
-    Ok(MethodEstimate {
-        lambda: arr8(ekf.estimate()),
-        history: Some(history),
-        seconds: t0.elapsed().as_secs_f64(),
-        ..empty(METHODS[3])
-    })
 }

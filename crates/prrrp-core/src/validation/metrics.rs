@@ -80,6 +80,18 @@ fn sse(observed: &[f64], predicted: &[f64], s: f64) -> f64 {
         .sum()
 }
 
+/// `r`, or [`PrrrpError::NonFinite`] saying why (`what`) if it overflowed.
+fn finite(r: f64, what: &str) -> Result<f64> {
+    if r.is_finite() {
+        Ok(r)
+    } else {
+        Err(PrrrpError::NonFinite {
+            what: what.into(),
+            row: None,
+        })
+    }
+}
+
 /// Residual mean square (eq. 45, root form): √(Σ(oᵢ − pᵢ)²/n), in the units of the series.
 ///
 /// # Errors
@@ -87,14 +99,10 @@ fn sse(observed: &[f64], predicted: &[f64], s: f64) -> f64 {
 pub fn rms(observed: &[f64], predicted: &[f64]) -> Result<f64> {
     check(observed, predicted)?;
     let s = scale(observed, predicted);
-    let r = s * (sse(observed, predicted, s) / observed.len() as f64).sqrt();
-    if !r.is_finite() {
-        return Err(PrrrpError::NonFinite {
-            what: "rms (the residuals exceed the f64 range)".into(),
-            row: None,
-        });
-    }
-    Ok(r)
+    finite(
+        s * (sse(observed, predicted, s) / observed.len() as f64).sqrt(),
+        "rms (the residuals exceed the f64 range)",
+    )
 }
 
 /// Residual standard deviation (eq. 46, root form): √(Σ(oᵢ − pᵢ)²/Σoᵢ²).
@@ -120,14 +128,10 @@ pub fn rsd(observed: &[f64], predicted: &[f64]) -> Result<f64> {
         };
     }
     // √num/√den: num/den itself can overflow when o is tiny next to p.
-    let r = num.sqrt() / den.sqrt();
-    if !r.is_finite() {
-        return Err(PrrrpError::NonFinite {
-            what: "rsd (the residual dwarfs the observed series beyond the f64 range)".into(),
-            row: None,
-        });
-    }
-    Ok(r)
+    finite(
+        num.sqrt() / den.sqrt(),
+        "rsd (the residual dwarfs the observed series beyond the f64 range)",
+    )
 }
 
 /// Willmott's agreement index (eq. 47): 1 − Σ(oᵢ − pᵢ)² / Σ(|pᵢ − o_m| + |oᵢ − o_m|)².

@@ -338,12 +338,11 @@ impl DynChain {
     /// [`PrrrpError::InvalidParameter`] naming the JSON problem, or as
     /// [`DynChain::from_description`].
     pub fn from_json(text: &str) -> Result<DynChain> {
-        let d: ChainDescription =
-            serde_json::from_str(text).map_err(|e| PrrrpError::InvalidParameter {
-                field: format!("chain JSON (line {}, column {})", e.line(), e.column()),
-                value: f64::NAN,
-                reason: "not a prrrp chain description; write it with DynChain::to_json",
-            })?;
+        let d: ChainDescription = crate::json::parse(
+            text,
+            "chain",
+            "not a prrrp chain description; write it with DynChain::to_json",
+        )?;
         DynChain::from_description(&d)
     }
 }

@@ -4,13 +4,11 @@ use std::sync::OnceLock;
 
 use nalgebra::DMatrix;
 
-use super::actuators::ActuatorLayout;
 use super::dh::DhConvention;
-use super::friction::FrictionModel;
 use super::inertia::inertial_parameters;
 use super::meta::{ChainMeta, JointLimit};
-use super::regressor::{ColumnMajorSink, RegressorSink};
-use super::rnea::{ChainView, LinkState};
+use super::regressor::RegressorSink;
+use super::rnea::ChainView;
 use super::serial_chain::{DynChain, SerialChain};
 use crate::error::Result;
 use crate::models::prrrp::extended::{self, ExtLambda, NEXT};
@@ -182,22 +180,13 @@ fn fit(chain: &SerialChain<5>, gravity: f64) -> Option<PaperClosedForm> {
             let [q, qd, qdd] = fit_state(k);
             let ext = extended::regressor(gravity, &Trig::new(&q), &qd, &qdd);
             y.view_mut((5 * s, 0), (5, NEXT)).copy_from(&ext);
-            let mut st = [LinkState::default(); 5];
             let mut block = [0.0; 250];
-            let mut sink = ColumnMajorSink {
-                data: &mut block,
-                ld: 5,
-                row0: 0,
-                n: 5,
-                layout: ActuatorLayout::new(&FrictionModel::default(), false),
-            };
-            recursive.regressor_into(
+            recursive.column_major_regressor_into::<5>(
                 q.as_slice(),
                 qd.as_slice(),
                 qdd.as_slice(),
                 false,
-                &mut st,
-                &mut sink,
+                &mut block,
             );
             full.view_mut((5 * s, 0), (5, 50))
                 .copy_from(&DMatrix::from_column_slice(5, 50, &block));

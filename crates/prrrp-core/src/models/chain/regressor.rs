@@ -130,6 +130,30 @@ impl LinkColumns {
 }
 
 impl ChainView<'_> {
+    /// Computes Y (and, if `friction`, the enabled actuator columns) of this N-joint view
+    /// into `out`, column-major with N rows in the chain's parameter order; `out` must be
+    /// zero on entry.
+    #[inline]
+    pub(crate) fn column_major_regressor_into<const N: usize>(
+        &self,
+        q: &[f64],
+        qd: &[f64],
+        qdd: &[f64],
+        friction: bool,
+        out: &mut [f64],
+    ) {
+        debug_assert_eq!(self.dof(), N);
+        let mut st = [LinkState::default(); N];
+        let mut sink = ColumnMajorSink {
+            data: out,
+            ld: N,
+            row0: 0,
+            n: N,
+            layout: self.layout(),
+        };
+        self.regressor_into(q, qd, qdd, friction, &mut st, &mut sink);
+    }
+
     /// Computes Y (and, if `friction`, the enabled actuator columns: friction and armature)
     /// into `sink`.
     #[inline]

@@ -688,23 +688,10 @@ impl<const N: usize> SerialChain<N> {
         qdd: &SVector<f64, N>,
     ) -> SMatrix<f64, N, P> {
         const { assert!(P == 10 * N, "P must equal 10·N") };
-        let mut st = [LinkState::default(); N];
         let mut y = SMatrix::<f64, N, P>::zeros();
-        let mut sink = ColumnMajorSink {
-            data: y.as_mut_slice(),
-            ld: N,
-            row0: 0,
-            n: N,
-            layout: ActuatorLayout::new(&FrictionModel::default(), false),
-        };
-        self.view().regressor_into(
-            q.as_slice(),
-            qd.as_slice(),
-            qdd.as_slice(),
-            false,
-            &mut st,
-            &mut sink,
-        );
+        let (q, qd, qdd) = (q.as_slice(), qd.as_slice(), qdd.as_slice());
+        self.view()
+            .column_major_regressor_into::<N>(q, qd, qdd, false, y.as_mut_slice());
         y
     }
 
@@ -727,22 +714,9 @@ impl<const N: usize> SerialChain<N> {
             N * self.num_params(),
         )?;
         out.fill(0.0);
-        let mut st = [LinkState::default(); N];
-        let mut sink = ColumnMajorSink {
-            data: out,
-            ld: N,
-            row0: 0,
-            n: N,
-            layout: self.layout(),
-        };
-        self.view().regressor_into(
-            q.as_slice(),
-            qd.as_slice(),
-            qdd.as_slice(),
-            true,
-            &mut st,
-            &mut sink,
-        );
+        let (q, qd, qdd) = (q.as_slice(), qd.as_slice(), qdd.as_slice());
+        self.view()
+            .column_major_regressor_into::<N>(q, qd, qdd, true, out);
         Ok(())
     }
 

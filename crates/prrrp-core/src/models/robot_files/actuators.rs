@@ -127,29 +127,8 @@ fn relative_to(file: &str, rel: &str) -> PathBuf {
 }
 
 fn numbers(ctx: &Ctx<'_>, v: &Value, key: &str, n: usize) -> Result<Vec<f64>> {
-    let Some(items) = v.as_array() else {
-        return Err(ctx.err(
-            key,
-            format!(
-                "expected an array of {n} numbers (one per actuator), found type `{}`",
-                v.type_str()
-            ),
-        ));
-    };
-    if items.len() != n {
-        return Err(ctx.err(
-            key,
-            format!(
-                "expected {n} numbers (one per actuator: the chain has {n} joints), found {}",
-                items.len()
-            ),
-        ));
-    }
-    items
-        .iter()
-        .enumerate()
-        .map(|(i, x)| ctx.number(x, &format!("{key}[{i}]")))
-        .collect()
+    let why = format!(" (one per actuator: the chain has {n} joints)");
+    ctx.numbers(v, key, n, " (one per actuator)", &why)
 }
 
 /// Applies the `[actuators]` table, if any, to a chain read from the rest of the file

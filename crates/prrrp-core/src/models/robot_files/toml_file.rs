@@ -101,23 +101,41 @@ impl Ctx<'_> {
     }
 
     pub(super) fn array<const N: usize>(&self, v: &Value, key: &str) -> Result<[f64; N]> {
+        let items = self.numbers(v, key, N, "", "")?;
+        Ok(std::array::from_fn(|i| items[i]))
+    }
+
+    /// The array of exactly `n` numbers at `key`; the errors say what it is (`kind`, after
+    /// "array of n numbers") and why n (`why`, after "expected n numbers"), each "" or a
+    /// parenthesis with its leading space.
+    pub(super) fn numbers(
+        &self,
+        v: &Value,
+        key: &str,
+        n: usize,
+        kind: &str,
+        why: &str,
+    ) -> Result<Vec<f64>> {
         let Some(items) = v.as_array() else {
             return Err(self.err(
                 key,
                 format!(
-                    "expected an array of {N} numbers, found type `{}`",
+                    "expected an array of {n} numbers{kind}, found type `{}`",
                     v.type_str()
                 ),
             ));
         };
-        if items.len() != N {
-            return Err(self.err(key, format!("expected {N} numbers, found {}", items.len())));
+        if items.len() != n {
+            return Err(self.err(
+                key,
+                format!("expected {n} numbers{why}, found {}", items.len()),
+            ));
         }
-        let mut out = [0.0; N];
-        for (i, (o, item)) in out.iter_mut().zip(items).enumerate() {
-            *o = self.number(item, &format!("{key}[{i}]"))?;
-        }
-        Ok(out)
+        items
+            .iter()
+            .enumerate()
+            .map(|(i, x)| self.number(x, &format!("{key}[{i}]")))
+            .collect()
     }
 }
 

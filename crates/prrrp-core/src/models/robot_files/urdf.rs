@@ -61,17 +61,31 @@ fn link_el(name: &str, part: &str) -> String {
     }
 }
 
+/// Records element `i` of kind `kind` ("link" or "joint") under its `name`; a name
+/// already recorded is an error at the element `el(name, "")`.
+fn insert_unique<'r>(
+    names: &mut HashMap<&'r str, usize>,
+    name: &'r str,
+    i: usize,
+    file: &str,
+    kind: &str,
+    el: fn(&str, &str) -> String,
+) -> Result<()> {
+    if names.insert(name, i).is_some() {
+        return Err(file_error(
+            file,
+            el(name, ""),
+            format!("two {kind}s have this name; {kind} names must be unique"),
+        ));
+    }
+    Ok(())
+}
+
 impl<'r> Tree<'r> {
     fn new(robot: &'r urdf_rs::Robot, file: &str) -> Result<Self> {
         let mut link_index = HashMap::with_capacity(robot.links.len());
         for (i, l) in robot.links.iter().enumerate() {
-            if link_index.insert(l.name.as_str(), i).is_some() {
-                return Err(file_error(
-                    file,
-                    link_el(&l.name, ""),
-                    "two links have this name; link names must be unique",
-                ));
-            }
+            insert_unique(&mut link_index, &l.name, i, file, "link", link_el)?;
         }
         let nl = robot.links.len();
         let mut parent_joint = vec![None; nl];
@@ -80,13 +94,7 @@ impl<'r> Tree<'r> {
         let mut joint_child = Vec::with_capacity(robot.joints.len());
         let mut joint_names = HashMap::with_capacity(robot.joints.len());
         for (j, joint) in robot.joints.iter().enumerate() {
-            if joint_names.insert(joint.name.as_str(), j).is_some() {
-                return Err(file_error(
-                    file,
-                    joint_el(&joint.name, ""),
-                    "two joints have this name; joint names must be unique",
-                ));
-            }
+            insert_unique(&mut joint_names, &joint.name, j, file, "joint", joint_el)?;
             let find = |name: &str, part: &str| {
                 link_index.get(name).copied().ok_or_else(|| {
                     file_error(
