@@ -215,6 +215,18 @@ where
     buf: Buffers<N, P, S>,
 }
 
+/// How [`EkfOf::damped_candidate`] forms the candidate state for a gain times α: both
+/// measurement updates and their covariance factors (positions measured?, velocities),
+/// or x + α·step with the step in the buffers.
+#[derive(Clone, Copy)]
+enum CandidateForm<'a, N: Dim>
+where
+    DefaultAllocator: Allocator<N>,
+{
+    Combined(bool, Option<&'a OVector<f64, N>>),
+    Step,
+}
+
 /// The allocator bounds of [`EkfOf`] in one name (nalgebra needs one per matrix shape).
 pub trait EkfAllocator<N: Dim, P: Dim, S: Dim>:
     Allocator<N>
@@ -853,9 +865,8 @@ where
             }
             let qd = qd_ok.then_some(sample.qd);
             // The factors carry the gain's α: P's update needs only `cols`.
-            let (update, _, k, cols) = self.damped_candidate(sample, q_ok || qd_ok, |s, a| {
-                s.candidate_and_factors::<FMA>(q_ok, qd, a)
-            })?;
+            let form = CandidateForm::Combined(q_ok, qd);
+            let (update, _, k, cols) = self.damped_candidate::<FMA>(sample, q_ok || qd_ok, form)?;
             attempt = k;
             if update {
                 self.subtract_factors::<FMA>(cols);
@@ -897,12 +908,8 @@ where
             } else {
                 self.buf.step.fill(0.0);
             }
-            let (update, a, k, ()) = self.damped_candidate(sample, q_ok, |s, a| {
-                let b = &mut s.buf;
-                b.candidate.copy_from(&s.x);
-                b.candidate.axpy(a, &b.step, 1.0);
-                Ok(())
-            })?;
+            let (update, a, k, _) =
+                self.damped_candidate::<FMA>(sample, q_ok, CandidateForm::Step)?;
             (alpha, attempt) = (a, k);
             if update {
                 self.update_covariance::<FMA>(alpha);
@@ -1176,23 +1183,36 @@ where
         joseph_upper::<FMA>(&b.jx, &b.jy, self.p.as_mut_slice(), cols, s);
     }
 
-    /// The damped retry of a measurement update formed before P is touched: `form(self,
-    /// α)` writes the candidate state for the gain times α (and returns what the update
-    /// of P will need); while M(q, λ̂) is indefinite there, α is halved, up to
+    /// The damped retry of a measurement update formed before P is touched: `form` writes
+    /// the candidate state for the gain times α (and returns what the update of P will
+    /// need: the factor columns of a combined update); while M(q, λ̂) is indefinite there, α is halved, up to
     /// `MAX_GAIN_HALVINGS` times, after which (or at once without an update) λ̂ is pulled
     /// towards the anchor and nothing is updated. Returns whether the update stands, its
     /// α, the halvings taken and `form`'s last value.
     #[inline(always)]
-    fn damped_candidate<T: Default>(
+    fn damped_candidate<const FMA: bool>(
         &mut self,
         sample: SampleOf<'_, N>,
         mut update: bool,
-        mut form: impl FnMut(&mut Self, f64) -> Result<T>,
-    ) -> Result<(bool, f64, u32, T)> {
-        let (mut alpha, mut attempt, mut out) = (1.0, 0, T::default());
+        form: CandidateForm<'_, N>,
+    ) -> Result<(bool, f64, u32, usize)> {
+        let (mut alpha, mut attempt, mut out) = (1.0, 0, 0);
         loop {
             if update {
-                out = form(self, alpha)?;
+                // A method, not a closure: a closure is a function of its own, which the
+                // compiler may leave out of line, compiled without the caller's AVX2 and
+                // FMA (then every fused multiply-add of the factors was a library call).
+                out = match form {
+                    CandidateForm::Combined(q_ok, qd) => {
+                        self.candidate_and_factors::<FMA>(q_ok, qd, alpha)?
+                    }
+                    CandidateForm::Step => {
+                        let b = &mut self.buf;
+                        b.candidate.copy_from(&self.x);
+                        b.candidate.axpy(alpha, &b.step, 1.0);
+                        0
+                    }
+                };
             } else {
                 self.buf.candidate.copy_from(&self.x);
             }
@@ -2027,7 +2047,9 @@ fn push_factors<const FMA: bool>(
 }
 
 /// Columns N..2N of P − X·Yᵀ (`cols` factor columns) from those of P in `pv` (S×N):
-/// column j loses Σ_k X_·k·Y_(N+j)k.
+/// column j loses Σ_k X_·k·Y_(N+j)k, summed in register tiles (as [`product_cols`]) and
+/// then subtracted (one column-long multiply-add per factor column and joint, each a
+/// load, a store and one vector multiply-add, took as long as the whole P·Aᵀ).
 #[inline(always)]
 fn minus_factor_rows<const FMA: bool>(
     jx: &[f64],
@@ -2037,14 +2059,39 @@ fn minus_factor_rows<const FMA: bool>(
     n: usize,
     s: usize,
 ) {
-    for k in 0..cols {
-        let xc = &jx[k * s..k * s + s];
-        for j in 0..n {
-            let f = -jy[k * s + n + j];
-            for (pv, &xv) in pv[j * s..j * s + s].iter_mut().zip(xc) {
-                *pv = madd::<FMA>(f, xv, *pv);
+    let mut c0 = 0;
+    while c0 < n {
+        match n - c0 {
+            1 => minus_factor_rows_cols::<FMA, 1>((jx, jy), pv, cols, (n, s), c0),
+            2 => minus_factor_rows_cols::<FMA, 2>((jx, jy), pv, cols, (n, s), c0),
+            3 => minus_factor_rows_cols::<FMA, 3>((jx, jy), pv, cols, (n, s), c0),
+            _ => minus_factor_rows_cols::<FMA, TILE_COLS>((jx, jy), pv, cols, (n, s), c0),
+        }
+        c0 += TILE_COLS;
+    }
+}
+
+#[inline(always)]
+fn minus_factor_rows_cols<const FMA: bool, const NC: usize>(
+    (jx, jy): (&[f64], &[f64]),
+    pv: &mut [f64],
+    cols: usize,
+    (n, s): (usize, usize),
+    c0: usize,
+) {
+    let mut r0 = 0;
+    while r0 < s {
+        let len = (s - r0).min(TILE_ROWS);
+        let (t0, skip) = full_tile(r0, len, s);
+        let y = |k: usize, c: usize| jy[k * s + n + c0 + c];
+        let acc = tile::<FMA, NC>(jx, |k| k * s, t0, len + skip, cols, y);
+        for (c, a) in acc.iter().enumerate() {
+            let col = &mut pv[(c0 + c) * s + r0..(c0 + c) * s + r0 + len];
+            for (x, &v) in col.iter_mut().zip(&a[skip..skip + len]) {
+                *x -= v;
             }
         }
+        r0 += len;
     }
 }
 
@@ -2100,18 +2147,20 @@ fn joseph_upper_cols<const FMA: bool, const NC: usize>(
 }
 
 /// W = P_·z·L⁻ᵀ (S×N) from the inverse L⁻¹ of the innovation covariance's Cholesky factor
-/// (lower, so column j of W sums columns m ≤ j of P_·z).
+/// (lower: column j of W sums columns m ≤ j of P_·z; the entries above L⁻¹'s diagonal are
+/// exact zeros and add nothing), in register tiles as [`product_cols`].
 #[inline(always)]
 fn w_from_pz<const FMA: bool>(pzs: &[f64], linv: &[f64], ws: &mut [f64], n: usize, s: usize) {
-    for j in 0..n {
-        let wc = &mut ws[j * s..j * s + s];
-        wc.fill(0.0);
-        for m in 0..=j {
-            let f = linv[m * n + j];
-            for (wv, &pv) in wc.iter_mut().zip(&pzs[m * s..m * s + s]) {
-                *wv = madd::<FMA>(f, pv, *wv);
-            }
+    let mut c0 = 0;
+    while c0 < n {
+        let y = |m: usize, c: usize| linv[m * n + c0 + c];
+        match n - c0 {
+            1 => product_cols::<FMA, 1>(pzs, |m| m * s, n, y, ws, s, c0),
+            2 => product_cols::<FMA, 2>(pzs, |m| m * s, n, y, ws, s, c0),
+            3 => product_cols::<FMA, 3>(pzs, |m| m * s, n, y, ws, s, c0),
+            _ => product_cols::<FMA, TILE_COLS>(pzs, |m| m * s, n, y, ws, s, c0),
         }
+        c0 += TILE_COLS;
     }
 }
 
