@@ -215,6 +215,18 @@ where
     buf: Buffers<N, P, S>,
 }
 
+/// How [`EkfOf::damped_candidate`] forms the candidate state for a gain times α: both
+/// measurement updates and their covariance factors (positions measured?, velocities),
+/// or x + α·step with the step in the buffers.
+#[derive(Clone, Copy)]
+enum CandidateForm<'a, N: Dim>
+where
+    DefaultAllocator: Allocator<N>,
+{
+    Combined(bool, Option<&'a OVector<f64, N>>),
+    Step,
+}
+
 /// The allocator bounds of [`EkfOf`] in one name (nalgebra needs one per matrix shape).
 pub trait EkfAllocator<N: Dim, P: Dim, S: Dim>:
     Allocator<N>
@@ -258,6 +270,8 @@ where
     /// λ before a pull towards the anchor.
     lam_prior: OVector<f64, P>,
     innovation: OVector<f64, N>,
+    /// N scratch of [`step_from_factor`].
+    ytmp: OVector<f64, N>,
     k: OMatrix<f64, S, N>,
     damped_k: OMatrix<f64, S, N>,
     pz: OMatrix<f64, S, N>,
@@ -282,6 +296,8 @@ where
     linv1: OMatrix<f64, N, N>,
     prior_to_noise1: f64,
     innovation1: OVector<f64, N>,
+    /// Whether `k1` holds K₁ of the current position update.
+    k1_ready: bool,
     /// The prior of two sequential updates of a small state, for a retry.
     x_prior: OVector<f64, S>,
     p_prior: OMatrix<f64, S, S>,
@@ -299,7 +315,7 @@ where
     minv: OMatrix<f64, N, N>,
     /// [A_q, A_v, −M⁻¹] (N×3N) of a factored step (L⁻¹ times it when stiff).
     af: Vec<f64>,
-    /// [P_·q, P_·v, P_·λ·Φᵀ] (S×3N), Φ's non-zero columns of a tile, Φ·G_λ (N×N).
+    /// P_·λ·Φᵀ (S×N), Φ's non-zero columns of a tile, Φ·G_λ (N×N).
     xg: Vec<f64>,
     nz: Vec<usize>,
     u: Vec<f64>,
@@ -319,6 +335,7 @@ where
             qdd_start: OVector::zeros_generic(n, U1),
             lam_prior: OVector::zeros_generic(p, U1),
             innovation: OVector::zeros_generic(n, U1),
+            ytmp: OVector::zeros_generic(n, U1),
             k: OMatrix::zeros_generic(s, n),
             damped_k: OMatrix::zeros_generic(s, n),
             pz: OMatrix::zeros_generic(s, n),
@@ -338,6 +355,7 @@ where
             sz1: OMatrix::zeros_generic(n, n),
             linv1: OMatrix::zeros_generic(n, n),
             prior_to_noise1: 0.0,
+            k1_ready: false,
             innovation1: OVector::zeros_generic(n, U1),
             x_prior: OVector::zeros_generic(s, U1),
             p_prior: OMatrix::zeros_generic(s, s),
@@ -347,7 +365,7 @@ where
             factored: false,
             minv: OMatrix::zeros_generic(n, n),
             af: vec![0.0; 3 * n.value() * n.value()],
-            xg: vec![0.0; 3 * s.value() * n.value()],
+            xg: vec![0.0; s.value() * n.value()],
             nz: vec![0; p.value()],
             u: vec![0.0; n.value() * n.value()],
         }
@@ -847,9 +865,8 @@ where
             }
             let qd = qd_ok.then_some(sample.qd);
             // The factors carry the gain's α: P's update needs only `cols`.
-            let (update, _, k, cols) = self.damped_candidate(sample, q_ok || qd_ok, |s, a| {
-                s.candidate_and_factors::<FMA>(q_ok, qd, a)
-            })?;
+            let form = CandidateForm::Combined(q_ok, qd);
+            let (update, _, k, cols) = self.damped_candidate::<FMA>(sample, q_ok || qd_ok, form)?;
             attempt = k;
             if update {
                 self.subtract_factors::<FMA>(cols);
@@ -857,21 +874,42 @@ where
         } else {
             // One update: try the candidate state before touching P.
             if q_ok {
-                self.gain::<FMA>(0, false)?;
+                let s = self.x.nrows();
+                // Chain-sized states form K only for a Joseph update (`update_covariance`).
+                let k = s <= ACC_ROWS;
+                if k {
+                    self.gain::<FMA>(0, false)?;
+                } else {
+                    self.buf
+                        .pz
+                        .as_mut_slice()
+                        .copy_from_slice(&self.p.as_slice()[..n * s]);
+                    self.innovation_factor(0, false)?;
+                }
                 let b = &mut self.buf;
                 for i in 0..n {
                     b.innovation[i] = sample.q[i] - self.x[i];
                 }
-                b.step.gemv(1.0, &b.k, &b.innovation, 0.0);
+                if k {
+                    b.step.gemv(1.0, &b.k, &b.innovation, 0.0);
+                } else {
+                    b.step.fill(0.0);
+                    step_from_factor::<FMA>(
+                        b.pz.as_slice(),
+                        b.linv.as_slice(),
+                        b.innovation.as_mut_slice(),
+                        b.ytmp.as_mut_slice(),
+                        1.0,
+                        b.step.as_mut_slice(),
+                        n,
+                        s,
+                    );
+                }
             } else {
                 self.buf.step.fill(0.0);
             }
-            let (update, a, k, ()) = self.damped_candidate(sample, q_ok, |s, a| {
-                let b = &mut s.buf;
-                b.candidate.copy_from(&s.x);
-                b.candidate.axpy(a, &b.step, 1.0);
-                Ok(())
-            })?;
+            let (update, a, k, _) =
+                self.damped_candidate::<FMA>(sample, q_ok, CandidateForm::Step)?;
             (alpha, attempt) = (a, k);
             if update {
                 self.update_covariance::<FMA>(alpha);
@@ -919,7 +957,20 @@ where
     /// [`Self::gain`] with P_·z (S×N, the columns o..o+N of P) in the buffers already.
     #[inline(always)]
     fn gain_from_pz<const FMA: bool>(&mut self, o: usize, velocity: bool) -> Result<()> {
+        self.innovation_factor(o, velocity)?;
         let (n, s) = (self.n(), self.x.nrows());
+        let b = &mut self.buf;
+        gain_from_factor::<FMA, _, _>(b.pz.as_slice(), &b.linv, &mut b.sinv, &mut b.k, n, s);
+        Ok(())
+    }
+
+    /// S_z = P_zz + R of a measurement z = x[o..o+N] + noise of variances R, with P_·z in
+    /// the buffers, its Cholesky factor L, L⁻¹ and the prior-to-noise ratio; not the
+    /// gain, which chain-sized states form only for a Joseph update (the state's step is
+    /// P_·z·(S_z⁻¹·ν), S·N multiply-adds instead of S·N² for K, see [`step_from_factor`]).
+    #[inline(always)]
+    fn innovation_factor(&mut self, o: usize, velocity: bool) -> Result<()> {
+        let n = self.n();
         let r = if velocity { &self.r_vel } else { &self.r_pos };
         let b = &mut self.buf;
         b.prior_to_noise = 0.0;
@@ -935,13 +986,7 @@ where
                 what: "EKF innovation covariance H·P·Hᵀ + R",
             });
         }
-        // S_z⁻¹ = L⁻ᵀ·L⁻¹ from the Cholesky factor (N×N, cheap), then K = P_·z·S_z⁻¹ as
-        // N independent column sums over whole S-long columns: the two triangular solves
-        // on K would chain every column to the previous one.
         lower_triangular_inverse(b.chol.as_slice(), n, b.linv.as_mut_slice());
-        b.linv.tr_mul_to(&b.linv, &mut b.sinv);
-        b.k.fill(0.0);
-        gain_columns::<FMA>(b.pz.as_slice(), b.sinv.as_slice(), b.k.as_mut_slice(), n, s);
         Ok(())
     }
 
@@ -952,11 +997,16 @@ where
     fn update_covariance<const FMA: bool>(&mut self, alpha: f64) {
         let (n, s) = (self.n(), self.x.nrows());
         let b = &mut self.buf;
+        let rank_n = rank_n_form(alpha, s, b.prior_to_noise);
+        if s > ACC_ROWS && !rank_n {
+            // Chain-sized states leave K to the Joseph form (see `innovation_factor`).
+            gain_from_factor::<FMA, _, _>(b.pz.as_slice(), &b.linv, &mut b.sinv, &mut b.k, n, s);
+        }
         if alpha != 1.0 {
             b.damped_k.copy_from(&b.k);
             b.damped_k *= alpha;
         }
-        if rank_n_form(alpha, s, b.prior_to_noise) {
+        if rank_n {
             // The optimal gain at a chain's size: P ← P − W·Wᵀ with W = P_·z·L⁻ᵀ (S_z =
             // L·Lᵀ), the symmetric rank-N form of P − K·S_z·Kᵀ, on the upper triangle: half
             // the multiply-adds of the Joseph form. Justified because K is not an
@@ -965,12 +1015,13 @@ where
             // rounding of the subtraction is ε·P_ii·(P_zz/R) at most (a few digits of 16
             // for prior-to-noise ratios up to RANK_N_MAX_PRIOR_TO_NOISE; beyond, e.g. on
             // exact data, the cancellation loses definiteness and the Joseph form below
-            // is used). Whole columns, yet
-            // bit-for-bit symmetric: entry (i, j) and (j, i) sum the same exact products
-            // W_im·W_jm in the same order, so no mirroring is needed. A damped gain keeps
+            // is used). Entry (i, j) and (j, i) sum the same exact products W_im·W_jm in
+            // the same order, so the upper triangle mirrored as written gives the bits of
+            // whole columns ([`minus_w_wt`]) in half the multiply-adds. A damped gain keeps
             // the Joseph form below.
             w_from_pz::<FMA>(b.pz.as_slice(), b.linv.as_slice(), b.d.as_mut_slice(), n, s);
-            minus_w_wt::<FMA>(b.d.as_slice(), self.p.as_mut_slice(), n, s);
+            let w = b.d.as_slice();
+            joseph_upper::<FMA>(w, w, self.p.as_mut_slice(), n, s);
             return;
         }
         let k = if alpha == 1.0 { &b.k } else { &b.damped_k };
@@ -1017,10 +1068,15 @@ where
     /// first of two sequential updates).
     #[inline(always)]
     fn position_gain<const FMA: bool>(&mut self, z: &OVector<f64, N>) -> Result<()> {
-        self.gain::<FMA>(0, false)?;
-        let n = self.n();
+        let (n, s) = (self.n(), self.x.nrows());
+        self.buf
+            .pz
+            .as_mut_slice()
+            .copy_from_slice(&self.p.as_slice()[..n * s]);
+        self.innovation_factor(0, false)?;
         let b = &mut self.buf;
-        std::mem::swap(&mut b.k, &mut b.k1);
+        // K₁ is formed only if a Joseph update needs it (`candidate_and_factors`).
+        b.k1_ready = false;
         std::mem::swap(&mut b.pz, &mut b.pz1);
         std::mem::swap(&mut b.sz, &mut b.sz1);
         std::mem::swap(&mut b.linv, &mut b.linv1);
@@ -1048,7 +1104,28 @@ where
         b.candidate.copy_from(&self.x);
         let mut cols = 0;
         if positions {
-            b.candidate.gemv(alpha, &b.k1, &b.innovation1, 1.0);
+            if !rank_n_form(alpha, s, b.prior_to_noise1) && !b.k1_ready {
+                gain_from_factor::<FMA, _, _>(
+                    b.pz1.as_slice(),
+                    &b.linv1,
+                    &mut b.sinv,
+                    &mut b.k1,
+                    n,
+                    s,
+                );
+                b.k1_ready = true;
+            }
+            b.ytmp.copy_from(&b.innovation1);
+            step_from_factor::<FMA>(
+                b.pz1.as_slice(),
+                b.linv1.as_slice(),
+                b.ytmp.as_mut_slice(),
+                b.innovation.as_mut_slice(),
+                alpha,
+                b.candidate.as_mut_slice(),
+                n,
+                s,
+            );
             cols = push_factors::<FMA>(
                 (b.k1.as_slice(), b.pz1.as_slice(), b.sz1.as_slice()),
                 rank_n_form(alpha, s, b.prior_to_noise1).then_some(b.linv1.as_slice()),
@@ -1066,12 +1143,24 @@ where
         b.pz.as_mut_slice()
             .copy_from_slice(&self.p.as_slice()[n * s..2 * n * s]);
         minus_factor_rows::<FMA>(&b.jx, &b.jy, b.pz.as_mut_slice(), cols, n, s);
-        self.gain_from_pz::<FMA>(n, true)?;
+        self.innovation_factor(n, true)?;
         let b = &mut self.buf;
+        if !rank_n_form(alpha, s, b.prior_to_noise) {
+            gain_from_factor::<FMA, _, _>(b.pz.as_slice(), &b.linv, &mut b.sinv, &mut b.k, n, s);
+        }
         for i in 0..n {
             b.innovation[i] = z[i] - b.candidate[n + i];
         }
-        b.candidate.gemv(alpha, &b.k, &b.innovation, 1.0);
+        step_from_factor::<FMA>(
+            b.pz.as_slice(),
+            b.linv.as_slice(),
+            b.innovation.as_mut_slice(),
+            b.ytmp.as_mut_slice(),
+            alpha,
+            b.candidate.as_mut_slice(),
+            n,
+            s,
+        );
         cols += push_factors::<FMA>(
             (b.k.as_slice(), b.pz.as_slice(), b.sz.as_slice()),
             rank_n_form(alpha, s, b.prior_to_noise).then_some(b.linv.as_slice()),
@@ -1094,23 +1183,36 @@ where
         joseph_upper::<FMA>(&b.jx, &b.jy, self.p.as_mut_slice(), cols, s);
     }
 
-    /// The damped retry of a measurement update formed before P is touched: `form(self,
-    /// α)` writes the candidate state for the gain times α (and returns what the update
-    /// of P will need); while M(q, λ̂) is indefinite there, α is halved, up to
+    /// The damped retry of a measurement update formed before P is touched: `form` writes
+    /// the candidate state for the gain times α (and returns what the update of P will
+    /// need: the factor columns of a combined update); while M(q, λ̂) is indefinite there, α is halved, up to
     /// `MAX_GAIN_HALVINGS` times, after which (or at once without an update) λ̂ is pulled
     /// towards the anchor and nothing is updated. Returns whether the update stands, its
     /// α, the halvings taken and `form`'s last value.
     #[inline(always)]
-    fn damped_candidate<T: Default>(
+    fn damped_candidate<const FMA: bool>(
         &mut self,
         sample: SampleOf<'_, N>,
         mut update: bool,
-        mut form: impl FnMut(&mut Self, f64) -> Result<T>,
-    ) -> Result<(bool, f64, u32, T)> {
-        let (mut alpha, mut attempt, mut out) = (1.0, 0, T::default());
+        form: CandidateForm<'_, N>,
+    ) -> Result<(bool, f64, u32, usize)> {
+        let (mut alpha, mut attempt, mut out) = (1.0, 0, 0);
         loop {
             if update {
-                out = form(self, alpha)?;
+                // A method, not a closure: a closure is a function of its own, which the
+                // compiler may leave out of line, compiled without the caller's AVX2 and
+                // FMA (then every fused multiply-add of the factors was a library call).
+                out = match form {
+                    CandidateForm::Combined(q_ok, qd) => {
+                        self.candidate_and_factors::<FMA>(q_ok, qd, alpha)?
+                    }
+                    CandidateForm::Step => {
+                        let b = &mut self.buf;
+                        b.candidate.copy_from(&self.x);
+                        b.candidate.axpy(alpha, &b.step, 1.0);
+                        0
+                    }
+                };
             } else {
                 self.buf.candidate.copy_from(&self.x);
             }
@@ -1498,7 +1600,7 @@ fn assemble_factored<N: Dim, P: Dim>(
 /// chain's Φ is about half zeros (row j: the parameters of links ≥ j and of joint j's
 /// actuator), which P_·λ·Φᵀ skips column by column; the assembled A_λ = C·Φ is dense.
 /// So ≈ S·(2N² + nnz Φ + N²) multiply-adds instead of S²·N. `xg`, `nz`, `u`: scratch of
-/// S×3N, P and N×N.
+/// S×N (for P_·λ·Φᵀ), P and N×N.
 #[inline(always)]
 fn factored_time_products<const FMA: bool>(
     p: &[f64],
@@ -1510,8 +1612,7 @@ fn factored_time_products<const FMA: bool>(
     s: usize,
 ) {
     let np = s - 2 * n;
-    xg[..2 * n * s].copy_from_slice(&p[..2 * n * s]);
-    let t = &mut xg[2 * n * s..3 * n * s];
+    let t = &mut xg[..n * s];
     let mut c0 = 0;
     while c0 < n {
         let nc = (n - c0).min(TILE_COLS);
@@ -1532,7 +1633,19 @@ fn factored_time_products<const FMA: bool>(
         }
         c0 += TILE_COLS;
     }
-    p_times_at_blocked::<FMA>(xg, af, g, n, s, 3 * n);
+    // G = [P_·q, P_·v]·[A_q, A_v]ᵀ + T·Cᵀ, the sums continued over T's columns (no copy
+    // of P's first 2N columns next to T).
+    let t = &xg[..n * s];
+    let mut c0 = 0;
+    while c0 < n {
+        match n - c0 {
+            1 => two_source_cols::<FMA, 1>((p, t), af, g, (n, s), c0),
+            2 => two_source_cols::<FMA, 2>((p, t), af, g, (n, s), c0),
+            3 => two_source_cols::<FMA, 3>((p, t), af, g, (n, s), c0),
+            _ => two_source_cols::<FMA, TILE_COLS>((p, t), af, g, (n, s), c0),
+        }
+        c0 += TILE_COLS;
+    }
     u.fill(0.0);
     for k in 0..np {
         let pc = &phi[k * n..k * n + n];
@@ -1559,6 +1672,32 @@ fn factored_time_products<const FMA: bool>(
                 *x = madd::<FMA>(a, gv, *x);
             }
         }
+    }
+}
+
+/// Columns `c0..c0 + NC` of G = [P_·q, P_·v, T]·Cᵀ (S×N) into `g`, with C = `af` (N×3N)
+/// and T (S×N) in `t`: the first 2N terms of each sum from P's columns, the last N from
+/// T's, in register tiles as [`product_cols`].
+#[inline(always)]
+fn two_source_cols<const FMA: bool, const NC: usize>(
+    (p, t): (&[f64], &[f64]),
+    af: &[f64],
+    g: &mut [f64],
+    (n, s): (usize, usize),
+    c0: usize,
+) {
+    let mut r0 = 0;
+    while r0 < s {
+        let len = (s - r0).min(TILE_ROWS);
+        let (t0, skip) = full_tile(r0, len, s);
+        let y = |k: usize, c: usize| af[k * n + c0 + c];
+        let acc = tile::<FMA, NC>(p, |k| k * s, t0, len + skip, 2 * n, y);
+        let yt = |k: usize, c: usize| af[(2 * n + k) * n + c0 + c];
+        let acc = tile_from::<FMA, NC>(acc, t, |k| k * s, t0, len + skip, n, yt);
+        for (c, av) in acc.iter().enumerate() {
+            g[(c0 + c) * s + r0..(c0 + c) * s + r0 + len].copy_from_slice(&av[skip..skip + len]);
+        }
+        r0 += len;
     }
 }
 
@@ -1665,6 +1804,55 @@ fn check_variances(what: &str, v: &[f64], zero_ok: bool) -> Result<()> {
         }
     }
     Ok(())
+}
+
+/// The gain K = P_·z·S_z⁻¹ (S×N) into `k` from L⁻¹ of S_z = L·Lᵀ: S_z⁻¹ = L⁻ᵀ·L⁻¹ (N×N,
+/// cheap, into `sinv`), then N independent column sums over whole S-long columns (the
+/// two triangular solves on K would chain every column to the previous one).
+#[inline(always)]
+fn gain_from_factor<const FMA: bool, N: Dim, S: Dim>(
+    pz: &[f64],
+    linv: &OMatrix<f64, N, N>,
+    sinv: &mut OMatrix<f64, N, N>,
+    k: &mut OMatrix<f64, S, N>,
+    n: usize,
+    s: usize,
+) where
+    DefaultAllocator: Allocator<N, N> + Allocator<S, N>,
+{
+    linv.tr_mul_to(linv, sinv);
+    k.fill(0.0);
+    gain_columns::<FMA>(pz, sinv.as_slice(), k.as_mut_slice(), n, s);
+}
+
+/// x += α·K·ν without K: x += α·P_·z·y with y = S_z⁻¹·ν = L⁻ᵀ·(L⁻¹·ν) from L⁻¹ (N×N,
+/// lower) of S_z = L·Lᵀ; `nu` (N) is overwritten with y, `z` is N scratch. The same
+/// vector as K·ν to round-off, in S·N multiply-adds.
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn step_from_factor<const FMA: bool>(
+    pz: &[f64],
+    linv: &[f64],
+    nu: &mut [f64],
+    z: &mut [f64],
+    alpha: f64,
+    x: &mut [f64],
+    n: usize,
+    s: usize,
+) {
+    // z = L⁻¹·ν (lower: z_i sums j ≤ i), then y = L⁻ᵀ·z (y_j sums i ≥ j).
+    for (i, zi) in z[..n].iter_mut().enumerate() {
+        *zi = (0..=i).map(|j| linv[j * n + i] * nu[j]).sum();
+    }
+    for (j, y) in nu[..n].iter_mut().enumerate() {
+        *y = (j..n).map(|i| linv[j * n + i] * z[i]).sum();
+    }
+    for m in 0..n {
+        let f = alpha * nu[m];
+        for (xv, &pv) in x[..s].iter_mut().zip(&pz[m * s..m * s + s]) {
+            *xv = madd::<FMA>(f, pv, *xv);
+        }
+    }
 }
 
 /// K = P_·z·S_z⁻¹ as N independent column sums over whole S-long columns (slices as
@@ -1833,11 +2021,9 @@ fn push_factors<const FMA: bool>(
 ) -> usize {
     let col = |c: usize| (c0 + c) * s..(c0 + c + 1) * s;
     if let Some(linv) = linv {
-        w_from_pz::<FMA>(pz, linv, d, n, s);
-        for m in 0..n {
-            jx[col(m)].copy_from_slice(&d[m * s..m * s + s]);
-            jy[col(m)].copy_from_slice(&d[m * s..m * s + s]);
-        }
+        let w = c0 * s..(c0 + n) * s;
+        w_from_pz::<FMA>(pz, linv, &mut jx[w.clone()], n, s);
+        jy[w.clone()].copy_from_slice(&jx[w]);
         return n;
     }
     let k: &[f64] = if alpha == 1.0 {
@@ -1861,7 +2047,9 @@ fn push_factors<const FMA: bool>(
 }
 
 /// Columns N..2N of P − X·Yᵀ (`cols` factor columns) from those of P in `pv` (S×N):
-/// column j loses Σ_k X_·k·Y_(N+j)k.
+/// column j loses Σ_k X_·k·Y_(N+j)k, summed in register tiles (as [`product_cols`]) and
+/// then subtracted (one column-long multiply-add per factor column and joint, each a
+/// load, a store and one vector multiply-add, took as long as the whole P·Aᵀ).
 #[inline(always)]
 fn minus_factor_rows<const FMA: bool>(
     jx: &[f64],
@@ -1871,14 +2059,39 @@ fn minus_factor_rows<const FMA: bool>(
     n: usize,
     s: usize,
 ) {
-    for k in 0..cols {
-        let xc = &jx[k * s..k * s + s];
-        for j in 0..n {
-            let f = -jy[k * s + n + j];
-            for (pv, &xv) in pv[j * s..j * s + s].iter_mut().zip(xc) {
-                *pv = madd::<FMA>(f, xv, *pv);
+    let mut c0 = 0;
+    while c0 < n {
+        match n - c0 {
+            1 => minus_factor_rows_cols::<FMA, 1>((jx, jy), pv, cols, (n, s), c0),
+            2 => minus_factor_rows_cols::<FMA, 2>((jx, jy), pv, cols, (n, s), c0),
+            3 => minus_factor_rows_cols::<FMA, 3>((jx, jy), pv, cols, (n, s), c0),
+            _ => minus_factor_rows_cols::<FMA, TILE_COLS>((jx, jy), pv, cols, (n, s), c0),
+        }
+        c0 += TILE_COLS;
+    }
+}
+
+#[inline(always)]
+fn minus_factor_rows_cols<const FMA: bool, const NC: usize>(
+    (jx, jy): (&[f64], &[f64]),
+    pv: &mut [f64],
+    cols: usize,
+    (n, s): (usize, usize),
+    c0: usize,
+) {
+    let mut r0 = 0;
+    while r0 < s {
+        let len = (s - r0).min(TILE_ROWS);
+        let (t0, skip) = full_tile(r0, len, s);
+        let y = |k: usize, c: usize| jy[k * s + n + c0 + c];
+        let acc = tile::<FMA, NC>(jx, |k| k * s, t0, len + skip, cols, y);
+        for (c, a) in acc.iter().enumerate() {
+            let col = &mut pv[(c0 + c) * s + r0..(c0 + c) * s + r0 + len];
+            for (x, &v) in col.iter_mut().zip(&a[skip..skip + len]) {
+                *x -= v;
             }
         }
+        r0 += len;
     }
 }
 
@@ -1900,14 +2113,32 @@ fn joseph_upper_cols<const FMA: bool, const NC: usize>(
         let len = (end - r0).min(TILE_ROWS);
         let (t0, skip) = full_tile(r0, len, end);
         let acc = tile::<FMA, NC>(jx, |k| k * s, t0, len + skip, k2, |k, c| jy[k * s + c0 + c]);
-        for (c, a) in acc.iter().enumerate() {
-            let j = c0 + c;
-            for (r, &v) in a[skip..skip + len].iter().enumerate() {
-                let i = r0 + r;
-                if i <= j {
-                    let x = p[j * s + i] - v;
-                    p[j * s + i] = x;
-                    p[i * s + j] = x;
+        if len == TILE_ROWS && r0 + TILE_ROWS <= c0 {
+            // A whole tile above the diagonal: its columns are contiguous in the upper
+            // triangle and its rows in the lower one, so both are written as vectors (one
+            // strided scalar store per entry took as long as the tile's multiply-adds).
+            let mut u = [[0.0f64; TILE_ROWS]; NC];
+            for (c, (uc, a)) in u.iter_mut().zip(&acc).enumerate() {
+                let col = &mut p[(c0 + c) * s + r0..(c0 + c) * s + r0 + TILE_ROWS];
+                for ((x, y), &v) in uc.iter_mut().zip(col.iter_mut()).zip(a) {
+                    *x = *y - v;
+                    *y = *x;
+                }
+            }
+            for r in 0..TILE_ROWS {
+                let row: [f64; NC] = std::array::from_fn(|c| u[c][r]);
+                p[(r0 + r) * s + c0..(r0 + r) * s + end].copy_from_slice(&row);
+            }
+        } else {
+            for (c, a) in acc.iter().enumerate() {
+                let j = c0 + c;
+                for (r, &v) in a[skip..skip + len].iter().enumerate() {
+                    let i = r0 + r;
+                    if i <= j {
+                        let x = p[j * s + i] - v;
+                        p[j * s + i] = x;
+                        p[i * s + j] = x;
+                    }
                 }
             }
         }
@@ -1916,18 +2147,20 @@ fn joseph_upper_cols<const FMA: bool, const NC: usize>(
 }
 
 /// W = P_·z·L⁻ᵀ (S×N) from the inverse L⁻¹ of the innovation covariance's Cholesky factor
-/// (lower, so column j of W sums columns m ≤ j of P_·z).
+/// (lower: column j of W sums columns m ≤ j of P_·z; the entries above L⁻¹'s diagonal are
+/// exact zeros and add nothing), in register tiles as [`product_cols`].
 #[inline(always)]
 fn w_from_pz<const FMA: bool>(pzs: &[f64], linv: &[f64], ws: &mut [f64], n: usize, s: usize) {
-    for j in 0..n {
-        let wc = &mut ws[j * s..j * s + s];
-        wc.fill(0.0);
-        for m in 0..=j {
-            let f = linv[m * n + j];
-            for (wv, &pv) in wc.iter_mut().zip(&pzs[m * s..m * s + s]) {
-                *wv = madd::<FMA>(f, pv, *wv);
-            }
+    let mut c0 = 0;
+    while c0 < n {
+        let y = |m: usize, c: usize| linv[m * n + c0 + c];
+        match n - c0 {
+            1 => product_cols::<FMA, 1>(pzs, |m| m * s, n, y, ws, s, c0),
+            2 => product_cols::<FMA, 2>(pzs, |m| m * s, n, y, ws, s, c0),
+            3 => product_cols::<FMA, 3>(pzs, |m| m * s, n, y, ws, s, c0),
+            _ => product_cols::<FMA, TILE_COLS>(pzs, |m| m * s, n, y, ws, s, c0),
         }
+        c0 += TILE_COLS;
     }
 }
 
@@ -1957,7 +2190,21 @@ fn tile<const FMA: bool, const NC: usize>(
     kdim: usize,
     y: impl Fn(usize, usize) -> f64,
 ) -> [[f64; TILE_ROWS]; NC] {
-    let mut acc = [[0.0f64; TILE_ROWS]; NC];
+    tile_from::<FMA, NC>([[0.0f64; TILE_ROWS]; NC], x, xcol, r0, len, kdim, y)
+}
+
+/// [`tile`] adding to the accumulators `acc` (the sums of a first factor pair, which a
+/// second then continues in the same order).
+#[inline(always)]
+fn tile_from<const FMA: bool, const NC: usize>(
+    mut acc: [[f64; TILE_ROWS]; NC],
+    x: &[f64],
+    xcol: impl Fn(usize) -> usize,
+    r0: usize,
+    len: usize,
+    kdim: usize,
+    y: impl Fn(usize, usize) -> f64,
+) -> [[f64; TILE_ROWS]; NC] {
     if len == TILE_ROWS {
         for k in 0..kdim {
             let o = xcol(k) + r0;
@@ -1998,8 +2245,10 @@ fn full_tile(r0: usize, len: usize, d: usize) -> (usize, usize) {
     }
 }
 
-/// P ← P − W·Wᵀ (W is S×N) on whole columns, tiled: the sum for entry (i, j) runs over
+/// The reference for [`joseph_upper`] with X = Y = W in the tests: P ← P − W·Wᵀ (W is
+/// S×N) on whole columns, tiled: the sum for entry (i, j) runs over
 /// the same products in the same order as for (j, i), so a symmetric P stays exactly so.
+#[cfg(test)]
 #[inline(always)]
 fn minus_w_wt<const FMA: bool>(ws: &[f64], p: &mut [f64], n: usize, s: usize) {
     let mut c0 = 0;
@@ -2014,6 +2263,7 @@ fn minus_w_wt<const FMA: bool>(ws: &[f64], p: &mut [f64], n: usize, s: usize) {
     }
 }
 
+#[cfg(test)]
 #[inline(always)]
 fn minus_w_wt_cols<const FMA: bool, const NC: usize>(
     ws: &[f64],
@@ -2642,6 +2892,84 @@ mod tests {
                         );
                     }
                 }
+            }
+        }
+    }
+
+    /// The kernels that replace the gain and the whole-column rank-N update at a chain's
+    /// size, against the plain formulas on random data: the state step α·P_·z·S_z⁻¹·ν from
+    /// L⁻¹ (nalgebra's inverse of S_z), and P − W·Wᵀ on the upper triangle mirrored as
+    /// written (bit for bit the whole-column kernel's, and nalgebra's product to
+    /// round-off), plain and fused multiply-adds.
+    #[test]
+    fn step_and_triangle_kernels_match_the_plain_formulas() {
+        use nalgebra::{DMatrix, DVector};
+        let mut seed = 0x3C6E_F372_FE94_F82Bu64;
+        let mut rnd = || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+        };
+        for (n, s) in [(7usize, 78usize), (3, 33), (6, 81)] {
+            for fma in [false, true] {
+                let pz = DMatrix::from_fn(s, n, |_, _| rnd());
+                let b = DMatrix::from_fn(n, n, |_, _| rnd());
+                let sz = &b * b.transpose() + DMatrix::identity(n, n) * 0.5;
+                let nu = DVector::from_fn(n, |_, _| rnd());
+                let x0 = DVector::from_fn(s, |_, _| rnd());
+                let alpha = 0.5;
+                let want = &x0 + &pz * (sz.clone().try_inverse().unwrap() * &nu) * alpha;
+                let mut l = vec![0.0; n * n];
+                assert!(cholesky(sz.as_slice(), n, &mut l));
+                let mut linv = vec![0.0; n * n];
+                lower_triangular_inverse(&l, n, &mut linv);
+                let (mut y, mut z, mut x) = (nu.clone(), vec![0.0; n], x0.clone());
+                let args = (pz.as_slice(), linv.as_slice(), y.as_mut_slice());
+                if fma {
+                    step_from_factor::<true>(
+                        args.0,
+                        args.1,
+                        args.2,
+                        &mut z,
+                        alpha,
+                        x.as_mut_slice(),
+                        n,
+                        s,
+                    );
+                } else {
+                    step_from_factor::<false>(
+                        args.0,
+                        args.1,
+                        args.2,
+                        &mut z,
+                        alpha,
+                        x.as_mut_slice(),
+                        n,
+                        s,
+                    );
+                }
+                let err = (&x - &want).amax() / want.amax();
+                assert!(err <= 1e-13, "S {s} fma {fma}: step {err:e}");
+
+                let w = DMatrix::from_fn(s, n, |_, _| rnd());
+                let c = DMatrix::from_fn(s, s, |_, _| rnd());
+                let p = &c * c.transpose();
+                let (mut tri, mut cols) = (p.clone(), p.clone());
+                if fma {
+                    joseph_upper::<true>(w.as_slice(), w.as_slice(), tri.as_mut_slice(), n, s);
+                    minus_w_wt::<true>(w.as_slice(), cols.as_mut_slice(), n, s);
+                } else {
+                    joseph_upper::<false>(w.as_slice(), w.as_slice(), tri.as_mut_slice(), n, s);
+                    minus_w_wt::<false>(w.as_slice(), cols.as_mut_slice(), n, s);
+                }
+                assert_eq!(
+                    tri, cols,
+                    "S {s} fma {fma}: triangle differs from whole columns"
+                );
+                let want = &p - &w * w.transpose();
+                let err = (&tri - &want).amax() / want.amax();
+                assert!(err <= 1e-14, "S {s} fma {fma}: P − W·Wᵀ {err:e}");
             }
         }
     }
