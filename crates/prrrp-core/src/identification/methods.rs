@@ -8,7 +8,9 @@
 //! turns their output into a model:
 //!
 //! - W_b is stacked once for every method: data that do not excite every base parameter
-//!   are [`PrrrpError::RankDeficient`] for every method, not a wrong online estimate;
+//!   are [`PrrrpError::RankDeficient`] for every method, not a wrong online estimate
+//!   (several methods on one data set share the stack through a [`FitCache`],
+//!   [`identify_cached`]);
 //! - RLS, Adaline and Hopfield run on column-scaled parameters ([`DynScaledModel`]), so
 //!   that one step size and one initial covariance suit any robot;
 //! - Adaline and Hopfield take their step from the data and halve it until the move
