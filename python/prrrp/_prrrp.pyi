@@ -34,6 +34,7 @@ __all__ = [
     "DivergedError",
     "Ekf",
     "Excitation",
+    "FitCache",
     "ForwardDerivatives",
     "Hopfield",
     "IdentifiedModel",
@@ -1231,6 +1232,7 @@ def identify(
     *,
     base: BaseParameters | None = None,
     preprocessing: dict[str, Any] | None = None,
+    cache: FitCache | None = None,
     **settings: Any,
 ) -> IdentifiedModel:
     """Identifies the base parameters of `robot` (default analysis `robot.base_parameters()`,
@@ -1286,7 +1288,27 @@ def identify(
     model records the settings used, including the values chosen from the data.
     Errors: ShapeMismatchError (joint count), TooFewSamplesError, RankDeficientError (data
     that do not excite every base parameter), InvalidParameterError (unknown method, a
-    setting out of range, an unstable step), DivergedError, NonFiniteError."""
+    setting out of range, an unstable step), DivergedError, NonFiniteError.
+
+    `cache`: a :class:`FitCache` shared by several calls on the same robot, base analysis
+    and data, so that they stack the least-squares regressor W_b once per weighting
+    instead of once each (the models are the same bit for bit); a cache used with other
+    inputs is an InvalidParameterError."""
+
+@final
+class FitCache:
+    """The least-squares work several :func:`identify` calls on one data set share: the
+    stacked base regressor W_b and its solve, once unweighted (ls, rls, adaline, hopfield,
+    physical with ``weighted=False``) and once weighted (wls, ekf, physical) per rank
+    tolerance, built by the first call that needs it (a second thread waits for it).
+    Belongs to one robot, base analysis and data set (the first call records a
+    fingerprint; others are refused). Holds up to two copies of W_b (8 bytes × samples ×
+    joints × base parameters each) until dropped: make one per data set."""
+
+    def __init__(self) -> None: ...
+    @property
+    def stacks(self) -> int:
+        """Least-squares stacks held (at most one per weighting and rank tolerance)."""
 
 @final
 class BaseParameters:

@@ -23,6 +23,7 @@ import numpy as np
 from prrrp import model_report
 from prrrp._prrrp import (
     Dataset,
+    FitCache,
     IdentifiedModel,
     InvalidInputError,
     PrrrpError,
@@ -280,7 +281,8 @@ def identify_methods(
 ) -> list[MethodRun]:
     """:func:`identify_measurements` with several methods on one preprocessing, one
     Coulomb speed-scale search and one base analysis (what ``prrrp identify --method all``
-    compares). A method
+    compares), sharing the least-squares stack of the regressor between methods
+    (:class:`FitCache`). A method
     that fails (a PrrrpError or ValueError: diverged, rank deficient, ...) is
     returned with its error and does not stop the others; errors of the shared
     preprocessing are raised. ``per_method``: settings of one method only (e.g.
@@ -293,11 +295,17 @@ def identify_methods(
     if isinstance(prepared.robot, SerialChain) and settings.get("base") is None:
         # One base analysis for every method: the same base parameters to compare.
         settings["base"] = prepared.robot.base_parameters()
+    # One least-squares stack of W_b per weighting for every method (the same models as
+    # separate calls); dropped with this call.
+    cache = FitCache()
 
     def run(method: str) -> MethodRun:
         t0 = time.perf_counter()
         try:
             own = {**settings, **(per_method or {}).get(method, {})}
+            if own.get("base") is settings.get("base"):
+                # (A method's own base analysis is other inputs: the cache would refuse it.)
+                own.setdefault("cache", cache)
             model = identify(
                 prepared.robot, prepared.data, method, preprocessing=prepared.record, **own
             )

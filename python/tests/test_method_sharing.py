@@ -77,3 +77,51 @@ def test_a_cached_prediction_is_the_models_and_the_callers_own(log):
     assert np.allclose(again, prediction._at_rows(np.asarray(p.t), direct, grid.t))
     # Another model on the same grid: its own prediction, not the cached one.
     assert not np.array_equal(grid.predict(wls), again)
+
+
+def test_methods_share_one_fit_cache_and_give_their_own_models(log, monkeypatch):
+    """Every method of one call gets the same FitCache, which ends holding two stacks (one
+    unweighted, one weighted); each model equals the one `identify_measurements` gives
+    that method alone (its own fresh cache), bit for bit."""
+    robot, raw = log
+    caches = []
+    real = workflow.identify
+
+    def spy(chain, data, method, **kwargs):
+        caches.append(kwargs.get("cache"))
+        return real(chain, data, method, **kwargs)
+
+    monkeypatch.setattr(workflow, "identify", spy)
+    runs = workflow.identify_methods(robot, raw, coulomb_scale=0.02)
+    assert [r.error for r in runs] == [None] * len(workflow.METHODS)
+    assert isinstance(caches[0], prrrp.FitCache)
+    assert all(c is caches[0] for c in caches)
+    assert caches[0].stacks == 2
+    monkeypatch.setattr(workflow, "identify", real)
+    for r in runs:
+        alone = workflow.identify_measurements(robot, raw, r.method, coulomb_scale=0.02).model
+        m = r.result.model
+        np.testing.assert_array_equal(m.beta, alone.beta, err_msg=r.method)
+        np.testing.assert_array_equal(m.residual_rms, alone.residual_rms, err_msg=r.method)
+        if alone.sigma is None:
+            assert m.sigma is None, r.method
+        else:
+            np.testing.assert_array_equal(m.sigma, alone.sigma, err_msg=r.method)
+
+
+def test_a_fit_cache_of_other_data_is_refused(log):
+    """A cache filled from one data set refuses another differing in one torque by
+    1 µN·m, and still serves its own (the model of a fresh cache, bit for bit)."""
+    robot, _ = log
+    data = workflow.identify_measurements(*log, "ls", coulomb_scale=0.02).data
+    cache = prrrp.FitCache()
+    first = prrrp.identify(robot, data, "ls", cache=cache)
+    tau = np.array(data.tau)
+    tau[7, 2] += 1e-6
+    other = prrrp.Dataset(data.t, data.q, data.qd, data.qdd, tau)
+    for method in ("ls", "wls"):
+        with pytest.raises(prrrp.InvalidParameterError, match="cache"):
+            prrrp.identify(robot, other, method, cache=cache)
+    again = prrrp.identify(robot, data, "ls", cache=cache)
+    np.testing.assert_array_equal(again.beta, first.beta)
+    np.testing.assert_array_equal(again.beta, prrrp.identify(robot, data, "ls").beta)

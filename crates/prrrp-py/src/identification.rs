@@ -699,9 +699,37 @@ fn parse_method(
     Ok(m)
 }
 
+/// The least-squares work `identify` calls on one data set share; see `_prrrp.pyi`.
+#[pyclass(module = "prrrp", name = "FitCache", frozen)]
+#[derive(Default)]
+pub(crate) struct PyFitCache {
+    inner: prrrp_core::FitCache,
+}
+
+#[pymethods]
+impl PyFitCache {
+    #[new]
+    fn new() -> Self {
+        Self::default()
+    }
+
+    /// Least-squares stacks held; see `_prrrp.pyi`.
+    #[getter]
+    fn stacks(&self) -> usize {
+        self.inner.stacks()
+    }
+
+    fn __repr__(&self) -> String {
+        format!("FitCache(stacks={})", self.inner.stacks())
+    }
+}
+
 /// Identifies `robot` from `data`; see `_prrrp.pyi`.
 #[pyfunction]
-#[pyo3(signature = (robot, data, method="ls", *, base=None, preprocessing=None, **settings))]
+#[pyo3(signature = (
+    robot, data, method="ls", *, base=None, preprocessing=None, cache=None, **settings
+))]
+#[allow(clippy::too_many_arguments)] // Python's keywords
 fn identify(
     py: Python<'_>,
     robot: &Bound<'_, PyAny>,
@@ -709,8 +737,17 @@ fn identify(
     method: &str,
     base: Option<&crate::models::chain::PyBaseParameters>,
     preprocessing: Option<&Bound<'_, PyDict>>,
+    cache: Option<&PyFitCache>,
     settings: Option<&Bound<'_, PyDict>>,
 ) -> PyResult<PyIdentifiedModel> {
+    let fresh;
+    let cache = match cache {
+        Some(c) => &c.inner,
+        None => {
+            fresh = prrrp_core::FitCache::new();
+            &fresh
+        }
+    };
     let invalid = |field: &str, reason: &'static str| {
         to_pyerr(
             py,
@@ -744,7 +781,7 @@ fn identify(
         }
         let robot = r.get().inner;
         let inner = crate::interrupt::interruptible(py, || {
-            prrrp_core::identify_robot(&robot, &data.inner, &method, preprocessing)
+            prrrp_core::identify_robot_cached(&robot, &data.inner, &method, preprocessing, cache)
         })?
         .to_py(py)?;
         return Ok(PyIdentifiedModel { inner });
@@ -761,7 +798,14 @@ fn identify(
         None => chain.default_base(py)?.clone(),
     };
     let inner = crate::interrupt::interruptible(py, || {
-        prrrp_core::identify(chain.chain(), &base, &data.inner, &method, preprocessing)
+        prrrp_core::identify_cached(
+            chain.chain(),
+            &base,
+            &data.inner,
+            &method,
+            preprocessing,
+            cache,
+        )
     })?
     .to_py(py)?;
     Ok(PyIdentifiedModel { inner })
@@ -859,6 +903,7 @@ fn identify_drive_gains<'py>(
 pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyIdentifiedModel>()?;
     m.add_function(wrap_pyfunction!(identify_drive_gains, m)?)?;
+    m.add_class::<PyFitCache>()?;
     m.add_function(wrap_pyfunction!(identify, m)?)?;
     m.add_function(wrap_pyfunction!(identified_model_from_parts, m)?)?;
     Ok(())

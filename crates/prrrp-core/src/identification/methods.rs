@@ -8,7 +8,9 @@
 //! turns their output into a model:
 //!
 //! - W_b is stacked once for every method: data that do not excite every base parameter
-//!   are [`PrrrpError::RankDeficient`] for every method, not a wrong online estimate;
+//!   are [`PrrrpError::RankDeficient`] for every method, not a wrong online estimate
+//!   (several methods on one data set share the stack through a [`FitCache`],
+//!   [`identify_cached`]);
 //! - RLS, Adaline and Hopfield run on column-scaled parameters ([`DynScaledModel`]), so
 //!   that one step size and one initial covariance suit any robot;
 //! - Adaline and Hopfield take their step from the data and halve it until the move
@@ -21,6 +23,8 @@
 //!   data carry ≈ rows/κ independent equations); Adaline and Hopfield give none.
 //!
 //! Design, derivations and measurements: docs/design/identify-methods.md.
+
+use std::sync::{Arc, Mutex, MutexGuard};
 
 use nalgebra::{DMatrix, DMatrixView, DVector, Dyn};
 use serde_json::json;
@@ -420,6 +424,33 @@ pub fn identify(
     method: &Method,
     preprocessing: serde_json::Value,
 ) -> Result<IdentifiedModel> {
+    identify_cached(
+        chain,
+        base,
+        data,
+        method,
+        preprocessing,
+        &FitCache::default(),
+    )
+}
+
+/// [`identify`] taking the least-squares stack of W_b and its solve from `cache`, built
+/// there by the first method that needs it: several methods on one data set build W_b
+/// at most once unweighted (ls, rls, adaline, hopfield, physical with
+/// `weighted = false`) and once weighted (wls, ekf, physical) per rank tolerance. The
+/// model is the one [`identify`] gives, bit for bit.
+///
+/// # Errors
+/// As [`identify`], and [`PrrrpError::InvalidParameter`] for a `cache` filled from other
+/// data, another chain or another base analysis.
+pub fn identify_cached(
+    chain: &DynChain,
+    base: &BaseParameters,
+    data: &DynDataset,
+    method: &Method,
+    preprocessing: serde_json::Value,
+    cache: &FitCache,
+) -> Result<IdentifiedModel> {
     let n = chain.dof();
     data.check_dof(n, "the robot's")?;
     let model = chain.base_model(base)?;
@@ -434,6 +465,7 @@ pub fn identify(
     }
     let rows = Rows::new(data);
     let samples = rows.samples()?;
+    cache.check_inputs(Fingerprint::of(&model, data)?)?;
     let config = LeastSquaresConfig {
         rank_tolerance: method.rank_tolerance(),
     };
@@ -446,13 +478,17 @@ pub fn identify(
     };
     // The solver keeps the stacked base regressor W of the data, from which the
     // covariance, the residuals and the model's residual RMS below are products instead of
-    // a regressor per sample each.
-    let mut stack = LeastSquares::new(config)?;
-    let ls = if weighted {
-        stack.solve_weighted(&model, &samples, DynJointNoise::Estimated)?
-    } else {
-        stack.solve(&model, &samples)?
-    };
+    // a regressor per sample each; it is only read from here on, so methods share it.
+    let shared = cache.fit(weighted, config, || {
+        let mut stack = LeastSquares::new(config)?;
+        let ls = if weighted {
+            stack.solve_weighted(&model, &samples, DynJointNoise::Estimated)?
+        } else {
+            stack.solve(&model, &samples)?
+        };
+        Ok(SharedFit { stack, ls })
+    })?;
+    let (stack, ls) = (&shared.stack, &shared.ls);
     let mut standard: Option<Vec<f64>> = None;
     // The least-squares covariance from the residuals (see `ls_covariance`).
     let cov = match method {
@@ -462,7 +498,7 @@ pub fn identify(
                 _ => vec![1.0; n],
             };
             Some(ls_covariance(
-                &model, &samples, &ls.lambda, &weights, &stack,
+                &model, &samples, &ls.lambda, &weights, stack,
             )?)
         }
         _ => None,
@@ -501,7 +537,7 @@ pub fn identify(
             false,
             &ls.lambda,
             ls.std_dev.as_slice(),
-            ls_rms(&ls),
+            ls_rms(ls),
             MAX_STORED_REGRESSOR_BYTES,
         )?,
         Method::Hopfield(s) => gradient(
@@ -511,7 +547,7 @@ pub fn identify(
             true,
             &ls.lambda,
             ls.std_dev.as_slice(),
-            ls_rms(&ls),
+            ls_rms(ls),
             MAX_STORED_REGRESSOR_BYTES,
         )?,
         Method::Ekf(s) => {
@@ -524,7 +560,7 @@ pub fn identify(
                     s,
                     &ls.lambda,
                     ls.joint_variances.as_slice(),
-                    &stack,
+                    stack,
                 )
             };
             match run(s) {
@@ -553,7 +589,7 @@ pub fn identify(
             // least-squares fit times the residuals' correlation time, so that a low-pass
             // filtered log's rows/κ independent equations are what the prior is weighed
             // against (as `ls_covariance` counts them for σ).
-            let moments = joint_moments(&model, &samples, &ls.lambda, &stack)?;
+            let moments = joint_moments(&model, &samples, &ls.lambda, stack)?;
             let unit = (0..n)
                 .map(|j| {
                     let w = joint_weights.as_ref().map_or(1.0, |w| w[j]);
@@ -690,9 +726,166 @@ pub fn identify_robot(
     method: &Method,
     preprocessing: serde_json::Value,
 ) -> Result<IdentifiedModel> {
+    identify_robot_cached(robot, data, method, preprocessing, &FitCache::default())
+}
+
+/// [`identify_robot`] sharing the least-squares work through `cache`, as
+/// [`identify_cached`].
+///
+/// # Errors
+/// As [`identify_robot`] and [`identify_cached`].
+pub fn identify_robot_cached(
+    robot: &Robot,
+    data: &DynDataset,
+    method: &Method,
+    preprocessing: serde_json::Value,
+    cache: &FitCache,
+) -> Result<IdentifiedModel> {
     let chain = SerialChain::from_robot(robot)?.to_dyn();
     let base = chain.base_parameters(&BaseOptions::default())?;
-    identify(&chain, &base, data, method, preprocessing)
+    identify_cached(&chain, &base, data, method, preprocessing, cache)
+}
+
+/// The least-squares work that several [`identify_cached`] calls on one data set share:
+/// the stacked base regressor W_b and its solve, one per weighting (ordinary or
+/// joint-weighted) and rank tolerance, each built by the first call that needs it (a
+/// second thread asking meanwhile waits for it). A failed build (rank deficient,
+/// interrupted, ...) is not kept: the next call tries again and reports its own error.
+///
+/// A cache belongs to one data set, chain and base analysis: the first call records a
+/// fingerprint of them (joint count, samples, base parameters, a checksum of q, q̇, q̈, τ
+/// and of the base regressor at a fixed state) and a call with other inputs is refused.
+/// It holds up to two copies of W_b (8·samples·joints·base parameters bytes each) until
+/// dropped.
+#[derive(Debug, Default)]
+pub struct FitCache {
+    inputs: Mutex<Option<Fingerprint>>,
+    /// (weighted, rank tolerance bits) → the fit, behind its own lock so that building one
+    /// does not hold up the other.
+    fits: Mutex<Vec<FitSlot>>,
+}
+
+type FitSlot = ((bool, u64), Arc<Mutex<Option<Arc<SharedFit>>>>);
+
+/// A solver holding the stacked W_b of the data and its solve's report.
+#[derive(Debug)]
+struct SharedFit {
+    stack: LeastSquares,
+    ls: crate::DynLeastSquaresReport,
+}
+
+/// What a [`FitCache`]'s contents depend on, beyond the weighting and rank tolerance.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+struct Fingerprint {
+    dof: usize,
+    samples: usize,
+    base: usize,
+    data: u64,
+    model: u64,
+}
+
+/// FNV-1a over 64-bit words: a checksum that any change of a value changes (not a
+/// defence against crafted collisions, which a caller has no reason to make).
+fn fnv(mut h: u64, words: impl IntoIterator<Item = u64>) -> u64 {
+    for w in words {
+        h = (h ^ w).wrapping_mul(0x0000_0100_0000_01b3);
+    }
+    h
+}
+
+const FNV_OFFSET: u64 = 0xcbf2_9ce4_8422_2325;
+
+impl Fingerprint {
+    fn of(model: &DynChainBaseModel, data: &DynDataset) -> Result<Self> {
+        let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+        let mut h = FNV_OFFSET;
+        for v in [data.q(), data.qd(), data.qdd(), data.tau()] {
+            h = fnv(h, v.iter().map(|x| x.to_bits()));
+        }
+        // The regressor at a fixed state of moderate speeds (inside the Coulomb
+        // smoothing of any friction model, outside of it for the faster joints) tells
+        // chains, friction models and base analyses apart.
+        let n = model.dof();
+        let state = |a: f64, b: f64| DVector::from_fn(n, |j, _| a + b * j as f64);
+        let (q, qd, qdd) = (state(0.3, 0.41), state(0.01, -0.13), state(1.1, -0.37));
+        let mut ws = model.workspace();
+        let mut phi = DMatrix::zeros(n, model.count());
+        model.regressor_into(&mut ws, &q, &qd, &qdd, &mut phi)?;
+        Ok(Self {
+            dof: n,
+            samples: data.len(),
+            base: model.count(),
+            data: h,
+            model: fnv(FNV_OFFSET, bits(phi.as_slice())),
+        })
+    }
+}
+
+/// A lock's contents even after a panic while it was held: every value stored under
+/// these locks is complete (a fit is stored only once built).
+fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
+    m.lock().unwrap_or_else(|e| e.into_inner())
+}
+
+impl FitCache {
+    /// An empty cache (the first [`identify_cached`] call fills it).
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// How many least-squares stacks (W_b with its solve) the cache holds: at most one
+    /// per weighting and rank tolerance asked for.
+    pub fn stacks(&self) -> usize {
+        lock(&self.fits)
+            .iter()
+            .filter(|(_, slot)| lock(slot).is_some())
+            .count()
+    }
+
+    fn check_inputs(&self, fingerprint: Fingerprint) -> Result<()> {
+        let mut inputs = lock(&self.inputs);
+        match *inputs {
+            None => {
+                *inputs = Some(fingerprint);
+                Ok(())
+            }
+            Some(f) if f == fingerprint => Ok(()),
+            Some(_) => Err(PrrrpError::InvalidParameter {
+                field: "cache".into(),
+                value: f64::NAN,
+                reason: "holds the fit of other data, another robot or another base \
+                         analysis: use one FitCache per data set",
+            }),
+        }
+    }
+
+    /// The fit of this weighting and tolerance, built by `build` if not there yet.
+    fn fit(
+        &self,
+        weighted: bool,
+        config: LeastSquaresConfig,
+        build: impl FnOnce() -> Result<SharedFit>,
+    ) -> Result<Arc<SharedFit>> {
+        let key = (weighted, config.rank_tolerance.to_bits());
+        let slot = {
+            let mut fits = lock(&self.fits);
+            match fits.iter().find(|(k, _)| *k == key) {
+                Some((_, slot)) => Arc::clone(slot),
+                None => {
+                    let slot = Arc::new(Mutex::new(None));
+                    fits.push((key, Arc::clone(&slot)));
+                    slot
+                }
+            }
+        };
+        let mut fit = lock(&slot);
+        if let Some(f) = fit.as_ref() {
+            return Ok(Arc::clone(f));
+        }
+        let built = Arc::new(build()?);
+        *fit = Some(Arc::clone(&built));
+        Ok(built)
+    }
 }
 
 enum RawCovariance {

@@ -18,8 +18,8 @@ pub use payload::{
 };
 
 pub use methods::{
-    identify, identify_robot, EkfSettings, EkfStart, GradientSettings, LsSettings, Method,
-    PhysicalSettings, RlsSettings, METHOD_NAMES,
+    identify, identify_cached, identify_robot, identify_robot_cached, EkfSettings, EkfStart,
+    FitCache, GradientSettings, LsSettings, Method, PhysicalSettings, RlsSettings, METHOD_NAMES,
 };
 
 /// Version of the [`IdentifiedModel`] JSON layout; bumped on any incompatible change.
