@@ -297,11 +297,11 @@ def draw_all(
     process beside them, and returns when all have ended.
 
     A call that fails stops neither the others nor the caller: its error is said on stderr
-    and returned as (index of the call, message) — the results the figures illustrate are
-    already written and must not be lost to a figure. Ctrl-C and SIGTERM end every worker
-    (SIGTERM, then SIGKILL after :data:`STOP_GRACE_S`) and reap it before the exception
-    leaves: no worker outlives the call (nor its process: they die with it) or writes after
-    it, and a figure lands only whole.
+    and returned as (index of the call, message), in the order of the calls — the results
+    the figures illustrate are already written and must not be lost to a figure. Ctrl-C and
+    SIGTERM end every worker (SIGTERM, then SIGKILL after :data:`STOP_GRACE_S`) and reap it
+    before the exception leaves: no worker outlives the call (nor its process: they die with
+    it) or writes after it, and a figure lands only whole.
 
     With a :func:`figure_server` running (and calls that pickle, and no ``workers``
     given), the calls are handed to it: it draws them the same way in its process and its
@@ -319,6 +319,8 @@ def draw_all(
         failures = _draw_on_server(server, payload, len(jobs))
     else:
         failures = _draw_jobs(jobs, workers)
+    # Workers end in any order; the caller (and its messages) get the calls' order.
+    failures = sorted(failures)
     for i, message in failures:
         name = getattr(jobs[i], "__name__", "")
         what = f"figure {name!r}" if name.isidentifier() else "a figure"
