@@ -2427,6 +2427,17 @@ mod tests {
     use crate::estimators::Sample;
     use crate::Robot;
 
+    /// Uniform numbers in [−0.5, 0.5) from a xorshift generator seeded with `seed`: the
+    /// random data of the kernel tests, reproducible without a dependency.
+    fn xorshift(mut seed: u64) -> impl FnMut() -> f64 {
+        move || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+        }
+    }
+
     /// The AVX2/FMA copy of the step and the portable one compute the same filter (up to
     /// the rounding of fused multiply-adds).
     #[test]
@@ -2526,13 +2537,7 @@ mod tests {
             M: LinearModel<N, P>,
             DefaultAllocator: EkfAllocator<N, P, S>,
         {
-            let mut seed = seed;
-            let mut rnd = move || {
-                seed ^= seed << 13;
-                seed ^= seed >> 7;
-                seed ^= seed << 17;
-                (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
-            };
+            let mut rnd = xorshift(seed);
             let (n, s) = (f.n(), f.x.nrows());
             let (nd, _) = f.model.dims();
             // Noise levels giving prior-to-noise ratios around 1 (rank-N form) and 1e4
@@ -2600,13 +2605,7 @@ mod tests {
         let model = chain.base_model(&base).unwrap();
         let beta = model.chain_base_values().clone();
         let n = chain.dof();
-        let mut seed = 0xD1B5_4A32_D192_ED03u64;
-        let mut rnd = move || {
-            seed ^= seed << 13;
-            seed ^= seed >> 7;
-            seed ^= seed << 17;
-            (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
-        };
+        let mut rnd = xorshift(0xD1B5_4A32_D192_ED03u64);
         let cases = [
             (
                 ParameterJacobian::Predicted,
@@ -2774,13 +2773,7 @@ mod tests {
                 }
             }
         }
-        let mut seed = 0x6A09_E667_F3BC_C909u64;
-        let mut rnd = || {
-            seed ^= seed << 13;
-            seed ^= seed >> 7;
-            seed ^= seed << 17;
-            (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
-        };
+        let mut rnd = xorshift(0x6A09_E667_F3BC_C909u64);
         for (n, m, trial) in [(7usize, 78usize, 0), (7, 78, 1), (6, 45, 2), (1, 3, 3)] {
             let l0 = DMatrix::from_fn(n, n, |i, j| {
                 // Some exact zeros below the diagonal (zero multipliers), and a weak
@@ -2817,13 +2810,7 @@ mod tests {
     #[test]
     fn p_times_at_tiles_match_the_product() {
         use nalgebra::DMatrix;
-        let mut seed = 0x9E37_79B9_7F4A_7C15u64;
-        let mut rnd = || {
-            seed ^= seed << 13;
-            seed ^= seed >> 7;
-            seed ^= seed << 17;
-            (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
-        };
+        let mut rnd = xorshift(0x9E37_79B9_7F4A_7C15u64);
         for (n, s) in [(7usize, 78usize), (6, 45), (2, 6)] {
             let p = DMatrix::from_fn(s, s, |_, _| rnd());
             let a = DMatrix::from_fn(n, s, |_, _| rnd());
@@ -2842,13 +2829,7 @@ mod tests {
     #[test]
     fn joseph_tiles_match_the_formula() {
         use nalgebra::DMatrix;
-        let mut seed = 0x2545_F491_4F6C_DD1Du64;
-        let mut rnd = || {
-            seed ^= seed << 13;
-            seed ^= seed >> 7;
-            seed ^= seed << 17;
-            (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
-        };
+        let mut rnd = xorshift(0x2545_F491_4F6C_DD1Du64);
         for (n, s) in [(7usize, 78usize), (3, 33), (6, 81)] {
             let k = DMatrix::from_fn(s, n, |_, _| rnd());
             let d = DMatrix::from_fn(s, n, |_, _| rnd());
@@ -2904,13 +2885,7 @@ mod tests {
     #[test]
     fn step_and_triangle_kernels_match_the_plain_formulas() {
         use nalgebra::{DMatrix, DVector};
-        let mut seed = 0x3C6E_F372_FE94_F82Bu64;
-        let mut rnd = || {
-            seed ^= seed << 13;
-            seed ^= seed >> 7;
-            seed ^= seed << 17;
-            (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
-        };
+        let mut rnd = xorshift(0x3C6E_F372_FE94_F82Bu64);
         for (n, s) in [(7usize, 78usize), (3, 33), (6, 81)] {
             for fma in [false, true] {
                 let pz = DMatrix::from_fn(s, n, |_, _| rnd());
@@ -2983,13 +2958,7 @@ mod tests {
         use nalgebra::DMatrix;
         let (n, s) = (7usize, 78usize);
         // A deterministic SPD P with a spread of scales: B·Bᵀ + diag.
-        let mut seed = 0x9E37_79B9_7F4A_7C15u64;
-        let mut rnd = || {
-            seed ^= seed << 13;
-            seed ^= seed >> 7;
-            seed ^= seed << 17;
-            (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
-        };
+        let mut rnd = xorshift(0x9E37_79B9_7F4A_7C15u64);
         for ratio in [1.0, 1e3, 1e6] {
             let b = DMatrix::from_fn(s, s, |_, _| rnd());
             let scale = DMatrix::from_fn(s, s, |i, j| {
