@@ -7,14 +7,11 @@ mod dyn_support;
 
 use std::sync::OnceLock;
 
-use dyn_support::{exact_record, panda_like, DynFourier, DynRecord};
+use dyn_support::{exact_record, panda_like, DynFourier};
 use prrrp_core::{
     identify, identify_cached, BaseOptions, BaseParameters, DynChain, DynDataset, FitCache,
     GradientSettings, IdentifiedModel, Method, PrrrpError, METHOD_NAMES,
 };
-use rand::rngs::StdRng;
-use rand::SeedableRng;
-use rand_distr::{Distribution, Normal};
 
 const DT: f64 = 0.01;
 
@@ -24,28 +21,6 @@ struct Fixture {
     data: DynDataset,
 }
 
-fn dataset(rec: &DynRecord, noise: f64, seed: u64) -> DynDataset {
-    let flat = |v: &[prrrp_core::nalgebra::DVector<f64>]| -> Vec<f64> {
-        v.iter().flat_map(|x| x.iter().copied()).collect()
-    };
-    let mut tau = flat(&rec.tau);
-    let mut rng = StdRng::seed_from_u64(seed);
-    let d = Normal::new(0.0, noise).unwrap();
-    for t in &mut tau {
-        *t += d.sample(&mut rng);
-    }
-    let t = (0..rec.len()).map(|k| k as f64 * DT).collect();
-    DynDataset::new(
-        rec.q[0].len(),
-        t,
-        flat(&rec.q),
-        flat(&rec.qd),
-        flat(&rec.qdd),
-        tau,
-    )
-    .unwrap()
-}
-
 fn fixture() -> &'static Fixture {
     static F: OnceLock<Fixture> = OnceLock::new();
     F.get_or_init(|| {
@@ -53,7 +28,7 @@ fn fixture() -> &'static Fixture {
         let base = chain.base_parameters(&BaseOptions::default()).unwrap();
         let rec = exact_record(&chain, &DynFourier::seeded(11, 7, 1.0), 600, DT);
         Fixture {
-            data: dataset(&rec, 0.05, 7),
+            data: rec.dataset(DT, 0.05, 7),
             chain,
             base,
         }

@@ -12,15 +12,12 @@ mod dyn_support;
 
 use std::sync::OnceLock;
 
-use dyn_support::{exact_record, panda_like, DynFourier, DynRecord};
+use dyn_support::{exact_record, panda_like, DynFourier};
 use prrrp_core::{
     identify, identify_robot, BaseOptions, BaseParameters, DynChain, DynDataset, EkfSettings,
     EkfStart, GradientSettings, IdentifiedModel, Method, PrrrpError, Robot, SerialChain,
     METHOD_NAMES,
 };
-use rand::rngs::StdRng;
-use rand::SeedableRng;
-use rand_distr::{Distribution, Normal};
 
 const DT: f64 = 0.01;
 const NOISE: f64 = 0.05;
@@ -34,30 +31,6 @@ struct Fixture {
     held_out: DynDataset,
 }
 
-fn dataset(rec: &DynRecord, noise: f64, seed: u64) -> DynDataset {
-    let flat = |v: &[prrrp_core::nalgebra::DVector<f64>]| -> Vec<f64> {
-        v.iter().flat_map(|x| x.iter().copied()).collect()
-    };
-    let mut tau = flat(&rec.tau);
-    if noise > 0.0 {
-        let mut rng = StdRng::seed_from_u64(seed);
-        let d = Normal::new(0.0, noise).unwrap();
-        for t in &mut tau {
-            *t += d.sample(&mut rng);
-        }
-    }
-    let t = (0..rec.len()).map(|k| k as f64 * DT).collect();
-    DynDataset::new(
-        rec.q[0].len(),
-        t,
-        flat(&rec.q),
-        flat(&rec.qd),
-        flat(&rec.qdd),
-        tau,
-    )
-    .unwrap()
-}
-
 fn fixture() -> &'static Fixture {
     static F: OnceLock<Fixture> = OnceLock::new();
     F.get_or_init(|| {
@@ -67,9 +40,9 @@ fn fixture() -> &'static Fixture {
         let rec = exact_record(&chain, &DynFourier::seeded(11, 7, 1.0), 1000, DT);
         let val = exact_record(&chain, &DynFourier::seeded(12, 7, 1.0), 500, DT);
         Fixture {
-            exact: dataset(&rec, 0.0, 0),
-            noisy: dataset(&rec, NOISE, 7),
-            held_out: dataset(&val, 0.0, 0),
+            exact: rec.dataset(DT, 0.0, 0),
+            noisy: rec.dataset(DT, NOISE, 7),
+            held_out: val.dataset(DT, 0.0, 0),
             chain,
             base,
             truth,
@@ -268,7 +241,7 @@ fn the_paper_arm_identifies_through_its_chain() {
     let robot = Robot::paper();
     let chain = SerialChain::from_robot(&robot).unwrap().to_dyn();
     let rec = exact_record(&chain, &DynFourier::seeded(5, 5, 0.5), 400, 0.02);
-    let data = dataset(&rec, 0.0, 0);
+    let data = rec.dataset(DT, 0.0, 0);
     for name in ["ls", "wls", "rls"] {
         let m = identify_robot(&robot, &data, &method(name), serde_json::json!({})).unwrap();
         let back = IdentifiedModel::from_json(&m.to_json().unwrap()).unwrap();

@@ -12,9 +12,12 @@ mod seeded_support;
 
 use prrrp_core::nalgebra::{DVector, SVector};
 use prrrp_core::{
-    inertial_parameters, BaseOptions, DhConvention, DhRow, DynChain, DynChainBaseModel, DynSamples,
-    FourierTrajectory, FrictionModel, JointKind, UrdfOptions,
+    inertial_parameters, BaseOptions, DhConvention, DhRow, DynChain, DynChainBaseModel, DynDataset,
+    DynSamples, FourierTrajectory, FrictionModel, JointKind, UrdfOptions,
 };
+use rand::rngs::StdRng;
+use rand::SeedableRng;
+use rand_distr::{Distribution, Normal};
 
 /// Velocity scale of the smoothed Coulomb sign tanh(q̇/v_s), rad/s.
 pub const COULOMB_SMOOTHING: f64 = 0.02;
@@ -130,6 +133,31 @@ impl DynRecord {
 
     pub fn len(&self) -> usize {
         self.q.len()
+    }
+
+    /// The record as a data set of rows `dt` s apart, with seeded Gaussian noise of σ
+    /// `noise` (N·m or N) added to τ (none for `noise` = 0).
+    pub fn dataset(&self, dt: f64, noise: f64, seed: u64) -> DynDataset {
+        let flat =
+            |v: &[DVector<f64>]| -> Vec<f64> { v.iter().flat_map(|x| x.iter().copied()).collect() };
+        let mut tau = flat(&self.tau);
+        if noise > 0.0 {
+            let mut rng = StdRng::seed_from_u64(seed);
+            let d = Normal::new(0.0, noise).unwrap();
+            for t in &mut tau {
+                *t += d.sample(&mut rng);
+            }
+        }
+        let t = (0..self.len()).map(|k| k as f64 * dt).collect();
+        DynDataset::new(
+            self.q[0].len(),
+            t,
+            flat(&self.q),
+            flat(&self.qd),
+            flat(&self.qdd),
+            tau,
+        )
+        .unwrap()
     }
 
     /// The same record from compile-time vectors.
