@@ -9,8 +9,8 @@
 mod dyn_support;
 
 use criterion::{criterion_group, criterion_main, Criterion};
-use dyn_support::{panda_like, DynFourier};
-use prrrp_core::{BaseOptions, IdentifiedModel, OnlineConfig, OnlineIdentifier, OnlineMethod};
+use dyn_support::{panda_like, truth_prior, DynFourier};
+use prrrp_core::{BaseOptions, OnlineConfig, OnlineIdentifier, OnlineMethod};
 use std::hint::black_box;
 
 const RATE: f64 = 1000.0;
@@ -19,7 +19,6 @@ const ROWS: usize = 10_000;
 fn online(c: &mut Criterion) {
     let chain = panda_like();
     let base = chain.base_parameters(&BaseOptions::default()).unwrap();
-    let model = chain.base_model(&base).unwrap();
     let f = DynFourier::seeded(5, 7, 0.5);
     let rows: Vec<(Vec<f64>, Vec<f64>)> = (0..ROWS)
         .map(|k| {
@@ -37,30 +36,7 @@ fn online(c: &mut Criterion) {
             (q.as_slice().to_vec(), tau)
         })
         .collect();
-    let truth = model.chain_base_values().as_slice().to_vec();
-    let b = truth.len();
-    let cov: Vec<f64> = (0..b * b)
-        .map(|i| {
-            if i % (b + 1) == 0 {
-                (0.05 * truth[i / b].abs()).max(1e-4).powi(2)
-            } else {
-                0.0
-            }
-        })
-        .collect();
-    let prior = IdentifiedModel::new(
-        &chain,
-        &base,
-        truth,
-        None,
-        Some(cov),
-        None,
-        vec![0.03; 7],
-        "manual",
-        serde_json::json!({}),
-        serde_json::json!({}),
-    )
-    .unwrap();
+    let prior = truth_prior(&chain, &base, 0.03);
     for (name, method, payload) in [
         ("online7_rls_update", OnlineMethod::Rls, false),
         ("online7_ekf_update", OnlineMethod::Ekf, false),

@@ -5,7 +5,7 @@
 
 mod dyn_support;
 
-use dyn_support::{panda_like, DynFourier};
+use dyn_support::{panda_like, truth_prior, DynFourier};
 use prrrp_core::*;
 
 const RATE: f64 = 1000.0;
@@ -47,34 +47,6 @@ fn replay(chain: &DynChain, len: usize) -> Replay {
         out.qdd.push(qdd.as_slice().to_vec());
     }
     out
-}
-
-/// The arm's true base parameters with a 5 % σ, as a prior (the bench's).
-fn truth_prior(chain: &DynChain, base: &BaseParameters) -> IdentifiedModel {
-    let truth = chain
-        .base_model(base)
-        .unwrap()
-        .chain_base_values()
-        .as_slice()
-        .to_vec();
-    let b = truth.len();
-    let mut cov = vec![0.0; b * b];
-    for i in 0..b {
-        cov[i * (b + 1)] = (0.05 * truth[i].abs()).max(1e-4).powi(2);
-    }
-    IdentifiedModel::new(
-        chain,
-        base,
-        truth,
-        None,
-        Some(cov),
-        None,
-        vec![0.03; 7],
-        "manual",
-        serde_json::json!({}),
-        serde_json::json!({}),
-    )
-    .unwrap()
 }
 
 /// What a long run gives: the alarms, and per joint the RMS error, relative to the RMS
@@ -165,7 +137,7 @@ fn long_run(
         ..Default::default()
     };
     let mut id = if payload || method == OnlineMethod::Ekf {
-        OnlineIdentifier::with_prior(&truth_prior(&chain, &base), cfg).unwrap()
+        OnlineIdentifier::with_prior(&truth_prior(&chain, &base, 0.03), cfg).unwrap()
     } else {
         OnlineIdentifier::new(&chain, &base, cfg).unwrap()
     };

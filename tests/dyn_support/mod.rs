@@ -12,8 +12,9 @@ mod seeded_support;
 
 use prrrp_core::nalgebra::{DVector, SVector};
 use prrrp_core::{
-    inertial_parameters, BaseOptions, DhConvention, DhRow, DynChain, DynChainBaseModel, DynDataset,
-    DynSamples, FourierTrajectory, FrictionModel, JointKind, UrdfOptions,
+    inertial_parameters, BaseOptions, BaseParameters, DhConvention, DhRow, DynChain,
+    DynChainBaseModel, DynDataset, DynSamples, FourierTrajectory, FrictionModel, IdentifiedModel,
+    JointKind, UrdfOptions,
 };
 use rand::rngs::StdRng;
 use rand::SeedableRng;
@@ -115,6 +116,35 @@ pub fn base_model(chain: &DynChain) -> DynChainBaseModel {
         .base_parameters(&BaseOptions::default())
         .expect("base-parameter analysis");
     chain.base_model(&base).expect("base model")
+}
+
+/// The chain's true base parameters as a prior model: σ of 5 % of each value (at least
+/// 1e-4), independent, residual RMS `residual` (N·m or N) per joint.
+pub fn truth_prior(chain: &DynChain, base: &BaseParameters, residual: f64) -> IdentifiedModel {
+    let truth = chain
+        .base_model(base)
+        .unwrap()
+        .chain_base_values()
+        .as_slice()
+        .to_vec();
+    let b = truth.len();
+    let mut cov = vec![0.0; b * b];
+    for i in 0..b {
+        cov[i * (b + 1)] = (0.05 * truth[i].abs()).max(1e-4).powi(2);
+    }
+    IdentifiedModel::new(
+        chain,
+        base,
+        truth,
+        None,
+        Some(cov),
+        None,
+        vec![residual; chain.dof()],
+        "manual",
+        serde_json::json!({}),
+        serde_json::json!({}),
+    )
+    .unwrap()
 }
 
 /// Owned run-time columns of a record.
