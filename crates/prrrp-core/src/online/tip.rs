@@ -79,7 +79,13 @@ impl TipOpening {
         let cols = tip_columns(&base.names, n).ok()?;
         let b = base.count();
         let k = DMatrix::from_fn(b, PAYLOAD_PARAMS, |i, c| base.map[(i, cols[c])] / scale[i]);
-        Some(Self {
+        Some(Self::with_columns(k, prior, n))
+    }
+
+    /// For the tip columns `k` (B×10) of an `n`-joint chain, no look pending.
+    fn with_columns(k: DMatrix<f64>, prior: [f64; PAYLOAD_PARAMS], n: usize) -> Self {
+        let b = k.nrows();
+        Self {
             k,
             prior,
             work: DMatrix::zeros(b, b),
@@ -90,7 +96,7 @@ impl TipOpening {
             look: (0.0, 0.0),
             baseline: 1.0,
             var0: vec![0.0; n],
-        })
+        }
     }
 
     /// Whether a second look is pending.
@@ -298,18 +304,7 @@ mod tests {
             |i, c| if (i + c) % 3 == 0 { 0.0 } else { u() },
         );
         let prior = [1e3, 1e3, 1e3, 1e3, 1e-9, 1e3, 1e3, 1e3, 1e3, 1e3];
-        let mut t = TipOpening {
-            k: k.clone(),
-            prior,
-            work: DMatrix::zeros(b, b),
-            inc: DMatrix::zeros(b, b),
-            y: DMatrix::zeros(b, PAYLOAD_PARAMS),
-            diag: DVector::zeros(b),
-            since: f64::INFINITY,
-            look: (0.0, 0.0),
-            baseline: 1.0,
-            var0: vec![0.0; n],
-        };
+        let mut t = TipOpening::with_columns(k.clone(), prior, n);
         let factor = 100.0;
         assert!(t.prepare(&p, factor, &[1.0; 3]));
         let pinv = p.clone().try_inverse().unwrap();
