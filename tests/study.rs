@@ -119,6 +119,20 @@ fn default_study_meets_the_accuracy_bounds_and_is_deterministic() {
         );
     }
     assert!(a.excitation.cond_final < a.excitation.cond_initial);
+    // Every method identifies the chain's 9 base parameters, in which λ6 and λ7 are l2
+    // and l3 times one first moment of link 4: equal for this arm (l2 = l3), whatever
+    // the noise (an 8-parameter λ fit estimates them apart).
+    assert_eq!(a.base_names.len(), 9);
+    assert_eq!(a.beta_truth.len(), 9);
+    for e in &a.estimates {
+        assert_eq!(e.beta.len(), 9, "{}", e.method);
+        let (l6, l7) = (e.lambda[5], e.lambda[6]);
+        assert!(
+            (l6 - l7).abs() < 1e-12 * l6.abs(),
+            "{}: {l6} {l7}",
+            e.method
+        );
+    }
     let b = run_study(&robot, &config, &|_, _, _| {}).unwrap();
     let strip = |r: &StudyResult| {
         let mut r = r.clone();

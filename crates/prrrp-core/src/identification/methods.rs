@@ -376,15 +376,15 @@ impl Default for EkfSettings {
 }
 
 /// The data as owned run-time vectors (the estimators' sample type).
-struct Rows {
-    q: Vec<DVector<f64>>,
-    qd: Vec<DVector<f64>>,
-    qdd: Vec<DVector<f64>>,
-    tau: Vec<DVector<f64>>,
+pub(crate) struct Rows {
+    pub(crate) q: Vec<DVector<f64>>,
+    pub(crate) qd: Vec<DVector<f64>>,
+    pub(crate) qdd: Vec<DVector<f64>>,
+    pub(crate) tau: Vec<DVector<f64>>,
 }
 
 impl Rows {
-    fn new(data: &DynDataset) -> Self {
+    pub(crate) fn new(data: &DynDataset) -> Self {
         let n = data.dof();
         let rows = |flat: &[f64]| -> Vec<DVector<f64>> {
             flat.chunks_exact(n)
@@ -399,7 +399,7 @@ impl Rows {
         }
     }
 
-    fn samples(&self) -> Result<DynSamples<'_>> {
+    pub(crate) fn samples(&self) -> Result<DynSamples<'_>> {
         DynSamples::new(&self.q, &self.qd, &self.qdd, &self.tau)
     }
 }

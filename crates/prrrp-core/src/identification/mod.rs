@@ -12,6 +12,7 @@ use crate::models::payload::Payload;
 
 mod ekf_defaults;
 mod methods;
+pub(crate) use methods::Rows;
 mod payload;
 pub use payload::{
     identify_drive_gains, identify_payload, DriveGainSettings, DriveGainsFit, PayloadSettings,

@@ -1,22 +1,35 @@
 //! The paper's whole study from one seed (sections 4–5): optimise the excitation,
 //! simulate the robot with sensor noise, preprocess, run the four estimators, validate,
 //! and sweep the sensitivity — one deterministic, serialisable result.
+//!
+//! It runs on the general pipeline: the robot as a chain (evaluated in closed form), the
+//! run-time simulator with the controller holding the chain's base model at β0, and every
+//! estimator on that base model (least squares through [`identify`]). The paper's λ of
+//! each estimate is the view of its β ([`PaperLambdaView`]). The excitation (the paper's
+//! quintics and sinusoids, scored on the λ regressor), the validation runs and the
+//! sensitivity sweep (both per λᵢ: Tables 5 and 6) take λ, on the closed form.
 
 use std::time::Instant;
 
 use serde::{Deserialize, Serialize};
 
-use crate::data::dataset::Dataset;
-use crate::data::preprocess::PreprocessConfig;
+use nalgebra::{DVector, Dyn};
+
+use crate::data::preprocess::{preprocess, PreprocessConfig};
+use crate::data::DynDataset;
 use crate::error::{PrrrpError, Result};
 use crate::estimators::{
-    least_squares, Adaline, AdalineConfig, Discretisation, Ekf, EkfConfig, Estimator, Hopfield,
-    HopfieldConfig, LeastSquaresConfig, Sample, Samples,
+    AdalineConfig, Discretisation, DynAdaline, DynEkf, DynHopfield, DynSamples, EkfConfig,
+    Estimator, HopfieldConfig, LeastSquaresConfig,
 };
+use crate::identification::{identify, LsSettings, Method, Rows};
+use crate::models::chain::{BaseOptions, DynChain, DynChainBaseModel, SerialChain};
 use crate::models::prrrp::robot::Robot;
 use crate::models::prrrp::types::{Lambda, Vec5, NDOF, NPARAM};
+use crate::motion::dynamics::ParameterisedModel;
 use crate::motion::excitation::{optimise_excitation, ExcitationConfig, DEFAULT_EXCITATION_KNOTS};
-use crate::motion::simulation::{simulate_closed_loop, SimulationConfig};
+use crate::motion::simulation::{simulate_dyn_closed_loop, DynSimulationConfig, SimulationConfig};
+use crate::paper::lambda_view::PaperLambdaView;
 use crate::paper::sensitivity::{sensitivity, SensitivityConfig};
 use crate::validation::metrics::relative_errors_percent;
 use crate::validation::{validate, ValidationConfig};
@@ -38,8 +51,8 @@ pub struct StudyConfig {
     /// Filtering and differentiation of the measured positions (default
     /// [`PreprocessConfig::default`]).
     pub preprocess: PreprocessConfig,
-    /// λ0 of the iterative estimators and the controller's model, as a multiple of the
-    /// true λ (default 1.3: a model 30 % too heavy, as from a rough CAD estimate; scaling
+    /// λ0 (as β0 = scale·β: the view of β0 is λ0) of the iterative estimators and the
+    /// controller's model, as a multiple of the true λ (default 1.3: a model 30 % too heavy, as from a rough CAD estimate; scaling
     /// every mass and inertia keeps it physical). The paper's λ0 = ones is not physical.
     pub initial_guess_scale: f64,
     /// Least squares (default [`LeastSquaresConfig::default`]).
@@ -145,8 +158,12 @@ pub struct History {
 pub struct MethodEstimate {
     /// One of [`METHODS`].
     pub method: String,
-    /// λ̂.
+    /// λ̂: the paper's view ([`PaperLambdaView`]) of `beta`.
     pub lambda: [f64; NPARAM],
+    /// β̂: the estimate of the paper robot's base parameters (names in
+    /// [`StudyResult::base_names`]), what every method identifies.
+    #[serde(default)]
+    pub beta: Vec<f64>,
     /// |λ̂ − λ|/|λ|, %.
     pub relative_error_percent: Vec<f64>,
     /// Least squares only: σ_i.
@@ -235,7 +252,8 @@ pub struct Timings {
 }
 
 /// Everything the study produces; serialised with stable field names (schema version 1,
-/// documented in `docs/results-schema.md`).
+/// documented in `docs/results-schema.md`; `base_names`, `beta_truth` and each estimate's
+/// `beta` were added within version 1 and default to empty when absent).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct StudyResult {
     /// Version of the field layout (1).
@@ -246,6 +264,13 @@ pub struct StudyResult {
     pub truth: [f64; NPARAM],
     /// λ0 of the iterative estimators and the controller.
     pub initial_guess: [f64; NPARAM],
+    /// Names of the base parameters β of the paper robot's chain ([`DynChain::paper`]),
+    /// which the methods identify.
+    #[serde(default)]
+    pub base_names: Vec<String>,
+    /// True β of the simulated robot (the λ view of it is `truth`).
+    #[serde(default)]
+    pub beta_truth: Vec<f64>,
     /// Excitation summary.
     pub excitation: ExcitationSummary,
     /// The estimation run.
@@ -302,12 +327,17 @@ fn rows(v: &[Vec5]) -> Vec<[f64; NDOF]> {
 /// Progress callback of [`run_study`]: (stage, done, total).
 pub type StudyProgress<'a> = &'a (dyn Fn(&str, usize, usize) + Sync);
 
-/// Runs the whole study on `robot` (the "true" robot to identify). Deterministic for a
-/// given configuration; the estimators and the sensitivity points run in parallel.
+/// Runs the whole study on `robot` (the "true" robot to identify) through the general
+/// pipeline: the robot as a chain ([`SerialChain::from_robot`], evaluated in closed form
+/// for the paper's geometry), simulated under computed-torque control by its base model
+/// at λ0, each method identifying the chain's base parameters β, and the paper's λ as the
+/// view of β ([`PaperLambdaView`]). Deterministic for a given configuration; the
+/// estimators and the sensitivity points run in parallel.
 ///
 /// # Errors
 /// Any stage's error (an infeasible excitation, a non-physical robot, a diverging
-/// estimator, …), unchanged.
+/// estimator, …), unchanged; [`PrrrpError::InvalidParameter`] for a robot whose chain has
+/// no λ view (gravity other than the paper's).
 pub fn run_study(
     robot: &Robot,
     config: &StudyConfig,
@@ -326,8 +356,16 @@ pub fn run_study(
     let model = robot.model();
     let truth = robot.base_parameters();
     let lambda0 = truth * config.initial_guess_scale;
+    // The robot as a chain and its base model: what every stage below runs on. Scaling
+    // every mass and inertia by the same factor scales β and λ alike, so β0 is λ0's.
+    let chain = SerialChain::from_robot(robot)?.to_dyn();
+    let base = chain.base_parameters(&BaseOptions::default())?;
+    let base_model = chain.base_model(&base)?;
+    let view = PaperLambdaView::new(&base_model, robot.gravity)?;
+    let beta_truth = base_model.chain_base_values().clone();
+    let beta0 = &beta_truth * config.initial_guess_scale;
 
-    // 1. Excitation.
+    // 1. Excitation (the paper's trajectory family, scored on its λ regressor).
     let t0 = Instant::now();
     let exc_cfg = ExcitationConfig {
         seed: config.seed,
@@ -338,32 +376,41 @@ pub fn run_study(
     })?;
     timings.excitation = t0.elapsed().as_secs_f64();
 
-    // 2. Estimation run: the true robot under a controller with the rough model λ0.
+    // 2. Estimation run: the true chain under a controller holding the rough model β0.
     let t0 = Instant::now();
     let sim_cfg = SimulationConfig {
         seed: config.seed,
         ..config.simulation
     };
-    let rec = simulate_closed_loop(
-        &model,
-        &truth,
-        &lambda0,
+    let controller = ParameterisedModel::new(base_model.clone(), beta0.clone())?;
+    let rec = simulate_dyn_closed_loop(
+        &chain,
+        &controller,
         &exc.trajectory,
         exc_cfg.duration,
-        &sim_cfg,
+        &DynSimulationConfig::from(&sim_cfg),
     )?;
     timings.simulation = t0.elapsed().as_secs_f64();
     progress("simulation", 1, 1);
+    let q_measured = rows5(&rec.q_measured);
+    let tau_measured = rows5(&rec.tau_measured);
 
     // 3. Preprocessing of the measured signals.
     let t0 = Instant::now();
-    let data = rec.measured_dataset(&config.preprocess)?;
+    let data = DynDataset::from(preprocess(
+        &rec.t,
+        &q_measured,
+        &tau_measured,
+        &config.preprocess,
+    )?);
     timings.preprocessing = t0.elapsed().as_secs_f64();
     progress("preprocessing", 1, 1);
 
     // 4. The four estimators, in parallel.
-    let zeros = vec![Vec5::zeros(); rec.len()];
-    let raw = Samples::new(&rec.q_measured, &zeros, &zeros, &rec.tau_measured)?;
+    let data_rows = Rows::new(&data);
+    let samples = data_rows.samples()?;
+    let raw_data = raw_rows(&rec.q_measured, &rec.tau_measured, NDOF);
+    let raw = raw_data.samples()?;
     let done = std::sync::atomic::AtomicUsize::new(0);
     let tick = || {
         progress(
@@ -373,9 +420,13 @@ pub fn run_study(
         )
     };
     let est = Estimation {
-        model: &model,
+        chain: &chain,
+        base: &base,
+        model: &base_model,
+        view: &view,
         data: &data,
-        lambda0: &lambda0,
+        samples: &samples,
+        beta0: &beta0,
         config,
     };
     // Each worker runs under the caller's stop flag and counts itself done.
@@ -401,6 +452,7 @@ pub fn run_study(
         .map(|(r, name)| {
             r.unwrap_or_else(|e| MethodEstimate {
                 lambda: arr8(&lambda0),
+                beta: beta0.as_slice().to_vec(),
                 error: Some(e.to_string()),
                 ..empty(name)
             })
@@ -463,6 +515,12 @@ pub fn run_study(
         seed: config.seed,
         truth: arr8(&truth),
         initial_guess: arr8(&lambda0),
+        base_names: base
+            .independent
+            .iter()
+            .map(|&i| base.names[i].clone())
+            .collect(),
+        beta_truth: beta_truth.as_slice().to_vec(),
         excitation: ExcitationSummary {
             cond_initial: exc.cond_initial,
             cond_final: exc.cond_final,
@@ -473,10 +531,10 @@ pub fn run_study(
         },
         estimation_data: EstimationData {
             t: rec.t.clone(),
-            q_ref: rows(&rec.q_ref),
-            q: rows(&rec.q),
-            q_measured: rows(&rec.q_measured),
-            tau_measured: rows(&rec.tau_measured),
+            q_ref: flat_rows(&rec.q_ref),
+            q: flat_rows(&rec.q),
+            q_measured: rows(&q_measured),
+            tau_measured: rows(&tau_measured),
         },
         estimates,
         validation,
@@ -487,6 +545,34 @@ pub fn run_study(
         },
         timings_s: timings,
     })
+}
+
+/// Rows of 5 of a flat run-time record column.
+fn rows5(flat: &[f64]) -> Vec<Vec5> {
+    flat.chunks_exact(NDOF)
+        .map(Vec5::from_column_slice)
+        .collect()
+}
+
+fn flat_rows(flat: &[f64]) -> Vec<[f64; NDOF]> {
+    rows(&rows5(flat))
+}
+
+/// The raw measured positions `q` and torques `tau` (flat, n per sample) as estimator
+/// rows, q̇ and q̈ zero: the EKF reads positions and torques only.
+fn raw_rows(q: &[f64], tau: &[f64], n: usize) -> Rows {
+    let col = |flat: &[f64]| -> Vec<DVector<f64>> {
+        flat.chunks_exact(n)
+            .map(DVector::from_column_slice)
+            .collect()
+    };
+    let q = col(q);
+    Rows {
+        qd: vec![DVector::zeros(n); q.len()],
+        qdd: vec![DVector::zeros(n); q.len()],
+        q,
+        tau: col(tau),
+    }
 }
 
 fn join<T>(h: std::thread::ScopedJoinHandle<'_, Result<T>>) -> Result<T> {
@@ -501,6 +587,7 @@ fn empty(method: &str) -> MethodEstimate {
     MethodEstimate {
         method: method.into(),
         lambda: [0.0; NPARAM],
+        beta: vec![],
         relative_error_percent: vec![],
         std: None,
         rsd_percent: None,
@@ -512,25 +599,63 @@ fn empty(method: &str) -> MethodEstimate {
     }
 }
 
-/// What the study's estimators share: the model, the preprocessed data, the rough
-/// initial guess λ0 and the study's settings (each estimator reads its own).
+/// What the study's estimators share: the chain and its base analysis and model, the λ
+/// view, the preprocessed data, the rough initial guess β0 and the study's settings (each
+/// estimator reads its own).
 struct Estimation<'a> {
-    model: &'a crate::PrrrpModel,
-    data: &'a Dataset,
-    lambda0: &'a Lambda,
+    chain: &'a DynChain,
+    base: &'a crate::models::chain::BaseParameters,
+    model: &'a DynChainBaseModel,
+    view: &'a PaperLambdaView,
+    data: &'a DynDataset,
+    samples: &'a DynSamples<'a>,
+    beta0: &'a DVector<f64>,
     config: &'a StudyConfig,
 }
 
 impl Estimation<'_> {
+    /// The preprocessing as an identified model records it.
+    fn preprocessing(&self) -> serde_json::Value {
+        let p = &self.config.preprocess;
+        serde_json::json!({
+            "cutoff_hz": p.cutoff_hz,
+            "order": p.order,
+            "filter_torque": p.filter_torque,
+            "trim_samples": p.trim,
+            "decimate": p.decimate,
+        })
+    }
+
+    /// Least squares through [`identify`]: σ from its covariance, seen through the view.
     fn least_squares(&self) -> Result<MethodEstimate> {
         let t0 = Instant::now();
-        let r = least_squares(self.model, &self.data.samples(), &self.config.least_squares)?;
+        let method = Method::Ls(LsSettings {
+            rank_tolerance: self.config.least_squares.rank_tolerance,
+        });
+        let m = identify(
+            self.chain,
+            self.base,
+            self.data,
+            &method,
+            self.preprocessing(),
+        )?;
+        let lambda = self.view.lambda(&m.beta)?;
+        let std = match &m.covariance {
+            Some(c) => Some(self.view.sigma(c)?),
+            None => None,
+        };
+        let rsd_percent = std.map(|s| std::array::from_fn(|i| 100.0 * s[i] / lambda[i].abs()));
+        // σ² of the residual: the model's per-joint residual RMS over the equations left
+        // after the fitted parameters.
+        let equations = (self.data.len() * self.data.dof()) as f64;
+        let sse: f64 = m.residual_rms.iter().map(|r| r * r).sum::<f64>() * self.data.len() as f64;
         Ok(MethodEstimate {
-            lambda: arr8(&r.lambda),
-            std: Some(arr8(&r.std_dev)),
-            rsd_percent: Some(arr8(&r.rel_std_dev)),
-            cond: Some(r.cond),
-            sigma2: Some(r.sigma2),
+            lambda,
+            beta: m.beta.clone(),
+            std,
+            rsd_percent,
+            cond: m.cond,
+            sigma2: Some(sse / (equations - m.beta.len() as f64).max(1.0)),
             seconds: t0.elapsed().as_secs_f64(),
             ..empty(METHODS[0])
         })
@@ -538,81 +663,85 @@ impl Estimation<'_> {
 
     fn adaline(&self) -> Result<MethodEstimate> {
         let t0 = Instant::now();
-        let mut net = Adaline::new(*self.model, *self.lambda0, self.config.adaline)?;
-        let samples = self.data.samples();
+        let mut net = DynAdaline::new(self.model.clone(), self.beta0.clone(), self.config.adaline)?;
         let mut history = History {
             t: vec![0.0],
-            lambda: vec![arr8(self.lambda0)],
+            lambda: vec![self.view.lambda(self.beta0.as_slice())?],
         };
         for epoch in 0..self.config.adaline_epochs {
-            net.train(&samples, 1)?;
+            net.train(self.samples, 1)?;
             history.t.push((epoch + 1) as f64);
-            history.lambda.push(arr8(net.estimate()));
+            history
+                .lambda
+                .push(self.view.lambda(net.estimate().as_slice())?);
         }
-        Ok(online_estimate(METHODS[1], t0, net.estimate(), history))
+        self.online_estimate(METHODS[1], t0, net.estimate(), history)
     }
 
     fn hopfield(&self) -> Result<MethodEstimate> {
         let t0 = Instant::now();
         let hcfg: HopfieldConfig = self.config.hopfield;
-        let mut net = Hopfield::new(*self.model, *self.lambda0, hcfg)?;
-        let history = run_online(
-            &mut net,
-            &self.data.samples(),
-            self.config.hopfield_epochs,
-            self.config.history_points,
-            hcfg.dt,
-        )?;
-        Ok(online_estimate(METHODS[2], t0, net.estimate(), history))
+        let mut net = DynHopfield::new(self.model.clone(), self.beta0.clone(), hcfg)?;
+        let history =
+            self.run_online(&mut net, self.samples, self.config.hopfield_epochs, hcfg.dt)?;
+        self.online_estimate(METHODS[2], t0, net.estimate(), history)
     }
 
     /// The EKF on the raw measured positions `raw` (sampled every `dt` s), not on the
     /// preprocessed data.
-    fn ekf(&self, raw: &Samples<'_, NDOF>, dt: f64) -> Result<MethodEstimate> {
+    fn ekf(&self, raw: &DynSamples<'_>, dt: f64) -> Result<MethodEstimate> {
         let t0 = Instant::now();
-        let mut ekf: Ekf<crate::PrrrpModel, NDOF, NPARAM, { 2 * NDOF + NPARAM }> =
-            Ekf::new(*self.model, *self.lambda0, self.config.ekf)?;
-        let history = run_online(&mut ekf, raw, 1, self.config.history_points, dt)?;
-        Ok(online_estimate(METHODS[3], t0, ekf.estimate(), history))
+        let mut ekf = DynEkf::new(self.model.clone(), self.beta0.clone(), self.config.ekf)?;
+        let history = self.run_online(&mut ekf, raw, 1, dt)?;
+        self.online_estimate(METHODS[3], t0, ekf.estimate(), history)
     }
-}
 
-/// The estimate `method` ended at, with its history, timed from `t0`.
-fn online_estimate(method: &str, t0: Instant, lambda: &Lambda, history: History) -> MethodEstimate {
-    MethodEstimate {
-        lambda: arr8(lambda),
-        history: Some(history),
-        seconds: t0.elapsed().as_secs_f64(),
-        ..empty(method)
+    /// The estimate β̂ `method` ended at, with its λ view and history, timed from `t0`.
+    fn online_estimate(
+        &self,
+        method: &str,
+        t0: Instant,
+        beta: &DVector<f64>,
+        history: History,
+    ) -> Result<MethodEstimate> {
+        Ok(MethodEstimate {
+            lambda: self.view.lambda(beta.as_slice())?,
+            beta: beta.as_slice().to_vec(),
+            history: Some(history),
+            seconds: t0.elapsed().as_secs_f64(),
+            ..empty(method)
+        })
     }
-}
 
-/// Runs an online estimator over `passes` passes of `data`, keeping about `points`
-/// snapshots of λ̂ against estimation time (sample index × dt).
-fn run_online<E: Estimator<nalgebra::Const<NDOF>, nalgebra::Const<NPARAM>>>(
-    est: &mut E,
-    data: &Samples<'_, NDOF>,
-    passes: usize,
-    points: usize,
-    dt: f64,
-) -> Result<History> {
-    let total = passes * data.len();
-    let every = (total / points.max(1)).max(1);
-    let mut history = History {
-        t: vec![0.0],
-        lambda: vec![arr8(est.estimate())],
-    };
-    let mut k = 0;
-    for _ in 0..passes {
-        for i in 0..data.len() {
-            let s: Sample<'_, NDOF> = data.sample(i);
-            est.step(s).map_err(|e| crate::estimators::with_row(e, i))?;
-            k += 1;
-            if k % every == 0 || k == total {
-                history.t.push(k as f64 * dt);
-                history.lambda.push(arr8(est.estimate()));
+    /// Runs an online estimator over `passes` passes of `data`, keeping about
+    /// `history_points` snapshots of λ̂ against estimation time (sample index × dt).
+    fn run_online<E: Estimator<Dyn, Dyn>>(
+        &self,
+        est: &mut E,
+        data: &DynSamples<'_>,
+        passes: usize,
+        dt: f64,
+    ) -> Result<History> {
+        let total = passes * data.len();
+        let every = (total / self.config.history_points.max(1)).max(1);
+        let mut history = History {
+            t: vec![0.0],
+            lambda: vec![self.view.lambda(est.estimate().as_slice())?],
+        };
+        let mut k = 0;
+        for _ in 0..passes {
+            for i in 0..data.len() {
+                est.step(data.sample(i))
+                    .map_err(|e| crate::estimators::with_row(e, i))?;
+                k += 1;
+                if k % every == 0 || k == total {
+                    history.t.push(k as f64 * dt);
+                    history
+                        .lambda
+                        .push(self.view.lambda(est.estimate().as_slice())?);
+                }
             }
         }
+        Ok(history)
     }
-    Ok(history)
 }
