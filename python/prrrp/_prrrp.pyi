@@ -69,6 +69,7 @@ __all__ = [
     "least_squares",
     "observation_matrix",
     "optimise_excitation",
+    "paper_lambda_map",
     "preprocess",
     "preprocess_log",
     "read_numeric_csv",
@@ -643,6 +644,10 @@ def run_study_json(
     progress: Callable[[str, int, int], object] | None = None,
 ) -> str:
     """The whole study as JSON (schema_version 1); use `prrrp.run_study` for a dict."""
+
+def paper_lambda_map() -> list[list[float]]:
+    """T (8 rows of 9): the paper's λ = T·β for the base parameters β of the built-in paper
+    robot; use `prrrp.lambda_view.lambda_map` for an array."""
 
 # --- generic serial chains ------------------------------------------------------------
 

@@ -16,6 +16,7 @@ from typing import Any
 import numpy as np
 
 import prrrp
+from prrrp import _prrrp
 
 #: :attr:`SerialChain.name` of the built-in ``paper`` robot.
 PAPER_ROBOT_NAME = "paper-prrrp"
@@ -29,29 +30,15 @@ def _rigid_base_names() -> tuple[str, ...]:
 @functools.cache
 def lambda_map() -> np.ndarray:
     """T, (8, 9): the paper's λ = T @ β for the base parameters β of
-    ``prrrp.identify(prrrp.Robot.paper(), ...)`` (the chain form's numerical analysis).
+    ``prrrp.identify(prrrp.load_robot("paper"), ...)``: the library's map
+    (``PaperLambdaView``, the same one the study reports its λ through).
 
     The chain's 9 base parameters span the paper's λ1..λ5, λ8, m4·lc4 + m5·l4 (λ6 and λ7
-    are l2 and l3 times it) and the lateral first moments my3 and my4 + my5, which the
-    paper's model sets to 0. So Y_b(x)·β = Φ(x)·λ + Y_lat(x)·μ at every state x, and T is
-    the λ rows of the exact solution of [Φ | Y_lat]·[T; L] = Y_b over random states (the
-    residual is checked to be round-off: the map is an identity, not a fit)."""
-    chain = prrrp.SerialChain.paper()
-    base = chain.base_parameters()
-    rng = np.random.default_rng(0)
-    q, qd, qdd = rng.uniform(-1.0, 1.0, size=(3, 64, prrrp.NDOF))
-    phi = np.asarray(prrrp.regressor(q, qd, qdd)).reshape(-1, prrrp.NPARAM)
-    y = np.asarray(chain.regressor(q, qd, qdd)).reshape(len(q) * prrrp.NDOF, -1)
-    names = list(base.names)
-    lateral = np.stack(
-        [y[:, names.index("my3")], y[:, names.index("my4")] + y[:, names.index("my5")]], axis=1
-    )
-    yb = np.asarray(chain.base_regressor(q, qd, qdd)).reshape(-1, base.count)
-    a = np.hstack([phi, lateral])
-    sol, *_ = np.linalg.lstsq(a, yb, rcond=None)
-    if not np.allclose(a @ sol, yb, rtol=0.0, atol=1e-9 * np.abs(yb).max()):
-        raise RuntimeError("the chain's base parameters do not map onto the paper's λ")
-    return sol[: prrrp.NPARAM]
+    are l2 and l3 times it) and the first moments across links 3 and 4, which the paper's
+    model sets to 0. So Y_b(x)·β = Φ(x)·λ + Y_μ(x)·μ at every state x (Y_μ the closed
+    form's first-moment columns), and T is the λ rows of the exact solution of
+    [Φ | Y_μ]·[T; L] = Y_b over states (checked to round-off: an identity, not a fit)."""
+    return np.asarray(_prrrp.paper_lambda_map(), dtype=float)
 
 
 def paper_lambda(model: prrrp.IdentifiedModel) -> dict[str, Any] | None:

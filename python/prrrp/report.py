@@ -93,7 +93,8 @@ def relative_errors(results: dict[str, Any]) -> list[str]:
 
 
 def least_squares_statistics(results: dict[str, Any]) -> list[str]:
-    """σ and %σ of the least-squares estimate, cond(W) and the residual variance."""
+    """σ and %σ of the least-squares estimate, cond(W_b) and the residual variance: the
+    estimate is of the chain's base parameters β (``base_names``), λ and σ its paper view."""
     ls = next((e for e in results["estimates"] if e["method"] == "least_squares"), None)
     if ls is None or ls.get("std") is None:
         return []
@@ -102,7 +103,12 @@ def least_squares_statistics(results: dict[str, Any]) -> list[str]:
         for i in range(len(ls["lambda"]))
     ]
     lines = _table(["λ", "estimate", "σ", "%σ"], rows)
-    lines += [f"cond(W) = {_g(ls.get('cond'))}, residual variance σ² = {_g(ls.get('sigma2'))}", ""]
+    names = results.get("base_names") or []
+    of = f" (regressor of the {len(names)} base parameters {', '.join(names)})" if names else ""
+    lines += [
+        f"cond(W_b) = {_g(ls.get('cond'))}{of}, residual variance σ² = {_g(ls.get('sigma2'))}",
+        "",
+    ]
     return lines
 
 
