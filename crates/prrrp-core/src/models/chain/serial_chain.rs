@@ -334,7 +334,89 @@ pub(crate) fn stack_regressor<'s>(
     Ok(w)
 }
 
+/// The accessors [`SerialChain`] and [`DynChain`] share: their fields have the same names
+/// and meanings and differ only in storage (arrays of N, or vectors of n), so one body
+/// serves both. The arguments are the borrowed types of the per-joint fields.
+macro_rules! chain_accessors {
+    ($joints:ty, $dh:ty, $inertial:ty, $friction_params:ty) => {
+        /// The joints (placements, axes, link frames).
+        pub fn joints(&self) -> &$joints {
+            &self.joints
+        }
+        /// The DH table, when the chain was built from one.
+        pub fn dh(&self) -> Option<&$dh> {
+            self.dh
+                .as_ref()
+                .map(|(t, _)| std::borrow::Borrow::borrow(t))
+        }
+        /// The DH convention, when the chain was built from a DH table.
+        pub fn convention(&self) -> Option<DhConvention> {
+            self.dh.as_ref().map(|(_, c)| *c)
+        }
+        /// Inertial parameters of each link.
+        pub fn inertial(&self) -> &$inertial {
+            &self.inertial
+        }
+        /// Gravity vector in world coordinates, m/s².
+        pub fn gravity(&self) -> [f64; 3] {
+            self.gravity.into()
+        }
+        /// The friction model.
+        pub fn friction(&self) -> FrictionModel {
+            self.friction
+        }
+        /// Friction parameters [fv, fc, fo] of each joint.
+        pub fn friction_params(&self) -> &$friction_params {
+            &self.friction_params
+        }
+        /// Number of standard parameters: 10 inertial per link plus the enabled actuator
+        /// terms (friction and armature) of each actuator.
+        pub fn num_params(&self) -> usize {
+            self.dof() * (10 + self.layout().per)
+        }
+        /// Names of the standard parameters in order, e.g. `m1, mx1, …, Izz6, fv1, fc1, …`.
+        pub fn parameter_names(&self) -> Vec<String> {
+            parameter_names(self.dof(), &self.layout())
+        }
+        /// The standard parameter vector π (inertial, then enabled actuator terms).
+        pub fn parameters(&self) -> Vec<f64> {
+            parameter_vector(
+                &self.inertial,
+                &self.layout(),
+                &self.friction_params,
+                &self.armature_values,
+            )
+        }
+
+        /// Indices (0-based) of the links whose inertial parameters no rigid body has: a
+        /// pseudo-inertia that is not positive semidefinite (see
+        /// [`super::is_physically_consistent`]; tolerance [`PHYSICAL_TOLERANCE`] relative
+        /// to the link's largest parameter).
+        pub fn non_physical_links(&self) -> Vec<usize> {
+            non_physical_links(&self.inertial)
+        }
+
+        /// True when every link's inertial parameters describe a rigid body
+        /// ([`Self::non_physical_links`] is empty).
+        pub fn is_physically_consistent(&self) -> bool {
+            self.non_physical.is_none()
+        }
+
+        /// Sets the gravity vector in world (base-frame) coordinates, m/s².
+        ///
+        /// # Errors
+        /// [`PrrrpError::InvalidParameter`] for a non-finite entry.
+        pub fn with_gravity(mut self, gravity: [f64; 3]) -> Result<Self> {
+            self.gravity = validate_gravity(gravity)?;
+            self.closed = ClosedBackend::default();
+            Ok(self)
+        }
+    };
+}
+
 impl<const N: usize> SerialChain<N> {
+    chain_accessors!([Joint; N], [DhRow; N], [[f64; 10]; N], [[f64; 3]; N]);
+
     /// A chain with the given DH table and convention, massless links, no friction and
     /// gravity (0, 0, −9.81) m/s².
     ///
@@ -412,16 +494,6 @@ impl<const N: usize> SerialChain<N> {
         Ok(self)
     }
 
-    /// Sets the gravity vector in world (base-frame) coordinates, m/s².
-    ///
-    /// # Errors
-    /// [`PrrrpError::InvalidParameter`] for a non-finite entry.
-    pub fn with_gravity(mut self, gravity: [f64; 3]) -> Result<Self> {
-        self.gravity = validate_gravity(gravity)?;
-        self.closed = ClosedBackend::default();
-        Ok(self)
-    }
-
     /// Sets the friction model and each joint's [fv, fc, fo] (disabled terms are kept but
     /// ignored).
     ///
@@ -475,73 +547,13 @@ impl<const N: usize> SerialChain<N> {
             gear_ratios: self.gear_ratios.map(|r| r.to_vec()),
         }
     }
-    /// The joints (placements, axes, link frames).
-    pub fn joints(&self) -> &[Joint; N] {
-        &self.joints
-    }
-    /// The DH table, when the chain was built from one.
-    pub fn dh(&self) -> Option<&[DhRow; N]> {
-        self.dh.as_ref().map(|(t, _)| t)
-    }
-    /// The DH convention, when the chain was built from a DH table.
-    pub fn convention(&self) -> Option<DhConvention> {
-        self.dh.as_ref().map(|(_, c)| *c)
-    }
-    /// Inertial parameters of each link.
-    pub fn inertial(&self) -> &[[f64; 10]; N] {
-        &self.inertial
-    }
-    /// Gravity vector in world coordinates, m/s².
-    pub fn gravity(&self) -> [f64; 3] {
-        self.gravity.into()
-    }
-    /// The friction model.
-    pub fn friction(&self) -> FrictionModel {
-        self.friction
-    }
-    /// Friction parameters [fv, fc, fo] of each joint.
-    pub fn friction_params(&self) -> &[[f64; 3]; N] {
-        &self.friction_params
-    }
     /// Number of joints.
     pub const fn dof(&self) -> usize {
         N
     }
-    /// Number of standard parameters: 10·N inertial plus the enabled actuator terms
-    /// (friction and armature) of each actuator.
-    pub fn num_params(&self) -> usize {
-        N * (10 + self.layout().per)
-    }
-    /// Names of the standard parameters in order, e.g. `m1, mx1, …, Izz6, fv1, fc1, …`.
-    pub fn parameter_names(&self) -> Vec<String> {
-        parameter_names(N, &self.layout())
-    }
-    /// The standard parameter vector π (inertial, then enabled actuator terms).
-    pub fn parameters(&self) -> Vec<f64> {
-        parameter_vector(
-            &self.inertial,
-            &self.layout(),
-            &self.friction_params,
-            &self.armature_values,
-        )
-    }
 
     pub(crate) fn layout(&self) -> ActuatorLayout {
         ActuatorLayout::new(&self.friction, self.armature)
-    }
-
-    /// Indices (0-based) of the links whose inertial parameters no rigid body has: a
-    /// pseudo-inertia that is not positive semidefinite (see
-    /// [`super::is_physically_consistent`]; tolerance [`PHYSICAL_TOLERANCE`] relative to
-    /// the link's largest parameter).
-    pub fn non_physical_links(&self) -> Vec<usize> {
-        non_physical_links(&self.inertial)
-    }
-
-    /// True when every link's inertial parameters describe a rigid body
-    /// ([`Self::non_physical_links`] is empty).
-    pub fn is_physically_consistent(&self) -> bool {
-        self.non_physical.is_none()
     }
 
     /// `Ok` if every link is physical, else the typed error functions that need a physical
@@ -766,6 +778,8 @@ impl<const N: usize> SerialChain<N> {
 }
 
 impl DynChain {
+    chain_accessors!([Joint], [DhRow], [[f64; 10]], [[f64; 3]]);
+
     /// A chain with the given DH table and convention, massless links, no friction and
     /// gravity (0, 0, −9.81) m/s².
     ///
@@ -846,16 +860,6 @@ impl DynChain {
         Ok(self)
     }
 
-    /// Sets the gravity vector in world coordinates, m/s².
-    ///
-    /// # Errors
-    /// [`PrrrpError::InvalidParameter`] for a non-finite entry.
-    pub fn with_gravity(mut self, gravity: [f64; 3]) -> Result<Self> {
-        self.gravity = validate_gravity(gravity)?;
-        self.closed = ClosedBackend::default();
-        Ok(self)
-    }
-
     /// Sets the friction model and each joint's [fv, fc, fo].
     ///
     /// # Errors
@@ -927,69 +931,9 @@ impl DynChain {
         c.with_actuators(&self.actuators)
     }
 
-    /// The joints (placements, axes, link frames).
-    pub fn joints(&self) -> &[Joint] {
-        &self.joints
-    }
-    /// The DH table, when the chain was built from one.
-    pub fn dh(&self) -> Option<&[DhRow]> {
-        self.dh.as_ref().map(|(t, _)| t.as_slice())
-    }
-    /// The DH convention, when the chain was built from a DH table.
-    pub fn convention(&self) -> Option<DhConvention> {
-        self.dh.as_ref().map(|(_, c)| *c)
-    }
-    /// Inertial parameters of each link.
-    pub fn inertial(&self) -> &[[f64; 10]] {
-        &self.inertial
-    }
-    /// Gravity vector in world coordinates, m/s².
-    pub fn gravity(&self) -> [f64; 3] {
-        self.gravity.into()
-    }
-    /// The friction model.
-    pub fn friction(&self) -> FrictionModel {
-        self.friction
-    }
-    /// Friction parameters [fv, fc, fo] of each joint.
-    pub fn friction_params(&self) -> &[[f64; 3]] {
-        &self.friction_params
-    }
     /// Number of joints n.
     pub fn dof(&self) -> usize {
         self.joints.len()
-    }
-    /// Number of standard parameters: 10·n inertial plus the enabled actuator terms
-    /// (friction and armature) of each actuator.
-    pub fn num_params(&self) -> usize {
-        self.dof() * (10 + self.layout().per)
-    }
-    /// Names of the standard parameters in order.
-    pub fn parameter_names(&self) -> Vec<String> {
-        parameter_names(self.dof(), &self.layout())
-    }
-    /// The standard parameter vector π (inertial, then enabled actuator terms).
-    pub fn parameters(&self) -> Vec<f64> {
-        parameter_vector(
-            &self.inertial,
-            &self.layout(),
-            &self.friction_params,
-            &self.armature_values,
-        )
-    }
-
-    /// Indices (0-based) of the links whose inertial parameters no rigid body has: a
-    /// pseudo-inertia that is not positive semidefinite (see
-    /// [`super::is_physically_consistent`]; tolerance [`PHYSICAL_TOLERANCE`] relative to
-    /// the link's largest parameter).
-    pub fn non_physical_links(&self) -> Vec<usize> {
-        non_physical_links(&self.inertial)
-    }
-
-    /// True when every link's inertial parameters describe a rigid body
-    /// ([`Self::non_physical_links`] is empty).
-    pub fn is_physically_consistent(&self) -> bool {
-        self.non_physical.is_none()
     }
 
     /// `Ok` if every link is physical, else the typed error functions that need a physical
