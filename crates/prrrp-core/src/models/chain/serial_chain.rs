@@ -132,14 +132,39 @@ pub(crate) fn check_dof(what: &str, n: usize) -> Result<()> {
     Ok(())
 }
 
-fn validate_joints(joints: &[Joint]) -> Result<()> {
-    if joints.is_empty() {
-        return Err(PrrrpError::ShapeMismatch {
-            what: "joints".into(),
-            expected: "at least one joint".into(),
-            got: "0 joints".into(),
-        });
+/// The error of an empty input `what` that needs at least one `unit` (a chain has a joint).
+fn check_nonempty(what: &str, len: usize, unit: &str) -> Result<()> {
+    if len == 0 {
+        return Err(PrrrpError::shape(
+            what,
+            format!("at least one {unit}"),
+            format!("0 {unit}s"),
+        ));
     }
+    Ok(())
+}
+
+/// The error of the first non-finite entry of per-link (or per-joint) rows, named
+/// `field[i][k] (name_k i+1)` after the rows' parameter `names`.
+fn check_rows_finite<const K: usize>(
+    field: &str,
+    rows: &[[f64; K]],
+    names: &[&str; K],
+    reason: &'static str,
+) -> Result<()> {
+    for (i, row) in rows.iter().enumerate() {
+        for (k, &v) in row.iter().enumerate() {
+            if !v.is_finite() {
+                let name = format!("{field}[{i}][{k}] ({}{})", names[k], i + 1);
+                return Err(invalid(name, v, reason));
+            }
+        }
+    }
+    Ok(())
+}
+
+fn validate_joints(joints: &[Joint]) -> Result<()> {
+    check_nonempty("joints", joints.len(), "joint")?;
     check_dof("joints", joints.len())?;
     for (i, j) in joints.iter().enumerate() {
         j.validate(&format!("joint {}", i + 1))?;
@@ -148,13 +173,7 @@ fn validate_joints(joints: &[Joint]) -> Result<()> {
 }
 
 fn validate_dh(dh: &[DhRow]) -> Result<()> {
-    if dh.is_empty() {
-        return Err(PrrrpError::ShapeMismatch {
-            what: "DH table".into(),
-            expected: "at least one row".into(),
-            got: "0 rows".into(),
-        });
-    }
+    check_nonempty("DH table", dh.len(), "row")?;
     for (i, r) in dh.iter().enumerate() {
         for (name, v) in [
             ("theta", r.theta),
@@ -175,22 +194,8 @@ fn validate_dh(dh: &[DhRow]) -> Result<()> {
 }
 
 fn validate_inertial(p: &[[f64; 10]]) -> Result<()> {
-    for (i, link) in p.iter().enumerate() {
-        for (k, &v) in link.iter().enumerate() {
-            if !v.is_finite() {
-                return Err(invalid(
-                    format!(
-                        "inertial[{i}][{k}] ({}{})",
-                        INERTIAL_PARAMETER_NAMES[k],
-                        i + 1
-                    ),
-                    v,
-                    "inertial parameters must be finite",
-                ));
-            }
-        }
-    }
-    Ok(())
+    let reason = "inertial parameters must be finite";
+    check_rows_finite("inertial", p, &INERTIAL_PARAMETER_NAMES, reason)
 }
 
 fn validate_gravity(g: [f64; 3]) -> Result<Vector3<f64>> {
@@ -215,22 +220,8 @@ fn validate_friction(model: &FrictionModel, p: &[[f64; 3]]) -> Result<()> {
             "must be finite and >= 0 (rad/s or m/s; 0 = exact sign)",
         ));
     }
-    for (j, row) in p.iter().enumerate() {
-        for (k, &v) in row.iter().enumerate() {
-            if !v.is_finite() {
-                return Err(invalid(
-                    format!(
-                        "friction[{j}][{k}] ({}{})",
-                        FRICTION_PARAMETER_NAMES[k],
-                        j + 1
-                    ),
-                    v,
-                    "friction parameters must be finite",
-                ));
-            }
-        }
-    }
-    Ok(())
+    let reason = "friction parameters must be finite";
+    check_rows_finite("friction", p, &FRICTION_PARAMETER_NAMES, reason)
 }
 
 /// Relative tolerance of the chains' physical-consistency check: the accepted negative
