@@ -327,9 +327,17 @@ pub(crate) fn stack_regressor<'s>(
 
 /// The accessors [`SerialChain`] and [`DynChain`] share: their fields have the same names
 /// and meanings and differ only in storage (arrays of N, or vectors of n), so one body
-/// serves both. The arguments are the borrowed types of the per-joint fields.
+/// serves both. The arguments are the borrowed types of the per-joint fields, and the two
+/// fields stored differently: whether the armature term is on, and the coupling C
+/// row-major (`None` for the identity), as expressions of `self` (passed in, for macro
+/// hygiene).
 macro_rules! chain_accessors {
-    ($joints:ty, $dh:ty, $inertial:ty, $friction_params:ty) => {
+    (
+        $s:ident,
+        types: $joints:ty, $dh:ty, $inertial:ty, $friction_params:ty,
+        armature: $armature:expr,
+        coupling: $coupling:expr $(,)?
+    ) => {
         /// The joints (placements, axes, link frames).
         pub fn joints(&self) -> &$joints {
             &self.joints
@@ -402,11 +410,34 @@ macro_rules! chain_accessors {
             self.closed = ClosedBackend::default();
             Ok(self)
         }
+
+        pub(crate) fn layout(&$s) -> ActuatorLayout {
+            ActuatorLayout::new(&$s.friction, $armature)
+        }
+
+        /// The kernels' view of the chain (borrowed, whatever its storage).
+        pub(crate) fn view(&$s) -> ChainView<'_> {
+            ChainView {
+                geom: &$s.geom,
+                inertial: &$s.inertial,
+                friction_params: &$s.friction_params,
+                friction: $s.friction,
+                gravity: $s.gravity,
+                coupling: $coupling,
+                armature: $armature.then_some(&$s.armature_values[..]),
+                closed: $s.closed.0,
+            }
+        }
     };
 }
 
 impl<const N: usize> SerialChain<N> {
-    chain_accessors!([Joint; N], [DhRow; N], [[f64; 10]; N], [[f64; 3]; N]);
+    chain_accessors!(
+        self,
+        types: [Joint; N], [DhRow; N], [[f64; 10]; N], [[f64; 3]; N],
+        armature: self.armature,
+        coupling: self.coupling.as_ref().map(|c| c.as_flattened()),
+    );
 
     /// A chain with the given DH table and convention, massless links, no friction and
     /// gravity (0, 0, −9.81) m/s².
@@ -543,10 +574,6 @@ impl<const N: usize> SerialChain<N> {
         N
     }
 
-    pub(crate) fn layout(&self) -> ActuatorLayout {
-        ActuatorLayout::new(&self.friction, self.armature)
-    }
-
     /// `Ok` if every link is physical, else the typed error functions that need a physical
     /// robot (forward dynamics, simulation) return, naming the first bad link.
     ///
@@ -564,19 +591,6 @@ impl<const N: usize> SerialChain<N> {
     pub fn inertial_vector<const P: usize>(&self) -> SVector<f64, P> {
         const { assert!(P == 10 * N, "P must equal 10·N") };
         SVector::from_iterator(self.inertial.iter().flatten().copied())
-    }
-
-    pub(crate) fn view(&self) -> ChainView<'_> {
-        ChainView {
-            geom: &self.geom,
-            inertial: &self.inertial,
-            friction_params: &self.friction_params,
-            friction: self.friction,
-            gravity: self.gravity,
-            coupling: self.coupling.as_ref().map(|c| c.as_flattened()),
-            armature: self.armature.then_some(&self.armature_values[..]),
-            closed: self.closed.0,
-        }
     }
 
     /// Inverse dynamics τ = M(q)·q̈ + C(q, q̇)·q̇ + G(q) + Cᵀ·(diag(Ia)·C·q̈ + f(C·q̇)) by
@@ -769,7 +783,12 @@ impl<const N: usize> SerialChain<N> {
 }
 
 impl DynChain {
-    chain_accessors!([Joint], [DhRow], [[f64; 10]], [[f64; 3]]);
+    chain_accessors!(
+        self,
+        types: [Joint], [DhRow], [[f64; 10]], [[f64; 3]],
+        armature: self.actuators.armature,
+        coupling: self.coupling.as_deref(),
+    );
 
     /// A chain with the given DH table and convention, massless links, no friction and
     /// gravity (0, 0, −9.81) m/s².
@@ -899,9 +918,6 @@ impl DynChain {
         &self.armature_values
     }
 
-    pub(crate) fn layout(&self) -> ActuatorLayout {
-        ActuatorLayout::new(&self.friction, self.actuators.armature)
-    }
     /// The same chain with a compile-time size.
     ///
     /// # Errors
@@ -940,19 +956,6 @@ impl DynChain {
                 self.meta.links[i],
                 i + 1
             ))),
-        }
-    }
-
-    pub(crate) fn view(&self) -> ChainView<'_> {
-        ChainView {
-            geom: &self.geom,
-            inertial: &self.inertial,
-            friction_params: &self.friction_params,
-            friction: self.friction,
-            gravity: self.gravity,
-            coupling: self.coupling.as_deref(),
-            armature: self.actuators.armature.then_some(&self.armature_values[..]),
-            closed: self.closed.0,
         }
     }
 
