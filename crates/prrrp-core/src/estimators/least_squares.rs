@@ -701,13 +701,9 @@ impl LeastSquares {
                 spectrum.push((sv[o], d));
             }
 
-            apply_q(
-                wm.as_ref(),
-                self.householder.as_ref(),
-                true,
-                ym.as_mut(),
-                buf,
-            );
+            // z = Qᵀ·y, then (its first pc entries cleared) the residual Q·z.
+            let hh = &self.householder;
+            apply_q(wm.as_ref(), hh.as_ref(), true, ym.as_mut(), buf);
             let y = ym.col_as_slice_mut(0);
             // λ̂ = R⁻¹·z; var(λ̂_pidx(k)) = σ²·‖row k of R⁻¹‖² ((WᵀW)⁻¹ = R⁻¹·R⁻ᵀ).
             let r_inv = upper_triangular_inverse_dyn(&r);
@@ -723,13 +719,7 @@ impl LeastSquares {
                 covered[pidx(k)] = true;
             }
             y[..pc].fill(0.0);
-            apply_q(
-                wm.as_ref(),
-                self.householder.as_ref(),
-                false,
-                ym.as_mut(),
-                buf,
-            );
+            apply_q(wm.as_ref(), hh.as_ref(), false, ym.as_mut(), buf);
             let rho = ym.col_as_slice(0);
             for (a, &i) in joints.iter().enumerate() {
                 joint_ss[i] = rho[a * n..a * n + n].iter().map(|v| v * v).sum();
