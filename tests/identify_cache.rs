@@ -21,6 +21,35 @@ struct Fixture {
     data: DynDataset,
 }
 
+/// `identify_cached` without options (what every call here passes).
+fn cached(
+    chain: &DynChain,
+    base: &BaseParameters,
+    data: &DynDataset,
+    method: &Method,
+    cache: &FitCache,
+) -> Result<IdentifiedModel, PrrrpError> {
+    identify_cached(chain, base, data, method, serde_json::json!({}), cache)
+}
+
+impl Fixture {
+    /// `identify` on the fixture, without options.
+    fn fresh(&self, method: &Method) -> Result<IdentifiedModel, PrrrpError> {
+        identify(
+            &self.chain,
+            &self.base,
+            &self.data,
+            method,
+            serde_json::json!({}),
+        )
+    }
+
+    /// [`cached`] on the fixture.
+    fn cached(&self, method: &Method, cache: &FitCache) -> Result<IdentifiedModel, PrrrpError> {
+        cached(&self.chain, &self.base, &self.data, method, cache)
+    }
+}
+
 fn fixture() -> &'static Fixture {
     static F: OnceLock<Fixture> = OnceLock::new();
     F.get_or_init(|| {
@@ -89,26 +118,13 @@ fn fit_cache_is_send_and_sync() {
 fn a_shared_cache_gives_every_methods_own_model() {
     let f = fixture();
     let own = |name: &str| {
-        identify(
-            &f.chain,
-            &f.base,
-            &f.data,
-            &method(name),
-            serde_json::json!({}),
-        )
-        .unwrap_or_else(|e| panic!("{name}: {e}"))
+        f.fresh(&method(name))
+            .unwrap_or_else(|e| panic!("{name}: {e}"))
     };
     let cache = FitCache::new();
     let cached = |name: &str| {
-        identify_cached(
-            &f.chain,
-            &f.base,
-            &f.data,
-            &method(name),
-            serde_json::json!({}),
-            &cache,
-        )
-        .unwrap_or_else(|e| panic!("{name} cached: {e}"))
+        f.cached(&method(name), &cache)
+            .unwrap_or_else(|e| panic!("{name} cached: {e}"))
     };
     let (even, odd): (Vec<_>, Vec<_>) = METHOD_NAMES
         .iter()
@@ -141,16 +157,8 @@ fn a_shared_cache_gives_every_methods_own_model() {
     let ls = Method::Ls(prrrp_core::LsSettings {
         rank_tolerance: 1e-9,
     });
-    let m = identify_cached(
-        &f.chain,
-        &f.base,
-        &f.data,
-        &ls,
-        serde_json::json!({}),
-        &cache,
-    )
-    .unwrap();
-    let fresh = identify(&f.chain, &f.base, &f.data, &ls, serde_json::json!({})).unwrap();
+    let m = f.cached(&ls, &cache).unwrap();
+    let fresh = f.fresh(&ls).unwrap();
     assert_same(&m, &fresh, "ls at 1e-9");
     assert_eq!(cache.stacks(), 3);
 }
@@ -173,15 +181,7 @@ fn a_cache_of_other_inputs_is_refused() {
     let f = fixture();
     let ls = method("ls");
     let cache = FitCache::new();
-    identify_cached(
-        &f.chain,
-        &f.base,
-        &f.data,
-        &ls,
-        serde_json::json!({}),
-        &cache,
-    )
-    .unwrap();
+    f.cached(&ls, &cache).unwrap();
     let mut tau = f.data.tau().to_vec();
     tau[123] += 1e-6;
     let other = DynDataset::new(
@@ -194,14 +194,7 @@ fn a_cache_of_other_inputs_is_refused() {
     )
     .unwrap();
     for m in [&ls, &method("wls")] {
-        refused(identify_cached(
-            &f.chain,
-            &f.base,
-            &other,
-            m,
-            serde_json::json!({}),
-            &cache,
-        ));
+        refused(cached(&f.chain, &f.base, &other, m, &cache));
     }
     // The same chain with another Coulomb smoothing: the same joints, data and number of
     // base parameters, another regressor.
@@ -219,24 +212,9 @@ fn a_cache_of_other_inputs_is_refused() {
         .unwrap();
     let base = smoother.base_parameters(&BaseOptions::default()).unwrap();
     assert_eq!(base.count(), f.base.count());
-    refused(identify_cached(
-        &smoother,
-        &base,
-        &f.data,
-        &ls,
-        serde_json::json!({}),
-        &cache,
-    ));
+    refused(cached(&smoother, &base, &f.data, &ls, &cache));
     // The cache still serves its own inputs.
-    let again = identify_cached(
-        &f.chain,
-        &f.base,
-        &f.data,
-        &ls,
-        serde_json::json!({}),
-        &cache,
-    )
-    .unwrap();
-    let own = identify(&f.chain, &f.base, &f.data, &ls, serde_json::json!({})).unwrap();
+    let again = f.cached(&ls, &cache).unwrap();
+    let own = f.fresh(&ls).unwrap();
     assert_same(&again, &own, "ls");
 }

@@ -136,6 +136,14 @@ class Axes:
         self._cycle += 1
         return c
 
+    def _add(self, kind: str, data: dict[str, Any], **style: Any) -> None:
+        """Appends an artist of ``kind``: its ``data`` as float arrays, then its ``style``
+        (an empty ``color`` takes the next colour of the cycle)."""
+        if "color" in style and not style["color"]:
+            style["color"] = self._next_color()
+        arrays = {k: np.asarray(v, dtype=float) for k, v in data.items()}
+        self.artists.append((kind, {**arrays, **style}))
+
     def plot(
         self,
         x: np.ndarray,
@@ -148,23 +156,7 @@ class Axes:
         alpha: float = 1.0,
     ) -> None:
         """A line through (x, y) as given (``lines`` reduces it to the pixel columns)."""
-        x = np.asarray(x, dtype=float)
-        y = np.asarray(y, dtype=float)
-        color = color or self._next_color()
-        self.artists.append(
-            (
-                "line",
-                {
-                    "x": x,
-                    "y": y,
-                    "color": color,
-                    "lw": lw,
-                    "ls": ls,
-                    "label": label,
-                    "alpha": alpha,
-                },
-            )
-        )
+        self._add("line", {"x": x, "y": y}, color=color, lw=lw, ls=ls, label=label, alpha=alpha)
 
     def lines(self, x: np.ndarray, y: np.ndarray, **style: Any) -> None:
         """:meth:`plot` of the line reduced to this panel's pixel columns
@@ -183,20 +175,7 @@ class Axes:
         label: str | None = None,
     ) -> None:
         """A cloud of round dots (matplotlib's "." marker of size ``ms`` points)."""
-        color = color or self._next_color()
-        self.artists.append(
-            (
-                "points",
-                {
-                    "x": np.asarray(x, dtype=float),
-                    "y": np.asarray(y, dtype=float),
-                    "ms": ms,
-                    "color": color,
-                    "alpha": alpha,
-                    "label": label,
-                },
-            )
-        )
+        self._add("points", {"x": x, "y": y}, ms=ms, color=color, alpha=alpha, label=label)
 
     def axvspan(self, a: float, b: float, color: str = "0.85") -> None:
         """A shaded span of x from a to b over the panel's height."""
@@ -204,16 +183,7 @@ class Axes:
 
     def stairs(self, counts: np.ndarray, edges: np.ndarray, *, color: str = "tab:blue") -> None:
         """A filled step histogram (counts per bin between edges), from 0."""
-        self.artists.append(
-            (
-                "stairs",
-                {
-                    "counts": np.asarray(counts, dtype=float),
-                    "edges": np.asarray(edges, dtype=float),
-                    "color": color,
-                },
-            )
-        )
+        self._add("stairs", {"counts": counts, "edges": edges}, color=color)
 
     def bar(
         self,
@@ -225,19 +195,7 @@ class Axes:
         color: str | None = None,
     ) -> None:
         """Bars centred on x, ``width`` wide (data units), from 0."""
-        color = color or self._next_color()
-        self.artists.append(
-            (
-                "bars",
-                {
-                    "x": np.asarray(x, dtype=float),
-                    "h": np.asarray(heights, dtype=float),
-                    "width": float(width),
-                    "color": color,
-                    "label": label,
-                },
-            )
-        )
+        self._add("bars", {"x": x, "h": heights}, width=float(width), color=color, label=label)
 
     def set_xticks(
         self,

@@ -17,7 +17,7 @@ use faer::linalg::qr::no_pivoting::factor::{
     qr_in_place, qr_in_place_scratch, recommended_block_size,
 };
 use faer::linalg::triangular_solve;
-use faer::{Accum, Conj, Mat, Par, Side};
+use faer::{Accum, Conj, Mat, MatMut, MatRef, Par, Side};
 use nalgebra::allocator::Allocator;
 use nalgebra::{Const, DefaultAllocator, Dim, Dyn, OMatrix, OVector, U1};
 
@@ -701,14 +701,9 @@ impl LeastSquares {
                 spectrum.push((sv[o], d));
             }
 
-            householder::apply_block_householder_sequence_transpose_on_the_left_in_place_with_conj(
-                wm.as_ref(),
-                self.householder.as_ref(),
-                Conj::No,
-                ym.as_mut(),
-                Par::Seq,
-                MemStack::new(buf),
-            );
+            // z = Qᵀ·y, then (its first pc entries cleared) the residual Q·z.
+            let hh = &self.householder;
+            apply_q(wm.as_ref(), hh.as_ref(), true, ym.as_mut(), buf);
             let y = ym.col_as_slice_mut(0);
             // λ̂ = R⁻¹·z; var(λ̂_pidx(k)) = σ²·‖row k of R⁻¹‖² ((WᵀW)⁻¹ = R⁻¹·R⁻ᵀ).
             let r_inv = upper_triangular_inverse_dyn(&r);
@@ -724,14 +719,7 @@ impl LeastSquares {
                 covered[pidx(k)] = true;
             }
             y[..pc].fill(0.0);
-            householder::apply_block_householder_sequence_on_the_left_in_place_with_conj(
-                wm.as_ref(),
-                self.householder.as_ref(),
-                Conj::No,
-                ym.as_mut(),
-                Par::Seq,
-                MemStack::new(buf),
-            );
+            apply_q(wm.as_ref(), hh.as_ref(), false, ym.as_mut(), buf);
             let rho = ym.col_as_slice(0);
             for (a, &i) in joints.iter().enumerate() {
                 joint_ss[i] = rho[a * n..a * n + n].iter().map(|v| v * v).sum();
@@ -1127,6 +1115,24 @@ fn blocks(masks: &[u64], p: usize) -> Vec<(Vec<usize>, Vec<usize>)> {
         .collect();
     out.sort_by_key(|(j, _): &(Vec<usize>, Vec<usize>)| j[0]);
     out
+}
+
+/// y ← Qᵀ·y (`transpose`) or Q·y, Q the orthogonal factor of a block QR in place
+/// (`basis`: the Householder vectors below the diagonal, `factor`: their block factors),
+/// on one thread in the scratch `buf` (sized for both directions).
+fn apply_q(
+    basis: MatRef<'_, f64>,
+    factor: MatRef<'_, f64>,
+    transpose: bool,
+    y: MatMut<'_, f64>,
+    buf: &mut MemBuffer,
+) {
+    let apply = if transpose {
+        householder::apply_block_householder_sequence_transpose_on_the_left_in_place_with_conj
+    } else {
+        householder::apply_block_householder_sequence_on_the_left_in_place_with_conj
+    };
+    apply(basis, factor, Conj::No, y, Par::Seq, MemStack::new(buf));
 }
 
 #[cfg(test)]

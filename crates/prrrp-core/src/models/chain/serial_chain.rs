@@ -132,14 +132,39 @@ pub(crate) fn check_dof(what: &str, n: usize) -> Result<()> {
     Ok(())
 }
 
-fn validate_joints(joints: &[Joint]) -> Result<()> {
-    if joints.is_empty() {
-        return Err(PrrrpError::ShapeMismatch {
-            what: "joints".into(),
-            expected: "at least one joint".into(),
-            got: "0 joints".into(),
-        });
+/// The error of an empty input `what` that needs at least one `unit` (a chain has a joint).
+fn check_nonempty(what: &str, len: usize, unit: &str) -> Result<()> {
+    if len == 0 {
+        return Err(PrrrpError::shape(
+            what,
+            format!("at least one {unit}"),
+            format!("0 {unit}s"),
+        ));
     }
+    Ok(())
+}
+
+/// The error of the first non-finite entry of per-link (or per-joint) rows, named
+/// `field[i][k] (name_k i+1)` after the rows' parameter `names`.
+fn check_rows_finite<const K: usize>(
+    field: &str,
+    rows: &[[f64; K]],
+    names: &[&str; K],
+    reason: &'static str,
+) -> Result<()> {
+    for (i, row) in rows.iter().enumerate() {
+        for (k, &v) in row.iter().enumerate() {
+            if !v.is_finite() {
+                let name = format!("{field}[{i}][{k}] ({}{})", names[k], i + 1);
+                return Err(invalid(name, v, reason));
+            }
+        }
+    }
+    Ok(())
+}
+
+fn validate_joints(joints: &[Joint]) -> Result<()> {
+    check_nonempty("joints", joints.len(), "joint")?;
     check_dof("joints", joints.len())?;
     for (i, j) in joints.iter().enumerate() {
         j.validate(&format!("joint {}", i + 1))?;
@@ -148,13 +173,7 @@ fn validate_joints(joints: &[Joint]) -> Result<()> {
 }
 
 fn validate_dh(dh: &[DhRow]) -> Result<()> {
-    if dh.is_empty() {
-        return Err(PrrrpError::ShapeMismatch {
-            what: "DH table".into(),
-            expected: "at least one row".into(),
-            got: "0 rows".into(),
-        });
-    }
+    check_nonempty("DH table", dh.len(), "row")?;
     for (i, r) in dh.iter().enumerate() {
         for (name, v) in [
             ("theta", r.theta),
@@ -175,22 +194,8 @@ fn validate_dh(dh: &[DhRow]) -> Result<()> {
 }
 
 fn validate_inertial(p: &[[f64; 10]]) -> Result<()> {
-    for (i, link) in p.iter().enumerate() {
-        for (k, &v) in link.iter().enumerate() {
-            if !v.is_finite() {
-                return Err(invalid(
-                    format!(
-                        "inertial[{i}][{k}] ({}{})",
-                        INERTIAL_PARAMETER_NAMES[k],
-                        i + 1
-                    ),
-                    v,
-                    "inertial parameters must be finite",
-                ));
-            }
-        }
-    }
-    Ok(())
+    let reason = "inertial parameters must be finite";
+    check_rows_finite("inertial", p, &INERTIAL_PARAMETER_NAMES, reason)
 }
 
 fn validate_gravity(g: [f64; 3]) -> Result<Vector3<f64>> {
@@ -215,22 +220,8 @@ fn validate_friction(model: &FrictionModel, p: &[[f64; 3]]) -> Result<()> {
             "must be finite and >= 0 (rad/s or m/s; 0 = exact sign)",
         ));
     }
-    for (j, row) in p.iter().enumerate() {
-        for (k, &v) in row.iter().enumerate() {
-            if !v.is_finite() {
-                return Err(invalid(
-                    format!(
-                        "friction[{j}][{k}] ({}{})",
-                        FRICTION_PARAMETER_NAMES[k],
-                        j + 1
-                    ),
-                    v,
-                    "friction parameters must be finite",
-                ));
-            }
-        }
-    }
-    Ok(())
+    let reason = "friction parameters must be finite";
+    check_rows_finite("friction", p, &FRICTION_PARAMETER_NAMES, reason)
 }
 
 /// Relative tolerance of the chains' physical-consistency check: the accepted negative
@@ -334,7 +325,120 @@ pub(crate) fn stack_regressor<'s>(
     Ok(w)
 }
 
+/// The accessors [`SerialChain`] and [`DynChain`] share: their fields have the same names
+/// and meanings and differ only in storage (arrays of N, or vectors of n), so one body
+/// serves both. The arguments are the borrowed types of the per-joint fields, and the two
+/// fields stored differently: whether the armature term is on, and the coupling C
+/// row-major (`None` for the identity), as expressions of `self` (passed in, for macro
+/// hygiene).
+macro_rules! chain_accessors {
+    (
+        $s:ident,
+        types: $joints:ty, $dh:ty, $inertial:ty, $friction_params:ty,
+        armature: $armature:expr,
+        coupling: $coupling:expr $(,)?
+    ) => {
+        /// The joints (placements, axes, link frames).
+        pub fn joints(&self) -> &$joints {
+            &self.joints
+        }
+        /// The DH table, when the chain was built from one.
+        pub fn dh(&self) -> Option<&$dh> {
+            self.dh
+                .as_ref()
+                .map(|(t, _)| std::borrow::Borrow::borrow(t))
+        }
+        /// The DH convention, when the chain was built from a DH table.
+        pub fn convention(&self) -> Option<DhConvention> {
+            self.dh.as_ref().map(|(_, c)| *c)
+        }
+        /// Inertial parameters of each link.
+        pub fn inertial(&self) -> &$inertial {
+            &self.inertial
+        }
+        /// Gravity vector in world coordinates, m/s².
+        pub fn gravity(&self) -> [f64; 3] {
+            self.gravity.into()
+        }
+        /// The friction model.
+        pub fn friction(&self) -> FrictionModel {
+            self.friction
+        }
+        /// Friction parameters [fv, fc, fo] of each joint.
+        pub fn friction_params(&self) -> &$friction_params {
+            &self.friction_params
+        }
+        /// Number of standard parameters: 10 inertial per link plus the enabled actuator
+        /// terms (friction and armature) of each actuator.
+        pub fn num_params(&self) -> usize {
+            self.dof() * (10 + self.layout().per)
+        }
+        /// Names of the standard parameters in order, e.g. `m1, mx1, …, Izz6, fv1, fc1, …`.
+        pub fn parameter_names(&self) -> Vec<String> {
+            parameter_names(self.dof(), &self.layout())
+        }
+        /// The standard parameter vector π (inertial, then enabled actuator terms).
+        pub fn parameters(&self) -> Vec<f64> {
+            parameter_vector(
+                &self.inertial,
+                &self.layout(),
+                &self.friction_params,
+                &self.armature_values,
+            )
+        }
+
+        /// Indices (0-based) of the links whose inertial parameters no rigid body has: a
+        /// pseudo-inertia that is not positive semidefinite (see
+        /// [`super::is_physically_consistent`]; tolerance [`PHYSICAL_TOLERANCE`] relative
+        /// to the link's largest parameter).
+        pub fn non_physical_links(&self) -> Vec<usize> {
+            non_physical_links(&self.inertial)
+        }
+
+        /// True when every link's inertial parameters describe a rigid body
+        /// ([`Self::non_physical_links`] is empty).
+        pub fn is_physically_consistent(&self) -> bool {
+            self.non_physical.is_none()
+        }
+
+        /// Sets the gravity vector in world (base-frame) coordinates, m/s².
+        ///
+        /// # Errors
+        /// [`PrrrpError::InvalidParameter`] for a non-finite entry.
+        pub fn with_gravity(mut self, gravity: [f64; 3]) -> Result<Self> {
+            self.gravity = validate_gravity(gravity)?;
+            self.closed = ClosedBackend::default();
+            Ok(self)
+        }
+
+        pub(crate) fn layout(&$s) -> ActuatorLayout {
+            ActuatorLayout::new(&$s.friction, $armature)
+        }
+
+        /// The kernels' view of the chain (borrowed, whatever its storage).
+        pub(crate) fn view(&$s) -> ChainView<'_> {
+            ChainView {
+                geom: &$s.geom,
+                inertial: &$s.inertial,
+                friction_params: &$s.friction_params,
+                friction: $s.friction,
+                gravity: $s.gravity,
+                coupling: $coupling,
+                armature: $armature.then_some(&$s.armature_values[..]),
+                closed: $s.closed.0,
+            }
+        }
+    };
+}
+
 impl<const N: usize> SerialChain<N> {
+    chain_accessors!(
+        self,
+        types: [Joint; N], [DhRow; N], [[f64; 10]; N], [[f64; 3]; N],
+        armature: self.armature,
+        coupling: self.coupling.as_ref().map(|c| c.as_flattened()),
+    );
+
     /// A chain with the given DH table and convention, massless links, no friction and
     /// gravity (0, 0, −9.81) m/s².
     ///
@@ -412,16 +516,6 @@ impl<const N: usize> SerialChain<N> {
         Ok(self)
     }
 
-    /// Sets the gravity vector in world (base-frame) coordinates, m/s².
-    ///
-    /// # Errors
-    /// [`PrrrpError::InvalidParameter`] for a non-finite entry.
-    pub fn with_gravity(mut self, gravity: [f64; 3]) -> Result<Self> {
-        self.gravity = validate_gravity(gravity)?;
-        self.closed = ClosedBackend::default();
-        Ok(self)
-    }
-
     /// Sets the friction model and each joint's [fv, fc, fo] (disabled terms are kept but
     /// ignored).
     ///
@@ -475,73 +569,9 @@ impl<const N: usize> SerialChain<N> {
             gear_ratios: self.gear_ratios.map(|r| r.to_vec()),
         }
     }
-    /// The joints (placements, axes, link frames).
-    pub fn joints(&self) -> &[Joint; N] {
-        &self.joints
-    }
-    /// The DH table, when the chain was built from one.
-    pub fn dh(&self) -> Option<&[DhRow; N]> {
-        self.dh.as_ref().map(|(t, _)| t)
-    }
-    /// The DH convention, when the chain was built from a DH table.
-    pub fn convention(&self) -> Option<DhConvention> {
-        self.dh.as_ref().map(|(_, c)| *c)
-    }
-    /// Inertial parameters of each link.
-    pub fn inertial(&self) -> &[[f64; 10]; N] {
-        &self.inertial
-    }
-    /// Gravity vector in world coordinates, m/s².
-    pub fn gravity(&self) -> [f64; 3] {
-        self.gravity.into()
-    }
-    /// The friction model.
-    pub fn friction(&self) -> FrictionModel {
-        self.friction
-    }
-    /// Friction parameters [fv, fc, fo] of each joint.
-    pub fn friction_params(&self) -> &[[f64; 3]; N] {
-        &self.friction_params
-    }
     /// Number of joints.
     pub const fn dof(&self) -> usize {
         N
-    }
-    /// Number of standard parameters: 10·N inertial plus the enabled actuator terms
-    /// (friction and armature) of each actuator.
-    pub fn num_params(&self) -> usize {
-        N * (10 + self.layout().per)
-    }
-    /// Names of the standard parameters in order, e.g. `m1, mx1, …, Izz6, fv1, fc1, …`.
-    pub fn parameter_names(&self) -> Vec<String> {
-        parameter_names(N, &self.layout())
-    }
-    /// The standard parameter vector π (inertial, then enabled actuator terms).
-    pub fn parameters(&self) -> Vec<f64> {
-        parameter_vector(
-            &self.inertial,
-            &self.layout(),
-            &self.friction_params,
-            &self.armature_values,
-        )
-    }
-
-    pub(crate) fn layout(&self) -> ActuatorLayout {
-        ActuatorLayout::new(&self.friction, self.armature)
-    }
-
-    /// Indices (0-based) of the links whose inertial parameters no rigid body has: a
-    /// pseudo-inertia that is not positive semidefinite (see
-    /// [`super::is_physically_consistent`]; tolerance [`PHYSICAL_TOLERANCE`] relative to
-    /// the link's largest parameter).
-    pub fn non_physical_links(&self) -> Vec<usize> {
-        non_physical_links(&self.inertial)
-    }
-
-    /// True when every link's inertial parameters describe a rigid body
-    /// ([`Self::non_physical_links`] is empty).
-    pub fn is_physically_consistent(&self) -> bool {
-        self.non_physical.is_none()
     }
 
     /// `Ok` if every link is physical, else the typed error functions that need a physical
@@ -561,19 +591,6 @@ impl<const N: usize> SerialChain<N> {
     pub fn inertial_vector<const P: usize>(&self) -> SVector<f64, P> {
         const { assert!(P == 10 * N, "P must equal 10·N") };
         SVector::from_iterator(self.inertial.iter().flatten().copied())
-    }
-
-    pub(crate) fn view(&self) -> ChainView<'_> {
-        ChainView {
-            geom: &self.geom,
-            inertial: &self.inertial,
-            friction_params: &self.friction_params,
-            friction: self.friction,
-            gravity: self.gravity,
-            coupling: self.coupling.as_ref().map(|c| c.as_flattened()),
-            armature: self.armature.then_some(&self.armature_values[..]),
-            closed: self.closed.0,
-        }
     }
 
     /// Inverse dynamics τ = M(q)·q̈ + C(q, q̇)·q̇ + G(q) + Cᵀ·(diag(Ia)·C·q̈ + f(C·q̇)) by
@@ -766,6 +783,13 @@ impl<const N: usize> SerialChain<N> {
 }
 
 impl DynChain {
+    chain_accessors!(
+        self,
+        types: [Joint], [DhRow], [[f64; 10]], [[f64; 3]],
+        armature: self.actuators.armature,
+        coupling: self.coupling.as_deref(),
+    );
+
     /// A chain with the given DH table and convention, massless links, no friction and
     /// gravity (0, 0, −9.81) m/s².
     ///
@@ -846,16 +870,6 @@ impl DynChain {
         Ok(self)
     }
 
-    /// Sets the gravity vector in world coordinates, m/s².
-    ///
-    /// # Errors
-    /// [`PrrrpError::InvalidParameter`] for a non-finite entry.
-    pub fn with_gravity(mut self, gravity: [f64; 3]) -> Result<Self> {
-        self.gravity = validate_gravity(gravity)?;
-        self.closed = ClosedBackend::default();
-        Ok(self)
-    }
-
     /// Sets the friction model and each joint's [fv, fc, fo].
     ///
     /// # Errors
@@ -904,9 +918,6 @@ impl DynChain {
         &self.armature_values
     }
 
-    pub(crate) fn layout(&self) -> ActuatorLayout {
-        ActuatorLayout::new(&self.friction, self.actuators.armature)
-    }
     /// The same chain with a compile-time size.
     ///
     /// # Errors
@@ -927,69 +938,9 @@ impl DynChain {
         c.with_actuators(&self.actuators)
     }
 
-    /// The joints (placements, axes, link frames).
-    pub fn joints(&self) -> &[Joint] {
-        &self.joints
-    }
-    /// The DH table, when the chain was built from one.
-    pub fn dh(&self) -> Option<&[DhRow]> {
-        self.dh.as_ref().map(|(t, _)| t.as_slice())
-    }
-    /// The DH convention, when the chain was built from a DH table.
-    pub fn convention(&self) -> Option<DhConvention> {
-        self.dh.as_ref().map(|(_, c)| *c)
-    }
-    /// Inertial parameters of each link.
-    pub fn inertial(&self) -> &[[f64; 10]] {
-        &self.inertial
-    }
-    /// Gravity vector in world coordinates, m/s².
-    pub fn gravity(&self) -> [f64; 3] {
-        self.gravity.into()
-    }
-    /// The friction model.
-    pub fn friction(&self) -> FrictionModel {
-        self.friction
-    }
-    /// Friction parameters [fv, fc, fo] of each joint.
-    pub fn friction_params(&self) -> &[[f64; 3]] {
-        &self.friction_params
-    }
     /// Number of joints n.
     pub fn dof(&self) -> usize {
         self.joints.len()
-    }
-    /// Number of standard parameters: 10·n inertial plus the enabled actuator terms
-    /// (friction and armature) of each actuator.
-    pub fn num_params(&self) -> usize {
-        self.dof() * (10 + self.layout().per)
-    }
-    /// Names of the standard parameters in order.
-    pub fn parameter_names(&self) -> Vec<String> {
-        parameter_names(self.dof(), &self.layout())
-    }
-    /// The standard parameter vector π (inertial, then enabled actuator terms).
-    pub fn parameters(&self) -> Vec<f64> {
-        parameter_vector(
-            &self.inertial,
-            &self.layout(),
-            &self.friction_params,
-            &self.armature_values,
-        )
-    }
-
-    /// Indices (0-based) of the links whose inertial parameters no rigid body has: a
-    /// pseudo-inertia that is not positive semidefinite (see
-    /// [`super::is_physically_consistent`]; tolerance [`PHYSICAL_TOLERANCE`] relative to
-    /// the link's largest parameter).
-    pub fn non_physical_links(&self) -> Vec<usize> {
-        non_physical_links(&self.inertial)
-    }
-
-    /// True when every link's inertial parameters describe a rigid body
-    /// ([`Self::non_physical_links`] is empty).
-    pub fn is_physically_consistent(&self) -> bool {
-        self.non_physical.is_none()
     }
 
     /// `Ok` if every link is physical, else the typed error functions that need a physical
@@ -1005,19 +956,6 @@ impl DynChain {
                 self.meta.links[i],
                 i + 1
             ))),
-        }
-    }
-
-    pub(crate) fn view(&self) -> ChainView<'_> {
-        ChainView {
-            geom: &self.geom,
-            inertial: &self.inertial,
-            friction_params: &self.friction_params,
-            friction: self.friction,
-            gravity: self.gravity,
-            coupling: self.coupling.as_deref(),
-            armature: self.actuators.armature.then_some(&self.armature_values[..]),
-            closed: self.closed.0,
         }
     }
 
