@@ -296,10 +296,28 @@ fn full_model_follows_a_gripped_part() {
 /// per-joint errors on a motion of `with` (another seed) 3 s after the change and at the
 /// end.
 fn whole_arm_rls(chain: &DynChain, with: &DynChain, seed: u64) -> Tracked {
+    whole_arm(chain, with, seed, OnlineMethod::Rls, None)
+}
+
+/// As [`whole_arm_rls`] with `method`, from `prior` (a model of `chain`) if given.
+fn whole_arm(
+    chain: &DynChain,
+    with: &DynChain,
+    seed: u64,
+    method: OnlineMethod,
+    prior: Option<&IdentifiedModel>,
+) -> Tracked {
     let base = chain.base_parameters(&BaseOptions::default()).unwrap();
     let lg = log_changed(chain, with, seed, 24.0, 500.0, Some(GRIP), (1e-5, 0.05));
     let val = log_changed(chain, with, seed + 16, 10.0, 100.0, Some(0.0), (0.0, 0.0));
-    let mut id = OnlineIdentifier::new(chain, &base, OnlineConfig::default()).unwrap();
+    let cfg = OnlineConfig {
+        method,
+        ..Default::default()
+    };
+    let mut id = match prior {
+        Some(p) => OnlineIdentifier::with_prior(p, cfg).unwrap(),
+        None => OnlineIdentifier::new(chain, &base, cfg).unwrap(),
+    };
     let mut after3 = None;
     let mut changes = vec![];
     for k in 0..lg.t.len() {
@@ -321,10 +339,68 @@ fn whole_arm_rls(chain: &DynChain, with: &DynChain, seed: u64) -> Tracked {
         payload: None,
     };
     eprintln!(
-        "whole-arm RLS, seed {seed}: changes at {:?}\n  +3 s {:.4?}\n  end {:.4?}",
-        out.changes, out.after3, out.end
+        "whole-arm {method:?}, prior {}, seed {seed}: changes at {:?}\n  +3 s {:.4?}\n  end {:.4?}",
+        prior.is_some(),
+        out.changes,
+        out.after3,
+        out.end
     );
     out
+}
+
+/// Not a check: the table of the numbers over arms, seeds, methods, with and
+/// without a prior (`cargo test --release --test online survey -- --ignored --nocapture`;
+/// `SURVEY="panda-like ekf"` keeps the arms it names, and only the EKF with "ekf").
+#[test]
+#[ignore = "a survey, prints a table"]
+fn survey() {
+    let panda = panda_like();
+    let puma = SerialChain::puma560().to_dyn();
+    let three = dyn_support::three_joint_urdf();
+    let mut rows = vec![];
+    let only = std::env::var("SURVEY").unwrap_or_default();
+    for (name, chain, seeds) in [
+        ("panda-like", &panda, vec![5, 6, 7, 8]),
+        ("puma560", &puma, vec![5, 6]),
+        ("three-joint", &three, vec![5, 6]),
+    ] {
+        if !only.is_empty() && !only.contains(name) {
+            continue;
+        }
+        let base = chain.base_parameters(&BaseOptions::default()).unwrap();
+        let prior = prior_model(chain, &base);
+        let with = loaded(chain, &part());
+        for seed in seeds {
+            for method in [OnlineMethod::Rls, OnlineMethod::Ekf] {
+                if only.contains("ekf") && method == OnlineMethod::Rls {
+                    continue;
+                }
+                for p in [None, Some(&prior)] {
+                    let r = whole_arm(chain, &with, seed, method, p);
+                    let max = |v: &[f64]| v.iter().copied().fold(0.0, f64::max);
+                    let true_alarms = r
+                        .changes
+                        .iter()
+                        .filter(|&&t| (GRIP..GRIP + 1.0).contains(&t))
+                        .count();
+                    let first = r.changes.iter().find(|&&t| t >= GRIP).map(|t| t - GRIP);
+                    rows.push(format!(
+                        "| {name} | {seed} | {} | {} | {:.1} % | {:.2} % | {true_alarms} | {} | {:?} |",
+                        method.name(),
+                        if p.is_some() { "prior" } else { "none" },
+                        100.0 * max(&r.after3),
+                        100.0 * max(&r.end),
+                        r.changes.len() - true_alarms,
+                        first.map(|d| (d * 1e3).round() / 1e3),
+                    ));
+                }
+            }
+        }
+    }
+    eprintln!("| arm | seed | method | prior | 3 s after (worst joint) | end | alarms in [grip, grip+1) | other alarms | first after grip (s) |");
+    for r in rows {
+        eprintln!("{r}");
+    }
 }
 
 /// The defaults are not tuned to the Panda-like arm: on the PUMA 560 (6R, its wrist links
