@@ -242,18 +242,22 @@ impl ErrorCorrelation {
 mod tests {
     use super::*;
 
+    /// Seeded zero-mean, unit-variance uniform noise (an LCG).
+    fn uniform_noise(mut s: u64) -> impl FnMut() -> f64 {
+        move || {
+            s = s
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            ((s >> 11) as f64 / (1u64 << 53) as f64 - 0.5) * 12f64.sqrt()
+        }
+    }
+
     /// White errors of constant size never alarm; a jump to ten times the size alarms
     /// within a few windows, and the noise level has not absorbed the jump by then.
     #[test]
     fn alarms_on_a_jump_only() {
         let mut d = ChangeDetector::new(3, ChangeDetection::default(), None);
-        let mut s: u64 = 7;
-        let mut noise = || {
-            s = s
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            ((s >> 11) as f64 / (1u64 << 53) as f64 - 0.5) * 12f64.sqrt()
-        };
+        let mut noise = uniform_noise(7);
         let floor = [1e-12; 3];
         let dt = 1e-3;
         for _ in 0..20000 {
@@ -283,13 +287,7 @@ mod tests {
     fn model_variance_widens_the_test() {
         for (v, want) in [(0.0, true), (1.0, false)] {
             let mut d = ChangeDetector::new(2, ChangeDetection::default(), Some(&[0.1, 0.1]));
-            let mut s: u64 = 3;
-            let mut noise = || {
-                s = s
-                    .wrapping_mul(6364136223846793005)
-                    .wrapping_add(1442695040888963407);
-                ((s >> 11) as f64 / (1u64 << 53) as f64 - 0.5) * 12f64.sqrt()
-            };
+            let mut noise = uniform_noise(3);
             let floor = [1e-12; 2];
             let dt = 1e-3;
             for _ in 0..5000 {
