@@ -383,6 +383,27 @@ fn madd<const FMA: bool>(a: f64, b: f64, c: f64) -> f64 {
     }
 }
 
+/// Runs `kernel::<FMA, NC>(args…)` on the column tiles `c0 = 0, TILE_COLS, …` of a
+/// `d`-column output, NC the tile's width as a constant (the short last tile gets its
+/// own copy); `c0` is bound for the arguments. A macro, not a function taking a closure:
+/// a closure may be compiled out of line, without the AVX2 and FMA of `step_avx2`.
+macro_rules! column_tiles {
+    ($d:expr, |$c0:ident| $kernel:ident::<$fma:ident>($($arg:expr),* $(,)?)) => {{
+        const _: () = assert!(TILE_COLS == 4, "the arms below cover widths 1..TILE_COLS");
+        let d = $d;
+        let mut $c0 = 0;
+        while $c0 < d {
+            match d - $c0 {
+                1 => $kernel::<$fma, 1>($($arg),*),
+                2 => $kernel::<$fma, 2>($($arg),*),
+                3 => $kernel::<$fma, 3>($($arg),*),
+                _ => $kernel::<$fma, TILE_COLS>($($arg),*),
+            }
+            $c0 += TILE_COLS;
+        }
+    }};
+}
+
 fn cpu_has_avx2_fma() -> bool {
     #[cfg(target_arch = "x86_64")]
     {
@@ -1613,39 +1634,11 @@ fn factored_time_products<const FMA: bool>(
 ) {
     let np = s - 2 * n;
     let t = &mut xg[..n * s];
-    let mut c0 = 0;
-    while c0 < n {
-        let nc = (n - c0).min(TILE_COLS);
-        // The parameters that enter any of these rows of Φ.
-        let mut cnt = 0;
-        for k in 0..np {
-            if phi[k * n + c0..k * n + c0 + nc].iter().any(|&v| v != 0.0) {
-                nz[cnt] = k;
-                cnt += 1;
-            }
-        }
-        let nz = &nz[..cnt];
-        match nc {
-            1 => p_lambda_phi_t_cols::<FMA, 1>(p, phi, nz, t, n, s, c0),
-            2 => p_lambda_phi_t_cols::<FMA, 2>(p, phi, nz, t, n, s, c0),
-            3 => p_lambda_phi_t_cols::<FMA, 3>(p, phi, nz, t, n, s, c0),
-            _ => p_lambda_phi_t_cols::<FMA, TILE_COLS>(p, phi, nz, t, n, s, c0),
-        }
-        c0 += TILE_COLS;
-    }
+    column_tiles!(n, |c0| p_lambda_phi_t_cols::<FMA>(p, phi, nz, t, n, s, c0));
     // G = [P_·q, P_·v]·[A_q, A_v]ᵀ + T·Cᵀ, the sums continued over T's columns (no copy
     // of P's first 2N columns next to T).
     let t = &xg[..n * s];
-    let mut c0 = 0;
-    while c0 < n {
-        match n - c0 {
-            1 => two_source_cols::<FMA, 1>((p, t), af, g, (n, s), c0),
-            2 => two_source_cols::<FMA, 2>((p, t), af, g, (n, s), c0),
-            3 => two_source_cols::<FMA, 3>((p, t), af, g, (n, s), c0),
-            _ => two_source_cols::<FMA, TILE_COLS>((p, t), af, g, (n, s), c0),
-        }
-        c0 += TILE_COLS;
-    }
+    column_tiles!(n, |c0| two_source_cols::<FMA>((p, t), af, g, (n, s), c0));
     u.fill(0.0);
     for k in 0..np {
         let pc = &phi[k * n..k * n + n];
@@ -1702,17 +1695,26 @@ fn two_source_cols<const FMA: bool, const NC: usize>(
 }
 
 /// Columns `c0..c0 + NC` of T = P_·λ·Φᵀ (S×N) into `t`, summing over the parameters
-/// `nz` only (those with a non-zero in rows `c0..c0 + NC` of Φ), in register tiles.
+/// with a non-zero in rows `c0..c0 + NC` of Φ only (listed in `nz`, P-long scratch), in
+/// register tiles.
 #[inline(always)]
 fn p_lambda_phi_t_cols<const FMA: bool, const NC: usize>(
     p: &[f64],
     phi: &[f64],
-    nz: &[usize],
+    nz: &mut [usize],
     t: &mut [f64],
     n: usize,
     s: usize,
     c0: usize,
 ) {
+    let mut cnt = 0;
+    for k in 0..s - 2 * n {
+        if phi[k * n + c0..k * n + c0 + NC].iter().any(|&v| v != 0.0) {
+            nz[cnt] = k;
+            cnt += 1;
+        }
+    }
+    let nz = &nz[..cnt];
     let xcol = |k: usize| (2 * n + nz[k]) * s;
     let y = |k: usize, c: usize| phi[nz[k] * n + c0 + c];
     product_cols::<FMA, NC>(p, xcol, nz.len(), y, t, s, c0);
@@ -1983,16 +1985,7 @@ fn joseph_columns<const FMA: bool>(
 /// with X and Y given by `k2` S-long columns each.
 #[inline(always)]
 fn joseph_upper<const FMA: bool>(jx: &[f64], jy: &[f64], p: &mut [f64], k2: usize, s: usize) {
-    let mut c0 = 0;
-    while c0 < s {
-        match s - c0 {
-            1 => joseph_upper_cols::<FMA, 1>(jx, jy, p, k2, s, c0),
-            2 => joseph_upper_cols::<FMA, 2>(jx, jy, p, k2, s, c0),
-            3 => joseph_upper_cols::<FMA, 3>(jx, jy, p, k2, s, c0),
-            _ => joseph_upper_cols::<FMA, TILE_COLS>(jx, jy, p, k2, s, c0),
-        }
-        c0 += TILE_COLS;
-    }
+    column_tiles!(s, |c0| joseph_upper_cols::<FMA>(jx, jy, p, k2, s, c0));
 }
 
 /// Whether a covariance update takes the rank-N form P − W·Wᵀ (see
@@ -2059,16 +2052,13 @@ fn minus_factor_rows<const FMA: bool>(
     n: usize,
     s: usize,
 ) {
-    let mut c0 = 0;
-    while c0 < n {
-        match n - c0 {
-            1 => minus_factor_rows_cols::<FMA, 1>((jx, jy), pv, cols, (n, s), c0),
-            2 => minus_factor_rows_cols::<FMA, 2>((jx, jy), pv, cols, (n, s), c0),
-            3 => minus_factor_rows_cols::<FMA, 3>((jx, jy), pv, cols, (n, s), c0),
-            _ => minus_factor_rows_cols::<FMA, TILE_COLS>((jx, jy), pv, cols, (n, s), c0),
-        }
-        c0 += TILE_COLS;
-    }
+    column_tiles!(n, |c0| minus_factor_rows_cols::<FMA>(
+        (jx, jy),
+        pv,
+        cols,
+        (n, s),
+        c0
+    ));
 }
 
 #[inline(always)]
@@ -2151,17 +2141,15 @@ fn joseph_upper_cols<const FMA: bool, const NC: usize>(
 /// exact zeros and add nothing), in register tiles as [`product_cols`].
 #[inline(always)]
 fn w_from_pz<const FMA: bool>(pzs: &[f64], linv: &[f64], ws: &mut [f64], n: usize, s: usize) {
-    let mut c0 = 0;
-    while c0 < n {
-        let y = |m: usize, c: usize| linv[m * n + c0 + c];
-        match n - c0 {
-            1 => product_cols::<FMA, 1>(pzs, |m| m * s, n, y, ws, s, c0),
-            2 => product_cols::<FMA, 2>(pzs, |m| m * s, n, y, ws, s, c0),
-            3 => product_cols::<FMA, 3>(pzs, |m| m * s, n, y, ws, s, c0),
-            _ => product_cols::<FMA, TILE_COLS>(pzs, |m| m * s, n, y, ws, s, c0),
-        }
-        c0 += TILE_COLS;
-    }
+    column_tiles!(n, |c0| product_cols::<FMA>(
+        pzs,
+        |m| m * s,
+        n,
+        |m, c| linv[m * n + c0 + c],
+        ws,
+        s,
+        c0
+    ));
 }
 
 /// Largest prior-to-noise ratio max_j (H·P·Hᵀ)_jj / R_j at which the covariance update
@@ -2251,16 +2239,7 @@ fn full_tile(r0: usize, len: usize, d: usize) -> (usize, usize) {
 #[cfg(test)]
 #[inline(always)]
 fn minus_w_wt<const FMA: bool>(ws: &[f64], p: &mut [f64], n: usize, s: usize) {
-    let mut c0 = 0;
-    while c0 < s {
-        match s - c0 {
-            1 => minus_w_wt_cols::<FMA, 1>(ws, p, n, s, c0),
-            2 => minus_w_wt_cols::<FMA, 2>(ws, p, n, s, c0),
-            3 => minus_w_wt_cols::<FMA, 3>(ws, p, n, s, c0),
-            _ => minus_w_wt_cols::<FMA, TILE_COLS>(ws, p, n, s, c0),
-        }
-        c0 += TILE_COLS;
-    }
+    column_tiles!(s, |c0| minus_w_wt_cols::<FMA>(ws, p, n, s, c0));
 }
 
 #[cfg(test)]
@@ -2299,16 +2278,7 @@ fn p_times_at_blocked<const FMA: bool>(
     s: usize,
     kdim: usize,
 ) {
-    let mut c0 = 0;
-    while c0 < n {
-        match n - c0 {
-            1 => p_times_at_cols::<FMA, 1>(ps, a, gs, (n, s, kdim), c0),
-            2 => p_times_at_cols::<FMA, 2>(ps, a, gs, (n, s, kdim), c0),
-            3 => p_times_at_cols::<FMA, 3>(ps, a, gs, (n, s, kdim), c0),
-            _ => p_times_at_cols::<FMA, TILE_COLS>(ps, a, gs, (n, s, kdim), c0),
-        }
-        c0 += TILE_COLS;
-    }
+    column_tiles!(n, |c0| p_times_at_cols::<FMA>(ps, a, gs, (n, s, kdim), c0));
 }
 
 #[inline(always)]
