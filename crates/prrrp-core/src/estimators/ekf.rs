@@ -1683,9 +1683,9 @@ fn two_source_cols<const FMA: bool, const NC: usize>(
     while r0 < s {
         let len = (s - r0).min(TILE_ROWS);
         let (t0, skip) = full_tile(r0, len, s);
-        let y = |k: usize, c: usize| af[k * n + c0 + c];
+        let y = (af, |k: usize| k * n + c0);
         let acc = tile::<FMA, NC>(p, |k| k * s, t0, len + skip, 2 * n, y);
-        let yt = |k: usize, c: usize| af[(2 * n + k) * n + c0 + c];
+        let yt = (af, |k: usize| (2 * n + k) * n + c0);
         let acc = tile_from::<FMA, NC>(acc, t, |k| k * s, t0, len + skip, n, yt);
         for (c, av) in acc.iter().enumerate() {
             g[(c0 + c) * s + r0..(c0 + c) * s + r0 + len].copy_from_slice(&av[skip..skip + len]);
@@ -1716,7 +1716,7 @@ fn p_lambda_phi_t_cols<const FMA: bool, const NC: usize>(
     }
     let nz = &nz[..cnt];
     let xcol = |k: usize| (2 * n + nz[k]) * s;
-    let y = |k: usize, c: usize| phi[nz[k] * n + c0 + c];
+    let y = (phi, |k: usize| nz[k] * n + c0);
     product_cols::<FMA, NC>(p, xcol, nz.len(), y, t, s, c0);
 }
 
@@ -2073,7 +2073,7 @@ fn minus_factor_rows_cols<const FMA: bool, const NC: usize>(
     while r0 < s {
         let len = (s - r0).min(TILE_ROWS);
         let (t0, skip) = full_tile(r0, len, s);
-        let y = |k: usize, c: usize| jy[k * s + n + c0 + c];
+        let y = (jy, |k: usize| k * s + n + c0);
         let acc = tile::<FMA, NC>(jx, |k| k * s, t0, len + skip, cols, y);
         for (c, a) in acc.iter().enumerate() {
             let col = &mut pv[(c0 + c) * s + r0..(c0 + c) * s + r0 + len];
@@ -2102,7 +2102,7 @@ fn joseph_upper_cols<const FMA: bool, const NC: usize>(
     while r0 < end {
         let len = (end - r0).min(TILE_ROWS);
         let (t0, skip) = full_tile(r0, len, end);
-        let acc = tile::<FMA, NC>(jx, |k| k * s, t0, len + skip, k2, |k, c| jy[k * s + c0 + c]);
+        let acc = tile::<FMA, NC>(jx, |k| k * s, t0, len + skip, k2, (jy, |k| k * s + c0));
         if len == TILE_ROWS && r0 + TILE_ROWS <= c0 {
             // A whole tile above the diagonal: its columns are contiguous in the upper
             // triangle and its rows in the lower one, so both are written as vectors (one
@@ -2145,7 +2145,7 @@ fn w_from_pz<const FMA: bool>(pzs: &[f64], linv: &[f64], ws: &mut [f64], n: usiz
         pzs,
         |m| m * s,
         n,
-        |m, c| linv[m * n + c0 + c],
+        (linv, |m| m * n + c0),
         ws,
         s,
         c0
@@ -2167,8 +2167,8 @@ const TILE_ROWS: usize = 8;
 const TILE_COLS: usize = 4;
 
 /// `C[r, c] = Σ_k X[r, k]·Y[c, k]` for one tile of up to [`TILE_ROWS`] rows from `r0` and
-/// `NC` columns, X's column k starting at `xcol(k)` in `x`, Y's entries given by `y(k, c)`,
-/// k < `kdim`: returns the accumulators. Shared by P·Aᵀ and W·Wᵀ.
+/// `NC` columns, X's column k starting at `xcol(k)` in `x`, Y's column k (NC entries) at
+/// `ycol(k)` in `y`, k < `kdim`: returns the accumulators. Shared by P·Aᵀ and W·Wᵀ.
 #[inline(always)]
 fn tile<const FMA: bool, const NC: usize>(
     x: &[f64],
@@ -2176,9 +2176,9 @@ fn tile<const FMA: bool, const NC: usize>(
     r0: usize,
     len: usize,
     kdim: usize,
-    y: impl Fn(usize, usize) -> f64,
+    (y, ycol): (&[f64], impl Fn(usize) -> usize),
 ) -> [[f64; TILE_ROWS]; NC] {
-    tile_from::<FMA, NC>([[0.0f64; TILE_ROWS]; NC], x, xcol, r0, len, kdim, y)
+    tile_from::<FMA, NC>([[0.0f64; TILE_ROWS]; NC], x, xcol, r0, len, kdim, (y, ycol))
 }
 
 /// [`tile`] adding to the accumulators `acc` (the sums of a first factor pair, which a
@@ -2191,14 +2191,14 @@ fn tile_from<const FMA: bool, const NC: usize>(
     r0: usize,
     len: usize,
     kdim: usize,
-    y: impl Fn(usize, usize) -> f64,
+    (y, ycol): (&[f64], impl Fn(usize) -> usize),
 ) -> [[f64; TILE_ROWS]; NC] {
     if len == TILE_ROWS {
         for k in 0..kdim {
             let o = xcol(k) + r0;
             let xc: &[f64; TILE_ROWS] = x[o..o + TILE_ROWS].try_into().unwrap_or(&[0.0; TILE_ROWS]);
-            for (c, a) in acc.iter_mut().enumerate() {
-                let f = y(k, c);
+            let yk = column::<NC>(y, ycol(k));
+            for (a, &f) in acc.iter_mut().zip(yk) {
                 for r in 0..TILE_ROWS {
                     a[r] = madd::<FMA>(f, xc[r], a[r]);
                 }
@@ -2208,8 +2208,8 @@ fn tile_from<const FMA: bool, const NC: usize>(
         for k in 0..kdim {
             let o = xcol(k) + r0;
             let xc = &x[o..o + len];
-            for (c, a) in acc.iter_mut().enumerate() {
-                let f = y(k, c);
+            let yk = column::<NC>(y, ycol(k));
+            for (a, &f) in acc.iter_mut().zip(yk) {
                 for (av, &xv) in a.iter_mut().zip(xc) {
                     *av = madd::<FMA>(f, xv, *av);
                 }
@@ -2217,6 +2217,15 @@ fn tile_from<const FMA: bool, const NC: usize>(
         }
     }
     acc
+}
+
+/// Entries `o..o + L` of `v` as an array reference: one bounds check for a column of a
+/// tile's Y (one per entry, in the tile's inner loop, cost about as many instructions as
+/// its multiply-adds). A reference, not a copy: a copied array of X's column made the
+/// compiler split the tile into scalar multiply-adds through the stack.
+#[inline(always)]
+fn column<const L: usize>(v: &[f64], o: usize) -> &[f64; L] {
+    v[o..o + L].try_into().unwrap_or(&[0.0; L])
 }
 
 /// The tile for rows `r0..r0 + len` of `d`: a whole tile ending at the last row when
@@ -2255,7 +2264,7 @@ fn minus_w_wt_cols<const FMA: bool, const NC: usize>(
     while r0 < s {
         let len = (s - r0).min(TILE_ROWS);
         let (t0, skip) = full_tile(r0, len, s);
-        let acc = tile::<FMA, NC>(ws, |m| m * s, t0, len + skip, n, |m, c| ws[m * s + c0 + c]);
+        let acc = tile::<FMA, NC>(ws, |m| m * s, t0, len + skip, n, (ws, |m| m * s + c0));
         for (c, a) in acc.iter().enumerate() {
             let col = &mut p[(c0 + c) * s + r0..(c0 + c) * s + r0 + len];
             for (pv, &av) in col.iter_mut().zip(&a[skip..]) {
@@ -2289,17 +2298,18 @@ fn p_times_at_cols<const FMA: bool, const NC: usize>(
     (n, s, kdim): (usize, usize, usize),
     c0: usize,
 ) {
-    product_cols::<FMA, NC>(ps, |k| k * s, kdim, |k, c| a[k * n + c0 + c], gs, s, c0);
+    product_cols::<FMA, NC>(ps, |k| k * s, kdim, (a, |k| k * n + c0), gs, s, c0);
 }
 
 /// Columns `c0..c0 + NC` of C = X·Yᵀ (S-long columns) into `out`, whole columns in
-/// register tiles ([`tile`]; X's column k at `xcol(k)`, Y's entries `y(k, c)`, k < `kdim`).
+/// register tiles ([`tile`]; X's column k at `xcol(k)`, Y's column k at `ycol(k)` in `y`,
+/// k < `kdim`).
 #[inline(always)]
 fn product_cols<const FMA: bool, const NC: usize>(
     x: &[f64],
     xcol: impl Fn(usize) -> usize,
     kdim: usize,
-    y: impl Fn(usize, usize) -> f64,
+    (y, ycol): (&[f64], impl Fn(usize) -> usize),
     out: &mut [f64],
     s: usize,
     c0: usize,
@@ -2308,7 +2318,7 @@ fn product_cols<const FMA: bool, const NC: usize>(
     while r0 < s {
         let len = (s - r0).min(TILE_ROWS);
         let (t0, skip) = full_tile(r0, len, s);
-        let acc = tile::<FMA, NC>(x, &xcol, t0, len + skip, kdim, &y);
+        let acc = tile::<FMA, NC>(x, &xcol, t0, len + skip, kdim, (y, &ycol));
         for (c, av) in acc.iter().enumerate() {
             out[(c0 + c) * s + r0..(c0 + c) * s + r0 + len].copy_from_slice(&av[skip..skip + len]);
         }
