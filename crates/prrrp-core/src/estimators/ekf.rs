@@ -383,6 +383,27 @@ fn madd<const FMA: bool>(a: f64, b: f64, c: f64) -> f64 {
     }
 }
 
+/// Runs `kernel::<FMA, NC>(args…)` on the column tiles `c0 = 0, TILE_COLS, …` of a
+/// `d`-column output, NC the tile's width as a constant (the short last tile gets its
+/// own copy); `c0` is bound for the arguments. A macro, not a function taking a closure:
+/// a closure may be compiled out of line, without the AVX2 and FMA of `step_avx2`.
+macro_rules! column_tiles {
+    ($d:expr, |$c0:ident| $kernel:ident::<$fma:ident>($($arg:expr),* $(,)?)) => {{
+        const _: () = assert!(TILE_COLS == 4, "the arms below cover widths 1..TILE_COLS");
+        let d = $d;
+        let mut $c0 = 0;
+        while $c0 < d {
+            match d - $c0 {
+                1 => $kernel::<$fma, 1>($($arg),*),
+                2 => $kernel::<$fma, 2>($($arg),*),
+                3 => $kernel::<$fma, 3>($($arg),*),
+                _ => $kernel::<$fma, TILE_COLS>($($arg),*),
+            }
+            $c0 += TILE_COLS;
+        }
+    }};
+}
+
 fn cpu_has_avx2_fma() -> bool {
     #[cfg(target_arch = "x86_64")]
     {
@@ -1613,39 +1634,11 @@ fn factored_time_products<const FMA: bool>(
 ) {
     let np = s - 2 * n;
     let t = &mut xg[..n * s];
-    let mut c0 = 0;
-    while c0 < n {
-        let nc = (n - c0).min(TILE_COLS);
-        // The parameters that enter any of these rows of Φ.
-        let mut cnt = 0;
-        for k in 0..np {
-            if phi[k * n + c0..k * n + c0 + nc].iter().any(|&v| v != 0.0) {
-                nz[cnt] = k;
-                cnt += 1;
-            }
-        }
-        let nz = &nz[..cnt];
-        match nc {
-            1 => p_lambda_phi_t_cols::<FMA, 1>(p, phi, nz, t, n, s, c0),
-            2 => p_lambda_phi_t_cols::<FMA, 2>(p, phi, nz, t, n, s, c0),
-            3 => p_lambda_phi_t_cols::<FMA, 3>(p, phi, nz, t, n, s, c0),
-            _ => p_lambda_phi_t_cols::<FMA, TILE_COLS>(p, phi, nz, t, n, s, c0),
-        }
-        c0 += TILE_COLS;
-    }
+    column_tiles!(n, |c0| p_lambda_phi_t_cols::<FMA>(p, phi, nz, t, n, s, c0));
     // G = [P_·q, P_·v]·[A_q, A_v]ᵀ + T·Cᵀ, the sums continued over T's columns (no copy
     // of P's first 2N columns next to T).
     let t = &xg[..n * s];
-    let mut c0 = 0;
-    while c0 < n {
-        match n - c0 {
-            1 => two_source_cols::<FMA, 1>((p, t), af, g, (n, s), c0),
-            2 => two_source_cols::<FMA, 2>((p, t), af, g, (n, s), c0),
-            3 => two_source_cols::<FMA, 3>((p, t), af, g, (n, s), c0),
-            _ => two_source_cols::<FMA, TILE_COLS>((p, t), af, g, (n, s), c0),
-        }
-        c0 += TILE_COLS;
-    }
+    column_tiles!(n, |c0| two_source_cols::<FMA>((p, t), af, g, (n, s), c0));
     u.fill(0.0);
     for k in 0..np {
         let pc = &phi[k * n..k * n + n];
@@ -1690,9 +1683,9 @@ fn two_source_cols<const FMA: bool, const NC: usize>(
     while r0 < s {
         let len = (s - r0).min(TILE_ROWS);
         let (t0, skip) = full_tile(r0, len, s);
-        let y = |k: usize, c: usize| af[k * n + c0 + c];
+        let y = (af, |k: usize| k * n + c0);
         let acc = tile::<FMA, NC>(p, |k| k * s, t0, len + skip, 2 * n, y);
-        let yt = |k: usize, c: usize| af[(2 * n + k) * n + c0 + c];
+        let yt = (af, |k: usize| (2 * n + k) * n + c0);
         let acc = tile_from::<FMA, NC>(acc, t, |k| k * s, t0, len + skip, n, yt);
         for (c, av) in acc.iter().enumerate() {
             g[(c0 + c) * s + r0..(c0 + c) * s + r0 + len].copy_from_slice(&av[skip..skip + len]);
@@ -1702,19 +1695,28 @@ fn two_source_cols<const FMA: bool, const NC: usize>(
 }
 
 /// Columns `c0..c0 + NC` of T = P_·λ·Φᵀ (S×N) into `t`, summing over the parameters
-/// `nz` only (those with a non-zero in rows `c0..c0 + NC` of Φ), in register tiles.
+/// with a non-zero in rows `c0..c0 + NC` of Φ only (listed in `nz`, P-long scratch), in
+/// register tiles.
 #[inline(always)]
 fn p_lambda_phi_t_cols<const FMA: bool, const NC: usize>(
     p: &[f64],
     phi: &[f64],
-    nz: &[usize],
+    nz: &mut [usize],
     t: &mut [f64],
     n: usize,
     s: usize,
     c0: usize,
 ) {
+    let mut cnt = 0;
+    for k in 0..s - 2 * n {
+        if phi[k * n + c0..k * n + c0 + NC].iter().any(|&v| v != 0.0) {
+            nz[cnt] = k;
+            cnt += 1;
+        }
+    }
+    let nz = &nz[..cnt];
     let xcol = |k: usize| (2 * n + nz[k]) * s;
-    let y = |k: usize, c: usize| phi[nz[k] * n + c0 + c];
+    let y = (phi, |k: usize| nz[k] * n + c0);
     product_cols::<FMA, NC>(p, xcol, nz.len(), y, t, s, c0);
 }
 
@@ -1983,16 +1985,7 @@ fn joseph_columns<const FMA: bool>(
 /// with X and Y given by `k2` S-long columns each.
 #[inline(always)]
 fn joseph_upper<const FMA: bool>(jx: &[f64], jy: &[f64], p: &mut [f64], k2: usize, s: usize) {
-    let mut c0 = 0;
-    while c0 < s {
-        match s - c0 {
-            1 => joseph_upper_cols::<FMA, 1>(jx, jy, p, k2, s, c0),
-            2 => joseph_upper_cols::<FMA, 2>(jx, jy, p, k2, s, c0),
-            3 => joseph_upper_cols::<FMA, 3>(jx, jy, p, k2, s, c0),
-            _ => joseph_upper_cols::<FMA, TILE_COLS>(jx, jy, p, k2, s, c0),
-        }
-        c0 += TILE_COLS;
-    }
+    column_tiles!(s, |c0| joseph_upper_cols::<FMA>(jx, jy, p, k2, s, c0));
 }
 
 /// Whether a covariance update takes the rank-N form P − W·Wᵀ (see
@@ -2059,16 +2052,13 @@ fn minus_factor_rows<const FMA: bool>(
     n: usize,
     s: usize,
 ) {
-    let mut c0 = 0;
-    while c0 < n {
-        match n - c0 {
-            1 => minus_factor_rows_cols::<FMA, 1>((jx, jy), pv, cols, (n, s), c0),
-            2 => minus_factor_rows_cols::<FMA, 2>((jx, jy), pv, cols, (n, s), c0),
-            3 => minus_factor_rows_cols::<FMA, 3>((jx, jy), pv, cols, (n, s), c0),
-            _ => minus_factor_rows_cols::<FMA, TILE_COLS>((jx, jy), pv, cols, (n, s), c0),
-        }
-        c0 += TILE_COLS;
-    }
+    column_tiles!(n, |c0| minus_factor_rows_cols::<FMA>(
+        (jx, jy),
+        pv,
+        cols,
+        (n, s),
+        c0
+    ));
 }
 
 #[inline(always)]
@@ -2083,7 +2073,7 @@ fn minus_factor_rows_cols<const FMA: bool, const NC: usize>(
     while r0 < s {
         let len = (s - r0).min(TILE_ROWS);
         let (t0, skip) = full_tile(r0, len, s);
-        let y = |k: usize, c: usize| jy[k * s + n + c0 + c];
+        let y = (jy, |k: usize| k * s + n + c0);
         let acc = tile::<FMA, NC>(jx, |k| k * s, t0, len + skip, cols, y);
         for (c, a) in acc.iter().enumerate() {
             let col = &mut pv[(c0 + c) * s + r0..(c0 + c) * s + r0 + len];
@@ -2112,7 +2102,7 @@ fn joseph_upper_cols<const FMA: bool, const NC: usize>(
     while r0 < end {
         let len = (end - r0).min(TILE_ROWS);
         let (t0, skip) = full_tile(r0, len, end);
-        let acc = tile::<FMA, NC>(jx, |k| k * s, t0, len + skip, k2, |k, c| jy[k * s + c0 + c]);
+        let acc = tile::<FMA, NC>(jx, |k| k * s, t0, len + skip, k2, (jy, |k| k * s + c0));
         if len == TILE_ROWS && r0 + TILE_ROWS <= c0 {
             // A whole tile above the diagonal: its columns are contiguous in the upper
             // triangle and its rows in the lower one, so both are written as vectors (one
@@ -2151,17 +2141,15 @@ fn joseph_upper_cols<const FMA: bool, const NC: usize>(
 /// exact zeros and add nothing), in register tiles as [`product_cols`].
 #[inline(always)]
 fn w_from_pz<const FMA: bool>(pzs: &[f64], linv: &[f64], ws: &mut [f64], n: usize, s: usize) {
-    let mut c0 = 0;
-    while c0 < n {
-        let y = |m: usize, c: usize| linv[m * n + c0 + c];
-        match n - c0 {
-            1 => product_cols::<FMA, 1>(pzs, |m| m * s, n, y, ws, s, c0),
-            2 => product_cols::<FMA, 2>(pzs, |m| m * s, n, y, ws, s, c0),
-            3 => product_cols::<FMA, 3>(pzs, |m| m * s, n, y, ws, s, c0),
-            _ => product_cols::<FMA, TILE_COLS>(pzs, |m| m * s, n, y, ws, s, c0),
-        }
-        c0 += TILE_COLS;
-    }
+    column_tiles!(n, |c0| product_cols::<FMA>(
+        pzs,
+        |m| m * s,
+        n,
+        (linv, |m| m * n + c0),
+        ws,
+        s,
+        c0
+    ));
 }
 
 /// Largest prior-to-noise ratio max_j (H·P·Hᵀ)_jj / R_j at which the covariance update
@@ -2179,8 +2167,8 @@ const TILE_ROWS: usize = 8;
 const TILE_COLS: usize = 4;
 
 /// `C[r, c] = Σ_k X[r, k]·Y[c, k]` for one tile of up to [`TILE_ROWS`] rows from `r0` and
-/// `NC` columns, X's column k starting at `xcol(k)` in `x`, Y's entries given by `y(k, c)`,
-/// k < `kdim`: returns the accumulators. Shared by P·Aᵀ and W·Wᵀ.
+/// `NC` columns, X's column k starting at `xcol(k)` in `x`, Y's column k (NC entries) at
+/// `ycol(k)` in `y`, k < `kdim`: returns the accumulators. Shared by P·Aᵀ and W·Wᵀ.
 #[inline(always)]
 fn tile<const FMA: bool, const NC: usize>(
     x: &[f64],
@@ -2188,9 +2176,9 @@ fn tile<const FMA: bool, const NC: usize>(
     r0: usize,
     len: usize,
     kdim: usize,
-    y: impl Fn(usize, usize) -> f64,
+    (y, ycol): (&[f64], impl Fn(usize) -> usize),
 ) -> [[f64; TILE_ROWS]; NC] {
-    tile_from::<FMA, NC>([[0.0f64; TILE_ROWS]; NC], x, xcol, r0, len, kdim, y)
+    tile_from::<FMA, NC>([[0.0f64; TILE_ROWS]; NC], x, xcol, r0, len, kdim, (y, ycol))
 }
 
 /// [`tile`] adding to the accumulators `acc` (the sums of a first factor pair, which a
@@ -2203,14 +2191,14 @@ fn tile_from<const FMA: bool, const NC: usize>(
     r0: usize,
     len: usize,
     kdim: usize,
-    y: impl Fn(usize, usize) -> f64,
+    (y, ycol): (&[f64], impl Fn(usize) -> usize),
 ) -> [[f64; TILE_ROWS]; NC] {
     if len == TILE_ROWS {
         for k in 0..kdim {
             let o = xcol(k) + r0;
             let xc: &[f64; TILE_ROWS] = x[o..o + TILE_ROWS].try_into().unwrap_or(&[0.0; TILE_ROWS]);
-            for (c, a) in acc.iter_mut().enumerate() {
-                let f = y(k, c);
+            let yk = column::<NC>(y, ycol(k));
+            for (a, &f) in acc.iter_mut().zip(yk) {
                 for r in 0..TILE_ROWS {
                     a[r] = madd::<FMA>(f, xc[r], a[r]);
                 }
@@ -2220,8 +2208,8 @@ fn tile_from<const FMA: bool, const NC: usize>(
         for k in 0..kdim {
             let o = xcol(k) + r0;
             let xc = &x[o..o + len];
-            for (c, a) in acc.iter_mut().enumerate() {
-                let f = y(k, c);
+            let yk = column::<NC>(y, ycol(k));
+            for (a, &f) in acc.iter_mut().zip(yk) {
                 for (av, &xv) in a.iter_mut().zip(xc) {
                     *av = madd::<FMA>(f, xv, *av);
                 }
@@ -2229,6 +2217,15 @@ fn tile_from<const FMA: bool, const NC: usize>(
         }
     }
     acc
+}
+
+/// Entries `o..o + L` of `v` as an array reference: one bounds check for a column of a
+/// tile's Y (one per entry, in the tile's inner loop, cost about as many instructions as
+/// its multiply-adds). A reference, not a copy: a copied array of X's column made the
+/// compiler split the tile into scalar multiply-adds through the stack.
+#[inline(always)]
+fn column<const L: usize>(v: &[f64], o: usize) -> &[f64; L] {
+    v[o..o + L].try_into().unwrap_or(&[0.0; L])
 }
 
 /// The tile for rows `r0..r0 + len` of `d`: a whole tile ending at the last row when
@@ -2251,16 +2248,7 @@ fn full_tile(r0: usize, len: usize, d: usize) -> (usize, usize) {
 #[cfg(test)]
 #[inline(always)]
 fn minus_w_wt<const FMA: bool>(ws: &[f64], p: &mut [f64], n: usize, s: usize) {
-    let mut c0 = 0;
-    while c0 < s {
-        match s - c0 {
-            1 => minus_w_wt_cols::<FMA, 1>(ws, p, n, s, c0),
-            2 => minus_w_wt_cols::<FMA, 2>(ws, p, n, s, c0),
-            3 => minus_w_wt_cols::<FMA, 3>(ws, p, n, s, c0),
-            _ => minus_w_wt_cols::<FMA, TILE_COLS>(ws, p, n, s, c0),
-        }
-        c0 += TILE_COLS;
-    }
+    column_tiles!(s, |c0| minus_w_wt_cols::<FMA>(ws, p, n, s, c0));
 }
 
 #[cfg(test)]
@@ -2276,7 +2264,7 @@ fn minus_w_wt_cols<const FMA: bool, const NC: usize>(
     while r0 < s {
         let len = (s - r0).min(TILE_ROWS);
         let (t0, skip) = full_tile(r0, len, s);
-        let acc = tile::<FMA, NC>(ws, |m| m * s, t0, len + skip, n, |m, c| ws[m * s + c0 + c]);
+        let acc = tile::<FMA, NC>(ws, |m| m * s, t0, len + skip, n, (ws, |m| m * s + c0));
         for (c, a) in acc.iter().enumerate() {
             let col = &mut p[(c0 + c) * s + r0..(c0 + c) * s + r0 + len];
             for (pv, &av) in col.iter_mut().zip(&a[skip..]) {
@@ -2299,16 +2287,7 @@ fn p_times_at_blocked<const FMA: bool>(
     s: usize,
     kdim: usize,
 ) {
-    let mut c0 = 0;
-    while c0 < n {
-        match n - c0 {
-            1 => p_times_at_cols::<FMA, 1>(ps, a, gs, (n, s, kdim), c0),
-            2 => p_times_at_cols::<FMA, 2>(ps, a, gs, (n, s, kdim), c0),
-            3 => p_times_at_cols::<FMA, 3>(ps, a, gs, (n, s, kdim), c0),
-            _ => p_times_at_cols::<FMA, TILE_COLS>(ps, a, gs, (n, s, kdim), c0),
-        }
-        c0 += TILE_COLS;
-    }
+    column_tiles!(n, |c0| p_times_at_cols::<FMA>(ps, a, gs, (n, s, kdim), c0));
 }
 
 #[inline(always)]
@@ -2319,17 +2298,18 @@ fn p_times_at_cols<const FMA: bool, const NC: usize>(
     (n, s, kdim): (usize, usize, usize),
     c0: usize,
 ) {
-    product_cols::<FMA, NC>(ps, |k| k * s, kdim, |k, c| a[k * n + c0 + c], gs, s, c0);
+    product_cols::<FMA, NC>(ps, |k| k * s, kdim, (a, |k| k * n + c0), gs, s, c0);
 }
 
 /// Columns `c0..c0 + NC` of C = X·Yᵀ (S-long columns) into `out`, whole columns in
-/// register tiles ([`tile`]; X's column k at `xcol(k)`, Y's entries `y(k, c)`, k < `kdim`).
+/// register tiles ([`tile`]; X's column k at `xcol(k)`, Y's column k at `ycol(k)` in `y`,
+/// k < `kdim`).
 #[inline(always)]
 fn product_cols<const FMA: bool, const NC: usize>(
     x: &[f64],
     xcol: impl Fn(usize) -> usize,
     kdim: usize,
-    y: impl Fn(usize, usize) -> f64,
+    (y, ycol): (&[f64], impl Fn(usize) -> usize),
     out: &mut [f64],
     s: usize,
     c0: usize,
@@ -2338,7 +2318,7 @@ fn product_cols<const FMA: bool, const NC: usize>(
     while r0 < s {
         let len = (s - r0).min(TILE_ROWS);
         let (t0, skip) = full_tile(r0, len, s);
-        let acc = tile::<FMA, NC>(x, &xcol, t0, len + skip, kdim, &y);
+        let acc = tile::<FMA, NC>(x, &xcol, t0, len + skip, kdim, (y, &ycol));
         for (c, av) in acc.iter().enumerate() {
             out[(c0 + c) * s + r0..(c0 + c) * s + r0 + len].copy_from_slice(&av[skip..skip + len]);
         }
