@@ -272,6 +272,8 @@ struct EkfEngine {
     /// Initial parameter variances of the running filter (θ units), the cap of the
     /// opening.
     p0_diag: DVector<f64>,
+    /// P×P scratch of the hand-over to the warm-up after a change (γ units).
+    handover: DMatrix<f64>,
 }
 
 /// Samples between two refreshes of the EKF's process noise (its M⁻¹ costs N + 1
@@ -525,6 +527,7 @@ impl OnlineIdentifier {
                     since_q: 0,
                     ws: model.workspace(),
                     p0_diag: DVector::zeros(p),
+                    handover: DMatrix::zeros(p, p),
                 };
                 // With a prior (or in payload mode) the filter starts at once.
                 if prior.is_some() {
@@ -1069,10 +1072,16 @@ impl OnlineIdentifier {
     /// After a detected change, whole-arm RLS (and the EKF's RLS warm-up): first along the
     /// directions a payload at the tip opens (a part gripped or released, the common jump
     /// of a rigid arm), keeping what the data say of the rest of the arm (`tip`); a second
-    /// alarm while the second look is pending opens every direction. The running EKF and
-    /// payload mode open every direction at once (docs/design/online.md).
+    /// alarm while the second look is pending opens every direction. The running EKF first
+    /// hands over to its warm-up RLS (`EkfEngine::hand_over`), which the same opening then
+    /// applies to; payload mode opens every direction at once (docs/design/online.md).
     fn open_after_change(&mut self) -> Result<()> {
         let k = self.config.open_factor;
+        if let Engine::Ekf(e) = &mut self.engine {
+            if e.running && self.tip.is_some() {
+                e.hand_over(self.n, &self.theta, &self.scale, &mut self.gamma)?;
+            }
+        }
         let (Some(tip), Some(d)) = (&mut self.tip, &self.detector) else {
             return self.open_covariance();
         };
@@ -1432,6 +1441,40 @@ impl EkfEngine {
         self.prev[2].copy_from(qdd);
         self.prev[3].copy_from(tau);
         self.has_prev = true;
+    }
+
+    /// After a detected change: back to the RLS warm-up, which starts from the filter's
+    /// estimate θ and its parameter covariance P_θθ (so the opening that follows keeps what
+    /// the data said of the arm), and the filter restarts from the warm-up's estimate after
+    /// `ekf_warmup`. The running filter learns θ only from its q, q̇ innovations, far more
+    /// slowly than a regression on the torques: opened in place, along the tip or in every
+    /// direction, it was 33–600 % off 3 s after a grip and re-alarmed every hold-off
+    /// (docs/design/online.md). Allocation-free.
+    fn hand_over(
+        &mut self,
+        n: usize,
+        theta: &DVector<f64>,
+        scale: &DVector<f64>,
+        gamma: &mut DVector<f64>,
+    ) -> Result<()> {
+        self.running = false;
+        self.has_prev = false;
+        self.warm_for = 0.0;
+        self.definite_for = 0.0;
+        self.rls.reset();
+        // P_γ = P_θθ/(sᵢ·sⱼ), written as an increment of the reset covariance.
+        let (o, p) = (2 * n, theta.len());
+        let (pf, c) = (self.ekf.covariance(), self.rls.covariance());
+        for j in 0..p {
+            for i in 0..p {
+                let v = 0.5 * (pf[(o + i, o + j)] + pf[(o + j, o + i)]) / (scale[i] * scale[j]);
+                self.handover[(i, j)] = v - c[(i, j)];
+            }
+        }
+        self.rls.add_covariance(&self.handover);
+        gamma.copy_from(theta);
+        gamma.component_div_assign(scale);
+        self.rls.set_estimate(gamma)
     }
 
     /// Back to the RLS warm-up from the filter's last estimate θ (after a failure).
