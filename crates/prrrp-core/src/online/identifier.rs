@@ -1457,11 +1457,7 @@ impl EkfEngine {
         scale: &DVector<f64>,
         gamma: &mut DVector<f64>,
     ) -> Result<()> {
-        self.running = false;
-        self.has_prev = false;
-        self.warm_for = 0.0;
-        self.definite_for = 0.0;
-        self.rls.reset();
+        self.back_to_warmup(theta, scale, gamma)?;
         // P_γ = P_θθ/(sᵢ·sⱼ), written as an increment of the reset covariance.
         let (o, p) = (2 * n, theta.len());
         let (pf, c) = (self.ekf.covariance(), self.rls.covariance());
@@ -1472,9 +1468,7 @@ impl EkfEngine {
             }
         }
         self.rls.add_covariance(&self.handover);
-        gamma.copy_from(theta);
-        gamma.component_div_assign(scale);
-        self.rls.set_estimate(gamma)
+        Ok(())
     }
 
     /// Back to the RLS warm-up from the filter's last estimate θ (after a failure).
@@ -1484,11 +1478,21 @@ impl EkfEngine {
         scale: &DVector<f64>,
         gamma: &mut DVector<f64>,
     ) -> Result<()> {
+        self.restarts += 1;
+        self.back_to_warmup(theta, scale, gamma)
+    }
+
+    /// The warm-up RLS, reset, from the filter's estimate θ (γ = θ/scale into `gamma`).
+    fn back_to_warmup(
+        &mut self,
+        theta: &DVector<f64>,
+        scale: &DVector<f64>,
+        gamma: &mut DVector<f64>,
+    ) -> Result<()> {
         self.running = false;
         self.has_prev = false;
         self.warm_for = 0.0;
         self.definite_for = 0.0;
-        self.restarts += 1;
         self.rls.reset();
         gamma.copy_from(theta);
         gamma.component_div_assign(scale);
