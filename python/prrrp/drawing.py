@@ -118,8 +118,7 @@ def figure(
     from matplotlib.figure import Figure
 
     pw, ph = panel
-    width = left + right + cols * pw + (cols - 1) * wspace
-    height = top + bottom + rows * ph + (rows - 1) * hspace
+    width, height = grid_size(rows, cols, panel, (left, right, top, bottom), (wspace, hspace))
     fig = Figure(figsize=(width, height), dpi=DPI)
     FigureCanvasAgg(fig)
     axes = fig.subplots(
@@ -150,6 +149,23 @@ def figure(
         offset = LABEL_Y_OFFSET if label_offset is None else label_offset
         ax.yaxis.set_label_coords(-offset / pw, 0.5)
     return fig, axes
+
+
+def grid_size(
+    rows: int,
+    cols: int,
+    panel: tuple[float, float],
+    margins: tuple[float, float, float, float],
+    space: tuple[float, float],
+) -> tuple[float, float]:
+    """(width, height), inches, of a figure of ``rows`` × ``cols`` panels of ``panel`` =
+    (width, height) with ``margins`` = (left, right, top, bottom) and ``space`` = (wspace,
+    hspace) between panels: the layout of :func:`figure` and :func:`prrrp.canvas.figure`."""
+    (pw, ph), (left, right, top, bottom), (wspace, hspace) = panel, margins, space
+    return (
+        left + right + cols * pw + (cols - 1) * wspace,
+        top + bottom + rows * ph + (rows - 1) * hspace,
+    )
 
 
 _InView: Any = None
