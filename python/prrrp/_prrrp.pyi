@@ -21,74 +21,9 @@ import numpy.typing as npt
 _ArrayLike = npt.ArrayLike
 _F64 = npt.NDArray[np.float64]
 
-__all__ = [
-    "NDOF",
-    "NPARAM",
-    "STANDARD_GRAVITY",
-    "Adaline",
-    "BaseParameters",
-    "Canvas",
-    "ChainSimulation",
-    "ChainTrajectory",
-    "Dataset",
-    "DivergedError",
-    "Ekf",
-    "Excitation",
-    "FitCache",
-    "ForwardDerivatives",
-    "Hopfield",
-    "IdentifiedModel",
-    "InfeasibleError",
-    "InvalidInputError",
-    "InvalidParameterError",
-    "InverseDerivatives",
-    "LeastSquaresResult",
-    "NonFiniteError",
-    "NonIncreasingTimeError",
-    "NotPositiveDefiniteError",
-    "OnlineIdentifier",
-    "PrrrpError",
-    "RankDeficientError",
-    "Rls",
-    "Robot",
-    "RobotFileError",
-    "SerialChain",
-    "ShapeMismatchError",
-    "SinusoidReference",
-    "TooFewSamplesError",
-    "__version__",
-    "agreement_index",
-    "clear_stop",
-    "condition_number",
-    "design_excitation",
-    "error_indices",
-    "identified_model_from_parts",
-    "identify",
-    "identify_drive_gains",
-    "joint_limits",
-    "least_squares",
-    "observation_matrix",
-    "optimise_excitation",
-    "paper_lambda_map",
-    "preprocess",
-    "preprocess_log",
-    "read_numeric_csv",
-    "regressor",
-    "relative_errors_percent",
-    "request_stop",
-    "rms",
-    "rsd",
-    "run_study_json",
-    "sensitivity",
-    "simulate_chain",
-    "simulate_chain_open_loop",
-    "simulate_closed_loop",
-    "simulate_open_loop",
-    "singular_values",
-    "torque_prediction",
-    "validate",
-    "validate_model",
-]
+# The module's `__all__` lists every name `register` adds (pyo3 keeps it); stubtest checks
+# it against this one, which each section below extends by its own names.
+__all__ = ["NDOF", "NPARAM", "STANDARD_GRAVITY", "__version__"]
 
 __version__: Final[str]
 NDOF: Final[int]
@@ -97,6 +32,21 @@ NPARAM: Final[int]
 """Number of grouped base parameters λ (8)."""
 STANDARD_GRAVITY: Final[float]
 """Default gravitational acceleration, 9.81 m/s² along -z."""
+
+__all__ += [
+    "DivergedError",
+    "InfeasibleError",
+    "InvalidInputError",
+    "InvalidParameterError",
+    "NonFiniteError",
+    "NonIncreasingTimeError",
+    "NotPositiveDefiniteError",
+    "PrrrpError",
+    "RankDeficientError",
+    "RobotFileError",
+    "ShapeMismatchError",
+    "TooFewSamplesError",
+]
 
 class PrrrpError(Exception):
     """Base class of every error raised by prrrp."""
@@ -149,6 +99,16 @@ class DivergedError(PrrrpError, ArithmeticError):
     what: str
     at: int
     hint: str
+
+__all__ += [
+    "ForwardDerivatives",
+    "InverseDerivatives",
+    "Robot",
+    "condition_number",
+    "observation_matrix",
+    "regressor",
+    "singular_values",
+]
 
 class _DhRow(TypedDict):
     kind: Literal["prismatic", "revolute"]
@@ -308,6 +268,8 @@ def condition_number(w: _ArrayLike) -> float:
 
 # --- trajectories -------------------------------------------------------------------------
 
+__all__ += ["Excitation", "SinusoidReference", "joint_limits", "optimise_excitation"]
+
 _Triple = tuple[_F64, _F64, _F64]
 
 class _JointLimits(TypedDict):
@@ -390,6 +352,8 @@ def optimise_excitation(
 
 # --- simulation ---------------------------------------------------------------------------
 
+__all__ += ["simulate_closed_loop", "simulate_open_loop"]
+
 class _Record(TypedDict, total=False):
     t: _F64
     q_ref: _F64
@@ -440,6 +404,8 @@ def simulate_open_loop(
 
 # --- preprocessing ------------------------------------------------------------------------
 
+__all__ += ["preprocess"]
+
 class _Dataset(TypedDict):
     t: _F64
     q: _F64
@@ -464,6 +430,8 @@ def preprocess(
     `preprocess_log`."""
 
 # --- estimators ---------------------------------------------------------------------------
+
+__all__ += ["Adaline", "Ekf", "Hopfield", "LeastSquaresResult", "Rls", "least_squares"]
 
 @final
 class LeastSquaresResult:
@@ -515,13 +483,7 @@ class _OnlineEstimator:
     ) -> _F64: ...
     @overload
     def run(
-        self,
-        q: _ArrayLike,
-        qd: _ArrayLike,
-        qdd: _ArrayLike,
-        tau: _ArrayLike,
-        *,
-        history_every: int,
+        self, q: _ArrayLike, qd: _ArrayLike, qdd: _ArrayLike, tau: _ArrayLike, *, history_every: int
     ) -> tuple[_F64, _F64]: ...
     def reset(self) -> None: ...
 
@@ -624,6 +586,8 @@ class Ekf(_OnlineEstimator):
 
 # --- metrics ------------------------------------------------------------------------------
 
+__all__ += ["agreement_index", "error_indices", "relative_errors_percent", "rms", "rsd"]
+
 class _Indices(TypedDict):
     rms: Any
     rsd: Any
@@ -639,6 +603,8 @@ def relative_errors_percent(estimate: _ArrayLike, truth: _ArrayLike) -> _F64: ..
 
 # --- study --------------------------------------------------------------------------------
 
+__all__ += ["paper_lambda_map", "run_study_json"]
+
 def run_study_json(
     seed: int = ...,  # 0
     progress: Callable[[str, int, int], object] | None = None,
@@ -650,6 +616,17 @@ def paper_lambda_map() -> list[list[float]]:
     robot; use `prrrp.lambda_view.lambda_map` for an array."""
 
 # --- generic serial chains ------------------------------------------------------------
+
+__all__ += [
+    "BaseParameters",
+    "FitCache",
+    "IdentifiedModel",
+    "OnlineIdentifier",
+    "SerialChain",
+    "identified_model_from_parts",
+    "identify",
+    "identify_drive_gains",
+]
 
 @final
 class SerialChain:
@@ -1356,6 +1333,17 @@ class BaseParameters:
 
 # --- data sets, validation, sensitivity --------------------------------------------------
 
+__all__ += [
+    "Dataset",
+    "clear_stop",
+    "preprocess_log",
+    "read_numeric_csv",
+    "request_stop",
+    "sensitivity",
+    "torque_prediction",
+    "validate",
+]
+
 @final
 class Dataset:
     """An identification data set of any robot, checked on creation: t (N,) s strictly
@@ -1552,6 +1540,16 @@ def sensitivity(
     the sweep and is raised."""
 
 # --- simulation and validation of any chain -----------------------------------------------
+
+__all__ += [
+    "Canvas",
+    "ChainSimulation",
+    "ChainTrajectory",
+    "design_excitation",
+    "simulate_chain",
+    "simulate_chain_open_loop",
+    "validate_model",
+]
 
 @final
 class ChainTrajectory:

@@ -39,21 +39,21 @@ MARGIN = 0.05
 #: matplotlib's dash pattern of "--", in line widths.
 DASHED = (3.7, 1.6)
 
-#: matplotlib's named colours the report uses.
+#: matplotlib's named colours the report uses, in matplotlib's own hex notation.
 COLORS = {
-    "tab:blue": (0x1F, 0x77, 0xB4),
-    "tab:orange": (0xFF, 0x7F, 0x0E),
-    "tab:green": (0x2C, 0xA0, 0x2C),
-    "tab:red": (0xD6, 0x27, 0x28),
-    "tab:purple": (0x94, 0x67, 0xBD),
-    "tab:brown": (0x8C, 0x56, 0x4B),
-    "tab:pink": (0xE3, 0x77, 0xC2),
-    "tab:gray": (0x7F, 0x7F, 0x7F),
-    "tab:olive": (0xBC, 0xBD, 0x22),
-    "tab:cyan": (0x17, 0xBE, 0xCF),
-    "r": (0xFF, 0x00, 0x00),
-    "k": (0, 0, 0),
-    "w": (255, 255, 255),
+    "tab:blue": "#1f77b4",
+    "tab:orange": "#ff7f0e",
+    "tab:green": "#2ca02c",
+    "tab:red": "#d62728",
+    "tab:purple": "#9467bd",
+    "tab:brown": "#8c564b",
+    "tab:pink": "#e377c2",
+    "tab:gray": "#7f7f7f",
+    "tab:olive": "#bcbd22",
+    "tab:cyan": "#17becf",
+    "r": "#ff0000",
+    "k": "#000000",
+    "w": "#ffffff",
 }
 #: matplotlib's default colour cycle.
 CYCLE = [
@@ -73,7 +73,8 @@ CYCLE = [
 def rgba(color: str, alpha: float = 1.0) -> tuple[int, int, int, int]:
     """A colour name of :data:`COLORS`, or a grey level "0.0".."1.0", as 0..255 RGBA."""
     if color in COLORS:
-        r, g, b = COLORS[color]
+        code = COLORS[color]
+        r, g, b = (int(code[k : k + 2], 16) for k in (1, 3, 5))
     else:
         level = round(255 * float(color))
         r = g = b = level
@@ -410,13 +411,13 @@ def figure(
     rows: int,
     cols: int,
     *,
-    panel: tuple[float, float] = (3.6, 1.9),
-    left: float = 0.8,
-    right: float = 0.2,
-    top: float = 0.45,
-    bottom: float = 0.55,
-    wspace: float = 0.85,
-    hspace: float = 0.85,
+    panel: tuple[float, float] = drawing.PANEL,
+    left: float = drawing.LEFT,
+    right: float = drawing.RIGHT,
+    top: float = drawing.TOP,
+    bottom: float = drawing.BOTTOM,
+    wspace: float = drawing.WSPACE,
+    hspace: float = drawing.HSPACE,
     label_offset: float | None = None,
 ) -> tuple[Figure, np.ndarray]:
     """A figure of ``rows`` × ``cols`` panels of ``panel`` = (width, height) inches, with
@@ -424,8 +425,9 @@ def figure(
     shape (rows, cols))."""
     d = drawing.DPI
     pw, ph = panel
-    width = left + right + cols * pw + (cols - 1) * wspace
-    height = top + bottom + rows * ph + (rows - 1) * hspace
+    width, height = drawing.grid_size(
+        rows, cols, panel, (left, right, top, bottom), (wspace, hspace)
+    )
     fig = Figure(round(width * d), round(height * d))
     axes = np.empty((rows, cols), dtype=object)
     for r in range(rows):
@@ -621,21 +623,21 @@ def _handle(
         c.fill_rect(x + length * 0.1, y - h / 2, x + length * 0.9, y + h / 2, rgba(a["color"]))
 
 
-def _entries(c: Any, labels: list[str], fs: float) -> tuple[float, float, list[float]]:
-    """(sample length, row height, text widths) of a legend at ``fs`` points."""
-    size = px(fs)
+def _entries(
+    c: Any, labels: list[str], spec: dict[str, Any]
+) -> tuple[float, float, float, list[float]]:
+    """(font size px, sample length, row height, text widths) of a legend of ``spec``."""
+    size = px(spec["fontsize"])
     widths = [c.text_extent(s, size)[0] for s in labels]
     _, a, d = c.text_extent("Ag", size)
-    return 2.0 * size, max(a + d, size) + 0.5 * size, widths
+    return size, 2.0 * size, max(a + d, size) + 0.5 * size, widths
 
 
 def _axes_legend(c: Any, ax: Axes, spec: dict[str, Any]) -> None:
     handles, labels = ax.get_legend_handles_labels()
     if not handles:
         return
-    fs = spec["fontsize"]
-    size = px(fs)
-    length, row, widths = _entries(c, labels, fs)
+    size, length, row, widths = _entries(c, labels, spec)
     pad, gap = 0.4 * size, 0.8 * size
     w = pad * 2 + length + gap + max(widths)
     h = pad * 2 + row * len(labels) - 0.5 * size
@@ -657,9 +659,7 @@ def _figure_legend(c: Any, fig: Figure, spec: dict[str, Any]) -> None:
     handles, labels, ncol = spec["handles"], spec["labels"], spec["ncol"]
     if not handles:
         return
-    fs = spec["fontsize"]
-    size = px(fs)
-    length, row, widths = _entries(c, labels, fs)
+    size, length, row, widths = _entries(c, labels, spec)
     gap, between = 0.8 * size, 2.0 * size
     rows = [list(range(k, min(k + ncol, len(labels)))) for k in range(0, len(labels), ncol)]
     y = 0.9 * size + row / 2

@@ -41,6 +41,12 @@ DPI = 100
 #: left of it, inches: clear of 8-point tick labels (up to 6 characters wide).
 LABEL_X_DROP = 0.32
 LABEL_Y_OFFSET = 0.55
+#: The default panel (width, height) and margins of :func:`figure`, inches: left, right,
+#: top, bottom and the space between panels. :func:`prrrp.canvas.figure` lays out the
+#: native figures with the same defaults.
+PANEL = (3.6, 1.9)
+LEFT, RIGHT, TOP, BOTTOM = 0.8, 0.2, 0.45, 0.55
+WSPACE = HSPACE = 0.85
 
 _preload: threading.Thread | None = None
 
@@ -95,13 +101,13 @@ def figure(
     rows: int,
     cols: int,
     *,
-    panel: tuple[float, float] = (3.6, 1.9),
-    left: float = 0.8,
-    right: float = 0.2,
-    top: float = 0.45,
-    bottom: float = 0.55,
-    wspace: float = 0.85,
-    hspace: float = 0.85,
+    panel: tuple[float, float] = PANEL,
+    left: float = LEFT,
+    right: float = RIGHT,
+    top: float = TOP,
+    bottom: float = BOTTOM,
+    wspace: float = WSPACE,
+    hspace: float = HSPACE,
     sharex: bool = False,
     label_offset: float | None = None,
     wait: bool = True,
@@ -118,8 +124,7 @@ def figure(
     from matplotlib.figure import Figure
 
     pw, ph = panel
-    width = left + right + cols * pw + (cols - 1) * wspace
-    height = top + bottom + rows * ph + (rows - 1) * hspace
+    width, height = grid_size(rows, cols, panel, (left, right, top, bottom), (wspace, hspace))
     fig = Figure(figsize=(width, height), dpi=DPI)
     FigureCanvasAgg(fig)
     axes = fig.subplots(
@@ -150,6 +155,23 @@ def figure(
         offset = LABEL_Y_OFFSET if label_offset is None else label_offset
         ax.yaxis.set_label_coords(-offset / pw, 0.5)
     return fig, axes
+
+
+def grid_size(
+    rows: int,
+    cols: int,
+    panel: tuple[float, float],
+    margins: tuple[float, float, float, float],
+    space: tuple[float, float],
+) -> tuple[float, float]:
+    """(width, height), inches, of a figure of ``rows`` × ``cols`` panels of ``panel`` =
+    (width, height) with ``margins`` = (left, right, top, bottom) and ``space`` = (wspace,
+    hspace) between panels: the layout of :func:`figure` and :func:`prrrp.canvas.figure`."""
+    (pw, ph), (left, right, top, bottom), (wspace, hspace) = panel, margins, space
+    return (
+        left + right + cols * pw + (cols - 1) * wspace,
+        top + bottom + rows * ph + (rows - 1) * hspace,
+    )
 
 
 _InView: Any = None

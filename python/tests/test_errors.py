@@ -156,6 +156,16 @@ def test_module_function_errors():
         prrrp.condition_number(np.ones(8))
 
 
+def test_observation_matrix_overflow_is_a_typed_error():
+    """The stacked regressors overflow like every batched quantity: a NonFiniteError naming
+    the sample, never a matrix of inf."""
+    big = np.full((3, 5), 1e300)
+    big[0] = 1.0
+    with pytest.raises(prrrp.NonFiniteError, match="overflowed") as e:
+        prrrp.observation_matrix(big, big, np.ones(5))
+    assert e.value.sample == 1
+
+
 def test_extreme_values_do_not_panic(robot):
     """Huge but finite inputs overflow; that is a typed error, never a crash or a silent
     inf/NaN in the output."""

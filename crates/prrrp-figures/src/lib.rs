@@ -95,6 +95,17 @@ pub struct Canvas {
     clip: Option<([i32; 4], Mask)>,
 }
 
+/// Coordinate arrays pair up point by point.
+fn same_length(xs: &[f64], ys: &[f64]) -> Result<(), CanvasError> {
+    if xs.len() == ys.len() {
+        return Ok(());
+    }
+    Err(CanvasError::Lengths {
+        xs: xs.len(),
+        ys: ys.len(),
+    })
+}
+
 fn check_positive(what: &'static str, value: f32) -> Result<(), CanvasError> {
     if value.is_finite() && value > 0.0 {
         Ok(())
@@ -178,12 +189,7 @@ impl Canvas {
         width: f32,
         dash: &[f32],
     ) -> Result<(), CanvasError> {
-        if xs.len() != ys.len() {
-            return Err(CanvasError::Lengths {
-                xs: xs.len(),
-                ys: ys.len(),
-            });
-        }
+        same_length(xs, ys)?;
         check_positive("a line width", width)?;
         let dash = if dash.is_empty() {
             None
@@ -267,12 +273,7 @@ impl Canvas {
 
     /// The polygon through the points (closed; non-finite points skipped), filled.
     pub fn fill_polygon(&mut self, xs: &[f64], ys: &[f64], color: Rgba) -> Result<(), CanvasError> {
-        if xs.len() != ys.len() {
-            return Err(CanvasError::Lengths {
-                xs: xs.len(),
-                ys: ys.len(),
-            });
-        }
+        same_length(xs, ys)?;
         let mut pb = PathBuilder::new();
         let mut first = true;
         for (&x, &y) in xs.iter().zip(ys) {
@@ -308,12 +309,7 @@ impl Canvas {
         radius: f32,
         color: Rgba,
     ) -> Result<(), CanvasError> {
-        if xs.len() != ys.len() {
-            return Err(CanvasError::Lengths {
-                xs: xs.len(),
-                ys: ys.len(),
-            });
-        }
+        same_length(xs, ys)?;
         check_positive("a marker radius", radius)?;
         let (w, h) = self.size();
         let [cx0, cy0, cx1, cy1] = match &self.clip {

@@ -169,11 +169,35 @@ pub(crate) fn samples_of<const D: usize, const K: usize>(
     names: [&'static str; K],
     with: &[&dyn AsArg],
 ) -> PyResult<([Samples<D>; K], Option<usize>)> {
-    let mut read = Vec::with_capacity(K);
+    read_args(py, args, names, with, Samples::<D>::extract)
+}
+
+/// [`samples_of`] for vectors whose length `dim` is known only at run time (a chain's
+/// joints): K arguments of (dim,) or (N, dim) and their common batch length.
+pub(crate) fn dyn_samples_of<const K: usize>(
+    py: Python<'_>,
+    args: [&Bound<'_, PyAny>; K],
+    names: [&'static str; K],
+    dim: usize,
+) -> PyResult<([DynSamples; K], Option<usize>)> {
+    read_args(py, args, names, &[], |obj, name| {
+        DynSamples::extract(obj, name, dim)
+    })
+}
+
+/// K arguments read in order by `read` and their batch length (with `with`'s).
+fn read_args<S: AsArg, const K: usize>(
+    py: Python<'_>,
+    args: [&Bound<'_, PyAny>; K],
+    names: [&'static str; K],
+    with: &[&dyn AsArg],
+    read: impl Fn(&Bound<'_, PyAny>, &'static str) -> PyResult<S>,
+) -> PyResult<([S; K], Option<usize>)> {
+    let mut out = Vec::with_capacity(K);
     for (obj, name) in args.into_iter().zip(names) {
-        read.push(Samples::<D>::extract(obj, name)?);
+        out.push(read(obj, name)?);
     }
-    let Ok(samples) = <[Samples<D>; K]>::try_from(read) else {
+    let Ok(samples) = <[S; K]>::try_from(out) else {
         unreachable!("K arguments read as K sample sets")
     };
     let mut all: Vec<&dyn AsArg> = samples.iter().map(|s| s as &dyn AsArg).collect();
@@ -391,6 +415,38 @@ pub(crate) fn vector(obj: &Bound<'_, PyAny>, name: &'static str) -> PyResult<Vec
         return Err(shape_error(obj.py(), name, "(N,)", fmt_shape(&shape)));
     }
     Ok(data)
+}
+
+/// A `ShapeMismatchError` naming `name` unless its `got` entries are the `want` it needs;
+/// `note` (e.g. " (one type per DH row)") follows the expected shape in the message.
+pub(crate) fn check_len(
+    py: Python<'_>,
+    name: &str,
+    got: usize,
+    want: usize,
+    note: &str,
+) -> PyResult<()> {
+    if got == want {
+        return Ok(());
+    }
+    Err(shape_error(
+        py,
+        name,
+        format!("({want},){note}"),
+        format!("({got},)"),
+    ))
+}
+
+/// [`vector`] of exactly `len` values ([`check_len`]).
+pub(crate) fn vector_of_len(
+    obj: &Bound<'_, PyAny>,
+    name: &'static str,
+    len: usize,
+    note: &str,
+) -> PyResult<Vec<f64>> {
+    let v = vector(obj, name)?;
+    check_len(obj.py(), name, v.len(), len, note)?;
+    Ok(v)
 }
 
 /// Anything numpy converts to float64 (complex refused), or an `InvalidInputError` naming

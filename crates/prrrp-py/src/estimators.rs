@@ -21,7 +21,7 @@ use pyo3::prelude::*;
 
 use crate::arrays::{
     any_array, batch_len, fixed_matrix, fixed_or, fixed_vector, fmt_shape, to_array, vector,
-    DynSamples, Out, Samples, UInt,
+    vector_of_len, DynSamples, Out, Samples, UInt,
 };
 use crate::errors::{shape_error, to_pyerr, Exc, ToPyResult};
 use crate::interrupt::interruptible;
@@ -182,17 +182,7 @@ fn chain_setup(
     };
     let model = chain.chain().base_model(&base).to_py(py)?;
     let b = model.count();
-    let sized = |o: &Bound<'_, PyAny>, name: &'static str| -> PyResult<Vec<f64>> {
-        let v = vector(o, name)?;
-        if v.len() != b {
-            let (want, got) = (
-                format!("({b},): one per base parameter"),
-                format!("({},)", v.len()),
-            );
-            return Err(shape_error(py, name, want, got));
-        }
-        Ok(v)
-    };
+    let sized = |o, name| vector_of_len(o, name, b, ": one per base parameter");
     let beta0 = beta0.map(|o| sized(o, "beta0")).transpose()?;
     let scale = match scale {
         Some(o) => DVector::from_vec(sized(o, "scale")?),

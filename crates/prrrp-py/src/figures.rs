@@ -6,10 +6,18 @@ use pyo3::prelude::*;
 use pyo3::types::PyBytes;
 
 use crate::arrays::vector;
-use crate::errors::Exc;
+use crate::errors::{Exc, ToPyResult};
 
-fn err(py: Python<'_>, e: CanvasError) -> PyErr {
-    Exc::InvalidInput.new_err(py, e.to_string(), &[])
+impl<T> ToPyResult<T> for Result<T, CanvasError> {
+    /// A canvas error is the caller's input (a size, a width, unequal lengths).
+    fn to_py(self, py: Python<'_>) -> PyResult<T> {
+        self.map_err(|e| Exc::InvalidInput.new_err(py, e.to_string(), &[]))
+    }
+}
+
+/// The (N,) coordinate arrays `xs`, `ys` of a shape's points.
+fn points(xs: &Bound<'_, PyAny>, ys: &Bound<'_, PyAny>) -> PyResult<(Vec<f64>, Vec<f64>)> {
+    Ok((vector(xs, "xs")?, vector(ys, "ys")?))
 }
 
 fn halign(py: Python<'_>, ha: &str) -> PyResult<HAlign> {
@@ -48,7 +56,7 @@ pub(crate) struct Canvas(Inner);
 impl Canvas {
     #[new]
     fn new(py: Python<'_>, width: u32, height: u32) -> PyResult<Self> {
-        Inner::new(width, height).map(Self).map_err(|e| err(py, e))
+        Inner::new(width, height).map(Self).to_py(py)
     }
 
     /// (width, height), pixels.
@@ -75,10 +83,8 @@ impl Canvas {
         width: f32,
         dash: Vec<f32>,
     ) -> PyResult<()> {
-        let (xs, ys) = (vector(xs, "xs")?, vector(ys, "ys")?);
-        self.0
-            .polyline(&xs, &ys, color, width, &dash)
-            .map_err(|e| err(py, e))
+        let (xs, ys) = points(xs, ys)?;
+        self.0.polyline(&xs, &ys, color, width, &dash).to_py(py)
     }
 
     /// A filled rectangle between the corners (x0, y0) and (x1, y1).
@@ -98,9 +104,7 @@ impl Canvas {
         color: Rgba,
         width: f32,
     ) -> PyResult<()> {
-        self.0
-            .stroke_rect(x0, y0, x1, y1, color, width)
-            .map_err(|e| err(py, e))
+        self.0.stroke_rect(x0, y0, x1, y1, color, width).to_py(py)
     }
 
     /// The closed polygon through (xs[i], ys[i]), filled.
@@ -111,8 +115,8 @@ impl Canvas {
         ys: &Bound<'_, PyAny>,
         color: Rgba,
     ) -> PyResult<()> {
-        let (xs, ys) = (vector(xs, "xs")?, vector(ys, "ys")?);
-        self.0.fill_polygon(&xs, &ys, color).map_err(|e| err(py, e))
+        let (xs, ys) = points(xs, ys)?;
+        self.0.fill_polygon(&xs, &ys, color).to_py(py)
     }
 
     /// A filled disc of `radius` pixels at each (xs[i], ys[i]).
@@ -124,10 +128,8 @@ impl Canvas {
         radius: f32,
         color: Rgba,
     ) -> PyResult<()> {
-        let (xs, ys) = (vector(xs, "xs")?, vector(ys, "ys")?);
-        self.0
-            .markers(&xs, &ys, radius, color)
-            .map_err(|e| err(py, e))
+        let (xs, ys) = points(xs, ys)?;
+        self.0.markers(&xs, &ys, radius, color).to_py(py)
     }
 
     /// `text` at `size` pixels per em, anchored (`ha`: left/center/right, `va`:
@@ -149,9 +151,7 @@ impl Canvas {
     ) -> PyResult<()> {
         let (ha, va) = (halign(py, ha)?, valign(py, va)?);
         let c = [color.0, color.1, color.2, color.3];
-        self.0
-            .text(text, x, y, size, ha, va, rotation, c)
-            .map_err(|e| err(py, e))
+        self.0.text(text, x, y, size, ha, va, rotation, c).to_py(py)
     }
 
     /// (width, ascent, descent) of `text` at `size` pixels per em, pixels.
@@ -162,7 +162,7 @@ impl Canvas {
 
     /// The image as PNG bytes.
     fn png<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyBytes>> {
-        let bytes = py.detach(|| self.0.png()).map_err(|e| err(py, e))?;
+        let bytes = py.detach(|| self.0.png()).to_py(py)?;
         Ok(PyBytes::new(py, &bytes))
     }
 }

@@ -7,7 +7,7 @@ use prrrp_core::{IdentifiedModel, PrrrpError};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
-use crate::arrays::{batch_len, map_samples_with, to_array, DynSamples, Out};
+use crate::arrays::{dyn_samples_of, map_samples_with, to_array, Out};
 use crate::errors::{to_pyerr, Exc, ToPyResult};
 use crate::models::chain::PySerialChain;
 
@@ -224,12 +224,7 @@ impl PyIdentifiedModel {
     ) -> Out<'py> {
         let predictor = self.inner.predictor().to_py(py)?;
         let n = predictor.chain().dof();
-        let (q, qd, qdd) = (
-            DynSamples::extract(q, "q", n)?,
-            DynSamples::extract(qd, "qd", n)?,
-            DynSamples::extract(qdd, "qdd", n)?,
-        );
-        let count = batch_len(py, &[&q, &qd, &qdd])?;
+        let ([q, qd, qdd], count) = dyn_samples_of(py, [q, qd, qdd], ["q", "qd", "qdd"], n)?;
         let [tau] = map_samples_with(py, count, [&[n]], predictor, |p, k, [out]| {
             p.predict_into(q.at(k), qd.at(k), qdd.at(k), out)
         })?;

@@ -14,8 +14,8 @@ use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyString, PyTuple};
 
 use crate::arrays::{
-    batch_len, fixed_vector, map_samples, map_samples_with, matrix_rows, to_array, DynSamples, Out,
-    UInt,
+    check_len, dyn_samples_of, fixed_vector, map_samples, map_samples_with, matrix_rows, to_array,
+    vector_of_len, DynSamples, Out, UInt,
 };
 use crate::errors::{shape_error, Exc, ToPyResult};
 use crate::interrupt::interruptible;
@@ -34,8 +34,7 @@ macro_rules! chain_pymethods {
             $(
             $(#[$doc])*
             fn $name<'py>(&self, py: Python<'py>, $($arg: &Bound<'py, PyAny>),+) -> Out<'py> {
-                $(let $arg = self.joints($arg, stringify!($arg))?;)+
-                let n = batch_len(py, &[$(&$arg),+])?;
+                let ([$($arg),+], n) = self.joints(py, [$($arg),+], [$(stringify!($arg)),+])?;
                 let $c = &self.inner;
                 let shape = [$($dim),+];
                 let [y] = map_samples_with(py, n, [&shape], $c.workspace(), |$ws, $k, [$out]| {
@@ -196,8 +195,14 @@ impl PySerialChain {
         }
     }
 
-    fn joints(&self, obj: &Bound<'_, PyAny>, name: &'static str) -> PyResult<DynSamples> {
-        DynSamples::extract(obj, name, self.inner.dof())
+    /// K joint-space arguments, (n,) or (N, n) each, and their batch length.
+    fn joints<const K: usize>(
+        &self,
+        py: Python<'_>,
+        args: [&Bound<'_, PyAny>; K],
+        names: [&'static str; K],
+    ) -> PyResult<([DynSamples; K], Option<usize>)> {
+        dyn_samples_of(py, args, names, self.inner.dof())
     }
 
     /// Applies the Python-side friction choice to a chain read from a file: the file's own
@@ -300,14 +305,7 @@ getters ({} inner {
     ) -> PyResult<Self> {
         let (n, table) = matrix_rows(dh, "dh", None, 4)?;
         let kinds = joint_kinds(joint_types)?;
-        if kinds.len() != n {
-            return Err(shape_error(
-                py,
-                "joint_types",
-                format!("({n},) (one type per DH row)"),
-                format!("({},)", kinds.len()),
-            ));
-        }
+        check_len(py, "joint_types", kinds.len(), n, " (one type per DH row)")?;
         let conv = convention_from(py, convention)?;
         let rows: Vec<DhRow> = table
             .chunks_exact(4)
@@ -401,22 +399,10 @@ getters ({} inner {
     /// A URDF of this chain with the given standard parameters (default: its own).
     #[pyo3(signature = (parameters=None))]
     fn to_urdf(&self, py: Python<'_>, parameters: Option<&Bound<'_, PyAny>>) -> PyResult<String> {
-        let params = match parameters {
-            Some(obj) => {
-                let v = crate::arrays::vector(obj, "parameters")?;
-                let want = self.inner.num_params();
-                if v.len() != want {
-                    return Err(shape_error(
-                        py,
-                        "parameters",
-                        format!("({want},)"),
-                        format!("({},)", v.len()),
-                    ));
-                }
-                Some(v)
-            }
-            None => None,
-        };
+        let p = self.inner.num_params();
+        let params = parameters
+            .map(|obj| vector_of_len(obj, "parameters", p, ""))
+            .transpose()?;
         self.inner.to_urdf(params.as_deref()).to_py(py)
     }
 
@@ -838,12 +824,7 @@ getters ({} inner {
         qdd: &Bound<'py, PyAny>,
         base: Option<PyRef<'py, PyBaseParameters>>,
     ) -> Out<'py> {
-        let (q, qd, qdd) = (
-            self.joints(q, "q")?,
-            self.joints(qd, "qd")?,
-            self.joints(qdd, "qdd")?,
-        );
-        let n = batch_len(py, &[&q, &qd, &qdd])?;
+        let ([q, qd, qdd], n) = self.joints(py, [q, qd, qdd], ["q", "qd", "qdd"])?;
         let b = match &base {
             Some(b) => &b.inner,
             None => self.default_base(py)?,
@@ -1028,8 +1009,8 @@ pymethods_with_getters!(PyBaseParameters {} inner {
 
     /// β = K·π for standard parameters π of shape (P,) or (N, P): (b,) or (N, b).
     fn base_values<'py>(&self, py: Python<'py>, parameters: &Bound<'py, PyAny>) -> Out<'py> {
-        let pi = DynSamples::extract(parameters, "parameters", self.inner.num_standard())?;
-        let n = batch_len(py, &[&pi])?;
+        let p = self.inner.num_standard();
+        let ([pi], n) = dyn_samples_of(py, [parameters], ["parameters"], p)?;
         let b = &self.inner;
         let [beta] = map_samples(py, n, [&[b.count()]], |k, [out]| {
             out.copy_from_slice(&b.base_values(pi.at(k))?);

@@ -5,10 +5,10 @@
 use faer::Mat;
 use numpy::ndarray::Ix2;
 use numpy::{PyArray1, PyUntypedArrayMethods};
-use prrrp_core::{PrrrpError, PrrrpModel, Vec5, NDOF, NPARAM, STANDARD_GRAVITY};
+use prrrp_core::{PrrrpError, PrrrpModel, NDOF, NPARAM, STANDARD_GRAVITY};
 use pyo3::prelude::*;
 
-use crate::arrays::{map_samples, samples_of, to_array, write_row_major, Out, Samples};
+use crate::arrays::{map_samples, samples_of, write_row_major, Out};
 use crate::errors::{to_pyerr, ToPyResult};
 
 /// A model with gravity `g` (m/s², along −z), checked like `Robot`'s.
@@ -65,24 +65,9 @@ fn observation_matrix<'py>(
     qdd: &Bound<'py, PyAny>,
     gravity: f64,
 ) -> Out<'py> {
-    let model = model(py, gravity)?;
-    let ([q, qd, qdd], n) = samples_of::<NDOF, 3>(py, [q, qd, qdd], ["q", "qd", "qdd"], &[])?;
-    let n = n.unwrap_or(1);
-    // Single samples broadcast: materialise them so the core sees equal lengths.
-    let full = |s: &Samples<NDOF>| -> Vec<Vec5> { (0..n).map(|k| *s.at(k)).collect() };
-    let (q, qd, qdd) = (full(&q), full(&qd), full(&qdd));
-    let flat = py
-        .detach(|| {
-            prrrp_core::observation_matrix(&model, &q, &qd, &qdd).map(|w| {
-                let mut flat = Vec::with_capacity(w.nrows() * w.ncols());
-                for i in 0..w.nrows() {
-                    flat.extend((0..w.ncols()).map(|j| w[(i, j)]));
-                }
-                flat
-            })
-        })
-        .to_py(py)?;
-    to_array(py, flat, Some(NDOF * n), &[NPARAM])
+    // The batch of Φ, row-major (N, 5, 8), is W read as (5·N, 8).
+    let phi = regressor_at(py, model(py, gravity)?, [q, qd, qdd])?;
+    phi.call_method1("reshape", ((-1i64, NPARAM),))
 }
 
 /// Reads a 2-D matrix argument into faer.

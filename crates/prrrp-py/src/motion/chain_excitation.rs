@@ -5,8 +5,8 @@ use prrrp_core::{optimise_chain_excitation, ChainExcitationConfig, JointLimit};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
-use crate::arrays::{to_array, vector, UInt};
-use crate::errors::{shape_error, ToPyResult};
+use crate::arrays::{check_len, to_array, vector, UInt};
+use crate::errors::ToPyResult;
 use crate::interrupt::{with_progress, Callback};
 use crate::models::chain::PySerialChain;
 
@@ -22,14 +22,7 @@ fn limits(
     for (key, value) in d.iter() {
         let key: String = key.extract()?;
         let v = vector(&value, "limits")?;
-        if v.len() != n {
-            return Err(shape_error(
-                d.py(),
-                &format!("limits['{key}']"),
-                format!("({n},)"),
-                format!("({},)", v.len()),
-            ));
-        }
+        check_len(d.py(), &format!("limits['{key}']"), v.len(), n, "")?;
         for (l, x) in out.iter_mut().zip(v) {
             match key.as_str() {
                 "lower" => l.lower = x,

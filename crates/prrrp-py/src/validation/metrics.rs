@@ -121,14 +121,7 @@ fn relative_errors<'py>(
 ) -> Out<'py> {
     let e = crate::arrays::vector(estimate, "estimate")?;
     let t = crate::arrays::vector(truth, "truth")?;
-    if e.len() != t.len() {
-        return Err(shape_error(
-            py,
-            "truth",
-            format!("({},)", e.len()),
-            format!("({},)", t.len()),
-        ));
-    }
+    crate::arrays::check_len(py, "truth", t.len(), e.len(), "")?;
     for (name, v) in [("estimate", &e), ("truth", &t)] {
         if let Some(row) = v.iter().position(|x| !x.is_finite()) {
             return Err(crate::errors::to_pyerr(
