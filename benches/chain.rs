@@ -186,26 +186,17 @@ fn urdf_group<const N: usize, const P: usize>(c: &mut Criterion, name: &str, cha
     let mut y = vec![0.0; N * chain.num_params()];
     let mut g = c.benchmark_group(name);
     chain_benches::<N, P>(&mut g, "", "regressor", &fixed, false);
+    let x = || black_box([q.as_slice(), qd.as_slice(), qdd.as_slice()]);
     g.bench_function("dyn_inverse_dynamics_into", |b| {
         b.iter(|| {
-            chain.inverse_dynamics_into(
-                &mut ws,
-                black_box(q.as_slice()),
-                black_box(qd.as_slice()),
-                black_box(qdd.as_slice()),
-                &mut tau,
-            )
+            let [q, qd, qdd] = x();
+            chain.inverse_dynamics_into(&mut ws, q, qd, qdd, &mut tau)
         })
     });
     g.bench_function("dyn_regressor_into", |b| {
         b.iter(|| {
-            chain.regressor_row_major_into(
-                &mut ws,
-                black_box(q.as_slice()),
-                black_box(qd.as_slice()),
-                black_box(qdd.as_slice()),
-                &mut y,
-            )
+            let [q, qd, qdd] = x();
+            chain.regressor_row_major_into(&mut ws, q, qd, qdd, &mut y)
         })
     });
     g.finish();

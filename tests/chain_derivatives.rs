@@ -13,7 +13,9 @@ mod dyn_support;
 
 use dyn_support::{base_model, with_smoothed_friction};
 use prrrp_core::nalgebra::{DMatrix, DVector, Dyn};
-use prrrp_core::{DynChain, DynChainBaseModel, ForwardDerivativesOf, LinearModel, SerialChain};
+use prrrp_core::{
+    DynBaseWorkspace, DynChain, DynChainBaseModel, ForwardDerivativesOf, LinearModel, SerialChain,
+};
 use rand::rngs::StdRng;
 use rand::{RngExt, SeedableRng};
 
@@ -64,22 +66,38 @@ fn uniform(rng: &mut StdRng, n: usize, limit: f64) -> DVector<f64> {
     DVector::from_fn(n, |_, _| rng.random_range(-limit..limit))
 }
 
+/// A random state: q and q̇ in [−2, 2), and τ or q̈ in [−5, 5) (drawn in that order).
+fn random_state(rng: &mut StdRng, n: usize) -> [DVector<f64>; 3] {
+    [2.0, 2.0, 5.0].map(|limit| uniform(rng, n, limit))
+}
+
+/// The base model of `chain` with its true β, a workspace and a derivative buffer.
+fn setup(
+    chain: &DynChain,
+) -> (
+    DynChainBaseModel,
+    DVector<f64>,
+    DynBaseWorkspace,
+    ForwardDerivativesOf<Dyn, Dyn>,
+) {
+    let m = base_model(chain);
+    let beta = m.chain_base_values().clone();
+    let ws = m.workspace();
+    let fd = ForwardDerivativesOf::<Dyn, Dyn>::zeros(Dyn(chain.dof()), Dyn(m.count()));
+    (m, beta, ws, fd)
+}
+
 /// Parameters a little off `beta` (each within ±5 %; the EKF evaluates at estimates).
 fn near(beta: &DVector<f64>, rng: &mut StdRng) -> DVector<f64> {
     beta.map(|v| v * rng.random_range(0.95..1.05))
 }
 
 fn check_chain(name: &str, chain: &DynChain, seed: u64) {
-    let m = base_model(chain);
+    let (m, beta_true, mut ws, mut fd) = setup(chain);
     let (n, b) = (chain.dof(), m.count());
-    let beta_true = m.chain_base_values().clone();
     let mut rng = StdRng::seed_from_u64(seed);
-    let mut ws = m.workspace();
-    let mut fd = ForwardDerivativesOf::<Dyn, Dyn>::zeros(Dyn(n), Dyn(b));
     for trial in 0..8 {
-        let q = uniform(&mut rng, n, 2.0);
-        let qd = uniform(&mut rng, n, 2.0);
-        let tau = uniform(&mut rng, n, 5.0);
+        let [q, qd, tau] = random_state(&mut rng, n);
         let beta = near(&beta_true, &mut rng);
         m.forward_derivatives_into(&mut ws, &q, &qd, &tau, &beta, &mut fd)
             .unwrap();
@@ -143,11 +161,8 @@ fn prismatic_chain_matches_finite_differences() {
 #[test]
 fn velocity_derivative_vanishes_at_rest_without_friction() {
     let chain = SerialChain::puma560().to_dyn();
-    let m = base_model(&chain);
-    let (n, b) = (chain.dof(), m.count());
-    let beta = m.chain_base_values().clone();
-    let mut ws = m.workspace();
-    let mut fd = ForwardDerivativesOf::<Dyn, Dyn>::zeros(Dyn(n), Dyn(b));
+    let (m, beta, mut ws, mut fd) = setup(&chain);
+    let n = chain.dof();
     let q = DVector::from_fn(n, |i, _| 0.3 * i as f64 - 0.5);
     let qd = DVector::zeros(n);
     let tau = DVector::from_fn(n, |i, _| (i as f64).sin());
@@ -172,18 +187,13 @@ fn derivatives_at_an_acceleration_equal_the_three_calls() {
         ),
         ("Panda-like", dyn_support::panda_like(), 12),
     ] {
-        let m = base_model(&chain);
-        let (n, b) = (chain.dof(), m.count());
-        let beta_true = m.chain_base_values().clone();
+        let (m, beta_true, mut ws, mut got) = setup(&chain);
+        let n = chain.dof();
         let mut rng = StdRng::seed_from_u64(seed);
-        let mut ws = m.workspace();
-        let mut got = ForwardDerivativesOf::<Dyn, Dyn>::zeros(Dyn(n), Dyn(b));
         let mut want = got.clone();
         let mut tau_lin = DVector::zeros(n);
         for trial in 0..8 {
-            let q = uniform(&mut rng, n, 2.0);
-            let qd = uniform(&mut rng, n, 2.0);
-            let qdd_lin = uniform(&mut rng, n, 5.0);
+            let [q, qd, qdd_lin] = random_state(&mut rng, n);
             let tau = uniform(&mut rng, n, 5.0);
             let beta = near(&beta_true, &mut rng);
             m.inverse_dynamics_into(&mut ws, &q, &qd, &qdd_lin, &beta, &mut tau_lin)

@@ -7,10 +7,10 @@ mod dyn_support;
 
 use std::sync::OnceLock;
 
-use dyn_support::{exact_record, panda_like, DynFourier};
+use dyn_support::{exact_record, method_with_epochs, panda_like, DynFourier};
 use prrrp_core::{
     identify, identify_cached, BaseOptions, BaseParameters, DynChain, DynDataset, FitCache,
-    GradientSettings, IdentifiedModel, Method, PrrrpError, METHOD_NAMES,
+    IdentifiedModel, Method, PrrrpError, METHOD_NAMES,
 };
 
 const DT: f64 = 0.01;
@@ -67,17 +67,7 @@ fn fixture() -> &'static Fixture {
 /// Default settings but fewer epochs for the gradient methods (seconds, not minutes; the
 /// sharing does not depend on them).
 fn method(name: &str) -> Method {
-    match Method::parse(name).unwrap() {
-        Method::Adaline(s) => Method::Adaline(GradientSettings {
-            max_epochs: 40,
-            ..s
-        }),
-        Method::Hopfield(s) => Method::Hopfield(GradientSettings {
-            max_epochs: 40,
-            ..s
-        }),
-        m => m,
-    }
+    method_with_epochs(name, 40)
 }
 
 fn bits(v: &[f64]) -> Vec<u64> {

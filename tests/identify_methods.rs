@@ -12,7 +12,7 @@ mod dyn_support;
 
 use std::sync::OnceLock;
 
-use dyn_support::{exact_record, panda_like, DynFourier};
+use dyn_support::{exact_record, method_with_epochs, panda_like, DynFourier};
 use prrrp_core::{
     identify, identify_robot, BaseOptions, BaseParameters, DynChain, DynDataset, EkfSettings,
     EkfStart, GradientSettings, IdentifiedModel, Method, PrrrpError, Robot, SerialChain,
@@ -76,17 +76,7 @@ fn param_error(beta: &[f64], truth: &[f64]) -> f64 {
 
 /// Settings that keep each test within a few seconds: fewer epochs than the defaults.
 fn method(name: &str) -> Method {
-    match Method::parse(name).unwrap() {
-        Method::Adaline(s) => Method::Adaline(GradientSettings {
-            max_epochs: 60,
-            ..s
-        }),
-        Method::Hopfield(s) => Method::Hopfield(GradientSettings {
-            max_epochs: 60,
-            ..s
-        }),
-        m => m,
-    }
+    method_with_epochs(name, 60)
 }
 
 fn run(name: &str, data: &DynDataset) -> IdentifiedModel {

@@ -13,8 +13,8 @@ mod seeded_support;
 use prrrp_core::nalgebra::{DVector, SVector};
 use prrrp_core::{
     inertial_parameters, BaseOptions, BaseParameters, DhConvention, DhRow, DynChain,
-    DynChainBaseModel, DynDataset, DynSamples, FourierTrajectory, FrictionModel, IdentifiedModel,
-    JointKind, UrdfOptions,
+    DynChainBaseModel, DynDataset, DynSamples, FourierTrajectory, FrictionModel, GradientSettings,
+    IdentifiedModel, JointKind, Method, UrdfOptions,
 };
 use rand::rngs::StdRng;
 use rand::SeedableRng;
@@ -288,4 +288,15 @@ pub fn robots_dir() -> Option<std::path::PathBuf> {
             )
         });
     dir.is_dir().then_some(dir)
+}
+
+/// The method `name` with its default settings, but at most `max_epochs` epochs for the
+/// gradient methods (seconds instead of minutes per test).
+pub fn method_with_epochs(name: &str, max_epochs: usize) -> Method {
+    let fewer = |s| GradientSettings { max_epochs, ..s };
+    match Method::parse(name).unwrap() {
+        Method::Adaline(s) => Method::Adaline(fewer(s)),
+        Method::Hopfield(s) => Method::Hopfield(fewer(s)),
+        m => m,
+    }
 }

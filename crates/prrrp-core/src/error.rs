@@ -258,6 +258,19 @@ pub(crate) fn check_lens(
     Ok(())
 }
 
+/// A [`PrrrpError::ShapeMismatch`] naming `what` unless its shape `got` (rows, columns) is
+/// `want`. Allocates only on the error.
+pub(crate) fn check_shape(what: &str, got: (usize, usize), want: (usize, usize)) -> Result<()> {
+    if got != want {
+        return Err(PrrrpError::shape(
+            what,
+            format!("{}×{}", want.0, want.1),
+            format!("{}×{}", got.0, got.1),
+        ));
+    }
+    Ok(())
+}
+
 /// A [`PrrrpError::ShapeMismatch`] naming `what` unless its length `len` is the joint
 /// count `n`.
 pub(crate) fn check_joints(what: &str, len: usize, n: usize) -> Result<()> {

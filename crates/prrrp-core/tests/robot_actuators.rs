@@ -24,6 +24,12 @@ fn with_elements(extra: &str) -> String {
     three_joint_text().replace("</robot>", &format!("{extra}\n</robot>"))
 }
 
+/// The three-joint coupling whose last motor also turns with joint 2 (factor `c`): motor
+/// velocities = C·q̇ with C the identity plus C[2][1] = c.
+fn wrist_coupling(c: f64) -> Vec<Vec<f64>> {
+    vec![vec![1.0, 0.0, 0.0], vec![0.0, 1.0, 0.0], vec![0.0, c, 1.0]]
+}
+
 /// Declares Drake's namespace on `<robot>`, as Drake's own URDFs do.
 fn drake_namespace(xml: &str) -> String {
     xml.replacen("<robot ", "<robot xmlns:drake=\"http://drake.mit.edu\" ", 1)
@@ -284,11 +290,7 @@ fn urdf_export_writes_the_armature_and_reads_it_back() {
     let coupled = chain
         .clone()
         .with_actuators(Actuators {
-            coupling: Some(vec![
-                vec![1.0, 0.0, 0.0],
-                vec![0.0, 1.0, 0.0],
-                vec![0.0, 1.0, 1.0],
-            ]),
+            coupling: Some(wrist_coupling(1.0)),
             ..chain.actuators().clone()
         })
         .unwrap();
@@ -310,11 +312,7 @@ fn toml_with_urdf_round_trips_a_coupled_chain() {
         )
         .unwrap()
         .with_actuators(Actuators {
-            coupling: Some(vec![
-                vec![1.0, 0.0, 0.0],
-                vec![0.0, 1.0, 0.0],
-                vec![0.0, 0.5, 1.0],
-            ]),
+            coupling: Some(wrist_coupling(0.5)),
             armature: true,
             armature_values: Some(vec![0.7, 0.2, 0.05]),
             gear_ratios: Some(vec![100.0, 60.0, 30.0]),

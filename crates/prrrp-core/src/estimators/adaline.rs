@@ -230,6 +230,15 @@ struct Progress {
     samples: usize,
 }
 
+/// Adaline's [`PrrrpError::Diverged`] at sample `at`.
+fn diverged(at: usize, hint: &'static str) -> PrrrpError {
+    PrrrpError::Diverged {
+        what: "Adaline",
+        at,
+        hint,
+    }
+}
+
 /// The delta-rule update of one sample given its regressor Φ (N×P) and forces τ (N):
 /// the N equations one after the other (pattern by pattern). Both [`AdalineOf::step`]
 /// and [`AdalineOf::train_stored`] run it, so that they compute the same numbers.
@@ -266,12 +275,11 @@ where
             }
         }
         if !(delta.abs() <= c.divergence_ratio * st.tau_scale || delta.abs() <= f64::MIN_POSITIVE) {
-            return Err(PrrrpError::Diverged {
-                what: "Adaline",
-                at: st.samples,
-                hint: "the equation error grows: lower the learning rate \
-                       (the delta rule needs γ·‖Φ_i‖² < 2) or use the normalised rule",
-            });
+            return Err(diverged(
+                st.samples,
+                "the equation error grows: lower the learning rate \
+                 (the delta rule needs γ·‖Φ_i‖² < 2) or use the normalised rule",
+            ));
         }
     }
     st.equations += n;
@@ -285,11 +293,8 @@ where
                 row: None,
             });
         }
-        return Err(PrrrpError::Diverged {
-            what: "Adaline",
-            at: st.samples,
-            hint: "a weight became non-finite: lower the learning rate",
-        });
+        let hint = "a weight became non-finite: lower the learning rate";
+        return Err(diverged(st.samples, hint));
     }
     st.samples += 1;
     Ok(())

@@ -712,15 +712,12 @@ impl Search {
     }
 }
 
-/// The unit-diagonal Cholesky factor of `p` and L⁻¹·D·`rhs`, or `None` if `p` is not
-/// positive definite.
-fn factor(p: Mat<f64>, rhs: &[f64]) -> Option<Train> {
-    let nf = p.nrows();
-    // Unit-diagonal scaling keeps the Cholesky factor accurate when columns differ by
-    // orders of magnitude (inertia vs friction).
-    let scale: Vec<f64> = (0..nf)
+/// 1/√m_ii per row of the square `m`, the scaling to a unit diagonal; `None` if a diagonal
+/// entry is not positive and finite (the matrix is then not positive definite).
+fn unit_diagonal_scale(m: &Mat<f64>) -> Option<Vec<f64>> {
+    let scale: Vec<f64> = (0..m.nrows())
         .map(|i| {
-            let x = p[(i, i)];
+            let x = m[(i, i)];
             if x > 0.0 {
                 1.0 / x.sqrt()
             } else {
@@ -728,9 +725,16 @@ fn factor(p: Mat<f64>, rhs: &[f64]) -> Option<Train> {
             }
         })
         .collect();
-    if scale.contains(&0.0) {
-        return None;
-    }
+    (!scale.contains(&0.0)).then_some(scale)
+}
+
+/// The unit-diagonal Cholesky factor of `p` and L⁻¹·D·`rhs`, or `None` if `p` is not
+/// positive definite.
+fn factor(p: Mat<f64>, rhs: &[f64]) -> Option<Train> {
+    let nf = p.nrows();
+    // Unit-diagonal scaling keeps the Cholesky factor accurate when columns differ by
+    // orders of magnitude (inertia vs friction).
+    let scale = unit_diagonal_scale(&p)?;
     let scaled = Mat::<f64>::from_fn(nf, nf, |i, j| p[(i, j)] * scale[i] * scale[j]);
     let l = scaled.as_ref().llt(Side::Lower).ok()?.L().to_owned();
     let mut y = Mat::<f64>::from_fn(nf, 1, |i, _| rhs[i] * scale[i]);
@@ -813,19 +817,9 @@ impl Scorer for Search {
             for (f, fold) in self.fixed.iter().enumerate() {
                 let Some(train) = &fold.train else { break };
                 let r = Mat::<f64>::from_fn(nc, nc, |a, b| total_cc[(a, b)] - cc[f][c][(a, b)]);
-                let dc: Vec<f64> = (0..nc)
-                    .map(|a| {
-                        let x = r[(a, a)];
-                        if x > 0.0 {
-                            1.0 / x.sqrt()
-                        } else {
-                            0.0
-                        }
-                    })
-                    .collect();
-                if dc.contains(&0.0) {
+                let Some(dc) = unit_diagonal_scale(&r) else {
                     break;
-                }
+                };
                 // Block Cholesky of the scaled training matrix [P Q; Qᵀ R]: X = L⁻¹·Q̃, the
                 // Schur complement R̃ − XᵀX, then back substitution.
                 let mut x = Mat::<f64>::from_fn(nf, nc, |i, a| {
@@ -931,6 +925,7 @@ fn sig3(x: f64) -> String {
 mod tests {
     use super::*;
     use crate::models::chain::BaseOptions;
+    use crate::motion::{DynTrajectory, FourierTrajectory};
     use rand::rngs::StdRng;
     use rand::{RngExt, SeedableRng};
 
@@ -1146,20 +1141,18 @@ mod tests {
             .unwrap();
         let mut rng = StdRng::seed_from_u64(seed);
         let coef: Vec<f64> = (0..n * 6).map(|_| rng.random::<f64>() - 0.5).collect();
+        // q_j = Σ_h α·sin(ω_h·t) + β·cos(ω_h·t), ω_h = 2π·0.25·h Hz, in the velocity
+        // coefficients of the Fourier series (a = α·ω_h, b = −β·ω_h).
+        let w0 = 2.0 * std::f64::consts::PI * 0.25;
+        let w = |i: usize| w0 * (i % 3 + 1) as f64;
+        let a = (0..n * 3).map(|i| coef[2 * i] * w(i)).collect();
+        let b = (0..n * 3).map(|i| -coef[2 * i + 1] * w(i)).collect();
+        let series = FourierTrajectory::new(w0, vec![0.0; n], a, b).unwrap();
         let (mut t, mut q, mut qd, mut qdd, mut tau) = (vec![], vec![], vec![], vec![], vec![]);
         for k in 0..samples {
             let tk = k as f64 * 0.01;
             let (mut qk, mut qdk, mut qddk) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
-            for j in 0..n {
-                for h in 0..3 {
-                    let w = 2.0 * std::f64::consts::PI * 0.25 * (h + 1) as f64;
-                    let (a, b) = (coef[j * 6 + 2 * h], coef[j * 6 + 2 * h + 1]);
-                    let (s, c) = (w * tk).sin_cos();
-                    qk[j] += a * s + b * c;
-                    qdk[j] += w * (a * c - b * s);
-                    qddk[j] -= w * w * (a * s + b * c);
-                }
-            }
+            series.eval_into(tk, &mut qk, &mut qdk, &mut qddk);
             let tk_tau = truth.inverse_dynamics(&qk, &qdk, &qddk).unwrap();
             t.push(tk);
             q.extend(qk);

@@ -211,3 +211,17 @@ where
         got: format!("{}×{}", got.0, got.1),
     })
 }
+
+/// [`PrrrpError::ShapeMismatch`] for a model with no joint (`n` = 0) or no parameter
+/// (`p` = 0), which no estimator can fit.
+pub(crate) fn check_model_size(n: usize, p: usize) -> Result<()> {
+    if n == 0 || p == 0 {
+        let got = format!("{n} joints, {p} parameters");
+        return Err(PrrrpError::shape(
+            "model",
+            "at least one joint and one parameter",
+            got,
+        ));
+    }
+    Ok(())
+}

@@ -21,6 +21,7 @@ use faer::{Accum, Conj, Mat, MatMut, MatRef, Par, Side};
 use nalgebra::allocator::Allocator;
 use nalgebra::{Const, DefaultAllocator, Dim, Dyn, OMatrix, OVector, U1};
 
+use super::estimator::check_model_size;
 use super::samples::SamplesOf;
 use crate::error::{PrrrpError, Result};
 use crate::models::LinearModel;
@@ -826,13 +827,7 @@ fn check_samples<N: Dim>(nj: usize, np: usize, data: &SamplesOf<'_, N>) -> Resul
 where
     DefaultAllocator: Allocator<N>,
 {
-    if nj == 0 || np == 0 {
-        return Err(PrrrpError::ShapeMismatch {
-            what: "model".into(),
-            expected: "at least one joint and one parameter".into(),
-            got: format!("{nj} joints, {np} parameters"),
-        });
-    }
+    check_model_size(nj, np)?;
     // At least one residual degree of freedom, so that σ² is defined.
     let needed = (np + 1).div_ceil(nj);
     if data.len() < needed {

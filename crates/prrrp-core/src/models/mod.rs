@@ -18,9 +18,9 @@ pub(crate) mod robot_files;
 pub(crate) mod scaled;
 
 use nalgebra::allocator::Allocator;
-use nalgebra::{Const, DefaultAllocator, Dim, OMatrix, OVector, SMatrix, SVector, U1};
+use nalgebra::{Const, DefaultAllocator, Dim, Dyn, OMatrix, OVector, SMatrix, SVector, U1};
 
-use crate::error::Result;
+use crate::error::{check_joints, check_shape, Result};
 
 // The module's public API (also at the crate root through `prelude`).
 pub use chain::{
@@ -141,6 +141,18 @@ where
             dqdd_dqd: OMatrix::zeros_generic(n, n),
             dqdd_dlambda: OMatrix::zeros_generic(n, p),
         }
+    }
+}
+
+impl ForwardDerivativesOf<Dyn, Dyn> {
+    /// The [`crate::PrrrpError::ShapeMismatch`] of the first buffer (`out.qdd`,
+    /// `out.dqdd_dq`, `out.dqdd_dqd`, `out.dqdd_dlambda`) not sized for n joints and p
+    /// parameters.
+    pub(crate) fn check_shape(&self, n: usize, p: usize) -> Result<()> {
+        check_joints("out.qdd", self.qdd.len(), n)?;
+        check_shape("out.dqdd_dq", self.dqdd_dq.shape(), (n, n))?;
+        check_shape("out.dqdd_dqd", self.dqdd_dqd.shape(), (n, n))?;
+        check_shape("out.dqdd_dlambda", self.dqdd_dlambda.shape(), (n, p))
     }
 }
 

@@ -11,12 +11,13 @@
 //! of the base model is evaluated at β, so whatever columns it has (friction, actuators)
 //! flow through unchanged.
 
-use nalgebra::{DMatrix, DVector, Dyn};
+use nalgebra::{DMatrix, DVector};
 
 use super::payload::{tip_columns, PAYLOAD_PARAMS};
-use crate::error::Result;
+use crate::error::{check_len, Result};
 use crate::models::chain::{BaseParameters, DynBaseWorkspace, DynChainBaseModel};
-use crate::models::{ForwardDerivativesOf, LinearModel};
+use crate::models::scaled::{Reparametrisation, ReparametrisedWorkspace};
+use crate::models::LinearModel;
 
 /// The arm's base model, or the payload model on top of it (module docs).
 #[derive(Debug, Clone)]
@@ -35,14 +36,8 @@ pub(crate) enum TrackedModel {
     },
 }
 
-/// Workspace of [`TrackedModel`]: the base model's, Φ_b or ∂q̈/∂β before the map, β.
-#[derive(Debug, Clone)]
-pub(crate) struct TrackedWorkspace {
-    base: DynBaseWorkspace,
-    phi: DMatrix<f64>,
-    beta: DVector<f64>,
-    fd: ForwardDerivativesOf<Dyn, Dyn>,
-}
+/// Workspace of [`TrackedModel`].
+pub(crate) type TrackedWorkspace = ReparametrisedWorkspace<DynBaseWorkspace>;
 
 impl TrackedModel {
     /// The payload model on `base` (the analysis `analysis` of its chain) with the arm at
@@ -88,25 +83,6 @@ impl TrackedModel {
         }
     }
 
-    /// The payload columns of a matrix of B columns: out = m·K_tip. A plain loop:
-    /// nalgebra's `gemm` hands dynamic matrices to matrixmultiply, which allocates its
-    /// packing buffers on every call (one allocation per sample, `tests/alloc_online.rs`).
-    /// Over the non-zero entries of K_tip only: the same sums (a zero product adds
-    /// nothing) over a few of the B terms.
-    fn map_columns(&self, m: &DMatrix<f64>, out: &mut DMatrix<f64>) {
-        if let Self::Payload { k_nz, .. } = self {
-            for (k, nz) in k_nz.iter().enumerate() {
-                for i in 0..m.nrows() {
-                    let mut acc = 0.0;
-                    for &(r, v) in nz {
-                        acc += m[(i, r)] * v;
-                    }
-                    out[(i, k)] = acc;
-                }
-            }
-        }
-    }
-
     /// The arm's joint forces without the payload (payload mode; zero otherwise), the
     /// offset of the affine model.
     pub(crate) fn arm_torque_into(
@@ -123,158 +99,54 @@ impl TrackedModel {
                 Ok(())
             }
             Self::Payload { base, arm, .. } => {
-                base.inverse_dynamics_into(&mut ws.base, q, qd, qdd, arm, out)
+                base.inverse_dynamics_into(&mut ws.inner, q, qd, qdd, arm, out)
             }
         }
     }
 }
 
-impl LinearModel<Dyn, Dyn> for TrackedModel {
-    type Workspace = TrackedWorkspace;
+/// Full: λ = θ; payload: β = β_arm + K_tip·π.
+impl Reparametrisation for TrackedModel {
+    type Inner = DynChainBaseModel;
 
-    fn dims(&self) -> (Dyn, Dyn) {
-        match self {
-            Self::Full(b) => b.dims(),
-            Self::Payload { base, .. } => (Dyn(base.dof()), Dyn(PAYLOAD_PARAMS)),
-        }
-    }
-
-    fn workspace(&self) -> TrackedWorkspace {
-        let base = self.base();
-        let (n, b) = (base.dof(), base.count());
-        TrackedWorkspace {
-            base: base.workspace(),
-            phi: DMatrix::zeros(n, b),
-            beta: DVector::zeros(b),
-            fd: ForwardDerivativesOf::zeros(Dyn(n), Dyn(b)),
-        }
-    }
-
-    fn regressor_into(
-        &self,
-        ws: &mut TrackedWorkspace,
-        q: &DVector<f64>,
-        qd: &DVector<f64>,
-        qdd: &DVector<f64>,
-        out: &mut DMatrix<f64>,
-    ) -> Result<()> {
-        match self {
-            Self::Full(b) => b.regressor_into(&mut ws.base, q, qd, qdd, out),
-            Self::Payload { base, .. } => {
-                base.regressor_into(&mut ws.base, q, qd, qdd, &mut ws.phi)?;
-                self.map_columns(&ws.phi, out);
-                Ok(())
-            }
-        }
-    }
-
-    fn inverse_dynamics_into(
-        &self,
-        ws: &mut TrackedWorkspace,
-        q: &DVector<f64>,
-        qd: &DVector<f64>,
-        qdd: &DVector<f64>,
-        lambda: &DVector<f64>,
-        out: &mut DVector<f64>,
-    ) -> Result<()> {
-        self.beta_into(lambda, &mut ws.beta);
+    fn inner(&self) -> &DynChainBaseModel {
         self.base()
-            .inverse_dynamics_into(&mut ws.base, q, qd, qdd, &ws.beta, out)
     }
 
-    fn forward_dynamics_into(
-        &self,
-        ws: &mut TrackedWorkspace,
-        q: &DVector<f64>,
-        qd: &DVector<f64>,
-        tau: &DVector<f64>,
-        lambda: &DVector<f64>,
-        out: &mut DVector<f64>,
-    ) -> Result<()> {
-        self.beta_into(lambda, &mut ws.beta);
-        self.base()
-            .forward_dynamics_into(&mut ws.base, q, qd, tau, &ws.beta, out)
-    }
-
-    fn forward_derivatives_into(
-        &self,
-        ws: &mut TrackedWorkspace,
-        q: &DVector<f64>,
-        qd: &DVector<f64>,
-        tau: &DVector<f64>,
-        lambda: &DVector<f64>,
-        out: &mut ForwardDerivativesOf<Dyn, Dyn>,
-    ) -> Result<()> {
+    fn count(&self) -> usize {
         match self {
-            Self::Full(b) => b.forward_derivatives_into(&mut ws.base, q, qd, tau, lambda, out),
-            Self::Payload { base, .. } => {
-                self.beta_into(lambda, &mut ws.beta);
-                base.forward_derivatives_into(&mut ws.base, q, qd, tau, &ws.beta, &mut ws.fd)?;
-                out.qdd.copy_from(&ws.fd.qdd);
-                out.dqdd_dq.copy_from(&ws.fd.dqdd_dq);
-                out.dqdd_dqd.copy_from(&ws.fd.dqdd_dqd);
-                self.map_columns(&ws.fd.dqdd_dlambda, &mut out.dqdd_dlambda);
-                Ok(())
+            Self::Full(b) => b.count(),
+            Self::Payload { .. } => PAYLOAD_PARAMS,
+        }
+    }
+
+    fn to_inner(&self, theta: &DVector<f64>, beta: &mut DVector<f64>) -> Result<()> {
+        let what = "lambda (model parameters)";
+        check_len(what, theta.len(), self.count(), "entries", "")?;
+        self.beta_into(theta, beta);
+        Ok(())
+    }
+
+    /// The payload columns of a matrix of B columns: out = m·K_tip. A plain loop:
+    /// nalgebra's `gemm` hands dynamic matrices to matrixmultiply, which allocates its
+    /// packing buffers on every call (one allocation per sample, `tests/alloc_online.rs`).
+    /// Over the non-zero entries of K_tip only: the same sums (a zero product adds
+    /// nothing) over a few of the B terms.
+    fn map_columns(&self, m: &mut DMatrix<f64>, out: &mut DMatrix<f64>) {
+        if let Self::Payload { k_nz, .. } = self {
+            for (k, nz) in k_nz.iter().enumerate() {
+                for i in 0..m.nrows() {
+                    let mut acc = 0.0;
+                    for &(r, v) in nz {
+                        acc += m[(i, r)] * v;
+                    }
+                    out[(i, k)] = acc;
+                }
             }
         }
     }
 
-    fn forward_derivatives_at_into(
-        &self,
-        ws: &mut TrackedWorkspace,
-        q: &DVector<f64>,
-        qd: &DVector<f64>,
-        qdd_lin: &DVector<f64>,
-        tau: &DVector<f64>,
-        lambda: &DVector<f64>,
-        tau_lin: &mut DVector<f64>,
-        out: &mut ForwardDerivativesOf<Dyn, Dyn>,
-    ) -> Result<()> {
-        match self {
-            Self::Full(b) => b.forward_derivatives_at_into(
-                &mut ws.base,
-                q,
-                qd,
-                qdd_lin,
-                tau,
-                lambda,
-                tau_lin,
-                out,
-            ),
-            // The three calls of the default (the payload filter's bits unchanged: its
-            // test log is sensitive to round-off, see docs/online-speed.md).
-            Self::Payload { .. } => {
-                self.inverse_dynamics_into(ws, q, qd, qdd_lin, lambda, tau_lin)?;
-                self.forward_derivatives_into(ws, q, qd, tau_lin, lambda, out)?;
-                self.forward_dynamics_into(ws, q, qd, tau, lambda, &mut out.qdd)?;
-                Ok(())
-            }
-        }
-    }
-
-    fn forward_derivatives_factored_into(
-        &self,
-        ws: &mut TrackedWorkspace,
-        q: &DVector<f64>,
-        qd: &DVector<f64>,
-        qdd_lin: Option<&DVector<f64>>,
-        tau: &DVector<f64>,
-        lambda: &DVector<f64>,
-        minv: &mut DMatrix<f64>,
-        out: &mut ForwardDerivativesOf<Dyn, Dyn>,
-    ) -> Result<bool> {
-        match self {
-            Self::Full(b) => b.forward_derivatives_factored_into(
-                &mut ws.base,
-                q,
-                qd,
-                qdd_lin,
-                tau,
-                lambda,
-                minv,
-                out,
-            ),
-            Self::Payload { .. } => Ok(false),
-        }
+    fn is_identity(&self) -> bool {
+        matches!(self, Self::Full(_))
     }
 }

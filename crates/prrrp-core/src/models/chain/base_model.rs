@@ -25,7 +25,7 @@ use super::derivatives::LinkTangent;
 use super::regressor::RegressorSink;
 use super::rnea::{ChainView, LinkState};
 use super::serial_chain::{DynChain, SerialChain};
-use crate::error::{check_joints, check_len, PrrrpError, Result};
+use crate::error::{check_joints, check_len, check_shape, PrrrpError, Result};
 use crate::models::{ForwardDerivatives, ForwardDerivativesOf, LinearDynamics, LinearModel};
 
 const NONE: usize = usize::MAX;
@@ -728,13 +728,10 @@ impl DynChainBaseModel {
             self.check_joint("out.qdd", out.qdd.len())?;
         }
         self.check_beta(lambda.len())?;
-        if let Some(out) = out {
-            let n = self.dof();
-            self.check_matrix("out.dqdd_dq", &out.dqdd_dq, n)?;
-            self.check_matrix("out.dqdd_dqd", &out.dqdd_dqd, n)?;
-            self.check_matrix("out.dqdd_dlambda", &out.dqdd_dlambda, self.count())?;
+        match out {
+            Some(out) => out.check_shape(self.dof(), self.count()),
+            None => Ok(()),
         }
-        Ok(())
     }
 
     /// [`ChainBaseModelOf::forward_and_derivatives`] on the vectors of a checked call
@@ -768,15 +765,7 @@ impl DynChainBaseModel {
     }
 
     fn check_matrix(&self, what: &str, m: &DMatrix<f64>, cols: usize) -> Result<()> {
-        let n = self.dof();
-        if m.shape() != (n, cols) {
-            return Err(PrrrpError::shape(
-                what,
-                format!("{n}×{cols}"),
-                format!("{}×{}", m.nrows(), m.ncols()),
-            ));
-        }
-        Ok(())
+        check_shape(what, m.shape(), (self.dof(), cols))
     }
 }
 

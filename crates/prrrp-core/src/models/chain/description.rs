@@ -11,7 +11,7 @@ use super::friction::FrictionModel;
 use super::joint::{Joint, JointType};
 use super::meta::{ChainMeta, JointInfo, JointLimit};
 use super::serial_chain::DynChain;
-use crate::error::{PrrrpError, Result};
+use crate::error::{invalid, PrrrpError, Result};
 use crate::models::prrrp::robot::{DhRow, JointKind};
 
 /// Version of the [`ChainDescription`] layout; bumped on any incompatible change.
@@ -218,11 +218,8 @@ impl DynChain {
                 "continuous" => JointType::Continuous,
                 "prismatic" => JointType::Prismatic,
                 _ => {
-                    return Err(PrrrpError::InvalidParameter {
-                        field: format!("{what}.type"),
-                        value: f64::NAN,
-                        reason: "must be \"revolute\", \"continuous\" or \"prismatic\"",
-                    })
+                    let reason = "must be \"revolute\", \"continuous\" or \"prismatic\"";
+                    return Err(invalid(format!("{what}.type"), f64::NAN, reason));
                 }
             };
             joints.push(Joint {

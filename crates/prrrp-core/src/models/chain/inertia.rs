@@ -175,13 +175,15 @@ fn pack_inertia(i: &Matrix3<f64>) -> [f64; 6] {
 mod tests {
     use super::*;
 
+    // A 2 kg body with its centre of mass at (0.1, −0.2, 0.3) m and a full inertia tensor
+    // about it (Ixx, Ixy, Iyy, Ixz, Iyz, Izz, kg·m²).
+    const MASS: f64 = 2.0;
+    const COM: [f64; 3] = [0.1, -0.2, 0.3];
+    const INERTIA: [f64; 6] = [0.05, 0.001, 0.04, -0.002, 0.003, 0.03];
+
     #[test]
     fn parallel_axis_and_back() {
-        let p = inertial_parameters(
-            2.0,
-            [0.1, -0.2, 0.3],
-            [0.05, 0.001, 0.04, -0.002, 0.003, 0.03],
-        );
+        let p = inertial_parameters(MASS, COM, INERTIA);
         // Izz about the origin = Izz_C + m (x² + y²).
         assert!((p[9] - (0.03 + 2.0 * (0.01 + 0.04))).abs() < 1e-15);
         // Ixy about the origin = Ixy_C − m x y.
@@ -199,11 +201,7 @@ mod tests {
     /// Σ of a point mass is m·c·cᵀ, and J ↦ π inverts π ↦ J.
     #[test]
     fn pseudo_inertia_round_trip() {
-        let p = inertial_parameters(
-            2.0,
-            [0.1, -0.2, 0.3],
-            [0.05, 0.001, 0.04, -0.002, 0.003, 0.03],
-        );
+        let p = inertial_parameters(MASS, COM, INERTIA);
         let back = pseudo_inertia_to_parameters(&pseudo_inertia(&p));
         for k in 0..10 {
             assert!((back[k] - p[k]).abs() < 1e-15, "{k}");

@@ -7,7 +7,9 @@
 //! frame changes from i down to j. Y is block upper triangular: column block i is zero
 //! in the rows of joints after i.
 
-use nalgebra::Vector3;
+use std::ops::IndexMut;
+
+use nalgebra::{Const, Dyn, MatrixViewMut, Vector3};
 
 use super::actuators::ActuatorLayout;
 use super::rnea::{ChainView, LinkState};
@@ -22,45 +24,26 @@ pub(crate) trait RegressorSink {
     fn actuator(&mut self, row: usize, act: usize, kind: usize, v: f64);
 }
 
-/// Sink into a column-major matrix slice with `ld` rows, writing rows `row0 + joint` and
-/// columns in the chain's parameter order (10 per link, then the enabled actuator terms).
-pub(crate) struct ColumnMajorSink<'a> {
-    pub(crate) data: &'a mut [f64],
-    pub(crate) ld: usize,
+/// Sink into a matrix in the chain's parameter order (10 columns per link, then the
+/// enabled actuator terms), writing rows `row0 + joint`. `O` is any storage indexed by
+/// (row, column): an nalgebra matrix or view (column- or row-major), or a faer matrix
+/// that stacks samples.
+pub(crate) struct StandardSink<'a, O> {
+    pub(crate) out: &'a mut O,
     pub(crate) row0: usize,
     pub(crate) n: usize,
     pub(crate) layout: ActuatorLayout,
 }
 
-impl RegressorSink for ColumnMajorSink<'_> {
+impl<O: IndexMut<(usize, usize), Output = f64>> RegressorSink for StandardSink<'_, O> {
     #[inline(always)]
     fn rigid(&mut self, row: usize, link: usize, k: usize, v: f64) {
-        self.data[self.row0 + row + self.ld * (10 * link + k)] = v;
+        self.out[(self.row0 + row, 10 * link + k)] = v;
     }
     #[inline(always)]
     fn actuator(&mut self, row: usize, act: usize, kind: usize, v: f64) {
         let col = 10 * self.n + self.layout.per * act + self.layout.slots[kind];
-        self.data[self.row0 + row + self.ld * col] = v;
-    }
-}
-
-/// Sink into a faer matrix (rows `row0 + joint`), used to stack samples.
-pub(crate) struct FaerSink<'a> {
-    pub(crate) mat: &'a mut faer::Mat<f64>,
-    pub(crate) row0: usize,
-    pub(crate) n: usize,
-    pub(crate) layout: ActuatorLayout,
-}
-
-impl RegressorSink for FaerSink<'_> {
-    #[inline(always)]
-    fn rigid(&mut self, row: usize, link: usize, k: usize, v: f64) {
-        self.mat[(self.row0 + row, 10 * link + k)] = v;
-    }
-    #[inline(always)]
-    fn actuator(&mut self, row: usize, act: usize, kind: usize, v: f64) {
-        let col = 10 * self.n + self.layout.per * act + self.layout.slots[kind];
-        self.mat[(self.row0 + row, col)] = v;
+        self.out[(self.row0 + row, col)] = v;
     }
 }
 
@@ -144,9 +127,9 @@ impl ChainView<'_> {
     ) {
         debug_assert_eq!(self.dof(), N);
         let mut st = [LinkState::default(); N];
-        let mut sink = ColumnMajorSink {
-            data: out,
-            ld: N,
+        let cols = out.len() / N;
+        let mut sink = StandardSink {
+            out: &mut MatrixViewMut::from_slice_generic(out, Const::<N>, Dyn(cols)),
             row0: 0,
             n: N,
             layout: self.layout(),

@@ -12,7 +12,7 @@ use super::inertia::INERTIAL_PARAMETER_NAMES;
 use super::joint::{Joint, JointGeom};
 use super::meta::{ChainMeta, JointInfo};
 use super::paper::ClosedBackend;
-use super::regressor::{ColumnMajorSink, FaerSink};
+use super::regressor::StandardSink;
 use super::rnea::{ChainView, LinkState};
 use crate::error::{check_joints, invalid, PrrrpError, Result};
 use crate::models::prrrp::robot::{DhRow, STANDARD_GRAVITY};
@@ -314,8 +314,8 @@ pub(crate) fn stack_regressor<'s>(
                 });
             }
         }
-        let mut sink = FaerSink {
-            mat: &mut w,
+        let mut sink = StandardSink {
+            out: &mut w,
             row0: n * k,
             n,
             layout,
@@ -1023,9 +1023,8 @@ impl DynChain {
         let n = self.dof();
         let mut y = DMatrix::zeros(n, self.num_params());
         let mut st = vec![LinkState::default(); n];
-        let mut sink = ColumnMajorSink {
-            data: y.as_mut_slice(),
-            ld: n,
+        let mut sink = StandardSink {
+            out: &mut y,
             row0: 0,
             n,
             layout: self.layout(),
