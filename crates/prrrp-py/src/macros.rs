@@ -5,7 +5,12 @@
 /// - in `read: [fields]`, each field (with its doc comment) becomes a getter returning
 ///   `self.read(py, &self.inner.field)`; `field()` reads `&self.inner.field()` instead;
 /// - after `inner`, each `name: Type = { expr }` becomes a getter returning
-///   `self.inner.expr`: what the wrapped value says, as it is.
+///   `self.inner.expr`: what the wrapped value says, as it is;
+/// - after `arrays(this, py)`, each `fn name(a, b, ...) { body }` becomes a method taking
+///   the array-like arguments `a, b, ...` (`&Bound<PyAny>`, read by `body`) and returning
+///   [`crate::arrays::Out`], with `this` for `&self` and `py` for the GIL token in `body`
+///   (e.g. the (q, qd, qdd) state methods of `Robot`, `SerialChain` and
+///   `IdentifiedModel`).
 ///
 /// The rest of the block follows unchanged.
 macro_rules! pymethods_with_getters {
@@ -14,6 +19,9 @@ macro_rules! pymethods_with_getters {
             $($read:ident: [$($(#[$doc:meta])* $field:ident $(($($arg:tt)*))?),* $(,)?])*
         }
         $(inner { $($(#[$idoc:meta])* $name:ident: $t:ty = { $($e:tt)* })* })?
+        $(arrays($this:ident, $py:ident) {
+            $($(#[$adoc:meta])* fn $aname:ident($($aarg:ident),+) $abody:block)*
+        })?
         { $($rest:tt)* }
     ) => {
         #[pymethods]
@@ -30,6 +38,17 @@ macro_rules! pymethods_with_getters {
             #[getter]
             fn $name(&self) -> $t {
                 self.inner.$($e)*
+            }
+            )*)?
+            $($(
+            $(#[$adoc])*
+            fn $aname<'py>(
+                &self,
+                $py: Python<'py>,
+                $($aarg: &Bound<'py, PyAny>),+
+            ) -> crate::arrays::Out<'py> {
+                let $this = self;
+                $abody
             }
             )*)?
             $($rest)*

@@ -117,6 +117,11 @@ getters ({
 } inner {
     /// Gravitational acceleration g, m/s², acting along world −z.
     g: f64 = { gravity }
+} arrays(this, py) {
+    /// Regressor Φ(q, q̇, q̈) at this robot's gravity, shape (5, 8) or (N, 5, 8); τ = Φ·λ.
+    fn regressor(q, qd, qdd) {
+        crate::models::regressor::regressor_at(py, this.inner.model(), [q, qd, qdd])
+    }
 })
 |model, k, lam| {
     /// A robot from the paper's Table 2 quantities (keyword-only, SI units). Omitted
@@ -172,17 +177,6 @@ getters ({
             list.append(d)?;
         }
         Ok(list)
-    }
-
-    /// Regressor Φ(q, q̇, q̈) at this robot's gravity, shape (5, 8) or (N, 5, 8); τ = Φ·λ.
-    fn regressor<'py>(
-        &self,
-        py: Python<'py>,
-        q: &Bound<'py, PyAny>,
-        qd: &Bound<'py, PyAny>,
-        qdd: &Bound<'py, PyAny>,
-    ) -> Out<'py> {
-        crate::models::regressor::regressor_at(py, self.inner.model(), [q, qd, qdd])
     }
 
     fn __repr__(&self) -> String {
