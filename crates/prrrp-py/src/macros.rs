@@ -55,3 +55,18 @@ macro_rules! pymethods_with_getters {
         }
     };
 }
+
+/// `#[pyfunction]`s whose leading arguments are array-likes, the free-function twin of the
+/// `arrays` section of [`pymethods_with_getters!`]: each `fn name(py, a, b, ...; params)
+/// -> Ret { body }` (after its attributes: `#[pyfunction]`, its signature) takes the GIL
+/// token `py`, the array-like arguments `a, b, ...` (`&Bound<PyAny>`, read by `body`),
+/// then `params` (`name: Type`).
+macro_rules! array_pyfunctions {
+    ($($(#[$attr:meta])*
+       fn $name:ident($py:ident, $($a:ident),+; $($p:ident: $pt:ty),* $(,)?) -> $ret:ty
+       $body:block)*) => {$(
+        $(#[$attr])*
+        #[allow(clippy::too_many_arguments)]
+        fn $name<'py>($py: Python<'py>, $($a: &Bound<'py, PyAny>,)+ $($p: $pt),*) -> $ret $body
+    )*};
+}
