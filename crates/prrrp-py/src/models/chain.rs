@@ -24,10 +24,10 @@ use crate::interrupt::interruptible;
 /// them), its methods of array arguments (its `arrays` section), the robot-file loaders
 /// `fn name(source: Type) = chain;` (static methods taking `source` and the keywords
 /// `base`, `tip`, `gravity`, `friction`, `coulomb_smoothing`, with `chain` read at the
-/// `UrdfOptions` `opts`), its own items, then one method per dynamics quantity
-/// `fn name(args) -> [shape] = fill;`, taking (n,) or (N, n) arguments, with `fill`
-/// writing sample `k` into `out` through chain `c` and its workspace `ws` (one per batch,
-/// the GIL released).
+/// `UrdfOptions` `opts` and the GIL token named in `arrays`), its own items, then one
+/// method per dynamics quantity `fn name(args) -> [shape] = fill;`, taking (n,) or (N, n)
+/// arguments, with `fill` writing sample `k` into `out` through chain `c` and its
+/// workspace `ws` (one per batch, the GIL released).
 macro_rules! chain_pymethods {
     (getters ($($getters:tt)*)
      arrays($this:ident, $py:ident) { $($arrays:tt)* }
