@@ -106,6 +106,12 @@ fn same_length(xs: &[f64], ys: &[f64]) -> Result<(), CanvasError> {
     })
 }
 
+/// The rectangle between two opposite corners `[x0, y0, x1, y1]` in any order; None when
+/// it is empty or not finite.
+fn rect([x0, y0, x1, y1]: [f32; 4]) -> Option<Rect> {
+    Rect::from_ltrb(x0.min(x1), y0.min(y1), x0.max(x1), y0.max(y1))
+}
+
 fn check_positive(what: &'static str, value: f32) -> Result<(), CanvasError> {
     if value.is_finite() && value > 0.0 {
         Ok(())
@@ -236,27 +242,26 @@ impl Canvas {
         Ok(())
     }
 
-    /// A filled rectangle between the corners (x0, y0) and (x1, y1), pixels.
-    pub fn fill_rect(&mut self, x0: f32, y0: f32, x1: f32, y1: f32, color: Rgba) {
-        if let Some(r) = Rect::from_ltrb(x0.min(x1), y0.min(y1), x0.max(x1), y0.max(y1)) {
+    /// A filled rectangle between the corners (x0, y0) and (x1, y1) of `corners` = [x0, y0,
+    /// x1, y1], pixels.
+    pub fn fill_rect(&mut self, corners: [f32; 4], color: Rgba) {
+        if let Some(r) = rect(corners) {
             let p = paint(color);
             let mask = self.clip.as_ref().map(|(_, m)| m);
             self.pixmap.fill_rect(r, &p, Transform::identity(), mask);
         }
     }
 
-    /// The outline of a rectangle, `width` pixels wide, centred on its edges.
+    /// The outline of the rectangle of `corners` (as [`Canvas::fill_rect`]'s), `width`
+    /// pixels wide, centred on its edges.
     pub fn stroke_rect(
         &mut self,
-        x0: f32,
-        y0: f32,
-        x1: f32,
-        y1: f32,
+        corners: [f32; 4],
         color: Rgba,
         width: f32,
     ) -> Result<(), CanvasError> {
         check_positive("a line width", width)?;
-        if let Some(r) = Rect::from_ltrb(x0.min(x1), y0.min(y1), x0.max(x1), y0.max(y1)) {
+        if let Some(r) = rect(corners) {
             let stroke = Stroke {
                 width,
                 line_join: LineJoin::Miter,
@@ -546,7 +551,7 @@ mod tests {
     fn the_clip_keeps_shapes_inside_it() {
         let mut c = Canvas::new(20, 20).unwrap();
         c.set_clip(Some([0.0, 0.0, 10.0, 20.0]));
-        c.fill_rect(0.0, 0.0, 20.0, 20.0, BLACK);
+        c.fill_rect([0.0, 0.0, 20.0, 20.0], BLACK);
         c.set_clip(None);
         assert_eq!(c.pixel(5, 5), Some(BLACK));
         assert_eq!(c.pixel(15, 5), Some([255, 255, 255, 255]));
@@ -613,7 +618,7 @@ mod tests {
     #[test]
     fn the_png_has_the_canvas_size_and_pixels() {
         let mut c = Canvas::new(7, 3).unwrap();
-        c.fill_rect(0.0, 0.0, 7.0, 3.0, [10, 20, 30, 255]);
+        c.fill_rect([0.0, 0.0, 7.0, 3.0], [10, 20, 30, 255]);
         let bytes = c.png().unwrap();
         let dec = png::Decoder::new(&bytes[..]);
         let mut reader = dec.read_info().unwrap();

@@ -566,6 +566,7 @@ impl LeastSquaresResult {
     }
 }
 
+array_pyfunctions! {
 /// Least-squares estimate of λ from N samples (q, qd, qdd, tau each (N, 5)), eq. 36.
 /// `weighted=True` divides each joint's equations by its noise standard deviation:
 /// `noise_variances` (5,) if given, else estimated from an ordinary pass.
@@ -574,15 +575,9 @@ impl LeastSquaresResult {
 #[pyfunction]
 #[pyo3(signature = (q, qd, qdd, tau, *, weighted=false, noise_variances=None,
     rank_tolerance=1e-10))]
-#[allow(clippy::too_many_arguments)]
-fn least_squares(
-    py: Python<'_>,
-    q: &Bound<'_, PyAny>,
-    qd: &Bound<'_, PyAny>,
-    qdd: &Bound<'_, PyAny>,
-    tau: &Bound<'_, PyAny>,
+fn least_squares(py, q, qd, qdd, tau;
     weighted: bool,
-    noise_variances: Option<&Bound<'_, PyAny>>,
+    noise_variances: Option<&Bound<'py, PyAny>>,
     rank_tolerance: f64,
 ) -> PyResult<LeastSquaresResult> {
     let cols = Columns::<Const<NDOF>>::extract([q, qd, qdd, tau], NDOF)?;
@@ -629,6 +624,7 @@ fn least_squares(
         .unbind(),
         samples: report.samples,
     })
+}
 }
 
 /// One online estimator class of the paper's arm or of a chain: the struct, its

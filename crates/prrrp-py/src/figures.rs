@@ -15,11 +15,6 @@ impl<T> ToPyResult<T> for Result<T, CanvasError> {
     }
 }
 
-/// The (N,) coordinate arrays `xs`, `ys` of a shape's points.
-fn points(xs: &Bound<'_, PyAny>, ys: &Bound<'_, PyAny>) -> PyResult<(Vec<f64>, Vec<f64>)> {
-    Ok((vector(xs, "xs")?, vector(ys, "ys")?))
-}
-
 fn halign(py: Python<'_>, ha: &str) -> PyResult<HAlign> {
     match ha {
         "left" => Ok(HAlign::Left),
@@ -52,8 +47,34 @@ fn valign(py: Python<'_>, va: &str) -> PyResult<VAlign> {
 #[pyclass(name = "Canvas", module = "prrrp._prrrp")]
 pub(crate) struct Canvas(Inner);
 
-#[pymethods]
-impl Canvas {
+/// The `#[pymethods]` of `Canvas`: its own items, then one method per shape drawn through
+/// points, `fn name(args) = |c, xs, ys| draw;`, taking the (N,) coordinate arrays `xs`,
+/// `ys` and then `args`, with `draw` drawing on the canvas `c` at the points read.
+macro_rules! canvas_pymethods {
+    ({ $($own:tt)* }
+     $($(#[$doc:meta])* fn $name:ident($($arg:ident: $ty:ty),*) = |$c:ident, $xs:ident, $ys:ident| $draw:expr;)*) => {
+        #[pymethods]
+        impl Canvas {
+            $($own)*
+            $(
+            $(#[$doc])*
+            fn $name(
+                &mut self,
+                py: Python<'_>,
+                xs: &Bound<'_, PyAny>,
+                ys: &Bound<'_, PyAny>,
+                $($arg: $ty),*
+            ) -> PyResult<()> {
+                let ($xs, $ys) = (vector(xs, "xs")?, vector(ys, "ys")?);
+                let $c = &mut self.0;
+                $draw.to_py(py)
+            }
+            )*
+        }
+    };
+}
+
+canvas_pymethods! {{
     #[new]
     fn new(py: Python<'_>, width: u32, height: u32) -> PyResult<Self> {
         Inner::new(width, height).map(Self).to_py(py)
@@ -71,25 +92,9 @@ impl Canvas {
         self.0.set_clip(rect.map(|(a, b, c, d)| [a, b, c, d]));
     }
 
-    /// A line through (xs[i], ys[i]), `width` pixels wide; `dash` = on/off lengths
-    /// (pixels; empty: solid). NaN breaks the line.
-    #[pyo3(signature = (xs, ys, color, width, dash = Vec::new()))]
-    fn polyline(
-        &mut self,
-        py: Python<'_>,
-        xs: &Bound<'_, PyAny>,
-        ys: &Bound<'_, PyAny>,
-        color: Rgba,
-        width: f32,
-        dash: Vec<f32>,
-    ) -> PyResult<()> {
-        let (xs, ys) = points(xs, ys)?;
-        self.0.polyline(&xs, &ys, color, width, &dash).to_py(py)
-    }
-
     /// A filled rectangle between the corners (x0, y0) and (x1, y1).
     fn fill_rect(&mut self, x0: f32, y0: f32, x1: f32, y1: f32, color: Rgba) {
-        self.0.fill_rect(x0, y0, x1, y1, color);
+        self.0.fill_rect([x0, y0, x1, y1], color);
     }
 
     /// A rectangle's outline, `width` pixels wide.
@@ -104,32 +109,7 @@ impl Canvas {
         color: Rgba,
         width: f32,
     ) -> PyResult<()> {
-        self.0.stroke_rect(x0, y0, x1, y1, color, width).to_py(py)
-    }
-
-    /// The closed polygon through (xs[i], ys[i]), filled.
-    fn fill_polygon(
-        &mut self,
-        py: Python<'_>,
-        xs: &Bound<'_, PyAny>,
-        ys: &Bound<'_, PyAny>,
-        color: Rgba,
-    ) -> PyResult<()> {
-        let (xs, ys) = points(xs, ys)?;
-        self.0.fill_polygon(&xs, &ys, color).to_py(py)
-    }
-
-    /// A filled disc of `radius` pixels at each (xs[i], ys[i]).
-    fn markers(
-        &mut self,
-        py: Python<'_>,
-        xs: &Bound<'_, PyAny>,
-        ys: &Bound<'_, PyAny>,
-        radius: f32,
-        color: Rgba,
-    ) -> PyResult<()> {
-        let (xs, ys) = points(xs, ys)?;
-        self.0.markers(&xs, &ys, radius, color).to_py(py)
+        self.0.stroke_rect([x0, y0, x1, y1], color, width).to_py(py)
     }
 
     /// `text` at `size` pixels per em, anchored (`ha`: left/center/right, `va`:
@@ -165,6 +145,19 @@ impl Canvas {
         let bytes = py.detach(|| self.0.png()).to_py(py)?;
         Ok(PyBytes::new(py, &bytes))
     }
+}
+
+    /// A line through (xs[i], ys[i]), `width` pixels wide; `dash` = on/off lengths
+    /// (pixels; empty: solid). NaN breaks the line.
+    #[pyo3(signature = (xs, ys, color, width, dash = Vec::new()))]
+    fn polyline(color: Rgba, width: f32, dash: Vec<f32>) =
+        |c, xs, ys| c.polyline(&xs, &ys, color, width, &dash);
+
+    /// The closed polygon through (xs[i], ys[i]), filled.
+    fn fill_polygon(color: Rgba) = |c, xs, ys| c.fill_polygon(&xs, &ys, color);
+
+    /// A filled disc of `radius` pixels at each (xs[i], ys[i]).
+    fn markers(radius: f32, color: Rgba) = |c, xs, ys| c.markers(&xs, &ys, radius, color);
 }
 
 pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {

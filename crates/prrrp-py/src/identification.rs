@@ -131,8 +131,18 @@ fn opt_array<'py>(py: Python<'py>, v: &Option<Vec<f64>>, shape: &[usize]) -> Out
     }
 }
 
-#[pymethods]
-impl PyIdentifiedModel {
+pymethods_with_getters!(PyIdentifiedModel {} arrays(this, py) {
+    /// Joint torques τ = Y_b(q, q̇, q̈)·β̂ (N·m or N): (n,) or (N, n).
+    fn predict(q, qd, qdd) {
+        let predictor = this.inner.predictor().to_py(py)?;
+        let n = predictor.chain().dof();
+        let ([q, qd, qdd], count) = dyn_samples_of(py, [q, qd, qdd], ["q", "qd", "qdd"], n)?;
+        let [tau] = map_samples_with(py, count, [&[n]], predictor, |p, k, [out]| {
+            p.predict_into(q.at(k), qd.at(k), qdd.at(k), out)
+        })?;
+        Ok(tau)
+    }
+} {
     /// A model from the JSON text of `to_json`.
     #[staticmethod]
     fn from_json(py: Python<'_>, text: &str) -> PyResult<Self> {
@@ -212,23 +222,6 @@ impl PyIdentifiedModel {
         let csvio = py.import("prrrp.csvio")?;
         csvio.call_method1("write_text_atomic", (path, text))?;
         Ok(())
-    }
-
-    /// Joint torques τ = Y_b(q, q̇, q̈)·β̂ (N·m or N): (n,) or (N, n).
-    fn predict<'py>(
-        &self,
-        py: Python<'py>,
-        q: &Bound<'py, PyAny>,
-        qd: &Bound<'py, PyAny>,
-        qdd: &Bound<'py, PyAny>,
-    ) -> Out<'py> {
-        let predictor = self.inner.predictor().to_py(py)?;
-        let n = predictor.chain().dof();
-        let ([q, qd, qdd], count) = dyn_samples_of(py, [q, qd, qdd], ["q", "qd", "qdd"], n)?;
-        let [tau] = map_samples_with(py, count, [&[n]], predictor, |p, k, [out]| {
-            p.predict_into(q.at(k), qd.at(k), qdd.at(k), out)
-        })?;
-        Ok(tau)
     }
 
     /// The robot as a `SerialChain` (with the inertials it was loaded with).
@@ -424,7 +417,7 @@ impl PyIdentifiedModel {
                 .map_or("None".to_string(), |c| format!("{c:.4e}"))
         )
     }
-}
+});
 
 /// Builds a model from its parts (used by `prrrp.identify` and tests).
 #[pyfunction]

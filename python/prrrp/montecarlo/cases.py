@@ -302,14 +302,10 @@ def _chain_data(case: Case) -> tuple[Any, Any, Any, float]:
     from prrrp import workflow
 
     chain = _chain(case.robot_json)
-    design = workflow.excite(
-        chain,
-        case.duration,
-        rate=case.rate,
-        seed=case.seed,
-        max_evaluations=case.excitation_evaluations,
-        restarts=4,
-    )
+    # The identification and the validation trajectories: designs of the same robot,
+    # duration and rate from other seeds.
+    excite = functools.partial(workflow.excite, chain, case.duration, rate=case.rate)
+    design = excite(seed=case.seed, max_evaluations=case.excitation_evaluations, restarts=4)
     rec = prrrp.simulate_chain(
         chain,
         (design["t"], design["q"], design["qd"], design["qdd"]),
@@ -321,14 +317,7 @@ def _chain_data(case: Case) -> tuple[Any, Any, Any, float]:
         seed=derived_seed(case.seed, 1),
     )
     data, _ = rec.measured_dataset()
-    other = workflow.excite(
-        chain,
-        case.duration,
-        rate=case.rate,
-        seed=derived_seed(case.seed, 2) % 2**32,
-        max_evaluations=50,
-        restarts=2,
-    )
+    other = excite(seed=derived_seed(case.seed, 2) % 2**32, max_evaluations=50, restarts=2)
     tau = chain.inverse_dynamics(other["q"], other["qd"], other["qdd"])
     validation = prrrp.Dataset(other["t"], other["q"], other["qd"], other["qdd"], tau)
     return chain, data, validation, float(design["cond_final"])

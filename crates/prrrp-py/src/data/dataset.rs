@@ -228,16 +228,12 @@ pub(crate) fn dataset_from(obj: &Bound<'_, PyAny>) -> PyResult<Dataset> {
     Dataset::try_from(dyn_data).to_py(py)
 }
 
+array_pyfunctions! {
 /// Makes a `Dataset` of n joints from a real log; see `_prrrp.pyi`.
 #[pyfunction(name = "preprocess_log")]
 #[pyo3(signature = (t, q, tau, *, qd=None, rate_hz=None, cutoff_hz=None, order=UInt(4),
     filter_torque=true, trim_s=None, decimate_to_hz=None, max_gap_s=None))]
-#[allow(clippy::too_many_arguments)]
-fn preprocess_log_py<'py>(
-    py: Python<'py>,
-    t: &Bound<'py, PyAny>,
-    q: &Bound<'py, PyAny>,
-    tau: &Bound<'py, PyAny>,
+fn preprocess_log_py(py, t, q, tau;
     qd: Option<&Bound<'py, PyAny>>,
     rate_hz: Option<f64>,
     cutoff_hz: Option<f64>,
@@ -283,6 +279,7 @@ fn preprocess_log_py<'py>(
     report.set_item("measured_velocity", r.measured_velocity)?;
     report.set_item("rows_out", r.rows_out)?;
     Ok((PyDataset { inner }, report))
+}
 }
 
 pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {

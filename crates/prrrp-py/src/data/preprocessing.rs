@@ -8,6 +8,7 @@ use crate::arrays::{vector, Samples, UInt};
 use crate::data::dataset::dataset_dict;
 use crate::errors::ToPyResult;
 
+array_pyfunctions! {
 /// Turns uniformly sampled measurements `t` (N,) s, `q` (N, 5), `tau` (N, 5) into a dict of
 /// arrays `t`, `q`, `qd`, `qdd`, `tau`: zero-phase Butterworth low-pass (`cutoff_hz` Hz,
 /// `order` 2/4/6/8) of q (and τ if `filter_torque`), central differences, `trim` samples
@@ -18,12 +19,7 @@ use crate::errors::ToPyResult;
 #[pyfunction]
 #[pyo3(signature = (t, q, tau, *, cutoff_hz=5.0, order=4, filter_torque=true, trim=None,
     decimate=UInt(1)))]
-#[allow(clippy::too_many_arguments)]
-fn preprocess<'py>(
-    py: Python<'py>,
-    t: &Bound<'py, PyAny>,
-    q: &Bound<'py, PyAny>,
-    tau: &Bound<'py, PyAny>,
+fn preprocess(py, t, q, tau;
     cutoff_hz: f64,
     order: usize,
     filter_torque: bool,
@@ -44,6 +40,7 @@ fn preprocess<'py>(
     };
     let data = py.detach(|| core_preprocess(&t, &q, &tau, &config));
     dataset_dict(py, &data.to_py(py)?)
+}
 }
 
 pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {

@@ -21,28 +21,55 @@ use crate::errors::{shape_error, Exc, ToPyResult};
 use crate::interrupt::interruptible;
 
 /// The `#[pymethods]` of `SerialChain`: its getters (as `pymethods_with_getters!` takes
-/// them), its own items, then one method per dynamics
-/// quantity `fn name(args) -> [shape] = fill;`, taking (n,) or (N, n) arguments, with
-/// `fill` writing sample `k` into `out` through chain `c` and its workspace `ws` (one
-/// per batch, the GIL released).
+/// them), its methods of array arguments (its `arrays` section), the robot-file loaders
+/// `fn name(source: Type) = chain;` (static methods taking `source` and the keywords
+/// `base`, `tip`, `gravity`, `friction`, `coulomb_smoothing`, with `chain` read at the
+/// `UrdfOptions` `opts` and the GIL token named in `arrays`), its own items, then one
+/// method per dynamics quantity `fn name(args) -> [shape] = fill;`, taking (n,) or (N, n)
+/// arguments, with `fill` writing sample `k` into `out` through chain `c` and its
+/// workspace `ws` (one per batch, the GIL released).
 macro_rules! chain_pymethods {
     (getters ($($getters:tt)*)
+     arrays($this:ident, $py:ident) { $($arrays:tt)* }
+     loaders |$opts:ident| {
+         $($(#[$ldoc:meta])* fn $loader:ident($source:ident: $sty:ty) = $load:expr;)*
+     }
      |$c:ident, $ws:ident, $k:ident, $out:ident| { $($extra:tt)* }
      $($(#[$doc:meta])* fn $name:ident($($arg:ident),+) -> [$($dim:expr),+] = $fill:expr;)*) => {
-        pymethods_with_getters!(PySerialChain $($getters)* {
-            $($extra)*
+        pymethods_with_getters!(PySerialChain $($getters)* arrays($this, $py) {
+            $($arrays)*
             $(
             $(#[$doc])*
-            fn $name<'py>(&self, py: Python<'py>, $($arg: &Bound<'py, PyAny>),+) -> Out<'py> {
-                let ([$($arg),+], n) = self.joints(py, [$($arg),+], [$(stringify!($arg)),+])?;
-                let $c = &self.inner;
+            fn $name($($arg),+) {
+                let ([$($arg),+], n) = $this.joints($py, [$($arg),+], [$(stringify!($arg)),+])?;
+                let $c = &$this.inner;
                 let shape = [$($dim),+];
-                let [y] = map_samples_with(py, n, [&shape], $c.workspace(), |$ws, $k, [$out]| {
+                let [y] = map_samples_with($py, n, [&shape], $c.workspace(), |$ws, $k, [$out]| {
                     $fill
                 })?;
                 Ok(y)
             }
             )*
+        } {
+            $(
+            $(#[$ldoc])*
+            #[staticmethod]
+            #[pyo3(signature = ($source, *, base=None, tip=None, gravity=None, friction=None,
+                coulomb_smoothing=0.0))]
+            fn $loader(
+                $py: Python<'_>,
+                $source: $sty,
+                base: Option<String>,
+                tip: Option<String>,
+                gravity: Option<&Bound<'_, PyAny>>,
+                friction: Option<&Bound<'_, PyAny>>,
+                coulomb_smoothing: f64,
+            ) -> PyResult<Self> {
+                let $opts = urdf_options(base, tip, gravity)?;
+                Self::finish_loaded($py, $load, friction, coulomb_smoothing)
+            }
+            )*
+            $($extra)*
         });
     };
 }
@@ -286,6 +313,55 @@ getters ({} inner {
     /// Velocity scale of the smoothed Coulomb sign (0 = exact sign).
     coulomb_smoothing: f64 = { friction().coulomb_smoothing }
 })
+arrays(this, py) {
+    /// Observation matrix W: the regressors of the samples stacked, shape (N·n, P); rows
+    /// n·k..n·k+n hold sample k.
+    fn observation_matrix(q, qd, qdd) {
+        let y = this.regressor(py, q, qd, qdd)?;
+        y.call_method1("reshape", ((-1i64, this.inner.num_params()),))
+    }
+
+    /// Joint torques τ = Cᵀ·(K∘i) (N·m, N) from motor currents i (A), (n,) or (N, n), with
+    /// joint-side drive gains K (N·m/A), (n,).
+    fn joint_torques_from_currents(current, gains) {
+        let k = crate::arrays::vector(gains, "gains")?;
+        this.joint_map(py, current, "current", |a, n, x| {
+            a.joint_torques_from_currents(n, x, &k)
+        })
+    }
+
+    /// Joint positions q = C⁻¹·(θ/r) (rad, m) from motor angles θ (rad, motor side), (n,)
+    /// or (N, n); needs the gear ratios. The same map takes motor velocities and
+    /// accelerations to the joint side.
+    fn joint_positions_from_motor(theta) {
+        this.joint_map(py, theta, "theta", |a, n, x| a.joint_positions_from_motor(n, x))
+    }
+
+    /// Joint torques τ = Cᵀ·(r∘τ_motor) (N·m, N) from motor-side torques (N·m), (n,) or
+    /// (N, n); needs the gear ratios.
+    fn joint_torques_from_motor(tau_motor) {
+        this.joint_map(py, tau_motor, "tau_motor", |a, n, x| a.joint_torques_from_motor(n, x))
+    }
+}
+loaders |opts| {
+    /// A chain from a URDF file or string: the movable joints from `base` to `tip`, with
+    /// fixed bodies and off-path joints (held at zero) merged into the links.
+    fn from_urdf(source: &Bound<'_, PyAny>) = match source_text(source)? {
+        Source::Text(xml) => py.detach(|| DynChain::from_urdf_str(&xml, &opts)),
+        Source::Path(path) => py.detach(|| DynChain::from_urdf_file(&path, &opts)),
+    }
+    .to_py(py)?;
+
+    /// A chain from a robot file: `.urdf` (see `from_urdf`) or `.toml` (a DH table).
+    fn from_file(path: std::path::PathBuf) = {
+        let chain = py.detach(|| DynChain::from_file(&path, &opts)).to_py(py)?;
+        match opts.gravity {
+            // The argument overrides a TOML file's `gravity` too.
+            Some(g) => chain.with_gravity(g).to_py(py)?,
+            None => chain,
+        }
+    };
+}
 |c, ws, k, out| {
     /// See the class documentation in `_prrrp.pyi`.
     #[new]
@@ -350,50 +426,6 @@ getters ({} inner {
         };
         chain = chain.with_friction(model, params).to_py(py)?;
         Ok(Self::wrap(chain))
-    }
-
-    /// A chain from a URDF file or string: the movable joints from `base` to `tip`, with
-    /// fixed bodies and off-path joints (held at zero) merged into the links.
-    #[staticmethod]
-    #[pyo3(signature = (source, *, base=None, tip=None, gravity=None, friction=None,
-        coulomb_smoothing=0.0))]
-    fn from_urdf(
-        py: Python<'_>,
-        source: &Bound<'_, PyAny>,
-        base: Option<String>,
-        tip: Option<String>,
-        gravity: Option<&Bound<'_, PyAny>>,
-        friction: Option<&Bound<'_, PyAny>>,
-        coulomb_smoothing: f64,
-    ) -> PyResult<Self> {
-        let opts = urdf_options(base, tip, gravity)?;
-        let chain = match source_text(source)? {
-            Source::Text(xml) => py.detach(|| DynChain::from_urdf_str(&xml, &opts)),
-            Source::Path(path) => py.detach(|| DynChain::from_urdf_file(&path, &opts)),
-        }
-        .to_py(py)?;
-        Self::finish_loaded(py, chain, friction, coulomb_smoothing)
-    }
-
-    /// A chain from a robot file: `.urdf` (see `from_urdf`) or `.toml` (a DH table).
-    #[staticmethod]
-    #[pyo3(signature = (path, *, base=None, tip=None, gravity=None, friction=None,
-        coulomb_smoothing=0.0))]
-    fn from_file(
-        py: Python<'_>,
-        path: std::path::PathBuf,
-        base: Option<String>,
-        tip: Option<String>,
-        gravity: Option<&Bound<'_, PyAny>>,
-        friction: Option<&Bound<'_, PyAny>>,
-        coulomb_smoothing: f64,
-    ) -> PyResult<Self> {
-        let opts = urdf_options(base, tip, gravity)?;
-        let mut chain = py.detach(|| DynChain::from_file(&path, &opts)).to_py(py)?;
-        if let Some(g) = opts.gravity {
-            chain = chain.with_gravity(g).to_py(py)?;
-        }
-        Self::finish_loaded(py, chain, friction, coulomb_smoothing)
     }
 
     /// A URDF of this chain with the given standard parameters (default: its own).
@@ -489,45 +521,6 @@ getters ({} inner {
             a.gear_ratios.as_ref().map(|v| PyArray1::from_slice(py, v)),
         )?;
         Ok(d)
-    }
-
-    /// Joint torques τ = Cᵀ·(K∘i) (N·m, N) from motor currents i (A), (n,) or (N, n), with
-    /// joint-side drive gains K (N·m/A), (n,).
-    fn joint_torques_from_currents<'py>(
-        &self,
-        py: Python<'py>,
-        current: &Bound<'py, PyAny>,
-        gains: &Bound<'py, PyAny>,
-    ) -> Out<'py> {
-        let k = crate::arrays::vector(gains, "gains")?;
-        self.joint_map(py, current, "current", |a, n, x| {
-            a.joint_torques_from_currents(n, x, &k)
-        })
-    }
-
-    /// Joint positions q = C⁻¹·(θ/r) (rad, m) from motor angles θ (rad, motor side), (n,)
-    /// or (N, n); needs the gear ratios. The same map takes motor velocities and
-    /// accelerations to the joint side.
-    fn joint_positions_from_motor<'py>(
-        &self,
-        py: Python<'py>,
-        theta: &Bound<'py, PyAny>,
-    ) -> Out<'py> {
-        self.joint_map(py, theta, "theta", |a, n, x| {
-            a.joint_positions_from_motor(n, x)
-        })
-    }
-
-    /// Joint torques τ = Cᵀ·(r∘τ_motor) (N·m, N) from motor-side torques (N·m), (n,) or
-    /// (N, n); needs the gear ratios.
-    fn joint_torques_from_motor<'py>(
-        &self,
-        py: Python<'py>,
-        tau_motor: &Bound<'py, PyAny>,
-    ) -> Out<'py> {
-        self.joint_map(py, tau_motor, "tau_motor", |a, n, x| {
-            a.joint_torques_from_motor(n, x)
-        })
     }
 
     /// A TOML robot file for this chain whose links are in the URDF at `urdf` (relative to
@@ -690,20 +683,6 @@ getters ({} inner {
             .copied()
             .collect();
         to_array(py, flat, Some(self.inner.dof()), &[3])
-    }
-
-    /// Observation matrix W: the regressors of the samples stacked, shape (N·n, P); rows
-    /// n·k..n·k+n hold sample k.
-    fn observation_matrix<'py>(
-        &self,
-        py: Python<'py>,
-        q: &Bound<'py, PyAny>,
-        qd: &Bound<'py, PyAny>,
-        qdd: &Bound<'py, PyAny>,
-    ) -> Out<'py> {
-        let y = self.regressor(py, q, qd, qdd)?;
-        let p = self.inner.num_params();
-        y.call_method1("reshape", ((-1i64, p),))
     }
 
     /// Numerical base parameters (QR with column pivoting on the regressor stacked over

@@ -40,34 +40,36 @@ pub(crate) fn regressor_at<'py>(
     Ok(phi)
 }
 
-/// Regressor Φ(q, q̇, q̈) with τ = Φ·λ: shape (5, 8) for one sample, (N, 5, 8) for a batch.
-/// `gravity` in m/s² (default 9.81).
-#[pyfunction]
-#[pyo3(signature = (q, qd, qdd, *, gravity=STANDARD_GRAVITY))]
-fn regressor<'py>(
-    py: Python<'py>,
-    q: &Bound<'py, PyAny>,
-    qd: &Bound<'py, PyAny>,
-    qdd: &Bound<'py, PyAny>,
-    gravity: f64,
-) -> Out<'py> {
-    regressor_at(py, model(py, gravity)?, [q, qd, qdd])
+/// The module functions of Φ of the paper's arm: each `fn name = |phi| value;` becomes
+/// `name(q, qd, qdd, *, gravity)` returning `value` of the regressors `phi` of its
+/// arguments at that gravity.
+macro_rules! regressor_functions {
+    ($($(#[$doc:meta])* fn $name:ident = |$phi:ident| $value:expr;)*) => {$(
+        $(#[$doc])*
+        #[pyfunction]
+        #[pyo3(signature = (q, qd, qdd, *, gravity=STANDARD_GRAVITY))]
+        fn $name<'py>(
+            py: Python<'py>,
+            q: &Bound<'py, PyAny>,
+            qd: &Bound<'py, PyAny>,
+            qdd: &Bound<'py, PyAny>,
+            gravity: f64,
+        ) -> Out<'py> {
+            let $phi = regressor_at(py, model(py, gravity)?, [q, qd, qdd])?;
+            $value
+        }
+    )*};
 }
 
-/// Observation matrix W (eq. 35): the regressors of N samples stacked, shape (5·N, 8);
-/// rows 5k..5k+5 hold Φ(q_k, q̇_k, q̈_k). `gravity` in m/s² (default 9.81).
-#[pyfunction]
-#[pyo3(signature = (q, qd, qdd, *, gravity=STANDARD_GRAVITY))]
-fn observation_matrix<'py>(
-    py: Python<'py>,
-    q: &Bound<'py, PyAny>,
-    qd: &Bound<'py, PyAny>,
-    qdd: &Bound<'py, PyAny>,
-    gravity: f64,
-) -> Out<'py> {
+regressor_functions! {
+    /// Regressor Φ(q, q̇, q̈) with τ = Φ·λ: shape (5, 8) for one sample, (N, 5, 8) for a batch.
+    /// `gravity` in m/s² (default 9.81).
+    fn regressor = |phi| Ok(phi);
+
+    /// Observation matrix W (eq. 35): the regressors of N samples stacked, shape (5·N, 8);
+    /// rows 5k..5k+5 hold Φ(q_k, q̇_k, q̈_k). `gravity` in m/s² (default 9.81).
     // The batch of Φ, row-major (N, 5, 8), is W read as (5·N, 8).
-    let phi = regressor_at(py, model(py, gravity)?, [q, qd, qdd])?;
-    phi.call_method1("reshape", ((-1i64, NPARAM),))
+    fn observation_matrix = |phi| phi.call_method1("reshape", ((-1i64, NPARAM),));
 }
 
 /// Reads a 2-D matrix argument into faer.

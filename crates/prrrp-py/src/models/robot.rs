@@ -54,17 +54,54 @@ impl Put for f64 {
     }
 }
 
-/// The `#[pymethods]` of `Robot`: its getters (as `pymethods_with_getters!` takes them), its
-/// own items, the methods `at_lam { fn name(args) -> Type; }` returning what the function
-/// `name` computes from `[args]` at the keyword `lam`, then one method per dynamics
-/// quantity `fn name(args) -> [shape] = value;`, taking (5,) or (N, 5) arguments and the
-/// keyword `lam`, with `value` computed at sample `k` by `model` with the GIL released.
+/// The `#[pymethods]` of `Robot`: its paper Table 2 `fields` (each the (k,) array
+/// `Robot.field`: its getter, the keyword of the constructor that defaults to the paper's
+/// value, and its entry in the pickle arguments and the repr, beside `gravity`), its other
+/// getters (as `pymethods_with_getters!` takes them after its read list), its own items,
+/// the methods `at_lam { fn name(args) -> Type; }` returning what the function `name`
+/// computes from `[args]` at the keyword `lam`, then one method per dynamics quantity
+/// `fn name(args) -> [shape] = value;`, taking (5,) or (N, 5) arguments and the keyword
+/// `lam`, with `value` computed at sample `k` by `model` with the GIL released.
 macro_rules! robot_pymethods {
-    (getters ($($getters:tt)*)
+    (fields [$($(#[$gdoc:meta])* $field:ident,)+]
+     getters ($($getters:tt)*)
      |$model:ident, $k:ident, $lam:ident| { $($extra:tt)* }
      at_lam { $($(#[$fdoc:meta])* fn $fname:ident($($farg:ident),+) -> $fty:ty;)* }
      $($(#[$doc:meta])* fn $name:ident($($arg:ident),+) -> [$($dim:expr),*] = $value:expr;)*) => {
-        pymethods_with_getters!(PyRobot $($getters)* {
+        pymethods_with_getters!(PyRobot { array: [$($(#[$gdoc])* $field,)+] } $($getters)* {
+            /// A robot from the paper's Table 2 quantities (keyword-only, SI units). Omitted
+            /// arguments take the paper's values.
+            #[new]
+            #[pyo3(signature = (*, $($field=None,)+ gravity=STANDARD_GRAVITY))]
+            fn new(
+                py: Python<'_>,
+                $($field: Option<&Bound<'_, PyAny>>,)+
+                gravity: f64,
+            ) -> PyResult<Self> {
+                let paper = Robot::paper();
+                $(let $field =
+                    $field.map_or(Ok(paper.$field), |o| fixed_vector(o, stringify!($field)))?;)+
+                let inner = Robot::new($($field,)+ gravity).to_py(py)?;
+                Ok(Self { inner })
+            }
+
+            fn __repr__(&self) -> String {
+                let r = &self.inner;
+                let fields = [$(format!(concat!(stringify!($field), "={:?}"), r.$field)),+];
+                format!("Robot({}, gravity={:?})", fields.join(", "), r.gravity)
+            }
+
+            /// Pickle and copy support: the keyword arguments that rebuild this robot.
+            fn __getnewargs_ex__<'py>(
+                &self,
+                py: Python<'py>,
+            ) -> PyResult<(Bound<'py, PyTuple>, Bound<'py, PyDict>)> {
+                let kw = PyDict::new(py);
+                $(kw.set_item(stringify!($field), self.inner.$field.to_vec())?;)+
+                kw.set_item("gravity", self.inner.gravity)?;
+                Ok((PyTuple::empty(py), kw))
+            }
+
             $($extra)*
             $(
             $(#[$fdoc])*
@@ -103,43 +140,26 @@ macro_rules! robot_pymethods {
 }
 
 robot_pymethods! {
-getters ({
-    array: [
-        /// Link masses m1..m5, kg, shape (5,).
-        mass,
-        /// Link lengths l1..l5, m, shape (5,).
-        length,
-        /// Centre-of-mass distances lc2..lc4 from joints 2–4, m, shape (3,).
-        com,
-        /// Moments of inertia I2zz..I4zz about the centres of mass, kg·m², shape (3,).
-        inertia_zz,
-    ]
-} inner {
+fields [
+    /// Link masses m1..m5, kg, shape (5,).
+    mass,
+    /// Link lengths l1..l5, m, shape (5,).
+    length,
+    /// Centre-of-mass distances lc2..lc4 from joints 2–4, m, shape (3,).
+    com,
+    /// Moments of inertia I2zz..I4zz about the centres of mass, kg·m², shape (3,).
+    inertia_zz,
+]
+getters (inner {
     /// Gravitational acceleration g, m/s², acting along world −z.
     g: f64 = { gravity }
+} arrays(this, py) {
+    /// Regressor Φ(q, q̇, q̈) at this robot's gravity, shape (5, 8) or (N, 5, 8); τ = Φ·λ.
+    fn regressor(q, qd, qdd) {
+        crate::models::regressor::regressor_at(py, this.inner.model(), [q, qd, qdd])
+    }
 })
 |model, k, lam| {
-    /// A robot from the paper's Table 2 quantities (keyword-only, SI units). Omitted
-    /// arguments take the paper's values.
-    #[new]
-    #[pyo3(signature = (*, mass=None, length=None, com=None, inertia_zz=None, gravity=STANDARD_GRAVITY))]
-    fn new(
-        py: Python<'_>,
-        mass: Option<&Bound<'_, PyAny>>,
-        length: Option<&Bound<'_, PyAny>>,
-        com: Option<&Bound<'_, PyAny>>,
-        inertia_zz: Option<&Bound<'_, PyAny>>,
-        gravity: f64,
-    ) -> PyResult<Self> {
-        let p = Robot::paper();
-        let mass = mass.map_or(Ok(p.mass), |o| fixed_vector(o, "mass"))?;
-        let length = length.map_or(Ok(p.length), |o| fixed_vector(o, "length"))?;
-        let com = com.map_or(Ok(p.com), |o| fixed_vector(o, "com"))?;
-        let inertia_zz = inertia_zz.map_or(Ok(p.inertia_zz), |o| fixed_vector(o, "inertia_zz"))?;
-        let inner = Robot::new(mass, length, com, inertia_zz, gravity).to_py(py)?;
-        Ok(Self { inner })
-    }
-
     /// The robot of Urrea & Pascal 2017, Table 2, with g = 9.81 m/s².
     #[staticmethod]
     fn paper() -> Self {
@@ -172,39 +192,6 @@ getters ({
             list.append(d)?;
         }
         Ok(list)
-    }
-
-    /// Regressor Φ(q, q̇, q̈) at this robot's gravity, shape (5, 8) or (N, 5, 8); τ = Φ·λ.
-    fn regressor<'py>(
-        &self,
-        py: Python<'py>,
-        q: &Bound<'py, PyAny>,
-        qd: &Bound<'py, PyAny>,
-        qdd: &Bound<'py, PyAny>,
-    ) -> Out<'py> {
-        crate::models::regressor::regressor_at(py, self.inner.model(), [q, qd, qdd])
-    }
-
-    fn __repr__(&self) -> String {
-        let r = &self.inner;
-        format!(
-            "Robot(mass={:?}, length={:?}, com={:?}, inertia_zz={:?}, gravity={:?})",
-            r.mass, r.length, r.com, r.inertia_zz, r.gravity
-        )
-    }
-
-    /// Pickle and copy support: the keyword arguments that rebuild this robot.
-    fn __getnewargs_ex__<'py>(
-        &self,
-        py: Python<'py>,
-    ) -> PyResult<(Bound<'py, PyTuple>, Bound<'py, PyDict>)> {
-        let kw = PyDict::new(py);
-        kw.set_item("mass", self.inner.mass.to_vec())?;
-        kw.set_item("length", self.inner.length.to_vec())?;
-        kw.set_item("com", self.inner.com.to_vec())?;
-        kw.set_item("inertia_zz", self.inner.inertia_zz.to_vec())?;
-        kw.set_item("gravity", self.inner.gravity)?;
-        Ok((PyTuple::empty(py), kw))
     }
 }
 at_lam {

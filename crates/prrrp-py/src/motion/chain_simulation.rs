@@ -425,70 +425,73 @@ pymethods_with_getters!(PyChainSimulation {
     }
 });
 
-/// Simulates `chain` tracking `reference` under computed-torque control; see `_prrrp.pyi`.
-#[pyfunction]
-#[pyo3(signature = (chain, reference, duration, *, rate=100.0, substeps=UInt(10),
-    controller=None, kp=None, kd=None, q_noise=None, qd_noise=None, tau_noise=None,
-    seed=UInt(0)))]
-#[allow(clippy::too_many_arguments)]
-fn simulate_chain(
-    py: Python<'_>,
-    chain: PyRef<'_, PySerialChain>,
-    reference: &Bound<'_, PyAny>,
-    duration: f64,
-    rate: f64,
-    substeps: UInt<usize>,
-    controller: Option<PyRef<'_, PySerialChain>>,
-    kp: Option<&Bound<'_, PyAny>>,
-    kd: Option<&Bound<'_, PyAny>>,
-    q_noise: Option<&Bound<'_, PyAny>>,
-    qd_noise: Option<&Bound<'_, PyAny>>,
-    tau_noise: Option<&Bound<'_, PyAny>>,
-    seed: UInt<u64>,
-) -> PyResult<PyChainSimulation> {
-    check_rate(py, rate)?;
-    let reference = reference_from(reference)?;
-    let plant = chain.chain();
-    let args = SimArgs::gains(kp, kd).noise(q_noise, qd_noise, tau_noise);
-    let cfg = config(plant.dof(), rate, substeps.0, args, seed.0)?;
-    let ctrl = controller.as_ref().map_or(plant, |c| c.chain());
-    let inner = interruptible(py, || {
-        simulate_dyn_closed_loop(plant, ctrl, &reference, duration, &cfg)
-    })?
-    .to_py(py)?;
-    Ok(PyChainSimulation { inner })
+/// The chain simulators: each `fn name(args; keywords) = |py, plant, settings| run`
+/// becomes the `#[pyfunction]` `name(chain, args, *, rate=100.0, substeps=10, keywords,
+/// q_noise=None, qd_noise=None, tau_noise=None, seed=0)` (`keywords` `name: Type`, each
+/// defaulting to None) returning the `ChainSimulation` that the closure `run` records,
+/// with the GIL released, of `chain` (`plant`); `settings(kp, kd)` are the simulation
+/// settings at the controller gains `kp`, `kd` (None: the core's defaults).
+macro_rules! chain_simulators {
+    ($($(#[$doc:meta])*
+       fn $name:ident($($arg:ident: $aty:ty),+; $($kw:ident: $kty:ty),*)
+       = |$py:ident, $plant:ident, $settings:ident| $run:block)*) => {$(
+        $(#[$doc])*
+        #[pyfunction]
+        #[pyo3(signature = (chain, $($arg),+, *, rate=100.0, substeps=UInt(10), $($kw=None,)*
+            q_noise=None, qd_noise=None, tau_noise=None, seed=UInt(0)))]
+        #[allow(clippy::too_many_arguments)]
+        fn $name(
+            $py: Python<'_>,
+            chain: PyRef<'_, PySerialChain>,
+            $($arg: $aty,)+
+            rate: f64,
+            substeps: UInt<usize>,
+            $($kw: $kty,)*
+            q_noise: Option<&Bound<'_, PyAny>>,
+            qd_noise: Option<&Bound<'_, PyAny>>,
+            tau_noise: Option<&Bound<'_, PyAny>>,
+            seed: UInt<u64>,
+        ) -> PyResult<PyChainSimulation> {
+            check_rate($py, rate)?;
+            let $plant = chain.chain();
+            let $settings = |kp, kd| {
+                let args = SimArgs::gains(kp, kd).noise(q_noise, qd_noise, tau_noise);
+                config($plant.dof(), rate, substeps.0, args, seed.0)
+            };
+            let inner = interruptible($py, $run)?.to_py($py)?;
+            Ok(PyChainSimulation { inner })
+        }
+    )*};
 }
 
-/// Simulates `chain` from (q0, qd0) under the torques `tau` (N, n), each held for one
-/// sample; see `_prrrp.pyi`.
-#[pyfunction]
-#[pyo3(signature = (chain, q0, qd0, tau, *, rate=100.0, substeps=UInt(10), q_noise=None,
-    qd_noise=None, tau_noise=None, seed=UInt(0)))]
-#[allow(clippy::too_many_arguments)]
-fn simulate_chain_open_loop(
-    py: Python<'_>,
-    chain: PyRef<'_, PySerialChain>,
-    q0: &Bound<'_, PyAny>,
-    qd0: &Bound<'_, PyAny>,
-    tau: &Bound<'_, PyAny>,
-    rate: f64,
-    substeps: UInt<usize>,
-    q_noise: Option<&Bound<'_, PyAny>>,
-    qd_noise: Option<&Bound<'_, PyAny>>,
-    tau_noise: Option<&Bound<'_, PyAny>>,
-    seed: UInt<u64>,
-) -> PyResult<PyChainSimulation> {
-    check_rate(py, rate)?;
-    let plant = chain.chain();
-    let n = plant.dof();
-    let q0 = vector(q0, "q0")?;
-    let qd0 = vector(qd0, "qd0")?;
-    let (_, _, tau) = table(tau, "tau", None, Some(n))?;
-    let args = SimArgs::gains(None, None).noise(q_noise, qd_noise, tau_noise);
-    let cfg = config(n, rate, substeps.0, args, seed.0)?;
-    let inner =
-        interruptible(py, || simulate_dyn_open_loop(plant, &q0, &qd0, &tau, &cfg))?.to_py(py)?;
-    Ok(PyChainSimulation { inner })
+chain_simulators! {
+    /// Simulates `chain` tracking `reference` under computed-torque control; see `_prrrp.pyi`.
+    fn simulate_chain(
+        reference: &Bound<'_, PyAny>,
+        duration: f64;
+        controller: Option<PyRef<'_, PySerialChain>>,
+        kp: Option<&Bound<'_, PyAny>>,
+        kd: Option<&Bound<'_, PyAny>>
+    ) = |py, plant, settings| {
+        let reference = reference_from(reference)?;
+        let cfg = settings(kp, kd)?;
+        let ctrl = controller.as_ref().map_or(plant, |c| c.chain());
+        move || simulate_dyn_closed_loop(plant, ctrl, &reference, duration, &cfg)
+    }
+
+    /// Simulates `chain` from (q0, qd0) under the torques `tau` (N, n), each held for one
+    /// sample; see `_prrrp.pyi`.
+    fn simulate_chain_open_loop(
+        q0: &Bound<'_, PyAny>,
+        qd0: &Bound<'_, PyAny>,
+        tau: &Bound<'_, PyAny>;
+    ) = |py, plant, settings| {
+        let q0 = vector(q0, "q0")?;
+        let qd0 = vector(qd0, "qd0")?;
+        let (_, _, tau) = table(tau, "tau", None, Some(plant.dof()))?;
+        let cfg = settings(None, None)?;
+        move || simulate_dyn_open_loop(plant, &q0, &qd0, &tau, &cfg)
+    }
 }
 
 pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {

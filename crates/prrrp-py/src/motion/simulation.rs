@@ -79,12 +79,13 @@ impl<'a, 'py> SimArgs<'a, 'py> {
     }
 }
 
-/// The paper arm's simulation settings: gains and noise (5,) each, the core's defaults
-/// where not given.
+/// The paper arm's simulation settings: gains and noise (5,) each, the core's default
+/// gains and the sensor noise `noise` where not given.
 pub(crate) fn config(
     dt: f64,
     substeps: usize,
     a: SimArgs<'_, '_>,
+    noise: SensorNoise,
     seed: u64,
 ) -> PyResult<SimulationConfig> {
     let d = SimulationConfig::default();
@@ -94,102 +95,113 @@ pub(crate) fn config(
         kp: fixed_or(a.kp, "kp", d.kp)?,
         kd: fixed_or(a.kd, "kd", d.kd)?,
         noise: SensorNoise {
-            q_std: fixed_or(a.q_noise, "q_noise", d.noise.q_std)?,
-            tau_std: fixed_or(a.tau_noise, "tau_noise", d.noise.tau_std)?,
+            q_std: fixed_or(a.q_noise, "q_noise", noise.q_std)?,
+            tau_std: fixed_or(a.tau_noise, "tau_noise", noise.tau_std)?,
         },
         seed,
     })
 }
 
-/// Simulates the paper robot with parameters `lam` (default Table 3) tracking `reference`
-/// (an `Excitation` or a `SinusoidReference`) under computed-torque control with the
-/// controller's parameters `controller_lam` (default `lam`), gains `kp`, `kd` (5,) (default
-/// 400, 40), from t = 0 to `duration` s, sampled every `dt` s (RK4 with `substeps` steps
-/// per sample). Sensor noise standard deviations `q_noise`, `tau_noise` (5,) (m, rad; N,
-/// N·m; default the core's `SensorNoise`, zeros for none), seeded by `seed`.
-///
-/// Returns a dict of arrays: `t` (N,), `q_ref`, `qd_ref`, `qdd_ref`, `q`, `qd`, `qdd`,
-/// `tau`, `q_measured`, `tau_measured` (N, 5).
-#[pyfunction]
-#[pyo3(signature = (reference, duration, *, lam=None, controller_lam=None, dt=0.02,
-    substeps=UInt(20), kp=None, kd=None, q_noise=None, tau_noise=None, seed=UInt(0)))]
-#[allow(clippy::too_many_arguments)]
-fn simulate_closed_loop<'py>(
-    py: Python<'py>,
-    reference: &Bound<'py, PyAny>,
-    duration: f64,
-    lam: Option<&Bound<'py, PyAny>>,
-    controller_lam: Option<&Bound<'py, PyAny>>,
-    dt: f64,
-    substeps: UInt<usize>,
-    kp: Option<&Bound<'py, PyAny>>,
-    kd: Option<&Bound<'py, PyAny>>,
-    q_noise: Option<&Bound<'py, PyAny>>,
-    tau_noise: Option<&Bound<'py, PyAny>>,
-    seed: UInt<u64>,
-) -> PyResult<Bound<'py, PyDict>> {
-    let lam = lambda_or(lam, "lam")?;
-    let ctrl = fixed_or::<NPARAM>(controller_lam, "controller_lam", lam)?;
-    let args = SimArgs::gains(kp, kd).noise(q_noise, None, tau_noise);
-    let cfg = config(dt, substeps.0, args, seed.0)?;
-    let model = Robot::paper().model();
-    let rec = if let Ok(e) = reference.extract::<PyRef<'_, Excitation>>() {
-        if let Some(r) = e.reflected_trajectory() {
-            let traj = r.to_py(py)?;
+/// The paper arm's simulators: each `fn name(args; keywords; gains) = |py, model, lam,
+/// settings| record` becomes the `#[pyfunction]` `name(args, *, lam=None, keywords,
+/// dt=0.02, substeps=20, gains, q_noise=None, tau_noise=None, seed=0)` (`keywords`
+/// `name: Type` and the gains, optional (5,) arrays, default to None) returning the dict
+/// of the simulation `record` (`record_dict`) of the arm `model` with parameters `lam`
+/// (default Table 3); `settings(kp, kd, noise)` are the simulation settings at the
+/// controller gains `kp`, `kd` (None: the core's defaults), with the sensor noise `noise`
+/// where not given.
+macro_rules! paper_simulators {
+    ($($(#[$doc:meta])*
+       fn $name:ident($($arg:ident: $aty:ty),+; $($kw:ident: $kty:ty),*;
+                      $($gain:ident),*)
+       = |$py:ident, $model:ident, $lam:ident, $settings:ident| $record:block)*) => {$(
+        $(#[$doc])*
+        #[pyfunction]
+        #[pyo3(signature = ($($arg),+, *, lam=None, $($kw=None,)* dt=0.02, substeps=UInt(20),
+            $($gain=None,)* q_noise=None, tau_noise=None, seed=UInt(0)))]
+        #[allow(clippy::too_many_arguments)]
+        fn $name<'py>(
+            $py: Python<'py>,
+            $($arg: $aty,)+
+            lam: Option<&Bound<'py, PyAny>>,
+            $($kw: $kty,)*
+            dt: f64,
+            substeps: UInt<usize>,
+            $($gain: Option<&Bound<'py, PyAny>>,)*
+            q_noise: Option<&Bound<'py, PyAny>>,
+            tau_noise: Option<&Bound<'py, PyAny>>,
+            seed: UInt<u64>,
+        ) -> PyResult<Bound<'py, PyDict>> {
+            let $lam = lambda_or(lam, "lam")?;
+            let $settings = |kp, kd, noise| {
+                let args = SimArgs::gains(kp, kd).noise(q_noise, None, tau_noise);
+                config(dt, substeps.0, args, noise, seed.0)
+            };
+            let $model = Robot::paper().model();
+            record_dict($py, &$record.to_py($py)?)
+        }
+    )*};
+}
+
+paper_simulators! {
+    /// Simulates the paper robot with parameters `lam` (default Table 3) tracking `reference`
+    /// (an `Excitation` or a `SinusoidReference`) under computed-torque control with the
+    /// controller's parameters `controller_lam` (default `lam`), gains `kp`, `kd` (5,) (default
+    /// 400, 40), from t = 0 to `duration` s, sampled every `dt` s (RK4 with `substeps` steps
+    /// per sample). Sensor noise standard deviations `q_noise`, `tau_noise` (5,) (m, rad; N,
+    /// N·m; default the core's `SensorNoise`, zeros for none), seeded by `seed`.
+    ///
+    /// Returns a dict of arrays: `t` (N,), `q_ref`, `qd_ref`, `qdd_ref`, `q`, `qd`, `qdd`,
+    /// `tau`, `q_measured`, `tau_measured` (N, 5).
+    fn simulate_closed_loop(
+        reference: &Bound<'py, PyAny>,
+        duration: f64;
+        controller_lam: Option<&Bound<'py, PyAny>>;
+        kp, kd
+    ) = |py, model, lam, settings| {
+        let ctrl = fixed_or::<NPARAM>(controller_lam, "controller_lam", lam)?;
+        let cfg = settings(kp, kd, SensorNoise::default())?;
+        if let Ok(e) = reference.extract::<PyRef<'_, Excitation>>() {
+            if let Some(r) = e.reflected_trajectory() {
+                let traj = r.to_py(py)?;
+                interruptible(py, || {
+                    core_closed(&model, &lam, &ctrl, &traj, duration, &cfg)
+                })?
+            } else {
+                let traj = e.inner.trajectory;
+                interruptible(py, || {
+                    core_closed(&model, &lam, &ctrl, &traj, duration, &cfg)
+                })?
+            }
+        } else if let Ok(s) = reference.extract::<PyRef<'_, SinusoidReference>>() {
+            let traj = s.inner;
             interruptible(py, || {
                 core_closed(&model, &lam, &ctrl, &traj, duration, &cfg)
             })?
         } else {
-            let traj = e.inner.trajectory;
-            interruptible(py, || {
-                core_closed(&model, &lam, &ctrl, &traj, duration, &cfg)
-            })?
+            return Err(PyTypeError::new_err(format!(
+                "`reference` must be a prrrp.Excitation or prrrp.SinusoidReference, got {}",
+                reference.get_type().name()?
+            )));
         }
-    } else if let Ok(s) = reference.extract::<PyRef<'_, SinusoidReference>>() {
-        let traj = s.inner;
-        interruptible(py, || {
-            core_closed(&model, &lam, &ctrl, &traj, duration, &cfg)
-        })?
-    } else {
-        return Err(PyTypeError::new_err(format!(
-            "`reference` must be a prrrp.Excitation or prrrp.SinusoidReference, got {}",
-            reference.get_type().name()?
-        )));
-    };
-    record_dict(py, &rec.to_py(py)?)
-}
+    }
 
-/// Simulates the paper robot with parameters `lam` (default Table 3) from (q0, qd0) (5,)
-/// under the torques `tau` (N, 5), each held over one period `dt` s (zero-order hold).
-/// Returns a dict of arrays `t`, `q`, `qd`, `qdd`, `tau`, `q_measured`, `tau_measured`
-/// (noise-free unless `q_noise`/`tau_noise` are given).
-#[pyfunction]
-#[pyo3(signature = (q0, qd0, tau, *, lam=None, dt=0.02, substeps=UInt(20), q_noise=None,
-    tau_noise=None, seed=UInt(0)))]
-#[allow(clippy::too_many_arguments)]
-fn simulate_open_loop<'py>(
-    py: Python<'py>,
-    q0: &Bound<'py, PyAny>,
-    qd0: &Bound<'py, PyAny>,
-    tau: &Bound<'py, PyAny>,
-    lam: Option<&Bound<'py, PyAny>>,
-    dt: f64,
-    substeps: UInt<usize>,
-    q_noise: Option<&Bound<'py, PyAny>>,
-    tau_noise: Option<&Bound<'py, PyAny>>,
-    seed: UInt<u64>,
-) -> PyResult<Bound<'py, PyDict>> {
-    let lam = lambda_or(lam, "lam")?;
-    let q0: Vec5 = fixed_or(Some(q0), "q0", Vec5::zeros())?;
-    let qd0: Vec5 = fixed_or(Some(qd0), "qd0", Vec5::zeros())?;
-    let tau = Samples::<NDOF>::extract_rows(tau, "tau")?;
-    let zeros = Some(to_array(py, vec![0.0; NDOF], None, &[NDOF])?);
-    let (q_noise, tau_noise) = (q_noise.or(zeros.as_ref()), tau_noise.or(zeros.as_ref()));
-    let args = SimArgs::gains(None, None).noise(q_noise, None, tau_noise);
-    let cfg = config(dt, substeps.0, args, seed.0)?;
-    let model = Robot::paper().model();
-    let rec = interruptible(py, || core_open(&model, &lam, &q0, &qd0, &tau, &cfg))?;
-    record_dict(py, &rec.to_py(py)?)
+    /// Simulates the paper robot with parameters `lam` (default Table 3) from (q0, qd0) (5,)
+    /// under the torques `tau` (N, 5), each held over one period `dt` s (zero-order hold).
+    /// Returns a dict of arrays `t`, `q`, `qd`, `qdd`, `tau`, `q_measured`, `tau_measured`
+    /// (noise-free unless `q_noise`/`tau_noise` are given).
+    fn simulate_open_loop(
+        q0: &Bound<'py, PyAny>,
+        qd0: &Bound<'py, PyAny>,
+        tau: &Bound<'py, PyAny>;
+        ;
+    ) = |py, model, lam, settings| {
+        let q0: Vec5 = fixed_or(Some(q0), "q0", Vec5::zeros())?;
+        let qd0: Vec5 = fixed_or(Some(qd0), "qd0", Vec5::zeros())?;
+        let tau = Samples::<NDOF>::extract_rows(tau, "tau")?;
+        let cfg = settings(None, None, SensorNoise::none())?;
+        interruptible(py, || core_open(&model, &lam, &q0, &qd0, &tau, &cfg))?
+    }
 }
 
 pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {

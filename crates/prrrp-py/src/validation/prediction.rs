@@ -5,8 +5,8 @@
 use prrrp_core::{
     sensitivity as core_sensitivity, torque_prediction as core_torque, validate as core_validate,
     validate_identified_model, validate_torque_prediction, ErrorIndices, Lambda,
-    ParameterisedModel, PrrrpError, Robot, SensitivityConfig, TorquePrediction, TorqueValidation,
-    ValidationConfig, NDOF, NPARAM, STANDARD_GRAVITY,
+    ParameterisedModel, PrrrpError, Robot, SensitivityConfig, SensorNoise, TorquePrediction,
+    TorqueValidation, ValidationConfig, NDOF, NPARAM, STANDARD_GRAVITY,
 };
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
@@ -126,7 +126,7 @@ fn validate<'py>(
     let truth = fixed_or::<NPARAM>(true_lam, "true_lam", paper_lambda())?;
     let ctrl = fixed_or::<NPARAM>(controller_lam, "controller_lam", truth)?;
     let args = SimArgs::gains(kp, kd).noise(q_noise, None, tau_noise);
-    let sim = sim_config(dt, substeps, args, seed)?;
+    let sim = sim_config(dt, substeps, args, SensorNoise::default(), seed)?;
     let cfg = validation_config(reference, duration, seed, sim);
     let model = Robot::paper().model();
     let known = relative_errors.then_some(truth);
@@ -203,7 +203,7 @@ fn sensitivity<'py>(
     let nominal = fixed_or::<NPARAM>(nominal, "nominal", paper_lambda())?;
     // Sensor noise is not used by the sweep.
     let args = SimArgs::gains(kp, kd);
-    let sim = sim_config(dt, substeps, args, 0)?;
+    let sim = sim_config(dt, substeps, args, SensorNoise::default(), 0)?;
     let d = SensitivityConfig::default();
     let cfg = SensitivityConfig {
         range,
