@@ -1042,6 +1042,9 @@ class OnlineIdentifier:
     def counts(self) -> tuple[int, int, int, int]:
         """Rows consumed, rows that updated the estimate, repeated rows, changes."""
     @property
+    def dropped_alarms(self) -> int:
+        """Alarms whose look dropped the opening (a spike, not a change)."""
+    @property
     def noise_rms(self) -> list[float]:
         """Running noise level of each joint's torque (N·m or N)."""
     @property

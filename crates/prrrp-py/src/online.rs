@@ -165,6 +165,13 @@ impl PyOnlineIdentifier {
         self.inner.counts()
     }
 
+    /// Alarms of the change test whose look dropped the opening: the estimate before them
+    /// predicted the following rows as well (a spike, not a change).
+    #[getter]
+    fn dropped_alarms(&self) -> usize {
+        self.inner.dropped_alarms()
+    }
+
     /// Running noise level per joint (N·m or N).
     #[getter]
     fn noise_rms(&self) -> Vec<f64> {

@@ -196,6 +196,14 @@ where
         Ok(())
     }
 
+    /// Takes `other`'s estimate, covariance and sample count (a filter of the same model
+    /// and sizes); allocation-free.
+    pub fn copy_state_from(&mut self, other: &Self) {
+        self.fit.lambda.copy_from(&other.fit.lambda);
+        self.cov.copy_from(&other.cov);
+        self.samples = other.samples;
+    }
+
     /// P ← D·P·D with D = diag(`d`), d ≥ 0 (a congruence: P stays positive
     /// semidefinite). Opens the covariance after a detected change of the dynamics (d > 1
     /// on the parameters that may have changed), allocation-free.

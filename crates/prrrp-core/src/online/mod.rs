@@ -14,6 +14,7 @@
 //! Design: docs/design/online.md; speed: docs/online-speed.md.
 
 mod detector;
+mod guard;
 mod identifier;
 mod kinematics;
 mod payload;

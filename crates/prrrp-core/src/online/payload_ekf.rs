@@ -53,6 +53,8 @@ pub(crate) struct PayloadEkf {
     ws: TrackedWorkspace,
     /// The estimate in π units (what the identifier reads).
     pi: DVector<f64>,
+    /// The a-priori prediction Y_p·π̂ of the last row (units of τ).
+    pred: DVector<f64>,
     updates: usize,
 }
 
@@ -68,6 +70,7 @@ impl PayloadEkf {
             h: DMatrix::zeros(n, PAYLOAD_PARAMS),
             ws: model.workspace(),
             pi: DVector::zeros(PAYLOAD_PARAMS),
+            pred: DVector::zeros(n),
             updates: 0,
         }
     }
@@ -75,6 +78,20 @@ impl PayloadEkf {
     /// The estimate π̂ (unconstrained; kg, kg·m, kg·m²).
     pub(crate) fn estimate(&self) -> &DVector<f64> {
         &self.pi
+    }
+
+    /// The a-priori prediction Y_p·π̂ of the last row given to [`PayloadEkf::update`],
+    /// with the estimate before it (units of τ).
+    pub(crate) fn prediction(&self) -> &DVector<f64> {
+        &self.pred
+    }
+
+    /// Takes `other`'s estimate and covariance (a filter of the same model); allocation-free.
+    pub(crate) fn copy_state_from(&mut self, other: &Self) {
+        self.gamma = other.gamma;
+        self.p = other.p;
+        self.pi.copy_from(&other.pi);
+        self.updates = other.updates;
     }
 
     /// Covariance entry (i, j) of π̂ (π units), the filter's own.
@@ -117,6 +134,7 @@ impl PayloadEkf {
         nu: f64,
     ) -> Result<()> {
         model.regressor_into(&mut self.ws, q, qd, qdd, &mut self.h)?;
+        self.h.mul_to(&self.pi, &mut self.pred);
         let (gamma0, p0) = (self.gamma, self.p);
         let walk = PAYLOAD_DRIFT * PAYLOAD_DRIFT * dt;
         let forget = 1.0 / nu - 1.0;

@@ -1,0 +1,155 @@
+"""`prrrp.OnlineIdentifier` on logs like a real arm's, against Pinocchio: the UR5 of
+example-robot-data with every link perturbed as CAD models are off (`pinocchio_standin`),
+viscous and Coulomb friction whose Coulomb term has a Stribeck bump the model lacks, torque
+noise of 0.15–0.6 N·m (current-based joint torques), a 2 kg part gripped mid-run, or a
+short torque spike the model cannot explain. Scored against Pinocchio's torques (with the
+friction) of another motion, never against the identifier's own regressor.
+
+On such logs the innovation test also fires on bursts of errors the model cannot explain;
+an opening after each such alarm left the model 32 % off 3 s after a grip and 47 % off at
+the end of a log (docs/design/online.md): the look after an alarm (`online/guard.rs`) keeps
+an opening only when it predicts better.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pinocchio as pin
+import pytest
+from pinocchio_standin import ARMS, ROBOTS, _multisine, _torques, _true_model
+
+import prrrp
+
+RATE = 500.0
+GRIP = 15.0
+PART = pin.Inertia(2.0, np.array([0.01, -0.02, 0.06]), np.diag([4e-3, 4e-3, 3e-3]))
+TAU_NOISE = np.array([0.6, 0.6, 0.4, 0.15, 0.15, 0.15])  # N·m
+
+
+class Arm:
+    """A perturbed UR5 (seeded) with friction, its chain and a log generator."""
+
+    def __init__(self, seed: int, stribeck: float = 0.5):
+        rng = np.random.default_rng(seed)
+        rel, tip = ARMS["ur5"]
+        self.path = str(ROBOTS / rel)
+        self.chain = prrrp.SerialChain.from_urdf(self.path, tip=tip)
+        self.n = self.chain.dof
+        self.model = _true_model(self.path, list(self.chain.joint_names), rng)
+        self.loaded = self.model.copy()
+        last = self.model.njoints - 1
+        self.loaded.inertias[last] = self.loaded.inertias[last] + PART
+        n = self.n
+        self.fv, self.fc = rng.uniform(0.5, 3, n), rng.uniform(1, 6, n)
+        self.fo = rng.normal(0, 0.5, n)
+        # Static friction above the Coulomb level, fading within 0.05 rad/s: not in the
+        # model's friction terms.
+        self.fs = stribeck * 0.5 * self.fc
+        self.seed = seed
+
+    def friction(self, qd: np.ndarray) -> np.ndarray:
+        coulomb = self.fc + self.fs * np.exp(-((qd / 0.05) ** 2))
+        return self.fv * qd + coulomb * np.tanh(qd / 0.02) + self.fo
+
+    def log(self, seed: int, seconds: float, grip: float | None) -> dict[str, np.ndarray]:
+        """t, noisy q and τ, exact q̇, q̈ and τ; the part gripped from `grip` s."""
+        rng = np.random.default_rng(1000 * self.seed + seed)
+        n = self.n
+        t, q, qd, qdd = _multisine(rng, n, seconds, RATE, np.full(n, 0.8), f0=0.1)
+        tau = _torques(self.model, q, qd, qdd)
+        if grip is not None:
+            after = t >= grip
+            tau[after] = _torques(self.loaded, q[after], qd[after], qdd[after])
+        tau = tau + self.friction(qd)
+        return {
+            "t": t,
+            "q": q + rng.normal(0, 1e-5, q.shape),
+            "qd": qd,
+            "qdd": qdd,
+            "tau": tau + rng.normal(0, 1, tau.shape) * TAU_NOISE,
+            "exact": tau,
+        }
+
+    def prior(self) -> prrrp.IdentifiedModel:
+        """The bare arm identified (wls) from 30 s of its own log, as `prrrp identify`."""
+        un = self.log(1, 30.0, None)
+        robot = prrrp.workflow.load_robot(self.path, friction="viscous+coulomb+offset")
+        return prrrp.identify_measurements(robot, un, "wls").model
+
+
+def _error(model: prrrp.IdentifiedModel, val: dict[str, np.ndarray]) -> np.ndarray:
+    """Per joint: RMS torque error on `val` against the exact torques, % of their RMS."""
+    pred = np.asarray(model.predict(val["q"], val["qd"], val["qdd"]))
+    ref = val["exact"]
+    return 100 * np.sqrt(np.mean((pred - ref) ** 2, axis=0) / np.mean(ref**2, axis=0))
+
+
+def _track(online: prrrp.OnlineIdentifier, run: dict[str, np.ndarray], at: float):
+    """Feeds `run`; the estimate at `at` s and at the end, and the reported changes."""
+    then, changes = None, []
+    for k in range(len(run["t"])):
+        out = online.update(run["t"][k], run["q"][k], run["tau"][k])
+        if out["change"]:
+            changes.append(run["t"][k])
+        if then is None and run["t"][k] >= at:
+            then = online.estimate()
+    return then, online.estimate(), changes
+
+
+@pytest.fixture(scope="module")
+def arm():
+    a = Arm(2)
+    return a, a.prior()
+
+
+EKF_GAP = (
+    "known gap (issue online): the running EKF confirms further changes after the grip on "
+    "this log and ends 15-19 % off 3 s after it on perturbed arms 1-3 (end 2.1-4.6 %); "
+    "docs/design/online.md"
+)
+
+
+@pytest.mark.parametrize(
+    "method", ["rls", pytest.param("ekf", marks=pytest.mark.xfail(reason=EKF_GAP, strict=False))]
+)
+def test_whole_arm_follows_a_grip_on_a_realistic_log(arm, method):
+    """From the bare arm's prior: 3 s after the grip within 15 % of each joint's RMS
+    torque on another loaded motion, at the end within 3 %. Before the look, a false alarm
+    at 12.7 s made the grip open every direction (RLS 19 % 3 s after on this arm, the EKF
+    29 %; the EKF ended 21 % off after repeated restarts)."""
+    a, prior = arm
+    run = a.log(2, 30.0, GRIP)
+    val = a.log(3, 10.0, 0.0)
+    online = prrrp.OnlineIdentifier(prior=prior, method=method)
+    after3, end, changes = _track(online, run, GRIP + 3.0)
+    assert any(GRIP <= c < GRIP + 1.0 for c in changes), changes
+    assert np.all(_error(after3, val) < 15.0), _error(after3, val)
+    assert np.all(_error(end, val) < 3.0), _error(end, val)
+
+
+@pytest.mark.parametrize("before_end", [0.2, 1.0])
+def test_a_torque_spike_near_the_end_leaves_the_model_as_it_was(arm, before_end):
+    """A 2 N·m spike on every joint (60 ms wide) shortly before the end of a log without a
+    change: no change is reported (a look that ended dropped the opening), and the model at
+    the end predicts another motion as well as without the spike. The spike 0.2 s before
+    the end left the UR5 of test_online.py 410 % off on the wrist when every alarm opened
+    the covariance, and 23 % when the estimator took the spike's rows in while the look was
+    pending."""
+    a, prior = arm
+    run = a.log(4, 20.0, None)
+    val = a.log(5, 10.0, None)
+    t = run["t"]
+    spiked = dict(run)
+    sign = np.random.default_rng(7).choice([-1.0, 1.0], a.n)
+    bump = np.exp(-(((t - (t[-1] - before_end)) / 0.03) ** 2))
+    spiked["tau"] = run["tau"] + 2.0 * sign * bump[:, None]
+    models = []
+    for log in (run, spiked):
+        online = prrrp.OnlineIdentifier(prior=prior, method="rls")
+        _, end, changes = _track(online, log, np.inf)
+        assert changes == []
+        models.append(end)
+    if before_end > 0.5:  # the look (0.5 s) ended before the log
+        assert online.dropped_alarms >= 1
+    clean, after = _error(models[0], val), _error(models[1], val)
+    assert np.all(after <= 1.1 * clean + 0.05), (clean, after)
