@@ -372,7 +372,7 @@ where
                 0.0;
                 {
                     let (n, n4) = (n.value(), n.value().div_ceil(4) * 4);
-                    (TILE_ROWS * (p.value() + 4 * n)).max(n4 + 2 * n4 * n)
+                    (TILE_ROWS * n).max(n4 + 2 * n4 * n)
                 }
             ],
         }
@@ -1671,8 +1671,8 @@ fn assemble_factored<N: Dim, P: Dim>(
 /// chain's Φ is about half zeros (row j: the parameters of links ≥ j and of joint j's
 /// actuator), which P_·λ·Φᵀ skips column by column; the assembled A_λ = C·Φ is dense.
 /// So ≈ S·(2N² + nnz Φ + N²) multiply-adds instead of S²·N. `nz`, `xg`, `u`: scratch
-/// of P offset pairs, S×N (for P_·λ·Φᵀ) and TILE_ROWS·(P + 4N) or n4 + 2·n4·N (n4 = N
-/// rounded up to 4), whichever is larger.
+/// of P offset pairs, S×N (for P_·λ·Φᵀ) and TILE_ROWS·N or n4 + 2·n4·N (n4 = N rounded
+/// up to 4), whichever is larger.
 #[inline(always)]
 fn factored_time_products<const FMA: bool>(
     p: &[f64],
@@ -1705,17 +1705,9 @@ fn factored_time_products<const FMA: bool>(
     ));
     // U = Φ·G_λ and A·G = [A_q, A_v, C]·[G_q; G_v; U] (N×N each).
     if n <= TILE_ROWS {
-        // In register tiles, on Φ and [A_q, A_v, C] copied into columns of TILE_ROWS
-        // entries (zeros below row N): as column loops, they took as long as P_·λ·Φᵀ.
-        let (phi8, rest) = u.split_at_mut(TILE_ROWS * np);
-        let (af8, u8) = rest.split_at_mut(TILE_ROWS * 3 * n);
-        let u8 = &mut u8[..TILE_ROWS * n];
-        for (src, dst) in [(phi, &mut *phi8), (af, &mut *af8)] {
-            for (d, c) in dst.chunks_exact_mut(TILE_ROWS).zip(src.chunks_exact(n)) {
-                d[..n].copy_from_slice(c);
-                d[n..].fill(0.0);
-            }
-        }
+        // In register tiles, X's columns (of Φ and [A_q, A_v, C]) N entries long: as
+        // column loops, these took as long as P_·λ·Φᵀ.
+        let u8 = &mut u[..TILE_ROWS * n];
         // Φ's zero columns add nothing to U (and are skipped, as a column loop did).
         let mut cnt = 0;
         for k in 0..np {
@@ -1726,7 +1718,7 @@ fn factored_time_products<const FMA: bool>(
         }
         let nz = &nz[..cnt];
         column_tiles!(n, |c0, cskip| small_products_cols::<FMA>(
-            (phi8, &*af8, nz),
+            (phi, af, nz),
             (&*g, u8, apa),
             (n, s),
             (c0, cskip)
@@ -1761,34 +1753,72 @@ fn factored_time_products<const FMA: bool>(
 }
 
 /// Columns `c0 + cskip..c0 + NC` of U = Φ·G_λ into `u8` and of A·G = [A_q, A_v, C]·[G_q;
-/// G_v; U] into `apa` (N×N), for N ≤ TILE_ROWS: Φ and [A_q, A_v, C] given as columns
-/// of TILE_ROWS entries (`phi8`, `af8`), Φ's non-zero columns listed in `nz` (first of
-/// each pair), U's columns TILE_ROWS apart. The same products summed in the same order
-/// as the column loops of [`factored_time_products`].
+/// G_v; U] into `apa` (N×N), for N ≤ TILE_ROWS: Φ's non-zero columns listed in `nz`
+/// (first of each pair), U's columns TILE_ROWS apart. The same products summed in the
+/// same order as the column loops of [`factored_time_products`].
 #[inline(always)]
 fn small_products_cols<const FMA: bool, const NC: usize>(
-    (phi8, af8, nz): (&[f64], &[f64], &[(usize, usize)]),
+    (phi, af, nz): (&[f64], &[f64], &[(usize, usize)]),
     (g, u8, apa): (&[f64], &mut [f64], &mut [f64]),
     (n, s): (usize, usize),
     (c0, cskip): (usize, usize),
 ) {
     const R: usize = TILE_ROWS;
     let zero = [[0.0f64; R]; NC];
-    let cols = nz.iter().map(|&(k, _)| (k * R, 2 * n + k + c0 * s));
-    let acc = whole_tile::<FMA, NC>(zero, phi8, (g, s), cols);
+    let cols = nz.iter().map(|&(k, _)| (k * n, 2 * n + k + c0 * s));
+    let acc = short_tile::<FMA, NC>(zero, (phi, n), (g, s), cols);
     for (c, a) in acc.iter().enumerate() {
         if c >= cskip {
             u8[(c0 + c) * R..(c0 + c + 1) * R].copy_from_slice(a);
         }
     }
-    let acc = whole_tile::<FMA, NC>(zero, af8, (g, s), (0..2 * n).map(|k| (k * R, k + c0 * s)));
-    let cols = (0..n).map(|k| ((2 * n + k) * R, c0 * R + k));
-    let acc = whole_tile::<FMA, NC>(acc, af8, (&*u8, R), cols);
+    let cols = (0..2 * n).map(|k| (k * n, k + c0 * s));
+    let acc = short_tile::<FMA, NC>(zero, (af, n), (g, s), cols);
+    let cols = (0..n).map(|k| ((2 * n + k) * n, c0 * R + k));
+    let acc = short_tile::<FMA, NC>(acc, (af, n), (&*u8, R), cols);
     for (c, a) in acc.iter().enumerate() {
         if c >= cskip {
             apa[(c0 + c) * n..(c0 + c + 1) * n].copy_from_slice(&a[..n]);
         }
     }
+}
+
+/// [`whole_tile`] on columns of X with `rows` ≤ [`TILE_ROWS`] entries (`x` is `(x,
+/// rows)`): nothing past them is read, and the tile's rows beyond them are zeros plus
+/// `acc`'s.
+#[inline(always)]
+fn short_tile<const FMA: bool, const NC: usize>(
+    acc: [[f64; TILE_ROWS]; NC],
+    (x, rows): (&[f64], usize),
+    (y, ys): (&[f64], usize),
+    cols: impl Iterator<Item = (usize, usize)>,
+) -> [[f64; TILE_ROWS]; NC] {
+    #[cfg(target_arch = "x86_64")]
+    if FMA {
+        // SAFETY: FMA = true only runs on a CPU with AVX2 and FMA (see `madd`).
+        return unsafe { avx2::short_tile::<NC>(acc, (x, rows), (y, ys), cols) };
+    }
+    short_tile_portable::<FMA, NC>(acc, (x, rows), (y, ys), cols)
+}
+
+/// [`short_tile`] as plain loops (the portable copy, and the reference of the fused one).
+#[inline(always)]
+fn short_tile_portable<const FMA: bool, const NC: usize>(
+    mut acc: [[f64; TILE_ROWS]; NC],
+    (x, rows): (&[f64], usize),
+    (y, ys): (&[f64], usize),
+    cols: impl Iterator<Item = (usize, usize)>,
+) -> [[f64; TILE_ROWS]; NC] {
+    for (xo, yo) in cols {
+        let xv = &x[xo..xo + rows];
+        for (c, a) in acc.iter_mut().enumerate() {
+            let f = y[yo + c * ys];
+            for (av, &xr) in a.iter_mut().zip(xv) {
+                *av = madd::<FMA>(f, xr, *av);
+            }
+        }
+    }
+    acc
 }
 
 /// Column j of `out` (columns `n4` apart, n4 a multiple of 4) += `col`·f(j) for every
@@ -2433,8 +2463,9 @@ fn whole_tile_portable<const FMA: bool, const NC: usize>(
 mod avx2 {
     use super::{column, TILE_ROWS};
     use std::arch::x86_64::{
-        _mm256_fmadd_pd, _mm256_loadu_pd, _mm256_permute2f128_pd, _mm256_set1_pd,
-        _mm256_setzero_pd, _mm256_storeu_pd, _mm256_sub_pd, _mm256_unpackhi_pd, _mm256_unpacklo_pd,
+        _mm256_fmadd_pd, _mm256_loadu_pd, _mm256_maskload_pd, _mm256_permute2f128_pd,
+        _mm256_set1_pd, _mm256_setr_epi64x, _mm256_setzero_pd, _mm256_storeu_pd, _mm256_sub_pd,
+        _mm256_unpackhi_pd, _mm256_unpacklo_pd,
     };
 
     /// Two 4-lane halves of an 8-row column.
@@ -2484,6 +2515,56 @@ mod avx2 {
                         lo[c] = _mm256_fmadd_pd(f, x0, lo[c]);
                         hi[c] = _mm256_fmadd_pd(f, x1, hi[c]);
                     }
+                }
+            }
+            let mut out = [[0.0f64; TILE_ROWS]; NC];
+            for (c, o) in out.iter_mut().enumerate() {
+                let (a, b) = o.split_at_mut(4);
+                _mm256_storeu_pd(a.as_mut_ptr(), lo[c]);
+                _mm256_storeu_pd(b.as_mut_ptr(), hi[c]);
+            }
+            out
+        }
+    }
+
+    /// [`super::short_tile`], fused: X's columns loaded with lane masks past `rows`.
+    ///
+    /// # Safety
+    /// The CPU must support AVX2 and FMA (see [`whole_tile`]).
+    #[inline(always)]
+    pub(super) unsafe fn short_tile<const NC: usize>(
+        acc: [[f64; TILE_ROWS]; NC],
+        (x, rows): (&[f64], usize),
+        (y, ys): (&[f64], usize),
+        cols: impl Iterator<Item = (usize, usize)>,
+    ) -> [[f64; TILE_ROWS]; NC] {
+        let rows = rows.min(TILE_ROWS);
+        let lane = |r: usize, l: usize| if l < r { -1i64 } else { 0 };
+        // SAFETY (every intrinsic): the caller guarantees AVX2 and FMA; every pointer
+        // comes from a range-checked slice of the lanes that are read or written (a
+        // masked load reads only its active lanes).
+        unsafe {
+            let mask =
+                |r: usize| _mm256_setr_epi64x(lane(r, 0), lane(r, 1), lane(r, 2), lane(r, 3));
+            let (m0, m1) = (mask(rows), mask(rows.saturating_sub(4)));
+            let (mut lo, mut hi) = ([_mm256_setzero_pd(); NC], [_mm256_setzero_pd(); NC]);
+            for (c, a) in acc.iter().enumerate() {
+                let (a0, a1) = halves(a);
+                lo[c] = _mm256_loadu_pd(a0.as_ptr());
+                hi[c] = _mm256_loadu_pd(a1.as_ptr());
+            }
+            for (xo, yo) in cols {
+                let xs = &x[xo..xo + rows];
+                let x0 = _mm256_maskload_pd(xs.as_ptr(), m0);
+                let x1 = if rows > 4 {
+                    _mm256_maskload_pd(xs[4..].as_ptr(), m1)
+                } else {
+                    _mm256_setzero_pd()
+                };
+                for c in 0..NC {
+                    let f = _mm256_set1_pd(y[yo + c * ys]);
+                    lo[c] = _mm256_fmadd_pd(f, x0, lo[c]);
+                    hi[c] = _mm256_fmadd_pd(f, x1, hi[c]);
                 }
             }
             let mut out = [[0.0f64; TILE_ROWS]; NC];
@@ -3181,9 +3262,10 @@ mod tests {
         }
     }
 
-    /// The fused register tile (AVX2 intrinsics) against the portable loop with fused
+    /// The fused register tiles (AVX2 intrinsics) against the portable loops with fused
     /// multiply-adds on random data, bit for bit: tile widths 1 to 4, Y's entries
-    /// contiguous and S apart, a continued sum, listed columns in any order.
+    /// contiguous and S apart, a continued sum, listed columns in any order, and X's
+    /// columns of 1 to 8 entries.
     #[test]
     fn fused_tile_matches_the_portable_loop() {
         if !cpu_has_avx2_fma() {
@@ -3205,6 +3287,16 @@ mod tests {
                 let got =
                     unsafe { avx2::whole_tile::<NC>(acc, &x, (&y, ys), cols.iter().copied()) };
                 assert_eq!(got, want, "NC {NC}, Y's entries {ys} apart");
+            }
+            // Columns of 1 to 8 entries, the last one ending at the end of X (a load of
+            // the whole 8 rows would run past it).
+            for rows in 1..=TILE_ROWS {
+                let xs = &x[..rows * k];
+                let cols = (0..k).map(|j| (j * rows, (j * 5) % k * s + j % 3));
+                let want = short_tile_portable::<true, NC>(acc, (xs, rows), (&y, s), cols.clone());
+                // SAFETY: the CPU has AVX2 and FMA (checked above).
+                let got = unsafe { avx2::short_tile::<NC>(acc, (xs, rows), (&y, s), cols) };
+                assert_eq!(got, want, "NC {NC}, {rows} rows");
             }
         }
         let mut rnd = xorshift(0x6A09_E667_F3BC_C909u64);
@@ -3247,7 +3339,7 @@ mod tests {
                 let mut xg = vec![0.0; s * n];
                 let mut nz = vec![(0, 0); np];
                 let n4 = n.div_ceil(4) * 4;
-                let mut u = vec![0.0; (TILE_ROWS * (np + 4 * n)).max(n4 + 2 * n4 * n)];
+                let mut u = vec![0.0; (TILE_ROWS * n).max(n4 + 2 * n4 * n)];
                 let args = (p.as_slice(), af.as_slice(), phi.as_slice());
                 let scratch = (xg.as_mut_slice(), nz.as_mut_slice(), u.as_mut_slice());
                 let out = (g.as_mut_slice(), apa.as_mut_slice());
