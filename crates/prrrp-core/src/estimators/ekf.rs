@@ -1948,19 +1948,19 @@ fn solve_in_place(l: &mut [f64], n: usize, a: &mut [f64], b: &mut [f64]) -> bool
         }
         l[k * n + k + 1..(k + 1) * n].fill(0.0);
     }
-    let back = |x: &mut [f64]| {
-        for i in (0..n).rev() {
+    // Back substitution row by row over all right-hand sides, so that their divisions
+    // overlap instead of each column's waiting on the last (each column gets the same
+    // operations in the same order).
+    for i in (0..n).rev() {
+        let d = l[i * n + i];
+        for x in a.chunks_exact_mut(n).chain(std::iter::once(&mut b[..n])) {
             let mut v = x[i];
             for j in i + 1..n {
                 v -= l[j * n + i] * x[j];
             }
-            x[i] = v / l[i * n + i];
+            x[i] = v / d;
         }
-    };
-    for j in 0..m {
-        back(&mut a[j * n..(j + 1) * n]);
     }
-    back(b);
     true
 }
 
@@ -2580,7 +2580,8 @@ mod avx2 {
     /// Rows `r0..r0 + TILE_ROWS` of P's columns `c0..c0 + 4` (a tile above the diagonal)
     /// minus `acc`, written to the upper triangle by columns and, transposed in registers
     /// four rows at a time, to the lower one by rows: the values of the portable loop
-    /// (one subtraction per entry).
+    /// (one subtraction per entry). (Tiles on the diagonal, written with lane masks,
+    /// took longer than the portable loop.)
     ///
     /// # Safety
     /// The CPU must support AVX2 (see [`whole_tile`]).
