@@ -309,6 +309,8 @@ where
     /// tiles of [`joseph_columns`] and [`joseph_upper`].
     jx: Vec<f64>,
     jy: Vec<f64>,
+    /// Whether Y = X (rank-N updates only), and `jy` is not written.
+    jy_is_jx: bool,
     /// Whether the derivatives came factored (chain-sized states): ∂q̈/∂λ = −M⁻¹·Φ with Φ
     /// in `fd.dqdd_dlambda` and M⁻¹ in `minv`; see [`factored_time_products`].
     factored: bool,
@@ -363,6 +365,7 @@ where
             prior_to_noise: 0.0,
             jx: vec![0.0; 4 * s.value() * n.value()],
             jy: vec![0.0; 4 * s.value() * n.value()],
+            jy_is_jx: false,
             factored: false,
             minv: OMatrix::zeros_generic(n, n),
             af: vec![0.0; 3 * n.value() * n.value()],
@@ -1146,6 +1149,7 @@ where
         let b = &mut self.buf;
         b.candidate.copy_from(&self.x);
         let mut cols = 0;
+        b.jy_is_jx = true;
         if positions {
             if !rank_n_form(alpha, s, b.prior_to_noise1) && !b.k1_ready {
                 gain_from_factor::<FMA, _, _>(
@@ -1174,7 +1178,7 @@ where
                 rank_n_form(alpha, s, b.prior_to_noise1).then_some(b.linv1.as_slice()),
                 alpha,
                 (b.damped_k.as_mut_slice(), b.d.as_mut_slice()),
-                (&mut b.jx, &mut b.jy),
+                (&mut b.jx, &mut b.jy, &mut b.jy_is_jx),
                 0,
                 (n, s),
             );
@@ -1183,9 +1187,9 @@ where
             return Ok(cols);
         };
         // P's velocity columns after the first update, P_·v − Σ_k X_k·(Y_k)_vᵀ.
-        b.pz.as_mut_slice()
-            .copy_from_slice(&self.p.as_slice()[n * s..2 * n * s]);
-        minus_factor_rows::<FMA>(&b.jx, &b.jy, b.pz.as_mut_slice(), cols, n, s);
+        let pv = &self.p.as_slice()[n * s..2 * n * s];
+        let y = if b.jy_is_jx { &b.jx } else { &b.jy };
+        minus_factor_rows::<FMA>((&b.jx, y), pv, b.pz.as_mut_slice(), cols, (n, s));
         self.innovation_factor(n, true)?;
         let b = &mut self.buf;
         if !rank_n_form(alpha, s, b.prior_to_noise) {
@@ -1209,7 +1213,7 @@ where
             rank_n_form(alpha, s, b.prior_to_noise).then_some(b.linv.as_slice()),
             alpha,
             (b.damped_k.as_mut_slice(), b.d.as_mut_slice()),
-            (&mut b.jx, &mut b.jy),
+            (&mut b.jx, &mut b.jy, &mut b.jy_is_jx),
             cols,
             (n, s),
         );
@@ -1223,7 +1227,8 @@ where
     fn subtract_factors<const FMA: bool>(&mut self, cols: usize) {
         let s = self.x.nrows();
         let b = &self.buf;
-        joseph_upper::<FMA>(&b.jx, &b.jy, self.p.as_mut_slice(), cols, s);
+        let y = if b.jy_is_jx { &b.jx } else { &b.jy };
+        joseph_upper::<FMA>(&b.jx, y, self.p.as_mut_slice(), cols, s);
     }
 
     /// The damped retry of a measurement update formed before P is touched: `form` writes
@@ -1865,7 +1870,7 @@ fn two_source_cols<const FMA: bool, const NC: usize>(
 }
 
 /// Columns `c0 + cskip..c0 + NC` of T = P_·λ·Φᵀ (S×N) into `t`, summing over the
-/// parameters with a non-zero in rows `c0..c0 + NC` of Φ only (their column offsets in
+/// parameters with a non-zero in rows `c0 + cskip..c0 + NC` of Φ only (their column offsets in
 /// P and Φ listed in `nz`, P-long scratch), in register tiles.
 #[inline(always)]
 fn p_lambda_phi_t_cols<const FMA: bool, const NC: usize>(
@@ -1876,9 +1881,15 @@ fn p_lambda_phi_t_cols<const FMA: bool, const NC: usize>(
     (n, s): (usize, usize),
     (c0, cskip): (usize, usize),
 ) {
+    // The rows of Φ this tile writes: a tile overlapping its predecessor sums only the
+    // parameters of its new columns (the overlapped columns' sums are left incomplete
+    // and not written).
     let mut cnt = 0;
     for k in 0..s - 2 * n {
-        if phi[k * n + c0..k * n + c0 + NC].iter().any(|&v| v != 0.0) {
+        if phi[k * n + c0 + cskip..k * n + c0 + NC]
+            .iter()
+            .any(|&v| v != 0.0)
+        {
             nz[cnt] = ((2 * n + k) * s, k * n);
             cnt += 1;
         }
@@ -2180,14 +2191,15 @@ fn rank_n_form(alpha: f64, s: usize, prior_to_noise: f64) -> bool {
 /// and returns their count: W = P_·z·L⁻ᵀ twice (N columns) when `linv` (L⁻¹ of S_z =
 /// L·Lᵀ) is given, the rank-N form; else the Joseph form's [D, K'] and [K', P_·z]
 /// interleaved (2N), K' = α·K and D = P_·z − K'·S_z, the same products in the same order
-/// as [`joseph_columns`]. `kd` and `d` are S×N scratch.
+/// as [`joseph_columns`]. `kd` and `d` are S×N scratch. While only rank-N factors are
+/// pushed, Y = X and `jy` is not written (`jy_is_jx`, true for `c0` = 0).
 #[inline(always)]
 fn push_factors<const FMA: bool>(
     (k, pz, sz): (&[f64], &[f64], &[f64]),
     linv: Option<&[f64]>,
     alpha: f64,
     (kd, d): (&mut [f64], &mut [f64]),
-    (jx, jy): (&mut [f64], &mut [f64]),
+    (jx, jy, jy_is_jx): (&mut [f64], &mut [f64], &mut bool),
     c0: usize,
     (n, s): (usize, usize),
 ) -> usize {
@@ -2195,8 +2207,15 @@ fn push_factors<const FMA: bool>(
     if let Some(linv) = linv {
         let w = c0 * s..(c0 + n) * s;
         w_from_pz::<FMA>(pz, linv, &mut jx[w.clone()], n, s);
-        jy[w.clone()].copy_from_slice(&jx[w]);
+        if !*jy_is_jx {
+            jy[w.clone()].copy_from_slice(&jx[w]);
+        }
         return n;
+    }
+    if *jy_is_jx {
+        // Y's columns so far are X's, which `jy` does not hold yet.
+        jy[..c0 * s].copy_from_slice(&jx[..c0 * s]);
+        *jy_is_jx = false;
     }
     let k: &[f64] = if alpha == 1.0 {
         k
@@ -2218,22 +2237,22 @@ fn push_factors<const FMA: bool>(
     2 * n
 }
 
-/// Columns N..2N of P − X·Yᵀ (`cols` factor columns) from those of P in `pv` (S×N):
-/// column j loses Σ_k X_·k·Y_(N+j)k, summed in register tiles (as [`product_cols`]) and
-/// then subtracted (one column-long multiply-add per factor column and joint, each a
-/// load, a store and one vector multiply-add, took as long as the whole P·Aᵀ).
+/// Columns N..2N of P − X·Yᵀ (`cols` factor columns) from those of P in `pv` (S×N)
+/// into `out`: column j is P's minus Σ_k X_·k·Y_(N+j)k, summed in register tiles (as
+/// [`product_cols`]) and then subtracted (one column-long multiply-add per factor
+/// column and joint, each a load, a store and one vector multiply-add, took as long as
+/// the whole P·Aᵀ).
 #[inline(always)]
 fn minus_factor_rows<const FMA: bool>(
-    jx: &[f64],
-    jy: &[f64],
-    pv: &mut [f64],
+    (jx, jy): (&[f64], &[f64]),
+    pv: &[f64],
+    out: &mut [f64],
     cols: usize,
-    n: usize,
-    s: usize,
+    (n, s): (usize, usize),
 ) {
     column_tiles!(n, |c0, cskip| minus_factor_rows_cols::<FMA>(
         (jx, jy),
-        pv,
+        (pv, out),
         cols,
         (n, s),
         (c0, cskip)
@@ -2243,7 +2262,7 @@ fn minus_factor_rows<const FMA: bool>(
 #[inline(always)]
 fn minus_factor_rows_cols<const FMA: bool, const NC: usize>(
     (jx, jy): (&[f64], &[f64]),
-    pv: &mut [f64],
+    (pv, out): (&[f64], &mut [f64]),
     cols: usize,
     (n, s): (usize, usize),
     (c0, cskip): (usize, usize),
@@ -2257,9 +2276,13 @@ fn minus_factor_rows_cols<const FMA: bool, const NC: usize>(
             if c < cskip {
                 continue;
             }
-            let col = &mut pv[(c0 + c) * s + r0..(c0 + c) * s + r0 + len];
-            for (x, &v) in col.iter_mut().zip(&a[skip..skip + len]) {
-                *x -= v;
+            let o = (c0 + c) * s + r0;
+            for ((x, &p), &v) in out[o..o + len]
+                .iter_mut()
+                .zip(&pv[o..o + len])
+                .zip(&a[skip..])
+            {
+                *x = p - v;
             }
         }
         r0 += len;
@@ -2338,8 +2361,10 @@ fn joseph_upper_cols<const FMA: bool, const NC: usize>(
 /// exact zeros and add nothing), in register tiles as [`product_cols`].
 #[inline(always)]
 fn w_from_pz<const FMA: bool>(pzs: &[f64], linv: &[f64], ws: &mut [f64], n: usize, s: usize) {
+    // A tile's columns j < c0 + NC sum columns m ≤ j of P_·z only: the rest add exact
+    // zeros after the sum, which leave it as it is.
     column_tiles!(n, |c0, cskip| product_cols::<FMA>(
-        (pzs, n),
+        (pzs, (c0 + TILE_COLS).min(n)),
         (linv, n),
         ws,
         s,
