@@ -309,15 +309,18 @@ where
     /// tiles of [`joseph_columns`] and [`joseph_upper`].
     jx: Vec<f64>,
     jy: Vec<f64>,
+    /// Whether Y = X (rank-N updates only), and `jy` is not written.
+    jy_is_jx: bool,
     /// Whether the derivatives came factored (chain-sized states): ∂q̈/∂λ = −M⁻¹·Φ with Φ
     /// in `fd.dqdd_dlambda` and M⁻¹ in `minv`; see [`factored_time_products`].
     factored: bool,
     minv: OMatrix<f64, N, N>,
     /// [A_q, A_v, −M⁻¹] (N×3N) of a factored step (L⁻¹ times it when stiff).
     af: Vec<f64>,
-    /// P_·λ·Φᵀ (S×N), Φ's non-zero columns of a tile, Φ·G_λ (N×N).
+    /// P_·λ·Φᵀ (S×N); the offsets in P and Φ of Φ's non-zero columns of a tile; the
+    /// scratch of Φ·G_λ and A·G (see [`factored_time_products`]).
     xg: Vec<f64>,
-    nz: Vec<usize>,
+    nz: Vec<(usize, usize)>,
     u: Vec<f64>,
 }
 
@@ -362,18 +365,28 @@ where
             prior_to_noise: 0.0,
             jx: vec![0.0; 4 * s.value() * n.value()],
             jy: vec![0.0; 4 * s.value() * n.value()],
+            jy_is_jx: false,
             factored: false,
             minv: OMatrix::zeros_generic(n, n),
             af: vec![0.0; 3 * n.value() * n.value()],
             xg: vec![0.0; s.value() * n.value()],
-            nz: vec![0; p.value()],
-            u: vec![0.0; n.value() * n.value()],
+            nz: vec![(0, 0); p.value()],
+            u: vec![
+                0.0;
+                {
+                    let (n, n4) = (n.value(), n.value().div_ceil(4) * 4);
+                    (TILE_ROWS * n).max(n4 + 2 * n4 * n)
+                }
+            ],
         }
     }
 }
 
 /// a·b + c, fused when the caller is compiled with FMA (then one rounding), plain
-/// otherwise (`mul_add` without hardware FMA is a slow library call).
+/// otherwise (`mul_add` without hardware FMA is a slow library call). Every kernel's
+/// `FMA = true` is the copy for a CPU with AVX2 and FMA: reached from `step_avx2`, or in
+/// the tests behind [`cpu_has_avx2_fma`]; some of its loops are written with AVX2
+/// intrinsics (`avx2`).
 #[inline(always)]
 fn madd<const FMA: bool>(a: f64, b: f64, c: f64) -> f64 {
     if FMA {
@@ -383,23 +396,35 @@ fn madd<const FMA: bool>(a: f64, b: f64, c: f64) -> f64 {
     }
 }
 
-/// Runs `kernel::<FMA, NC>(args…)` on the column tiles `c0 = 0, TILE_COLS, …` of a
-/// `d`-column output, NC the tile's width as a constant (the short last tile gets its
-/// own copy); `c0` is bound for the arguments. A macro, not a function taking a closure:
-/// a closure may be compiled out of line, without the AVX2 and FMA of `step_avx2`.
+/// Runs `kernel::<FMA, NC>(args…)` on the column tiles of a `d`-column output, NC the
+/// tile's width as a constant, with `c0` (first column) and `skip` bound for the
+/// arguments: tiles of TILE_COLS columns from column 0, the last one ending at column d
+/// and overlapping its predecessor by `skip` columns, which it sums again (each column's
+/// sums are its own, so the same values) and does not write; fewer than TILE_COLS columns
+/// take one narrower tile. Every tile of a wider output has the full width: a narrow
+/// tile's accumulators did not map onto whole vector registers (a 3-column tile took
+/// 2.5× the time per multiply-add of a 4-column one). A macro, not a function taking a
+/// closure: a closure may be compiled out of line, without the AVX2 and FMA of
+/// `step_avx2`.
 macro_rules! column_tiles {
-    ($d:expr, |$c0:ident| $kernel:ident::<$fma:ident>($($arg:expr),* $(,)?)) => {{
+    ($d:expr, |$c0:ident, $skip:ident| $kernel:ident::<$fma:ident>($($arg:expr),* $(,)?)) => {{
         const _: () = assert!(TILE_COLS == 4, "the arms below cover widths 1..TILE_COLS");
-        let d = $d;
-        let mut $c0 = 0;
-        while $c0 < d {
-            match d - $c0 {
-                1 => $kernel::<$fma, 1>($($arg),*),
-                2 => $kernel::<$fma, 2>($($arg),*),
-                3 => $kernel::<$fma, 3>($($arg),*),
-                _ => $kernel::<$fma, TILE_COLS>($($arg),*),
+        let d: usize = $d;
+        let ($c0, $skip) = (0usize, 0usize);
+        match d {
+            0 => {}
+            1 => $kernel::<$fma, 1>($($arg),*),
+            2 => $kernel::<$fma, 2>($($arg),*),
+            3 => $kernel::<$fma, 3>($($arg),*),
+            _ => {
+                let mut next = 0;
+                while next < d {
+                    let $c0 = next.min(d - TILE_COLS);
+                    let $skip = next - $c0;
+                    $kernel::<$fma, TILE_COLS>($($arg),*);
+                    next += TILE_COLS;
+                }
             }
-            $c0 += TILE_COLS;
         }
     }};
 }
@@ -1124,6 +1149,7 @@ where
         let b = &mut self.buf;
         b.candidate.copy_from(&self.x);
         let mut cols = 0;
+        b.jy_is_jx = true;
         if positions {
             if !rank_n_form(alpha, s, b.prior_to_noise1) && !b.k1_ready {
                 gain_from_factor::<FMA, _, _>(
@@ -1152,7 +1178,7 @@ where
                 rank_n_form(alpha, s, b.prior_to_noise1).then_some(b.linv1.as_slice()),
                 alpha,
                 (b.damped_k.as_mut_slice(), b.d.as_mut_slice()),
-                (&mut b.jx, &mut b.jy),
+                (&mut b.jx, &mut b.jy, &mut b.jy_is_jx),
                 0,
                 (n, s),
             );
@@ -1161,9 +1187,9 @@ where
             return Ok(cols);
         };
         // P's velocity columns after the first update, P_·v − Σ_k X_k·(Y_k)_vᵀ.
-        b.pz.as_mut_slice()
-            .copy_from_slice(&self.p.as_slice()[n * s..2 * n * s]);
-        minus_factor_rows::<FMA>(&b.jx, &b.jy, b.pz.as_mut_slice(), cols, n, s);
+        let pv = &self.p.as_slice()[n * s..2 * n * s];
+        let y = if b.jy_is_jx { &b.jx } else { &b.jy };
+        minus_factor_rows::<FMA>((&b.jx, y), pv, b.pz.as_mut_slice(), cols, (n, s));
         self.innovation_factor(n, true)?;
         let b = &mut self.buf;
         if !rank_n_form(alpha, s, b.prior_to_noise) {
@@ -1187,7 +1213,7 @@ where
             rank_n_form(alpha, s, b.prior_to_noise).then_some(b.linv.as_slice()),
             alpha,
             (b.damped_k.as_mut_slice(), b.d.as_mut_slice()),
-            (&mut b.jx, &mut b.jy),
+            (&mut b.jx, &mut b.jy, &mut b.jy_is_jx),
             cols,
             (n, s),
         );
@@ -1201,7 +1227,8 @@ where
     fn subtract_factors<const FMA: bool>(&mut self, cols: usize) {
         let s = self.x.nrows();
         let b = &self.buf;
-        joseph_upper::<FMA>(&b.jx, &b.jy, self.p.as_mut_slice(), cols, s);
+        let y = if b.jy_is_jx { &b.jx } else { &b.jy };
+        joseph_upper::<FMA>(&b.jx, y, self.p.as_mut_slice(), cols, s);
     }
 
     /// The damped retry of a measurement update formed before P is touched: `form` writes
@@ -1453,9 +1480,26 @@ where
                     + h2c2 * apa[(i, j)];
             }
         }
-        for j in 2 * n..s {
+        // The qλ and vλ blocks: on an exactly symmetric P their copies in the lower
+        // triangle (P's q and q̇ columns, rows λ: contiguous) hold the same values, so
+        // they are updated there and copied up (`mirror_lower_rows`); the upper rows
+        // were strided reads and writes. Same operations on the same values: the same
+        // bits.
+        let lower = self.p_symmetric;
+        let o = 2 * n;
+        if lower {
             for i in 0..n {
-                p[at(i, j)] += h * p[at(n + i, j)] + hc * gs[i * s + j];
+                let (head, tail) = p.split_at_mut((n + i) * s);
+                let qi = &mut head[i * s + o..(i + 1) * s];
+                for ((x, &pv), &g) in qi.iter_mut().zip(&tail[o..s]).zip(&gs[i * s + o..]) {
+                    *x += h * pv + hc * g;
+                }
+            }
+        } else {
+            for j in o..s {
+                for i in 0..n {
+                    p[at(i, j)] += h * p[at(n + i, j)] + hc * gs[i * s + j];
+                }
             }
         }
         for j in 0..n {
@@ -1472,18 +1516,29 @@ where
                     h * (gs[i * s + n + j] + gs[j * s + n + i]) + h2 * apa[(i, j)];
             }
         }
-        for j in 2 * n..s {
+        if lower {
             for i in 0..n {
-                p[at(n + i, j)] += h * gs[i * s + j];
+                let vi = &mut p[(n + i) * s + o..(n + i + 1) * s];
+                for (x, &g) in vi.iter_mut().zip(&gs[i * s + o..]) {
+                    *x += h * g;
+                }
+            }
+        } else {
+            for j in o..s {
+                for i in 0..n {
+                    p[at(n + i, j)] += h * gs[i * s + j];
+                }
             }
         }
         for i in 0..s {
             p[at(i, i)] += self.q_diag[i];
         }
-        // Only the upper rows of q and q̇ (and the diagonal) changed: an exactly symmetric
-        // P needs only those copied (a third of the strided copies at a chain's size).
-        if self.p_symmetric {
-            mirror_upper_rows(p, s, 2 * n);
+        // Only the rows and columns of q and q̇ (and the diagonal) changed: an exactly
+        // symmetric P needs only those copied (a third of the strided copies at a
+        // chain's size), the qq, qq̇ and q̇q̇ blocks down, the qλ and q̇λ blocks up.
+        if lower {
+            mirror_upper_rows(p, s, o, o);
+            mirror_lower_rows(p, s, o);
         } else {
             mirror_upper(p, s);
             self.p_symmetric = true;
@@ -1620,104 +1675,234 @@ fn assemble_factored<N: Dim, P: Dim>(
 /// [P_·q, P_·v, P_·λ·Φᵀ]·[A_q, A_v, C]ᵀ and A·G = [A_q, A_v, C]·[G_q; G_v; Φ·G_λ]. A
 /// chain's Φ is about half zeros (row j: the parameters of links ≥ j and of joint j's
 /// actuator), which P_·λ·Φᵀ skips column by column; the assembled A_λ = C·Φ is dense.
-/// So ≈ S·(2N² + nnz Φ + N²) multiply-adds instead of S²·N. `xg`, `nz`, `u`: scratch of
-/// S×N (for P_·λ·Φᵀ), P and N×N.
+/// So ≈ S·(2N² + nnz Φ + N²) multiply-adds instead of S²·N. `nz`, `xg`, `u`: scratch
+/// of P offset pairs, S×N (for P_·λ·Φᵀ) and TILE_ROWS·N or n4 + 2·n4·N (n4 = N rounded
+/// up to 4), whichever is larger.
 #[inline(always)]
 fn factored_time_products<const FMA: bool>(
     p: &[f64],
     af: &[f64],
     phi: &[f64],
-    (xg, nz, u): (&mut [f64], &mut [usize], &mut [f64]),
+    (xg, nz, u): (&mut [f64], &mut [(usize, usize)], &mut [f64]),
     (g, apa): (&mut [f64], &mut [f64]),
     n: usize,
     s: usize,
 ) {
     let np = s - 2 * n;
     let t = &mut xg[..n * s];
-    column_tiles!(n, |c0| p_lambda_phi_t_cols::<FMA>(p, phi, nz, t, n, s, c0));
+    column_tiles!(n, |c0, cskip| p_lambda_phi_t_cols::<FMA>(
+        p,
+        phi,
+        nz,
+        t,
+        (n, s),
+        (c0, cskip)
+    ));
     // G = [P_·q, P_·v]·[A_q, A_v]ᵀ + T·Cᵀ, the sums continued over T's columns (no copy
     // of P's first 2N columns next to T).
     let t = &xg[..n * s];
-    column_tiles!(n, |c0| two_source_cols::<FMA>((p, t), af, g, (n, s), c0));
-    u.fill(0.0);
+    column_tiles!(n, |c0, cskip| two_source_cols::<FMA>(
+        (p, t),
+        af,
+        g,
+        (n, s),
+        (c0, cskip)
+    ));
+    // U = Φ·G_λ and A·G = [A_q, A_v, C]·[G_q; G_v; U] (N×N each).
+    if n <= TILE_ROWS {
+        // In register tiles, X's columns (of Φ and [A_q, A_v, C]) N entries long: as
+        // column loops, these took as long as P_·λ·Φᵀ.
+        let u8 = &mut u[..TILE_ROWS * n];
+        // Φ's zero columns add nothing to U (and are skipped, as a column loop did).
+        let mut cnt = 0;
+        for k in 0..np {
+            if phi[k * n..k * n + n].iter().any(|&v| v != 0.0) {
+                nz[cnt].0 = k;
+                cnt += 1;
+            }
+        }
+        let nz = &nz[..cnt];
+        column_tiles!(n, |c0, cskip| small_products_cols::<FMA>(
+            (phi, af, nz),
+            (&*g, u8, apa),
+            (n, s),
+            (c0, cskip)
+        ));
+        return;
+    }
+    let n4 = n.div_ceil(4) * 4;
+    let (col, rest) = u.split_at_mut(n4);
+    let (uu, acc) = rest.split_at_mut(n4 * n);
+    let acc = &mut acc[..n4 * n];
+    uu.fill(0.0);
     for k in 0..np {
         let pc = &phi[k * n..k * n + n];
         if pc.iter().all(|&v| v == 0.0) {
             continue;
         }
-        for j in 0..n {
-            let gv = g[j * s + 2 * n + k];
-            for (x, &f) in u[j * n..j * n + n].iter_mut().zip(pc) {
-                *x = madd::<FMA>(f, gv, *x);
+        col[..n].copy_from_slice(pc);
+        add_scaled_column::<FMA>(col, uu, n4, |j| g[j * s + 2 * n + k]);
+    }
+    acc.fill(0.0);
+    for kk in 0..3 * n {
+        col[..n].copy_from_slice(&af[kk * n..kk * n + n]);
+        if kk < 2 * n {
+            add_scaled_column::<FMA>(col, acc, n4, |j| g[j * s + kk]);
+        } else {
+            add_scaled_column::<FMA>(col, acc, n4, |j| uu[j * n4 + kk - 2 * n]);
+        }
+    }
+    for (out, a) in apa.chunks_exact_mut(n).zip(acc.chunks_exact(n4)) {
+        out.copy_from_slice(&a[..n]);
+    }
+}
+
+/// Columns `c0 + cskip..c0 + NC` of U = Φ·G_λ into `u8` and of A·G = [A_q, A_v, C]·[G_q;
+/// G_v; U] into `apa` (N×N), for N ≤ TILE_ROWS: Φ's non-zero columns listed in `nz`
+/// (first of each pair), U's columns TILE_ROWS apart. The same products summed in the
+/// same order as the column loops of [`factored_time_products`].
+#[inline(always)]
+fn small_products_cols<const FMA: bool, const NC: usize>(
+    (phi, af, nz): (&[f64], &[f64], &[(usize, usize)]),
+    (g, u8, apa): (&[f64], &mut [f64], &mut [f64]),
+    (n, s): (usize, usize),
+    (c0, cskip): (usize, usize),
+) {
+    const R: usize = TILE_ROWS;
+    let zero = [[0.0f64; R]; NC];
+    let cols = nz.iter().map(|&(k, _)| (k * n, 2 * n + k + c0 * s));
+    let acc = short_tile::<FMA, NC>(zero, (phi, n), (g, s), cols);
+    for (c, a) in acc.iter().enumerate() {
+        if c >= cskip {
+            u8[(c0 + c) * R..(c0 + c + 1) * R].copy_from_slice(a);
+        }
+    }
+    let cols = (0..2 * n).map(|k| (k * n, k + c0 * s));
+    let acc = short_tile::<FMA, NC>(zero, (af, n), (g, s), cols);
+    let cols = (0..n).map(|k| ((2 * n + k) * n, c0 * R + k));
+    let acc = short_tile::<FMA, NC>(acc, (af, n), (&*u8, R), cols);
+    for (c, a) in acc.iter().enumerate() {
+        if c >= cskip {
+            apa[(c0 + c) * n..(c0 + c + 1) * n].copy_from_slice(&a[..n]);
+        }
+    }
+}
+
+/// [`whole_tile`] on columns of X with `rows` ≤ [`TILE_ROWS`] entries (`x` is `(x,
+/// rows)`): nothing past them is read, and the tile's rows beyond them are zeros plus
+/// `acc`'s.
+#[inline(always)]
+fn short_tile<const FMA: bool, const NC: usize>(
+    acc: [[f64; TILE_ROWS]; NC],
+    (x, rows): (&[f64], usize),
+    (y, ys): (&[f64], usize),
+    cols: impl Iterator<Item = (usize, usize)>,
+) -> [[f64; TILE_ROWS]; NC] {
+    #[cfg(target_arch = "x86_64")]
+    if FMA {
+        // SAFETY: FMA = true only runs on a CPU with AVX2 and FMA (see `madd`).
+        return unsafe { avx2::short_tile::<NC>(acc, (x, rows), (y, ys), cols) };
+    }
+    short_tile_portable::<FMA, NC>(acc, (x, rows), (y, ys), cols)
+}
+
+/// [`short_tile`] as plain loops (the portable copy, and the reference of the fused one).
+#[inline(always)]
+fn short_tile_portable<const FMA: bool, const NC: usize>(
+    mut acc: [[f64; TILE_ROWS]; NC],
+    (x, rows): (&[f64], usize),
+    (y, ys): (&[f64], usize),
+    cols: impl Iterator<Item = (usize, usize)>,
+) -> [[f64; TILE_ROWS]; NC] {
+    for (xo, yo) in cols {
+        let xv = &x[xo..xo + rows];
+        for (c, a) in acc.iter_mut().enumerate() {
+            let f = y[yo + c * ys];
+            for (av, &xr) in a.iter_mut().zip(xv) {
+                *av = madd::<FMA>(f, xr, *av);
             }
         }
     }
-    apa.fill(0.0);
-    for kk in 0..3 * n {
-        let ac = &af[kk * n..kk * n + n];
-        for j in 0..n {
-            let gv = if kk < 2 * n {
-                g[j * s + kk]
-            } else {
-                u[j * n + kk - 2 * n]
-            };
-            for (x, &a) in apa[j * n..j * n + n].iter_mut().zip(ac) {
-                *x = madd::<FMA>(a, gv, *x);
+    acc
+}
+
+/// Column j of `out` (columns `n4` apart, n4 a multiple of 4) += `col`·f(j) for every
+/// column, as whole 4-vectors (`col`'s padding entries are zeros, so the padding of
+/// `out` stays zero).
+#[inline(always)]
+fn add_scaled_column<const FMA: bool>(
+    col: &[f64],
+    out: &mut [f64],
+    n4: usize,
+    f: impl Fn(usize) -> f64,
+) {
+    for (j, oc) in out.chunks_exact_mut(n4).enumerate() {
+        let fj = f(j);
+        for (o4, c4) in oc.chunks_exact_mut(4).zip(col.chunks_exact(4)) {
+            for (o, &c) in o4.iter_mut().zip(c4) {
+                *o = madd::<FMA>(c, fj, *o);
             }
         }
     }
 }
 
-/// Columns `c0..c0 + NC` of G = [P_·q, P_·v, T]·Cᵀ (S×N) into `g`, with C = `af` (N×3N)
-/// and T (S×N) in `t`: the first 2N terms of each sum from P's columns, the last N from
-/// T's, in register tiles as [`product_cols`].
+/// Columns `c0 + cskip..c0 + NC` of G = [P_·q, P_·v, T]·Cᵀ (S×N) into `g`, with C = `af`
+/// (N×3N) and T (S×N) in `t`: the first 2N terms of each sum from P's columns, the last
+/// N from T's, in register tiles as [`product_cols`].
 #[inline(always)]
 fn two_source_cols<const FMA: bool, const NC: usize>(
     (p, t): (&[f64], &[f64]),
     af: &[f64],
     g: &mut [f64],
     (n, s): (usize, usize),
-    c0: usize,
+    (c0, cskip): (usize, usize),
 ) {
     let mut r0 = 0;
     while r0 < s {
         let len = (s - r0).min(TILE_ROWS);
         let (t0, skip) = full_tile(r0, len, s);
-        let y = (af, |k: usize| k * n + c0);
-        let acc = tile::<FMA, NC>(p, |k| k * s, t0, len + skip, 2 * n, y);
-        let yt = (af, |k: usize| (2 * n + k) * n + c0);
-        let acc = tile_from::<FMA, NC>(acc, t, |k| k * s, t0, len + skip, n, yt);
-        for (c, av) in acc.iter().enumerate() {
-            g[(c0 + c) * s + r0..(c0 + c) * s + r0 + len].copy_from_slice(&av[skip..skip + len]);
-        }
+        let acc = tile::<FMA, NC>((p, s, t0), (af, n, c0), len + skip, 2 * n);
+        let yt = (&af[2 * n * n..], n, c0);
+        let acc = tile_from::<FMA, NC>(acc, (t, s, t0), yt, len + skip, n);
+        store_tile(&acc, g, s, (r0, len, skip), (c0, cskip));
         r0 += len;
     }
 }
 
-/// Columns `c0..c0 + NC` of T = P_·λ·Φᵀ (S×N) into `t`, summing over the parameters
-/// with a non-zero in rows `c0..c0 + NC` of Φ only (listed in `nz`, P-long scratch), in
-/// register tiles.
+/// Columns `c0 + cskip..c0 + NC` of T = P_·λ·Φᵀ (S×N) into `t`, summing over the
+/// parameters with a non-zero in rows `c0 + cskip..c0 + NC` of Φ only (their column offsets in
+/// P and Φ listed in `nz`, P-long scratch), in register tiles.
 #[inline(always)]
 fn p_lambda_phi_t_cols<const FMA: bool, const NC: usize>(
     p: &[f64],
     phi: &[f64],
-    nz: &mut [usize],
+    nz: &mut [(usize, usize)],
     t: &mut [f64],
-    n: usize,
-    s: usize,
-    c0: usize,
+    (n, s): (usize, usize),
+    (c0, cskip): (usize, usize),
 ) {
+    // The rows of Φ this tile writes: a tile overlapping its predecessor sums only the
+    // parameters of its new columns (the overlapped columns' sums are left incomplete
+    // and not written).
     let mut cnt = 0;
     for k in 0..s - 2 * n {
-        if phi[k * n + c0..k * n + c0 + NC].iter().any(|&v| v != 0.0) {
-            nz[cnt] = k;
+        if phi[k * n + c0 + cskip..k * n + c0 + NC]
+            .iter()
+            .any(|&v| v != 0.0)
+        {
+            nz[cnt] = ((2 * n + k) * s, k * n);
             cnt += 1;
         }
     }
     let nz = &nz[..cnt];
-    let xcol = |k: usize| (2 * n + nz[k]) * s;
-    let y = (phi, |k: usize| nz[k] * n + c0);
-    product_cols::<FMA, NC>(p, xcol, nz.len(), y, t, s, c0);
+    let mut r0 = 0;
+    while r0 < s {
+        let len = (s - r0).min(TILE_ROWS);
+        let (t0, skip) = full_tile(r0, len, s);
+        let acc = tile_listed::<FMA, NC>((p, t0), (phi, c0), nz);
+        store_tile(&acc, t, s, (r0, len, skip), (c0, cskip));
+        r0 += len;
+    }
 }
 
 /// Solves L·X = [A | b] in place (L column-major n×n, overwritten; A column-major n×m,
@@ -1774,19 +1959,19 @@ fn solve_in_place(l: &mut [f64], n: usize, a: &mut [f64], b: &mut [f64]) -> bool
         }
         l[k * n + k + 1..(k + 1) * n].fill(0.0);
     }
-    let back = |x: &mut [f64]| {
-        for i in (0..n).rev() {
+    // Back substitution row by row over all right-hand sides, so that their divisions
+    // overlap instead of each column's waiting on the last (each column gets the same
+    // operations in the same order).
+    for i in (0..n).rev() {
+        let d = l[i * n + i];
+        for x in a.chunks_exact_mut(n).chain(std::iter::once(&mut b[..n])) {
             let mut v = x[i];
             for j in i + 1..n {
                 v -= l[j * n + i] * x[j];
             }
-            x[i] = v / l[i * n + i];
+            x[i] = v / d;
         }
-    };
-    for j in 0..m {
-        back(&mut a[j * n..(j + 1) * n]);
     }
-    back(b);
     true
 }
 
@@ -1985,7 +2170,12 @@ fn joseph_columns<const FMA: bool>(
 /// with X and Y given by `k2` S-long columns each.
 #[inline(always)]
 fn joseph_upper<const FMA: bool>(jx: &[f64], jy: &[f64], p: &mut [f64], k2: usize, s: usize) {
-    column_tiles!(s, |c0| joseph_upper_cols::<FMA>(jx, jy, p, k2, s, c0));
+    column_tiles!(s, |c0, cskip| joseph_upper_cols::<FMA>(
+        (jx, jy),
+        p,
+        (k2, s),
+        (c0, cskip)
+    ));
 }
 
 /// Whether a covariance update takes the rank-N form P − W·Wᵀ (see
@@ -2001,14 +2191,15 @@ fn rank_n_form(alpha: f64, s: usize, prior_to_noise: f64) -> bool {
 /// and returns their count: W = P_·z·L⁻ᵀ twice (N columns) when `linv` (L⁻¹ of S_z =
 /// L·Lᵀ) is given, the rank-N form; else the Joseph form's [D, K'] and [K', P_·z]
 /// interleaved (2N), K' = α·K and D = P_·z − K'·S_z, the same products in the same order
-/// as [`joseph_columns`]. `kd` and `d` are S×N scratch.
+/// as [`joseph_columns`]. `kd` and `d` are S×N scratch. While only rank-N factors are
+/// pushed, Y = X and `jy` is not written (`jy_is_jx`, true for `c0` = 0).
 #[inline(always)]
 fn push_factors<const FMA: bool>(
     (k, pz, sz): (&[f64], &[f64], &[f64]),
     linv: Option<&[f64]>,
     alpha: f64,
     (kd, d): (&mut [f64], &mut [f64]),
-    (jx, jy): (&mut [f64], &mut [f64]),
+    (jx, jy, jy_is_jx): (&mut [f64], &mut [f64], &mut bool),
     c0: usize,
     (n, s): (usize, usize),
 ) -> usize {
@@ -2016,8 +2207,15 @@ fn push_factors<const FMA: bool>(
     if let Some(linv) = linv {
         let w = c0 * s..(c0 + n) * s;
         w_from_pz::<FMA>(pz, linv, &mut jx[w.clone()], n, s);
-        jy[w.clone()].copy_from_slice(&jx[w]);
+        if !*jy_is_jx {
+            jy[w.clone()].copy_from_slice(&jx[w]);
+        }
         return n;
+    }
+    if *jy_is_jx {
+        // Y's columns so far are X's, which `jy` does not hold yet.
+        jy[..c0 * s].copy_from_slice(&jx[..c0 * s]);
+        *jy_is_jx = false;
     }
     let k: &[f64] = if alpha == 1.0 {
         k
@@ -2039,92 +2237,114 @@ fn push_factors<const FMA: bool>(
     2 * n
 }
 
-/// Columns N..2N of P − X·Yᵀ (`cols` factor columns) from those of P in `pv` (S×N):
-/// column j loses Σ_k X_·k·Y_(N+j)k, summed in register tiles (as [`product_cols`]) and
-/// then subtracted (one column-long multiply-add per factor column and joint, each a
-/// load, a store and one vector multiply-add, took as long as the whole P·Aᵀ).
+/// Columns N..2N of P − X·Yᵀ (`cols` factor columns) from those of P in `pv` (S×N)
+/// into `out`: column j is P's minus Σ_k X_·k·Y_(N+j)k, summed in register tiles (as
+/// [`product_cols`]) and then subtracted (one column-long multiply-add per factor
+/// column and joint, each a load, a store and one vector multiply-add, took as long as
+/// the whole P·Aᵀ).
 #[inline(always)]
 fn minus_factor_rows<const FMA: bool>(
-    jx: &[f64],
-    jy: &[f64],
-    pv: &mut [f64],
+    (jx, jy): (&[f64], &[f64]),
+    pv: &[f64],
+    out: &mut [f64],
     cols: usize,
-    n: usize,
-    s: usize,
+    (n, s): (usize, usize),
 ) {
-    column_tiles!(n, |c0| minus_factor_rows_cols::<FMA>(
+    column_tiles!(n, |c0, cskip| minus_factor_rows_cols::<FMA>(
         (jx, jy),
-        pv,
+        (pv, out),
         cols,
         (n, s),
-        c0
+        (c0, cskip)
     ));
 }
 
 #[inline(always)]
 fn minus_factor_rows_cols<const FMA: bool, const NC: usize>(
     (jx, jy): (&[f64], &[f64]),
-    pv: &mut [f64],
+    (pv, out): (&[f64], &mut [f64]),
     cols: usize,
     (n, s): (usize, usize),
-    c0: usize,
+    (c0, cskip): (usize, usize),
 ) {
     let mut r0 = 0;
     while r0 < s {
         let len = (s - r0).min(TILE_ROWS);
         let (t0, skip) = full_tile(r0, len, s);
-        let y = (jy, |k: usize| k * s + n + c0);
-        let acc = tile::<FMA, NC>(jx, |k| k * s, t0, len + skip, cols, y);
+        let acc = tile::<FMA, NC>((jx, s, t0), (jy, s, n + c0), len + skip, cols);
         for (c, a) in acc.iter().enumerate() {
-            let col = &mut pv[(c0 + c) * s + r0..(c0 + c) * s + r0 + len];
-            for (x, &v) in col.iter_mut().zip(&a[skip..skip + len]) {
-                *x -= v;
+            if c < cskip {
+                continue;
+            }
+            let o = (c0 + c) * s + r0;
+            for ((x, &p), &v) in out[o..o + len]
+                .iter_mut()
+                .zip(&pv[o..o + len])
+                .zip(&a[skip..])
+            {
+                *x = p - v;
             }
         }
         r0 += len;
     }
 }
 
-/// Columns `c0..c0 + NC` of [`joseph_columns`]' upper triangle (rows up to the last
-/// column's diagonal) from its interleaved factors (`k2` columns each), mirrored into
-/// the lower triangle.
+/// Columns `c0 + cskip..c0 + NC` of [`joseph_columns`]' upper triangle (rows up to the
+/// last column's diagonal) from its interleaved factors (`k2` columns each), mirrored
+/// into the lower triangle. Every row tile is a whole one (S ≥ TILE_ROWS; rows past the
+/// diagonal are summed and not written).
 #[inline(always)]
 fn joseph_upper_cols<const FMA: bool, const NC: usize>(
-    jx: &[f64],
-    jy: &[f64],
+    (jx, jy): (&[f64], &[f64]),
     p: &mut [f64],
-    k2: usize,
-    s: usize,
-    c0: usize,
+    (k2, s): (usize, usize),
+    (c0, cskip): (usize, usize),
 ) {
     let end = c0 + NC;
     let mut r0 = 0;
     while r0 < end {
-        let len = (end - r0).min(TILE_ROWS);
-        let (t0, skip) = full_tile(r0, len, end);
-        let acc = tile::<FMA, NC>(jx, |k| k * s, t0, len + skip, k2, (jy, |k| k * s + c0));
-        if len == TILE_ROWS && r0 + TILE_ROWS <= c0 {
+        let t0 = r0.min(s.max(TILE_ROWS) - TILE_ROWS);
+        let len = (s - t0).min(TILE_ROWS);
+        let skip = r0 - t0;
+        let acc = tile::<FMA, NC>((jx, s, t0), (jy, s, c0), len, k2);
+        if len == TILE_ROWS && skip == 0 && cskip == 0 && r0 + TILE_ROWS <= c0 {
             // A whole tile above the diagonal: its columns are contiguous in the upper
             // triangle and its rows in the lower one, so both are written as vectors (one
             // strided scalar store per entry took as long as the tile's multiply-adds).
+            #[cfg(target_arch = "x86_64")]
+            if let (true, Ok(acc)) = (FMA, <&[[f64; TILE_ROWS]; 4]>::try_from(&acc[..])) {
+                // SAFETY: FMA = true only runs on a CPU with AVX2 and FMA (see `madd`).
+                unsafe { avx2::subtract_mirrored(acc, p, s, (r0, c0)) };
+                r0 += TILE_ROWS;
+                continue;
+            }
             let mut u = [[0.0f64; TILE_ROWS]; NC];
             for (c, (uc, a)) in u.iter_mut().zip(&acc).enumerate() {
-                let col = &mut p[(c0 + c) * s + r0..(c0 + c) * s + r0 + TILE_ROWS];
-                for ((x, y), &v) in uc.iter_mut().zip(col.iter_mut()).zip(a) {
-                    *x = *y - v;
-                    *y = *x;
+                let o = (c0 + c) * s + r0;
+                if let Ok(col) = <&mut [f64; TILE_ROWS]>::try_from(&mut p[o..o + TILE_ROWS]) {
+                    for ((x, y), &v) in uc.iter_mut().zip(col.iter_mut()).zip(a) {
+                        *x = *y - v;
+                        *y = *x;
+                    }
                 }
             }
-            for r in 0..TILE_ROWS {
-                let row: [f64; NC] = std::array::from_fn(|c| u[c][r]);
-                p[(r0 + r) * s + c0..(r0 + r) * s + end].copy_from_slice(&row);
+            let rows: [[f64; NC]; TILE_ROWS] =
+                std::array::from_fn(|r| std::array::from_fn(|c| u[c][r]));
+            for (r, row) in rows.iter().enumerate() {
+                let o = (r0 + r) * s + c0;
+                if let Ok(dst) = <&mut [f64; NC]>::try_from(&mut p[o..o + NC]) {
+                    *dst = *row;
+                }
             }
         } else {
+            // Every column and row of the tile visited, those not written skipped inside:
+            // a dynamic range of tile columns or rows kept the accumulators in memory,
+            // and the tile's multiply-adds became scalar.
             for (c, a) in acc.iter().enumerate() {
                 let j = c0 + c;
-                for (r, &v) in a[skip..skip + len].iter().enumerate() {
-                    let i = r0 + r;
-                    if i <= j {
+                for (r, &v) in a.iter().enumerate() {
+                    let i = t0 + r;
+                    if c >= cskip && r >= skip && r < len && i <= j {
                         let x = p[j * s + i] - v;
                         p[j * s + i] = x;
                         p[i * s + j] = x;
@@ -2132,7 +2352,7 @@ fn joseph_upper_cols<const FMA: bool, const NC: usize>(
                 }
             }
         }
-        r0 += len;
+        r0 += TILE_ROWS;
     }
 }
 
@@ -2141,14 +2361,14 @@ fn joseph_upper_cols<const FMA: bool, const NC: usize>(
 /// exact zeros and add nothing), in register tiles as [`product_cols`].
 #[inline(always)]
 fn w_from_pz<const FMA: bool>(pzs: &[f64], linv: &[f64], ws: &mut [f64], n: usize, s: usize) {
-    column_tiles!(n, |c0| product_cols::<FMA>(
-        pzs,
-        |m| m * s,
-        n,
-        (linv, |m| m * n + c0),
+    // A tile's columns j < c0 + NC sum columns m ≤ j of P_·z only: the rest add exact
+    // zeros after the sum, which leave it as it is.
+    column_tiles!(n, |c0, cskip| product_cols::<FMA>(
+        (pzs, (c0 + TILE_COLS).min(n)),
+        (linv, n),
         ws,
         s,
-        c0
+        (c0, cskip)
     ));
 }
 
@@ -2166,57 +2386,269 @@ const RANK_N_MAX_PRIOR_TO_NOISE: f64 = 1e2;
 const TILE_ROWS: usize = 8;
 const TILE_COLS: usize = 4;
 
-/// `C[r, c] = Σ_k X[r, k]·Y[c, k]` for one tile of up to [`TILE_ROWS`] rows from `r0` and
-/// `NC` columns, X's column k starting at `xcol(k)` in `x`, Y's column k (NC entries) at
-/// `ycol(k)` in `y`, k < `kdim`: returns the accumulators. Shared by P·Aᵀ and W·Wᵀ.
+/// `C[r, c] = Σ_k X[r0 + r, k]·Y[c0 + c, k]` for one tile of [`TILE_ROWS`] rows (`len`
+/// of them if fewer, from a state of fewer rows) and `NC` columns, X's columns `sx` apart
+/// in `x`, Y's `sy` apart in `y`, k < `kdim`: returns the accumulators. Shared by P·Aᵀ,
+/// W·Wᵀ and the Joseph factors.
 #[inline(always)]
 fn tile<const FMA: bool, const NC: usize>(
-    x: &[f64],
-    xcol: impl Fn(usize) -> usize,
-    r0: usize,
+    x: (&[f64], usize, usize),
+    y: (&[f64], usize, usize),
     len: usize,
     kdim: usize,
-    (y, ycol): (&[f64], impl Fn(usize) -> usize),
 ) -> [[f64; TILE_ROWS]; NC] {
-    tile_from::<FMA, NC>([[0.0f64; TILE_ROWS]; NC], x, xcol, r0, len, kdim, (y, ycol))
+    tile_from::<FMA, NC>([[0.0f64; TILE_ROWS]; NC], x, y, len, kdim)
 }
 
 /// [`tile`] adding to the accumulators `acc` (the sums of a first factor pair, which a
 /// second then continues in the same order).
 #[inline(always)]
 fn tile_from<const FMA: bool, const NC: usize>(
-    mut acc: [[f64; TILE_ROWS]; NC],
-    x: &[f64],
-    xcol: impl Fn(usize) -> usize,
-    r0: usize,
+    acc: [[f64; TILE_ROWS]; NC],
+    x: (&[f64], usize, usize),
+    y: (&[f64], usize, usize),
     len: usize,
     kdim: usize,
-    (y, ycol): (&[f64], impl Fn(usize) -> usize),
 ) -> [[f64; TILE_ROWS]; NC] {
+    let ((xs, sx, r0), (ys, sy, c0)) = (x, y);
     if len == TILE_ROWS {
-        for k in 0..kdim {
-            let o = xcol(k) + r0;
-            let xc: &[f64; TILE_ROWS] = x[o..o + TILE_ROWS].try_into().unwrap_or(&[0.0; TILE_ROWS]);
-            let yk = column::<NC>(y, ycol(k));
-            for (a, &f) in acc.iter_mut().zip(yk) {
-                for r in 0..TILE_ROWS {
-                    a[r] = madd::<FMA>(f, xc[r], a[r]);
-                }
-            }
-        }
-    } else {
-        for k in 0..kdim {
-            let o = xcol(k) + r0;
-            let xc = &x[o..o + len];
-            let yk = column::<NC>(y, ycol(k));
-            for (a, &f) in acc.iter_mut().zip(yk) {
-                for (av, &xv) in a.iter_mut().zip(xc) {
-                    *av = madd::<FMA>(f, xv, *av);
-                }
+        let cols = (0..kdim).map(|k| (k * sx + r0, k * sy + c0));
+        return whole_tile::<FMA, NC>(acc, xs, (ys, 1), cols);
+    }
+    let mut acc = acc;
+    for k in 0..kdim {
+        let o = k * sx + r0;
+        let xv = &xs[o..o + len];
+        let yv = column::<NC>(ys, k * sy + c0);
+        for (a, &f) in acc.iter_mut().zip(yv) {
+            for (av, &xr) in a.iter_mut().zip(xv) {
+                *av = madd::<FMA>(f, xr, *av);
             }
         }
     }
     acc
+}
+
+/// [`tile`] over a list of columns: X's column k at `x[xo..]`, Y's at `y[yo..]` for each
+/// `(xo, yo)` of `offsets` (a chain's Φ: the parameters that enter the tile's rows).
+#[inline(always)]
+fn tile_listed<const FMA: bool, const NC: usize>(
+    (x, r0): (&[f64], usize),
+    (y, c0): (&[f64], usize),
+    offsets: &[(usize, usize)],
+) -> [[f64; TILE_ROWS]; NC] {
+    let cols = offsets.iter().map(|&(xo, yo)| (xo + r0, yo + c0));
+    whole_tile::<FMA, NC>([[0.0f64; TILE_ROWS]; NC], x, (y, 1), cols)
+}
+
+/// The inner loop of a whole register tile: `acc[c][r] += y[yo + c·ys]·x[xo + r]` for
+/// each `(xo, yo)` of `cols`, in order (Y's entries `ys` apart: 1 for a column, S for a
+/// row of an S-row matrix). The fused copy holds the accumulators in AVX2 registers
+/// explicitly: left to the compiler, the same loop was vectorised or not depending on
+/// the code around it in the inlined step (scalar, it took 2.5× the time).
+#[inline(always)]
+fn whole_tile<const FMA: bool, const NC: usize>(
+    acc: [[f64; TILE_ROWS]; NC],
+    x: &[f64],
+    (y, ys): (&[f64], usize),
+    cols: impl Iterator<Item = (usize, usize)>,
+) -> [[f64; TILE_ROWS]; NC] {
+    #[cfg(target_arch = "x86_64")]
+    if FMA {
+        // SAFETY: FMA = true only runs on a CPU with AVX2 and FMA (see `madd`).
+        return unsafe { avx2::whole_tile::<NC>(acc, x, (y, ys), cols) };
+    }
+    whole_tile_portable::<FMA, NC>(acc, x, (y, ys), cols)
+}
+
+/// [`whole_tile`] as plain loops (the portable copy, and the reference of the fused one).
+#[inline(always)]
+fn whole_tile_portable<const FMA: bool, const NC: usize>(
+    mut acc: [[f64; TILE_ROWS]; NC],
+    x: &[f64],
+    (y, ys): (&[f64], usize),
+    cols: impl Iterator<Item = (usize, usize)>,
+) -> [[f64; TILE_ROWS]; NC] {
+    for (xo, yo) in cols {
+        let xv = column::<TILE_ROWS>(x, xo);
+        for (c, a) in acc.iter_mut().enumerate() {
+            let f = y[yo + c * ys];
+            for r in 0..TILE_ROWS {
+                a[r] = madd::<FMA>(f, xv[r], a[r]);
+            }
+        }
+    }
+    acc
+}
+
+/// The kernels of the fused (AVX2 and FMA) copy that are written with intrinsics: each
+/// multiply-add is one fused `vfmadd` per lane, the rounding of `f64::mul_add`, in the
+/// order of the portable code, so the bits are those of `madd::<true>`.
+#[cfg(target_arch = "x86_64")]
+mod avx2 {
+    use super::{column, TILE_ROWS};
+    use std::arch::x86_64::{
+        _mm256_fmadd_pd, _mm256_loadu_pd, _mm256_maskload_pd, _mm256_permute2f128_pd,
+        _mm256_set1_pd, _mm256_setr_epi64x, _mm256_setzero_pd, _mm256_storeu_pd, _mm256_sub_pd,
+        _mm256_unpackhi_pd, _mm256_unpacklo_pd,
+    };
+
+    /// Two 4-lane halves of an 8-row column.
+    #[inline(always)]
+    fn halves(v: &[f64; TILE_ROWS]) -> (&[f64; 4], &[f64; 4]) {
+        let (lo, hi) = v.split_at(4);
+        (column::<4>(lo, 0), column::<4>(hi, 0))
+    }
+
+    /// [`super::whole_tile`], fused. Not a `#[target_feature]` function (those cannot be
+    /// forced inline, and out of line each tile paid a call with its accumulators
+    /// through memory): it is inlined into `step_avx2`, whose features the intrinsics
+    /// then use.
+    ///
+    /// # Safety
+    /// The CPU must support AVX2 and FMA.
+    #[inline(always)]
+    pub(super) unsafe fn whole_tile<const NC: usize>(
+        acc: [[f64; TILE_ROWS]; NC],
+        x: &[f64],
+        (y, ys): (&[f64], usize),
+        cols: impl Iterator<Item = (usize, usize)>,
+    ) -> [[f64; TILE_ROWS]; NC] {
+        // SAFETY (every intrinsic): the caller guarantees AVX2 and FMA; each pointer
+        // comes from a reference to an array of 4 f64, valid for the 4 lanes read or
+        // written.
+        unsafe {
+            let (mut lo, mut hi) = ([_mm256_setzero_pd(); NC], [_mm256_setzero_pd(); NC]);
+            for (c, a) in acc.iter().enumerate() {
+                let (a0, a1) = halves(a);
+                lo[c] = _mm256_loadu_pd(a0.as_ptr());
+                hi[c] = _mm256_loadu_pd(a1.as_ptr());
+            }
+            for (xo, yo) in cols {
+                let (x0, x1) = halves(column::<TILE_ROWS>(x, xo));
+                let (x0, x1) = (_mm256_loadu_pd(x0.as_ptr()), _mm256_loadu_pd(x1.as_ptr()));
+                if ys == 1 {
+                    let yv = column::<NC>(y, yo);
+                    for c in 0..NC {
+                        let f = _mm256_set1_pd(yv[c]);
+                        lo[c] = _mm256_fmadd_pd(f, x0, lo[c]);
+                        hi[c] = _mm256_fmadd_pd(f, x1, hi[c]);
+                    }
+                } else {
+                    for c in 0..NC {
+                        let f = _mm256_set1_pd(y[yo + c * ys]);
+                        lo[c] = _mm256_fmadd_pd(f, x0, lo[c]);
+                        hi[c] = _mm256_fmadd_pd(f, x1, hi[c]);
+                    }
+                }
+            }
+            let mut out = [[0.0f64; TILE_ROWS]; NC];
+            for (c, o) in out.iter_mut().enumerate() {
+                let (a, b) = o.split_at_mut(4);
+                _mm256_storeu_pd(a.as_mut_ptr(), lo[c]);
+                _mm256_storeu_pd(b.as_mut_ptr(), hi[c]);
+            }
+            out
+        }
+    }
+
+    /// [`super::short_tile`], fused: X's columns loaded with lane masks past `rows`.
+    ///
+    /// # Safety
+    /// The CPU must support AVX2 and FMA (see [`whole_tile`]).
+    #[inline(always)]
+    pub(super) unsafe fn short_tile<const NC: usize>(
+        acc: [[f64; TILE_ROWS]; NC],
+        (x, rows): (&[f64], usize),
+        (y, ys): (&[f64], usize),
+        cols: impl Iterator<Item = (usize, usize)>,
+    ) -> [[f64; TILE_ROWS]; NC] {
+        let rows = rows.min(TILE_ROWS);
+        let lane = |r: usize, l: usize| if l < r { -1i64 } else { 0 };
+        // SAFETY (every intrinsic): the caller guarantees AVX2 and FMA; every pointer
+        // comes from a range-checked slice of the lanes that are read or written (a
+        // masked load reads only its active lanes).
+        unsafe {
+            let mask =
+                |r: usize| _mm256_setr_epi64x(lane(r, 0), lane(r, 1), lane(r, 2), lane(r, 3));
+            let (m0, m1) = (mask(rows), mask(rows.saturating_sub(4)));
+            let (mut lo, mut hi) = ([_mm256_setzero_pd(); NC], [_mm256_setzero_pd(); NC]);
+            for (c, a) in acc.iter().enumerate() {
+                let (a0, a1) = halves(a);
+                lo[c] = _mm256_loadu_pd(a0.as_ptr());
+                hi[c] = _mm256_loadu_pd(a1.as_ptr());
+            }
+            for (xo, yo) in cols {
+                let xs = &x[xo..xo + rows];
+                let x0 = _mm256_maskload_pd(xs.as_ptr(), m0);
+                let x1 = if rows > 4 {
+                    _mm256_maskload_pd(xs[4..].as_ptr(), m1)
+                } else {
+                    _mm256_setzero_pd()
+                };
+                for c in 0..NC {
+                    let f = _mm256_set1_pd(y[yo + c * ys]);
+                    lo[c] = _mm256_fmadd_pd(f, x0, lo[c]);
+                    hi[c] = _mm256_fmadd_pd(f, x1, hi[c]);
+                }
+            }
+            let mut out = [[0.0f64; TILE_ROWS]; NC];
+            for (c, o) in out.iter_mut().enumerate() {
+                let (a, b) = o.split_at_mut(4);
+                _mm256_storeu_pd(a.as_mut_ptr(), lo[c]);
+                _mm256_storeu_pd(b.as_mut_ptr(), hi[c]);
+            }
+            out
+        }
+    }
+
+    /// Rows `r0..r0 + TILE_ROWS` of P's columns `c0..c0 + 4` (a tile above the diagonal)
+    /// minus `acc`, written to the upper triangle by columns and, transposed in registers
+    /// four rows at a time, to the lower one by rows: the values of the portable loop
+    /// (one subtraction per entry). (Tiles on the diagonal, written with lane masks,
+    /// took longer than the portable loop.)
+    ///
+    /// # Safety
+    /// The CPU must support AVX2 (see [`whole_tile`]).
+    #[inline(always)]
+    pub(super) unsafe fn subtract_mirrored(
+        acc: &[[f64; TILE_ROWS]; 4],
+        p: &mut [f64],
+        s: usize,
+        (r0, c0): (usize, usize),
+    ) {
+        // SAFETY (every intrinsic): the caller guarantees AVX2; each pointer comes from a
+        // slice (range-checked) of the 4 lanes read or written.
+        unsafe {
+            let mut u = [[_mm256_setzero_pd(); 4]; 2];
+            for (c, a) in acc.iter().enumerate() {
+                let o = (c0 + c) * s + r0;
+                let (a0, a1) = halves(a);
+                let (lo, hi) = p[o..o + TILE_ROWS].split_at_mut(4);
+                u[0][c] = _mm256_sub_pd(_mm256_loadu_pd(lo.as_ptr()), _mm256_loadu_pd(a0.as_ptr()));
+                u[1][c] = _mm256_sub_pd(_mm256_loadu_pd(hi.as_ptr()), _mm256_loadu_pd(a1.as_ptr()));
+                _mm256_storeu_pd(lo.as_mut_ptr(), u[0][c]);
+                _mm256_storeu_pd(hi.as_mut_ptr(), u[1][c]);
+            }
+            for (h, [c0v, c1v, c2v, c3v]) in u.into_iter().enumerate() {
+                // 4×4 transpose: rows of the four columns' pieces.
+                let t0 = _mm256_unpacklo_pd(c0v, c1v);
+                let t1 = _mm256_unpackhi_pd(c0v, c1v);
+                let t2 = _mm256_unpacklo_pd(c2v, c3v);
+                let t3 = _mm256_unpackhi_pd(c2v, c3v);
+                let rows = [
+                    _mm256_permute2f128_pd::<0x20>(t0, t2),
+                    _mm256_permute2f128_pd::<0x20>(t1, t3),
+                    _mm256_permute2f128_pd::<0x31>(t0, t2),
+                    _mm256_permute2f128_pd::<0x31>(t1, t3),
+                ];
+                for (r, row) in rows.into_iter().enumerate() {
+                    let o = (r0 + 4 * h + r) * s + c0;
+                    _mm256_storeu_pd(p[o..o + 4].as_mut_ptr(), row);
+                }
+            }
+        }
+    }
 }
 
 /// Entries `o..o + L` of `v` as an array reference: one bounds check for a column of a
@@ -2242,13 +2674,46 @@ fn full_tile(r0: usize, len: usize, d: usize) -> (usize, usize) {
     }
 }
 
+/// Writes rows `skip..skip + len` of the tile `acc`, columns `cskip..NC`, into the
+/// S-long columns `c0 + c` of `out` at rows `r0..r0 + len` (`r0` is the tile's first
+/// row plus `skip`). A whole tile is copied as fixed-size arrays (a copy of run-time
+/// length was a call of `memcpy` per column).
+#[inline(always)]
+fn store_tile<const NC: usize>(
+    acc: &[[f64; TILE_ROWS]; NC],
+    out: &mut [f64],
+    s: usize,
+    (r0, len, skip): (usize, usize, usize),
+    (c0, cskip): (usize, usize),
+) {
+    for (c, av) in acc.iter().enumerate() {
+        if c < cskip {
+            continue;
+        }
+        let o = (c0 + c) * s + r0;
+        if len == TILE_ROWS {
+            if let Ok(col) = <&mut [f64; TILE_ROWS]>::try_from(&mut out[o..o + TILE_ROWS]) {
+                *col = *av;
+            }
+        } else {
+            out[o..o + len].copy_from_slice(&av[skip..skip + len]);
+        }
+    }
+}
+
 /// The reference for [`joseph_upper`] with X = Y = W in the tests: P ← P − W·Wᵀ (W is
 /// S×N) on whole columns, tiled: the sum for entry (i, j) runs over
 /// the same products in the same order as for (j, i), so a symmetric P stays exactly so.
 #[cfg(test)]
 #[inline(always)]
 fn minus_w_wt<const FMA: bool>(ws: &[f64], p: &mut [f64], n: usize, s: usize) {
-    column_tiles!(s, |c0| minus_w_wt_cols::<FMA>(ws, p, n, s, c0));
+    column_tiles!(s, |c0, cskip| minus_w_wt_cols::<FMA>(
+        ws,
+        p,
+        n,
+        s,
+        (c0, cskip)
+    ));
 }
 
 #[cfg(test)]
@@ -2258,14 +2723,17 @@ fn minus_w_wt_cols<const FMA: bool, const NC: usize>(
     p: &mut [f64],
     n: usize,
     s: usize,
-    c0: usize,
+    (c0, cskip): (usize, usize),
 ) {
     let mut r0 = 0;
     while r0 < s {
         let len = (s - r0).min(TILE_ROWS);
         let (t0, skip) = full_tile(r0, len, s);
-        let acc = tile::<FMA, NC>(ws, |m| m * s, t0, len + skip, n, (ws, |m| m * s + c0));
+        let acc = tile::<FMA, NC>((ws, s, t0), (ws, s, c0), len + skip, n);
         for (c, a) in acc.iter().enumerate() {
+            if c < cskip {
+                continue;
+            }
             let col = &mut p[(c0 + c) * s + r0..(c0 + c) * s + r0 + len];
             for (pv, &av) in col.iter_mut().zip(&a[skip..]) {
                 *pv -= av;
@@ -2287,41 +2755,31 @@ fn p_times_at_blocked<const FMA: bool>(
     s: usize,
     kdim: usize,
 ) {
-    column_tiles!(n, |c0| p_times_at_cols::<FMA>(ps, a, gs, (n, s, kdim), c0));
+    column_tiles!(n, |c0, cskip| product_cols::<FMA>(
+        (ps, kdim),
+        (a, n),
+        gs,
+        s,
+        (c0, cskip)
+    ));
 }
 
-#[inline(always)]
-fn p_times_at_cols<const FMA: bool, const NC: usize>(
-    ps: &[f64],
-    a: &[f64],
-    gs: &mut [f64],
-    (n, s, kdim): (usize, usize, usize),
-    c0: usize,
-) {
-    product_cols::<FMA, NC>(ps, |k| k * s, kdim, (a, |k| k * n + c0), gs, s, c0);
-}
-
-/// Columns `c0..c0 + NC` of C = X·Yᵀ (S-long columns) into `out`, whole columns in
-/// register tiles ([`tile`]; X's column k at `xcol(k)`, Y's column k at `ycol(k)` in `y`,
-/// k < `kdim`).
+/// Columns `c0 + cskip..c0 + NC` of C = X·Yᵀ (S-long columns, X's `kdim` columns S
+/// apart, Y's `sy` apart) into `out`, whole columns in register tiles ([`tile`]).
 #[inline(always)]
 fn product_cols<const FMA: bool, const NC: usize>(
-    x: &[f64],
-    xcol: impl Fn(usize) -> usize,
-    kdim: usize,
-    (y, ycol): (&[f64], impl Fn(usize) -> usize),
+    (x, kdim): (&[f64], usize),
+    (y, sy): (&[f64], usize),
     out: &mut [f64],
     s: usize,
-    c0: usize,
+    (c0, cskip): (usize, usize),
 ) {
     let mut r0 = 0;
     while r0 < s {
         let len = (s - r0).min(TILE_ROWS);
         let (t0, skip) = full_tile(r0, len, s);
-        let acc = tile::<FMA, NC>(x, &xcol, t0, len + skip, kdim, (y, &ycol));
-        for (c, av) in acc.iter().enumerate() {
-            out[(c0 + c) * s + r0..(c0 + c) * s + r0 + len].copy_from_slice(&av[skip..skip + len]);
-        }
+        let acc = tile::<FMA, NC>((x, s, t0), (y, sy, c0), len + skip, kdim);
+        store_tile(&acc, out, s, (r0, len, skip), (c0, cskip));
         r0 += len;
     }
 }
@@ -2370,15 +2828,51 @@ fn lower_triangular_inverse(l: &[f64], n: usize, inv: &mut [f64]) {
     }
 }
 
-/// Copies rows `0..rows` of the upper triangle of the column-major d×d `p` onto the lower
-/// one: row i of the upper triangle (strided) becomes column i below the diagonal
-/// (contiguous).
+/// Copies rows `0..rows` of the upper triangle of the column-major d×d `p`, columns up
+/// to `cols`, onto the lower one: row i of the upper triangle (strided) becomes column i
+/// below the diagonal (contiguous).
 #[inline(always)]
-fn mirror_upper_rows(p: &mut [f64], d: usize, rows: usize) {
+fn mirror_upper_rows(p: &mut [f64], d: usize, rows: usize, cols: usize) {
     for i in 0..rows.min(d) {
-        for j in i + 1..d {
+        for j in i + 1..cols.min(d) {
             p[i * d + j] = p[j * d + i];
         }
+    }
+}
+
+/// Copies rows `rows..d` of columns `0..rows` of the column-major d×d `p` (contiguous)
+/// onto the upper triangle's rows `0..rows` (strided), in 4×4 blocks: a block's four
+/// column pieces are read as vectors and written as four row pieces, which are columns
+/// of the upper triangle again.
+#[inline(always)]
+fn mirror_lower_rows(p: &mut [f64], d: usize, rows: usize) {
+    const B: usize = 4;
+    let mut i = 0;
+    while i < rows {
+        let w = (rows - i).min(B);
+        let mut j = rows;
+        while j < d {
+            if w == B && j + B <= d {
+                let a: [[f64; B]; B] = std::array::from_fn(|c| {
+                    let o = (i + c) * d + j;
+                    *column::<B>(p, o)
+                });
+                let rows: [[f64; B]; B] = std::array::from_fn(|r| std::array::from_fn(|c| a[c][r]));
+                for (r, row) in rows.iter().enumerate() {
+                    let o = (j + r) * d + i;
+                    if let Ok(dst) = <&mut [f64; B]>::try_from(&mut p[o..o + B]) {
+                        *dst = *row;
+                    }
+                }
+                j += B;
+            } else {
+                for c in i..i + w {
+                    p[j * d + c] = p[c * d + j];
+                }
+                j += 1;
+            }
+        }
+        i += w;
     }
 }
 
@@ -2415,6 +2909,15 @@ mod tests {
             seed ^= seed >> 7;
             seed ^= seed << 17;
             (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+        }
+    }
+
+    /// The portable kernels, and the fused ones (AVX2 and FMA) where the CPU has them.
+    fn fma_modes() -> Vec<bool> {
+        if cpu_has_avx2_fma() {
+            vec![false, true]
+        } else {
+            vec![false]
         }
     }
 
@@ -2619,7 +3122,7 @@ mod tests {
             ),
         ];
         for (jac, disc, dt, stiff) in cases {
-            for fma in [false, true] {
+            for fma in fma_modes() {
                 let cfg = EkfConfig {
                     measurement: EkfMeasurement::PositionsVelocities,
                     parameter_jacobian: jac,
@@ -2785,6 +3288,100 @@ mod tests {
         }
     }
 
+    /// The fused register tiles (AVX2 intrinsics) against the portable loops with fused
+    /// multiply-adds on random data, bit for bit: tile widths 1 to 4, Y's entries
+    /// contiguous and S apart, a continued sum, listed columns in any order, and X's
+    /// columns of 1 to 8 entries.
+    #[test]
+    fn fused_tile_matches_the_portable_loop() {
+        if !cpu_has_avx2_fma() {
+            return;
+        }
+        fn check<const NC: usize>(rnd: &mut impl FnMut() -> f64) {
+            let (s, k) = (37usize, 23usize);
+            let x: Vec<f64> = (0..s * k).map(|_| rnd()).collect();
+            let y: Vec<f64> = (0..s * (k + NC)).map(|_| rnd()).collect();
+            let acc: [[f64; TILE_ROWS]; NC] =
+                std::array::from_fn(|_| std::array::from_fn(|_| rnd()));
+            let cols: Vec<(usize, usize)> = (0..k)
+                .map(|j| ((j * 7) % k, (j * 5) % k))
+                .map(|(a, b)| (a * s + (a % (s - TILE_ROWS)), b * s + (b % 9)))
+                .collect();
+            for ys in [1, s] {
+                let want = whole_tile_portable::<true, NC>(acc, &x, (&y, ys), cols.iter().copied());
+                // SAFETY: the CPU has AVX2 and FMA (checked above).
+                let got =
+                    unsafe { avx2::whole_tile::<NC>(acc, &x, (&y, ys), cols.iter().copied()) };
+                assert_eq!(got, want, "NC {NC}, Y's entries {ys} apart");
+            }
+            // Columns of 1 to 8 entries, the last one ending at the end of X (a load of
+            // the whole 8 rows would run past it).
+            for rows in 1..=TILE_ROWS {
+                let xs = &x[..rows * k];
+                let cols = (0..k).map(|j| (j * rows, (j * 5) % k * s + j % 3));
+                let want = short_tile_portable::<true, NC>(acc, (xs, rows), (&y, s), cols.clone());
+                // SAFETY: the CPU has AVX2 and FMA (checked above).
+                let got = unsafe { avx2::short_tile::<NC>(acc, (xs, rows), (&y, s), cols) };
+                assert_eq!(got, want, "NC {NC}, {rows} rows");
+            }
+        }
+        let mut rnd = xorshift(0x6A09_E667_F3BC_C909u64);
+        check::<1>(&mut rnd);
+        check::<2>(&mut rnd);
+        check::<3>(&mut rnd);
+        check::<4>(&mut rnd);
+    }
+
+    /// The factored time products against nalgebra's dense ones on random data: G = P·Aᵀ
+    /// and A·G for A = [A_q, A_v, C·Φ], with Φ half zeros (and a zero column) as a
+    /// chain's, for 3, 7 and 9 joints (column tiles narrower than, overlapping at and
+    /// past the register tile; past TILE_ROWS joints the column loops), plain and fused.
+    #[test]
+    fn factored_time_products_match_the_dense_products() {
+        use nalgebra::DMatrix;
+        let mut rnd = xorshift(0xBB67_AE85_84CA_A73Bu64);
+        for (n, np) in [(3usize, 30usize), (7, 64), (9, 40)] {
+            let s = 2 * n + np;
+            let b = DMatrix::from_fn(s, s, |_, _| rnd());
+            let p = &b * b.transpose();
+            let af = DMatrix::from_fn(n, 3 * n, |_, _| rnd());
+            let phi = DMatrix::from_fn(n, np, |i, k| {
+                let v = rnd();
+                if k == 5 || (i * 3 + k) % 5 < 2 {
+                    0.0
+                } else {
+                    v
+                }
+            });
+            let c = af.columns(2 * n, n).into_owned();
+            let mut a = DMatrix::zeros(n, s);
+            a.columns_mut(0, 2 * n).copy_from(&af.columns(0, 2 * n));
+            a.columns_mut(2 * n, np).copy_from(&(&c * &phi));
+            let g_want = &p * a.transpose();
+            let apa_want = &a * &g_want;
+            for fma in fma_modes() {
+                let mut g = DMatrix::from_element(s, n, f64::NAN);
+                let mut apa = DMatrix::from_element(n, n, f64::NAN);
+                let mut xg = vec![0.0; s * n];
+                let mut nz = vec![(0, 0); np];
+                let n4 = n.div_ceil(4) * 4;
+                let mut u = vec![0.0; (TILE_ROWS * n).max(n4 + 2 * n4 * n)];
+                let args = (p.as_slice(), af.as_slice(), phi.as_slice());
+                let scratch = (xg.as_mut_slice(), nz.as_mut_slice(), u.as_mut_slice());
+                let out = (g.as_mut_slice(), apa.as_mut_slice());
+                if fma {
+                    factored_time_products::<true>(args.0, args.1, args.2, scratch, out, n, s);
+                } else {
+                    factored_time_products::<false>(args.0, args.1, args.2, scratch, out, n, s);
+                }
+                let err = (&g - &g_want).amax() / g_want.amax();
+                assert!(err <= 1e-13, "N {n} fma {fma}: G {err:e}");
+                let err = (&apa - &apa_want).amax() / apa_want.amax();
+                assert!(err <= 1e-13, "N {n} fma {fma}: A·G {err:e}");
+            }
+        }
+    }
+
     /// The tiled P·Aᵀ of run-time sizes against nalgebra's product on random data (state
     /// counts with a short last tile, and below one tile).
     #[test]
@@ -2818,7 +3415,7 @@ mod tests {
             let p = &b * b.transpose();
             let want = &p - &k * pz.transpose() - &d * k.transpose();
             let (mut jx, mut jy) = (vec![0.0; 2 * s * n], vec![0.0; 2 * s * n]);
-            for fma in [false, true] {
+            for fma in fma_modes() {
                 let mut got = p.clone();
                 let args = (k.as_slice(), d.as_slice(), pz.as_slice());
                 let scratch = (jx.as_mut_slice(), jy.as_mut_slice());
@@ -2867,7 +3464,7 @@ mod tests {
         use nalgebra::{DMatrix, DVector};
         let mut rnd = xorshift(0x3C6E_F372_FE94_F82Bu64);
         for (n, s) in [(7usize, 78usize), (3, 33), (6, 81)] {
-            for fma in [false, true] {
+            for fma in fma_modes() {
                 let pz = DMatrix::from_fn(s, n, |_, _| rnd());
                 let b = DMatrix::from_fn(n, n, |_, _| rnd());
                 let sz = &b * b.transpose() + DMatrix::identity(n, n) * 0.5;

@@ -19,20 +19,34 @@ use nalgebra::Vector3;
 use super::inertia::{first_moment, inertia_times};
 use super::rnea::{ChainView, LinkState};
 
-/// Tangents of one link's motion along one direction (frame i).
+/// Tangents of one link's motion along one direction (frame i), and the terms of the
+/// link's primal state that every direction reads (set once per call of
+/// [`ChainView::rnea_derivatives`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(crate) struct LinkTangent {
     w: Vector3<f64>,
     wd: Vector3<f64>,
     a: Vector3<f64>,
+    /// ω_{i−1} × p_i (zero for the first link).
+    wxp: Vector3<f64>,
+    /// (u·q̇_i) × ρ_i (revolute joints).
+    v_rel: Vector3<f64>,
+    /// ω_i × h_i and I_i·ω_i.
+    wh: Vector3<f64>,
+    iw: Vector3<f64>,
 }
 
 impl Default for LinkTangent {
     fn default() -> Self {
+        let z = Vector3::zeros();
         Self {
-            w: Vector3::zeros(),
-            wd: Vector3::zeros(),
-            a: Vector3::zeros(),
+            w: z,
+            wd: z,
+            a: z,
+            wxp: z,
+            v_rel: z,
+            wh: z,
+            iw: z,
         }
     }
 }
@@ -53,13 +67,26 @@ impl ChainView<'_> {
         dqd: &mut [f64],
     ) {
         let n = self.dof();
+        // The primal terms the 2N directions share, formed once.
+        for i in 0..n {
+            let (g, s, pi) = (&self.geom[i], &st[i], &inertial[i]);
+            let w_p = if i > 0 { st[i - 1].w } else { Vector3::zeros() };
+            let t = &mut tan[i];
+            t.wxp = w_p.cross(&s.p);
+            t.v_rel = (g.axis * qd[i]).cross(&g.rho);
+            t.wh = s.w.cross(&first_moment(pi));
+            t.iw = inertia_times(pi, &s.w);
+        }
         for k in 0..n {
             self.tangent(inertial, qd, st, k, false, tan, &mut dq[k * n..k * n + n]);
             self.tangent(inertial, qd, st, k, true, tan, &mut dqd[k * n..k * n + n]);
         }
     }
 
-    /// ∂τ/∂q_k (`velocity` false) or ∂τ/∂q̇_k (true) into `out` (N entries).
+    /// ∂τ/∂q_k (`velocity` false) or ∂τ/∂q̇_k (true) into `out` (N entries). The terms
+    /// the tangent-linear recursion multiplies by an exact zero (a link above k does not
+    /// feel q_k's rate, the joint's own rate tangent vanishes for q_k, …) are left out:
+    /// adding them added zeros, so the sums are the same.
     #[allow(clippy::too_many_arguments)]
     #[inline(always)]
     fn tangent(
@@ -86,14 +113,22 @@ impl ChainView<'_> {
             };
             let u = g.axis;
             let xr = u * qd[i];
-            // Parent's motion seen in frame i (its tangent), and the joint's own rate
-            // tangent δ(u·q̇_i).
-            let (dw_pi, dwd_pi, da_rigid, dxr, w_pi) = if i == k {
+            let v_rel = tan[i].v_rel;
+            let (w, wd, a) = if i == k && velocity {
+                // The joint's own rate tangent δ(u·q̇_i) = u; the parent does not move.
                 let w_pi = rt * w_p;
-                if velocity {
-                    (zero, zero, zero, u, w_pi)
+                if g.revolute {
+                    let dv_rel = u.cross(&g.rho);
+                    let a = u.cross(&v_rel) + xr.cross(&dv_rel) + 2.0 * w_pi.cross(&dv_rel);
+                    (u, w_pi.cross(&u), a)
                 } else {
+                    (zero, zero, 2.0 * w_pi.cross(&u))
+                }
+            } else {
+                // Parent's motion seen in frame i (its tangent).
+                let (dw_pi, dwd_pi, da_rigid) = if i == k {
                     // δ(Rᵀx) = −s_ang × Rᵀx for a constant x; δp = R·s_lin.
+                    let w_pi = rt * w_p;
                     let a_p = if i > 0 { st[i - 1].a } else { -self.gravity };
                     let p = s.p;
                     let a_rigid = rt * (a_p + wd_p.cross(&p) + w_p.cross(&w_p.cross(&p)));
@@ -103,62 +138,46 @@ impl ChainView<'_> {
                         -sa.cross(&w_pi),
                         -sa.cross(&(rt * wd_p)),
                         -sa.cross(&a_rigid) + rt * (wd_p.cross(&dp) + w_p.cross(&w_p.cross(&dp))),
-                        zero,
-                        w_pi,
                     )
-                }
-            } else {
-                let t = &tan[i - 1];
-                let p = s.p;
-                (
-                    rt * t.w,
-                    rt * t.wd,
-                    rt * (t.a
-                        + t.wd.cross(&p)
-                        + t.w.cross(&w_p.cross(&p))
-                        + w_p.cross(&t.w.cross(&p))),
-                    zero,
-                    // Only multiplies dxr = 0 below.
-                    zero,
-                )
-            };
-            let tn = if g.revolute {
-                let v_rel = xr.cross(&g.rho);
-                let dv_rel = dxr.cross(&g.rho);
-                LinkTangent {
-                    w: dw_pi + dxr,
-                    wd: dwd_pi + dw_pi.cross(&xr) + w_pi.cross(&dxr),
-                    a: da_rigid
-                        + dxr.cross(&v_rel)
-                        + xr.cross(&dv_rel)
-                        + 2.0 * (dw_pi.cross(&v_rel) + w_pi.cross(&dv_rel)),
-                }
-            } else {
-                LinkTangent {
-                    w: dw_pi,
-                    wd: dwd_pi,
-                    a: da_rigid + 2.0 * (dw_pi.cross(&xr) + w_pi.cross(&dxr)),
+                } else {
+                    let t = &tan[i - 1];
+                    let p = s.p;
+                    (
+                        rt * t.w,
+                        rt * t.wd,
+                        rt * (t.a
+                            + t.wd.cross(&p)
+                            + t.w.cross(&tan[i].wxp)
+                            + w_p.cross(&t.w.cross(&p))),
+                    )
+                };
+                if g.revolute {
+                    let a = da_rigid + 2.0 * dw_pi.cross(&v_rel);
+                    (dw_pi, dwd_pi + dw_pi.cross(&xr), a)
+                } else {
+                    (dw_pi, dwd_pi, da_rigid + 2.0 * dw_pi.cross(&xr))
                 }
             };
-            tan[i] = tn;
+            let t = &mut tan[i];
+            t.w = w;
+            t.wd = wd;
+            t.a = a;
         }
         // Backward pass: forces of the moving links, then their transmission down to the
         // base (a link below k only passes its child's force tangent on).
         let mut df_c = zero;
         let mut dn_c = zero;
         for i in (0..n).rev() {
-            let (mut df, mut dn) = if i >= k {
+            let moving = i >= k;
+            let (mut df, mut dn) = if moving {
                 let s = &st[i];
                 let t = &tan[i];
                 let pi = &inertial[i];
                 let h = first_moment(pi);
                 (
-                    t.a * pi[0]
-                        + t.wd.cross(&h)
-                        + t.w.cross(&s.w.cross(&h))
-                        + s.w.cross(&t.w.cross(&h)),
+                    t.a * pi[0] + t.wd.cross(&h) + t.w.cross(&t.wh) + s.w.cross(&t.w.cross(&h)),
                     inertia_times(pi, &t.wd)
-                        + t.w.cross(&inertia_times(pi, &s.w))
+                        + t.w.cross(&t.iw)
                         + s.w.cross(&inertia_times(pi, &t.w))
                         + h.cross(&t.a),
                 )
@@ -169,15 +188,23 @@ impl ChainView<'_> {
                 let c = &st[i + 1];
                 let mut dfr = c.r * df_c;
                 let mut dnr = c.r * dn_c;
-                if !velocity && i + 1 == k {
+                let turns = !velocity && i + 1 == k;
+                if turns {
                     // The child's frame turns (δR = R·[s_ang]×) and moves (δp = R·s_lin).
                     let gc = &self.geom[k];
                     dfr += c.r * gc.s_ang.cross(&c.f);
                     dnr += c.r * gc.s_ang.cross(&c.nm);
-                    dn += (c.r * gc.s_lin).cross(&(c.r * c.f));
+                    let x = (c.r * gc.s_lin).cross(&(c.r * c.f));
+                    dn = if moving { dn + x } else { x };
                 }
-                df += dfr;
-                dn += dnr + c.p.cross(&dfr);
+                let dnt = dnr + c.p.cross(&dfr);
+                if moving {
+                    df += dfr;
+                    dn += dnt;
+                } else {
+                    df = dfr;
+                    dn = if turns { dn + dnt } else { dnt };
+                }
             }
             let g = &self.geom[i];
             out[i] = g.s_ang.dot(&dn) + g.s_lin.dot(&df);
