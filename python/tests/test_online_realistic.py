@@ -103,9 +103,8 @@ def arm():
 
 
 EKF_GAP = (
-    "known gap (issue online): the running EKF confirms further changes after the grip on "
-    "this log and ends 15-19 % off 3 s after it on perturbed arms 1-3 (end 2.1-4.6 %); "
-    "docs/design/online.md"
+    "known gap (issue online): on this arm the EKF is 15.0 % off 3 s after the grip "
+    "(arms 0-7: 1.9-23.3 %, median 7.2 %; at the end 1.7-7.7 %); docs/design/online.md"
 )
 
 
