@@ -470,21 +470,17 @@ fn rk4_core(
         v[j] = qd[j] + half * a[j];
         sq[j] = qd[j] + 2.0 * v[j];
     }
-    stage_diverged(qs, v)?;
-    accel(qs, v, a)?;
-    for j in 0..n {
-        sa[j] += 2.0 * a[j];
-        qs[j] = q[j] + half * v[j];
-        v[j] = qd[j] + half * a[j];
-        sq[j] += 2.0 * v[j];
-    }
-    stage_diverged(qs, v)?;
-    accel(qs, v, a)?;
-    for j in 0..n {
-        sa[j] += 2.0 * a[j];
-        qs[j] = q[j] + h * v[j];
-        v[j] = qd[j] + h * a[j];
-        sq[j] += v[j];
+    // Stages 2 and 3 differ only in how far (`c`, s) the next stage state lies and in
+    // the weight `w` of its velocity in the position sum.
+    for (c, w) in [(half, 2.0), (h, 1.0)] {
+        stage_diverged(qs, v)?;
+        accel(qs, v, a)?;
+        for j in 0..n {
+            sa[j] += 2.0 * a[j];
+            qs[j] = q[j] + c * v[j];
+            v[j] = qd[j] + c * a[j];
+            sq[j] += w * v[j];
+        }
     }
     stage_diverged(qs, v)?;
     accel(qs, v, a)?;
