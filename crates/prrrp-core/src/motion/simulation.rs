@@ -470,21 +470,17 @@ fn rk4_core(
         v[j] = qd[j] + half * a[j];
         sq[j] = qd[j] + 2.0 * v[j];
     }
-    stage_diverged(qs, v)?;
-    accel(qs, v, a)?;
-    for j in 0..n {
-        sa[j] += 2.0 * a[j];
-        qs[j] = q[j] + half * v[j];
-        v[j] = qd[j] + half * a[j];
-        sq[j] += 2.0 * v[j];
-    }
-    stage_diverged(qs, v)?;
-    accel(qs, v, a)?;
-    for j in 0..n {
-        sa[j] += 2.0 * a[j];
-        qs[j] = q[j] + h * v[j];
-        v[j] = qd[j] + h * a[j];
-        sq[j] += v[j];
+    // Stages 2 and 3 differ only in how far (`c`, s) the next stage state lies and in
+    // the weight `w` of its velocity in the position sum.
+    for (c, w) in [(half, 2.0), (h, 1.0)] {
+        stage_diverged(qs, v)?;
+        accel(qs, v, a)?;
+        for j in 0..n {
+            sa[j] += 2.0 * a[j];
+            qs[j] = q[j] + c * v[j];
+            v[j] = qd[j] + c * a[j];
+            sq[j] += w * v[j];
+        }
     }
     stage_diverged(qs, v)?;
     accel(qs, v, a)?;
@@ -608,120 +604,107 @@ impl StickSlip {
             qd1: vec![0.0; n],
         }
     }
+}
 
+/// One step's dynamics in its frozen stick–slip modes: the plant with its workspace, the
+/// torque held over the step and the modes' buffers.
+struct Frozen<'a, P: Dynamics + ?Sized> {
+    plant: &'a P,
+    ws: &'a mut P::Workspace,
+    tau: &'a [f64],
+    st: &'a mut StickSlip,
+}
+
+impl<P: Dynamics + ?Sized> Frozen<'_, P> {
     /// q̈ in the frozen modes at a (stage) state. The plant's dynamics apply
     /// fc_j·sgn(q̇_j) at the stage's own velocity; the torque is corrected so that the
     /// frozen sign acts instead, and the stuck joints are held by their friction.
-    fn accel<P: Dynamics + ?Sized>(
-        &mut self,
-        plant: &P,
-        ws: &mut P::Workspace,
-        q: &[f64],
-        qd: &[f64],
-        tau: &[f64],
-        a: &mut [f64],
-    ) -> Result<()> {
-        self.free_accel(plant, ws, q, qd, tau, a)?;
-        if self.stuck.is_empty() {
+    fn accel(&mut self, q: &[f64], qd: &[f64], a: &mut [f64]) -> Result<()> {
+        self.free_accel(q, qd, a)?;
+        if self.st.stuck.is_empty() {
             return Ok(());
         }
-        self.hold_torques(plant, ws, q, qd, a)?;
+        self.hold_torques(q, qd, a)?;
+        let st = &*self.st;
         let n = a.len();
-        for (c, &h) in self.hold[..self.stuck.len()].iter().enumerate() {
-            for (x, m) in a.iter_mut().zip(&self.cols[c * n..(c + 1) * n]) {
+        for (c, &h) in st.hold[..st.stuck.len()].iter().enumerate() {
+            for (x, m) in a.iter_mut().zip(&st.cols[c * n..(c + 1) * n]) {
                 *x -= m * h;
             }
         }
-        for &j in &self.stuck {
+        for &j in &st.stuck {
             a[j] = 0.0;
         }
         Ok(())
     }
 
     /// q̈ with the slipping joints' frozen signs and no friction on the stuck ones.
-    fn free_accel<P: Dynamics + ?Sized>(
-        &mut self,
-        plant: &P,
-        ws: &mut P::Workspace,
-        q: &[f64],
-        qd: &[f64],
-        tau: &[f64],
-        a: &mut [f64],
-    ) -> Result<()> {
+    fn free_accel(&mut self, q: &[f64], qd: &[f64], a: &mut [f64]) -> Result<()> {
+        let (st, tau) = (&mut *self.st, self.tau);
         for j in 0..tau.len() {
-            self.tau_eff[j] = tau[j] + self.fc[j] * (sgn(qd[j]) - self.mode[j]);
+            st.tau_eff[j] = tau[j] + st.fc[j] * (sgn(qd[j]) - st.mode[j]);
         }
-        plant.forward_dynamics_into(ws, q, qd, &self.tau_eff, a)
+        self.plant
+            .forward_dynamics_into(self.ws, q, qd, &st.tau_eff, a)
     }
 
     /// The friction torques τ_h that keep the stuck joints S at rest, from the free
     /// acceleration `a0`: (M⁻¹)_SS·τ_h = a0_S, with the columns M⁻¹·e_j from the forward
     /// dynamics (affine in τ). Fills `cols` and `hold`.
-    fn hold_torques<P: Dynamics + ?Sized>(
-        &mut self,
-        plant: &P,
-        ws: &mut P::Workspace,
-        q: &[f64],
-        qd: &[f64],
-        a0: &[f64],
-    ) -> Result<()> {
+    fn hold_torques(&mut self, q: &[f64], qd: &[f64], a0: &[f64]) -> Result<()> {
+        let st = &mut *self.st;
         let n = a0.len();
-        let k = self.stuck.len();
-        for (c, &j) in self.stuck.iter().enumerate() {
+        let k = st.stuck.len();
+        for (c, &j) in st.stuck.iter().enumerate() {
             // A unit of the joint's own friction scale keeps the difference well above
             // the round-off of a0.
-            let unit = self.fc[j].max(1.0);
-            self.tau_eff[j] += unit;
-            let col = &mut self.cols[c * n..(c + 1) * n];
-            plant.forward_dynamics_into(ws, q, qd, &self.tau_eff, col)?;
-            self.tau_eff[j] -= unit;
+            let unit = st.fc[j].max(1.0);
+            st.tau_eff[j] += unit;
+            let col = &mut st.cols[c * n..(c + 1) * n];
+            self.plant
+                .forward_dynamics_into(self.ws, q, qd, &st.tau_eff, col)?;
+            st.tau_eff[j] -= unit;
             for (x, a) in col.iter_mut().zip(a0) {
                 *x = (*x - a) / unit;
             }
         }
-        for (r, &i) in self.stuck.iter().enumerate() {
+        for (r, &i) in st.stuck.iter().enumerate() {
             for c in 0..k {
-                self.gram[r + k * c] = self.cols[c * n + i];
+                st.gram[r + k * c] = st.cols[c * n + i];
             }
-            self.hold[r] = a0[i];
+            st.hold[r] = a0[i];
         }
-        cholesky_in_place(&mut self.gram[..k * k], k)?;
-        cholesky_solve(&self.gram[..k * k], k, &mut self.hold[..k]);
+        cholesky_in_place(&mut st.gram[..k * k], k)?;
+        cholesky_solve(&st.gram[..k * k], k, &mut st.hold[..k]);
         Ok(())
     }
 
     /// The modes at the start of a step: slipping joints take their velocity's sign;
     /// joints at rest stick unless holding them needs more than fc_j, in which case the
     /// most overloaded one slips towards its net force, and the rest are tested again.
-    fn set_modes<P: Dynamics + ?Sized>(
-        &mut self,
-        plant: &P,
-        ws: &mut P::Workspace,
-        q: &[f64],
-        qd: &[f64],
-        tau: &[f64],
-        a: &mut [f64],
-    ) -> Result<()> {
-        self.stuck.clear();
+    fn set_modes(&mut self, q: &[f64], qd: &[f64], a: &mut [f64]) -> Result<()> {
+        let st = &mut *self.st;
+        st.stuck.clear();
         for (j, &v) in qd.iter().enumerate() {
-            self.mode[j] = if self.fc[j] > 0.0 { sgn(v) } else { 0.0 };
-            if self.fc[j] > 0.0 && v == 0.0 {
-                self.stuck.push(j);
+            st.mode[j] = if st.fc[j] > 0.0 { sgn(v) } else { 0.0 };
+            if st.fc[j] > 0.0 && v == 0.0 {
+                st.stuck.push(j);
             }
         }
-        while !self.stuck.is_empty() {
-            self.free_accel(plant, ws, q, qd, tau, a)?;
-            self.hold_torques(plant, ws, q, qd, a)?;
+        while !self.st.stuck.is_empty() {
+            self.free_accel(q, qd, a)?;
+            self.hold_torques(q, qd, a)?;
+            let st = &mut *self.st;
             let mut worst: Option<(usize, f64)> = None;
-            for (r, &j) in self.stuck.iter().enumerate() {
-                let load = self.hold[r].abs() / self.fc[j];
+            for (r, &j) in st.stuck.iter().enumerate() {
+                let load = st.hold[r].abs() / st.fc[j];
                 if load > 1.0 && worst.map_or(true, |(_, w)| load > w) {
                     worst = Some((r, load));
                 }
             }
             let Some((r, _)) = worst else { break };
-            let j = self.stuck.remove(r);
-            self.mode[j] = sgn(self.hold[r]);
+            let j = st.stuck.remove(r);
+            st.mode[j] = sgn(st.hold[r]);
         }
         Ok(())
     }
@@ -759,33 +742,37 @@ impl<'p, P: Dynamics + ?Sized> Rk4Integrator<'p, P> {
         check_joints("q", q.len(), n)?;
         check_joints("qd", qd.len(), n)?;
         check_joints("tau", tau.len(), n)?;
-        let (plant, ws, scratch) = (self.plant, &mut self.ws, &mut self.scratch);
+        let scratch = &mut self.scratch;
+        let mut fz = Frozen {
+            plant: self.plant,
+            ws: &mut self.ws,
+            tau,
+            st: stick,
+        };
         let mut left = h;
         for cut in 0..=4 * n + 4 {
-            stick.set_modes(plant, ws, q, qd, tau, &mut scratch[..n])?;
-            stick.q0.copy_from_slice(q);
-            stick.qd0.copy_from_slice(qd);
-            let mut run = |stick: &mut StickSlip, q: &mut [f64], qd: &mut [f64], dt: f64| {
-                q.copy_from_slice(&stick.q0);
-                qd.copy_from_slice(&stick.qd0);
-                rk4_core(scratch, q, qd, dt, |q, qd, a| {
-                    stick.accel(plant, ws, q, qd, tau, a)
-                })
+            fz.set_modes(q, qd, &mut scratch[..n])?;
+            fz.st.q0.copy_from_slice(q);
+            fz.st.qd0.copy_from_slice(qd);
+            let mut run = |fz: &mut Frozen<'_, P>, q: &mut [f64], qd: &mut [f64], dt: f64| {
+                q.copy_from_slice(&fz.st.q0);
+                qd.copy_from_slice(&fz.st.qd0);
+                rk4_core(scratch, q, qd, dt, |q, qd, a| fz.accel(q, qd, a))
             };
-            run(stick, q, qd, left)?;
+            run(&mut fz, q, qd, left)?;
             if cut == 4 * n + 4 {
                 break;
             }
-            stick.qd1.copy_from_slice(qd);
+            fz.st.qd1.copy_from_slice(qd);
             // The earliest zero crossing of a joint that slipped from the start.
             let mut first: Option<(usize, f64)> = None;
             for j in 0..n {
-                let s = stick.mode[j];
-                if s == 0.0 || s * stick.qd0[j] <= 0.0 || s * stick.qd1[j] > 0.0 {
+                let s = fz.st.mode[j];
+                if s == 0.0 || s * fz.st.qd0[j] <= 0.0 || s * fz.st.qd1[j] > 0.0 {
                     continue;
                 }
                 let (mut lo, mut hi) = (0.0, left);
-                let (mut f_lo, mut f_hi) = (s * stick.qd0[j], s * stick.qd1[j]);
+                let (mut f_lo, mut f_hi) = (s * fz.st.qd0[j], s * fz.st.qd1[j]);
                 let mut side = 0i8;
                 for _ in 0..60 {
                     if hi - lo <= 1e-10 * h {
@@ -799,7 +786,7 @@ impl<'p, P: Dynamics + ?Sized> Rk4Integrator<'p, P> {
                     } else {
                         0.5 * (lo + hi)
                     };
-                    run(stick, q, qd, mid)?;
+                    run(&mut fz, q, qd, mid)?;
                     let f = s * qd[j];
                     if f > 0.0 {
                         (lo, f_lo) = (mid, f);
@@ -821,10 +808,10 @@ impl<'p, P: Dynamics + ?Sized> Rk4Integrator<'p, P> {
             }
             let Some((j, t)) = first else {
                 // `run` may have left a trial state: the full step is the answer.
-                run(stick, q, qd, left)?;
+                run(&mut fz, q, qd, left)?;
                 return Ok(());
             };
-            run(stick, q, qd, t)?;
+            run(&mut fz, q, qd, t)?;
             qd[j] = 0.0;
             left -= t;
             if left <= 1e-10 * h {
@@ -857,8 +844,14 @@ impl<'p, P: Dynamics + ?Sized> Rk4Integrator<'p, P> {
                 check_joints("qd", qd.len(), n)?;
                 check_joints("tau", tau.len(), n)?;
                 check_joints("qdd", qdd.len(), n)?;
-                stick.set_modes(self.plant, &mut self.ws, q, qd, tau, qdd)?;
-                stick.accel(self.plant, &mut self.ws, q, qd, tau, qdd)
+                let mut fz = Frozen {
+                    plant: self.plant,
+                    ws: &mut self.ws,
+                    tau,
+                    st: stick,
+                };
+                fz.set_modes(q, qd, qdd)?;
+                fz.accel(q, qd, qdd)
             }
         }
     }

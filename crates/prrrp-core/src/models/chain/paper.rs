@@ -235,31 +235,26 @@ impl PaperClosedForm {
         l
     }
 
-    /// [`ChainView::rnea_with`] in closed form: τ with the inertial parameters `inertial`
-    /// (gravity if `gravity`), plus the view's actuator terms with friction `fric`.
-    #[allow(clippy::too_many_arguments)]
+    /// The rigid-body part of [`ChainView::rnea_with`] in closed form: τ (N, N·m) with the
+    /// inertial parameters `inertial` (gravity if `gravity`); the view adds its actuator
+    /// terms.
     #[inline]
     pub(crate) fn rnea(
         &self,
-        view: &ChainView<'_>,
         inertial: &[[f64; 10]],
-        fric: &[[f64; 3]],
         q: &[f64],
         qd: &[f64],
         qdd: &[f64],
         gravity: bool,
-        tau: &mut [f64],
-    ) {
+    ) -> Vec5 {
         let g = if gravity { self.gravity } else { 0.0 };
-        let t = extended::inverse_dynamics(
+        extended::inverse_dynamics(
             g,
             &Trig::new(&v5(q)),
             &v5(qd),
             &v5(qdd),
             &self.lambda(inertial),
-        );
-        tau[..5].copy_from_slice(t.as_slice());
-        view.add_actuator_torques(fric, qd, qdd, tau);
+        )
     }
 
     /// [`ChainView::mass_matrix_with`] in closed form (column-major 5×5 into `m`), plus

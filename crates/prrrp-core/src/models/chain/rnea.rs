@@ -156,7 +156,8 @@ impl ChainView<'_> {
         tau: &mut [f64],
     ) {
         if let Some(cf) = self.closed {
-            return cf.rnea(self, inertial, fric, q, qd, qdd, gravity, tau);
+            tau[..5].copy_from_slice(cf.rnea(inertial, q, qd, qdd, gravity).as_slice());
+            return self.add_actuator_torques(fric, qd, qdd, tau);
         }
         self.kinematics(q, qd, qdd, gravity, st);
         let n = self.dof();
