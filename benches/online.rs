@@ -94,7 +94,7 @@ fn online(c: &mut Criterion) {
             false,
         ),
     ] {
-        if cpu_rows().is_some() && !filter.as_ref().map_or(true, |f| name.contains(f.as_str())) {
+        if cpu_rows().is_some() && !filter.as_ref().is_none_or(|f| name.contains(f.as_str())) {
             continue;
         }
         let cfg = OnlineConfig {
