@@ -52,6 +52,17 @@ def add_parser(sub: Any) -> None:
         "'none' (default: viscous,coulomb,offset)",
     )
     p.add_argument(
+        "--coulomb-scale",
+        type=float,
+        metavar="V",
+        help="with --robot: speed scale v_s (rad/s) of the smooth Coulomb term "
+        "fc·tanh(q̇/v_s), 0 = exact sign (default 0). `prrrp identify` chooses it from the "
+        "data by cross-validation, and --model carries that choice; from no knowledge the "
+        "online estimate cannot choose it (a choice from the whole log would let later "
+        "rows change earlier estimates), and a wrong one costs accuracy where the arm "
+        "reverses (docs/design/online.md)",
+    )
+    p.add_argument(
         "--model",
         metavar="PRIOR.json",
         help="start from this identified model (its robot, estimate and covariance); "
@@ -114,10 +125,21 @@ def run(args: argparse.Namespace) -> int:
     _positive("--ekf-noise", args.ekf_noise)
     if args.payload and not args.model:
         raise common.CliError("--payload tracks a load on a known arm: give its model with --model")
+    if args.coulomb_scale is not None and not (
+        math.isfinite(args.coulomb_scale) and args.coulomb_scale >= 0
+    ):
+        raise common.CliError(
+            f"--coulomb-scale must be finite and >= 0 rad/s, got {args.coulomb_scale}"
+        )
     prior = load_model(args.model) if args.model else None
     if prior is not None:
         if args.robot:
             raise common.CliError("--model carries its robot; --robot is not needed with it")
+        if args.coulomb_scale is not None:
+            raise common.CliError(
+                "--model carries its Coulomb scale (chosen by `prrrp identify`); "
+                "--coulomb-scale is for --robot"
+            )
         robot = prior.robot
     else:
         robot = workflow.load_robot(
@@ -125,6 +147,7 @@ def run(args: argparse.Namespace) -> int:
             base=args.base,
             tip=args.tip,
             friction=common.friction_terms(args.friction),
+            coulomb_scale=args.coulomb_scale or 0.0,
         )
     outdir.check(args.out)
     raw = read_measurements(args.data, robot, topic=args.topic)
