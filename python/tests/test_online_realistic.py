@@ -193,3 +193,26 @@ def test_track_takes_the_coulomb_scale_of_the_robot(arm, tmp_path):
     prior.save(prior_path)
     bad = ["track", str(data), "--model", str(prior_path), "--coulomb-scale", "0.02"]
     assert main([*bad, "--out", str(tmp_path / "y")]) == 2
+
+
+@pytest.mark.parametrize("method", ["rls", "ekf"])
+def test_payload_mode_weighs_the_part_on_a_realistic_log(arm, method):
+    """Payload mode on the bare arm's prior: the 2 kg part's mass within 5 % 3 s after the
+    grip and at the end (the issue's bar), its centre of mass (tip frame) within 1 cm and
+    within 3 σ of its own σ on each axis at the end, although the prior's friction misses
+    the Stribeck bump and the torques are noisy. Measured on arms 0–7 (rls): mass within
+    1.3 % 3 s after and 0.2 % at the end; centre 0.3–5.6 mm off, at most 2.4 σ."""
+    a, prior = arm
+    run = a.log(2, 30.0, GRIP)
+    online = prrrp.OnlineIdentifier(prior=prior, method=method, payload=True)
+    after3 = None
+    for k in range(len(run["t"])):
+        online.update(run["t"][k], run["q"][k], run["tau"][k])
+        if after3 is None and run["t"][k] >= GRIP + 3.0:
+            after3 = online.payload()
+    end = online.payload()
+    for p in (after3, end):
+        assert abs(p["mass"] / PART.mass - 1) < 0.05, p["mass"]
+    err = np.asarray(end["com"]) - PART.lever
+    assert np.linalg.norm(err) < 0.01, end["com"]
+    assert np.all(np.abs(err) < 3.0 * np.asarray(end["com_sigma"])), (err, end["com_sigma"])
