@@ -2488,7 +2488,7 @@ fn whole_tile_portable<const FMA: bool, const NC: usize>(
 mod avx2 {
     use super::{column, TILE_ROWS};
     use std::arch::x86_64::{
-        _mm256_fmadd_pd, _mm256_loadu_pd, _mm256_maskload_pd, _mm256_permute2f128_pd,
+        __m256d, _mm256_fmadd_pd, _mm256_loadu_pd, _mm256_maskload_pd, _mm256_permute2f128_pd,
         _mm256_set1_pd, _mm256_setr_epi64x, _mm256_setzero_pd, _mm256_storeu_pd, _mm256_sub_pd,
         _mm256_unpackhi_pd, _mm256_unpacklo_pd,
     };
@@ -2498,6 +2498,61 @@ mod avx2 {
     fn halves(v: &[f64; TILE_ROWS]) -> (&[f64; 4], &[f64; 4]) {
         let (lo, hi) = v.split_at(4);
         (column::<4>(lo, 0), column::<4>(hi, 0))
+    }
+
+    /// An accumulator tile in registers: each column's two 4-lane halves.
+    type Tile<const NC: usize> = ([__m256d; NC], [__m256d; NC]);
+
+    /// # Safety
+    /// The CPU must support AVX2 (see [`whole_tile`]).
+    #[inline(always)]
+    unsafe fn load_tile<const NC: usize>(acc: &[[f64; TILE_ROWS]; NC]) -> Tile<NC> {
+        // SAFETY: AVX2 by the caller; each pointer is a reference to 4 f64.
+        unsafe {
+            let (mut lo, mut hi) = ([_mm256_setzero_pd(); NC], [_mm256_setzero_pd(); NC]);
+            for (c, a) in acc.iter().enumerate() {
+                let (a0, a1) = halves(a);
+                lo[c] = _mm256_loadu_pd(a0.as_ptr());
+                hi[c] = _mm256_loadu_pd(a1.as_ptr());
+            }
+            (lo, hi)
+        }
+    }
+
+    /// # Safety
+    /// The CPU must support AVX2 (see [`whole_tile`]).
+    #[inline(always)]
+    unsafe fn store_tile<const NC: usize>((lo, hi): &Tile<NC>) -> [[f64; TILE_ROWS]; NC] {
+        let mut out = [[0.0f64; TILE_ROWS]; NC];
+        for (c, o) in out.iter_mut().enumerate() {
+            let (a, b) = o.split_at_mut(4);
+            // SAFETY: AVX2 by the caller; each half of `o` holds the 4 lanes written.
+            unsafe {
+                _mm256_storeu_pd(a.as_mut_ptr(), lo[c]);
+                _mm256_storeu_pd(b.as_mut_ptr(), hi[c]);
+            }
+        }
+        out
+    }
+
+    /// Tile column c += f(c)·[x0; x1] for every c (one fused multiply-add per lane).
+    ///
+    /// # Safety
+    /// The CPU must support AVX2 and FMA (see [`whole_tile`]).
+    #[inline(always)]
+    unsafe fn madd_columns<const NC: usize>(
+        (lo, hi): &mut Tile<NC>,
+        (x0, x1): (__m256d, __m256d),
+        f: impl Fn(usize) -> f64,
+    ) {
+        for c in 0..NC {
+            // SAFETY: AVX2 and FMA by the caller; registers only.
+            unsafe {
+                let f = _mm256_set1_pd(f(c));
+                lo[c] = _mm256_fmadd_pd(f, x0, lo[c]);
+                hi[c] = _mm256_fmadd_pd(f, x1, hi[c]);
+            }
+        }
     }
 
     /// [`super::whole_tile`], fused. Not a `#[target_feature]` function (those cannot be
@@ -2518,37 +2573,18 @@ mod avx2 {
         // comes from a reference to an array of 4 f64, valid for the 4 lanes read or
         // written.
         unsafe {
-            let (mut lo, mut hi) = ([_mm256_setzero_pd(); NC], [_mm256_setzero_pd(); NC]);
-            for (c, a) in acc.iter().enumerate() {
-                let (a0, a1) = halves(a);
-                lo[c] = _mm256_loadu_pd(a0.as_ptr());
-                hi[c] = _mm256_loadu_pd(a1.as_ptr());
-            }
+            let mut t = load_tile(&acc);
             for (xo, yo) in cols {
                 let (x0, x1) = halves(column::<TILE_ROWS>(x, xo));
-                let (x0, x1) = (_mm256_loadu_pd(x0.as_ptr()), _mm256_loadu_pd(x1.as_ptr()));
+                let xv = (_mm256_loadu_pd(x0.as_ptr()), _mm256_loadu_pd(x1.as_ptr()));
                 if ys == 1 {
                     let yv = column::<NC>(y, yo);
-                    for c in 0..NC {
-                        let f = _mm256_set1_pd(yv[c]);
-                        lo[c] = _mm256_fmadd_pd(f, x0, lo[c]);
-                        hi[c] = _mm256_fmadd_pd(f, x1, hi[c]);
-                    }
+                    madd_columns(&mut t, xv, |c| yv[c]);
                 } else {
-                    for c in 0..NC {
-                        let f = _mm256_set1_pd(y[yo + c * ys]);
-                        lo[c] = _mm256_fmadd_pd(f, x0, lo[c]);
-                        hi[c] = _mm256_fmadd_pd(f, x1, hi[c]);
-                    }
+                    madd_columns(&mut t, xv, |c| y[yo + c * ys]);
                 }
             }
-            let mut out = [[0.0f64; TILE_ROWS]; NC];
-            for (c, o) in out.iter_mut().enumerate() {
-                let (a, b) = o.split_at_mut(4);
-                _mm256_storeu_pd(a.as_mut_ptr(), lo[c]);
-                _mm256_storeu_pd(b.as_mut_ptr(), hi[c]);
-            }
-            out
+            store_tile(&t)
         }
     }
 
@@ -2572,12 +2608,7 @@ mod avx2 {
             let mask =
                 |r: usize| _mm256_setr_epi64x(lane(r, 0), lane(r, 1), lane(r, 2), lane(r, 3));
             let (m0, m1) = (mask(rows), mask(rows.saturating_sub(4)));
-            let (mut lo, mut hi) = ([_mm256_setzero_pd(); NC], [_mm256_setzero_pd(); NC]);
-            for (c, a) in acc.iter().enumerate() {
-                let (a0, a1) = halves(a);
-                lo[c] = _mm256_loadu_pd(a0.as_ptr());
-                hi[c] = _mm256_loadu_pd(a1.as_ptr());
-            }
+            let mut t = load_tile(&acc);
             for (xo, yo) in cols {
                 let xs = &x[xo..xo + rows];
                 let x0 = _mm256_maskload_pd(xs.as_ptr(), m0);
@@ -2586,19 +2617,9 @@ mod avx2 {
                 } else {
                     _mm256_setzero_pd()
                 };
-                for c in 0..NC {
-                    let f = _mm256_set1_pd(y[yo + c * ys]);
-                    lo[c] = _mm256_fmadd_pd(f, x0, lo[c]);
-                    hi[c] = _mm256_fmadd_pd(f, x1, hi[c]);
-                }
+                madd_columns(&mut t, (x0, x1), |c| y[yo + c * ys]);
             }
-            let mut out = [[0.0f64; TILE_ROWS]; NC];
-            for (c, o) in out.iter_mut().enumerate() {
-                let (a, b) = o.split_at_mut(4);
-                _mm256_storeu_pd(a.as_mut_ptr(), lo[c]);
-                _mm256_storeu_pd(b.as_mut_ptr(), hi[c]);
-            }
-            out
+            store_tile(&t)
         }
     }
 
