@@ -9,8 +9,8 @@ mod dyn_support;
 use alloc_support::allocations;
 use dyn_support::{panda_like, DynFourier};
 use prrrp_core::{
-    identify, inertial_parameters, BaseOptions, DynDataset, Method, OnlineConfig, OnlineIdentifier,
-    OnlineMethod,
+    identify, inertial_parameters, BaseOptions, CoulombSearch, DynDataset, Method, OnlineConfig,
+    OnlineIdentifier, OnlineMethod,
 };
 
 #[test]
@@ -104,5 +104,29 @@ fn update_allocates_nothing() {
                  {n} allocations ({changes} changes)"
             );
         }
+    }
+    // From no knowledge with the online choice of the Coulomb scale: the candidates' rows,
+    // the scoring and the hand-over at the choice (3 s, inside the timed rows).
+    for method in [OnlineMethod::Rls, OnlineMethod::Ekf] {
+        let cfg = OnlineConfig {
+            method,
+            coulomb_search: Some(CoulombSearch { from: 1.0, at: 3.0 }),
+            ..Default::default()
+        };
+        let mut id = OnlineIdentifier::new(&chain, &base, cfg).unwrap();
+        for r in rows.iter().take(200) {
+            id.update(r.0, &r.1, &r.2, None).unwrap();
+        }
+        let before = allocations();
+        for r in rows.iter().skip(200) {
+            id.update(r.0, &r.1, &r.2, None).unwrap();
+        }
+        let n = allocations() - before;
+        assert_eq!(
+            n, 0,
+            "{method:?} with the Coulomb scale search: {n} allocations"
+        );
+        let chosen = &id.settings_json()["coulomb_search"]["chosen"];
+        assert!(chosen.is_number(), "no choice was made: {chosen}");
     }
 }

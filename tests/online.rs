@@ -801,3 +801,107 @@ fn payload_mode_ekf_finds_the_mass_on_ten_logs() {
     );
     assert!((0.5..=2.0).contains(&mass), "RMS z of the mass {mass}");
 }
+
+/// `chain` with its Coulomb friction smoothed at `v_s` rad/s.
+fn with_coulomb_scale(chain: &DynChain, v_s: f64) -> DynChain {
+    let model = FrictionModel {
+        coulomb_smoothing: v_s,
+        ..chain.friction()
+    };
+    chain
+        .clone()
+        .with_friction(model, chain.friction_params().to_vec())
+        .unwrap()
+}
+
+/// From no knowledge, the robot given with the exact sign while the arm's Coulomb friction
+/// turns over within 0.03 rad/s: the online search picks 0.03, and from the choice on its
+/// estimates are bit for bit those of an identifier given that scale from the start (the
+/// chosen candidate has seen every row). The model at the end predicts the arm better
+/// than the exact sign's.
+#[test]
+fn the_coulomb_scale_is_chosen_online() {
+    let chain = panda_like();
+    let base = chain.base_parameters(&BaseOptions::default()).unwrap();
+    let truth = with_coulomb_scale(&chain, 0.03);
+    let lg = log(&truth, &truth, 21, 14.0, 500.0, None, (1e-5, 0.05));
+    let val = log(&truth, &truth, 37, 10.0, 100.0, None, (0.0, 0.0));
+    let search = OnlineConfig {
+        coulomb_search: Some(CoulombSearch::default()),
+        ..Default::default()
+    };
+    let mut id = OnlineIdentifier::new(&chain, &base, search).unwrap();
+    let mut own = OnlineIdentifier::new(&chain, &base, OnlineConfig::default()).unwrap();
+    let mut matched = OnlineIdentifier::new(&truth, &base, OnlineConfig::default()).unwrap();
+    let mut same_before = 0;
+    for k in 0..lg.t.len() {
+        let (t, q, tau) = (lg.t[k], &lg.q[k], &lg.tau[k]);
+        let u = id.update(t, q, tau, None).unwrap().estimate.to_vec();
+        let o = own.update(t, q, tau, None).unwrap().estimate.to_vec();
+        let m = matched.update(t, q, tau, None).unwrap().estimate.to_vec();
+        if t < 10.0 {
+            // Before the choice: the robot's own scale.
+            assert_eq!(u, o, "row {k}");
+            same_before += 1;
+        } else {
+            assert_eq!(u, m, "row {k}: not the matched identifier's estimate");
+        }
+    }
+    assert!(same_before > 4000);
+    let s = id.settings_json();
+    assert_eq!(
+        s["coulomb_search"]["chosen"],
+        serde_json::json!(0.03),
+        "{s}"
+    );
+    assert_eq!(s["coulomb_scale"], serde_json::json!(0.03));
+    let (e_id, e_own) = (
+        rel_error(&id.estimate().unwrap(), &val),
+        rel_error(&own.estimate().unwrap(), &val),
+    );
+    eprintln!("end: chosen {e_id:.4?}\n     exact sign {e_own:.4?}");
+    let worst = |e: &[f64]| e.iter().cloned().fold(0.0, f64::max);
+    assert!(worst(&e_id) < 0.5 * worst(&e_own), "{e_id:?} vs {e_own:?}");
+}
+
+/// The search is causal too: altering rows from 3 s (before the choice) or 11 s (after
+/// it) changes no estimate before them; a prior model with a search is refused.
+#[test]
+fn the_coulomb_scale_search_is_causal() {
+    let chain = panda_like();
+    let base = chain.base_parameters(&BaseOptions::default()).unwrap();
+    let truth = with_coulomb_scale(&chain, 0.01);
+    let a = log(&truth, &truth, 5, 12.0, 250.0, None, (1e-5, 0.05));
+    let cfg = OnlineConfig {
+        coulomb_search: Some(CoulombSearch::default()),
+        ..Default::default()
+    };
+    for k0 in [750, 2750] {
+        let mut ia = OnlineIdentifier::new(&chain, &base, cfg).unwrap();
+        let mut ib = OnlineIdentifier::new(&chain, &base, cfg).unwrap();
+        let mut differs_after = false;
+        for k in 0..a.t.len() {
+            let mut tau = a.tau[k].clone();
+            if k >= k0 {
+                tau.iter_mut()
+                    .enumerate()
+                    .for_each(|(j, v)| *v += 3.0 * (k as f64 * 0.01 + j as f64).sin());
+            }
+            let ua = ia.update(a.t[k], &a.q[k], &a.tau[k], None).unwrap();
+            let (pa, ea) = (ua.prediction.to_vec(), ua.estimate.to_vec());
+            let ub = ib.update(a.t[k], &a.q[k], &tau, None).unwrap();
+            if k < k0 {
+                assert_eq!(pa, ub.prediction, "k0 {k0}, row {k}");
+                assert_eq!(ea, ub.estimate, "k0 {k0}, row {k}");
+            } else if ea != ub.estimate {
+                differs_after = true;
+            }
+        }
+        assert!(differs_after, "k0 {k0}: the altered future changed nothing");
+    }
+    let (_, _, prior) = panda_with_prior();
+    assert!(matches!(
+        OnlineIdentifier::with_prior(&prior, cfg),
+        Err(PrrrpError::InvalidParameter { .. })
+    ));
+}

@@ -160,8 +160,10 @@ def test_from_no_knowledge_the_coulomb_scale_is_the_robots(arm):
     """From no knowledge the identifier fits the friction law of the robot it is given:
     on this arm, whose Coulomb friction turns over within ~0.02 rad/s, the robot with
     that speed scale is identified better than one with the exact sign (`prrrp identify`
-    chooses the scale by cross-validation; online it is the robot's, or `prrrp track
-    --coulomb-scale`). Measured: 8.3 % (exact sign) against 3.4 % on the worst joint."""
+    chooses the scale by cross-validation). `coulomb_scale="auto"` chooses it online
+    from the robot with the exact sign: a neighbour of 0.02 among its candidates, and
+    as good as the matched robot. Measured: 8.3 % (exact sign), 3.4 % (0.02), 3.2 %
+    (auto, 0.01) on the worst joint."""
     a, _prior = arm
     run = a.log(2, 30.0, None)
     val = a.log(3, 10.0, None)
@@ -175,6 +177,22 @@ def test_from_no_knowledge_the_coulomb_scale_is_the_robots(arm):
         assert end.robot.coulomb_smoothing == v_s
         worst.append(_error(end, val).max())
     assert worst[1] < 0.6 * worst[0], worst
+    online = prrrp.OnlineIdentifier(robot, change_detection=False, coulomb_scale="auto")
+    _, end, _ = _track(online, run, np.inf)
+    chosen = online.settings["coulomb_search"]["chosen"]
+    assert chosen in (0.01, 0.03), online.settings["coulomb_search"]
+    assert end.robot.coulomb_smoothing == chosen
+    assert _error(end, val).max() < 1.2 * worst[1], (_error(end, val), worst)
+
+
+def test_the_online_coulomb_scale_choice_needs_no_prior_and_a_known_word(arm):
+    """`coulomb_scale` is "auto" or None; a prior carries its own scale."""
+    a, prior = arm
+    robot = prrrp.workflow.load_robot(a.path, friction="viscous+coulomb+offset")
+    with pytest.raises(prrrp.InvalidParameterError, match="auto"):
+        prrrp.OnlineIdentifier(robot, coulomb_scale="best")
+    with pytest.raises(prrrp.InvalidParameterError, match="prior"):
+        prrrp.OnlineIdentifier(prior=prior, coulomb_scale="auto")
 
 
 def test_track_takes_the_coulomb_scale_of_the_robot(arm, tmp_path):
@@ -189,6 +207,13 @@ def test_track_takes_the_coulomb_scale_of_the_robot(arm, tmp_path):
     assert main([*base, "--coulomb-scale", "0.02", "--out", str(out)]) == 0
     assert prrrp.IdentifiedModel.load(out / "model.json").robot.coulomb_smoothing == 0.02
     assert main([*base, "--coulomb-scale", "-1", "--out", str(tmp_path / "x")]) == 2
+    assert main([*base, "--coulomb-scale", "best", "--out", str(tmp_path / "x")]) == 2
+    # The default is the online choice, made 10 s after the first row: this 4 s log
+    # ends before it, and the report says so.
+    auto = tmp_path / "auto"
+    assert main([*base, "--out", str(auto)]) == 0
+    assert prrrp.IdentifiedModel.load(auto / "model.json").robot.coulomb_smoothing == 0.0
+    assert "the log ended before the choice" in (auto / "report.md").read_text()
     prior_path = tmp_path / "prior.json"
     prior.save(prior_path)
     bad = ["track", str(data), "--model", str(prior_path), "--coulomb-scale", "0.02"]

@@ -1,7 +1,9 @@
 //! `prrrp.OnlineIdentifier`: identification while the arm runs, one raw sample at a time
 //! (see `prrrp_core::OnlineIdentifier`; the class documentation is in `_prrrp.pyi`).
 
-use prrrp_core::{ChangeDetection, OnlineConfig, OnlineIdentifier, OnlineMethod, PrrrpError};
+use prrrp_core::{
+    ChangeDetection, CoulombSearch, OnlineConfig, OnlineIdentifier, OnlineMethod, PrrrpError,
+};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
@@ -26,7 +28,7 @@ impl PyOnlineIdentifier {
     #[pyo3(signature = (robot=None, *, prior=None, method="rls", payload=false, forgetting=None,
         directional=true, change_detection=true, change_threshold=9.0, cutoff_hz=None,
         prior_width=3.0, initial_covariance=1e6, payload_mass_std=10.0, payload_size=0.2,
-        ekf_noise=1.0, ekf_warmup=2.0, step_size=0.5, seed=0))]
+        ekf_noise=1.0, ekf_warmup=2.0, step_size=0.5, seed=0, coulomb_scale=None))]
     #[allow(clippy::too_many_arguments)]
     fn new(
         py: Python<'_>,
@@ -47,8 +49,22 @@ impl PyOnlineIdentifier {
         ekf_warmup: f64,
         step_size: f64,
         seed: u64,
+        coulomb_scale: Option<&str>,
     ) -> PyResult<Self> {
         let defaults = OnlineConfig::default();
+        let coulomb_search = match coulomb_scale {
+            None => None,
+            Some("auto") => Some(CoulombSearch::default()),
+            Some(_) => {
+                return Err(PrrrpError::InvalidParameter {
+                    field: "coulomb_scale".into(),
+                    value: f64::NAN,
+                    reason: "must be \"auto\" or None (the robot's own scale; set another \
+                             with prrrp.workflow.with_coulomb_scale)",
+                })
+                .to_py(py)
+            }
+        };
         let config = OnlineConfig {
             method: OnlineMethod::parse(method).to_py(py)?,
             payload,
@@ -67,6 +83,7 @@ impl PyOnlineIdentifier {
             ekf_warmup,
             step_size,
             seed,
+            coulomb_search,
             ..defaults
         };
         let inner = match (prior, robot) {

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import shutil
 import sys
 from collections.abc import Sequence
@@ -242,6 +243,20 @@ def check_chain_options(args: argparse.Namespace) -> None:
 
 def error(message: str) -> None:
     print(f"prrrp: error: {message}", file=sys.stderr)
+
+
+def coulomb_scale(text: str | None) -> str | float | None:
+    """``--coulomb-scale auto|V``: ``"auto"``, a speed scale ≥ 0 (rad/s), or None (not
+    given)."""
+    if text is None or text == "auto":
+        return text
+    try:
+        v = float(text)
+    except ValueError:
+        raise CliError(f"--coulomb-scale must be auto or a number (rad/s), got {text!r}") from None
+    if not (math.isfinite(v) and v >= 0):
+        raise CliError(f"--coulomb-scale must be finite and >= 0 rad/s, got {text}")
+    return v
 
 
 def friction_terms(text: str) -> str | None:

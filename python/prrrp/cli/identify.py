@@ -161,20 +161,6 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     )
 
 
-def _coulomb_scale(text: str) -> str | float:
-    if text == "auto":
-        return text
-    try:
-        v = float(text)
-    except ValueError:
-        raise common.CliError(
-            f"--coulomb-scale must be auto or a number (rad/s), got {text!r}"
-        ) from None
-    if not (math.isfinite(v) and v >= 0):
-        raise common.CliError(f"--coulomb-scale must be finite and >= 0 rad/s, got {text}")
-    return v
-
-
 def _ekf_settings(args: argparse.Namespace) -> dict[str, float]:
     """The EKF's settings from --ekf-prior-width and --ekf-noise (checked)."""
     out: dict[str, float] = {}
@@ -212,7 +198,7 @@ def _setup(args: argparse.Namespace) -> tuple[Any, str | float, dict[str, Any]]:
         friction=common.friction_terms(args.friction),
         armature=True if args.armature else None,
     )
-    scale = _coulomb_scale(args.coulomb_scale)
+    scale = common.coulomb_scale(args.coulomb_scale)
     pre = {"cutoff_hz": args.cutoff, "rate_hz": args.rate, "decimate_to_hz": args.decimate}
     return robot, scale, pre
 

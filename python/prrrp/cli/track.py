@@ -53,14 +53,13 @@ def add_parser(sub: Any) -> None:
     )
     p.add_argument(
         "--coulomb-scale",
-        type=float,
-        metavar="V",
+        metavar="auto|V",
         help="with --robot: speed scale v_s (rad/s) of the smooth Coulomb term "
-        "fc·tanh(q̇/v_s), 0 = exact sign (default 0). `prrrp identify` chooses it from the "
-        "data by cross-validation, and --model carries that choice; from no knowledge the "
-        "online estimate cannot choose it (a choice from the whole log would let later "
-        "rows change earlier estimates), and a wrong one costs accuracy where the arm "
-        "reverses (docs/design/online.md)",
+        "fc·tanh(q̇/v_s), 0 = exact sign. auto (default): chosen online, causally, among "
+        "0, 0.003, 0.01, 0.03, 0.1 rad/s and the robot file's own, by each candidate's "
+        "one-step-ahead torque error from 5 s to 10 s after the first row (until then all "
+        "run; the estimates before the choice are the file's scale's). --model carries "
+        "the scale `prrrp identify` chose",
     )
     p.add_argument(
         "--model",
@@ -125,12 +124,7 @@ def run(args: argparse.Namespace) -> int:
     _positive("--ekf-noise", args.ekf_noise)
     if args.payload and not args.model:
         raise common.CliError("--payload tracks a load on a known arm: give its model with --model")
-    if args.coulomb_scale is not None and not (
-        math.isfinite(args.coulomb_scale) and args.coulomb_scale >= 0
-    ):
-        raise common.CliError(
-            f"--coulomb-scale must be finite and >= 0 rad/s, got {args.coulomb_scale}"
-        )
+    coulomb_scale = common.coulomb_scale(args.coulomb_scale)
     prior = load_model(args.model) if args.model else None
     if prior is not None:
         if args.robot:
@@ -147,7 +141,7 @@ def run(args: argparse.Namespace) -> int:
             base=args.base,
             tip=args.tip,
             friction=common.friction_terms(args.friction),
-            coulomb_scale=args.coulomb_scale or 0.0,
+            coulomb_scale=0.0 if coulomb_scale in (None, "auto") else coulomb_scale,
         )
     outdir.check(args.out)
     raw = read_measurements(args.data, robot, topic=args.topic)
@@ -161,6 +155,7 @@ def run(args: argparse.Namespace) -> int:
         cutoff_hz=args.cutoff,
         prior_width=args.prior_width,
         ekf_noise=args.ekf_noise,
+        coulomb_scale="auto" if prior is None and coulomb_scale in (None, "auto") else None,
     )
     run_ = track(online, raw, common.Progress())
     model = online.estimate()
@@ -314,6 +309,27 @@ def _payload_line(p: dict[str, Any]) -> str:
     )
 
 
+def _coulomb_line(settings: dict[str, Any]) -> str:
+    """The Coulomb scale used and, when it was chosen online, how."""
+    used = f"{settings['coulomb_scale']:g} rad/s"
+    search = settings.get("coulomb_search")
+    if search is None:
+        return used
+    if search["chosen"] is None:
+        return (
+            f"{used} (the robot's own: the log ended before the choice at "
+            f"{search['window_s'][1]:g} s)"
+        )
+    scores = ", ".join(
+        f"{v:g}: {'-' if s is None else f'{s:.4g}'}"
+        for v, s in zip(search["candidates"], search["scores"], strict=True)
+    )
+    return (
+        f"{used}, chosen online from the one-step-ahead errors of {search['window_s'][0]:g}"
+        f"–{search['window_s'][1]:g} s (score Σ ln mean e², lower is better; {scores})"
+    )
+
+
 def report(
     args: argparse.Namespace,
     online: prrrp.OnlineIdentifier,
@@ -335,6 +351,7 @@ def report(
         f"detection: {'off' if args.no_change_detection else 'on'}",
         f"- changes detected: {changes}"
         + (f" (t = {', '.join(f'{c:.4g}' for c in run_['changes'])} s)" if changes else ""),
+        f"- Coulomb speed scale v_s: {_coulomb_line(online.settings)}",
         "",
         "## One-step-ahead prediction",
         "",

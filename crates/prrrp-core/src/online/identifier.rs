@@ -3,6 +3,7 @@
 use nalgebra::{DMatrix, DVector};
 use serde_json::json;
 
+use super::coulomb_search::{CoulombSearch, Scores, ONLINE_COULOMB_SCALES};
 use super::detector::{ChangeDetection, ChangeDetector, ErrorCorrelation};
 use super::guard::{ChangeGuard, Verdict};
 use super::kinematics::{CausalKinematics, CausalLowPass};
@@ -17,7 +18,7 @@ use crate::estimators::{
     ParameterJacobian, RlsConfig, SampleOf,
 };
 use crate::identification::IdentifiedModel;
-use crate::models::chain::{BaseParameters, DynChain};
+use crate::models::chain::{BaseParameters, DynChain, FrictionModel};
 use crate::models::scaled::DynScaledModel;
 use crate::models::LinearModel;
 
@@ -126,6 +127,10 @@ pub struct OnlineConfig {
     pub step_size: f64,
     /// Seed of the random states the parameters are equilibrated on (default `0`).
     pub seed: u64,
+    /// From no knowledge: choose the Coulomb speed scale v_s online among
+    /// [`super::ONLINE_COULOMB_SCALES`] and the robot's own ([`CoulombSearch`]; default
+    /// `None`: the robot's own). Not with a prior model, which carries its scale.
+    pub coulomb_search: Option<CoulombSearch>,
 }
 
 impl Default for OnlineConfig {
@@ -146,6 +151,7 @@ impl Default for OnlineConfig {
             ekf_noise: 1.0,
             step_size: 0.5,
             seed: 0,
+            coulomb_search: None,
         }
     }
 }
@@ -181,6 +187,9 @@ impl OnlineConfig {
                     "the memory must be finite and > 0 s",
                 ));
             }
+        }
+        if let Some(c) = &self.coulomb_search {
+            c.validate()?;
         }
         if !(self.step_size > 0.0 && self.step_size < 2.0) {
             return Err(invalid("step_size", self.step_size, "must be in (0, 2)"));
@@ -378,6 +387,20 @@ pub struct OnlineIdentifier {
     updates: usize,
     repeated: usize,
     changes: usize,
+    /// The online choice of the Coulomb scale (`coulomb_search`): the other candidates
+    /// until the choice, then its record.
+    search: Option<Box<Search>>,
+}
+
+/// The candidates of [`CoulombSearch`] beside the identifier (candidate 0) and their
+/// scores.
+#[derive(Debug, Clone)]
+struct Search {
+    others: Vec<OnlineIdentifier>,
+    scores: Scores,
+    /// Each candidate's (change, updated) of the last row.
+    flags: Vec<(bool, bool)>,
+    chosen: Option<usize>,
 }
 
 impl OnlineIdentifier {
@@ -628,9 +651,63 @@ impl OnlineIdentifier {
             updates: 0,
             repeated: 0,
             changes: 0,
+            search: None,
         };
         out.refresh_outputs();
+        if let Some(search) = config.coulomb_search {
+            out.search = Self::candidates(chain, base, config, search, out.prior.is_some())?;
+        }
         Ok(out)
+    }
+
+    /// The other candidates of the Coulomb scale search (`None` for a robot without a
+    /// Coulomb term: nothing to choose).
+    fn candidates(
+        chain: &DynChain,
+        base: &BaseParameters,
+        config: OnlineConfig,
+        search: CoulombSearch,
+        prior: bool,
+    ) -> Result<Option<Box<Search>>> {
+        if prior {
+            return Err(invalid(
+                "coulomb_search",
+                f64::NAN,
+                "a prior model carries its Coulomb scale (chosen by identify); search \
+                 only from no knowledge",
+            ));
+        }
+        let friction = chain.friction();
+        if !friction.coulomb {
+            return Ok(None);
+        }
+        let own = friction.coulomb_smoothing;
+        let mut scales = vec![own];
+        scales.extend(ONLINE_COULOMB_SCALES.iter().filter(|v| **v != own));
+        let single = OnlineConfig {
+            coulomb_search: None,
+            ..config
+        };
+        let others = scales[1..]
+            .iter()
+            .map(|v| {
+                let model = FrictionModel {
+                    coulomb_smoothing: *v,
+                    ..friction
+                };
+                let c = chain
+                    .clone()
+                    .with_friction(model, chain.friction_params().to_vec())?;
+                Self::build(&c, base, None, single)
+            })
+            .collect::<Result<Vec<_>>>()?;
+        let k = scales.len();
+        Ok(Some(Box::new(Search {
+            others,
+            scores: Scores::new(search, scales, chain.dof()),
+            flags: vec![(false, false); k],
+            chosen: None,
+        })))
     }
 
     /// The settings.
@@ -730,6 +807,77 @@ impl OnlineIdentifier {
         tau: &[f64],
         qd: Option<&[f64]>,
     ) -> Result<OnlineUpdate<'_>> {
+        let (mut change, mut updated) = self.consume(t, q, tau, qd)?;
+        if self.search.as_ref().is_some_and(|s| s.chosen.is_none()) {
+            (change, updated) = self.search_row(t, q, tau, qd, (change, updated));
+        }
+        Ok(OnlineUpdate {
+            prediction: self.pred.as_slice(),
+            estimate: &self.out_estimate,
+            sigma: self.has_sigma.then_some(self.out_sigma.as_slice()),
+            change,
+            updated,
+        })
+    }
+
+    /// The other candidates of the Coulomb scale search take the row (which this
+    /// identifier has taken, with `flags`), their one-step-ahead errors are scored, and at
+    /// the end of the window the best takes this identifier's place. Returns the
+    /// (change, updated) flags of the identifier after the row. Allocation-free.
+    fn search_row(
+        &mut self,
+        t: f64,
+        q: &[f64],
+        tau: &[f64],
+        qd: Option<&[f64]>,
+        flags: (bool, bool),
+    ) -> (bool, bool) {
+        let Some(mut s) = self.search.take() else {
+            return flags;
+        };
+        let elapsed = s.scores.elapsed(t);
+        let scored = flags.1 && s.scores.scored(elapsed);
+        s.flags[0] = flags;
+        for (c, o) in s.others.iter_mut().enumerate() {
+            match o.consume(t, q, tau, qd) {
+                Ok(f) => {
+                    s.flags[c + 1] = f;
+                    if scored {
+                        s.scores.add(c + 1, tau, o.pred.as_slice());
+                    }
+                }
+                // The row was valid for this identifier: the candidate itself failed.
+                Err(_) => s.scores.fail(c + 1),
+            }
+        }
+        if scored {
+            s.scores.add(0, tau, self.pred.as_slice());
+            s.scores.row();
+        }
+        let mut out = flags;
+        if elapsed >= s.scores.search.at {
+            let best = s.scores.best();
+            if best > 0 {
+                std::mem::swap(self, &mut s.others[best - 1]);
+                out = s.flags[best];
+            }
+            self.config.coulomb_search = Some(s.scores.search);
+            s.others.clear();
+            s.chosen = Some(best);
+        }
+        self.search = Some(s);
+        out
+    }
+
+    /// [`OnlineIdentifier::update`] without the Coulomb scale search: the row's (change,
+    /// updated) flags.
+    fn consume(
+        &mut self,
+        t: f64,
+        q: &[f64],
+        tau: &[f64],
+        qd: Option<&[f64]>,
+    ) -> Result<(bool, bool)> {
         let n = self.n;
         for (what, v) in [("q", q), ("tau", tau)] {
             if v.len() != n {
@@ -864,13 +1012,7 @@ impl OnlineIdentifier {
                 e.has_prev = false;
             }
         }
-        Ok(OnlineUpdate {
-            prediction: self.pred.as_slice(),
-            estimate: &self.out_estimate,
-            sigma: self.has_sigma.then_some(self.out_sigma.as_slice()),
-            change,
-            updated,
-        })
+        Ok((change, updated))
     }
 
     /// `model_var`: per joint κ·φ_jᵀ·P·φ_j at the filtered row, the variance of the
@@ -1524,6 +1666,10 @@ impl OnlineIdentifier {
             v["anchored_updates"] = json!(e.ekf.anchored_updates());
         }
         v["sigma_correlation_factor"] = json!(self.correlation.factor());
+        v["coulomb_scale"] = json!(self.chain.friction().coulomb_smoothing);
+        if let Some(s) = &self.search {
+            v["coulomb_search"] = s.scores.report(s.chosen);
+        }
         v
     }
 }
