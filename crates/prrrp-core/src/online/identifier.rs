@@ -1401,11 +1401,13 @@ impl OnlineIdentifier {
         };
         let verdict = self.guard.row(
             dt,
+            self.t_prev.unwrap_or(0.0),
             &self.e_kept,
             &self.e_opened,
             d.variances(),
             &self.floor,
             c.holdoff,
+            c.holdoff + c.noise_window,
         );
         let (rls, payload) = (self.opened_rls.as_deref(), self.opened_payload.as_deref());
         match verdict {
