@@ -814,6 +814,19 @@ fn with_coulomb_scale(chain: &DynChain, v_s: f64) -> DynChain {
         .unwrap()
 }
 
+/// The Panda-like arm (exact sign), its base analysis, the arm with Coulomb friction
+/// smoothed at `v_s` rad/s, and settings with the default Coulomb scale search.
+fn coulomb_search_case(v_s: f64) -> (DynChain, BaseParameters, DynChain, OnlineConfig) {
+    let chain = panda_like();
+    let base = chain.base_parameters(&BaseOptions::default()).unwrap();
+    let truth = with_coulomb_scale(&chain, v_s);
+    let cfg = OnlineConfig {
+        coulomb_search: Some(CoulombSearch::default()),
+        ..Default::default()
+    };
+    (chain, base, truth, cfg)
+}
+
 /// From no knowledge, the robot given with the exact sign while the arm's Coulomb friction
 /// turns over within 0.03 rad/s: the online search picks 0.03, and from the choice on its
 /// estimates are bit for bit those of an identifier given that scale from the start (the
@@ -821,15 +834,9 @@ fn with_coulomb_scale(chain: &DynChain, v_s: f64) -> DynChain {
 /// than the exact sign's.
 #[test]
 fn the_coulomb_scale_is_chosen_online() {
-    let chain = panda_like();
-    let base = chain.base_parameters(&BaseOptions::default()).unwrap();
-    let truth = with_coulomb_scale(&chain, 0.03);
+    let (chain, base, truth, search) = coulomb_search_case(0.03);
     let lg = log(&truth, &truth, 21, 14.0, 500.0, None, (1e-5, 0.05));
     let val = log(&truth, &truth, 37, 10.0, 100.0, None, (0.0, 0.0));
-    let search = OnlineConfig {
-        coulomb_search: Some(CoulombSearch::default()),
-        ..Default::default()
-    };
     let mut id = OnlineIdentifier::new(&chain, &base, search).unwrap();
     let mut own = OnlineIdentifier::new(&chain, &base, OnlineConfig::default()).unwrap();
     let mut matched = OnlineIdentifier::new(&truth, &base, OnlineConfig::default()).unwrap();
@@ -868,14 +875,8 @@ fn the_coulomb_scale_is_chosen_online() {
 /// it) changes no estimate before them; a prior model with a search is refused.
 #[test]
 fn the_coulomb_scale_search_is_causal() {
-    let chain = panda_like();
-    let base = chain.base_parameters(&BaseOptions::default()).unwrap();
-    let truth = with_coulomb_scale(&chain, 0.01);
+    let (chain, base, truth, cfg) = coulomb_search_case(0.01);
     let a = log(&truth, &truth, 5, 12.0, 250.0, None, (1e-5, 0.05));
-    let cfg = OnlineConfig {
-        coulomb_search: Some(CoulombSearch::default()),
-        ..Default::default()
-    };
     for k0 in [750, 2750] {
         let mut ia = OnlineIdentifier::new(&chain, &base, cfg).unwrap();
         let mut ib = OnlineIdentifier::new(&chain, &base, cfg).unwrap();
