@@ -192,6 +192,15 @@ def run(args: argparse.Namespace) -> int:
         "one-step-ahead error over the last 20 % (% of RMS torque): "
         + ", ".join(f"{e:.3g}" for e in errs)
     )
+    search = online.settings.get("coulomb_search")
+    if search is not None:
+        end = search["window_s"][1]
+        how = (
+            "chosen online"
+            if search["chosen"] is not None
+            else f"the robot's: the log ended before the choice at {end:g} s"
+        )
+        print(f"Coulomb speed scale v_s = {online.settings['coulomb_scale']:g} rad/s ({how})")
     if payload is not None:
         print(f"payload: {_payload_line(payload)}")
     print(f"results in {args.out}/ ({len(written)} files: model.json, report.md, figures)")
@@ -318,7 +327,7 @@ def _coulomb_line(settings: dict[str, Any]) -> str:
     if search["chosen"] is None:
         return (
             f"{used} (the robot's own: the log ended before the choice at "
-            f"{search['window_s'][1]:g} s)"
+            f"{search['window_s'][1]:g} s after its first row)"
         )
     scores = ", ".join(
         f"{v:g}: {'-' if s is None else f'{s:.4g}'}"
