@@ -124,6 +124,7 @@ def run(args: argparse.Namespace) -> int:
     if args.payload and not args.model:
         raise common.CliError("--payload tracks a load on a known arm: give its model with --model")
     coulomb_scale = common.coulomb_scale(args.coulomb_scale)
+    fixed = coulomb_scale not in (None, "auto")
     prior = load_model(args.model) if args.model else None
     if prior is not None:
         if args.robot:
@@ -140,7 +141,7 @@ def run(args: argparse.Namespace) -> int:
             base=args.base,
             tip=args.tip,
             friction=common.friction_terms(args.friction),
-            coulomb_scale=0.0 if coulomb_scale in (None, "auto") else coulomb_scale,
+            coulomb_scale=coulomb_scale if fixed else 0.0,
         )
     outdir.check(args.out)
     raw = read_measurements(args.data, robot, topic=args.topic)
@@ -154,7 +155,7 @@ def run(args: argparse.Namespace) -> int:
         cutoff_hz=args.cutoff,
         prior_width=args.prior_width,
         ekf_noise=args.ekf_noise,
-        coulomb_scale="auto" if prior is None and coulomb_scale in (None, "auto") else None,
+        coulomb_scale=None if prior is not None or fixed else "auto",
     )
     run_ = track(online, raw, common.Progress())
     model = online.estimate()
@@ -191,15 +192,8 @@ def run(args: argparse.Namespace) -> int:
         "one-step-ahead error over the last 20 % (% of RMS torque): "
         + ", ".join(f"{e:.3g}" for e in errs)
     )
-    search = online.settings.get("coulomb_search")
-    if search is not None:
-        end = search["window_s"][1]
-        how = (
-            "chosen online"
-            if search["chosen"] is not None
-            else f"the robot's: the log ended before the choice at {end:g} s"
-        )
-        print(f"Coulomb speed scale v_s = {online.settings['coulomb_scale']:g} rad/s ({how})")
+    if online.settings.get("coulomb_search") is not None:
+        print(f"Coulomb speed scale v_s = {_coulomb_line(online.settings, scores=False)}")
     if payload is not None:
         print(f"payload: {_payload_line(payload)}")
     print(f"results in {args.out}/ ({len(written)} files: model.json, report.md, figures)")
@@ -317,8 +311,9 @@ def _payload_line(p: dict[str, Any]) -> str:
     )
 
 
-def _coulomb_line(settings: dict[str, Any]) -> str:
-    """The Coulomb scale used and, when it was chosen online, how."""
+def _coulomb_line(settings: dict[str, Any], scores: bool = True) -> str:
+    """The Coulomb scale used and, when it was chosen online, how (with each candidate's
+    score if ``scores``)."""
     used = f"{settings['coulomb_scale']:g} rad/s"
     search = settings.get("coulomb_search")
     if search is None:
@@ -328,14 +323,17 @@ def _coulomb_line(settings: dict[str, Any]) -> str:
             f"{used} (the robot's own: the log ended before the choice at "
             f"{search['window_s'][1]:g} s after its first row)"
         )
-    scores = ", ".join(
+    how = (
+        f"{used}, chosen online from the one-step-ahead errors of {search['window_s'][0]:g}"
+        f"–{search['window_s'][1]:g} s"
+    )
+    if not scores:
+        return how
+    listed = ", ".join(
         f"{v:g}: {'-' if s is None else f'{s:.4g}'}"
         for v, s in zip(search["candidates"], search["scores"], strict=True)
     )
-    return (
-        f"{used}, chosen online from the one-step-ahead errors of {search['window_s'][0]:g}"
-        f"–{search['window_s'][1]:g} s (score Σ ln mean e², lower is better; {scores})"
-    )
+    return f"{how} (score Σ ln mean e², lower is better; {listed})"
 
 
 def report(

@@ -398,7 +398,7 @@ pub struct OnlineIdentifier {
 struct Search {
     others: Vec<OnlineIdentifier>,
     scores: Scores,
-    /// Each candidate's (change, updated) of the last row.
+    /// Each other candidate's (change, updated) of the last row.
     flags: Vec<(bool, bool)>,
     chosen: Option<usize>,
 }
@@ -701,11 +701,10 @@ impl OnlineIdentifier {
                 Self::build(&c, base, None, single)
             })
             .collect::<Result<Vec<_>>>()?;
-        let k = scales.len();
         Ok(Some(Box::new(Search {
+            flags: vec![(false, false); others.len()],
             others,
             scores: Scores::new(search, scales, chain.dof()),
-            flags: vec![(false, false); k],
             chosen: None,
         })))
     }
@@ -837,11 +836,10 @@ impl OnlineIdentifier {
         };
         let elapsed = s.scores.elapsed(t);
         let scored = flags.1 && s.scores.scored(elapsed);
-        s.flags[0] = flags;
         for (c, o) in s.others.iter_mut().enumerate() {
             match o.consume(t, q, tau, qd) {
                 Ok(f) => {
-                    s.flags[c + 1] = f;
+                    s.flags[c] = f;
                     if scored {
                         s.scores.add(c + 1, tau, o.pred.as_slice());
                     }
@@ -859,7 +857,7 @@ impl OnlineIdentifier {
             let best = s.scores.best();
             if best > 0 {
                 std::mem::swap(self, &mut s.others[best - 1]);
-                out = s.flags[best];
+                out = s.flags[best - 1];
             }
             self.config.coulomb_search = Some(s.scores.search);
             s.others.clear();
