@@ -70,8 +70,10 @@ impl Forgetting {
 /// Recursive least squares over the rows of τ = Φ·λ.
 ///
 /// Each of the N joint equations of a sample is one scalar update (exactly equivalent to
-/// the vector update with unit noise covariance, and free of any matrix inversion); the
-/// forgetting factor is applied once per sample. Cost per sample ≈ N·(2P² + 4P) flops.
+/// the vector update with unit noise covariance, and free of any matrix inversion); their
+/// N rank-1 covariance terms are applied in one pass over P at the end of the sample (the
+/// later rows see the earlier ones' terms through P·φ − Σ q·(qᵀ·φ)); the forgetting factor
+/// is applied once per sample. Cost per sample ≈ N·(2P² + 4P) flops.
 /// One implementation for both size worlds (see [`Rls`], [`DynRls`]); all buffers are
 /// sized at construction.
 #[derive(Debug, Clone)]
@@ -87,8 +89,14 @@ where
     /// P₀ (δ·I unless set by [`RlsOf::set_initial_covariance`]).
     cov0: OMatrix<f64, P, P>,
     p_phi: OVector<f64, P>,
-    /// √|c|·P·φ of the rank-1 covariance update ([`sym_rank1_sub`]).
-    q_phi: OVector<f64, P>,
+    /// The rank-1 terms of one sample's rows, applied to P in one pass at its end
+    /// ([`sym_rank_sub`]): q_k = √|c_k|·P_k·φ_k (P entries each, row after row) and the
+    /// sign of c_k.
+    q_rows: Vec<f64>,
+    q_sign: Vec<f64>,
+    /// The non-zero entries of a regressor row: their columns and values.
+    nz_cols: Vec<usize>,
+    nz_vals: Vec<f64>,
     /// Whether the CPU runs the AVX2 copies of the kernels (detected once, at
     /// construction); they compute the same bits as the portable ones (no FMA).
     avx2: bool,
@@ -136,7 +144,10 @@ where
             cov0: cov.clone(),
             cov,
             p_phi: OVector::zeros_generic(p, nalgebra::U1),
-            q_phi: OVector::zeros_generic(p, nalgebra::U1),
+            q_rows: vec![0.0; p.value() * n.value()],
+            q_sign: vec![0.0; n.value()],
+            nz_cols: vec![0; p.value()],
+            nz_vals: vec![0.0; p.value()],
             avx2: cpu_has_avx2(),
             pred: OVector::zeros_generic(n, nalgebra::U1),
             samples: 0,
@@ -147,6 +158,38 @@ where
     /// λ̂ when the equation noise has variance σ².
     pub fn covariance(&self) -> &OMatrix<f64, P, P> {
         &self.cov
+    }
+
+    /// `out[j]` = φ_jᵀ·P·φ_j for each row φ_j of `phi` (units of τ² per unit of the
+    /// weighted equation error squared; ≥ 0): the variance the covariance gives each
+    /// joint's prediction at that regressor. Over the non-zero entries of each row, in the
+    /// update's vectorised kernel (`phi` in the estimator's parameter units).
+    /// Allocation-free.
+    ///
+    /// # Errors
+    /// [`PrrrpError::ShapeMismatch`] if `phi` does not have P columns or `out` one entry
+    /// per row.
+    pub fn row_variances(&mut self, phi: &OMatrix<f64, N, P>, out: &mut [f64]) -> Result<()> {
+        let np = self.fit.lambda.nrows();
+        if phi.ncols() != np || out.len() != phi.nrows() {
+            return Err(PrrrpError::ShapeMismatch {
+                what: "row_variances".into(),
+                expected: format!("a regressor of {np} columns and one output per row"),
+                got: format!("{}×{} and {} outputs", phi.nrows(), phi.ncols(), out.len()),
+            });
+        }
+        let p_phi = self.p_phi.as_mut_slice();
+        for (j, v) in out.iter_mut().enumerate() {
+            let nz = gather_row(phi, j, &mut self.nz_cols, &mut self.nz_vals);
+            let (cols, vals) = (&self.nz_cols[..nz], &self.nz_vals[..nz]);
+            cov_times(self.avx2, self.cov.as_slice(), cols, vals, p_phi);
+            let mut acc = 0.0;
+            for (&c, &f) in cols.iter().zip(vals) {
+                acc += f * p_phi[c];
+            }
+            *v = acc.max(0.0);
+        }
+        Ok(())
     }
 
     /// Number of samples consumed since construction or the last reset.
@@ -264,6 +307,7 @@ where
             Forgetting::Directional(nu) if nu < 1.0 => Some(nu),
             _ => None,
         };
+        let mut m = 0;
         for i in 0..n {
             let w = weights[i];
             if w == 0.0 {
@@ -273,14 +317,17 @@ where
             if s != 1.0 {
                 self.fit.phi.row_mut(i).scale_mut(s);
             }
-            let ok = match directional {
-                Some(nu) => self.update_row_directional(i, sample.tau[i] * s, nu),
-                None => self.update_row(i, sample.tau[i] * s),
-            };
-            if !ok {
+            if !self.update_row(i, sample.tau[i] * s, directional, &mut m) {
                 return Err(diverged(self.samples));
             }
         }
+        let np = self.fit.lambda.nrows();
+        sym_rank_sub(
+            self.avx2,
+            self.cov.as_mut_slice(),
+            &self.q_rows[..m * np],
+            &self.q_sign[..m],
+        );
         if let Forgetting::Exponential(nu) = forgetting {
             if nu != 1.0 {
                 self.cov /= nu;
@@ -293,64 +340,73 @@ where
         Ok(&self.fit.lambda)
     }
 
-    /// The scalar update with row `row` and directional forgetting ν (see
-    /// [`Forgetting`]): with p = P·φ and r = φᵀ·p, λ ← λ + p·e/(r + ν) and
-    /// P ← P − β·p·pᵀ/(r + ν), β = 1 − (1 − ν)/r. A row with r = 0 (no regressor, or a
-    /// direction already known exactly) is the plain update.
+    /// The scalar update with row `row` of the stored regressor, the `m`-th of its sample
+    /// to update: with p = P·φ and r = φᵀ·p, λ ← λ + p·e/d and P ← P − c·p·pᵀ. Without
+    /// forgetting (`directional` `None`) d = 1 + r, c = 1/d. With directional forgetting ν
+    /// (see [`Forgetting`]) d = r + ν, c = β/d, β = 1 − (1 − ν)/r (a row with r = 0: no
+    /// regressor, or a direction already known exactly, is the plain update). P is the
+    /// covariance after the sample's earlier rows: the one stored less their rank-1 terms,
+    /// which are applied at the end of the sample in one pass ([`sym_rank_sub`]); this row's
+    /// term is added to them. `false` if P lost positive definiteness.
     #[inline(always)]
-    fn update_row_directional(&mut self, row: usize, tau: f64, nu: f64) -> bool {
+    fn update_row(
+        &mut self,
+        row: usize,
+        tau: f64,
+        directional: Option<f64>,
+        m: &mut usize,
+    ) -> bool {
         let np = self.fit.lambda.nrows();
-        let (phi, cov, p_phi) = (&self.fit.phi, &mut self.cov, &mut self.p_phi);
-        cov_times_row(self.avx2, cov.as_slice(), phi, row, p_phi.as_mut_slice());
+        let nz = gather_row(&self.fit.phi, row, &mut self.nz_cols, &mut self.nz_vals);
+        let (cols, vals) = (&self.nz_cols[..nz], &self.nz_vals[..nz]);
+        let p_phi = self.p_phi.as_mut_slice();
+        cov_times(self.avx2, self.cov.as_slice(), cols, vals, p_phi);
+        // P_k·φ = P·φ − Σ_k s_k·q_k·(q_kᵀ·φ) over the earlier rows k of the sample.
+        for k in 0..*m {
+            let qk = &self.q_rows[k * np..(k + 1) * np];
+            let mut a = 0.0;
+            for (&c, &f) in cols.iter().zip(vals) {
+                a += f * qk[c];
+            }
+            axpy(self.avx2, -self.q_sign[k] * a, qk, p_phi);
+        }
         let (mut r, mut pred) = (0.0, 0.0);
-        for j in 0..np {
-            r += phi[(row, j)] * p_phi[j];
-            pred += phi[(row, j)] * self.fit.lambda[j];
+        for (&c, &f) in cols.iter().zip(vals) {
+            r += f * p_phi[c];
+            pred += f * self.fit.lambda[c];
         }
-        if !r.is_finite() || r < 0.0 {
-            return false;
-        }
-        let (den, beta) = if r > 0.0 {
-            (r + nu, 1.0 - (1.0 - nu) / r)
-        } else {
-            (1.0 + r, 1.0)
+        let (den, beta) = match directional {
+            Some(nu) => {
+                if !r.is_finite() || r < 0.0 {
+                    return false;
+                }
+                if r > 0.0 {
+                    (r + nu, 1.0 - (1.0 - nu) / r)
+                } else {
+                    (1.0 + r, 1.0)
+                }
+            }
+            None => {
+                let den = 1.0 + r;
+                if !(den > 0.0 && den.is_finite()) {
+                    return false;
+                }
+                (den, 1.0)
+            }
         };
         let e = tau - pred;
-        self.fit.lambda.axpy(e / den, p_phi, 1.0);
-        sym_rank1_sub(
-            self.avx2,
-            cov.as_mut_slice(),
-            p_phi.as_slice(),
-            beta / den,
-            self.q_phi.as_mut_slice(),
-        );
-        true
-    }
-
-    /// The scalar update with row `row` of the stored regressor.
-    #[inline(always)]
-    fn update_row(&mut self, row: usize, tau: f64) -> bool {
-        let np = self.fit.lambda.nrows();
-        let (phi, cov, p_phi) = (&self.fit.phi, &mut self.cov, &mut self.p_phi);
-        cov_times_row(self.avx2, cov.as_slice(), phi, row, p_phi.as_mut_slice());
-        let (mut den, mut pred) = (1.0, 0.0);
-        for j in 0..np {
-            den += phi[(row, j)] * p_phi[j];
-            pred += phi[(row, j)] * self.fit.lambda[j];
-        }
-        if !(den > 0.0 && den.is_finite()) {
-            return false;
-        }
-        let e = tau - pred;
         let inv = 1.0 / den;
-        self.fit.lambda.axpy(e * inv, p_phi, 1.0);
-        sym_rank1_sub(
-            self.avx2,
-            cov.as_mut_slice(),
-            p_phi.as_slice(),
-            inv,
-            self.q_phi.as_mut_slice(),
-        );
+        self.fit.lambda.axpy(e * inv, &self.p_phi, 1.0);
+        let c = beta * inv;
+        if c != 0.0 {
+            let root = c.abs().sqrt();
+            let q = &mut self.q_rows[*m * np..(*m + 1) * np];
+            for (qv, &pv) in q.iter_mut().zip(self.p_phi.iter()) {
+                *qv = root * pv;
+            }
+            self.q_sign[*m] = c.signum();
+            *m += 1;
+        }
         true
     }
 }
@@ -366,26 +422,91 @@ fn cpu_has_avx2() -> bool {
     }
 }
 
-/// p = P·φ for row `row` of `phi` (P column-major, d×d), over the non-zero entries of φ
-/// only (regressor rows are sparse: a joint's row has no entries of the links before it).
+/// The non-zero entries of row `row` of `phi` into `cols` and `vals` (each at least as long
+/// as a row); returns their count. Regressor rows are sparse: a joint's row has no entries
+/// of the links before it.
 #[inline(always)]
-fn cov_times_row<N: Dim, P: Dim>(
-    avx2: bool,
-    cov: &[f64],
+fn gather_row<N: Dim, P: Dim>(
     phi: &OMatrix<f64, N, P>,
     row: usize,
-    p: &mut [f64],
-) where
+    cols: &mut [usize],
+    vals: &mut [f64],
+) -> usize
+where
     DefaultAllocator: Allocator<N, P>,
 {
-    p.fill(0.0);
-    let d = p.len();
-    for j in 0..d {
-        let f = phi[(row, j)];
+    let mut nz = 0;
+    for c in 0..phi.ncols() {
+        let f = phi[(row, c)];
         if f != 0.0 {
-            axpy(avx2, f, &cov[j * d..j * d + d], p);
+            cols[nz] = c;
+            vals[nz] = f;
+            nz += 1;
         }
     }
+    nz
+}
+
+/// Rows per register block of the kernels below: 32 f64, eight AVX2 registers, summed in
+/// registers and stored once (the column-by-column axpy they replace stored every partial
+/// sum, and the stores bounded its speed). Eight independent sums, not four: each sum
+/// waits for its previous add, and four left the adder idle half the time (perf).
+const BLOCK: usize = 32;
+
+/// p = P·φ over the non-zero entries of φ (`cols`, `vals`), P column-major d×d, d =
+/// `p.len()`. Each entry sums the products in the order of `cols`, from 0.
+#[inline(always)]
+fn cov_times(avx2: bool, cov: &[f64], cols: &[usize], vals: &[f64], p: &mut [f64]) {
+    /// Entries `start..start + L` of p.
+    #[inline(always)]
+    fn block<const L: usize>(
+        cov: &[f64],
+        cols: &[usize],
+        vals: &[f64],
+        start: usize,
+        p: &mut [f64],
+    ) {
+        let d = p.len();
+        let mut acc = [0.0; L];
+        for (&c, &f) in cols.iter().zip(vals) {
+            let col: &[f64; L] = cov[c * d + start..c * d + start + L]
+                .try_into()
+                .expect("a block of L entries");
+            for l in 0..L {
+                acc[l] += f * col[l];
+            }
+        }
+        p[start..start + L].copy_from_slice(&acc);
+    }
+    #[inline(always)]
+    fn body(cov: &[f64], cols: &[usize], vals: &[f64], p: &mut [f64]) {
+        let d = p.len();
+        let mut start = 0;
+        while start + BLOCK <= d {
+            block::<BLOCK>(cov, cols, vals, start, p);
+            start += BLOCK;
+        }
+        while start + 4 <= d {
+            block::<4>(cov, cols, vals, start, p);
+            start += 4;
+        }
+        while start < d {
+            block::<1>(cov, cols, vals, start, p);
+            start += 1;
+        }
+    }
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    unsafe fn wide(cov: &[f64], cols: &[usize], vals: &[f64], p: &mut [f64]) {
+        body(cov, cols, vals, p)
+    }
+    #[cfg(target_arch = "x86_64")]
+    if avx2 {
+        // SAFETY: `avx2` is set only when the CPU reports AVX2.
+        return unsafe { wide(cov, cols, vals, p) };
+    }
+    let _ = avx2;
+    body(cov, cols, vals, p)
 }
 
 /// y ← y + f·x.
@@ -411,39 +532,87 @@ fn axpy(avx2: bool, f: f64, x: &[f64], y: &mut [f64]) {
     body(f, x, y)
 }
 
-/// P ← P − c·p·pᵀ (P column-major d×d, symmetric) on whole columns, as P − s·q·qᵀ with
-/// q = √|c|·p and s the sign of c: entries (i, j) and (j, i) subtract the same product
-/// q_i·q_j, so P stays exactly symmetric without mirroring. Contiguous columns vectorise,
-/// where the upper triangle with its strided mirror writes (half the multiplies) did not
-/// and cost twice as much. `q` is scratch of length d.
+/// P ← P − Σ_k s_k·q_k·q_kᵀ (P column-major d×d, symmetric; `q` the q_k one after the
+/// other, d entries each; `sign` the s_k = ±1), one pass over P whatever the number of
+/// terms. Entry (i, j) subtracts Σ_k q_k,i·(s_k·q_k,j) and entry (j, i) the same products
+/// in the same order (s_k only flips signs), so P stays exactly symmetric without
+/// mirroring.
 #[inline(always)]
-fn sym_rank1_sub(avx2: bool, cov: &mut [f64], p: &[f64], c: f64, q: &mut [f64]) {
+fn sym_rank_sub(avx2: bool, cov: &mut [f64], q: &[f64], sign: &[f64]) {
     #[inline(always)]
-    fn body(cov: &mut [f64], p: &[f64], c: f64, q: &mut [f64]) {
-        let d = p.len();
-        let r = c.abs().sqrt();
-        for (qv, &pv) in q.iter_mut().zip(p) {
-            *qv = r * pv;
+    fn body(cov: &mut [f64], q: &[f64], sign: &[f64]) {
+        let m = sign.len();
+        if m == 0 {
+            return;
         }
-        for j in 0..d {
-            let qj = if c < 0.0 { -q[j] } else { q[j] };
-            for (x, &qi) in cov[j * d..j * d + d].iter_mut().zip(q.iter()) {
-                *x -= qi * qj;
+        let d = q.len() / m;
+        let mut t = [0.0; 64];
+        if m > t.len() {
+            // More rows than a sample of any arm has: one term at a time.
+            for k in 0..m {
+                sym_rank_sub_body(cov, &q[k * d..(k + 1) * d], &sign[k..k + 1], d, &mut t);
             }
+            return;
         }
+        sym_rank_sub_body(cov, q, sign, d, &mut t);
     }
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
-    unsafe fn wide(cov: &mut [f64], p: &[f64], c: f64, q: &mut [f64]) {
-        body(cov, p, c, q)
+    unsafe fn wide(cov: &mut [f64], q: &[f64], sign: &[f64]) {
+        body(cov, q, sign)
     }
     #[cfg(target_arch = "x86_64")]
     if avx2 {
         // SAFETY: `avx2` is set only when the CPU reports AVX2.
-        return unsafe { wide(cov, p, c, q) };
+        return unsafe { wide(cov, q, sign) };
     }
     let _ = avx2;
-    body(cov, p, c, q)
+    body(cov, q, sign)
+}
+
+/// [`sym_rank_sub`] for at most `t.len()` terms.
+#[inline(always)]
+fn sym_rank_sub_body(cov: &mut [f64], q: &[f64], sign: &[f64], d: usize, t: &mut [f64]) {
+    /// Entries `start..start + L` of a column, `t` its factors s_k·q_k,j.
+    #[inline(always)]
+    fn block<const L: usize>(col: &mut [f64], q: &[f64], t: &[f64], d: usize, start: usize) {
+        let mut acc = [0.0; L];
+        for (k, &tk) in t.iter().enumerate() {
+            let qk: &[f64; L] = q[k * d + start..k * d + start + L]
+                .try_into()
+                .expect("a block of L entries");
+            for l in 0..L {
+                acc[l] += qk[l] * tk;
+            }
+        }
+        let out: &mut [f64; L] = (&mut col[start..start + L])
+            .try_into()
+            .expect("a block of L entries");
+        for l in 0..L {
+            out[l] -= acc[l];
+        }
+    }
+    let m = sign.len();
+    for j in 0..d {
+        for k in 0..m {
+            t[k] = sign[k] * q[k * d + j];
+        }
+        let t = &t[..m];
+        let col = &mut cov[j * d..(j + 1) * d];
+        let mut start = 0;
+        while start + BLOCK <= d {
+            block::<BLOCK>(col, q, t, d, start);
+            start += BLOCK;
+        }
+        while start + 4 <= d {
+            block::<4>(col, q, t, d, start);
+            start += 4;
+        }
+        while start < d {
+            block::<1>(col, q, t, d, start);
+            start += 1;
+        }
+    }
 }
 
 impl<M, N: Dim, P: Dim> Estimator<N, P> for RlsOf<M, N, P>
@@ -463,11 +632,19 @@ where
         let n = self.fit.phi.nrows();
         sample.check(n)?;
         self.fit.load_regressor(&sample)?;
+        let mut m = 0;
         for i in 0..n {
-            if !self.update_row(i, sample.tau[i]) {
+            if !self.update_row(i, sample.tau[i], None, &mut m) {
                 return Err(diverged(self.samples));
             }
         }
+        let np = self.fit.lambda.nrows();
+        sym_rank_sub(
+            self.avx2,
+            self.cov.as_mut_slice(),
+            &self.q_rows[..m * np],
+            &self.q_sign[..m],
+        );
         if self.config.forgetting != 1.0 {
             self.cov /= self.config.forgetting;
         }
@@ -568,40 +745,155 @@ mod tests {
         (*state >> 11) as f64 / (1u64 << 52) as f64 - 1.0
     }
 
-    /// The kernels of the scalar update against the textbook formulas on random data:
-    /// p = P·φ (φ with zeros, as regressor rows have), P − c·p·pᵀ for c of both signs;
-    /// the AVX2 copies give the portable ones' bits, and P stays exactly symmetric.
+    /// The kernels against nalgebra on random data: p = P·φ over φ's non-zeros (φ with
+    /// zeros, as regressor rows have) and P − Σ_k s_k·q_k·q_kᵀ for terms of both signs; the
+    /// AVX2 copies give the portable ones' bits, and P stays exactly symmetric.
     #[test]
     fn kernels_match_the_straightforward_formulas() {
         let mut st = 0x2545_F491_4F6C_DD1Du64;
-        for d in [1usize, 3, 8, 64, 67] {
+        for d in [1usize, 3, 8, 16, 64, 67, 70] {
             let a = DMatrix::from_fn(d, d, |_, _| uniform(&mut st));
             let cov = &a * a.transpose() + DMatrix::identity(d, d);
             let phi =
                 DMatrix::from_fn(1, d, |_, j| if j % 3 == 1 { 0.0 } else { uniform(&mut st) });
             let want_p = &cov * phi.row(0).transpose();
+            let (mut cols, mut vals) = (vec![0; d], vec![0.0; d]);
+            let nz = gather_row(&phi, 0, &mut cols, &mut vals);
+            assert_eq!(nz, (0..d).filter(|j| j % 3 != 1).count());
+            let mut first = None;
             for avx2 in [false, cpu_has_avx2()] {
                 let mut p = vec![0.0; d];
-                cov_times_row(avx2, cov.as_slice(), &phi, 0, &mut p);
+                cov_times(avx2, cov.as_slice(), &cols[..nz], &vals[..nz], &mut p);
                 for i in 0..d {
                     let tol = 1e-14 * (cov.column(i).amax() * phi.amax() * d as f64);
                     assert!((p[i] - want_p[i]).abs() <= tol, "d {d} p[{i}]");
                 }
-                for c in [0.37, -0.21] {
-                    let pv = DVector::from_column_slice(&p);
-                    let want = &cov - &pv * pv.transpose() * c;
-                    let mut got = cov.clone();
-                    let mut q = vec![0.0; d];
-                    sym_rank1_sub(avx2, got.as_mut_slice(), &p, c, &mut q);
-                    assert_eq!(got, got.transpose(), "d {d} c {c}: not symmetric");
-                    let scale = cov.amax() + c.abs() * pv.amax().powi(2);
-                    let err = (&got - &want).amax();
-                    assert!(err <= 4.0 * f64::EPSILON * scale, "d {d} c {c}: {err}");
-                    let mut portable = cov.clone();
-                    sym_rank1_sub(false, portable.as_mut_slice(), &p, c, &mut q);
-                    assert_eq!(got, portable, "d {d} c {c}: AVX2 and portable differ");
+                assert_eq!(
+                    *first.get_or_insert_with(|| p.clone()),
+                    p,
+                    "d {d}: AVX2 differs"
+                );
+            }
+            for m in [1usize, 2, 7] {
+                let q: Vec<f64> = (0..m * d).map(|_| uniform(&mut st)).collect();
+                let sign: Vec<f64> = (0..m)
+                    .map(|k| if k % 2 == 0 { 1.0 } else { -1.0 })
+                    .collect();
+                let mut want = cov.clone();
+                for k in 0..m {
+                    let qk = DVector::from_column_slice(&q[k * d..(k + 1) * d]);
+                    want -= &qk * qk.transpose() * sign[k];
                 }
+                let mut portable = cov.clone();
+                sym_rank_sub(false, portable.as_mut_slice(), &q, &sign);
+                let mut got = cov.clone();
+                sym_rank_sub(cpu_has_avx2(), got.as_mut_slice(), &q, &sign);
+                assert_eq!(got, got.transpose(), "d {d} m {m}: not symmetric");
+                assert_eq!(got, portable, "d {d} m {m}: AVX2 and portable differ");
+                let err = (&got - &want).amax();
+                let scale = cov.amax() + m as f64;
+                assert!(err <= 8.0 * f64::EPSILON * scale, "d {d} m {m}: {err}");
             }
         }
+    }
+
+    /// A sample's rows applied to P in one pass at its end give the textbook sequence of
+    /// scalar updates (each row with P after the rows before it), without forgetting and
+    /// with directional forgetting whose β is negative on some rows (P grows along
+    /// them), on the PUMA 560's regressor rows with weights (one joint skipped).
+    #[test]
+    fn one_pass_update_equals_the_sequential_updates() {
+        use crate::{BaseOptions, SerialChain};
+        let chain = SerialChain::puma560().to_dyn();
+        let base = chain.base_parameters(&BaseOptions::default()).unwrap();
+        let (n, p) = (chain.dof(), base.count());
+        let mut st = 0x1234_5678_9ABC_DEF1u64;
+        let a = DMatrix::from_fn(p, p, |_, _| uniform(&mut st));
+        let mut negative_beta = false;
+        for (forgetting, scale) in [
+            (Forgetting::None, 1.0),
+            (Forgetting::Directional(0.9), 1.0),
+            (Forgetting::Directional(0.9), 1e-4),
+        ] {
+            let p0 = (&a * a.transpose() / p as f64 + DMatrix::identity(p, p)) * scale;
+            let p0 = (&p0 + p0.transpose()) * 0.5;
+            let lam0 = DVector::from_fn(p, |_, _| uniform(&mut st));
+            let model = chain.base_model(&base).unwrap();
+            let mut rls = RlsOf::new(model, lam0.clone(), RlsConfig::default()).unwrap();
+            rls.set_initial_covariance(&p0).unwrap();
+            let (mut want_cov, mut want_lam) = (p0.clone(), lam0.clone());
+            for sample in 0..3 {
+                let q = DVector::from_fn(n, |_, _| uniform(&mut st));
+                let qd = DVector::from_fn(n, |_, _| uniform(&mut st));
+                let qdd = DVector::from_fn(n, |_, _| uniform(&mut st));
+                let tau = DVector::from_fn(n, |_, _| 10.0 * uniform(&mut st));
+                let w = DVector::from_fn(n, |j, _| if j == 2 { 0.0 } else { 0.5 + j as f64 });
+                rls.update_weighted(SampleOf::new(&q, &qd, &qdd, &tau), &w, forgetting)
+                    .unwrap();
+                // The rows the update used (scaled by √w).
+                let phi = rls.fit.phi.clone();
+                for i in (0..n).filter(|&i| w[i] != 0.0) {
+                    let f = phi.row(i).transpose();
+                    let pf = &want_cov * &f;
+                    let r = f.dot(&pf);
+                    let (den, beta) = match forgetting {
+                        Forgetting::Directional(nu) if r > 0.0 => (r + nu, 1.0 - (1.0 - nu) / r),
+                        _ => (1.0 + r, 1.0),
+                    };
+                    negative_beta |= beta < 0.0;
+                    let e = tau[i] * w[i].sqrt() - f.dot(&want_lam);
+                    want_lam += &pf * (e / den);
+                    want_cov -= &pf * pf.transpose() * (beta / den);
+                }
+                let cov = rls.covariance();
+                assert_eq!(cov, &cov.transpose(), "sample {sample}: not symmetric");
+                let err = (cov - &want_cov).amax() / want_cov.amax();
+                assert!(
+                    err < 1e-10,
+                    "{forgetting:?} sample {sample}: P off by {err:e}"
+                );
+                let err = (rls.estimate() - &want_lam).amax() / want_lam.amax();
+                assert!(
+                    err < 1e-10,
+                    "{forgetting:?} sample {sample}: λ off by {err:e}"
+                );
+            }
+        }
+        assert!(negative_beta, "no row took the β < 0 branch");
+    }
+
+    /// φ_jᵀ·P·φ_j of every regressor row against nalgebra's products, on a random SPD P
+    /// and rows with zeros (as a chain's have), in both kernels.
+    #[test]
+    fn row_variances_are_the_quadratic_forms() {
+        use crate::{BaseOptions, SerialChain};
+        let chain = SerialChain::puma560().to_dyn();
+        let base = chain.base_parameters(&BaseOptions::default()).unwrap();
+        let model = chain.base_model(&base).unwrap();
+        let (n, p) = (chain.dof(), base.count());
+        let mut rls = RlsOf::new(model, DVector::zeros(p), RlsConfig::default()).unwrap();
+        let mut st = 0x9E37_79B9_7F4A_7C15u64;
+        let a = DMatrix::from_fn(p, p, |_, _| uniform(&mut st));
+        let cov = &a * a.transpose() + DMatrix::identity(p, p) * 0.1;
+        let cov = (&cov + cov.transpose()) * 0.5;
+        rls.set_initial_covariance(&cov).unwrap();
+        let phi = DMatrix::from_fn(n, p, |j, c| if c < 2 * j { 0.0 } else { uniform(&mut st) });
+        for avx2 in [false, cpu_has_avx2()] {
+            rls.avx2 = avx2;
+            let mut out = vec![0.0; n];
+            rls.row_variances(&phi, &mut out).unwrap();
+            for (j, got) in out.iter().enumerate() {
+                let r = phi.row(j).transpose();
+                let want = (r.transpose() * &cov * &r)[(0, 0)];
+                let scale = (r.abs().transpose() * cov.abs() * r.abs())[(0, 0)];
+                assert!(
+                    (got - want).abs() <= 1e-13 * scale,
+                    "row {j}: {got} vs {want}"
+                );
+                assert!(want > 0.0);
+            }
+        }
+        let mut short = vec![0.0; n - 1];
+        assert!(rls.row_variances(&phi, &mut short).is_err());
     }
 }

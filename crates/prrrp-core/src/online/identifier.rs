@@ -1041,9 +1041,9 @@ impl OnlineIdentifier {
             }
         }
         let (phi, out) = (&self.phi, &mut self.model_var);
-        match &self.engine {
-            Engine::Rls(r) => quad_rows(phi, out, |i, j| r.covariance()[(i, j)]),
-            Engine::Ekf(e) => quad_rows(phi, out, |i, j| e.rls.covariance()[(i, j)]),
+        match &mut self.engine {
+            Engine::Rls(r) => r.row_variances(phi, out)?,
+            Engine::Ekf(e) => e.rls.row_variances(phi, out)?,
             Engine::PayloadEkf(e) => quad_rows(phi, out, |i, j| e.covariance(i, j)),
             Engine::Adaline(_) | Engine::Hopfield(_) => {}
         }
