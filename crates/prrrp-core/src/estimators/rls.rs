@@ -453,6 +453,18 @@ where
 /// waits for its previous add, and four left the adder idle half the time (perf).
 const BLOCK: usize = 32;
 
+/// The register blocks of a column of `d` entries, (start, length): [`BLOCK`] entries while
+/// they fit, then 4 (one AVX2 register), then single entries.
+#[inline(always)]
+fn blocks(d: usize) -> impl Iterator<Item = (usize, usize)> {
+    let mut start = 0;
+    std::iter::from_fn(move || {
+        let len = [BLOCK, 4, 1].into_iter().find(|&l| start + l <= d)?;
+        start += len;
+        Some((start - len, len))
+    })
+}
+
 /// p = P·φ over the non-zero entries of φ (`cols`, `vals`), P column-major d×d, d =
 /// `p.len()`. Each entry sums the products in the order of `cols`, from 0.
 #[inline(always)]
@@ -480,19 +492,12 @@ fn cov_times(avx2: bool, cov: &[f64], cols: &[usize], vals: &[f64], p: &mut [f64
     }
     #[inline(always)]
     fn body(cov: &[f64], cols: &[usize], vals: &[f64], p: &mut [f64]) {
-        let d = p.len();
-        let mut start = 0;
-        while start + BLOCK <= d {
-            block::<BLOCK>(cov, cols, vals, start, p);
-            start += BLOCK;
-        }
-        while start + 4 <= d {
-            block::<4>(cov, cols, vals, start, p);
-            start += 4;
-        }
-        while start < d {
-            block::<1>(cov, cols, vals, start, p);
-            start += 1;
+        for (start, len) in blocks(p.len()) {
+            match len {
+                BLOCK => block::<BLOCK>(cov, cols, vals, start, p),
+                4 => block::<4>(cov, cols, vals, start, p),
+                _ => block::<1>(cov, cols, vals, start, p),
+            }
         }
     }
     #[cfg(target_arch = "x86_64")]
@@ -599,18 +604,12 @@ fn sym_rank_sub_body(cov: &mut [f64], q: &[f64], sign: &[f64], d: usize, t: &mut
         }
         let t = &t[..m];
         let col = &mut cov[j * d..(j + 1) * d];
-        let mut start = 0;
-        while start + BLOCK <= d {
-            block::<BLOCK>(col, q, t, d, start);
-            start += BLOCK;
-        }
-        while start + 4 <= d {
-            block::<4>(col, q, t, d, start);
-            start += 4;
-        }
-        while start < d {
-            block::<1>(col, q, t, d, start);
-            start += 1;
+        for (start, len) in blocks(d) {
+            match len {
+                BLOCK => block::<BLOCK>(col, q, t, d, start),
+                4 => block::<4>(col, q, t, d, start),
+                _ => block::<1>(col, q, t, d, start),
+            }
         }
     }
 }
