@@ -321,13 +321,7 @@ where
                 return Err(diverged(self.samples));
             }
         }
-        let np = self.fit.lambda.nrows();
-        sym_rank_sub(
-            self.avx2,
-            self.cov.as_mut_slice(),
-            &self.q_rows[..m * np],
-            &self.q_sign[..m],
-        );
+        self.apply_row_terms(m);
         if let Forgetting::Exponential(nu) = forgetting {
             if nu != 1.0 {
                 self.cov /= nu;
@@ -338,6 +332,14 @@ where
         }
         self.samples += 1;
         Ok(&self.fit.lambda)
+    }
+
+    /// P ← P − Σ_k s_k·q_k·q_kᵀ over the `m` rank-1 terms the sample's rows stored.
+    #[inline(always)]
+    fn apply_row_terms(&mut self, m: usize) {
+        let np = self.fit.lambda.nrows();
+        let (q, sign) = (&self.q_rows[..m * np], &self.q_sign[..m]);
+        sym_rank_sub(self.avx2, self.cov.as_mut_slice(), q, sign);
     }
 
     /// The scalar update with row `row` of the stored regressor, the `m`-th of its sample
@@ -637,13 +639,7 @@ where
                 return Err(diverged(self.samples));
             }
         }
-        let np = self.fit.lambda.nrows();
-        sym_rank_sub(
-            self.avx2,
-            self.cov.as_mut_slice(),
-            &self.q_rows[..m * np],
-            &self.q_sign[..m],
-        );
+        self.apply_row_terms(m);
         if self.config.forgetting != 1.0 {
             self.cov /= self.config.forgetting;
         }
