@@ -153,6 +153,30 @@ def test_bad_input_is_a_typed_error(setup):
         prrrp.OnlineIdentifier()
 
 
+@pytest.mark.parametrize("method", ["rls", "ekf"])
+def test_a_torque_channel_that_reads_zero_teaches_nothing(setup, method):
+    """Torques exactly 0 while the arm moves (a channel not connected, a zeroed sensor not
+    yet streaming): a joint without any torque yet has no scale for its noise and its
+    equation is left out. Weighted 1/1e-300 instead, the first one overflowed the
+    estimator: "diverged at sample 0" on every such log, with or without a prior."""
+    chain, prior, run, _ = setup
+    rows = int(2 * RATE)
+    zero = np.zeros(chain.dof)
+    for start in (None, prior):
+        online = prrrp.OnlineIdentifier(
+            chain if start is None else None, prior=start, method=method
+        )
+        before = np.array(online.parameters)
+        for k in range(rows):
+            out = online.update(run["t"][k], run["q"][k], zero)
+        assert online.counts[1] > 0
+        assert out["updated"]
+        if method == "rls" or start is None:
+            # Nothing was learned: no equation carried a torque (the estimate only goes
+            # through the RLS's parameter scaling and back, a last-bit round trip).
+            np.testing.assert_allclose(online.parameters, before, rtol=1e-12, atol=0)
+
+
 def _write_csv(path, log):
     n = log["q"].shape[1]
     header = ["t", *(f"q{j + 1}" for j in range(n)), *(f"tau{j + 1}" for j in range(n))]

@@ -1062,7 +1062,15 @@ impl OnlineIdentifier {
                 Some(d) => d.variances()[j],
                 None => self.noise.variances()[j],
             };
-            self.weights[j] = 1.0 / v.max(self.floor[j]);
+            // A joint whose torque has been exactly 0 in every row so far has no scale for
+            // its noise (its floor is 0 too): weighted 1/1e-300, its equation overflowed
+            // the estimator ("diverged at sample 0" on a log that starts at rest with a
+            // zeroed sensor). It is left out until its torque moves.
+            self.weights[j] = if self.tau_max[j] > 0.0 {
+                1.0 / v.max(self.floor[j])
+            } else {
+                0.0
+            };
         }
         // The inverse-model estimators regress τ − τ_arm in payload mode (the model is
         // affine there, see `tracked`).
