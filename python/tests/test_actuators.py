@@ -336,26 +336,32 @@ def _write_csv(path: Path, t, q, cols: dict[str, np.ndarray]) -> None:
     prrrp.csvio.write_text_atomic(path, prrrp.csvio.format_table(names, np.hstack(blocks)))
 
 
+RATIOS = np.array([101.0, 101.0, 101.0, 81.0, 81.0, 51.0])
+GAINS = np.array([9.0, 9.0, 7.0, 2.0, 2.0, 1.5])  # N·m/A, joint side
+
+
+def ratios_toml(tmp: Path) -> Path:
+    ratio_line = "gear_ratios = [" + ", ".join(f"{r:g}" for r in RATIOS) + "]\n"
+    return geared_toml(tmp, ratio_line, name="ur5_ratios")
+
+
+def motor_log(log, path: Path, accelerations: bool = True) -> None:
+    """`log` as the drives record it: motor angles (and rates) and motor currents."""
+    t, q, qd, qdd, tau = log
+    # τ = Cᵀ·(K∘i)  ⇒  i = C⁻ᵀ·τ / K.
+    current = np.linalg.solve(COUPLING.T, tau.T).T / GAINS
+    cols = {"qd": (qd @ COUPLING.T) * RATIOS}
+    if accelerations:
+        cols["qdd"] = (qdd @ COUPLING.T) * RATIOS
+    _write_csv(path, t, (q @ COUPLING.T) * RATIOS, {**cols, "i": current})
+
+
 def test_current_and_motor_side_logs_through_the_command_line(geared, capsys):
     """A log of motor currents i1..i6 and motor-side angles, with --drive-gains and
     --motor-side, identifies the same arm; predict converts a new log the same way."""
     tmp = geared["tmp"]
-    ratios = np.array([101.0, 101.0, 101.0, 81.0, 81.0, 51.0])
-    gains = np.array([9.0, 9.0, 7.0, 2.0, 2.0, 1.5])  # N·m/A, joint side
-    ratio_line = "gear_ratios = [" + ", ".join(f"{r:g}" for r in ratios) + "]\n"
-    toml = geared_toml(tmp, ratio_line, name="ur5_ratios")
-
-    def motor_log(log, path):
-        t, q, qd, qdd, tau = log
-        theta = (q @ COUPLING.T) * ratios
-        # τ = Cᵀ·(K∘i)  ⇒  i = C⁻ᵀ·τ / K.
-        current = np.linalg.solve(COUPLING.T, tau.T).T / gains
-        _write_csv(
-            path,
-            t,
-            theta,
-            {"qd": (qd @ COUPLING.T) * ratios, "qdd": (qdd @ COUPLING.T) * ratios, "i": current},
-        )
+    ratios, gains = RATIOS, GAINS
+    toml = ratios_toml(tmp)
 
     motor_log(geared_log(seed=1, duration=16.0), tmp / "train.csv")
     motor_log(geared["test"], tmp / "val.csv")
@@ -446,6 +452,80 @@ def test_current_and_motor_side_logs_through_the_command_line(geared, capsys):
     assert inner.sum() > 0.8 * len(t)
     rms = np.sqrt(np.mean((table[inner, 1:-1] - tau[inner]) ** 2, axis=0))
     assert np.all(rms < 1.5 * TAU_NOISE), rms / TAU_NOISE
+
+
+def test_track_reads_current_and_motor_side_logs(geared, capsys):
+    """`prrrp track` takes the logs `identify` takes: motor currents with --drive-gains and
+    motor-side data with --motor-side give the model of the same log on the joint side
+    (the conversion is exact to round-off), recorded in model.json for `prrrp predict`; with
+    --model it converts as that model's log was converted."""
+    tmp = geared["tmp"] / "track"
+    tmp.mkdir()
+    toml = ratios_toml(tmp)
+    log = geared_log(seed=3, duration=12.0)
+    t, q, qd, _qdd, tau = log
+    _write_csv(tmp / "joint.csv", t, q, {"qd": qd, "tau": tau})
+    motor_log(log, tmp / "motor.csv", accelerations=False)
+    gains = ",".join(f"{g:g}" for g in GAINS)
+    base = ["track", "--robot", str(toml), "--coulomb-scale", str(V_S)]
+    assert main([*base, str(tmp / "joint.csv"), "--out", str(tmp / "a")]) == 0
+    # Currents without their gains: the error names the option, which track has.
+    assert main([*base, str(tmp / "motor.csv"), "--motor-side", "--out", str(tmp / "x")]) == 2
+    assert "--drive-gains" in capsys.readouterr().err
+    code = main(
+        [
+            *base,
+            str(tmp / "motor.csv"),
+            "--drive-gains",
+            gains,
+            "--motor-side",
+            "--out",
+            str(tmp / "b"),
+        ]
+    )
+    assert code == 0, capsys.readouterr().err
+    a = prrrp.IdentifiedModel.load(tmp / "a" / "model.json")
+    b = prrrp.IdentifiedModel.load(tmp / "b" / "model.json")
+    np.testing.assert_allclose(b.beta, a.beta, rtol=1e-6, atol=1e-9 * np.abs(a.beta).max())
+    assert b.preprocessing["drives"] == {"drive_gains": list(GAINS), "motor_side": True}
+    assert "drives" not in a.preprocessing
+    # predict converts a motor-side current log with what model.json recorded.
+    assert (
+        main(
+            [
+                "predict",
+                str(tmp / "b" / "model.json"),
+                str(tmp / "motor.csv"),
+                "--out",
+                str(tmp / "tau.csv"),
+            ]
+        )
+        == 0
+    )
+    # A prior identified from such a log: track converts the same way without the flags.
+    assert (
+        main(
+            [
+                "identify",
+                str(tmp / "motor.csv"),
+                "--robot",
+                str(toml),
+                "--drive-gains",
+                gains,
+                "--motor-side",
+                "--coulomb-scale",
+                str(V_S),
+                "--out",
+                str(tmp / "prior"),
+            ]
+        )
+        == 0
+    )
+    prior = str(tmp / "prior" / "model.json")
+    assert main(["track", str(tmp / "motor.csv"), "--model", prior, "--out", str(tmp / "c")]) == 0
+    c = prrrp.IdentifiedModel.load(tmp / "c" / "model.json")
+    assert c.preprocessing["drives"]["motor_side"] is True
+    capsys.readouterr()
 
 
 def test_readme_geared_arm_file_loads(tmp_path):

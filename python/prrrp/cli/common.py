@@ -223,6 +223,27 @@ def add_robot_arguments(p: Any, default: str = DEFAULT_ROBOT) -> None:
     )
 
 
+def add_drive_gains_argument(p: Any, default: str) -> None:
+    """``--drive-gains``: the log holds motor currents, converted to joint torques."""
+    p.add_argument(
+        "--drive-gains",
+        metavar="K1,...,KN|FILE.json",
+        help="the log has motor currents i1..iN (A): joint-side drive gains, N·m/A per actuator "
+        "(torque constant × gear ratio), or a JSON file with them (a model.json of `prrrp "
+        f"identify --payload-run`); torques are Cᵀ·(K∘i) (default: {default})",
+    )
+
+
+def add_motor_side_argument(p: Any, default: str) -> None:
+    """``--motor-side``: the log's positions and torques are the motors'."""
+    p.add_argument(
+        "--motor-side",
+        action="store_true",
+        help="the log's positions and torques are motor-side: mapped to the joints through the "
+        f"gear_ratios and coupling of the robot file's [actuators] (default: {default})",
+    )
+
+
 def check_chain_options(args: argparse.Namespace) -> None:
     """``--base``/``--tip`` pick the chain of a URDF: without a ``--robot`` URDF they are
     a usage error, not silently ignored."""

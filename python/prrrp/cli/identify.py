@@ -90,13 +90,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         help="identify one rotor inertia (armature) per actuator: Ia·q̈ₘ through the coupling "
         "of the robot file's [actuators] (default: as the robot file says)",
     )
-    g.add_argument(
-        "--drive-gains",
-        metavar="K1,...,KN|FILE.json",
-        help="the log has motor currents i1..iN (A): joint-side drive gains, N·m/A per actuator "
-        "(torque constant × gear ratio), or a JSON file with them (a model.json of "
-        "--payload-run); torques are Cᵀ·(K∘i) (default: none, the log has torques tau1..tauN)",
-    )
+    common.add_drive_gains_argument(g, "none, the log has torques tau1..tauN")
     g.add_argument(
         "--payload-run",
         metavar="LOADED",
@@ -113,12 +107,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         help="the known mass of the payload of --payload-run (kg) (default: none; required "
         "with --payload-run)",
     )
-    g.add_argument(
-        "--motor-side",
-        action="store_true",
-        help="the log's positions and torques are motor-side: mapped to the joints through the "
-        "gear_ratios and coupling of the robot file's [actuators] (default: joint side)",
-    )
+    common.add_motor_side_argument(g, "joint side")
     g.add_argument(
         "--cutoff",
         type=float,

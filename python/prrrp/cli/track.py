@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 
 import prrrp
-from prrrp import csvio, outdir, workflow
+from prrrp import csvio, drives, outdir, workflow
 from prrrp.cli import common
 from prrrp.cli.predict import load_model
 from prrrp.measurements import read_measurements
@@ -24,7 +24,8 @@ from prrrp.measurements import read_measurements
 HELP = "identify while the arm runs: a log fed one sample at a time"
 DESCRIPTION = (
     "Feeds DATA (a CSV t, q1..qN, tau1..tauN, optional qd1..qdN, or a ROS 2 "
-    "bag) row by row to the online identifier, causally (no row sees a later one), and "
+    "bag; motor currents i1..iN with --drive-gains) row by row to the online "
+    "identifier, causally (no row sees a later one), and "
     "writes DIR/model.json (the estimate at the end of the data, predictable with "
     "`prrrp predict`), DIR/estimates.csv (t and each estimated parameter with σ over "
     "time), DIR/prediction.csv (t, tau1..tauN: the one-step-ahead prediction of each "
@@ -107,8 +108,47 @@ def add_parser(sub: Any) -> None:
         "(1e-2 rad/s) (default 1; not used with --payload, whose filter measures the "
         "torque the arm does not explain, with the running torque noise)",
     )
+    common.add_drive_gains_argument(
+        p, "as the log of --model was converted, else none: the log has torques tau1..tauN"
+    )
+    common.add_motor_side_argument(p, "as the log of --model was, else joint side")
     common.add_topic_argument(p)
     common.add_out_argument(p)
+
+
+def _read(
+    args: argparse.Namespace, robot: prrrp.SerialChain, prior: prrrp.IdentifiedModel | None
+) -> tuple[dict[str, np.ndarray], dict[str, Any] | None]:
+    """The log on the joint side, and how it was converted (``drives.record``): motor
+    currents through ``--drive-gains`` and motor-side data through ``--motor-side``, or
+    else as the log ``--model`` was identified from (its gains apply only to a log of
+    currents, as for ``prrrp predict``)."""
+    recorded = drives.recorded(prior) if prior is not None else {}
+    gains = recorded.get("drive_gains")
+    explicit = args.drive_gains is not None
+    if explicit:
+        gains = drives.parse_gains(args.drive_gains, robot.dof)
+    motor_side = bool(args.motor_side or recorded.get("motor_side", False))
+    raw = read_measurements(
+        args.data,
+        robot,
+        topic=args.topic,
+        need_tau=explicit or gains is None,
+        drive_gains=gains,
+        motor_side=motor_side,
+    )
+    if "tau" not in raw:
+        n = robot.dof
+        raise common.CliError(f"{args.data}: no torques tau1..tau{n} (nor motor currents i1..i{n})")
+    return raw, drives.record(gains, motor_side)
+
+
+def _record_drives(path: Path, record: dict[str, Any]) -> None:
+    """Adds to the model file how the log was converted, as `prrrp identify` records it,
+    so that `prrrp predict` converts new logs the same way."""
+    doc = json.loads(path.read_text(encoding="utf-8"))
+    doc.setdefault("preprocessing", {})["drives"] = record
+    csvio.write_text_atomic(path, json.dumps(doc, indent=2))
 
 
 def _positive(name: str, v: float | None) -> None:
@@ -144,7 +184,7 @@ def run(args: argparse.Namespace) -> int:
             coulomb_scale=coulomb_scale if fixed else 0.0,
         )
     outdir.check(args.out)
-    raw = read_measurements(args.data, robot, topic=args.topic)
+    raw, record = _read(args, robot, prior)
     online = prrrp.OnlineIdentifier(
         None if prior is not None else robot,
         prior=prior,
@@ -164,6 +204,8 @@ def run(args: argparse.Namespace) -> int:
     def build(tmp: Path) -> list[Path]:
         written = [tmp / "model.json", tmp / "estimates.csv", tmp / "prediction.csv"]
         model.save(tmp / "model.json")
+        if record:
+            _record_drives(tmp / "model.json", record)
         names = online.parameter_names
         header = ["t", *names, *(f"sigma_{n}" for n in names)]
         csvio.write_text_atomic(tmp / "estimates.csv", _csv(header, run_["estimates"]))
