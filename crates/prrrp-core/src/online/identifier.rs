@@ -933,6 +933,17 @@ impl OnlineIdentifier {
         } else {
             self.kin
                 .update(dt, q, qd, self.qd.as_mut_slice(), self.qdd.as_mut_slice());
+            // Rows before any torque channel delivers (all exactly 0: a sensor not yet
+            // streaming, or zeroed) are not regression data, and the first torques restart
+            // the low-pass: filtered through the step from 0, they were fitted by the
+            // estimator from no knowledge, which never recovered (10⁴ % off at the end).
+            let silent = self.tau_max.iter().all(|&m| m == 0.0);
+            for (m, t) in self.tau_max.iter_mut().zip(tau) {
+                *m = m.max(t.abs());
+            }
+            if silent && self.rows > 1 && self.tau_max.iter().any(|&m| m > 0.0) {
+                self.lp.reset();
+            }
             self.lp.update(
                 dt,
                 q,
@@ -954,7 +965,7 @@ impl OnlineIdentifier {
             &self.theta,
             &mut self.pred,
         )?;
-        if !repeat && self.lp.ready() {
+        if !repeat && self.lp.ready() && self.tau_max.iter().any(|&m| m > 0.0) {
             // The change test and the noise levels (the regression's weights) on the
             // filtered equation errors, with the estimate before this row.
             self.model.inverse_dynamics_into(
@@ -967,7 +978,6 @@ impl OnlineIdentifier {
             )?;
             for j in 0..n {
                 self.resid[j] = self.tf[j] - self.predf[j];
-                self.tau_max[j] = self.tau_max[j].max(self.tau[j].abs());
                 // Variances below (1e-6 of the largest force)² are round-off, not noise.
                 self.floor[j] = (1e-6 * self.tau_max[j]).powi(2).max(1e-300);
             }
