@@ -245,3 +245,33 @@ def test_identify_ekf_takes_the_options_its_errors_name(setup, tmp_path):
     settings = prrrp.IdentifiedModel.load(out / "model.json").settings
     assert settings["least_squares_prior_width"] == 2.0
     assert np.atleast_1d(settings["position_noise"])[0] == pytest.approx(3e-3)
+
+
+def test_track_figure_draws_the_best_determined_parameters():
+    """The whole-arm panel of track.png draws at most 8 parameters: those with the smallest
+    final σ/|θ| (zero values left out), or without σ (adaline, hopfield) the smallest
+    spread over the last fifth of the rows relative to |θ|."""
+    from prrrp.cli.track import shown_parameters
+
+    rng = np.random.default_rng(3)
+    p, rows = 12, 50
+    final = rng.uniform(0.5, 2.0, p) * rng.choice([-1, 1], p)
+    final[4] = 0.0
+    rel = rng.permutation(np.geomspace(1e-3, 10, p))
+    rel[4] = 1e-6  # the smallest σ, but of a zero value: no relative size
+    theta = final + 0.01 * rng.standard_normal((rows, p))
+    theta[-1] = final
+    sigma = np.tile(rel * np.abs(final), (rows, 1))
+    est = np.column_stack([np.arange(rows), theta, sigma])
+    want = [k for k in np.argsort(rel) if k != 4][:8]
+    assert shown_parameters(est, p) == want
+    assert shown_parameters(est, p, most=3) == want[:3]
+    # Without σ: the spread of the late rows decides.
+    late = theta.copy()
+    spread = rng.permutation(np.geomspace(1e-4, 1e-1, p))
+    late[40:] = final + spread * np.abs(final) * rng.choice([-1, 1], (rows - 40, p))
+    late[-1] = final
+    est = np.column_stack([np.arange(rows), late, np.full((rows, p), np.nan)])
+    rel_spread = np.std(late[40:], axis=0) / np.abs(final)
+    want = [k for k in np.argsort(rel_spread) if k != 4][:8]
+    assert shown_parameters(est, p) == want

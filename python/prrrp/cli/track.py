@@ -297,9 +297,10 @@ def _csv(header: list[str], rows: np.ndarray) -> str:
 def figure(
     path: Path, raw: dict[str, np.ndarray], run_: dict[str, Any], names: list[str], payload: bool
 ) -> None:
-    """Parameters over time (payload: the mass in kg; else each parameter over its final
-    magnitude) above the one-step-ahead torque error of each joint (N·m or N, a 0.1 s
-    running RMS); detected changes as vertical lines."""
+    """Parameters over time (payload: the mass in kg; else the best determined parameters,
+    :func:`shown_parameters`, each over its final magnitude) above the one-step-ahead
+    torque error of each joint (N·m or N, a 0.1 s running RMS); detected changes as
+    vertical lines."""
     from prrrp import drawing
 
     est = run_["estimates"]
@@ -315,12 +316,20 @@ def figure(
         a.fill_between(e[:, 0], e[:, 1] - e[:, 1 + p], e[:, 1] + e[:, 1 + p], alpha=0.3, lw=0)
         a.set_ylabel("payload mass (kg)", fontsize=8)
     else:
+        shown = shown_parameters(est, p)
         final = np.abs(est[-1, 1 : 1 + p])
-        scale = np.where(final > 0, final, 1.0)
-        for k in range(p):
-            drawing.lines(a, est[:, 0], est[:, 1 + k] / scale[k], lw=0.7)
-        a.set_ylim(-3, 3)
-        a.set_ylabel("parameter / |final value| (1)", fontsize=8)
+        ys = est[:, [1 + k for k in shown]] / final[shown]
+        for k, y in zip(shown, ys.T, strict=True):
+            drawing.lines(a, est[:, 0], y, lw=0.8, label=names[k])
+        # The range of most of each line: a start transient would flatten the rest.
+        lo, hi = np.nanpercentile(ys, [2, 98]) if ys.size else (1.0, 1.0)
+        pad = max(0.05, 0.1 * (hi - lo))
+        a.set_ylim(max(-3.0, lo - pad), min(3.0, hi + pad))
+        a.set_ylabel(
+            f"parameter / |final value| (1),\nthe {len(shown)} best determined of {p}", fontsize=8
+        )
+        if len(shown):
+            a.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False)
     err = run_["prediction"] - raw["tau"]
     dt = np.median(np.diff(t)) if len(t) > 1 else 1.0
     w = max(1, round(0.1 / dt)) if dt > 0 else 1
@@ -336,6 +345,24 @@ def figure(
         for c in run_["changes"]:
             ax.axvline(c, color="k", lw=0.6, ls="--")
     drawing.save(fig, path)
+
+
+def shown_parameters(est: np.ndarray, p: int, most: int = 8) -> list[int]:
+    """The parameters the whole-arm figure draws: of the ``p`` columns of ``estimates``
+    (rows of t, θ, σ), the at most ``most`` with the smallest relative uncertainty at the
+    end, σ/|θ| — or, for a method without σ, the smallest spread over the last fifth of
+    the rows over |θ| — among those whose final value is not 0. All 64 of a 7-joint arm
+    drawn at once hide every one of them, and the poorly determined ones swing over the
+    whole panel."""
+    final = np.abs(est[-1, 1 : 1 + p])
+    sigma = est[-1, 1 + p : 1 + 2 * p]
+    if np.all(np.isnan(sigma)):
+        late = est[int(0.8 * len(est)) :, 1 : 1 + p]
+        sigma = np.std(late, axis=0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        rel = sigma / final
+    ok = np.flatnonzero(np.isfinite(rel) & (final > 0))
+    return [int(k) for k in ok[np.argsort(rel[ok], kind="stable")][:most]]
 
 
 def _payload_line(p: dict[str, Any]) -> str:
@@ -421,7 +448,8 @@ def report(
         "- `estimates.csv`: t, each estimated parameter, then its σ "
         f"(every {max(1, math.ceil(rows / MAX_ESTIMATE_ROWS))}. row)",
         "- `prediction.csv`: t, tau1..tauN one step ahead",
-        "- `track.png`: parameters and one-step-ahead error over time",
+        "- `track.png`: the best determined parameters (payload: the mass) and the "
+        "one-step-ahead error over time",
         "",
         "![track](track.png)",
         "",

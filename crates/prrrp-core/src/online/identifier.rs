@@ -365,6 +365,8 @@ pub struct OnlineIdentifier {
     model_var: Vec<f64>,
     floor: Vec<f64>,
     tau_max: Vec<f64>,
+    /// Whether any torque channel has delivered (read other than exactly 0) yet.
+    delivering: bool,
     weights: DVector<f64>,
     theta: DVector<f64>,
     gamma: DVector<f64>,
@@ -634,6 +636,7 @@ impl OnlineIdentifier {
             model_var: vec![0.0; n],
             floor: vec![0.0; n],
             tau_max: vec![0.0; n],
+            delivering: false,
             weights: DVector::zeros(n),
             theta: theta0,
             gamma: DVector::zeros(p),
@@ -937,11 +940,12 @@ impl OnlineIdentifier {
             // streaming, or zeroed) are not regression data, and the first torques restart
             // the low-pass: filtered through the step from 0, they were fitted by the
             // estimator from no knowledge, which never recovered (10⁴ % off at the end).
-            let silent = self.tau_max.iter().all(|&m| m == 0.0);
+            let silent = !self.delivering;
             for (m, t) in self.tau_max.iter_mut().zip(tau) {
                 *m = m.max(t.abs());
+                self.delivering |= *m > 0.0;
             }
-            if silent && self.rows > 1 && self.tau_max.iter().any(|&m| m > 0.0) {
+            if silent && self.rows > 1 && self.delivering {
                 self.lp.reset();
             }
             self.lp.update(
@@ -965,7 +969,7 @@ impl OnlineIdentifier {
             &self.theta,
             &mut self.pred,
         )?;
-        if !repeat && self.lp.ready() && self.tau_max.iter().any(|&m| m > 0.0) {
+        if !repeat && self.lp.ready() && self.delivering {
             // The change test and the noise levels (the regression's weights) on the
             // filtered equation errors, with the estimate before this row.
             self.model.inverse_dynamics_into(
@@ -1072,10 +1076,10 @@ impl OnlineIdentifier {
                 Some(d) => d.variances()[j],
                 None => self.noise.variances()[j],
             };
-            // A joint whose torque has been exactly 0 in every row so far has no scale for
-            // its noise (its floor is 0 too): weighted 1/1e-300, its equation overflowed
-            // the estimator ("diverged at sample 0" on a log that starts at rest with a
-            // zeroed sensor). It is left out until its torque moves.
+            // A joint whose torque has been exactly 0 in every row so far, while others
+            // deliver (a dead channel), has no scale for its noise (its floor is 0 too):
+            // weighted 1/1e-300, its equation would overflow the estimator. It is left
+            // out until its torque moves.
             self.weights[j] = if self.tau_max[j] > 0.0 {
                 1.0 / v.max(self.floor[j])
             } else {
