@@ -275,3 +275,34 @@ def test_track_figure_draws_the_best_determined_parameters():
     rel_spread = np.std(late[40:], axis=0) / np.abs(final)
     want = [k for k in np.argsort(rel_spread) if k != 4][:8]
     assert shown_parameters(est, p) == want
+
+
+def test_track_report_numbers_are_those_of_its_files(setup, tmp_path):
+    """report.md's table, recomputed from the data and prediction.csv: each joint's RMS
+    torque and the raw rows' error over the last 20 %; the level on the low-passed rows is
+    below the raw rows' error (the log's torque noise, 0.02 N·m, is what the low-pass
+    removes and no model predicts) and its % is the level over that RMS torque."""
+    _chain, prior, run, _ = setup
+    data = tmp_path / "loaded.csv"
+    _write_csv(data, run)
+    prior_path = tmp_path / "prior.json"
+    prior.save(prior_path)
+    out = tmp_path / "track"
+    assert main(["track", str(data), "--model", str(prior_path), "--out", str(out)]) == 0
+    text = (out / "report.md").read_text()
+    rows = [
+        line.split("|")[2:6]
+        for line in text.splitlines()
+        if line.startswith("| ") and line.split("|")[1].strip() in _chain.joint_names
+    ]
+    table = np.array([[float(v) for v in r] for r in rows])
+    assert table.shape == (6, 4)
+    pred = np.loadtxt(out / "prediction.csv", delimiter=",", skiprows=1)[:, 1:]
+    tau = run["tau"]
+    late = slice(int(0.8 * len(tau)), len(tau))
+    rms = np.sqrt(np.mean(tau[late] ** 2, axis=0))
+    err = 100 * np.sqrt(np.mean((pred[late] - tau[late]) ** 2, axis=0)) / rms
+    np.testing.assert_allclose(table[:, 0], rms, rtol=5e-3)
+    np.testing.assert_allclose(table[:, 1], err, rtol=5e-3)
+    assert np.all(table[:, 2] < table[:, 1] / 100 * rms)
+    np.testing.assert_allclose(table[:, 3], 100 * table[:, 2] / table[:, 0], rtol=1e-2)

@@ -285,6 +285,7 @@ def track(
         "estimates": np.array(estimates),
         "changes": changes,
         "late_error_percent": late_error,
+        "late_rms": rms,
     }
 
 
@@ -430,14 +431,21 @@ def report(
         "",
         "## One-step-ahead prediction",
         "",
-        "Each row's torque predicted from the estimate before it (`prediction.csv`); error "
-        "over the last 20 % of the rows, % of each joint's RMS torque:",
+        "Each row's torque predicted from the estimate before it (`prediction.csv`), over "
+        "the last 20 % of the rows. The error of the raw rows includes the torque sensor's "
+        "noise and the causal estimate of q̈; the running level of the errors on the "
+        f"low-passed rows ({online.settings['cutoff_hz']:g} Hz, what the change test and the "
+        "estimator's weights use) is nearer to what the model itself misses:",
         "",
-        "| joint | error (%) | running noise level (N·m or N) |",
-        "|---|---|---|",
+        "| joint | RMS torque (N·m or N) | error of the raw rows (%) | running level on the "
+        "low-passed rows (N·m or N) | (%) |",
+        "|---|---|---|---|---|",
     ]
-    for j, (e, s) in enumerate(zip(run_["late_error_percent"], online.noise_rms, strict=True)):
-        lines.append(f"| {model.robot.joint_names[j]} | {e:.3g} | {s:.3g} |")
+    for j, (e, s, r) in enumerate(
+        zip(run_["late_error_percent"], online.noise_rms, run_["late_rms"], strict=True)
+    ):
+        rel = f"{100 * s / r:.3g}" if r > 0 else "-"
+        lines.append(f"| {model.robot.joint_names[j]} | {r:.3g} | {e:.3g} | {s:.3g} | {rel} |")
     if payload is not None:
         lines += ["", "## Payload", "", _payload_line(payload) + " (`payload.json`)."]
     lines += [
