@@ -1419,11 +1419,15 @@ impl OnlineIdentifier {
         let (Some(d), Some(c)) = (&self.detector, self.config.change_detection) else {
             return Ok(false);
         };
+        // The estimator that waits (all but the running EKF, which goes on) predicts each
+        // row with the estimate the identifier reports: its errors are `resid`.
+        let waits = !matches!(&self.engine, Engine::Ekf(e) if e.running);
         let verdict = self.guard.row(
             dt,
             self.t_prev.unwrap_or(0.0),
             &self.e_kept,
             &self.e_opened,
+            waits.then_some(self.resid.as_slice()),
             d.variances(),
             &self.floor,
             c.holdoff,
@@ -1437,6 +1441,24 @@ impl OnlineIdentifier {
                 if let Some(tip) = &mut self.tip {
                     tip.cancel();
                 }
+                Ok(false)
+            }
+            Verdict::Resume => {
+                // The unopened copy took the look's rows as the estimator would have.
+                // Reverting to the estimate of the alarm instead threw them away, and
+                // while the errors stayed up alarm followed alarm: a PUMA 560 whose
+                // estimate an opening had left 410 % off on the wrist stayed frozen there
+                // for 3 s of dropped looks (tests/online.rs).
+                match (&mut self.engine, rls, payload) {
+                    (Engine::Ekf(e), Some([_, k]), _) if !e.running => e.rls.copy_state_from(k),
+                    (Engine::Rls(r), Some([_, k]), _) => r.copy_state_from(k),
+                    (Engine::PayloadEkf(e), _, Some([_, k])) => e.copy_state_from(k),
+                    _ => {}
+                }
+                if let Some(tip) = &mut self.tip {
+                    tip.cancel();
+                }
+                self.after_step()?;
                 Ok(false)
             }
             Verdict::Confirm => {
