@@ -198,17 +198,24 @@ def _write_csv(path, log):
     np.savetxt(path, table, delimiter=",", header=",".join(header), comments="")
 
 
-def test_track_command_writes_its_outputs(setup, tmp_path):
-    """`prrrp track --payload` on a CSV: every file, payload.json's mass within 5 %, a
-    model.json that `prrrp predict` takes, one prediction row per input row."""
+def _track_loaded_log(setup, tmp_path, *flags):
+    """`prrrp track` of the setup's loaded log (a CSV) from its prior, with ``flags``: the
+    CSV's path and the output folder."""
     _chain, prior, run, _ = setup
     data = tmp_path / "loaded.csv"
     _write_csv(data, run)
     prior_path = tmp_path / "prior.json"
     prior.save(prior_path)
     out = tmp_path / "track"
-    code = main(["track", str(data), "--model", str(prior_path), "--payload", "--out", str(out)])
-    assert code == 0
+    assert main(["track", str(data), "--model", str(prior_path), *flags, "--out", str(out)]) == 0
+    return data, out
+
+
+def test_track_command_writes_its_outputs(setup, tmp_path):
+    """`prrrp track --payload` on a CSV: every file, payload.json's mass within 5 %, a
+    model.json that `prrrp predict` takes, one prediction row per input row."""
+    _chain, _prior, run, _ = setup
+    data, out = _track_loaded_log(setup, tmp_path, "--payload")
     for name in (
         "model.json",
         "payload.json",
@@ -282,18 +289,13 @@ def test_track_report_numbers_are_those_of_its_files(setup, tmp_path):
     torque and the raw rows' error over the last 20 %; the level on the low-passed rows is
     below the raw rows' error (the log's torque noise, 0.02 N·m, is what the low-pass
     removes and no model predicts) and its % is the level over that RMS torque."""
-    _chain, prior, run, _ = setup
-    data = tmp_path / "loaded.csv"
-    _write_csv(data, run)
-    prior_path = tmp_path / "prior.json"
-    prior.save(prior_path)
-    out = tmp_path / "track"
-    assert main(["track", str(data), "--model", str(prior_path), "--out", str(out)]) == 0
+    chain, _prior, run, _ = setup
+    _data, out = _track_loaded_log(setup, tmp_path)
     text = (out / "report.md").read_text()
     rows = [
         line.split("|")[2:6]
         for line in text.splitlines()
-        if line.startswith("| ") and line.split("|")[1].strip() in _chain.joint_names
+        if line.startswith("| ") and line.split("|")[1].strip() in chain.joint_names
     ]
     table = np.array([[float(v) for v in r] for r in rows])
     assert table.shape == (6, 4)
