@@ -1,6 +1,8 @@
 //! The look after an alarm: the estimator waits while two copies of it take the rows, one
 //! opened for a change and one not, and the change is kept only if the opened copy
-//! predicts the rows better.
+//! predicts the rows better. While a change is in progress, a look that drops its opening
+//! hands the rows to the estimator through the unopened copy when that copy predicted them
+//! better than the waiting estimator ([`Verdict::Resume`]).
 //!
 //! Why: on a real arm the innovation test ([`super::detector`]) also fires on bursts of
 //! errors the model cannot explain (friction at a velocity reversal, a torque spike);
