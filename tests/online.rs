@@ -444,6 +444,18 @@ fn full_model_meets_the_issue_bars_after_a_grip() {
     }
 }
 
+/// `chain` with joint 3's viscous and Coulomb friction four times as large (a dragging
+/// brake).
+fn friction_jump(chain: &DynChain) -> DynChain {
+    let mut params = chain.friction_params().to_vec();
+    params[2][0] *= 4.0;
+    params[2][1] *= 4.0;
+    chain
+        .clone()
+        .with_friction(chain.friction(), params)
+        .unwrap()
+}
+
 /// A jump that is not a payload (joint 3's viscous and Coulomb friction four times as
 /// large at 12 s, a dragging brake) is still followed by the whole-arm RLS: the opening
 /// along the tip link's directions cannot explain it, a later look opens every direction,
@@ -455,13 +467,7 @@ fn full_model_meets_the_issue_bars_after_a_grip() {
 #[test]
 fn full_model_follows_a_friction_jump() {
     let chain = panda_like();
-    let mut params = chain.friction_params().to_vec();
-    params[2][0] *= 4.0;
-    params[2][1] *= 4.0;
-    let changed = chain
-        .clone()
-        .with_friction(chain.friction(), params)
-        .unwrap();
+    let changed = friction_jump(&chain);
     let mut worst = vec![];
     for seed in 5..=10 {
         let r = whole_arm_rls(&chain, &changed, seed);
@@ -479,6 +485,25 @@ fn full_model_follows_a_friction_jump() {
         median < 0.03,
         "median of the worst joints {median} (bar 0.03)"
     );
+}
+
+/// A change the openings along the tip cannot explain, which the old rule never followed:
+/// on seed 12 of the friction jump above every alarm opened along the tip again, 21 looks
+/// were dropped in a row at 11–150 times the noise, and the model ended 74 % off. After
+/// three such looks in a row the next alarm opens every direction
+/// (`identifier::PERSISTENT_DROPS`). (Seed 11 is still missed: its three dropped looks
+/// were not all above the alarm level; docs/design/online.md.)
+#[test]
+fn a_change_the_tip_does_not_explain_is_opened_in_every_direction() {
+    let chain = panda_like();
+    let changed = friction_jump(&chain);
+    let r = whole_arm_rls(&chain, &changed, 12);
+    assert!(
+        r.changes.iter().all(|&t| t >= GRIP) && !r.changes.is_empty(),
+        "changes at {:?}",
+        r.changes
+    );
+    below(&r.end, 0.03, "seed 12, at the end");
 }
 
 /// A change of the link before the tip (the part clamped to link 6 instead of the tip

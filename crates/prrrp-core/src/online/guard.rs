@@ -99,6 +99,12 @@ impl ChangeGuard {
         self.reverted
     }
 
+    /// The kept estimator's mean of Σ_j e_j²/σ_j² per joint over the scored rows of the
+    /// last look (≈ 1 for a model that holds).
+    pub(crate) fn kept_level(&self, n: usize) -> f64 {
+        self.kept / (self.scored * n as f64).max(f64::MIN_POSITIVE)
+    }
+
     /// Scores one row at time `t`, `dt` s after the previous one: `kept` and `opened` are
     /// the two estimators' a-priori errors of the row (units of τ), `waited` those of the
     /// estimator that waits during the look (`None` where it does not wait: the running
