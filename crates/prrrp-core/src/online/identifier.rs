@@ -383,8 +383,6 @@ pub struct OnlineIdentifier {
     /// kept estimator stayed above the alarm level, and when the last one ended (s).
     high_drops: u32,
     last_drop: f64,
-    /// The next opening is of every direction ([`PERSISTENT_DROPS`]).
-    open_all: bool,
     /// During a look, the opened copy of an RLS engine (or of the EKF's warm-up) and an
     /// unopened one, both taking the rows while the engine waits.
     opened_rls: Option<Box<[DynRls<DynScaledModel<TrackedModel>>; 2]>>,
@@ -657,7 +655,6 @@ impl OnlineIdentifier {
             tip_look: false,
             high_drops: 0,
             last_drop: f64::NEG_INFINITY,
-            open_all: false,
             opened_rls,
             opened_payload,
             e_opened: vec![0.0; n],
@@ -1322,20 +1319,22 @@ impl OnlineIdentifier {
         let var = d.variances();
         let k = self.config.open_factor;
         let scaled = (&self.cap, &self.scale);
-        // Only for the alarm that follows the dropped looks (the errors still up).
+        // Every direction after `PERSISTENT_DROPS` dropped tip looks, for the alarm that
+        // follows them (the errors still up).
         let now = self.t_prev.unwrap_or(0.0);
-        let soon = self
-            .config
-            .change_detection
-            .is_some_and(|c| now - self.last_drop <= 2.0 * c.holdoff);
+        let escalate = self.high_drops >= PERSISTENT_DROPS
+            && self
+                .config
+                .change_detection
+                .is_some_and(|c| now - self.last_drop <= 2.0 * c.holdoff);
         let tip = match &mut self.tip {
-            Some(t) if self.open_all && soon => {
+            Some(t) if escalate => {
+                self.high_drops = 0;
                 t.cancel();
                 None
             }
             t => t.as_mut(),
         };
-        self.open_all = false;
         self.tip_look = false;
         match &mut self.engine {
             Engine::Rls(r) => {
@@ -1473,7 +1472,6 @@ impl OnlineIdentifier {
                 } else {
                     self.high_drops = 0;
                 }
-                self.open_all = self.high_drops >= PERSISTENT_DROPS;
                 if let Some(tip) = &mut self.tip {
                     tip.cancel();
                 }
@@ -1807,7 +1805,7 @@ const PERSISTENT_DROPS: u32 = 3;
 /// alarm: along the tip link's directions first when `tip` is given and no second look is
 /// pending, else (or if the tip opening cannot be prepared) every direction by `k`
 /// capped at `cap` (θ units; `scale`: θ = scale ⊙ γ). `open`: a scratch of one entry per
-/// parameter. Allocation-free.
+/// parameter. Returns whether the opening was along the tip. Allocation-free.
 fn open_rls(
     rls: &mut DynRls<DynScaledModel<TrackedModel>>,
     tip: Option<&mut TipOpening>,
