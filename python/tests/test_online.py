@@ -308,3 +308,28 @@ def test_track_report_numbers_are_those_of_its_files(setup, tmp_path):
     np.testing.assert_allclose(table[:, 1], err, rtol=5e-3)
     assert np.all(table[:, 2] < table[:, 1] / 100 * rms)
     np.testing.assert_allclose(table[:, 3], 100 * table[:, 2] / table[:, 0], rtol=1e-2)
+
+
+def test_track_says_where_a_joint_had_no_torque(setup, tmp_path, capsys):
+    """A torque channel that reads 0 over the last rows (dead or unlogged) has no error
+    percentage: the terminal and report.md give "-" and say why, never "nan"; the other
+    joints keep their numbers."""
+    _chain, prior, run, _ = setup
+    log = {k: v.copy() for k, v in run.items()}
+    log["tau"][int(0.7 * len(log["t"])) :, 1] = 0.0
+    data = tmp_path / "dead.csv"
+    _write_csv(data, log)
+    prior_path = tmp_path / "prior.json"
+    prior.save(prior_path)
+    out = tmp_path / "track"
+    capsys.readouterr()
+    assert main(["track", str(data), "--model", str(prior_path), "--out", str(out)]) == 0
+    printed = capsys.readouterr().out
+    report = (out / "report.md").read_text()
+    for text in (printed, report):
+        assert "nan" not in text.lower()
+        assert "reads 0 over those rows" in text
+    line = next(s for s in printed.splitlines() if s.startswith("one-step-ahead error"))
+    cells = [c.strip() for c in line.split(":", 1)[1].split(",")]
+    assert cells[1] == "-"
+    assert all(float(c) > 0 for k, c in enumerate(cells) if k != 1)

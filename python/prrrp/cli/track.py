@@ -232,8 +232,10 @@ def run(args: argparse.Namespace) -> int:
     )
     print(
         "one-step-ahead error over the last 20 % (% of RMS torque): "
-        + ", ".join(f"{e:.3g}" for e in errs)
+        + ", ".join(_percent(e) for e in errs)
     )
+    if not np.all(np.isfinite(errs)):
+        print(f"  -: {NO_TORQUE}")
     if online.settings.get("coulomb_search") is not None:
         print(f"Coulomb speed scale v_s = {_coulomb_line(online.settings, scores=False)}")
     if payload is not None:
@@ -287,6 +289,18 @@ def track(
         "late_error_percent": late_error,
         "late_rms": rms,
     }
+
+
+#: What a "-" in place of an error percentage means.
+NO_TORQUE = (
+    "the joint's torque reads 0 over those rows (a dead or unlogged channel): no percentage "
+    "of it to give"
+)
+
+
+def _percent(e: float) -> str:
+    """An error percentage, or "-" where the joint had no torque to compare with."""
+    return f"{e:.3g}" if np.isfinite(e) else "-"
 
 
 def _csv(header: list[str], rows: np.ndarray) -> str:
@@ -445,7 +459,11 @@ def report(
         zip(run_["late_error_percent"], online.noise_rms, run_["late_rms"], strict=True)
     ):
         rel = f"{100 * s / r:.3g}" if r > 0 else "-"
-        lines.append(f"| {model.robot.joint_names[j]} | {r:.3g} | {e:.3g} | {s:.3g} | {rel} |")
+        lines.append(
+            f"| {model.robot.joint_names[j]} | {r:.3g} | {_percent(e)} | {s:.3g} | {rel} |"
+        )
+    if not np.all(np.isfinite(run_["late_error_percent"])):
+        lines += ["", f"-: {NO_TORQUE}."]
     if payload is not None:
         lines += ["", "## Payload", "", _payload_line(payload) + " (`payload.json`)."]
     lines += [
