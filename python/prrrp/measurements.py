@@ -48,9 +48,10 @@ def read_measurements(
 
     Returns ``t`` (S,) s, ``q`` and ``tau`` (S, N), and ``qd`` (and ``qdd``) when recorded.
     Time stamps may repeat (real logs do); time running backwards, a missing or misspelt
-    column, a NaN, a missing topic or joint raise ``prrrp.csvio.InputError`` (a
-    ``ValueError``) with a one-line message. Without ``need_tau`` a CSV file may lack the
-    torque columns (the result then has no ``tau``).
+    column, a NaN, a missing topic or joint, and rows a median 0.5 s or more apart when
+    q̇ and q̈ must be derived (time not in seconds: :data:`SLOWEST_STEP_S`) raise
+    ``prrrp.csvio.InputError`` (a ``ValueError``) with a one-line message. Without
+    ``need_tau`` a CSV file may lack the torque columns (the result then has no ``tau``).
 
     Geared arms (see ``prrrp.drives``): a CSV file may give motor currents ``i1..iN`` (A)
     instead of torques, converted with ``drive_gains`` (N·m/A per actuator, joint side);
@@ -66,6 +67,7 @@ def read_measurements(
         raw = csvio.read_table(
             path, None if robot is None else robot.dof, real_log=True, need_tau=need_tau
         )
+    _check_time_unit(path, raw)
     if robot is None:
         if "current" in raw or drive_gains is not None or motor_side:
             raise csvio.InputError(f"{path}: converting drive data needs the robot")
@@ -81,6 +83,32 @@ def read_measurements(
         strict=need_tau,
         currents=currents,
     )
+
+
+#: Median time step (s) from which a log whose q̇ and q̈ must be derived is taken to have
+#: its time in another unit: 0.5 s is 2 Hz, slower than any robot log that dynamics can
+#: be identified from, and 1 kHz logged in milliseconds gives 1.
+SLOWEST_STEP_S = 0.5
+
+
+def _check_time_unit(path: str | os.PathLike[str], raw: dict[str, np.ndarray]) -> None:
+    """InputError for a log whose rows are so far apart that its time cannot be in
+    seconds (or q̇, q̈ could not be derived from it), unless it gives both q̇ and q̈ (a
+    table of static poses may number its rows)."""
+    if "qd" in raw and "qdd" in raw:
+        return
+    steps = np.diff(raw["t"])
+    steps = steps[steps > 0]
+    if steps.size == 0:
+        return
+    step = float(np.median(steps))
+    if step >= SLOWEST_STEP_S:
+        raise csvio.InputError(
+            f"{path}: rows are a median {step:g} s apart ({1 / step:.3g} Hz), too slow to "
+            "derive q̇ and q̈ from q; t must be in seconds: if it is in milliseconds, "
+            "microseconds or nanoseconds, divide it by 1e3, 1e6 or 1e9 (or give the columns "
+            "qd1.. and qdd1..)"
+        )
 
 
 def measurements_to_dataset(

@@ -68,6 +68,23 @@ def test_csv_errors_name_what_to_fix(tmp_path: Path, panda):
         prrrp.read_measurements(back, panda)
 
 
+def test_time_in_milliseconds_is_an_error_that_says_so(tmp_path: Path, panda):
+    """A log at 200 Hz with t in milliseconds (rows 5 apart) would be taken for a 0.2 Hz
+    motion whose q̇ and q̈ are 1000 and 1e6 times too small; reading it names the unit.
+    The same rows in seconds read, and a table that gives q̇ and q̈ may number its rows."""
+    t, q, qd, qdd = motion(seconds=2.0)
+    tau = panda.inverse_dynamics(q, qd, qdd)
+    path = tmp_path / "ms.csv"
+    path.write_text(csvio.format_measurements(1e3 * t, q, tau))
+    with pytest.raises(csvio.InputError, match=r"median 5 s apart .* milliseconds"):
+        prrrp.read_measurements(path, panda)
+    path.write_text(csvio.format_measurements(t, q, tau))
+    assert prrrp.read_measurements(path, panda)["t"][-1] == pytest.approx(t[-1])
+    poses = tmp_path / "poses.csv"
+    poses.write_text(csvio.format_measurements(np.arange(len(t)), q, tau, qd, qdd))
+    assert prrrp.read_measurements(poses, panda)["qdd"].shape == q.shape
+
+
 def write_bag(path: Path, t, names, q, qd, tau, topic="/joint_states"):
     """A bag of one JointState message per row of q, qd and tau at times t."""
     rows = ((tk, names, q[k], qd[k], tau[k]) for k, tk in enumerate(t))
