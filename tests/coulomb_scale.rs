@@ -282,3 +282,58 @@ fn bad_settings_are_typed_errors() {
         Err(PrrrpError::TooFewSamples { .. })
     ));
 }
+
+/// `data` with joint `still` held at 0.3 rad throughout (its q̇ and q̈ zero) and the
+/// torques of that motion.
+fn still_joint(truth: &DynChain, seed: u64, seconds: f64, still: usize) -> DynDataset {
+    let d = data(truth, seed, seconds, 0.0);
+    let (mut q, mut qd, mut qdd) = (d.q().to_vec(), d.qd().to_vec(), d.qdd().to_vec());
+    let mut tau = Vec::with_capacity(q.len());
+    for k in 0..d.len() {
+        q[k * N + still] = 0.3;
+        qd[k * N + still] = 0.0;
+        qdd[k * N + still] = 0.0;
+        let r = k * N..(k + 1) * N;
+        let tk = truth
+            .inverse_dynamics(&q[r.clone()], &qd[r.clone()], &qdd[r])
+            .unwrap();
+        tau.extend(tk);
+    }
+    DynDataset::new(N, d.t().to_vec(), q, qd, qdd, tau).expect("valid data")
+}
+
+/// A joint that does not move leaves every candidate's fit singular: the search keeps the
+/// default scale and says why, and the identification's error gives the real rank (the
+/// search used to report "rank 0" and no direction).
+#[test]
+fn a_still_joint_leaves_the_rank_to_the_identification() {
+    let truth = chain(0.02);
+    let est = with_smoothed_friction(chain(0.0), 0.01, vec![[0.1, 0.1, 0.0]; N]);
+    let base = est.base_parameters(&BaseOptions::default()).unwrap();
+    let d = still_joint(&truth, 4, 10.0, 5);
+    let report = select_coulomb_scale(&est, &base, &d, &CoulombScaleConfig::default()).unwrap();
+    assert_eq!(report.chosen, 0.01);
+    assert!(!report.identifiable);
+    assert!(report.note.as_deref().unwrap().contains("every fold"));
+    let err = identify_least_squares(
+        &est,
+        &base,
+        &d,
+        false,
+        &LeastSquaresConfig::default(),
+        serde_json::Value::Null,
+    )
+    .unwrap_err();
+    let PrrrpError::RankDeficient {
+        rank,
+        params,
+        directions,
+        ..
+    } = err
+    else {
+        panic!("{err}");
+    };
+    assert_eq!(params, base.count());
+    assert!(rank > 0 && rank < params, "rank {rank} of {params}");
+    assert_eq!(directions.len(), params - rank);
+}

@@ -22,11 +22,13 @@ import numpy as np
 
 from prrrp import model_report
 from prrrp._prrrp import (
+    BaseParameters,
     Dataset,
     FitCache,
     IdentifiedModel,
     InvalidInputError,
     PrrrpError,
+    RankDeficientError,
     SerialChain,
     clear_stop,
     design_excitation,
@@ -173,10 +175,71 @@ def identify_measurements(
     currents or motor-side data were converted: ``prrrp.drives.record``), so ``prrrp
     predict`` can treat new logs the same way."""
     prepared = _prepare(robot, raw, coulomb_scale, preprocessing, drives)
-    model = identify(
-        prepared.robot, prepared.data, method, preprocessing=prepared.record, **settings
-    )
+    try:
+        model = identify(
+            prepared.robot, prepared.data, method, preprocessing=prepared.record, **settings
+        )
+    except RankDeficientError as e:
+        e.args = (explain_rank(e, prepared.robot, prepared.data, settings.get("base")),)
+        raise
     return prepared.result(model)
+
+
+#: A joint whose position spans less than this over the data (rad or m) is named as one
+#: that does not move when the data do not determine the parameters.
+STILL_SPAN = 1e-3
+
+#: A base parameter is named in an undetermined direction (a unit vector) when its
+#: component there is at least this large.
+DIRECTION_SHARE = 0.3
+
+
+def explain_rank(
+    e: RankDeficientError,
+    robot: SerialChain,
+    data: Dataset,
+    base: BaseParameters | None = None,
+) -> str:
+    """``e``'s message as what a user can act on: the joints that do not move in ``data``
+    and the base parameters (of ``base``, default the robot's analysis) that make up each
+    direction the data do not determine, instead of its unit vectors (``e``'s own first
+    line when it names neither)."""
+    message = (str(e).strip() or "rank deficient").splitlines()[0]
+    directions = getattr(e, "directions", None) or []
+    try:
+        names = list((base or robot.base_parameters()).independent_names)
+    except (PrrrpError, ValueError):
+        names = []
+    parts = []
+    q = np.asarray(data.q, dtype=float)
+    span = q.max(axis=0) - q.min(axis=0) if len(q) else np.zeros(robot.dof)
+    still = [
+        f"{name} (spans {span[j]:.2g} {'m' if robot.joint_types[j] == 'P' else 'rad'})"
+        for j, name in enumerate(robot.joint_names)
+        if span[j] < STILL_SPAN
+    ]
+    if still:
+        parts.append(f"joints that do not move in the data: {', '.join(still)}")
+    named = []
+    for d in directions:
+        d = np.asarray(d, dtype=float)
+        if len(d) != len(names):
+            named = []
+            break
+        big = np.flatnonzero(np.abs(d) >= DIRECTION_SHARE)
+        if len(big) == 1:
+            named.append(names[big[0]])
+        else:
+            named.append(" ".join(f"{d[k]:+.2g}·{names[k]}" for k in big) or "(spread)")
+    if named:
+        parts.append(
+            f"{len(named)} of {len(names)} base parameters are not determined: "
+            + "; ".join(named[:8])
+            + ("; …" if len(named) > 8 else "")
+        )
+    if not parts:
+        return message
+    return f"{'; '.join(parts)}; move every joint, or excite them with a richer trajectory"
 
 
 @dataclasses.dataclass
@@ -310,7 +373,10 @@ def identify_methods(
                 prepared.robot, prepared.data, method, preprocessing=prepared.record, **own
             )
         except (PrrrpError, ValueError) as e:
-            text = (str(e).strip() or type(e).__name__).splitlines()[0]
+            if isinstance(e, RankDeficientError):
+                text = explain_rank(e, prepared.robot, prepared.data, own.get("base"))
+            else:
+                text = (str(e).strip() or type(e).__name__).splitlines()[0]
             return MethodRun(method, None, text, time.perf_counter() - t0)
         seconds = time.perf_counter() - t0
         return MethodRun(method, prepared.result(model), None, seconds)

@@ -109,6 +109,25 @@ def test_identify_any_robot_bad_input(tmp_path: Path, truth, capsys):
     assert "needs --robot" in capsys.readouterr().err
 
 
+def test_identify_gives_no_percentage_for_a_dead_torque_channel(tmp_path: Path, truth, capsys):
+    """A torque channel that reads 0 throughout: the summary's table gives "-" for that
+    joint, says why, and prints no "nan"; the other joints keep their percentages."""
+    rng = np.random.default_rng(4)
+    t = np.arange(0.0, 12.0, 0.005)
+    q, qd, qdd = sine_motion(rng, t)
+    tau = truth.inverse_dynamics(q, qd, qdd) + rng.normal(0, 0.02, q.shape)
+    tau[:, 6] = 0.0
+    (tmp_path / "dead.csv").write_text(csvio.format_measurements(t, q, tau))
+    argv = ["identify", str(tmp_path / "dead.csv"), "--robot", str(URDF), "--tip", "panda_link8"]
+    assert cli.main([*argv, "--out", str(tmp_path / "o")]) == 0
+    out = capsys.readouterr().out
+    assert "nan" not in out.lower()
+    row = next(line.split() for line in out.splitlines() if line.lstrip().startswith("wls "))
+    assert row[-1] == "-"
+    assert all(c.endswith("%") for c in row[-7:-1])
+    assert "reads 0 over the scored rows" in out
+
+
 def test_excite_simulate_identify_tour(tmp_path: Path, capsys, monkeypatch):
     """The README's "your robot" tour, as a user runs it, on the Panda URDF."""
     monkeypatch.chdir(tmp_path)

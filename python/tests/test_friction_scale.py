@@ -118,3 +118,23 @@ def test_the_search_scores_the_friction_not_the_low_pass_filter():
     assert fit.coulomb["chosen"] < 0.005, fit.coulomb["chosen"]
     assert auto <= exact * 1.01, (auto, exact)
     assert auto < smeared, (auto, smeared)
+
+
+def test_a_joint_that_does_not_move_is_named_with_what_it_leaves_undetermined():
+    """Joint 7 held still: the scale search keeps the default (no candidate fits every
+    fold) and the identification's error names the joint and the base parameters the data
+    leave undetermined (its viscous and Coulomb friction), not unit vectors or "rank 0"."""
+    chain = panda(0.03)
+    rng = np.random.default_rng(5)
+    t = np.arange(0.0, 20.0, 0.01)
+    q, qd, qdd = sine_motion(rng, t)
+    q[:, 6], qd[:, 6], qdd[:, 6] = 0.4, 0.0, 0.0
+    still = prrrp.Dataset(t, q, qd, qdd, chain.inverse_dynamics(q, qd, qdd))
+    with pytest.raises(prrrp.RankDeficientError) as caught:
+        prrrp.workflow.identify_measurements(chain, still)
+    text = str(caught.value)
+    assert "joints that do not move in the data: panda_joint7 (spans 0 rad)" in text
+    names = chain.base_parameters().independent_names
+    undetermined = text.split("are not determined: ")[1].split("; move")[0].split("; ")
+    assert sorted(undetermined) == sorted(n for n in names if n in ("fv7", "fc7"))
+    assert len(undetermined) == caught.value.params - caught.value.rank == 2

@@ -333,3 +333,26 @@ def test_track_says_where_a_joint_had_no_torque(setup, tmp_path, capsys):
     cells = [c.strip() for c in line.split(":", 1)[1].split(",")]
     assert cells[1] == "-"
     assert all(float(c) > 0 for k, c in enumerate(cells) if k != 1)
+
+
+def test_track_of_a_log_shorter_than_the_filtering_says_nothing_was_learned(
+    setup, tmp_path, capsys
+):
+    """20 rows (0.08 s at 250 Hz): shorter than the causal filtering's settling and than
+    the figure's 0.1 s error window (whose kernel used to outgrow the log and crash the
+    figure). The command completes, writes every file and says that no row updated the
+    estimate; model.json is the robot's starting model."""
+    chain, _prior, run, _ = setup
+    short = {k: v[:20] for k, v in run.items()}
+    data = tmp_path / "short.csv"
+    _write_csv(data, short)
+    rel, _tip = ARMS["ur5"]
+    out = tmp_path / "track"
+    capsys.readouterr()
+    argv = ["track", str(data), "--robot", str(ROBOTS / rel), "--out", str(out)]
+    assert main(argv) == 0
+    printed = capsys.readouterr().out
+    assert "warning: no row updated the estimate" in printed
+    assert (out / "track.png").is_file()
+    model = prrrp.IdentifiedModel.load(out / "model.json")
+    assert model.robot.dof == chain.dof

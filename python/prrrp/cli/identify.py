@@ -479,7 +479,7 @@ def _summary(
         errors = r[which]
         rows.append(
             [r["method"], _converged(r), f"{r['seconds']:.3g}"]
-            + [f"{x:.3g}%" for x in errors["percent"]]
+            + [f"{x:.3g}%" if np.isfinite(x) else "-" for x in errors["percent"]]
         )
     print(
         f"torque-prediction error on the {which} data, % of the measured torque's RMS "
@@ -487,6 +487,12 @@ def _summary(
     )
     common.print_table(header, rows)
     ok = [r[which] for r in table if r["status"] == "ok"]
+    if ok and not np.all(np.isfinite(ok[0]["percent"])):
+        print(
+            "-: the joint's measured torque reads 0 over the scored rows (a dead or unlogged "
+            "channel): no percentage of it to give, and the model was fitted to a zero torque "
+            "there"
+        )
     _say_noise_floor(robot.joint_names, robot.joint_types, ok)
     for r in table:
         if r["status"] == "ok" and not r["converged"]:

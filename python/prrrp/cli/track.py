@@ -236,6 +236,13 @@ def run(args: argparse.Namespace) -> int:
     )
     if not np.all(np.isfinite(errs)):
         print(f"  -: {NO_TORQUE}")
+    if online.counts[1] == 0:
+        span = float(raw["t"][-1] - raw["t"][0])
+        print(
+            f"warning: no row updated the estimate: the log ({span:.3g} s) ended before the "
+            "causal filtering settled, or no joint's torque was measured; model.json is the "
+            "starting model, unchanged"
+        )
     if online.settings.get("coulomb_search") is not None:
         print(f"Coulomb speed scale v_s = {_coulomb_line(online.settings, scores=False)}")
     if payload is not None:
@@ -347,7 +354,8 @@ def figure(
             a.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False)
     err = run_["prediction"] - raw["tau"]
     dt = np.median(np.diff(t)) if len(t) > 1 else 1.0
-    w = max(1, round(0.1 / dt)) if dt > 0 else 1
+    # At most the log's length: a longer kernel makes `convolve` return the kernel's.
+    w = min(len(t), max(1, round(0.1 / dt))) if dt > 0 else 1
     kernel = np.ones(w) / w
     for j in range(err.shape[1]):
         rms = np.sqrt(np.convolve(err[:, j] ** 2, kernel, mode="same"))

@@ -134,8 +134,10 @@ enum Edge {
 /// non-finite candidate, an empty candidate list or one longer than
 /// [`MAX_COULOMB_CANDIDATES`], fewer than 2 folds; [`PrrrpError::ShapeMismatch`] for data
 /// of another joint count or a `base` of another chain layout;
-/// [`PrrrpError::TooFewSamples`] if a fold has fewer samples than base parameters;
-/// [`PrrrpError::RankDeficient`] if no candidate could be fitted; an interrupt.
+/// [`PrrrpError::TooFewSamples`] if a fold has fewer samples than base parameters; an
+/// interrupt. When no candidate can be fitted in every fold, the default is kept (with
+/// `identifiable` false and a `note`): whether the whole data are rank deficient is then
+/// the identification's error to give, with the rank and the directions it misses.
 pub fn select_coulomb_scale(
     chain: &DynChain,
     base: &BaseParameters,
@@ -205,19 +207,17 @@ pub fn select_coulomb_scale(
 
     let mut search = Search::new(chain, base, data, config.folds)?;
     let default = friction.coulomb_smoothing;
-    run(&mut search, &grid, config, reversals, data, b, default)
+    run(&mut search, &grid, config, reversals, data, default)
 }
 
 /// The search over `grid` with `scorer` (see the module docs), after the checks of
-/// [`select_coulomb_scale`]; `b` is the number of base parameters, `default` the v_s kept
-/// when the data cannot decide.
+/// [`select_coulomb_scale`]; `default` is the v_s kept when the data cannot decide.
 fn run(
     scorer: &mut impl Scorer,
     grid: &[f64],
     config: &CoulombScaleConfig,
     reversals: Vec<usize>,
     data: &DynDataset,
-    b: usize,
     default: f64,
 ) -> Result<CoulombScaleReport> {
     let rows = data.len() * data.dof();
@@ -232,12 +232,27 @@ fn run(
         scored.add(scorer, rows, &widen(&scored.candidates, edge))?;
         widenings += 1;
     }
-    let best = scored.best().ok_or(PrrrpError::RankDeficient {
-        rank: 0,
-        params: b,
-        cond: f64::INFINITY,
-        directions: vec![],
-    })?;
+    let Some(best) = scored.best() else {
+        // Whether the whole data determine the parameters, and which directions they
+        // miss, is the identification's to say at the default scale: a fold may miss a
+        // direction (a joint that stands still in part of the log) that the whole data
+        // have.
+        return Ok(CoulombScaleReport {
+            chosen: default,
+            range: scored.range(),
+            candidates: scored.candidates,
+            cv_rms: scored.cv_rms,
+            reversals,
+            identifiable: false,
+            note: Some(
+                "no candidate could be fitted in every fold of the cross-validation (a \
+                 fold's data do not excite every base parameter: a joint that does not \
+                 move in part of the log, or too little motion); kept the default"
+                    .to_string(),
+            ),
+            widenings,
+        });
+    };
     let range = scored.range();
     let spread = scored.spread(best);
     let z = scored.worst_z(best);
@@ -1186,27 +1201,9 @@ mod tests {
                 folds: config.folds,
                 friction: chain.friction(),
             };
-            let want = run(
-                &mut rebuild,
-                &grid,
-                &config,
-                reversals.clone(),
-                &data,
-                base.count(),
-                0.0,
-            )
-            .unwrap();
+            let want = run(&mut rebuild, &grid, &config, reversals.clone(), &data, 0.0).unwrap();
             let mut fast = Search::new(&chain, &base, &data, config.folds).unwrap();
-            let got = run(
-                &mut fast,
-                &grid,
-                &config,
-                reversals,
-                &data,
-                base.count(),
-                0.0,
-            )
-            .unwrap();
+            let got = run(&mut fast, &grid, &config, reversals, &data, 0.0).unwrap();
             // Good fits leave held-out errors 1e-7 of the torques' energy, below which
             // τᵀτ − 2βᵀb + βᵀAβ cancels in either scorer: compare the errors on that scale.
             let energy: f64 = data.tau().iter().map(|x| x * x).sum();
