@@ -113,11 +113,25 @@ def payload_lines(payload: dict[str, Any]) -> list[str]:
     inertia_s = payload.get("inertia_sigma") or [None] * 6
     for k, name in enumerate(INERTIA_NAMES):
         row(f"{name} (about COM)", "kg·m²", inertia[k], inertia_s[k], ident["inertia"][k])
+    none = no_payload(payload)
     return [
         "| quantity | unit | value | σ | |",
         "|---|---|---|---|---|",
         *rows,
+        *(["", none[0].upper() + none[1:] + "."] if none else []),
     ]
+
+
+def no_payload(payload: dict[str, Any]) -> str | None:
+    """A sentence when the run shows no payload: a fitted mass within 2σ of zero (the
+    mass is then "not identifiable" as a fraction of itself, yet the run bounds it)."""
+    m, s = payload.get("mass"), payload.get("mass_sigma")
+    if payload.get("mass_given") or m is None or s is None or not abs(m) <= 2 * s:
+        return None
+    return (
+        f"no payload detected: the fitted mass {_g(m, 2)} ± {_g(s, 2)} kg is within 2σ of 0, "
+        f"so anything carried at {payload['link']} weighs less than {_g(abs(m) + 2 * s, 2)} kg"
+    )
 
 
 def explained_torque_figure(

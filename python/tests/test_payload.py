@@ -75,6 +75,36 @@ def test_payload_mass_com_inertia_against_pinocchio(arm, mounting):
     assert np.linalg.norm(np.array(fixed["com"]) - truth["com"]) < 0.005
 
 
+def test_a_run_without_a_payload_says_so(arm):
+    """Unloaded runs of other trajectories: a fitted mass <= 0 is an error saying the data
+    show no payload, and one above 0 but within 2σ of it (not "identifiable" as a fraction
+    of itself, yet bounded) is reported with the sentence that no payload was detected and
+    the bound — never a bare "not identifiable" mass. A loaded run gets no such sentence."""
+    from prrrp import payload as payloads
+
+    refused = []
+    for seed in range(4, 9):
+        try:
+            empty = arm.identify_payload(_dataset(ur.run(seed, None, 40 + seed))).payload
+        except prrrp.InvalidParameterError as e:
+            refused.append(str(e))
+            continue
+        assert abs(empty["mass"]) <= 2 * empty["mass_sigma"] < 0.1 * ur.MASS, empty["mass"]
+        assert payloads.no_payload(empty).startswith("no payload detected")
+        lines = payloads.payload_lines(empty)
+        assert any(line.startswith("No payload detected") for line in lines)
+    assert all("the data show no payload" in text for text in refused), refused
+    loaded = arm.identify_payload(_dataset(ur.run(2, ur.MOUNTINGS["A"], 20))).payload
+    assert payloads.no_payload(loaded) is None
+    bounded = {"mass": 0.004, "mass_sigma": 0.003, "link": "wrist_3_link"}
+    assert payloads.no_payload(bounded) == (
+        "no payload detected: the fitted mass 0.004 ± 0.003 kg is within 2σ of 0, so "
+        "anything carried at wrist_3_link weighs less than 0.01 kg"
+    )
+    assert payloads.no_payload({**bounded, "mass": 0.007}) is None
+    assert payloads.no_payload({**bounded, "mass_given": True}) is None
+
+
 def test_a_short_run_says_the_inertia_is_not_identifiable(arm):
     """Two seconds of motion: the mass and the COM may still show, the inertia about the
     COM cannot be told — flagged, and the value kept physical rather than printed raw."""

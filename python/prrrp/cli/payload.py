@@ -101,6 +101,9 @@ def _summary(p: dict[str, Any]) -> None:
         rows.append([f"{name} (kg·m²)", *_fmt(inertia[k], ins[k], ident["inertia"][k])])
     print(f"payload at link {p['link']} (centre of mass and inertia in its frame):")
     common.print_table(["quantity", "value", "σ"], rows)
+    none = payloads.no_payload(p)
+    if none:
+        print(f"note: {none}")
     if not all(ident["inertia"]):
         print(
             "note: this run does not determine the payload's inertia to the threshold; a "
