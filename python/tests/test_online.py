@@ -227,6 +227,7 @@ def test_track_command_writes_its_outputs(setup, tmp_path):
         assert (out / name).is_file(), name
     payload = json.loads((out / "payload.json").read_text())
     assert abs(payload["mass"] / PART["mass"] - 1) < 0.05
+    assert payload["identifiable"]["mass"]
     pred = np.loadtxt(out / "prediction.csv", delimiter=",", skiprows=1)
     assert pred.shape == (len(run["t"]), 7)
     np.testing.assert_array_equal(pred[:, 0], run["t"])
@@ -356,3 +357,25 @@ def test_track_of_a_log_shorter_than_the_filtering_says_nothing_was_learned(
     assert (out / "track.png").is_file()
     model = prrrp.IdentifiedModel.load(out / "model.json")
     assert model.robot.dof == chain.dof
+
+
+def test_track_payload_of_a_run_without_one_says_so(setup, tmp_path, capsys):
+    """`prrrp track --payload` on a run that carries nothing: payload.json does not call
+    a centre of mass of a few grams determined (σ of decimetres; it used to flag every
+    quantity identifiable), and the terminal says that no payload was detected."""
+    _chain, prior, _run, _ = setup
+    _chain2, model = _ur5()
+    empty = _log(model, model, 4, 10.0, None)
+    data = tmp_path / "empty.csv"
+    _write_csv(data, empty)
+    prior_path = tmp_path / "prior.json"
+    prior.save(prior_path)
+    out = tmp_path / "track"
+    capsys.readouterr()
+    argv = ["track", str(data), "--model", str(prior_path), "--payload", "--out", str(out)]
+    assert main(argv) == 0
+    printed = capsys.readouterr().out
+    payload = json.loads((out / "payload.json").read_text())
+    assert abs(payload["mass"]) <= 2 * payload["mass_sigma"] < 0.05 * PART["mass"]
+    assert not any(payload["identifiable"]["com"])
+    assert "no payload detected" in printed

@@ -16,6 +16,7 @@ import numpy as np
 
 import prrrp
 from prrrp import csvio, drives, outdir, workflow
+from prrrp import payload as payloads
 from prrrp.cli import common
 from prrrp.cli.predict import load_model
 from prrrp.measurements import read_measurements
@@ -389,17 +390,29 @@ def shown_parameters(est: np.ndarray, p: int, most: int = 8) -> list[int]:
 
 
 def _payload_line(p: dict[str, Any]) -> str:
-    def pm(v: Any, s: Any, unit: str) -> str:
+    """The payload in one line: each quantity with its σ, marked where the run does not
+    determine it (``identifiable``); for a run that shows no payload, the sentence that
+    says so."""
+    none = payloads.no_payload(p)
+    if none:
+        return none
+    ident = p.get("identifiable") or {}
+
+    def pm(v: Any, s: Any, ok: Any, unit: str) -> str:
         if v is None:
             return "-"
         if isinstance(v, list):
             vs = s if s is not None else [None] * len(v)
-            return "[" + ", ".join(pm(x, y, "") for x, y in zip(v, vs, strict=True)) + "]" + unit
-        return f"{v:.4g}" + (f" ± {s:.2g}" if s is not None else "") + unit
+            oks = ok if isinstance(ok, list) else [ok] * len(v)
+            cells = (pm(x, y, o, "") for x, y, o in zip(v, vs, oks, strict=True))
+            return "[" + ", ".join(cells) + "]" + unit
+        text = f"{v:.4g}" + (f" ± {s:.2g}" if s is not None else "")
+        return (text if ok in (None, True) else f"not identifiable ({text})") + unit
 
     return (
-        f"mass {pm(p['mass'], p['mass_sigma'], ' kg')}, com {pm(p['com'], p['com_sigma'], ' m')}"
-        f", inertia about com {pm(p['inertia'], p['inertia_sigma'], ' kg·m²')}"
+        f"mass {pm(p['mass'], p['mass_sigma'], ident.get('mass'), ' kg')}, "
+        f"com {pm(p['com'], p['com_sigma'], ident.get('com'), ' m')}, inertia about com "
+        f"{pm(p['inertia'], p['inertia_sigma'], ident.get('inertia'), ' kg·m²')}"
     )
 
 

@@ -21,7 +21,7 @@ use crate::error::{PrrrpError, Result};
 use crate::models::chain::{
     pseudo_inertia, pseudo_inertia_to_parameters, INERTIAL_PARAMETER_NAMES, LINK_PARAMS,
 };
-use crate::models::payload::Payload;
+use crate::models::payload::{Payload, PayloadThresholds};
 
 /// Number of payload parameters.
 pub(crate) const PAYLOAD_PARAMS: usize = LINK_PARAMS;
@@ -75,8 +75,15 @@ pub(crate) fn summary_json(
     pi: &[f64; PAYLOAD_PARAMS],
     cov: Option<Vec<f64>>,
 ) -> serde_json::Value {
-    let payload = Payload::from_parameters(link, n.saturating_sub(1), *pi, cov.clone())
-        .and_then(|p| p.to_json());
+    // The thresholds of the payload identification (σ at most 10 % of the mass and of the
+    // inertia's scale, 1 cm on each centre-of-mass coordinate) decide `identifiable`, as
+    // for `prrrp payload`; without them every quantity read as determined, a centre of
+    // mass of ±0.8 m included.
+    let payload =
+        Payload::from_parameters(link, n.saturating_sub(1), *pi, cov.clone()).and_then(|mut p| {
+            p.classify(&PayloadThresholds::default());
+            p.to_json()
+        });
     match payload {
         Ok(text) => {
             let mut v: serde_json::Value = serde_json::from_str(&text).unwrap_or(json!({}));
