@@ -817,6 +817,21 @@ fn bad_input_is_refused() {
     ));
     // Only the first row counted.
     assert_eq!(id.counts().0, 1);
+    // A memory that forgets everything between two rows 1 ms apart (ν = exp(−1000)):
+    // refused at the row, before it changes anything; a gap that restarts the filters
+    // (no regression across it) is not refused.
+    let cfg = OnlineConfig {
+        forgetting: Some(1e-6),
+        ..Default::default()
+    };
+    let mut id = OnlineIdentifier::new(&chain, &base, cfg).unwrap();
+    id.update(0.0, &q, &tau, None).unwrap();
+    id.update(10.0, &q, &tau, None).unwrap();
+    assert!(matches!(
+        id.update(10.001, &q, &tau, None),
+        Err(PrrrpError::InvalidParameter { field, .. }) if field == "forgetting"
+    ));
+    assert_eq!(id.counts().0, 2);
 }
 
 /// Ten logs of the part held from the start (independent motions and sensor noise, 10 s

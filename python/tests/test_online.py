@@ -379,3 +379,26 @@ def test_track_payload_of_a_run_without_one_says_so(setup, tmp_path, capsys):
     assert abs(payload["mass"]) <= 2 * payload["mass_sigma"] < 0.05 * PART["mass"]
     assert not any(payload["identifiable"]["com"])
     assert "no payload detected" in printed
+
+
+def test_track_refuses_a_cutoff_or_memory_the_rows_cannot_carry(setup, tmp_path, capsys):
+    """The log has a row every 4 ms (Nyquist 125 Hz): a --cutoff of 130 Hz would restart
+    the causal filtering at every row and learn nothing (it ran to the end and wrote the
+    starting model), and a 1 µs --forgetting forgets everything between two rows (it
+    failed inside the estimator with "invalid value 0 for 'forgetting'"). Both are usage
+    errors that name the rows' spacing, and nothing is written."""
+    _chain, prior, run, _ = setup
+    data = tmp_path / "log.csv"
+    _write_csv(data, run)
+    prior_path = tmp_path / "prior.json"
+    prior.save(prior_path)
+    out = tmp_path / "track"
+    base = ["track", str(data), "--model", str(prior_path), "--out", str(out)]
+    capsys.readouterr()
+    assert main([*base, "--cutoff", "130"]) == 2
+    assert "Nyquist frequency of the log's rows (125 Hz: a row every 0.004 s)" in (
+        capsys.readouterr().err
+    )
+    assert main([*base, "--forgetting", "1e-6"]) == 2
+    assert "forgets everything between two rows (a row every 0.004 s)" in capsys.readouterr().err
+    assert not out.exists()

@@ -152,6 +152,27 @@ def _record_drives(path: Path, record: dict[str, Any]) -> None:
     csvio.write_text_atomic(path, json.dumps(doc, indent=2))
 
 
+def _check_rate(t: np.ndarray, cutoff: float, forgetting: float | None) -> None:
+    """CliError for a cut-off the log's rows cannot carry (at or above their Nyquist
+    frequency: every row would restart the causal filtering, and nothing would be learned)
+    or a memory that forgets everything between two rows."""
+    steps = np.diff(np.asarray(t, dtype=float))
+    steps = steps[steps > 0]
+    if not steps.size:
+        return
+    dt = float(np.median(steps))
+    if cutoff >= 0.5 / dt:
+        raise common.CliError(
+            f"--cutoff {cutoff:g} Hz is not below the Nyquist frequency of the log's rows "
+            f"({0.5 / dt:.3g} Hz: a row every {dt:.3g} s); give a lower --cutoff"
+        )
+    if forgetting is not None and math.exp(-dt / forgetting) < 1e-12:
+        raise common.CliError(
+            f"--forgetting {forgetting:g} s forgets everything between two rows (a row every "
+            f"{dt:.3g} s); give a memory that spans many rows"
+        )
+
+
 def _positive(name: str, v: float | None) -> None:
     if v is not None and not (math.isfinite(v) and v > 0):
         raise common.CliError(f"{name} must be finite and > 0, got {v}")
@@ -198,6 +219,7 @@ def run(args: argparse.Namespace) -> int:
         ekf_noise=args.ekf_noise,
         coulomb_scale=None if prior is not None or fixed else "auto",
     )
+    _check_rate(raw["t"], online.settings["cutoff_hz"], args.forgetting)
     run_ = track(online, raw, common.Progress())
     model = online.estimate()
     payload = online.payload()
@@ -241,8 +263,8 @@ def run(args: argparse.Namespace) -> int:
         span = float(raw["t"][-1] - raw["t"][0])
         print(
             f"warning: no row updated the estimate: the log ({span:.3g} s) ended before the "
-            "causal filtering settled, or no joint's torque was measured; model.json is the "
-            "starting model, unchanged"
+            f"causal filtering ({online.settings['cutoff_hz']:g} Hz) settled, or no joint's "
+            "torque was measured; model.json is the starting model, unchanged"
         )
     if online.settings.get("coulomb_search") is not None:
         print(f"Coulomb speed scale v_s = {_coulomb_line(online.settings, scores=False)}")

@@ -294,6 +294,10 @@ const CORRELATION_BLOCK: f64 = 0.5;
 /// Memory of the correlation estimate, s (at least the noise levels' `noise_window`).
 const CORRELATION_MEMORY: f64 = 10.0;
 
+/// Smallest forgetting factor ν per row: below it P/ν leaves the range of f64 within a
+/// few rows.
+const MIN_FORGETTING_FACTOR: f64 = 1e-12;
+
 /// Positions and velocities R of the EKF before `ekf_noise` (as `identify`'s defaults).
 const EKF_POSITION_NOISE: f64 = 1e-3;
 const EKF_VELOCITY_NOISE: f64 = 1e-2;
@@ -958,6 +962,19 @@ impl OnlineIdentifier {
             Some(tp) => t - tp,
             None => 0.0,
         };
+        // A row the regression takes (no gap that restarts the filters) with a forgetting
+        // factor ν = exp(−dt/T) of 0 to the last digit would fail inside the estimator,
+        // with the state half updated: refused here, before anything changes.
+        if let Some(tc) = self.config.forgetting {
+            if dt > 0.0 && dt <= self.kin.max_gap() && (-dt / tc).exp() < MIN_FORGETTING_FACTOR {
+                return Err(invalid(
+                    "forgetting",
+                    tc,
+                    "this memory (s) forgets everything between two rows (ν = exp(−dt/T) \
+                     underflows): give one that spans many rows",
+                ));
+            }
+        }
         let repeat = self.t_prev.is_some() && dt == 0.0;
         self.rows += 1;
         self.q.copy_from_slice(q);
