@@ -198,17 +198,25 @@ def _write_csv(path, log):
     np.savetxt(path, table, delimiter=",", header=",".join(header), comments="")
 
 
+def _files(tmp_path, log, prior, name="loaded.csv"):
+    """``log`` written as a CSV and ``prior`` as a model file in ``tmp_path``: the command
+    line of `prrrp track` of them from the prior into ``tmp_path/track``, and that
+    folder."""
+    data = tmp_path / name
+    _write_csv(data, log)
+    prior_path = tmp_path / "prior.json"
+    prior.save(prior_path)
+    out = tmp_path / "track"
+    return ["track", str(data), "--model", str(prior_path), "--out", str(out)], out
+
+
 def _track_loaded_log(setup, tmp_path, *flags):
     """`prrrp track` of the setup's loaded log (a CSV) from its prior, with ``flags``: the
     CSV's path and the output folder."""
     _chain, prior, run, _ = setup
-    data = tmp_path / "loaded.csv"
-    _write_csv(data, run)
-    prior_path = tmp_path / "prior.json"
-    prior.save(prior_path)
-    out = tmp_path / "track"
-    assert main(["track", str(data), "--model", str(prior_path), *flags, "--out", str(out)]) == 0
-    return data, out
+    argv, out = _files(tmp_path, run, prior)
+    assert main([*argv, *flags]) == 0
+    return tmp_path / "loaded.csv", out
 
 
 def test_track_command_writes_its_outputs(setup, tmp_path):
@@ -318,13 +326,9 @@ def test_track_says_where_a_joint_had_no_torque(setup, tmp_path, capsys):
     _chain, prior, run, _ = setup
     log = {k: v.copy() for k, v in run.items()}
     log["tau"][int(0.7 * len(log["t"])) :, 1] = 0.0
-    data = tmp_path / "dead.csv"
-    _write_csv(data, log)
-    prior_path = tmp_path / "prior.json"
-    prior.save(prior_path)
-    out = tmp_path / "track"
+    argv, out = _files(tmp_path, log, prior)
     capsys.readouterr()
-    assert main(["track", str(data), "--model", str(prior_path), "--out", str(out)]) == 0
+    assert main(argv) == 0
     printed = capsys.readouterr().out
     report = (out / "report.md").read_text()
     for text in (printed, report):
@@ -365,15 +369,9 @@ def test_track_payload_of_a_run_without_one_says_so(setup, tmp_path, capsys):
     quantity identifiable), and the terminal says that no payload was detected."""
     _chain, prior, _run, _ = setup
     _chain2, model = _ur5()
-    empty = _log(model, model, 4, 10.0, None)
-    data = tmp_path / "empty.csv"
-    _write_csv(data, empty)
-    prior_path = tmp_path / "prior.json"
-    prior.save(prior_path)
-    out = tmp_path / "track"
+    argv, out = _files(tmp_path, _log(model, model, 4, 10.0, None), prior)
     capsys.readouterr()
-    argv = ["track", str(data), "--model", str(prior_path), "--payload", "--out", str(out)]
-    assert main(argv) == 0
+    assert main([*argv, "--payload"]) == 0
     printed = capsys.readouterr().out
     payload = json.loads((out / "payload.json").read_text())
     assert abs(payload["mass"]) <= 2 * payload["mass_sigma"] < 0.05 * PART["mass"]
@@ -388,12 +386,7 @@ def test_track_refuses_a_cutoff_or_memory_the_rows_cannot_carry(setup, tmp_path,
     failed inside the estimator with "invalid value 0 for 'forgetting'"). Both are usage
     errors that name the rows' spacing, and nothing is written."""
     _chain, prior, run, _ = setup
-    data = tmp_path / "log.csv"
-    _write_csv(data, run)
-    prior_path = tmp_path / "prior.json"
-    prior.save(prior_path)
-    out = tmp_path / "track"
-    base = ["track", str(data), "--model", str(prior_path), "--out", str(out)]
+    base, out = _files(tmp_path, run, prior)
     capsys.readouterr()
     assert main([*base, "--cutoff", "130"]) == 2
     assert "Nyquist frequency of the log's rows (125 Hz: a row every 0.004 s)" in (

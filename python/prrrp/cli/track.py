@@ -91,7 +91,8 @@ def add_parser(sub: Any) -> None:
         "--cutoff",
         type=float,
         metavar="HZ",
-        help="bandwidth of the causal filtering (default: 10 Hz)",
+        help="bandwidth of the causal filtering, below the Nyquist frequency of the rows "
+        "(default: 10 Hz)",
     )
     p.add_argument(
         "--prior-width",
