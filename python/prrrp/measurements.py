@@ -85,6 +85,13 @@ def read_measurements(
     )
 
 
+def median_step(t: np.ndarray) -> float | None:
+    """The median interval between time stamps that differ (s); None without two."""
+    steps = np.diff(np.asarray(t, dtype=float))
+    steps = steps[steps > 0]
+    return float(np.median(steps)) if steps.size else None
+
+
 #: Median time step (s) from which a log whose q̇ and q̈ must be derived is taken to have
 #: its time in another unit: 0.5 s is 2 Hz, slower than any robot log that dynamics can
 #: be identified from, and 1 kHz logged in milliseconds gives 1.
@@ -97,12 +104,8 @@ def _check_time_unit(path: str | os.PathLike[str], raw: dict[str, np.ndarray]) -
     table of static poses may number its rows)."""
     if "qd" in raw and "qdd" in raw:
         return
-    steps = np.diff(raw["t"])
-    steps = steps[steps > 0]
-    if steps.size == 0:
-        return
-    step = float(np.median(steps))
-    if step >= SLOWEST_STEP_S:
+    step = median_step(raw["t"])
+    if step is not None and step >= SLOWEST_STEP_S:
         raise csvio.InputError(
             f"{path}: rows are a median {step:g} s apart ({1 / step:.3g} Hz), too slow to "
             "derive q̇ and q̈ from q; t must be in seconds: if it is in milliseconds, "

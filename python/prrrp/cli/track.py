@@ -19,7 +19,7 @@ from prrrp import csvio, drives, outdir, workflow
 from prrrp import payload as payloads
 from prrrp.cli import common
 from prrrp.cli.predict import load_model
-from prrrp.measurements import read_measurements
+from prrrp.measurements import median_step, read_measurements
 
 #: ``prrrp track --help``.
 HELP = "identify while the arm runs: a log fed one sample at a time"
@@ -157,11 +157,9 @@ def _check_rate(t: np.ndarray, cutoff: float, forgetting: float | None) -> None:
     """CliError for a cut-off the log's rows cannot carry (at or above their Nyquist
     frequency: every row would restart the causal filtering, and nothing would be learned)
     or a memory that forgets everything between two rows."""
-    steps = np.diff(np.asarray(t, dtype=float))
-    steps = steps[steps > 0]
-    if not steps.size:
+    dt = median_step(t)
+    if dt is None:
         return
-    dt = float(np.median(steps))
     if cutoff >= 0.5 / dt:
         raise common.CliError(
             f"--cutoff {cutoff:g} Hz is not below the Nyquist frequency of the log's rows "
