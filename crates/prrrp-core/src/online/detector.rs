@@ -58,6 +58,8 @@ pub struct ChangeDetector {
     alarms: usize,
     /// Last errors normalised by the noise levels alone.
     last: f64,
+    /// No alarm while set ([`ChangeDetector::hold`]).
+    held: bool,
 }
 
 impl ChangeDetector {
@@ -77,7 +79,17 @@ impl ChangeDetector {
             since_alarm: f64::INFINITY,
             alarms: 0,
             last: 1.0,
+            held: false,
         }
+    }
+
+    /// While `held`, samples update the statistic and the noise levels but raise no
+    /// alarm; a change still present alarms at the first sample after the hold. The
+    /// online identifier holds the test while a look at an earlier alarm is pending: its
+    /// hold-off and the look have the same length, and an alarm on the look's last row
+    /// (a matter of the time stamps' round-off) replaced the look before its verdict.
+    pub fn hold(&mut self, held: bool) {
+        self.held = held;
     }
 
     /// Running noise variance of each joint's equation (units of τ²).
@@ -147,8 +159,10 @@ impl ChangeDetector {
                 *v = (*v + a * (x * x - *v)).max(*f);
             }
         }
-        let alarm =
-            self.age >= c.warmup && self.since_alarm >= c.holdoff && self.fast > c.threshold;
+        let alarm = !self.held
+            && self.age >= c.warmup
+            && self.since_alarm >= c.holdoff
+            && self.fast > c.threshold;
         if alarm {
             self.alarms += 1;
             self.since_alarm = 0.0;
@@ -277,6 +291,31 @@ mod tests {
         // Until the alarm the level has not absorbed the jump (a sustained one is
         // absorbed over the 2 s memory afterwards: the estimator has re-converged by then).
         assert!(var < 0.02, "{var}");
+    }
+
+    /// A held detector raises no alarm however large the errors, and a jump still present
+    /// alarms at the first sample after the hold; the same errors without the hold alarm
+    /// during it.
+    #[test]
+    fn a_held_test_alarms_after_the_hold() {
+        for held in [true, false] {
+            let mut d = ChangeDetector::new(2, ChangeDetection::default(), Some(&[0.1, 0.1]));
+            let mut noise = uniform_noise(5);
+            let floor = [1e-12; 2];
+            let dt = 1e-3;
+            for _ in 0..5000 {
+                let e = [0.1 * noise(), 0.1 * noise()];
+                assert!(!d.update(dt, &e, &floor, &[0.0; 2]));
+            }
+            d.hold(held);
+            let during = (0..300).any(|_| d.update(dt, &[2.0, -2.0], &floor, &[0.0; 2]));
+            assert_eq!(during, !held);
+            if held {
+                d.hold(false);
+                assert!(d.update(dt, &[2.0, -2.0], &floor, &[0.0; 2]));
+                assert_eq!(d.alarms(), 1);
+            }
+        }
     }
 
     /// The estimate's own prediction variance is part of the test: errors ten times the

@@ -105,6 +105,11 @@ impl ChangeGuard {
         self.kept / (self.scored * n as f64).max(f64::MIN_POSITIVE)
     }
 
+    /// The same for the opened estimator.
+    pub(crate) fn opened_level(&self, n: usize) -> f64 {
+        self.opened / (self.scored * n as f64).max(f64::MIN_POSITIVE)
+    }
+
     /// Scores one row at time `t`, `dt` s after the previous one: `kept` and `opened` are
     /// the two estimators' a-priori errors of the row (units of τ), `waited` those of the
     /// estimator that waits during the look (`None` where it does not wait: the running
