@@ -263,6 +263,24 @@ def test_identify_ekf_takes_the_options_its_errors_name(setup, tmp_path):
     assert np.atleast_1d(settings["position_noise"])[0] == pytest.approx(3e-3)
 
 
+def test_track_figure_error_window_is_in_seconds():
+    """The figure's 0.1 s RMS of the one-step-ahead errors is taken over the rows within
+    0.05 s of each row, on any clock: against a plain loop over the rows, on irregular
+    time stamps with repeated rows and a gap (a median step of 0 from the repeated rows
+    made the window one row before)."""
+    from prrrp.cli.track import windowed_rms
+
+    rng = np.random.default_rng(5)
+    t = np.cumsum(rng.uniform(0.5e-3, 3e-3, 400))
+    t[200:] += 1.0  # a gap
+    t = np.sort(np.concatenate([t, t[::3]]))  # every third row repeated
+    x = rng.standard_normal(len(t))
+    want = [np.sqrt(np.mean(x[np.abs(t - tk) <= 0.05] ** 2)) for tk in t]
+    np.testing.assert_allclose(windowed_rms(t, x, 0.1), want, rtol=1e-9)
+    # Constant errors: the same RMS at every row, the ends included.
+    np.testing.assert_allclose(windowed_rms(t, np.full(len(t), 2.0), 0.1), 2.0, rtol=1e-12)
+
+
 def test_track_figure_draws_the_best_determined_parameters():
     """The whole-arm panel of track.png draws at most 8 parameters: those with the smallest
     final σ/|θ| (zero values left out), or without σ (adaline, hopfield) the smallest

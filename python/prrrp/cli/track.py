@@ -375,13 +375,8 @@ def figure(
         if len(shown):
             a.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False)
     err = run_["prediction"] - raw["tau"]
-    dt = np.median(np.diff(t)) if len(t) > 1 else 1.0
-    # At most the log's length: a longer kernel makes `convolve` return the kernel's.
-    w = min(len(t), max(1, round(0.1 / dt))) if dt > 0 else 1
-    kernel = np.ones(w) / w
     for j in range(err.shape[1]):
-        rms = np.sqrt(np.convolve(err[:, j] ** 2, kernel, mode="same"))
-        drawing.lines(b, t, rms, lw=0.8, label=f"joint {j + 1}")
+        drawing.lines(b, t, windowed_rms(t, err[:, j], 0.1), lw=0.8, label=f"joint {j + 1}")
     b.set_yscale("log")
     b.set_ylabel("one-step-ahead torque\nerror, 0.1 s RMS (N·m, N)", fontsize=8)
     b.set_xlabel("time (s)", fontsize=8)
@@ -390,6 +385,21 @@ def figure(
         for c in run_["changes"]:
             ax.axvline(c, color="k", lw=0.6, ls="--")
     drawing.save(fig, path)
+
+
+def windowed_rms(t: np.ndarray, x: np.ndarray, width: float) -> np.ndarray:
+    """At each row, the RMS of ``x`` over the rows whose time stamps lie within ``width``/2
+    (s) of its own (``t`` not decreasing). A window counted in rows spans another duration
+    on a log with repeated rows, gaps or an irregular clock (a median step of 0 from
+    repeated rows made it one row), and one zero-padded at the ends drew its first and last
+    rows too low."""
+    t = np.asarray(t, dtype=float)
+    sq = np.concatenate([[0.0], np.cumsum(np.asarray(x, dtype=float) ** 2)])
+    lo = np.searchsorted(t, t - 0.5 * width, side="left")
+    hi = np.searchsorted(t, t + 0.5 * width, side="right")
+    # Each window holds at least its own row; max(…, 0) absorbs the cumulative sum's
+    # round-off.
+    return np.sqrt(np.maximum(sq[hi] - sq[lo], 0.0) / (hi - lo))
 
 
 def shown_parameters(est: np.ndarray, p: int, most: int = 8) -> list[int]:
