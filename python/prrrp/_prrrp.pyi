@@ -8,7 +8,7 @@ qdd, tau) have shape (5,) for one sample or (N, 5) for a batch; λ (`lam`) has s
 import builtins
 import os
 from collections.abc import Callable, Iterator, Mapping
-from typing import Any, Final, Literal, Self, TypedDict, final, overload
+from typing import Any, Final, Literal, Self, TypedDict, Unpack, final, overload
 
 import numpy as np
 import numpy.typing as npt
@@ -16,7 +16,9 @@ import numpy.typing as npt
 # Where a default in the Rust signature is not a Python literal (`UInt(20)`, a Rust
 # constant), pyo3 shows it as `...` at runtime. The stub writes `...` too, so that stubtest
 # checks the signature, with the value in a comment; where the Rust default is the exported
-# `STANDARD_GRAVITY`, the stub names that constant.
+# `STANDARD_GRAVITY`, the stub names that constant. Keyword options that several functions
+# share are one `TypedDict` (`**options: Unpack[...]`, defaults in its docstrings): stubtest
+# (mypy >= 2.0) checks their names and kinds against each runtime signature.
 
 _ArrayLike = npt.ArrayLike
 _F64 = npt.NDArray[np.float64]
@@ -198,21 +200,11 @@ class Robot:
     ) -> _F64:
         """C(q, q̇, λ)·q̇ + G(λ) (N, N·m), shape (5,) or (N, 5)."""
     def inverse_dynamics(
-        self,
-        q: _ArrayLike,
-        qd: _ArrayLike,
-        qdd: _ArrayLike,
-        *,
-        lam: _ArrayLike | None = None,
+        self, q: _ArrayLike, qd: _ArrayLike, qdd: _ArrayLike, *, lam: _ArrayLike | None = None
     ) -> _F64:
         """τ = M·q̈ + C·q̇ + G (N, N·m), shape (5,) or (N, 5)."""
     def forward_dynamics(
-        self,
-        q: _ArrayLike,
-        qd: _ArrayLike,
-        tau: _ArrayLike,
-        *,
-        lam: _ArrayLike | None = None,
+        self, q: _ArrayLike, qd: _ArrayLike, tau: _ArrayLike, *, lam: _ArrayLike | None = None
     ) -> _F64:
         """q̈ = M⁻¹(τ - C·q̇ - G), shape (5,) or (N, 5). Raises NotPositiveDefiniteError
         for a non-physical λ."""
@@ -225,20 +217,10 @@ class Robot:
     def potential_energy(self, q: _ArrayLike, *, lam: _ArrayLike | None = None) -> Any:
         """g·(λ1·d1 + λ8·(d1 - d5)) (J): float, or shape (N,)."""
     def inverse_derivatives(
-        self,
-        q: _ArrayLike,
-        qd: _ArrayLike,
-        qdd: _ArrayLike,
-        *,
-        lam: _ArrayLike | None = None,
+        self, q: _ArrayLike, qd: _ArrayLike, qdd: _ArrayLike, *, lam: _ArrayLike | None = None
     ) -> InverseDerivatives: ...
     def forward_derivatives(
-        self,
-        q: _ArrayLike,
-        qd: _ArrayLike,
-        tau: _ArrayLike,
-        *,
-        lam: _ArrayLike | None = None,
+        self, q: _ArrayLike, qd: _ArrayLike, tau: _ArrayLike, *, lam: _ArrayLike | None = None
     ) -> ForwardDerivatives: ...
     def __eq__(self, other: object, /) -> bool: ...
     def __getnewargs_ex__(self) -> tuple[tuple[()], dict[str, Any]]:
@@ -366,19 +348,32 @@ class _Record(TypedDict, total=False):
     q_measured: _F64
     tau_measured: _F64
 
+class _ClosedLoop(TypedDict, total=False):
+    """The computed-torque loop of `simulate_closed_loop` and `validate` (all optional)."""
+
+    controller_lam: _ArrayLike | None
+    """λ (8,) of the controller's model (default: the simulated robot's)."""
+    dt: float
+    """Sample period, s (default 0.02)."""
+    substeps: int
+    """RK4 steps per sample (default 20)."""
+    kp: _ArrayLike | None
+    """Proportional gains (5,), 1/s² (default 400)."""
+    kd: _ArrayLike | None
+    """Derivative gains (5,), 1/s (default 40)."""
+    q_noise: _ArrayLike | None
+    """Position noise std per joint (5,), m or rad (default: the core's `SensorNoise`;
+    zeros for none)."""
+    tau_noise: _ArrayLike | None
+    """Torque noise std per joint (5,), N or N·m (default: the core's `SensorNoise`)."""
+
 def simulate_closed_loop(
     reference: Excitation | SinusoidReference,
     duration: float,
     *,
     lam: _ArrayLike | None = None,
-    controller_lam: _ArrayLike | None = None,
-    dt: float = 0.02,
-    substeps: int = ...,  # 20
-    kp: _ArrayLike | None = None,
-    kd: _ArrayLike | None = None,
-    q_noise: _ArrayLike | None = None,
-    tau_noise: _ArrayLike | None = None,
     seed: int = ...,  # 0
+    **options: Unpack[_ClosedLoop],
 ) -> _Record:
     """Computed-torque tracking of `reference`; arrays t (N,) and (N, 5) columns.
 
@@ -628,6 +623,13 @@ __all__ += [
     "identify_drive_gains",
 ]
 
+class _RobotFileOptions(TypedDict, total=False):
+    base: str | None
+    tip: str | None
+    gravity: _ArrayLike | None
+    friction: str | list[str] | None
+    coulomb_smoothing: float
+
 @final
 class SerialChain:
     """A serial arm of revolute and prismatic joints, with the 10 standard inertial parameters
@@ -673,13 +675,7 @@ class SerialChain:
     ) -> Self: ...
     @staticmethod
     def from_urdf(
-        source: str | os.PathLike[str],
-        *,
-        base: str | None = None,
-        tip: str | None = None,
-        gravity: _ArrayLike | None = None,
-        friction: str | list[str] | None = None,
-        coulomb_smoothing: float = 0.0,
+        source: str | os.PathLike[str], **options: Unpack[_RobotFileOptions]
     ) -> SerialChain:
         """A chain from a URDF: `source` is its path or its XML text (a string with '<').
 
@@ -698,13 +694,7 @@ class SerialChain:
         RobotFileError or InvalidParameterError naming the file and element."""
     @staticmethod
     def from_file(
-        path: str | os.PathLike[str],
-        *,
-        base: str | None = None,
-        tip: str | None = None,
-        gravity: _ArrayLike | None = None,
-        friction: str | list[str] | None = None,
-        coulomb_smoothing: float = 0.0,
+        path: str | os.PathLike[str], **options: Unpack[_RobotFileOptions]
     ) -> SerialChain:
         """A chain from a `.urdf` (see `from_urdf`) or a `.toml` robot file:
 
@@ -1493,17 +1483,11 @@ def validate(
     estimates: Mapping[str, _ArrayLike] | list[tuple[str, _ArrayLike]],
     *,
     true_lam: _ArrayLike | None = None,
-    controller_lam: _ArrayLike | None = None,
     relative_errors: bool = True,
     reference: SinusoidReference | None = None,
     duration: float = 10.0,
     seed: int = ...,  # 1
-    dt: float = 0.02,
-    substeps: int = ...,  # 20
-    kp: _ArrayLike | None = None,
-    kd: _ArrayLike | None = None,
-    q_noise: _ArrayLike | None = None,
-    tau_noise: _ArrayLike | None = None,
+    **options: Unpack[_ClosedLoop],
 ) -> _Validation:
     """Validation of estimates λ̂ (paper §5.1): the true robot (true_lam, default Table 3)
     and each λ̂ follow `reference` (default: one sinusoid per joint, periods 5, 4, 3.5, 3,

@@ -266,6 +266,18 @@ mod tests {
         }
     }
 
+    /// A two-joint detector that has learned white errors of 0.1 over 5 s at 1 kHz (no
+    /// alarm on the way), with the noise source that continues them.
+    fn settled_on_white_errors(seed: u64) -> (ChangeDetector, impl FnMut() -> f64) {
+        let mut d = ChangeDetector::new(2, ChangeDetection::default(), Some(&[0.1, 0.1]));
+        let mut noise = uniform_noise(seed);
+        for _ in 0..5000 {
+            let e = [0.1 * noise(), 0.1 * noise()];
+            assert!(!d.update(1e-3, &e, &[1e-12; 2], &[0.0; 2]));
+        }
+        (d, noise)
+    }
+
     /// White errors of constant size never alarm; a jump to ten times the size alarms
     /// within a few windows, and the noise level has not absorbed the jump by then.
     #[test]
@@ -299,14 +311,9 @@ mod tests {
     #[test]
     fn a_held_test_alarms_after_the_hold() {
         for held in [true, false] {
-            let mut d = ChangeDetector::new(2, ChangeDetection::default(), Some(&[0.1, 0.1]));
-            let mut noise = uniform_noise(5);
+            let (mut d, _) = settled_on_white_errors(5);
             let floor = [1e-12; 2];
             let dt = 1e-3;
-            for _ in 0..5000 {
-                let e = [0.1 * noise(), 0.1 * noise()];
-                assert!(!d.update(dt, &e, &floor, &[0.0; 2]));
-            }
             d.hold(held);
             let during = (0..300).any(|_| d.update(dt, &[2.0, -2.0], &floor, &[0.0; 2]));
             assert_eq!(during, !held);
@@ -325,14 +332,9 @@ mod tests {
     #[test]
     fn model_variance_widens_the_test() {
         for (v, want) in [(0.0, true), (1.0, false)] {
-            let mut d = ChangeDetector::new(2, ChangeDetection::default(), Some(&[0.1, 0.1]));
-            let mut noise = uniform_noise(3);
+            let (mut d, mut noise) = settled_on_white_errors(3);
             let floor = [1e-12; 2];
             let dt = 1e-3;
-            for _ in 0..5000 {
-                let e = [0.1 * noise(), 0.1 * noise()];
-                assert!(!d.update(dt, &e, &floor, &[0.0; 2]));
-            }
             let alarmed = (0..2000).any(|_| {
                 let e = [1.0 * noise(), 1.0 * noise()];
                 d.update(dt, &e, &floor, &[v; 2])
