@@ -87,6 +87,19 @@ def test_identify_any_robot_then_predict(tmp_path: Path, truth, capsys, monkeypa
     assert (rel_edge < 1.0).all(), rel_edge
 
 
+def test_friction_terms_take_the_cli_and_the_api_spelling():
+    """`--friction` takes the comma list of its help and the "a+b" form of the Python API
+    (`load_robot(..., friction="viscous+coulomb+offset")`), which a user copies over."""
+    from prrrp.cli import common
+
+    assert common.friction_terms("viscous,coulomb,offset") == "viscous+coulomb+offset"
+    assert common.friction_terms("viscous+coulomb+offset") == "viscous+coulomb+offset"
+    assert common.friction_terms(" viscous + offset ") == "viscous+offset"
+    assert common.friction_terms("none") is None
+    with pytest.raises(common.CliError, match="comma-separated"):
+        common.friction_terms("viscous+sticky")
+
+
 def test_identify_any_robot_bad_input(tmp_path: Path, truth, capsys):
     log(truth, tmp_path / "data.csv", 1, 4.0)
     base = ["identify", str(tmp_path / "data.csv"), "--robot", str(URDF), "--tip", "panda_link8"]

@@ -281,11 +281,15 @@ def coulomb_scale(text: str | None) -> str | float | None:
 
 
 def friction_terms(text: str) -> str | None:
-    """``--friction viscous,coulomb,offset`` (or ``none``) as the bindings' "a+b" form."""
-    terms = [t.strip() for t in text.split(",") if t.strip()]
+    """``--friction viscous,coulomb,offset`` (or ``none``) as the bindings' "a+b" form.
+    The Python API's spelling ``viscous+coulomb+offset`` is accepted too."""
+    terms = [t.strip() for t in text.replace("+", ",").split(",") if t.strip()]
     if terms in ([], ["none"]):
         return None
     bad = [t for t in terms if t not in ("viscous", "coulomb", "offset")]
     if bad:
-        raise CliError(f"--friction: unknown term '{bad[0]}' (use viscous, coulomb, offset)")
+        raise CliError(
+            f"--friction: unknown term '{bad[0]}' (comma-separated from viscous, coulomb, "
+            "offset, or none)"
+        )
     return "+".join(terms)
