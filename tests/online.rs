@@ -954,13 +954,16 @@ fn coulomb_search_case(v_s: f64) -> (DynChain, BaseParameters, DynChain, OnlineC
 }
 
 /// From no knowledge, the robot given with the exact sign while the arm's Coulomb friction
-/// turns over within 0.03 rad/s: the online search picks 0.03, and from the choice on its
+/// turns over within 0.032 rad/s (a candidate): the online search picks it, and from the
+/// choice on its
 /// estimates are bit for bit those of an identifier given that scale from the start (the
 /// chosen candidate has seen every row). The model at the end predicts the arm better
 /// than the exact sign's.
 #[test]
 fn the_coulomb_scale_is_chosen_online() {
-    let (chain, base, truth, search) = coulomb_search_case(0.03);
+    let v_s = 0.032;
+    assert!(ONLINE_COULOMB_SCALES.contains(&v_s));
+    let (chain, base, truth, search) = coulomb_search_case(v_s);
     let lg = log(&truth, &truth, 21, 14.0, 500.0, None, (1e-5, 0.05));
     let val = log(&truth, &truth, 37, 10.0, 100.0, None, (0.0, 0.0));
     let mut id = OnlineIdentifier::new(&chain, &base, search).unwrap();
@@ -982,12 +985,8 @@ fn the_coulomb_scale_is_chosen_online() {
     }
     assert!(same_before > 4000);
     let s = id.settings_json();
-    assert_eq!(
-        s["coulomb_search"]["chosen"],
-        serde_json::json!(0.03),
-        "{s}"
-    );
-    assert_eq!(s["coulomb_scale"], serde_json::json!(0.03));
+    assert_eq!(s["coulomb_search"]["chosen"], serde_json::json!(v_s), "{s}");
+    assert_eq!(s["coulomb_scale"], serde_json::json!(v_s));
     let (e_id, e_own) = (
         rel_error(&id.estimate().unwrap(), &val),
         rel_error(&own.estimate().unwrap(), &val),

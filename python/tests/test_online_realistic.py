@@ -184,8 +184,9 @@ def test_from_no_knowledge_the_coulomb_scale_is_the_robots(arm):
     that speed scale is identified better than one with the exact sign (`prrrp identify`
     chooses the scale by cross-validation). `coulomb_scale="auto"` chooses it online
     from the robot with the exact sign: a neighbour of 0.02 among its candidates, and
-    as good as the matched robot. Measured: 8.3 % (exact sign), 3.4 % (0.02), 3.2 %
-    (auto, 0.01) on the worst joint."""
+    as good as the matched robot. Measured: 8.3 % (exact sign), 3.4 % (0.02), 2.6 %
+    (auto, 0.016; 3.2 % with 0.01, the choice among candidates half a decade apart) on
+    the worst joint."""
     a, _prior = arm
     run = a.log(2, 30.0, None)
     val = a.log(3, 10.0, None)
@@ -201,8 +202,11 @@ def test_from_no_knowledge_the_coulomb_scale_is_the_robots(arm):
     assert worst[1] < 0.6 * worst[0], worst
     online = prrrp.OnlineIdentifier(robot, change_detection=False, coulomb_scale="auto")
     _, end, _ = _track(online, run, np.inf)
-    chosen = online.settings["coulomb_search"]["chosen"]
-    assert chosen in (0.01, 0.03), online.settings["coulomb_search"]
+    search = online.settings["coulomb_search"]
+    chosen = search["chosen"]
+    below = max(c for c in search["candidates"] if c <= 0.02)
+    above = min(c for c in search["candidates"] if c >= 0.02)
+    assert chosen in (below, above), search
     assert end.robot.coulomb_smoothing == chosen
     assert _error(end, val).max() < 1.2 * worst[1], (_error(end, val), worst)
 
