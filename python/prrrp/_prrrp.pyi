@@ -624,11 +624,18 @@ __all__ += [
 ]
 
 class _RobotFileOptions(TypedDict, total=False):
+    """The options of `SerialChain.from_urdf` and `from_file` (all optional)."""
+
     base: str | None
+    """First link of the chain (default: the root link, or the TOML file's `base`)."""
     tip: str | None
+    """Last link of the chain (default: the end of the movable joints, or the file's)."""
     gravity: _ArrayLike | None
+    """(3,) m/s² in the base link's frame (default (0, 0, −9.81))."""
     friction: str | list[str] | None
+    """Friction terms, as in the constructor (default: the file's, else none)."""
     coulomb_smoothing: float
+    """Speed scale v_s of fc·tanh(q̇/v_s), rad/s; 0 = exact sign (default 0)."""
 
 @final
 class SerialChain:
