@@ -961,14 +961,27 @@ fn coulomb_search_case(v_s: f64) -> (DynChain, BaseParameters, DynChain, OnlineC
 /// than the exact sign's.
 #[test]
 fn the_coulomb_scale_is_chosen_online() {
+    for method in [OnlineMethod::Rls, OnlineMethod::Ekf] {
+        coulomb_scale_chosen_online(method);
+    }
+}
+
+/// [`the_coulomb_scale_is_chosen_online`] for one method (the EKF's candidates are
+/// ranked by RLS scorers, its estimates are the chosen EKF's).
+fn coulomb_scale_chosen_online(method: OnlineMethod) {
     let v_s = 0.032;
     assert!(ONLINE_COULOMB_SCALES.contains(&v_s));
     let (chain, base, truth, search) = coulomb_search_case(v_s);
     let lg = log(&truth, &truth, 21, 14.0, 500.0, None, (1e-5, 0.05));
     let val = log(&truth, &truth, 37, 10.0, 100.0, None, (0.0, 0.0));
+    let plain = OnlineConfig {
+        method,
+        ..Default::default()
+    };
+    let search = OnlineConfig { method, ..search };
     let mut id = OnlineIdentifier::new(&chain, &base, search).unwrap();
-    let mut own = OnlineIdentifier::new(&chain, &base, OnlineConfig::default()).unwrap();
-    let mut matched = OnlineIdentifier::new(&truth, &base, OnlineConfig::default()).unwrap();
+    let mut own = OnlineIdentifier::new(&chain, &base, plain).unwrap();
+    let mut matched = OnlineIdentifier::new(&truth, &base, plain).unwrap();
     let mut same_before = 0;
     for k in 0..lg.t.len() {
         let (t, q, tau) = (lg.t[k], &lg.q[k], &lg.tau[k]);
@@ -991,7 +1004,7 @@ fn the_coulomb_scale_is_chosen_online() {
         rel_error(&id.estimate().unwrap(), &val),
         rel_error(&own.estimate().unwrap(), &val),
     );
-    eprintln!("end: chosen {e_id:.4?}\n     exact sign {e_own:.4?}");
+    eprintln!("{method:?} end: chosen {e_id:.4?}\n     exact sign {e_own:.4?}");
     let worst = |e: &[f64]| e.iter().cloned().fold(0.0, f64::max);
     assert!(worst(&e_id) < 0.5 * worst(&e_own), "{e_id:?} vs {e_own:?}");
 }

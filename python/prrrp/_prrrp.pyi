@@ -975,8 +975,9 @@ class OnlineIdentifier:
     (1e-3 rad, 1e-2 rad/s), `payload_mass_std` (kg) and `payload_size` (m): the payload
     prior. `coulomb_scale="auto"` (from no knowledge, a robot with a Coulomb term): the
     speed scale v_s of fc·tanh(q̇/v_s) is chosen online among 0, 0.001, 0.002, 0.004, …,
-    0.256 rad/s (an octave apart) and the robot's own, by each candidate's one-step-ahead
-    torque errors from 5 s to 10 s after the first row (all candidates run until then;
+    0.256 rad/s (an octave apart) and the robot's own, by the one-step-ahead torque errors
+    of an RLS of each scale (whatever the method) from 5 s to 10 s after the first row
+    (all candidates run until then;
     the estimates before the choice are the robot's own scale's,
     `settings["coulomb_search"]` records it).
     Settings out of range (an unstable step size, a non-positive memory) raise

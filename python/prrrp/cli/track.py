@@ -58,8 +58,8 @@ def add_parser(sub: Any) -> None:
         metavar="auto|V",
         help="with --robot: speed scale v_s (rad/s) of the smooth Coulomb term "
         "fc·tanh(q̇/v_s), 0 = exact sign. auto (default): chosen online, causally, among "
-        "0 and 0.001, 0.002, 0.004, …, 0.256 rad/s (an octave apart) by each candidate's "
-        "one-step-ahead torque error "
+        "0 and 0.001, 0.002, 0.004, …, 0.256 rad/s (an octave apart) by the one-step-ahead "
+        "torque error of an RLS of each (whatever the method) "
         "from 5 s to 10 s after the first row (until then all run; the estimates before "
         "the choice are the exact sign's). --model carries the scale `prrrp identify` chose",
     )

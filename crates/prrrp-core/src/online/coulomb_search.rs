@@ -9,7 +9,9 @@
 //! estimates to have converged (scored from the start, wider scales won while all were
 //! still transient). Estimates before the choice are those of the robot's own scale; after
 //! it, the chosen identifier's, which has seen every row: nothing later changes an
-//! earlier estimate. Measurements: docs/design/online.md, "The Coulomb scale online".
+//! earlier estimate. The errors scored are a whole-arm RLS's of each scale whatever the
+//! method (an EKF's also carry its filter's start and restarts). Measurements:
+//! docs/design/online.md, "The Coulomb scale online".
 
 use serde_json::{json, Value};
 
