@@ -955,10 +955,9 @@ fn coulomb_search_case(v_s: f64) -> (DynChain, BaseParameters, DynChain, OnlineC
 
 /// From no knowledge, the robot given with the exact sign while the arm's Coulomb friction
 /// turns over within 0.032 rad/s (a candidate): the online search picks it, and from the
-/// choice on its
-/// estimates are bit for bit those of an identifier given that scale from the start (the
-/// chosen candidate has seen every row). The model at the end predicts the arm better
-/// than the exact sign's.
+/// choice on its estimates are bit for bit those of an identifier given that scale from the
+/// start (the chosen candidate has seen every row). The model at the end predicts the arm
+/// better than the exact sign's.
 #[test]
 fn the_coulomb_scale_is_chosen_online() {
     for method in [OnlineMethod::Rls, OnlineMethod::Ekf] {
