@@ -358,6 +358,35 @@ def test_track_says_where_a_joint_had_no_torque(setup, tmp_path, capsys):
     assert all(float(c) > 0 for k, c in enumerate(cells) if k != 1)
 
 
+def test_track_names_the_joints_at_the_noise_floor(setup, tmp_path, capsys):
+    """A wrist whose torque sensor is far noisier than its torque (σ = 1 N·m added, known
+    from the log's making) has a one-step-ahead error that is that noise: the summary names
+    it with the noise it estimated (within 10 % of σ), prints the errors' level on the
+    low-passed rows beside the raw rows' one, and never names a joint whose error % is
+    small."""
+    chain, prior, run, _ = setup
+    log = {k: v.copy() for k, v in run.items()}
+    sigma, noisy = 1.0, chain.dof - 1
+    log["tau"][:, noisy] += np.random.default_rng(7).normal(0.0, sigma, len(log["t"]))
+    argv, _out = _files(tmp_path, log, prior)
+    capsys.readouterr()
+    assert main(argv) == 0
+    lines = capsys.readouterr().out.splitlines()
+    raw = next(s for s in lines if s.startswith("one-step-ahead error"))
+    percent = np.array([float(c) for c in raw.split(":", 1)[1].split(",")])
+    level = next(s for s in lines if "running level on the low-passed rows" in s)
+    assert len(level.split(": ", 1)[1].split(",")) == chain.dof
+    note = next((s for s in lines if s.startswith("at the noise floor")), "")
+    name = chain.joint_names[noisy]
+    assert f"{name} (noise " in note, note
+    found = float(note.split(f"{name} (noise ", 1)[1].split()[0])
+    assert abs(found / sigma - 1) < 0.1, found
+    for j, joint in enumerate(chain.joint_names):
+        if percent[j] < 25:
+            assert f"{joint} (" not in note, (joint, note)
+    assert (percent < 25).sum() >= 3, percent  # the test can fail on the last loop
+
+
 def test_track_of_a_log_shorter_than_the_filtering_says_nothing_was_learned(
     setup, tmp_path, capsys
 ):

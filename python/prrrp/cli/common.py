@@ -293,3 +293,36 @@ def friction_terms(text: str) -> str | None:
             "offset, or none)"
         )
     return "+".join(terms)
+
+
+#: A joint is at its noise floor when its torque error is within this factor of the
+#: measured torque's noise and is at least NOISE_FLOOR_PERCENT % of its RMS torque.
+NOISE_FLOOR_FACTOR = 1.25
+NOISE_FLOOR_PERCENT = 25.0
+
+
+def say_noise_floor(
+    joints: Sequence[str],
+    types: str,
+    noise: np.ndarray,
+    error_rms: np.ndarray,
+    percent: np.ndarray,
+) -> None:
+    """Prints the joints whose large error % is the log's torque noise, not the model's:
+    ``error_rms`` (N·m or N) within :data:`NOISE_FLOOR_FACTOR` of ``noise`` (the measured
+    torque's, N·m or N) and ``percent`` at least :data:`NOISE_FLOOR_PERCENT`. Nothing when
+    no joint is; NaN entries (no torque, too few rows) never are."""
+    with np.errstate(invalid="ignore"):
+        floor = (error_rms <= NOISE_FLOOR_FACTOR * noise) & (percent >= NOISE_FLOOR_PERCENT)
+    if not floor.any():
+        return
+    named = ", ".join(
+        f"{j} (noise {noise[i]:.2g} {'N' if types[i] == 'P' else 'N·m'})"
+        for i, j in enumerate(joints)
+        if floor[i]
+    )
+    print(
+        f"at the noise floor: {named}: the error is the torque's own noise (estimated from "
+        "its third differences) and the torque hardly rises above it in this log, so the "
+        "error % says little about the model there; excite these joints harder to check them"
+    )

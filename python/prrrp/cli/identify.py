@@ -509,30 +509,16 @@ def _summary(
         print(f"model.json is the {main.model.method} model{why}")
 
 
-#: A joint is at its noise floor when every method's torque error is within this factor
-#: of the measured torque's noise and its error is at least NOISE_FLOOR_PERCENT %.
-NOISE_FLOOR_FACTOR = 1.25
-NOISE_FLOOR_PERCENT = 25.0
-
-
 def _say_noise_floor(joints: Sequence[str], types: str, errors: Sequence[dict[str, Any]]) -> None:
     """Names the joints whose large error % is the log's torque noise, not the model's: a
-    98 % error on a wrist that barely moved says nothing about its parameters."""
+    98 % error on a wrist that barely moved says nothing about its parameters (every
+    method's error near the noise)."""
     if not errors:
         return
-    noise = np.asarray(errors[0]["noise_rms"], dtype=float)
-    rms = np.max([e["rms"] for e in errors], axis=0)
-    percent = np.min([e["percent"] for e in errors], axis=0)
-    floor = (rms <= NOISE_FLOOR_FACTOR * noise) & (percent >= NOISE_FLOOR_PERCENT)
-    if not floor.any():
-        return
-    named = ", ".join(
-        f"{j} (noise {noise[i]:.2g} {'N' if types[i] == 'P' else 'N·m'})"
-        for i, j in enumerate(joints)
-        if floor[i]
-    )
-    print(
-        f"at the noise floor: {named}: the error is the torque's own noise (estimated from "
-        "its third differences) and the torque hardly rises above it in this log, so the "
-        "error % says little about the model there; excite these joints harder to check them"
+    common.say_noise_floor(
+        joints,
+        types,
+        np.asarray(errors[0]["noise_rms"], dtype=float),
+        np.max([e["rms"] for e in errors], axis=0),
+        np.min([e["percent"] for e in errors], axis=0),
     )

@@ -20,6 +20,7 @@ from prrrp import payload as payloads
 from prrrp.cli import common
 from prrrp.cli.predict import load_model
 from prrrp.measurements import median_step, read_measurements
+from prrrp.prediction import noise_rms
 
 #: ``prrrp track --help``.
 HELP = "identify while the arm runs: a log fed one sample at a time"
@@ -259,6 +260,16 @@ def run(args: argparse.Namespace) -> int:
     )
     if not np.all(np.isfinite(errs)):
         print(f"  -: {NO_TORQUE}")
+    late_rms = run_["late_rms"]
+    level = 100 * np.asarray(online.noise_rms) / np.where(late_rms > 0, late_rms, np.nan)
+    print(
+        "  their running level on the low-passed rows "
+        f"({online.settings['cutoff_hz']:g} Hz, nearer to what the model misses; report.md): "
+        + ", ".join(_percent(e) for e in level)
+    )
+    common.say_noise_floor(
+        robot.joint_names, robot.joint_types, run_["late_noise"], run_["late_error_rms"], errs
+    )
     if online.counts[1] == 0:
         span = float(raw["t"][-1] - raw["t"][0])
         print(
@@ -311,12 +322,16 @@ def track(
     late = slice(int(0.8 * rows), rows)
     err = prediction[late] - tau[late]
     rms = np.sqrt(np.mean(tau[late] ** 2, axis=0))
-    late_error = 100 * np.sqrt(np.mean(err**2, axis=0)) / np.where(rms > 0, rms, np.nan)
+    err_rms = np.sqrt(np.mean(err**2, axis=0))
+    # A repeated row would read as a noise-free step of the third differences.
+    new = np.r_[True, np.diff(t) > 0][late]
     return {
         "prediction": prediction,
         "estimates": np.array(estimates),
         "changes": changes,
-        "late_error_percent": late_error,
+        "late_error_percent": 100 * err_rms / np.where(rms > 0, rms, np.nan),
+        "late_error_rms": err_rms,
+        "late_noise": noise_rms(tau[late][new]),
         "late_rms": rms,
     }
 
