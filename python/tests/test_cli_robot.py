@@ -216,6 +216,20 @@ def test_excite_bad_input(tmp_path: Path, capsys):
     limits = ["--limits", "velocity=1,acceleration=4"]
     assert cli.main(["excite", "--robot", str(kinova), "--out", out, *quick, *limits]) == 0
     assert (tmp_path / "kinova" / "trajectory.csv").exists()
+    # `simulate` designs as `excite` does: the same error, and the same override.
+    sim = ["simulate", "--robot", str(kinova), "--duration", "2"]
+    assert cli.main([*sim, "--out", str(tmp_path / "sim0")]) == 2
+    err = capsys.readouterr().err
+    assert "has no position or acceleration limit" in err, err
+    assert "prrrp simulate" in err, err
+    assert cli.main([*sim, *limits, "--out", str(tmp_path / "sim")]) == 0
+    data = np.loadtxt(tmp_path / "sim" / "data.csv", delimiter=",", skiprows=1)
+    qd = np.gradient(data[:, 1:7], data[:, 0], axis=0)
+    assert np.abs(qd).max() < 1.1, np.abs(qd).max()  # within velocity=1 (and noise)
+    traj = str(tmp_path / "kinova" / "trajectory.csv")
+    bad = ["simulate", "--robot", str(kinova), "--trajectory", traj, *limits, "--out"]
+    assert cli.main([*bad, str(tmp_path / "sim1")]) == 2
+    assert "--limits is not used with --trajectory" in capsys.readouterr().err
 
 
 def test_model_report_from_python(tmp_path: Path, truth):

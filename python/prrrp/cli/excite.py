@@ -73,12 +73,7 @@ def add_parser(sub: Any) -> None:
         help=f"friction columns of W_b: viscous, coulomb, offset or none (default: "
         f"{DEFAULT_FRICTION})",
     )
-    p.add_argument(
-        "--limits",
-        metavar="K=V,...",
-        help="override the file's limits for every joint, e.g. velocity=2,acceleration=8 "
-        "(keys: lower, upper in rad/m; velocity; acceleration) (default: the file's)",
-    )
+    add_limits_argument(p)
     p.add_argument(
         "--evaluations",
         type=int,
@@ -88,7 +83,19 @@ def add_parser(sub: Any) -> None:
     )
 
 
-def _limits(text: str | None, n: int) -> dict[str, np.ndarray] | None:
+def add_limits_argument(p: argparse.ArgumentParser, note: str = "") -> None:
+    """``--limits K=V,...`` of the commands that design a trajectory (read by
+    :func:`limits`)."""
+    p.add_argument(
+        "--limits",
+        metavar="K=V,...",
+        help="override the file's limits for every joint, e.g. velocity=2,acceleration=8 "
+        f"(keys: lower, upper in rad/m; velocity; acceleration){note} (default: the file's)",
+    )
+
+
+def limits(text: str | None, n: int) -> dict[str, np.ndarray] | None:
+    """The per-joint limits of ``--limits`` for ``n`` joints, None without it."""
     if not text:
         return None
     out: dict[str, np.ndarray] = {}
@@ -143,7 +150,7 @@ def run(args: argparse.Namespace) -> int:
     robot = workflow.load_robot(
         args.robot, base=args.base, tip=args.tip, friction=common.friction_terms(args.friction)
     )
-    limits = _limits(args.limits, robot.dof)
+    limits_ = limits(args.limits, robot.dof)
     _check_size(args.duration, args.rate, robot.dof)
     progress = common.Progress()
     try:
@@ -154,7 +161,7 @@ def run(args: argparse.Namespace) -> int:
             base_frequency=args.base_freq,
             rate=args.rate,
             seed=args.seed,
-            limits=limits,
+            limits=limits_,
             progress=lambda done, total: progress("excitation", done, total),
             max_evaluations=args.evaluations,
         )

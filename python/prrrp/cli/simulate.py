@@ -65,6 +65,7 @@ def add_parser(sub: Any) -> None:
         help="seconds of the designed trajectory; not with --trajectory, whose file sets it "
         f"(default: {DEFAULT_DURATION_S:g})",
     )
+    excite.add_limits_argument(p, note="; for the designed trajectory, not with --trajectory")
     p.add_argument(
         "--seed", type=common.seed, default=0, help="seed of the design and the noise (default: 0)"
     )
@@ -92,16 +93,18 @@ def add_parser(sub: Any) -> None:
 def _trajectory(args: argparse.Namespace, robot: Any) -> tuple[dict[str, np.ndarray], bool]:
     """The reference to track, and whether it was designed here (no --trajectory)."""
     if args.trajectory:
-        if args.duration is not None:
-            raise common.CliError(
-                "--duration is not used with --trajectory: the trajectory file sets it"
-            )
+        for option, why in (("duration", "sets it"), ("limits", "was designed within them")):
+            if getattr(args, option) is not None:
+                raise common.CliError(
+                    f"--{option} is not used with --trajectory: the trajectory file {why}"
+                )
         traj = csvio.read_table(args.trajectory, robot.dof, need_tau=False)
         if "qd" not in traj or "qdd" not in traj:
             raise common.CliError(
                 f"{args.trajectory}: a trajectory needs qd1..qdN and qdd1..qddN columns"
             )
         return traj, False
+    limits = excite.limits(args.limits, robot.dof)
     duration = DEFAULT_DURATION_S if args.duration is None else args.duration
     if not (math.isfinite(duration) and duration > 0):
         raise common.CliError(f"--duration must be a positive number of seconds, got {duration}")
@@ -119,6 +122,7 @@ def _trajectory(args: argparse.Namespace, robot: Any) -> tuple[dict[str, np.ndar
             design_robot,
             duration,
             seed=args.seed,
+            limits=limits,
             progress=lambda done, total: progress("excitation", done, total),
         )
     finally:

@@ -289,7 +289,8 @@ impl Shaper {
                     what: format!(
                         "joint {} has no {missing}, so nothing bounds its excitation; give \
                          them in the robot file (URDF <limit velocity=.. lower=.. upper=..>) \
-                         or as an override (prrrp excite --limits velocity=2,acceleration=8)",
+                         or as an override (`--limits velocity=2,acceleration=8` of `prrrp excite` and \
+                         `prrrp simulate`, `limits` in Python)",
                         names[j]
                     ),
                 });
