@@ -1303,8 +1303,8 @@ impl OnlineIdentifier {
                     if let Err(err) = e.step(&self.model, dt, &self.tf, var, nu) {
                         match err {
                             // Out of the region where the filter's dynamics exist even
-                            // after its own safeguards: back to the warm-up from the
-                            // filter's last estimate, which a fresh RLS refines.
+                            // after its own safeguards: back to the warm-up from where the
+                            // filter was 0.5–1 s before (`EkfEngine::restart`).
                             PrrrpError::Diverged { .. }
                             | PrrrpError::NotPositiveDefinite { .. } => {
                                 e.restart(&mut self.theta, &self.scale, &mut self.gamma)?;
@@ -2088,16 +2088,32 @@ impl EkfEngine {
         scale: &DVector<f64>,
         gamma: &mut DVector<f64>,
     ) -> Result<()> {
+        self.reset_warmup(Some(n), theta, scale, gamma)
+    }
+
+    /// The warm-up RLS reset to the estimate θ (γ = θ/scale into `gamma`) and a parameter
+    /// covariance: the filter's P_θθ now (`Some(n)`, its first 2N states q and q̇) or the
+    /// one it started with (`None`). Allocation-free.
+    fn reset_warmup(
+        &mut self,
+        now: Option<usize>,
+        theta: &DVector<f64>,
+        scale: &DVector<f64>,
+        gamma: &mut DVector<f64>,
+    ) -> Result<()> {
         self.rls.reset();
         gamma.copy_from(theta);
         gamma.component_div_assign(scale);
         self.rls.set_estimate(gamma)?;
-        let (o, p) = (2 * n, theta.len());
-        // P_γ = P_θθ/(sᵢ·sⱼ), written as an increment of the reset covariance.
-        let (pf, c) = (self.ekf.covariance(), self.rls.covariance());
+        let (src, o) = match now {
+            Some(n) => (self.ekf.covariance(), 2 * n),
+            None => (&self.p_start, 0),
+        };
+        // P_γ = P/(sᵢ·sⱼ), written as an increment of the reset covariance.
+        let (p, c) = (theta.len(), self.rls.covariance());
         for j in 0..p {
             for i in 0..p {
-                let v = 0.5 * (pf[(o + i, o + j)] + pf[(o + j, o + i)]) / (scale[i] * scale[j]);
+                let v = 0.5 * (src[(o + i, o + j)] + src[(o + j, o + i)]) / (scale[i] * scale[j]);
                 self.handover[(i, j)] = v - c[(i, j)];
             }
         }
@@ -2131,21 +2147,7 @@ impl EkfEngine {
         self.restarts += 1;
         theta.copy_from(&self.marks[1]);
         self.hand_to_warmup();
-        self.rls.reset();
-        gamma.copy_from(theta);
-        gamma.component_div_assign(scale);
-        self.rls.set_estimate(gamma)?;
-        // P_γ = P_start/(sᵢ·sⱼ), written as an increment of the reset covariance.
-        let (p0, c) = (&self.p_start, self.rls.covariance());
-        let p = theta.len();
-        for j in 0..p {
-            for i in 0..p {
-                let v = 0.5 * (p0[(i, j)] + p0[(j, i)]) / (scale[i] * scale[j]);
-                self.handover[(i, j)] = v - c[(i, j)];
-            }
-        }
-        self.rls.add_covariance(&self.handover);
-        Ok(())
+        self.reset_warmup(None, theta, scale, gamma)
     }
 
     /// One filter step over the previous row, now that its period `dt` and the torque
