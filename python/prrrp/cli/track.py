@@ -260,13 +260,6 @@ def run(args: argparse.Namespace) -> int:
     )
     if not np.all(np.isfinite(errs)):
         print(f"  -: {NO_TORQUE}")
-    late_rms = run_["late_rms"]
-    level = 100 * np.asarray(online.noise_rms) / np.where(late_rms > 0, late_rms, np.nan)
-    print(
-        "  their running level on the low-passed rows "
-        f"({online.settings['cutoff_hz']:g} Hz, nearer to what the model misses; report.md): "
-        + ", ".join(_percent(e) for e in level)
-    )
     common.say_noise_floor(
         robot.joint_names, robot.joint_types, run_["late_noise"], run_["late_error_rms"], errs
     )
