@@ -71,6 +71,7 @@ impl PyOnlineIdentifier {
             forgetting,
             directional,
             cutoff_hz: cutoff_hz.unwrap_or(defaults.cutoff_hz),
+            auto_cutoff: cutoff_hz.is_none(),
             change_detection: change_detection.then(|| ChangeDetection {
                 threshold: change_threshold,
                 ..ChangeDetection::default()

@@ -94,7 +94,11 @@ def add_parser(sub: Any) -> None:
         type=float,
         metavar="HZ",
         help="bandwidth of the causal filtering, below the Nyquist frequency of the rows "
-        "(default: 10 Hz)",
+        "(default: 10 Hz, lowered once after the first second of filtered rows to where "
+        "the positions' sensor noise, from their third differences, leaves the "
+        "accelerations within a tenth of their RMS (0.3 rad/s² for a joint that moves "
+        "less), at most to 2.5 Hz; not for the whole-arm ekf, whose filter measures q and "
+        "q̇)",
     )
     p.add_argument(
         "--prior-width",
@@ -481,6 +485,32 @@ def _coulomb_line(settings: dict[str, Any], scores: bool = True) -> str:
     return f"{how} (score Σ ln mean e², lower is better; {listed})"
 
 
+def _cutoff_line(settings: dict[str, Any], given: bool) -> str:
+    """The regression's cut-off and, when it was chosen from the noise, why (``given``:
+    set by --cutoff)."""
+    hz = f"{settings['cutoff_hz']:.3g} Hz"
+    choice = settings.get("cutoff_choice")
+    if given:
+        return f"{hz} (--cutoff)"
+    if choice is None:
+        return f"{hz} (the whole-arm EKF's filter measures q and q̇, not q̈: not lowered)"
+    if choice["chosen_hz"] is None:
+        return f"{hz} (the log ended before the choice after 1 s of filtered rows)"
+    unit = "rad or m" if choice["noise_of"] == "positions" else "rad/s or m/s"
+    noise = choice["sample_noise"]
+    seen = (
+        f"the {choice['noise_of']}' noise {min(noise):.2g}–{max(noise):.2g} {unit}, the "
+        f"accelerations {min(choice['acceleration_rms']):.2g}–"
+        f"{max(choice['acceleration_rms']):.2g} rad/s² or m/s² RMS over the first second"
+    )
+    if settings["cutoff_hz"] < choice["highest_hz"]:
+        return (
+            f"{hz}, lowered from {choice['highest_hz']:g} Hz ({seen}: at "
+            f"{choice['highest_hz']:g} Hz the noise in q̈ was above a tenth of their RMS)"
+        )
+    return f"{hz} ({seen})"
+
+
 def report(
     args: argparse.Namespace,
     online: prrrp.OnlineIdentifier,
@@ -503,6 +533,8 @@ def report(
         f"- changes detected: {changes}"
         + (f" (t = {', '.join(f'{c:.4g}' for c in run_['changes'])} s)" if changes else ""),
         f"- Coulomb speed scale v_s: {_coulomb_line(online.settings)}",
+        "- causal low-pass of the regression: "
+        + _cutoff_line(online.settings, args.cutoff is not None),
         "",
         "## One-step-ahead prediction",
         "",

@@ -97,6 +97,13 @@ impl CausalLowPass {
         self.age = 0.0;
     }
 
+    /// Moves the cut-off to `cutoff_hz` (> 0) and restarts the filter at the next sample.
+    pub fn set_cutoff(&mut self, cutoff_hz: f64) {
+        self.omega = 2.0 * std::f64::consts::PI * cutoff_hz;
+        self.h = f64::NAN;
+        self.reset();
+    }
+
     /// The exact discretisation over `h` (recomputed only when h changes).
     fn discretise(&mut self, h: f64) {
         if h == self.h {

@@ -15,6 +15,7 @@
 //! Design: docs/design/online.md; speed: docs/online-speed.md.
 
 mod coulomb_search;
+mod cutoff;
 mod detector;
 mod guard;
 mod identifier;
