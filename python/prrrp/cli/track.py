@@ -271,11 +271,20 @@ def run(args: argparse.Namespace) -> int:
         span = float(raw["t"][-1] - raw["t"][0])
         print(
             f"warning: no row updated the estimate: the log ({span:.3g} s) ended before the "
-            f"causal filtering ({online.settings['cutoff_hz']:g} Hz) settled, or no joint's "
+            f"causal filtering ({online.settings['cutoff_hz']:.3g} Hz) settled, or no joint's "
             "torque was measured; model.json is the starting model, unchanged"
         )
     if online.settings.get("coulomb_search") is not None:
         print(f"Coulomb speed scale v_s = {_coulomb_line(online.settings, scores=False)}")
+    choice = online.settings.get("cutoff_choice")
+    if choice is not None and online.settings["cutoff_hz"] < choice["highest_hz"]:
+        print(
+            f"causal low-pass lowered to {online.settings['cutoff_hz']:.3g} Hz (from "
+            f"{choice['highest_hz']:g} Hz) by the {choice['noise_of']}' sensor noise "
+            f"(up to {max(choice['sample_noise']):.2g} "
+            f"{'rad or m' if choice['noise_of'] == 'positions' else 'rad/s or m/s'}): see "
+            "report.md"
+        )
     if payload is not None:
         print(f"payload: {_payload_line(payload)}")
     print(f"results in {args.out}/ ({len(written)} files: model.json, report.md, figures)")
@@ -541,7 +550,7 @@ def report(
         "Each row's torque predicted from the estimate before it (`prediction.csv`), over "
         "the last 20 % of the rows. The error of the raw rows includes the torque sensor's "
         "noise and the causal estimate of q̈; the running level of the errors on the "
-        f"low-passed rows ({online.settings['cutoff_hz']:g} Hz, what the change test and the "
+        f"low-passed rows ({online.settings['cutoff_hz']:.3g} Hz, what the change test and the "
         "estimator's weights use) is nearer to what the model itself misses:",
         "",
         "| joint | RMS torque (N·m or N) | error of the raw rows (%) | running level on the "

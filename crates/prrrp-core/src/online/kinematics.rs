@@ -246,6 +246,13 @@ impl CausalKinematics {
         self.age = 0.0;
     }
 
+    /// Moves the bandwidth to `cutoff_hz` (> 0) and restarts the filters at the next
+    /// sample.
+    pub fn set_cutoff(&mut self, cutoff_hz: f64) {
+        self.omega = 2.0 * std::f64::consts::PI * cutoff_hz;
+        self.reset();
+    }
+
     /// Consumes one sample taken `dt` s after the previous one (ignored for the first
     /// sample after a reset; a `dt` above [`CausalKinematics::max_gap`] restarts) and
     /// writes q̇ and q̈ estimates at its time. `q` and `qd` (measured velocities, when the
