@@ -972,8 +972,9 @@ class OnlineIdentifier:
     when the dynamics jump (`change_threshold`: alarm level of the normalised squared
     one-step-ahead error). `cutoff_hz`: bandwidth of the causal filtering (default: 10 Hz,
     lowered once after 1 s of filtered rows to where the positions' sensor noise leaves the
-    accelerations within a tenth of their RMS, `settings["cutoff_choice"]`; not for the
-    whole-arm "ekf", whose filter measures q and q̇),
+    accelerations within a tenth of their RMS, `settings["cutoff_choice"]`, the one-step-ahead
+    predictions' tracker with it; the whole-arm "ekf", whose filter measures q and q̇,
+    lowers only the tracker),
     `prior_width`: P₀ = width²·Σ_prior, `ekf_noise`: factor on the EKF's measurement noise
     (1e-3 rad, 1e-2 rad/s), `payload_mass_std` (kg) and `payload_size` (m): the payload
     prior. `coulomb_scale="auto"` (from no knowledge, a robot with a Coulomb term): the

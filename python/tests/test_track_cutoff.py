@@ -74,3 +74,19 @@ def _late_error(logs, out) -> np.ndarray:
     meas = tau[late, 1 + n :]
     err = meas - pred[late, 1:]
     return 100 * np.sqrt((err**2).mean(0) / (meas**2).mean(0))
+
+
+def test_track_ekf_keeps_its_lowpass_and_lowers_its_predictions(logs):
+    """The whole-arm EKF's low-pass stays at 10 Hz (its filter measures q and q̇), so its
+    estimates are those of `--cutoff 10` to the bit; only the one-step-ahead predictions'
+    tracker is lowered, and they come closer to the measured torques."""
+    auto = _track(logs, "ekf-auto", "--method", "ekf")
+    fixed = _track(logs, "ekf-fixed", "--method", "ekf", "--cutoff", "10")
+    models = [json.loads((d / "model.json").read_text()) for d in (auto, fixed)]
+    settings = models[0]["settings"]
+    assert settings["cutoff_hz"] == 10.0
+    assert settings["prediction_cutoff_hz"] == settings["cutoff_choice"]["chosen_hz"] < 10.0
+    assert models[0]["beta"] == models[1]["beta"]
+    late = [_late_error(logs, d) for d in (auto, fixed)]
+    print("ekf one-step, last 20 %: auto", late[0], "10 Hz", late[1])
+    assert np.all(late[0][:4] < late[1][:4])

@@ -97,8 +97,8 @@ def add_parser(sub: Any) -> None:
         "(default: 10 Hz, lowered once after the first second of filtered rows to where "
         "the positions' sensor noise, from their third differences, leaves the "
         "accelerations within a tenth of their RMS (0.3 rad/s² for a joint that moves "
-        "less), at most to 2.5 Hz; not for the whole-arm ekf, whose filter measures q and "
-        "q̇)",
+        "less), at most to 2.5 Hz, the one-step-ahead predictions' tracker with it; the "
+        "whole-arm ekf, whose filter measures q and q̇, lowers only the tracker)",
     )
     p.add_argument(
         "--prior-width",
@@ -277,11 +277,16 @@ def run(args: argparse.Namespace) -> int:
     if online.settings.get("coulomb_search") is not None:
         print(f"Coulomb speed scale v_s = {_coulomb_line(online.settings, scores=False)}")
     choice = online.settings.get("cutoff_choice")
-    if choice is not None and online.settings["cutoff_hz"] < choice["highest_hz"]:
+    lowered = online.settings["prediction_cutoff_hz"]
+    if choice is not None and lowered < choice["highest_hz"]:
+        what = (
+            "causal low-pass"
+            if online.settings["cutoff_hz"] < choice["highest_hz"]
+            else "one-step-ahead predictions' tracker (the ekf's low-pass stays)"
+        )
         print(
-            f"causal low-pass lowered to {online.settings['cutoff_hz']:.3g} Hz (from "
-            f"{choice['highest_hz']:g} Hz) by the {choice['noise_of']}' sensor noise "
-            f"(up to {max(choice['sample_noise']):.2g} "
+            f"{what} lowered to {lowered:.3g} Hz (from {choice['highest_hz']:g} Hz) by the "
+            f"{choice['noise_of']}' sensor noise (up to {max(choice['sample_noise']):.2g} "
             f"{'rad or m' if choice['noise_of'] == 'positions' else 'rad/s or m/s'}): see "
             "report.md"
         )
@@ -499,10 +504,8 @@ def _cutoff_line(settings: dict[str, Any], given: bool) -> str:
     set by --cutoff)."""
     hz = f"{settings['cutoff_hz']:.3g} Hz"
     choice = settings.get("cutoff_choice")
-    if given:
+    if given or choice is None:
         return f"{hz} (--cutoff)"
-    if choice is None:
-        return f"{hz} (the whole-arm EKF's filter measures q and q̇, not q̈: not lowered)"
     if choice["chosen_hz"] is None:
         return f"{hz} (the log ended before the choice after 1 s of filtered rows)"
     unit = "rad or m" if choice["noise_of"] == "positions" else "rad/s or m/s"
@@ -512,10 +515,17 @@ def _cutoff_line(settings: dict[str, Any], given: bool) -> str:
         f"accelerations {min(choice['acceleration_rms']):.2g}–"
         f"{max(choice['acceleration_rms']):.2g} rad/s² or m/s² RMS over the first second"
     )
-    if settings["cutoff_hz"] < choice["highest_hz"]:
+    top = choice["highest_hz"]
+    if settings["cutoff_hz"] < top:
         return (
-            f"{hz}, lowered from {choice['highest_hz']:g} Hz ({seen}: at "
-            f"{choice['highest_hz']:g} Hz the noise in q̈ was above a tenth of their RMS)"
+            f"{hz}, lowered from {top:g} Hz ({seen}: at {top:g} Hz the noise in q̈ was above "
+            "a tenth of their RMS), the one-step-ahead predictions' tracker with it"
+        )
+    if settings["prediction_cutoff_hz"] < top:
+        return (
+            f"{hz} (the whole-arm EKF's filter measures q and q̇, not q̈: not lowered); "
+            f"the one-step-ahead predictions' tracker {settings['prediction_cutoff_hz']:.3g}"
+            f" Hz ({seen})"
         )
     return f"{hz} ({seen})"
 

@@ -98,9 +98,10 @@ pub struct OnlineConfig {
     /// Lower the regression's low-pass once, after 1 s of filtered rows, to where the
     /// sensor noise of the log's positions (or measured velocities) leaves its
     /// accelerations within a tenth of their RMS (default `true`; `cutoff` module docs).
-    /// The chosen cut-off is then `cutoff_hz` in [`OnlineIdentifier::settings_json`].
-    /// Not for the whole-arm EKF (its filter measures q and q̇; payload mode's EKF
-    /// measures joint forces and has it).
+    /// The chosen cut-off is then `cutoff_hz` in [`OnlineIdentifier::settings_json`], and
+    /// the one-step-ahead prediction's tracker moves to it (`prediction_cutoff_hz`). The
+    /// whole-arm EKF's low-pass stays (its filter measures q and q̇); only its tracker
+    /// moves. Payload mode's EKF measures joint forces and has it.
     pub auto_cutoff: bool,
     /// Change detection on the one-step-ahead torque errors (default on); `None`: off.
     pub change_detection: Option<ChangeDetection>,
@@ -363,6 +364,10 @@ pub struct OnlineIdentifier {
     lp: CausalLowPass,
     /// The low-pass's cut-off from the sensor noise (`auto_cutoff`).
     cutoff: Option<CutoffChoice>,
+    /// Whether the choice moves the regression's low-pass (all but the whole-arm EKF),
+    /// and the prediction tracker's bandwidth, Hz.
+    lower_regression: bool,
+    prediction_cutoff_hz: f64,
     detector: Option<ChangeDetector>,
     /// Running noise variance per joint when change detection is off.
     noise: ChangeDetector,
@@ -495,7 +500,7 @@ impl OnlineIdentifier {
         chain: &DynChain,
         base: &BaseParameters,
         prior: Option<IdentifiedModel>,
-        mut config: OnlineConfig,
+        config: OnlineConfig,
     ) -> Result<Self> {
         config.validate()?;
         let n = chain.dof();
@@ -675,14 +680,12 @@ impl OnlineIdentifier {
             threshold: f64::INFINITY,
             ..detection.unwrap_or_default()
         };
-        // The whole-arm EKF's filter measures q and q̇, not q̈: the choice's reason is its
-        // warm-up's alone. With it, from the wls prior of an xArm 7 and a UR5 stand-in at
+        // The whole-arm EKF's filter measures q and q̇, not q̈: the choice's reason for its
+        // low-pass is its warm-up's alone. With it, from the wls prior of an xArm 7 and a UR5 stand-in at
         // 100 Hz, the filter took a wild step after a restart and ended 31 and 20 % off
         // (5.3 and 3.8 % at 10 Hz), while every RLS ended at or below the batch fit's
         // error (docs/design/online.md, "The cut-off from the sensor noise").
-        let auto_cutoff =
-            config.auto_cutoff && (config.method != OnlineMethod::Ekf || config.payload);
-        config.auto_cutoff = auto_cutoff;
+        let lower_regression = config.method != OnlineMethod::Ekf || config.payload;
         let mut out = Self {
             config,
             chain: chain.clone(),
@@ -694,7 +697,11 @@ impl OnlineIdentifier {
             engine,
             kin: CausalKinematics::new(n, config.cutoff_hz, false),
             lp: CausalLowPass::new(n, config.cutoff_hz, false),
-            cutoff: auto_cutoff.then(|| CutoffChoice::new(n, config.cutoff_hz)),
+            cutoff: config
+                .auto_cutoff
+                .then(|| CutoffChoice::new(n, config.cutoff_hz)),
+            lower_regression,
+            prediction_cutoff_hz: config.cutoff_hz,
             qf: DVector::zeros(n),
             vf: DVector::zeros(n),
             af: DVector::zeros(n),
@@ -1199,12 +1206,15 @@ impl OnlineIdentifier {
         c.filtered(dt, self.af.as_slice());
         if let Some(hz) = c.decide() {
             if hz < 0.95 * self.config.cutoff_hz {
-                self.config.cutoff_hz = hz;
-                self.lp.set_cutoff(hz);
+                if self.lower_regression {
+                    self.config.cutoff_hz = hz;
+                    self.lp.set_cutoff(hz);
+                }
                 // The one-step-ahead prediction's tracker too, whose q̈ noise grows with
                 // ω_c alike: on the Z1 of `cutoff`'s docs the predictions of the last 20 %
                 // of the rows went from 134 / 4.5 / 14 / 12 % off on joints 1–4 to 31 /
                 // 1.0 / 4.2 / 5.8 % (the model itself 0.9–2 % off on joints 2–4).
+                self.prediction_cutoff_hz = hz;
                 self.kin.set_cutoff(hz);
             }
         }
@@ -1929,6 +1939,7 @@ impl OnlineIdentifier {
             },
             "cutoff_hz": c.cutoff_hz,
             "auto_cutoff": c.auto_cutoff,
+            "prediction_cutoff_hz": self.prediction_cutoff_hz,
             "change_detection": c.change_detection.is_some(),
             "open_factor": c.open_factor,
             "prior_width": c.prior_width,
