@@ -681,10 +681,11 @@ impl OnlineIdentifier {
             ..detection.unwrap_or_default()
         };
         // The whole-arm EKF's filter measures q and q̇, not q̈: the choice's reason for its
-        // low-pass is its warm-up's alone. With it, from the wls prior of an xArm 7 and a UR5 stand-in at
-        // 100 Hz, the filter took a wild step after a restart and ended 31 and 20 % off
-        // (5.3 and 3.8 % at 10 Hz), while every RLS ended at or below the batch fit's
-        // error (docs/design/online.md, "The cut-off from the sensor noise").
+        // low-pass is its warm-up's alone. With its low-pass lowered, from the wls prior of
+        // example-robot-data's xArm 7 and UR5 at 100 Hz, the filter took a wild step after
+        // a restart and ended 31 and 20 % off (5.3 and 3.8 % at 10 Hz), while every RLS
+        // ended within 0.25 points of the batch fit's error (docs/design/online.md, "The
+        // cut-off from the sensor noise").
         let lower_regression = config.method != OnlineMethod::Ekf || config.payload;
         let mut out = Self {
             config,
