@@ -287,8 +287,7 @@ def run(args: argparse.Namespace) -> int:
         print(
             f"{what} lowered to {lowered:.3g} Hz (from {choice['highest_hz']:g} Hz) by the "
             f"{choice['noise_of']}' sensor noise (up to {max(choice['sample_noise']):.2g} "
-            f"{'rad or m' if choice['noise_of'] == 'positions' else 'rad/s or m/s'}): see "
-            "report.md"
+            f"{_noise_unit(choice)}): see report.md"
         )
     if payload is not None:
         print(f"payload: {_payload_line(payload)}")
@@ -499,6 +498,11 @@ def _coulomb_line(settings: dict[str, Any], scores: bool = True) -> str:
     return f"{how} (score Σ ln mean e², lower is better; {listed})"
 
 
+def _noise_unit(choice: dict[str, Any]) -> str:
+    """Unit of the sample noise the cut-off was chosen from."""
+    return "rad or m" if choice["noise_of"] == "positions" else "rad/s or m/s"
+
+
 def _cutoff_line(settings: dict[str, Any], given: bool) -> str:
     """The regression's cut-off and, when it was chosen from the noise, why (``given``:
     set by --cutoff)."""
@@ -508,10 +512,10 @@ def _cutoff_line(settings: dict[str, Any], given: bool) -> str:
         return f"{hz} (--cutoff)"
     if choice["chosen_hz"] is None:
         return f"{hz} (the log ended before the choice after 1 s of filtered rows)"
-    unit = "rad or m" if choice["noise_of"] == "positions" else "rad/s or m/s"
     noise = choice["sample_noise"]
     seen = (
-        f"the {choice['noise_of']}' noise {min(noise):.2g}–{max(noise):.2g} {unit}, the "
+        f"the {choice['noise_of']}' noise {min(noise):.2g}–{max(noise):.2g} "
+        f"{_noise_unit(choice)}, the "
         f"accelerations {min(choice['acceleration_rms']):.2g}–"
         f"{max(choice['acceleration_rms']):.2g} rad/s² or m/s² RMS over the first second"
     )

@@ -364,10 +364,6 @@ pub struct OnlineIdentifier {
     lp: CausalLowPass,
     /// The low-pass's cut-off from the sensor noise (`auto_cutoff`).
     cutoff: Option<CutoffChoice>,
-    /// Whether the choice moves the regression's low-pass (all but the whole-arm EKF),
-    /// and the prediction tracker's bandwidth, Hz.
-    lower_regression: bool,
-    prediction_cutoff_hz: f64,
     detector: Option<ChangeDetector>,
     /// Running noise variance per joint when change detection is off.
     noise: ChangeDetector,
@@ -686,7 +682,6 @@ impl OnlineIdentifier {
         // a restart and ended 31 and 20 % off (5.3 and 3.8 % at 10 Hz), while every RLS
         // ended within 0.25 points of the batch fit's error (docs/design/online.md, "The
         // cut-off from the sensor noise").
-        let lower_regression = config.method != OnlineMethod::Ekf || config.payload;
         let mut out = Self {
             config,
             chain: chain.clone(),
@@ -701,8 +696,6 @@ impl OnlineIdentifier {
             cutoff: config
                 .auto_cutoff
                 .then(|| CutoffChoice::new(n, config.cutoff_hz)),
-            lower_regression,
-            prediction_cutoff_hz: config.cutoff_hz,
             qf: DVector::zeros(n),
             vf: DVector::zeros(n),
             af: DVector::zeros(n),
@@ -1172,9 +1165,10 @@ impl OnlineIdentifier {
         Ok((change, updated))
     }
 
-    /// A whole-arm EKF's RLS (its warm-up, or a look's copy) that failed on this row goes
-    /// back to the warm-up from the filter's older mark, as after a failure of the filter
-    /// itself (`EkfEngine::restart`); any other error is returned. The warm-up starts from
+    /// A whole-arm EKF whose filter, warm-up RLS or look's copy failed on this row goes
+    /// back to the warm-up from where the filter was 0.5–1 s before
+    /// (`EkfEngine::restart`); the warm-up a look opened is gone with it. Any other error
+    /// is returned. The warm-up starts from
     /// the filter's covariance, which its own steps can leave indefinite by more than
     /// round-off: on a UR10 stand-in at 100 Hz (1 kg gripped) the warm-up's second opening
     /// after the grip met φᵀ·P·φ < −1/w 0.3 s later, and `prrrp track` stopped there with
@@ -1207,7 +1201,8 @@ impl OnlineIdentifier {
         c.filtered(dt, self.af.as_slice());
         if let Some(hz) = c.decide() {
             if hz < 0.95 * self.config.cutoff_hz {
-                if self.lower_regression {
+                // All but the whole-arm EKF (see `build`).
+                if self.config.method != OnlineMethod::Ekf || self.config.payload {
                     self.config.cutoff_hz = hz;
                     self.lp.set_cutoff(hz);
                 }
@@ -1215,7 +1210,6 @@ impl OnlineIdentifier {
                 // ω_c alike: on the Z1 of `cutoff`'s docs the predictions of the last 20 %
                 // of the rows went from 134 / 4.5 / 14 / 12 % off on joints 1–4 to 31 /
                 // 1.0 / 4.2 / 5.8 % (the model itself 0.9–2 % off on joints 2–4).
-                self.prediction_cutoff_hz = hz;
                 self.kin.set_cutoff(hz);
             }
         }
@@ -1385,23 +1379,10 @@ impl OnlineIdentifier {
                         Some(d) => d.variances(),
                         None => self.noise.variances(),
                     };
-                    if let Err(err) = e.step(&self.model, dt, &self.tf, var, nu) {
-                        match err {
-                            // Out of the region where the filter's dynamics exist even
-                            // after its own safeguards: back to the warm-up from where the
-                            // filter was 0.5–1 s before (`EkfEngine::restart`).
-                            PrrrpError::Diverged { .. }
-                            | PrrrpError::NotPositiveDefinite { .. } => {
-                                e.restart(&mut self.theta, &self.scale, &mut self.gamma)?;
-                                // The warm-up a look opened is gone with the restart.
-                                self.guard.cancel();
-                                if let Some(tip) = &mut self.tip {
-                                    tip.cancel();
-                                }
-                            }
-                            other => return Err(other),
-                        }
-                    }
+                    // A failure (out of the region where the filter's dynamics exist
+                    // even after its own safeguards) goes back to the warm-up in
+                    // `recover_warmup`.
+                    e.step(&self.model, dt, &self.tf, var, nu)?;
                 }
                 if e.running {
                     e.keep(&self.qf, &self.vf, &self.af, &self.tf);
@@ -1940,7 +1921,7 @@ impl OnlineIdentifier {
             },
             "cutoff_hz": c.cutoff_hz,
             "auto_cutoff": c.auto_cutoff,
-            "prediction_cutoff_hz": self.prediction_cutoff_hz,
+            "prediction_cutoff_hz": self.kin.cutoff_hz(),
             "change_detection": c.change_detection.is_some(),
             "open_factor": c.open_factor,
             "prior_width": c.prior_width,

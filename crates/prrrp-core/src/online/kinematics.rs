@@ -246,6 +246,11 @@ impl CausalKinematics {
         self.age = 0.0;
     }
 
+    /// The bandwidth, Hz.
+    pub fn cutoff_hz(&self) -> f64 {
+        self.omega / (2.0 * std::f64::consts::PI)
+    }
+
     /// Moves the bandwidth to `cutoff_hz` (> 0) and restarts the filters at the next
     /// sample.
     pub fn set_cutoff(&mut self, cutoff_hz: f64) {
