@@ -815,6 +815,17 @@ fn bad_input_is_refused() {
         id.update(-1.0, &q, &tau, None),
         Err(PrrrpError::NonIncreasingTime { .. })
     ));
+    // Finite but absurd (a unit slip): refused, naming the value, before its squares
+    // overflow the noise levels.
+    let mut huge = tau;
+    huge[5] = -1e300;
+    match id.update(0.001, &q, &huge, None) {
+        Err(e @ PrrrpError::InvalidParameter { .. }) => {
+            let text = e.to_string();
+            assert!(text.contains("-1e300 for `tau[5] at row 1`"), "{text}");
+        }
+        other => panic!("{other:?}"),
+    }
     // Only the first row counted.
     assert_eq!(id.counts().0, 1);
     // A memory that forgets everything between two rows 1 ms apart (ν = exp(−1000)):

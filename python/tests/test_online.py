@@ -5,6 +5,7 @@ whose torques come from `pin.rnea`, with a payload added to the last joint's ine
 from __future__ import annotations
 
 import json
+import warnings
 
 import numpy as np
 import pinocchio as pin
@@ -143,6 +144,11 @@ def test_bad_input_is_a_typed_error(setup):
         online.update(0.01, np.zeros(5), np.ones(6))
     with pytest.raises(prrrp.NonIncreasingTimeError):
         online.update(-1.0, np.zeros(6), np.ones(6))
+    # Finite but absurd (a unit slip): refused at the row, naming it, before its squares
+    # overflow the noise levels; before, every row was taken, nothing learned, and only
+    # estimate() failed, on `residual_rms`.
+    with pytest.raises(prrrp.InvalidParameterError, match=r"tau\[2\] at row 1.*units"):
+        online.update(0.01, np.zeros(6), [1, 1, 1e300, 1, 1, 1])
     assert online.counts[0] == 1
     for bad in ({"forgetting": 0.0}, {"method": "adaline", "step_size": 2.5}, {"payload": True}):
         with pytest.raises(prrrp.InvalidParameterError):
@@ -356,6 +362,25 @@ def test_track_says_where_a_joint_had_no_torque(setup, tmp_path, capsys):
     cells = [c.strip() for c in line.split(":", 1)[1].split(",")]
     assert cells[1] == "-"
     assert all(float(c) > 0 for k, c in enumerate(cells) if k != 1)
+
+
+def test_track_of_torques_that_all_read_zero_warns_nothing_but_its_own(tmp_path, setup, capsys):
+    """Every torque 0 (no channel logged), from no knowledge: the prediction is 0 too, and
+    the figure's error panel, all zeros, is drawn without a log scale instead of
+    matplotlib's warning on stderr; the run says why nothing was learned."""
+    _chain, _prior, run, _ = setup
+    log = {k: v[:1000].copy() for k, v in run.items()}
+    log["tau"][:] = 0.0
+    data = tmp_path / "zero.csv"
+    _write_csv(data, log)
+    rel, _tip = ARMS["ur5"]
+    out = tmp_path / "track"
+    capsys.readouterr()
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert main(["track", str(data), "--robot", str(ROBOTS / rel), "--out", str(out)]) == 0
+    assert "reads 0" in capsys.readouterr().out
+    assert (out / "track.png").stat().st_size > 0
 
 
 def test_track_names_the_joints_at_the_noise_floor(setup, tmp_path, capsys):

@@ -118,7 +118,13 @@ impl fmt::Display for PrrrpError {
                 value,
                 reason,
             } => {
-                write!(f, "invalid value {value} for `{field}`: {reason}")
+                // 1e300 in positional notation is 301 digits long.
+                let a = value.abs();
+                if a >= 1e9 || (a > 0.0 && a < 1e-6) {
+                    write!(f, "invalid value {value:e} for `{field}`: {reason}")
+                } else {
+                    write!(f, "invalid value {value} for `{field}`: {reason}")
+                }
             }
             Self::NotPositiveDefinite { what } => write!(
                 f,

@@ -401,9 +401,15 @@ def figure(
         if len(shown):
             a.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False)
     err = run_["prediction"] - raw["tau"]
+    positive = False
     for j in range(err.shape[1]):
-        drawing.lines(b, t, windowed_rms(t, err[:, j], 0.1), lw=0.8, label=f"joint {j + 1}")
-    b.set_yscale("log")
+        rms = windowed_rms(t, err[:, j], 0.1)
+        positive |= bool(np.any(np.isfinite(rms) & (rms > 0)))
+        drawing.lines(b, t, rms, lw=0.8, label=f"joint {j + 1}")
+    # Errors that are all zero (torque channels that read 0 and a model that predicts 0)
+    # have no log scale; matplotlib would warn on stderr.
+    if positive:
+        b.set_yscale("log")
     b.set_ylabel("one-step-ahead torque\nerror, 0.1 s RMS (N·m, N)", fontsize=8)
     b.set_xlabel("time (s)", fontsize=8)
     b.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False)

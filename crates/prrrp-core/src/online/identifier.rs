@@ -903,7 +903,8 @@ impl OnlineIdentifier {
     /// [`PrrrpError::ShapeMismatch`] for vectors without one entry per joint, or
     /// velocities given at some samples and not others; [`PrrrpError::NonFinite`] for
     /// NaN/∞ (the sample is refused and the state left as it was);
-    /// [`PrrrpError::NonIncreasingTime`] for a time stamp before the previous one;
+    /// [`PrrrpError::InvalidParameter`] for a value of 1e100 or more in magnitude (refused
+    /// alike); [`PrrrpError::NonIncreasingTime`] for a time stamp before the previous one;
     /// [`PrrrpError::Diverged`] when the estimator fails (the identifier should then be
     /// rebuilt).
     pub fn update(
@@ -1039,6 +1040,19 @@ impl OnlineIdentifier {
                 what: what.into(),
                 row: Some(self.rows),
             });
+        }
+        // Finite but absurd: a torque of 1e300 N·m went through every row and its squares
+        // left the noise levels infinite, the weights 0 and the estimate unmoved, and only
+        // `estimate` failed, on a quantity the user never gave.
+        for (name, v) in [("q", q), ("tau", tau), ("qd", qd.unwrap_or(&[]))] {
+            if let Some((j, x)) = v.iter().enumerate().find(|(_, x)| x.abs() > MAX_MAGNITUDE) {
+                return Err(PrrrpError::InvalidParameter {
+                    field: format!("{name}[{j}] at row {}", self.rows),
+                    value: *x,
+                    reason: "no joint turns, moves or pushes 1e100 (rad, m, N·m, N) or more; \
+                             check the log's units",
+                });
+            }
         }
         let dt = match self.t_prev {
             Some(tp) if t < tp => return Err(PrrrpError::NonIncreasingTime { row: self.rows }),
@@ -2006,6 +2020,11 @@ fn open_rls_tip(
         false
     }
 }
+
+/// Largest magnitude of a position, velocity or joint force that `update` takes (rad, m,
+/// N·m, N, per s): far beyond any arm, and far below where squares and products of them
+/// overflow a double.
+const MAX_MAGNITUDE: f64 = 1e100;
 
 /// After this many looks along the tip link dropped in a row (each within two hold-offs of
 /// the last, 1.5 s of errors by default) with the kept estimator above the detector's alarm
