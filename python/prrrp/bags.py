@@ -18,7 +18,7 @@ from typing import Any
 
 import numpy as np
 
-from prrrp.csvio import InputError
+from prrrp.csvio import MAX_MAGNITUDE, TOO_LARGE, InputError
 
 #: The default topic of ``sensor_msgs/JointState`` (ros2_control's joint_state_broadcaster).
 DEFAULT_TOPIC = "/joint_states"
@@ -127,6 +127,9 @@ def read_joint_states(
         bad = np.argwhere(~np.isfinite(value))
         if bad.size:
             raise InputError(f"{p}: message {int(bad[0][0])} on '{topic}': {key} is not finite")
+        big = np.argwhere(np.abs(value) >= MAX_MAGNITUDE)
+        if big.size:
+            raise InputError(f"{p}: message {int(big[0][0])} on '{topic}': {key} {TOO_LARGE}")
     return out
 
 

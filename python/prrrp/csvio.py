@@ -265,6 +265,12 @@ def _read(path: Path, dof: int | None, real_log: bool, need_tau: bool) -> dict[s
     n = len(table)
     if n < MIN_SAMPLES:
         raise InputError(f"{path}: too few samples ({n}); at least {MIN_SAMPLES} are needed")
+    big = np.argwhere(np.abs(table) >= MAX_MAGNITUDE)
+    if big.size:
+        i, j = big[0]
+        raise InputError(
+            f"{path}: data row {i + 1}, column '{header[j]}': {table[i, j]:g} {TOO_LARGE}"
+        )
     col = {name: table[:, j] for j, name in enumerate(header)}
     t = col["t"]
     steps = np.diff(t)
@@ -287,6 +293,15 @@ def _read(path: Path, dof: int | None, real_log: bool, need_tau: bool) -> dict[s
             out["current" if key == "i" else key] = np.column_stack([col[c] for c in groups[key]])
     return out
 
+
+#: Magnitude from which a value is refused (s, rad, m, N·m, N, A, per s): far beyond any
+#: arm or clock, far below where the squares least squares takes overflow a double (a
+#: torque of 1e300 N·m read as rank deficiency, and `predict` printed overflow warnings).
+MAX_MAGNITUDE = 1e100
+TOO_LARGE = (
+    "is 1e100 or more in magnitude: no joint turns, moves or pushes that far "
+    "(rad, m, N·m, N); check the log's units"
+)
 
 #: Lines parsed per block by :func:`_numbers`: large enough that numpy does the work,
 #: small enough that the block's Python strings (≈ 60 bytes per cell) stay about 2 MB.

@@ -128,6 +128,23 @@ def test_a_bad_cell_is_named_by_line_and_column(tmp_path: Path) -> None:
         csvio.read_table(path, 2, real_log=True)
 
 
+def test_a_value_beyond_any_arm_is_named(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A torque of -1e300 (a unit slip, or garbage): refused with its row and column, by
+    either path; before, `identify` called the log rank deficient and `predict` printed
+    numpy's overflow warnings and exit 0."""
+    lines = rows(30)
+    cells = lines[12].split(",")
+    cells[4] = "-1e300"
+    lines[12] = ",".join(cells)
+    path = tmp_path / "log.csv"
+    path.write_text("\n".join([HEADER, *lines]) + "\n", encoding="utf-8")
+    for fast in (True, False):
+        message = outcome(path, fast, monkeypatch)
+        assert isinstance(message, str), fast
+        assert "data row 13, column 'tau2': -1e+300 is 1e100 or more" in message, message
+        assert "units" in message
+
+
 CELL = st.text(alphabet="0123456789.eE+-_ \tnaif", min_size=0, max_size=8)
 
 

@@ -150,6 +150,7 @@ def write_messages(path: Path, messages, topic="/joint_states"):
         ("short_velocity", r"message 2 on '/joint_states' has 3 velocities for 7 joint names"),
         ("short_effort", r"message 2 on '/joint_states' has 6 efforts for 7 joints"),
         ("twice", r"message 2 on '/joint_states' names joint 'panda_joint2' twice"),
+        ("huge_effort", r"message 2 on '/joint_states': tau is 1e100 or more in magnitude"),
     ],
 )
 def test_malformed_bag_messages_are_typed_errors(tmp_path: Path, panda, fault, message):
@@ -173,6 +174,8 @@ def test_malformed_bag_messages_are_typed_errors(tmp_path: Path, panda, fault, m
                 row[4] = e[:-1]
             elif fault == "twice":
                 row[1] = [*names[:2], names[1], *names[3:]]
+            elif fault == "huge_effort":
+                row[4] = np.where(np.arange(7) == 3, 1e300, e)
         messages.append(tuple(row))
     bag = tmp_path / "bag"
     write_messages(bag, messages)
