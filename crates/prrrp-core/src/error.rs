@@ -118,9 +118,13 @@ impl fmt::Display for PrrrpError {
                 value,
                 reason,
             } => {
+                // NaN is also the value of a field that is not a number (a method's name,
+                // a file's key): "invalid value NaN for `online method \"EKF\"`" misled.
                 // 1e300 in positional notation is 301 digits long.
                 let a = value.abs();
-                if a >= 1e9 || (a > 0.0 && a < 1e-6) {
+                if value.is_nan() {
+                    write!(f, "invalid `{field}`: {reason}")
+                } else if a >= 1e9 || (a > 0.0 && a < 1e-6) {
                     write!(f, "invalid value {value:e} for `{field}`: {reason}")
                 } else {
                     write!(f, "invalid value {value} for `{field}`: {reason}")
@@ -281,4 +285,28 @@ pub(crate) fn check_shape(what: &str, got: (usize, usize), want: (usize, usize))
 /// count `n`.
 pub(crate) fn check_joints(what: &str, len: usize, n: usize) -> Result<()> {
     check_len(what, len, n, "entries", " (one per joint)")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn invalid(value: f64) -> String {
+        PrrrpError::InvalidParameter {
+            field: "x".into(),
+            value,
+            reason: "why",
+        }
+        .to_string()
+    }
+
+    #[test]
+    fn invalid_values_are_written_to_be_read() {
+        assert_eq!(invalid(0.5), "invalid value 0.5 for `x`: why");
+        assert_eq!(invalid(-1e300), "invalid value -1e300 for `x`: why");
+        assert_eq!(invalid(2e-9), "invalid value 2e-9 for `x`: why");
+        assert_eq!(invalid(f64::INFINITY), "invalid value inf for `x`: why");
+        // NaN also stands for a field that is not a number (a name, a key).
+        assert_eq!(invalid(f64::NAN), "invalid `x`: why");
+    }
 }
