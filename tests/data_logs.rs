@@ -550,12 +550,13 @@ fn bad_logs_are_typed_errors() {
             row: Some(77)
         })
     );
-    // All rows at one time stamp: nothing left.
+    // All rows at one time stamp: one sample, and the error says so (not "record a
+    // longer trajectory").
     let same = vec![1.0; log.t.len()];
-    assert!(matches!(
-        run(&same, &log.q, N, &cfg),
-        Err(PrrrpError::TooFewSamples { .. })
-    ));
+    let text = run(&same, &log.q, N, &cfg).unwrap_err().to_string();
+    let rows = format!("its {} rows hold 1 distinct time stamp)", log.t.len());
+    assert!(text.contains(&rows), "{text}");
+    assert!(text.contains("give each sample its own time"), "{text}");
     let c = LogConfig {
         decimate_to_hz: Some(1e-300),
         ..cfg

@@ -224,6 +224,20 @@ pub fn preprocess_log(
         }
     }
     let len = kept.len();
+    if len < 3 && repeated > 0 {
+        // "Too few samples; record a longer trajectory" misled for a long log whose rows
+        // all carry one time stamp (a clock column that was never filled in).
+        return Err(PrrrpError::InvalidParameter {
+            field: format!(
+                "t (its {} rows hold {len} distinct time stamp{})",
+                t.len(),
+                if len == 1 { "" } else { "s" }
+            ),
+            value: t[kept[0]],
+            reason: "rows that share a time stamp are one sample; give each sample its own \
+                     time, in s",
+        });
+    }
     if len < 3 {
         return Err(PrrrpError::TooFewSamples {
             needed: 3,
