@@ -1045,7 +1045,7 @@ impl OnlineIdentifier {
         // left the noise levels infinite, the weights 0 and the estimate unmoved, and only
         // `estimate` failed, on a quantity the user never gave.
         for (name, v) in [("q", q), ("tau", tau), ("qd", qd.unwrap_or(&[]))] {
-            if let Some((j, x)) = v.iter().enumerate().find(|(_, x)| x.abs() > MAX_MAGNITUDE) {
+            if let Some((j, x)) = v.iter().enumerate().find(|(_, x)| x.abs() >= MAX_MAGNITUDE) {
                 return Err(PrrrpError::InvalidParameter {
                     field: format!("{name}[{j}] at row {}", self.rows),
                     value: *x,
@@ -2021,7 +2021,7 @@ fn open_rls_tip(
     }
 }
 
-/// Largest magnitude of a position, velocity or joint force that `update` takes (rad, m,
+/// Magnitude from which `update` refuses a position, velocity or joint force (rad, m,
 /// N·m, N, per s): far beyond any arm, and far below where squares and products of them
 /// overflow a double.
 const MAX_MAGNITUDE: f64 = 1e100;
