@@ -774,6 +774,10 @@ fn bad_input_is_refused() {
             payload: true,
             ..Default::default()
         },
+        OnlineConfig {
+            initial_covariance: 1e12,
+            ..Default::default()
+        },
     ] {
         assert!(
             matches!(bad(cfg), Err(PrrrpError::InvalidParameter { .. })),

@@ -39,6 +39,7 @@ from typing import Any
 
 from prrrp import payload
 from prrrp._prrrp import (
+    MAX_MAGNITUDE,
     NDOF,
     NPARAM,
     STANDARD_GRAVITY,
@@ -114,6 +115,7 @@ from prrrp.workflow import (
 )
 
 __all__ = [
+    "MAX_MAGNITUDE",
     "NDOF",
     "NPARAM",
     "STANDARD_GRAVITY",

@@ -25,7 +25,7 @@ _F64 = npt.NDArray[np.float64]
 
 # The module's `__all__` lists every name `register` adds (pyo3 keeps it); stubtest checks
 # it against this one, which each section below extends by its own names.
-__all__ = ["NDOF", "NPARAM", "STANDARD_GRAVITY", "__version__"]
+__all__ = ["MAX_MAGNITUDE", "NDOF", "NPARAM", "STANDARD_GRAVITY", "__version__"]
 
 __version__: Final[str]
 NDOF: Final[int]
@@ -34,6 +34,10 @@ NPARAM: Final[int]
 """Number of grouped base parameters λ (8)."""
 STANDARD_GRAVITY: Final[float]
 """Default gravitational acceleration, 9.81 m/s² along -z."""
+MAX_MAGNITUDE: Final[float]
+"""Magnitude from which a logged value is refused (1e100; s, rad, m, N·m, N, A, per s): far
+beyond any arm or clock, far below where the squares least squares forms overflow a
+double. The CSV and bag readers and `OnlineIdentifier.update` refuse it, naming it."""
 
 __all__ += [
     "DivergedError",
@@ -977,7 +981,9 @@ class OnlineIdentifier:
     lowers only the tracker),
     `prior_width`: P₀ = width²·Σ_prior, `ekf_noise`: factor on the EKF's measurement noise
     (1e-3 rad, 1e-2 rad/s), `payload_mass_std` (kg) and `payload_size` (m): the payload
-    prior. `coulomb_scale="auto"` (from no knowledge, a robot with a Coulomb term): the
+    prior, `initial_covariance` (without a prior; at most 1e9): the RLS's δ on the
+    equilibrated parameters, `seed`: of the random states they are equilibrated on.
+    `coulomb_scale="auto"` (from no knowledge, a robot with a Coulomb term): the
     speed scale v_s of fc·tanh(q̇/v_s) is chosen online among 0, 0.001, 0.002, 0.004, …,
     0.256 rad/s (an octave apart) and the robot's own, by the one-step-ahead torque errors
     of an RLS of each scale (whatever the method) from 5 s to 10 s after the first row
@@ -1020,7 +1026,7 @@ class OnlineIdentifier:
         ekf_noise: float = 1.0,
         ekf_warmup: float = 2.0,
         step_size: float = 0.5,
-        seed: int = 0,
+        seed: int = ...,  # 0
         coulomb_scale: Literal["auto"] | None = None,
     ) -> Self: ...
     def update(

@@ -18,7 +18,8 @@ from typing import Any
 
 import numpy as np
 
-from prrrp.csvio import MAX_MAGNITUDE, TOO_LARGE, InputError
+from prrrp._prrrp import MAX_MAGNITUDE
+from prrrp.csvio import TOO_LARGE, InputError
 
 #: The default topic of ``sensor_msgs/JointState`` (ros2_control's joint_state_broadcaster).
 DEFAULT_TOPIC = "/joint_states"

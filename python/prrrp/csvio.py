@@ -35,6 +35,7 @@ from typing import Any
 import numpy as np
 
 from prrrp import signals
+from prrrp._prrrp import MAX_MAGNITUDE
 
 NDOF = 5
 POSITION_COLUMNS = tuple(f"q{i}" for i in range(1, NDOF + 1))
@@ -294,10 +295,7 @@ def _read(path: Path, dof: int | None, real_log: bool, need_tau: bool) -> dict[s
     return out
 
 
-#: Magnitude from which a value is refused (s, rad, m, N·m, N, A, per s): far beyond any
-#: arm or clock, far below where the squares least squares takes overflow a double (a
-#: torque of 1e300 N·m read as rank deficiency, and `predict` printed overflow warnings).
-MAX_MAGNITUDE = 1e100
+#: How a value of :data:`prrrp.MAX_MAGNITUDE` or more is refused.
 TOO_LARGE = (
     "is 1e100 or more in magnitude: no joint turns, moves or pushes that far "
     "(rad, m, N·m, N); check the log's units"

@@ -150,7 +150,16 @@ def test_bad_input_is_a_typed_error(setup):
     with pytest.raises(prrrp.InvalidParameterError, match=r"tau\[2\] at row 1.*units"):
         online.update(0.01, np.zeros(6), [1, 1, 1e300, 1, 1, 1])
     assert online.counts[0] == 1
-    for bad in ({"forgetting": 0.0}, {"method": "adaline", "step_size": 2.5}, {"payload": True}):
+    # A seed below 0 was Python's OverflowError; a δ of 1e12 was taken and diverged at
+    # row 62 (rls) or, with the ekf, predicted zeros from its warm-up's restart on.
+    for bad in (
+        {"forgetting": 0.0},
+        {"method": "adaline", "step_size": 2.5},
+        {"payload": True},
+        {"seed": -1},
+        {"initial_covariance": 1e12},
+        {"method": "ekf", "initial_covariance": 1e12},
+    ):
         with pytest.raises(prrrp.InvalidParameterError):
             prrrp.OnlineIdentifier(chain, **bad)
     with pytest.raises(prrrp.InvalidParameterError):

@@ -34,6 +34,7 @@ fn _prrrp(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("NDOF", prrrp_core::NDOF)?;
     m.add("NPARAM", prrrp_core::NPARAM)?;
     m.add("STANDARD_GRAVITY", prrrp_core::STANDARD_GRAVITY)?;
+    m.add("MAX_MAGNITUDE", prrrp_core::MAX_MAGNITUDE)?;
     errors::register(m)?;
     models::robot::register(m)?;
     models::chain::register(m)?;

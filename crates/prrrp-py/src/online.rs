@@ -7,7 +7,7 @@ use prrrp_core::{
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
-use crate::arrays::{to_array, vector, Out};
+use crate::arrays::{to_array, vector, Out, UInt};
 use crate::errors::ToPyResult;
 use crate::identification::PyIdentifiedModel;
 use crate::models::chain::PySerialChain;
@@ -28,7 +28,7 @@ impl PyOnlineIdentifier {
     #[pyo3(signature = (robot=None, *, prior=None, method="rls", payload=false, forgetting=None,
         directional=true, change_detection=true, change_threshold=9.0, cutoff_hz=None,
         prior_width=3.0, initial_covariance=1e6, payload_mass_std=10.0, payload_size=0.2,
-        ekf_noise=1.0, ekf_warmup=2.0, step_size=0.5, seed=0, coulomb_scale=None))]
+        ekf_noise=1.0, ekf_warmup=2.0, step_size=0.5, seed=UInt(0), coulomb_scale=None))]
     #[allow(clippy::too_many_arguments)]
     fn new(
         py: Python<'_>,
@@ -48,7 +48,7 @@ impl PyOnlineIdentifier {
         ekf_noise: f64,
         ekf_warmup: f64,
         step_size: f64,
-        seed: u64,
+        seed: UInt<u64>,
         coulomb_scale: Option<&str>,
     ) -> PyResult<Self> {
         let defaults = OnlineConfig::default();
@@ -83,7 +83,7 @@ impl PyOnlineIdentifier {
             ekf_noise,
             ekf_warmup,
             step_size,
-            seed,
+            seed: seed.0,
             coulomb_search,
             ..defaults
         };

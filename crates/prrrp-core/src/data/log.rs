@@ -15,6 +15,13 @@ use nalgebra::Dyn;
 /// it removes the measurement noise that differentiation amplifies as f and f².
 pub const DEFAULT_LOG_CUTOFF_HZ: f64 = 10.0;
 
+/// Magnitude from which a logged value is refused (s, rad, m, N·m, N, A, per s): far
+/// beyond any arm or clock, far below where the squares that least squares and the online
+/// estimators form overflow a double (a torque of 1e300 N·m read as rank deficiency).
+/// [`crate::OnlineIdentifier::update`] refuses it, and so do the Python readers of CSV
+/// files and bags (`prrrp.MAX_MAGNITUDE`).
+pub const MAX_MAGNITUDE: f64 = 1e100;
+
 /// Largest ratio of the resampling rate to the log's median rate (100). It bounds the
 /// grid, hence memory, to 100 samples per log row; upsampling further adds no
 /// information to a linearly interpolated signal.

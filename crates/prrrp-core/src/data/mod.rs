@@ -11,7 +11,7 @@ pub(crate) mod preprocess;
 
 pub use log::{
     preprocess_log, LogConfig, LogReport, DEFAULT_LOG_CUTOFF_HZ, LOG_MAX_UPSAMPLING,
-    LOG_UNIFORM_TOLERANCE,
+    LOG_UNIFORM_TOLERANCE, MAX_MAGNITUDE,
 };
 
 // The module's public API (also at the crate root through `prelude`).
