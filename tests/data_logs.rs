@@ -557,6 +557,17 @@ fn bad_logs_are_typed_errors() {
     let rows = format!("its {} rows hold 1 distinct time stamp)", log.t.len());
     assert!(text.contains(&rows), "{text}");
     assert!(text.contains("give each sample its own time"), "{text}");
+    // A cut-off whose transient outlasts a log long enough for the default: the error
+    // names the cut-off (it read "need at least 18446744073709551615" samples).
+    let c = LogConfig {
+        cutoff_hz: Some(1e-300),
+        ..cfg
+    };
+    let err = run(&log.t, &log.q, N, &c).unwrap_err();
+    assert!(
+        matches!(&err, PrrrpError::InvalidParameter { field, .. } if field == "cutoff_hz"),
+        "{err}"
+    );
     let c = LogConfig {
         decimate_to_hz: Some(1e-300),
         ..cfg

@@ -310,6 +310,22 @@ fn bad_configuration_and_non_physical_start_are_typed_errors() {
         PrrrpEkf::new(model, lambda, cfg),
         Err(PrrrpError::InvalidParameter { .. })
     ));
+    // Finite, but squared into a variance of 0 or inf.
+    for cfg in [
+        EkfConfig {
+            position_noise: 1e-300,
+            ..Default::default()
+        },
+        EkfConfig {
+            initial_velocity_std: 1e300,
+            ..Default::default()
+        },
+    ] {
+        assert!(matches!(
+            PrrrpEkf::new(model, lambda, cfg),
+            Err(PrrrpError::InvalidParameter { .. })
+        ));
+    }
     let mut l = lambda;
     l[0] = f64::INFINITY;
     assert!(matches!(

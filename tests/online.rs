@@ -778,6 +778,16 @@ fn bad_input_is_refused() {
             initial_covariance: 1e12,
             ..Default::default()
         },
+        // Squared into covariances: 1e300 overflowed, 1e-300 underflowed.
+        OnlineConfig {
+            prior_width: 1e300,
+            ..Default::default()
+        },
+        OnlineConfig {
+            ekf_noise: 1e-300,
+            method: OnlineMethod::Ekf,
+            ..Default::default()
+        },
     ] {
         assert!(
             matches!(bad(cfg), Err(PrrrpError::InvalidParameter { .. })),

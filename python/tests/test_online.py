@@ -271,11 +271,45 @@ def test_identify_ekf_takes_the_options_its_errors_name(setup, tmp_path):
     out = tmp_path / "ekf"
     common = ["identify", str(data), "--robot", str(ROBOTS / rel), "--method", "ekf"]
     assert main([*common, "--ekf-noise", "0", "--out", str(out)]) == 2
+    # Squared into covariances: 1e300 was taken, and the filter started from the diagonal
+    # prior without a word.
+    assert main([*common, "--ekf-prior-width", "1e300", "--out", str(out)]) == 2
+    assert main([*common, "--ekf-noise", "1e-300", "--out", str(out)]) == 2
+    assert not out.exists()
     code = main([*common, "--ekf-prior-width", "2", "--ekf-noise", "3", "--out", str(out)])
     assert code == 0
     settings = prrrp.IdentifiedModel.load(out / "model.json").settings
     assert settings["least_squares_prior_width"] == 2.0
     assert np.atleast_1d(settings["position_noise"])[0] == pytest.approx(3e-3)
+
+
+def test_absurd_options_are_usage_errors(setup, tmp_path, capsys):
+    """Finite but absurd settings are refused, naming the option, before any output: a
+    prior width of 1e300 (squared to inf, the prior dropped silently), an ekf noise of
+    1e-300 (a variance of 0), a cut-off whose transient outlasts the log (it read "need at
+    least 18446744073709551615 samples"), a noise factor whose log prrrp cannot read."""
+    _chain, _prior, run, _ = setup
+    rel, _tip = ARMS["ur5"]
+    data = tmp_path / "ur5.csv"
+    _write_csv(data, {k: v[: int(5 * RATE)] for k, v in run.items()})
+    robot = str(ROBOTS / rel)
+    out = tmp_path / "out"
+    cases = [
+        (["track", str(data), "--robot", robot, "--prior-width", "1e300"], "--prior-width"),
+        (
+            ["track", str(data), "--robot", robot, "--method", "ekf", "--ekf-noise", "1e-300"],
+            "--ekf-noise",
+        ),
+        (["identify", str(data), "--robot", robot, "--cutoff", "1e-300"], "cutoff"),
+        (["simulate", "--robot", robot, "--duration", "2", "--noise", "1e300"], "--noise"),
+    ]
+    for argv, needle in cases:
+        capsys.readouterr()
+        assert main([*argv, "--out", str(out)]) == 2, argv
+        err = capsys.readouterr().err
+        assert needle in err, err
+        assert "Traceback" not in err, err
+        assert not out.exists()
 
 
 def test_track_figure_error_window_is_in_seconds():

@@ -137,8 +137,10 @@ def run(args: argparse.Namespace) -> int:
     bound = args.max_tracking_error
     if not (np.isfinite(bound) and bound > 0):
         raise common.CliError(f"--max-tracking-error must be a positive number, got {bound}")
-    if not (math.isfinite(args.noise) and args.noise >= 0):
-        raise common.CliError(f"--noise must be a finite number >= 0, got {args.noise}")
+    # Above 1e6 the noise alone is beyond any arm, and ×1e300 wrote a log whose values
+    # prrrp's own readers refuse (1e100 or more).
+    if not (math.isfinite(args.noise) and 0 <= args.noise <= 1e6):
+        raise common.CliError(f"--noise must be a factor between 0 and 1e6, got {args.noise:g}")
     out = deprecated.check_out(args, old)
     args.robot = args.robot or common.DEFAULT_ROBOT
     robot = workflow.load_robot(args.robot, base=args.base, tip=args.tip)

@@ -95,6 +95,16 @@ pub(crate) fn filter_and_differentiate(
         .and_then(|x| x.checked_add(cfg.min_samples))
         .unwrap_or(usize::MAX);
     if m < needed {
+        // More than any log holds (`MAX_SAMPLES`, 1e7): the cut-off is what to change (at
+        // 1e-300 Hz the count needed read 18446744073709551615).
+        if cfg.trim.is_none() && needed > crate::interrupt::MAX_SAMPLES {
+            return Err(PrrrpError::InvalidParameter {
+                field: "cutoff_hz".into(),
+                value: cfg.cutoff_hz,
+                reason: "trims its start-up transient, 3/cutoff s, from each end of the log, \
+                         more than 1e7 samples: raise the cut-off (Hz)",
+            });
+        }
         return Err(PrrrpError::TooFewSamples { needed, got: m });
     }
     let keep = (trim..m - trim).step_by(cfg.decimate);

@@ -484,6 +484,14 @@ where
                     reason: "must be finite and > 0",
                 });
             }
+            // Squared into P and R: 1e-300 became a variance of 0, 1e300 one of inf.
+            if name != "dt" && !(v * v).is_normal() {
+                return Err(PrrrpError::InvalidParameter {
+                    field: name.into(),
+                    value: v,
+                    reason: "must be between 1e-150 and 1e150 (it is squared into a variance)",
+                });
+            }
         }
         let non_negative = [
             ("process_position_noise", c.process_position_noise),

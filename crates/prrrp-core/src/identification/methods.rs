@@ -1674,11 +1674,13 @@ fn ekf(
     est.set_parameter_anchor(&beta0)?;
     est.set_stiff_handling(s.stiff_handling);
     let w = s.least_squares_prior_width;
-    if !(w.is_finite() && w >= 0.0) {
+    // Squared into P₀: a width of 1e300 made it infinite, and the filter started from the
+    // diagonal prior without a word.
+    if !(w == 0.0 || (1e-6..=1e6).contains(&w)) {
         return Err(PrrrpError::InvalidParameter {
             field: "least_squares_prior_width".into(),
             value: w,
-            reason: "must be finite and >= 0",
+            reason: "must be 0 (the diagonal prior) or between 1e-6 and 1e6",
         });
     }
     let mut prior = "diagonal";

@@ -154,7 +154,8 @@ pub fn optimise_chain_excitation(
         return Err(invalid(
             "sample_rate_hz",
             c.sample_rate_hz,
-            "gives fewer equations per period than base parameters: raise it",
+            "times the period 1/base_frequency_hz (the design's duration, s) gives fewer \
+             equations (samples × joints) than base parameters: raise the rate or the duration",
         ));
     }
     let problem = Problem {

@@ -121,19 +121,22 @@ pub struct OnlineConfig {
     /// error², default `1e6`: a prior σ of 1000 N·m on the torque each parameter
     /// explains) when no prior covariance is given.
     pub initial_covariance: f64,
-    /// Width of the prior from a prior model's covariance (default `3.0`: P₀ = 3²·Σ_prior).
+    /// Width of the prior from a prior model's covariance (default `3.0`: P₀ = 3²·Σ_prior;
+    /// 1e-6 to 1e6).
     pub prior_width: f64,
-    /// Payload mode: prior standard deviation of the payload mass, kg (default `10.0`).
+    /// Payload mode: prior standard deviation of the payload mass, kg (default `10.0`;
+    /// 1e-6 to 1e6).
     pub payload_mass_std: f64,
     /// Payload mode: size of the payload, m (default `0.2`): prior σ of the first
-    /// moments `payload_mass_std`·size, of the inertia `payload_mass_std`·size².
+    /// moments `payload_mass_std`·size, of the inertia `payload_mass_std`·size² (1e-6 to
+    /// 1e6).
     pub payload_size: f64,
     /// EKF without a prior: seconds of RLS before the filter starts from its estimate
     /// (default `2.0`; then also until M(q, θ̂) has been positive definite for 0.5 s).
     pub ekf_warmup: f64,
     /// EKF: factor on the measurement noise R of the positions (1e-3 rad or m) and
     /// velocities (1e-2 rad/s or m/s) (default `1.0`). Not used in payload mode, whose
-    /// filter measures joint forces with the running noise levels.
+    /// filter measures joint forces with the running noise levels. 1e-6 to 1e6.
     pub ekf_noise: f64,
     /// Adaline's normalised step, Hopfield's gain as a fraction of its stability limit
     /// (dimensionless in (0, 2), default `0.5`).
@@ -145,6 +148,12 @@ pub struct OnlineConfig {
     /// `None`: the robot's own). Not with a prior model, which carries its scale.
     pub coulomb_search: Option<CoulombSearch>,
 }
+
+/// Range of [`OnlineConfig::prior_width`], `ekf_noise`, `payload_mass_std` (kg) and
+/// `payload_size` (m): far wider than any use, and their squares and products stay normal
+/// doubles.
+const MIN_FACTOR: f64 = 1e-6;
+const MAX_FACTOR: f64 = 1e6;
 
 /// Largest [`OnlineConfig::initial_covariance`]. On the 100 Hz UR3, UR5 and UR10 stand-in
 /// logs (1e-4 rad noise, no prior) the RLS diverged in its first 60 rows from 3e10–3e11 on:
@@ -189,6 +198,22 @@ impl OnlineConfig {
         for (name, v) in positive {
             if !(v.is_finite() && v > 0.0) {
                 return Err(invalid(name, v, "must be finite and > 0"));
+            }
+        }
+        // Squared into covariances: a width of 1e300 made P₀ infinite, and the prior's
+        // covariance was dropped for the flat δ (no prior) without a word.
+        for (name, v) in [
+            ("prior_width", self.prior_width),
+            ("ekf_noise", self.ekf_noise),
+            ("payload_mass_std", self.payload_mass_std),
+            ("payload_size", self.payload_size),
+        ] {
+            if !(MIN_FACTOR..=MAX_FACTOR).contains(&v) {
+                return Err(invalid(
+                    name,
+                    v,
+                    "must be between 1e-6 and 1e6 (it is squared into a covariance)",
+                ));
             }
         }
         if self.initial_covariance > MAX_INITIAL_COVARIANCE {
