@@ -857,6 +857,25 @@ fn bad_input_is_refused() {
         Err(PrrrpError::InvalidParameter { field, .. }) if field == "forgetting"
     ));
     assert_eq!(id.counts().0, 2);
+    // Rows at 5 Hz, below twice the default 10 Hz cut-off: each restarts the filtering,
+    // so nothing would ever be learned. Single gaps are taken (above); 100 in a row are
+    // refused, naming the cut-off, before the row changes anything.
+    let mut id = OnlineIdentifier::new(&chain, &base, OnlineConfig::default()).unwrap();
+    let mut refused = None;
+    for k in 0..200 {
+        let t = k as f64 * 0.2;
+        let qk = q.map(|v| v + (0.3 * t).sin());
+        match id.update(t, &qk, &tau, None) {
+            Ok(_) => {}
+            Err(PrrrpError::InvalidParameter { field, .. }) if field == "cutoff_hz" => {
+                refused = Some(k);
+                break;
+            }
+            Err(e) => panic!("{e:?}"),
+        }
+    }
+    assert_eq!(refused, Some(100));
+    assert_eq!(id.counts(), (100, 0, 0, 0));
 }
 
 /// Ten logs of the part held from the start (independent motions and sensor noise, 10 s

@@ -162,6 +162,14 @@ def test_bad_input_is_a_typed_error(setup):
     ):
         with pytest.raises(prrrp.InvalidParameterError):
             prrrp.OnlineIdentifier(chain, **bad)
+    # Rows at 5 Hz, below twice the 10 Hz cut-off: every row restarted the filtering and
+    # nothing was learned, silently; 100 such rows in a row are refused.
+    slow = prrrp.OnlineIdentifier(chain)
+    for k in range(100):
+        slow.update(0.2 * k, np.full(6, np.sin(0.06 * k)), np.ones(6))
+    with pytest.raises(prrrp.InvalidParameterError, match=r"cutoff_hz.*Nyquist"):
+        slow.update(20.0, np.zeros(6), np.ones(6))
+    assert slow.counts[0] == 100
     with pytest.raises(prrrp.InvalidParameterError):
         prrrp.OnlineIdentifier(chain, method="kalman")
     with pytest.raises(prrrp.InvalidParameterError):

@@ -149,6 +149,10 @@ pub struct OnlineConfig {
     pub coulomb_search: Option<CoulombSearch>,
 }
 
+/// Rows in a row, each a step longer than half a cut-off period, from which `update`
+/// refuses the next: the rows' rate is below twice the cut-off.
+const GAPS_REFUSED: usize = 100;
+
 /// Range of [`OnlineConfig::prior_width`], `ekf_noise`, `payload_mass_std` (kg) and
 /// `payload_size` (m): far wider than any use, and their squares and products stay normal
 /// doubles.
@@ -473,6 +477,8 @@ pub struct OnlineIdentifier {
     rows: usize,
     updates: usize,
     repeated: usize,
+    /// Rows in a row whose step was longer than the low-pass's longest (each restarted it).
+    gaps: usize,
     changes: usize,
     /// The online choice of the Coulomb scale (`coulomb_search`): the other candidates
     /// until the choice, then its record.
@@ -784,6 +790,7 @@ impl OnlineIdentifier {
             rows: 0,
             updates: 0,
             repeated: 0,
+            gaps: 0,
             changes: 0,
             search: None,
         };
@@ -1112,7 +1119,29 @@ impl OnlineIdentifier {
                 ));
             }
         }
+        // Every row a gap: the cut-off is not below the Nyquist frequency of the rows, each
+        // restarts the filtering and nothing is ever learned (a 10 Hz log at the default
+        // cut-off took every row and returned the start, silently).
+        let gap = self.t_prev.is_some() && dt > self.lp.max_gap();
+        if gap && self.gaps + 1 >= GAPS_REFUSED {
+            return Err(PrrrpError::InvalidParameter {
+                field: "cutoff_hz".into(),
+                value: self.config.cutoff_hz,
+                reason: if self.config.auto_cutoff {
+                    "(the default, before it is lowered) is not below the Nyquist frequency \
+                     of the rows, so every row restarts the causal filtering and nothing is \
+                     learned: give a cutoff_hz below half the rows' rate (Hz)"
+                } else {
+                    "is not below the Nyquist frequency of the rows, so every row restarts \
+                     the causal filtering and nothing is learned: give one below half the \
+                     rows' rate (Hz)"
+                },
+            });
+        }
         let repeat = self.t_prev.is_some() && dt == 0.0;
+        if !repeat {
+            self.gaps = if gap { self.gaps + 1 } else { 0 };
+        }
         self.rows += 1;
         self.q.copy_from_slice(q);
         self.tau.copy_from_slice(tau);
