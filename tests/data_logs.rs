@@ -573,7 +573,7 @@ fn bad_logs_are_typed_errors() {
         ..cfg
     };
     assert!(run(&log.t, &log.q, N, &c).is_err());
-    let bad_rates = [f64::NAN, -1.0, 0.0, 1e12, f64::INFINITY].map(|rate| LogConfig {
+    let bad_rates = [f64::NAN, -1.0, 0.0, 1e12, f64::INFINITY, 1e-300].map(|rate| LogConfig {
         rate_hz: Some(rate),
         ..cfg
     });

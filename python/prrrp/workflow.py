@@ -531,6 +531,13 @@ def excite(
             f"duration {duration} s is not a whole number of periods of {f0} Hz "
             "(the trajectory would not end at rest)"
         )
+    # Below twice the highest harmonic the samples alias it (at 1e-300 Hz the trajectory
+    # was one sample over 10 s, written without a word).
+    if harmonics <= 100 and rate <= 2.0 * harmonics * f0:
+        raise ValueError(
+            f"rate {rate:g} Hz is not above twice the highest harmonic, {harmonics} × "
+            f"{f0:g} Hz: the samples would not follow the trajectory; raise the rate"
+        )
     if duration * rate > MAX_SAMPLES:
         raise InvalidInputError(
             f"rate {rate:g} Hz × duration {duration:g} s = {duration * rate:.3g} samples; at "

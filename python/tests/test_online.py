@@ -295,7 +295,8 @@ def test_absurd_options_are_usage_errors(setup, tmp_path, capsys):
     """Finite but absurd settings are refused, naming the option, before any output: a
     prior width of 1e300 (squared to inf, the prior dropped silently), an ekf noise of
     1e-300 (a variance of 0), a cut-off whose transient outlasts the log (it read "need at
-    least 18446744073709551615 samples"), a noise factor whose log prrrp cannot read."""
+    least 18446744073709551615 samples"), a noise factor whose log prrrp cannot read, a
+    rate of 1e-300 Hz."""
     _chain, _prior, run, _ = setup
     rel, _tip = ARMS["ur5"]
     data = tmp_path / "ur5.csv"
@@ -310,6 +311,10 @@ def test_absurd_options_are_usage_errors(setup, tmp_path, capsys):
         ),
         (["identify", str(data), "--robot", robot, "--cutoff", "1e-300"], "cutoff"),
         (["simulate", "--robot", robot, "--duration", "2", "--noise", "1e300"], "--noise"),
+        (["benchmark", "--robot", robot, "--noise", "1e300", "--seeds", "1"], "noise scale"),
+        # One sample over 10 s was written; the log resampled to one row.
+        (["excite", "--robot", robot, "--rate", "1e-300"], "twice the highest harmonic"),
+        (["identify", str(data), "--robot", robot, "--rate", "1e-300"], "rate_hz"),
     ]
     for argv, needle in cases:
         capsys.readouterr()

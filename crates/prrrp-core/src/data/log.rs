@@ -39,7 +39,7 @@ pub struct LogConfig {
     /// robust to the occasional long step of a jittery logger; with
     /// [`LogConfig::decimate_to_hz`] set, the smallest whole multiple of that output rate
     /// at or above the median rate, so that decimation is exact. At most
-    /// [`LOG_MAX_UPSAMPLING`] × the median rate.
+    /// [`LOG_MAX_UPSAMPLING`] × the median rate, at least the median rate over it.
     pub rate_hz: Option<f64>,
     /// Low-pass cut-off, Hz. `None` (default): min([`DEFAULT_LOG_CUTOFF_HZ`], f_out/10)
     /// with f_out the output rate (after decimation). The cap at a tenth of the output
@@ -169,8 +169,8 @@ pub struct LogReport {
 /// # Errors
 /// - [`PrrrpError::InvalidParameter`] for n = 0; a non-finite or non-positive
 ///   `rate_hz`, `cutoff_hz`, `decimate_to_hz`, `max_gap_s` or negative `trim_s`; a
-///   `rate_hz` above [`LOG_MAX_UPSAMPLING`] × the median rate or whose grid would not
-///   fit that bound; a `decimate_to_hz` that is not `rate_hz` over a whole number; a
+///   `rate_hz` above [`LOG_MAX_UPSAMPLING`] × the median rate (or below it over that) or
+///   whose grid would not fit that bound; a `decimate_to_hz` that is not `rate_hz` over a whole number; a
 ///   cut-off not below the output Nyquist frequency or a bad order; a time step
 ///   longer than `max_gap_s` (field `t[row]`, value the step in s);
 /// - [`PrrrpError::ShapeMismatch`] if `q`, `tau` or `qd` does not hold n values per time
@@ -309,11 +309,17 @@ pub fn preprocess_log(
             (rate, factor as usize)
         }
     };
-    if rate.is_nan() || rate > LOG_MAX_UPSAMPLING * median_rate {
+    // Below a hundredth of the log's rate too: at 1e-300 Hz a 5 s log became one sample,
+    // and the error said "too few samples; record a longer trajectory".
+    if rate.is_nan()
+        || rate > LOG_MAX_UPSAMPLING * median_rate
+        || rate < median_rate / LOG_MAX_UPSAMPLING
+    {
         return Err(invalid(
             "rate_hz",
             rate,
-            "must be at most LOG_MAX_UPSAMPLING (100) times the log's median rate",
+            "must be between 1/LOG_MAX_UPSAMPLING and LOG_MAX_UPSAMPLING (100) times the \
+             log's median rate",
         ));
     }
     let passthrough = uniform && (rate * mean_step - 1.0).abs() <= LOG_UNIFORM_TOLERANCE;
