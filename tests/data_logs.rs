@@ -557,8 +557,24 @@ fn bad_logs_are_typed_errors() {
     let rows = format!("its {} rows hold 1 distinct time stamp)", log.t.len());
     assert!(text.contains(&rows), "{text}");
     assert!(text.contains("give each sample its own time"), "{text}");
-    // A cut-off whose transient outlasts a log long enough for the default: the error
-    // names the cut-off (it read "need at least 18446744073709551615" samples).
+    // A cut-off above the Nyquist frequency of a 100 Hz log: named, not the first step
+    // longer than half its period (every step is).
+    let t100: Vec<f64> = (0..2000).map(|k| k as f64 * 0.01).collect();
+    let q100: Vec<f64> = t100
+        .iter()
+        .flat_map(|t| (0..N).map(move |j| (t * (1.0 + j as f64)).sin()))
+        .collect();
+    let c = LogConfig {
+        cutoff_hz: Some(60.0),
+        ..cfg
+    };
+    let err = preprocess_log(&t100, &q100, &q100, None, N, &c).unwrap_err();
+    assert!(
+        matches!(&err, PrrrpError::InvalidParameter { field, .. } if field == "cutoff_hz"),
+        "{err}"
+    );
+    // A cut-off whose transient needs more than 1e7 samples: the error names the cut-off
+    // (it read "need at least 18446744073709551615" samples).
     let c = LogConfig {
         cutoff_hz: Some(1e-300),
         ..cfg

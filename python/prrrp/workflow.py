@@ -580,8 +580,10 @@ def simulate(
     compensated from the reference velocity. A run that strays further than
     ``max_tracking_error`` (rad or m; None: no bound) from its reference raises
     :class:`TrackingError`: its data would not be the trajectory that was asked for."""
-    if not (math.isfinite(noise) and noise >= 0):
-        raise ValueError(f"noise must be a finite number >= 0, got {noise}")
+    # Above 1e6 the noise alone is beyond any arm, and the log is one prrrp's readers
+    # refuse (values of 1e100 or more).
+    if not (math.isfinite(noise) and 0 <= noise <= 1e6):
+        raise ValueError(f"noise must be a factor between 0 and 1e6, got {noise:g}")
     if max_tracking_error is not None and not (
         math.isfinite(max_tracking_error) and max_tracking_error > 0
     ):
