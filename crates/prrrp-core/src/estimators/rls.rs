@@ -665,8 +665,11 @@ fn diverged(at: usize) -> PrrrpError {
     PrrrpError::Diverged {
         what: "recursive least squares",
         at,
+        // The initial covariance too: a δ of 1e300 cancelled to round-off in the first
+        // updates and diverged at sample 5, where only the other two causes were named.
         hint: "the covariance is no longer positive definite or finite: use a forgetting \
-               factor closer to 1 or a trajectory that excites every parameter",
+               factor closer to 1, a smaller initial covariance (1e6 by default) or a \
+               trajectory that excites every parameter",
     }
 }
 
