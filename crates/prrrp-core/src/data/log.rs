@@ -170,9 +170,9 @@ pub struct LogReport {
 /// - [`PrrrpError::InvalidParameter`] for n = 0; a non-finite or non-positive
 ///   `rate_hz`, `cutoff_hz`, `decimate_to_hz`, `max_gap_s` or negative `trim_s`; a
 ///   `rate_hz` above [`LOG_MAX_UPSAMPLING`] × the median rate (or below it over that) or
-///   whose grid would not fit that bound; a `decimate_to_hz` that is not `rate_hz` over a whole number; a
-///   cut-off not below the output Nyquist frequency or a bad order; a time step
-///   longer than `max_gap_s` (field `t[row]`, value the step in s);
+///   whose grid would not fit that bound; a `decimate_to_hz` that is not `rate_hz` over a
+///   whole number; a cut-off not below the output Nyquist frequency or a bad order; a
+///   time step longer than `max_gap_s` (field `t[row]`, value the step in s);
 /// - [`PrrrpError::ShapeMismatch`] if `q`, `tau` or `qd` does not hold n values per time
 ///   stamp;
 /// - [`PrrrpError::NonFinite`] naming the column and joint (e.g. `"q[2] (joint 3)"`)
