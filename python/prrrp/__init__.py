@@ -39,7 +39,10 @@ from typing import Any
 
 from prrrp import payload
 from prrrp._prrrp import (
+    MAX_FACTOR,
+    MAX_HARMONICS,
     MAX_MAGNITUDE,
+    MIN_FACTOR,
     NDOF,
     NPARAM,
     STANDARD_GRAVITY,
@@ -115,7 +118,10 @@ from prrrp.workflow import (
 )
 
 __all__ = [
+    "MAX_FACTOR",
+    "MAX_HARMONICS",
     "MAX_MAGNITUDE",
+    "MIN_FACTOR",
     "NDOF",
     "NPARAM",
     "STANDARD_GRAVITY",

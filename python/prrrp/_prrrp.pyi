@@ -25,7 +25,16 @@ _F64 = npt.NDArray[np.float64]
 
 # The module's `__all__` lists every name `register` adds (pyo3 keeps it); stubtest checks
 # it against this one, which each section below extends by its own names.
-__all__ = ["MAX_MAGNITUDE", "NDOF", "NPARAM", "STANDARD_GRAVITY", "__version__"]
+__all__ = [
+    "MAX_FACTOR",
+    "MAX_HARMONICS",
+    "MAX_MAGNITUDE",
+    "MIN_FACTOR",
+    "NDOF",
+    "NPARAM",
+    "STANDARD_GRAVITY",
+    "__version__",
+]
 
 __version__: Final[str]
 NDOF: Final[int]
@@ -38,6 +47,14 @@ MAX_MAGNITUDE: Final[float]
 """Magnitude from which a logged value is refused (1e100; s, rad, m, N·m, N, A, per s): far
 beyond any arm or clock, far below where the squares least squares forms overflow a
 double. The CSV and bag readers and `OnlineIdentifier.update` refuse it, naming it."""
+MIN_FACTOR: Final[float]
+"""Smallest width or noise factor squared into a covariance (1e-6): `OnlineIdentifier`'s
+`prior_width`, `ekf_noise`, `payload_mass_std` (kg) and `payload_size` (m), the EKF's
+`least_squares_prior_width`."""
+MAX_FACTOR: Final[float]
+"""Largest such factor (1e6), also the largest factor on simulated noise."""
+MAX_HARMONICS: Final[int]
+"""Most harmonics per joint of an excitation design (100)."""
 
 __all__ += [
     "DivergedError",

@@ -35,7 +35,7 @@ from typing import Any
 import numpy as np
 
 from prrrp import signals
-from prrrp._prrrp import MAX_MAGNITUDE
+from prrrp._prrrp import MAX_MAGNITUDE, InvalidInputError
 
 NDOF = 5
 POSITION_COLUMNS = tuple(f"q{i}" for i in range(1, NDOF + 1))
@@ -51,7 +51,7 @@ ALL_COLUMNS = REQUIRED_COLUMNS + OPTIONAL_COLUMNS
 MIN_SAMPLES = 20
 
 
-class InputError(ValueError):
+class InputError(InvalidInputError):
     """Bad input file: the message is one line saying what is wrong and where."""
 
 

@@ -26,7 +26,7 @@ from typing import Any
 import numpy as np
 
 from prrrp import canvas, drawing
-from prrrp._prrrp import Dataset, IdentifiedModel
+from prrrp._prrrp import Dataset, IdentifiedModel, InvalidInputError
 from prrrp.prediction import LogGrid, _at_rows, prepare, recorded_settings
 
 FRICTION_TERMS = ("fv", "fc", "fo")
@@ -902,9 +902,9 @@ def _check_coulomb_record(c: dict[str, Any]) -> None:
 
     where = "the model's preprocessing 'coulomb_scale' record"
     if not number(c.get("chosen")):
-        raise ValueError(f"{where}: 'chosen' is {c.get('chosen')!r}, not a number (rad/s)")
+        raise InvalidInputError(f"{where}: 'chosen' is {c.get('chosen')!r}, not a number (rad/s)")
     lists = [c.get("candidates"), c.get("cv_rms")]
     if not all(isinstance(v, list) and all(number(x) for x in v) for v in lists):
-        raise ValueError(f"{where}: 'candidates' and 'cv_rms' must be lists of numbers")
+        raise InvalidInputError(f"{where}: 'candidates' and 'cv_rms' must be lists of numbers")
     if len(lists[0]) != len(lists[1]):
-        raise ValueError(f"{where}: 'candidates' and 'cv_rms' differ in length")
+        raise InvalidInputError(f"{where}: 'candidates' and 'cv_rms' differ in length")

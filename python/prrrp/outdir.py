@@ -27,6 +27,7 @@ from pathlib import Path
 from typing import TypeVar
 
 from prrrp import signals
+from prrrp._prrrp import InvalidInputError
 
 try:
     import fcntl
@@ -40,7 +41,7 @@ STARTING_GRACE_S = 60.0
 _T = TypeVar("_T")
 
 
-class OutputDirError(ValueError):
+class OutputDirError(InvalidInputError):
     """The output folder cannot be written (it is a file, or holds foreign files)."""
 
 

@@ -21,7 +21,7 @@ from typing import Any
 
 import numpy as np
 
-from prrrp._prrrp import Dataset, IdentifiedModel, identify_drive_gains
+from prrrp._prrrp import Dataset, IdentifiedModel, InvalidInputError, identify_drive_gains
 from prrrp.measurements import measurements_to_dataset
 
 #: Names of the inertia entries about the centre of mass, in the JSON's order.
@@ -187,7 +187,7 @@ def write_report(
     d = Path(directory)
     payload = loaded.payload
     if payload is None:
-        raise ValueError("the model carries no payload")
+        raise InvalidInputError("the model carries no payload")
     explained_torque_figure(arm, loaded, data, d / "explained_torque.png")
     ident = payload.get("identification") or {}
     unexplained = np.asarray(data.tau) - np.asarray(arm.predict(data.q, data.qd, data.qdd))

@@ -23,7 +23,7 @@ from typing import Any
 
 import numpy as np
 
-from prrrp._prrrp import Dataset, IdentifiedModel, preprocess_log
+from prrrp._prrrp import Dataset, IdentifiedModel, InvalidInputError, preprocess_log
 from prrrp.measurements import PREPROCESS_KEYS, measurements_to_dataset
 
 
@@ -88,7 +88,7 @@ class LogGrid:
         identification fits (None when not processed); ``rows`` scored, ``rows_total``,
         ``edge_rows``, ``repeated_rows``, ``span`` (s)."""
         if self.measured is None:
-            raise ValueError("the log has no measured torque to score against")
+            raise InvalidInputError("the log has no measured torque to score against")
         k = self.scored
         rms = _rms(self.measured[k] - predicted[k])
         ref = _rms(self.measured[k])
@@ -224,10 +224,12 @@ def recorded_settings(model: IdentifiedModel) -> dict[str, Any]:
     if pre is None or pre == {}:
         return {}
     if not isinstance(pre, dict):
-        raise ValueError(f"the model's 'preprocessing' is a {type(pre).__name__}, not an object")
+        raise InvalidInputError(
+            f"the model's 'preprocessing' is a {type(pre).__name__}, not an object"
+        )
     settings = pre.get("settings") or {}
     if not isinstance(settings, dict):
-        raise ValueError(
+        raise InvalidInputError(
             f"the model's preprocessing 'settings' is a {type(settings).__name__}, not an object"
         )
     return check_settings(settings, "the model's preprocessing setting")
@@ -258,6 +260,6 @@ def check_settings(settings: Mapping[str, Any], what: str) -> dict[str, Any]:
             continue
         ok, expected = _SETTING_TYPES[key]
         if not ok(value):
-            raise ValueError(f"{what} '{key}' is {value!r}; it must be {expected}")
+            raise InvalidInputError(f"{what} '{key}' is {value!r}; it must be {expected}")
         out[key] = value
     return out

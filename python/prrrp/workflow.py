@@ -22,6 +22,8 @@ import numpy as np
 
 from prrrp import model_report
 from prrrp._prrrp import (
+    MAX_FACTOR,
+    MAX_HARMONICS,
     BaseParameters,
     Dataset,
     FitCache,
@@ -55,7 +57,7 @@ DEFAULT_METHOD = "wls"
 MAX_TRACKING_ERROR = 0.01
 
 
-class TrackingError(RuntimeError):
+class TrackingError(PrrrpError, RuntimeError):
     """A simulated robot strayed from its reference further than the bound: ``error``
     (rad or m) on joint ``joint`` (0-based, named ``joint_name``) at time ``t`` (s)."""
 
@@ -100,7 +102,7 @@ def load_robot(
     name = os.fspath(path)
     if name in BUILT_IN_ROBOTS:
         if base is not None or tip is not None:
-            raise ValueError(
+            raise InvalidInputError(
                 f"--base and --tip pick the chain of a URDF; the built-in robot {name!r} is "
                 "one chain already"
             )
@@ -277,14 +279,16 @@ def _prepare(
     coulomb = None
     if isinstance(coulomb_scale, str):
         if coulomb_scale != "auto":
-            raise ValueError(f"coulomb_scale must be 'auto' or a number, got {coulomb_scale!r}")
+            raise InvalidInputError(
+                f"coulomb_scale must be 'auto' or a number, got {coulomb_scale!r}"
+            )
         if "coulomb" in robot.friction:
             coulomb = robot.coulomb_scale(_measured_torque_on(data, raw))
             robot = with_coulomb_scale(robot, coulomb["chosen"])
     else:
         v_s = float(coulomb_scale)
         if not (np.isfinite(v_s) and v_s >= 0):
-            raise ValueError(f"coulomb_scale must be finite and >= 0 rad/s, got {v_s}")
+            raise InvalidInputError(f"coulomb_scale must be finite and >= 0 rad/s, got {v_s}")
         robot = with_coulomb_scale(robot, v_s)
     record = {"settings": preprocessing, "report": log_report, "coulomb_scale": coulomb}
     if drives:
@@ -520,21 +524,21 @@ def excite(
     not fit in the available memory (:func:`check_memory`), are an InvalidInputError
     saying what to lower."""
     if not (math.isfinite(duration) and duration > 0):
-        raise ValueError(f"duration must be a positive number of seconds, got {duration}")
+        raise InvalidInputError(f"duration must be a positive number of seconds, got {duration}")
     if not (math.isfinite(rate) and rate > 0):
-        raise ValueError(f"rate must be a positive number of Hz, got {rate}")
+        raise InvalidInputError(f"rate must be a positive number of Hz, got {rate}")
     f0 = 1.0 / duration if base_frequency is None else float(base_frequency)
     periods = duration * f0
     whole = math.isfinite(periods) and abs(periods - round(periods)) < 1e-6
     if not (whole and periods >= 1 - 1e-9):
-        raise ValueError(
+        raise InvalidInputError(
             f"duration {duration} s is not a whole number of periods of {f0} Hz "
             "(the trajectory would not end at rest)"
         )
     # Below twice the highest harmonic the samples alias it (at 1e-300 Hz the trajectory
     # was one sample over 10 s, written without a word).
-    if harmonics <= 100 and rate <= 2.0 * harmonics * f0:
-        raise ValueError(
+    if harmonics <= MAX_HARMONICS and rate <= 2.0 * harmonics * f0:
+        raise InvalidInputError(
             f"rate {rate:g} Hz is not above twice the highest harmonic, {harmonics} × "
             f"{f0:g} Hz: the samples would not follow the trajectory; raise the rate"
         )
@@ -580,22 +584,24 @@ def simulate(
     compensated from the reference velocity. A run that strays further than
     ``max_tracking_error`` (rad or m; None: no bound) from its reference raises
     :class:`TrackingError`: its data would not be the trajectory that was asked for."""
-    # Above 1e6 the noise alone is beyond any arm, and the log is one prrrp's readers
-    # refuse (values of 1e100 or more).
-    if not (math.isfinite(noise) and 0 <= noise <= 1e6):
-        raise ValueError(f"noise must be a factor between 0 and 1e6, got {noise:g}")
+    # Above MAX_FACTOR the noise alone is beyond any arm, and the log is one prrrp's
+    # readers refuse (values of 1e100 or more).
+    if not (math.isfinite(noise) and 0 <= noise <= MAX_FACTOR):
+        raise InvalidInputError(
+            f"noise must be a factor between 0 and {MAX_FACTOR:g}, got {noise:g}"
+        )
     if max_tracking_error is not None and not (
         math.isfinite(max_tracking_error) and max_tracking_error > 0
     ):
-        raise ValueError(
+        raise InvalidInputError(
             f"max_tracking_error must be a positive number or None, got {max_tracking_error}"
         )
     t = np.asarray(trajectory["t"], dtype=float)
     if t.ndim != 1 or len(t) < 2:
-        raise ValueError("the trajectory needs at least two time stamps")
+        raise InvalidInputError("the trajectory needs at least two time stamps")
     dt = np.diff(t)
     if not (np.all(dt > 0) and np.ptp(dt) <= 1e-6 * dt.mean()):
-        raise ValueError("the trajectory's time stamps must be uniformly spaced")
+        raise InvalidInputError("the trajectory's time stamps must be uniformly spaced")
     rate = 1.0 / dt.mean()
     ref = (t - t[0], trajectory["q"], trajectory["qd"], trajectory["qdd"])
     rec = simulate_chain(

@@ -3,11 +3,16 @@ to fix; input faults are also ValueErrors; no Rust panic reaches Python."""
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 from conftest import shape_error_of_qd
 
 import prrrp
+from prrrp import csvio, outdir
+
+UR5_LIKE = Path(__file__).resolve().parents[2] / "tests" / "data" / "ur5_like_friction.toml"
 
 
 def test_hierarchy():
@@ -30,6 +35,21 @@ def test_hierarchy():
     assert issubclass(prrrp.DivergedError, prrrp.PrrrpError)
     assert issubclass(prrrp.DivergedError, ArithmeticError)
     assert not issubclass(prrrp.DivergedError, ValueError)
+    # The Python side's own errors are prrrp errors too, so one `except prrrp.PrrrpError`
+    # catches whatever prrrp raises.
+    assert issubclass(prrrp.TrackingError, prrrp.PrrrpError)
+    assert issubclass(prrrp.TrackingError, RuntimeError)
+    assert issubclass(csvio.InputError, prrrp.InvalidInputError)
+    assert issubclass(outdir.OutputDirError, prrrp.InvalidInputError)
+
+
+def test_python_api_refusals_are_prrrp_errors():
+    robot = prrrp.load_robot(str(UR5_LIKE))
+    with pytest.raises(prrrp.InvalidInputError, match="rate"):
+        prrrp.excite(robot, 10.0, rate=1e-300)
+    traj = prrrp.excite(robot, 10.0, max_evaluations=20)
+    with pytest.raises(prrrp.InvalidInputError, match="noise"):
+        prrrp.simulate(robot, traj, noise=1e300)
 
 
 @pytest.mark.parametrize(

@@ -56,6 +56,7 @@
 //! ```
 #![warn(missing_docs)]
 
+pub mod bounds;
 pub mod data;
 mod error;
 pub mod estimators;
@@ -75,6 +76,7 @@ pub use error::{PrrrpError, Result};
 /// Every public item of the modules in one flat namespace, for glob imports
 /// (`use prrrp_core::prelude::*;`): the crate root's list before the modules were public.
 pub mod prelude {
+    pub use crate::bounds::*;
     pub use crate::data::*;
     pub use crate::error::{PrrrpError, Result};
     pub use crate::estimators::*;

@@ -35,6 +35,9 @@ fn _prrrp(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("NPARAM", prrrp_core::NPARAM)?;
     m.add("STANDARD_GRAVITY", prrrp_core::STANDARD_GRAVITY)?;
     m.add("MAX_MAGNITUDE", prrrp_core::MAX_MAGNITUDE)?;
+    m.add("MIN_FACTOR", prrrp_core::MIN_FACTOR)?;
+    m.add("MAX_FACTOR", prrrp_core::MAX_FACTOR)?;
+    m.add("MAX_HARMONICS", prrrp_core::MAX_HARMONICS)?;
     errors::register(m)?;
     models::robot::register(m)?;
     models::chain::register(m)?;

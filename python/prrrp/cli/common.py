@@ -15,6 +15,7 @@ from typing import Any, NoReturn
 import numpy as np
 
 from prrrp import bags, signals
+from prrrp._prrrp import MAX_FACTOR, MIN_FACTOR
 
 EXIT_OK = 0
 EXIT_FAILED = 1
@@ -149,6 +150,16 @@ def nonempty_path(text: str) -> str:
     if not text.strip():
         raise argparse.ArgumentTypeError("an empty path")
     return text
+
+
+def check_factor(flag: str, v: float | None, low: float = MIN_FACTOR) -> None:
+    """Refuses a factor outside [low, MAX_FACTOR], naming its flag (None: not given).
+
+    Widths and noise factors are squared into covariances: 1e300 made them infinite and
+    1e-300 zero. The library refuses them too, but by its field's name, not the flag's.
+    """
+    if v is not None and not (math.isfinite(v) and low <= v <= MAX_FACTOR):
+        raise CliError(f"{flag} must be between {low:g} and {MAX_FACTOR:g}, got {v:g}")
 
 
 def first_line(e: BaseException) -> str:

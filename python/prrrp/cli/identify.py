@@ -153,10 +153,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 def _ekf_settings(args: argparse.Namespace) -> dict[str, float]:
     """The EKF's settings from --ekf-prior-width and --ekf-noise (checked)."""
     out: dict[str, float] = {}
-    for flag, v in (("--ekf-prior-width", args.ekf_prior_width), ("--ekf-noise", args.ekf_noise)):
-        # Both are squared into covariances (1e300 made them infinite).
-        if v is not None and not 1e-6 <= v <= 1e6:
-            raise common.CliError(f"{flag} must be between 1e-6 and 1e6, got {v:g}")
+    common.check_factor("--ekf-prior-width", args.ekf_prior_width)
+    common.check_factor("--ekf-noise", args.ekf_noise)
     if args.ekf_prior_width is not None:
         out["least_squares_prior_width"] = args.ekf_prior_width
     if args.ekf_noise is not None:

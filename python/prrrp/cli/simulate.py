@@ -137,10 +137,9 @@ def run(args: argparse.Namespace) -> int:
     bound = args.max_tracking_error
     if not (np.isfinite(bound) and bound > 0):
         raise common.CliError(f"--max-tracking-error must be a positive number, got {bound}")
-    # Above 1e6 the noise alone is beyond any arm, and ×1e300 wrote a log whose values
-    # prrrp's own readers refuse (1e100 or more).
-    if not (math.isfinite(args.noise) and 0 <= args.noise <= 1e6):
-        raise common.CliError(f"--noise must be a factor between 0 and 1e6, got {args.noise:g}")
+    # Above MAX_FACTOR the noise alone is beyond any arm, and ×1e300 wrote a log whose
+    # values prrrp's own readers refuse (1e100 or more).
+    common.check_factor("--noise", args.noise, low=0.0)
     out = deprecated.check_out(args, old)
     args.robot = args.robot or common.DEFAULT_ROBOT
     robot = workflow.load_robot(args.robot, base=args.base, tip=args.tip)

@@ -183,17 +183,11 @@ def _positive(name: str, v: float | None) -> None:
         raise common.CliError(f"{name} must be finite and > 0, got {v}")
 
 
-def _factor(name: str, v: float | None) -> None:
-    # Squared into covariances: 1e300 made them infinite (the online identifier's range).
-    if v is not None and not 1e-6 <= v <= 1e6:
-        raise common.CliError(f"{name} must be between 1e-6 and 1e6, got {v:g}")
-
-
 def run(args: argparse.Namespace) -> int:
     _positive("--forgetting", args.forgetting)
     _positive("--cutoff", args.cutoff)
-    _factor("--prior-width", args.prior_width)
-    _factor("--ekf-noise", args.ekf_noise)
+    common.check_factor("--prior-width", args.prior_width)
+    common.check_factor("--ekf-noise", args.ekf_noise)
     if args.payload and not args.model:
         raise common.CliError("--payload tracks a load on a known arm: give its model with --model")
     coulomb_scale = common.coulomb_scale(args.coulomb_scale)

@@ -23,6 +23,8 @@ from typing import Any
 
 import numpy as np
 
+from prrrp._prrrp import MAX_FACTOR
+
 #: Methods a benchmark can run (``prrrp.identify``'s), in report order.
 METHODS = ("ls", "wls", "rls", "adaline", "hopfield", "ekf", "physical")
 #: The issue's default selection: least squares and the four on-line methods.
@@ -140,11 +142,13 @@ def grid(
     if unknown:
         raise _invalid(f"unknown method {unknown[0]!r}; valid: {', '.join(METHODS)}")
     noise_list = _unique(noise, "noise scales", float)
-    # Above 1e6 the noise alone is beyond any arm (×1e300 failed every case with "`QR
-    # factor of W` has a NaN or infinite value"), as for `prrrp simulate --noise`.
-    bad = [x for x in noise_list if not (math.isfinite(x) and 0 <= x <= 1e6)]
+    # Above MAX_FACTOR the noise alone is beyond any arm (×1e300 failed every case with
+    # "`QR factor of W` has a NaN or infinite value"), as for `prrrp simulate --noise`.
+    bad = [x for x in noise_list if not (math.isfinite(x) and 0 <= x <= MAX_FACTOR)]
     if bad:
-        raise _invalid(f"noise scale {bad[0]:g} must be between 0 and 1e6 (1 = default noise)")
+        raise _invalid(
+            f"noise scale {bad[0]:g} must be between 0 and {MAX_FACTOR:g} (1 = default noise)"
+        )
     rate_list = _unique(rates, "rates", float)
     bad = [x for x in rate_list if not (math.isfinite(x) and x > 0)]
     if bad:

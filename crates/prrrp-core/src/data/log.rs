@@ -2,7 +2,9 @@
 //! onto a uniform grid, then the shared zero-phase filtering and differentiation.
 
 use crate::data::dataset::{check_dof, check_finite_flat, check_flat_len, DynDataset};
-use crate::data::pipeline::{filter_and_differentiate, FilterSettings, Grid, Signals, Source};
+use crate::data::pipeline::{
+    check_nyquist, filter_and_differentiate, FilterSettings, Grid, Signals, Source,
+};
 use crate::error::{invalid, PrrrpError, Result};
 use nalgebra::Dyn;
 
@@ -14,13 +16,6 @@ use nalgebra::Dyn;
 /// 10 Hz passes their harmonics with a gain within 1e-4 of 1 up to 3 Hz (order 4), while
 /// it removes the measurement noise that differentiation amplifies as f and f².
 pub const DEFAULT_LOG_CUTOFF_HZ: f64 = 10.0;
-
-/// Magnitude from which a logged value is refused (s, rad, m, N·m, N, A, per s): far
-/// beyond any arm or clock, far below where the squares that least squares and the online
-/// estimators form overflow a double (a torque of 1e300 N·m read as rank deficiency).
-/// [`crate::OnlineIdentifier::update`] refuses it, and so do the Python readers of CSV
-/// files and bags (`prrrp.MAX_MAGNITUDE`).
-pub const MAX_MAGNITUDE: f64 = 1e100;
 
 /// Largest ratio of the resampling rate to the log's median rate (100). It bounds the
 /// grid, hence memory, to 100 samples per log row; upsampling further adds no
@@ -333,13 +328,7 @@ pub fn preprocess_log(
     // Before the gaps, whose default bound is half a cut-off period: a cut-off above the
     // Nyquist frequency made every step a "gap", and the error named the step at
     // t[804] that was 1.6e-15 s longer than the others.
-    if cutoff >= 0.5 * output_rate {
-        return Err(invalid(
-            "cutoff_hz",
-            cutoff,
-            "must be below the Nyquist frequency after decimation, fs/(2·decimate)",
-        ));
-    }
+    check_nyquist(cutoff, output_rate)?;
     let max_gap = config.max_gap_s.unwrap_or(0.5 / cutoff);
     if gap > max_gap {
         return Err(invalid(

@@ -11,8 +11,10 @@ pub(crate) mod preprocess;
 
 pub use log::{
     preprocess_log, LogConfig, LogReport, DEFAULT_LOG_CUTOFF_HZ, LOG_MAX_UPSAMPLING,
-    LOG_UNIFORM_TOLERANCE, MAX_MAGNITUDE,
+    LOG_UNIFORM_TOLERANCE,
 };
+// Kept at its old path too (it was defined here).
+pub use crate::bounds::MAX_MAGNITUDE;
 
 // The module's public API (also at the crate root through `prelude`).
 pub use dataset::{Dataset, DatasetOf, DatasetParts, DynDataset};

@@ -52,6 +52,19 @@ pub(crate) struct Outcome {
     pub trim: usize,
 }
 
+/// `cutoff_hz` must lie below the Nyquist frequency of the output rate (Hz, after
+/// decimation).
+pub(crate) fn check_nyquist(cutoff_hz: f64, output_rate_hz: f64) -> Result<()> {
+    if cutoff_hz >= 0.5 * output_rate_hz {
+        return Err(PrrrpError::InvalidParameter {
+            field: "cutoff_hz".into(),
+            value: cutoff_hz,
+            reason: "must be below the Nyquist frequency after decimation, fs/(2·decimate)",
+        });
+    }
+    Ok(())
+}
+
 /// Zero-phase low-pass filtering of q (and τ, and the measured q̇ if any) on the grid,
 /// derivatives by central differences, edge trimming and decimation.
 ///
@@ -78,13 +91,7 @@ pub(crate) fn filter_and_differentiate(
     }
     let fs = 1.0 / grid.dt;
     let filter = ButterworthLowPass::new(cfg.order, cfg.cutoff_hz, fs)?;
-    if cfg.cutoff_hz >= 0.5 * fs / cfg.decimate as f64 {
-        return Err(PrrrpError::InvalidParameter {
-            field: "cutoff_hz".into(),
-            value: cfg.cutoff_hz,
-            reason: "must be below the Nyquist frequency after decimation, fs/(2·decimate)",
-        });
-    }
+    check_nyquist(cfg.cutoff_hz, fs / cfg.decimate as f64)?;
     // A user trim can be anything: compare sizes without overflow before allocating.
     let trim = cfg
         .trim

@@ -1676,11 +1676,12 @@ fn ekf(
     let w = s.least_squares_prior_width;
     // Squared into P₀: a width of 1e300 made it infinite, and the filter started from the
     // diagonal prior without a word.
-    if !(w == 0.0 || (1e-6..=1e6).contains(&w)) {
+    if !(w == 0.0 || crate::bounds::is_factor(w)) {
         return Err(PrrrpError::InvalidParameter {
             field: "least_squares_prior_width".into(),
             value: w,
-            reason: "must be 0 (the diagonal prior) or between 1e-6 and 1e6",
+            reason:
+                "must be 0 (the diagonal prior) or between MIN_FACTOR (1e-6) and MAX_FACTOR (1e6)",
         });
     }
     let mut prior = "diagonal";

@@ -25,7 +25,7 @@ use crate::motion::trajectory::DynTrajectory;
 /// Settings of [`optimise_chain_excitation`]; every field has a documented default.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ChainExcitationConfig {
-    /// Harmonics H per joint, ≥ 2 (default 5).
+    /// Harmonics H per joint, 2 to [`MAX_HARMONICS`] (default 5).
     pub harmonics: usize,
     /// Base frequency ω/2π, Hz (default 0.1: a 10 s period).
     pub base_frequency_hz: f64,
@@ -73,6 +73,9 @@ pub struct ChainExcitation {
     pub limit_usage: Vec<[f64; 3]>,
 }
 
+/// Most harmonics per joint of a design (100).
+pub const MAX_HARMONICS: usize = 100;
+
 /// Most cost evaluations one design may use.
 pub const MAX_EXCITATION_EVALUATIONS: usize = 10_000_000;
 
@@ -103,11 +106,11 @@ pub fn optimise_chain_excitation(
         });
     }
     let c = config;
-    if !(2..=100).contains(&c.harmonics) {
+    if !(2..=MAX_HARMONICS).contains(&c.harmonics) {
         return Err(invalid(
             "harmonics",
             c.harmonics as f64,
-            "must be between 2 and 100",
+            "must be between 2 and MAX_HARMONICS (100)",
         ));
     }
     if !(c.base_frequency_hz.is_finite() && c.base_frequency_hz > 0.0) {

@@ -13,6 +13,7 @@ pub(crate) mod trajectory;
 // The module's public API (also at the crate root through `prelude`).
 pub use chain_excitation::{
     optimise_chain_excitation, ChainExcitation, ChainExcitationConfig, MAX_EXCITATION_EVALUATIONS,
+    MAX_HARMONICS,
 };
 pub use dyn_trajectory::{DynSampledTrajectory, FourierTrajectory};
 pub use dynamics::{Dynamics, ParameterisedModel, ParameterisedWorkspace};

@@ -12,7 +12,7 @@ use super::payload::{project, summary_json, PAYLOAD_PARAMS};
 use super::payload_ekf::PayloadEkf;
 use super::tip::{Look, TipOpening};
 use super::tracked::{TrackedModel, TrackedWorkspace};
-use crate::data::MAX_MAGNITUDE;
+use crate::bounds::{is_factor, MAX_MAGNITUDE};
 use crate::error::{invalid, PrrrpError, Result};
 use crate::estimators::{
     base_feasibility, AdalineConfig, AdalineRule, Discretisation, DynAdaline, DynEkf, DynHopfield,
@@ -122,21 +122,22 @@ pub struct OnlineConfig {
     /// explains) when no prior covariance is given.
     pub initial_covariance: f64,
     /// Width of the prior from a prior model's covariance (default `3.0`: P₀ = 3²·Σ_prior;
-    /// 1e-6 to 1e6).
+    /// [`crate::MIN_FACTOR`] to [`crate::MAX_FACTOR`]).
     pub prior_width: f64,
     /// Payload mode: prior standard deviation of the payload mass, kg (default `10.0`;
-    /// 1e-6 to 1e6).
+    /// [`crate::MIN_FACTOR`] to [`crate::MAX_FACTOR`]).
     pub payload_mass_std: f64,
     /// Payload mode: size of the payload, m (default `0.2`): prior σ of the first
-    /// moments `payload_mass_std`·size, of the inertia `payload_mass_std`·size² (1e-6 to
-    /// 1e6).
+    /// moments `payload_mass_std`·size, of the inertia `payload_mass_std`·size²
+    /// ([`crate::MIN_FACTOR`] to [`crate::MAX_FACTOR`]).
     pub payload_size: f64,
     /// EKF without a prior: seconds of RLS before the filter starts from its estimate
     /// (default `2.0`; then also until M(q, θ̂) has been positive definite for 0.5 s).
     pub ekf_warmup: f64,
     /// EKF: factor on the measurement noise R of the positions (1e-3 rad or m) and
     /// velocities (1e-2 rad/s or m/s) (default `1.0`). Not used in payload mode, whose
-    /// filter measures joint forces with the running noise levels. 1e-6 to 1e6.
+    /// filter measures joint forces with the running noise levels. [`crate::MIN_FACTOR`] to
+    /// [`crate::MAX_FACTOR`].
     pub ekf_noise: f64,
     /// Adaline's normalised step, Hopfield's gain as a fraction of its stability limit
     /// (dimensionless in (0, 2), default `0.5`).
@@ -152,12 +153,6 @@ pub struct OnlineConfig {
 /// Rows in a row, each a step longer than half a cut-off period, from which `update`
 /// refuses the next: the rows' rate is below twice the cut-off.
 const GAPS_REFUSED: usize = 100;
-
-/// Range of [`OnlineConfig::prior_width`], `ekf_noise`, `payload_mass_std` (kg) and
-/// `payload_size` (m): far wider than any use, and their squares and products stay normal
-/// doubles.
-const MIN_FACTOR: f64 = 1e-6;
-const MAX_FACTOR: f64 = 1e6;
 
 /// Largest [`OnlineConfig::initial_covariance`]. On the 100 Hz UR3, UR5 and UR10 stand-in
 /// logs (1e-4 rad noise, no prior) the RLS diverged in its first 60 rows from 3e10–3e11 on:
@@ -212,11 +207,12 @@ impl OnlineConfig {
             ("payload_mass_std", self.payload_mass_std),
             ("payload_size", self.payload_size),
         ] {
-            if !(MIN_FACTOR..=MAX_FACTOR).contains(&v) {
+            if !is_factor(v) {
                 return Err(invalid(
                     name,
                     v,
-                    "must be between 1e-6 and 1e6 (it is squared into a covariance)",
+                    "must be between MIN_FACTOR (1e-6) and MAX_FACTOR (1e6): it is squared \
+                     into a covariance",
                 ));
             }
         }
@@ -1127,15 +1123,10 @@ impl OnlineIdentifier {
             return Err(PrrrpError::InvalidParameter {
                 field: "cutoff_hz".into(),
                 value: self.config.cutoff_hz,
-                reason: if self.config.auto_cutoff {
-                    "(the default, before it is lowered) is not below the Nyquist frequency \
-                     of the rows, so every row restarts the causal filtering and nothing is \
-                     learned: give a cutoff_hz below half the rows' rate (Hz)"
-                } else {
-                    "is not below the Nyquist frequency of the rows, so every row restarts \
-                     the causal filtering and nothing is learned: give one below half the \
-                     rows' rate (Hz)"
-                },
+                reason: "(with auto_cutoff, the default it starts from) is not below the \
+                         Nyquist frequency of the rows, so every row restarts the causal \
+                         filtering and nothing is learned: give a cutoff_hz below half the \
+                         rows' rate (Hz)",
             });
         }
         let repeat = self.t_prev.is_some() && dt == 0.0;
