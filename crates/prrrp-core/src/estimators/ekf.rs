@@ -2420,8 +2420,13 @@ fn tile_from<const FMA: bool, const NC: usize>(
 ) -> [[f64; TILE_ROWS]; NC] {
     let ((xs, sx, r0), (ys, sy, c0)) = (x, y);
     if len == TILE_ROWS {
+        #[cfg(target_arch = "x86_64")]
+        if FMA {
+            // SAFETY: FMA = true only runs on a CPU with AVX2 and FMA (see `madd`).
+            return unsafe { avx2::strided_tile::<NC>(acc, (xs, sx, r0), (ys, sy, c0), kdim) };
+        }
         let cols = (0..kdim).map(|k| (k * sx + r0, k * sy + c0));
-        return whole_tile::<FMA, NC>(acc, xs, (ys, 1), cols);
+        return whole_tile_portable::<FMA, NC>(acc, xs, (ys, 1), cols);
     }
     let mut acc = acc;
     for k in 0..kdim {
@@ -2438,34 +2443,48 @@ fn tile_from<const FMA: bool, const NC: usize>(
 }
 
 /// [`tile`] over a list of columns: X's column k at `x[xo..]`, Y's at `y[yo..]` for each
-/// `(xo, yo)` of `offsets` (a chain's Φ: the parameters that enter the tile's rows).
+/// `(xo, yo)` of `offsets` (a chain's Φ: the parameters that enter the tile's rows), in
+/// increasing order of both (the last pair bounds the others).
 #[inline(always)]
 fn tile_listed<const FMA: bool, const NC: usize>(
     (x, r0): (&[f64], usize),
     (y, c0): (&[f64], usize),
     offsets: &[(usize, usize)],
 ) -> [[f64; TILE_ROWS]; NC] {
+    debug_assert!(
+        offsets
+            .windows(2)
+            .all(|w| w[0].0 <= w[1].0 && w[0].1 <= w[1].1),
+        "the last offsets must bound the others"
+    );
     let cols = offsets.iter().map(|&(xo, yo)| (xo + r0, yo + c0));
-    whole_tile::<FMA, NC>([[0.0f64; TILE_ROWS]; NC], x, (y, 1), cols)
+    let (xm, ym) = offsets.last().copied().unwrap_or((0, 0));
+    let bound = (xm.saturating_add(r0), ym.saturating_add(c0));
+    whole_tile::<FMA, NC>([[0.0f64; TILE_ROWS]; NC], x, (y, 1), cols, bound)
 }
 
 /// The inner loop of a whole register tile: `acc[c][r] += y[yo + c·ys]·x[xo + r]` for
 /// each `(xo, yo)` of `cols`, in order (Y's entries `ys` apart: 1 for a column, S for a
 /// row of an S-row matrix). The fused copy holds the accumulators in AVX2 registers
 /// explicitly: left to the compiler, the same loop was vectorised or not depending on
-/// the code around it in the inlined step (scalar, it took 2.5× the time).
+/// the code around it in the inlined step (scalar, it took 2.5× the time). `bound` is
+/// the largest `(xo, yo)` of `cols`: the fused copy checks it against `x` and `y` once
+/// instead of every column's range (those checks were a sixth of the step's
+/// instructions, callgrind).
 #[inline(always)]
 fn whole_tile<const FMA: bool, const NC: usize>(
     acc: [[f64; TILE_ROWS]; NC],
     x: &[f64],
     (y, ys): (&[f64], usize),
     cols: impl Iterator<Item = (usize, usize)>,
+    bound: (usize, usize),
 ) -> [[f64; TILE_ROWS]; NC] {
     #[cfg(target_arch = "x86_64")]
     if FMA {
         // SAFETY: FMA = true only runs on a CPU with AVX2 and FMA (see `madd`).
-        return unsafe { avx2::whole_tile::<NC>(acc, x, (y, ys), cols) };
+        return unsafe { avx2::whole_tile::<NC>(acc, x, (y, ys), cols, bound) };
     }
+    let _ = bound;
     whole_tile_portable::<FMA, NC>(acc, x, (y, ys), cols)
 }
 
@@ -2576,12 +2595,28 @@ mod avx2 {
         x: &[f64],
         (y, ys): (&[f64], usize),
         cols: impl Iterator<Item = (usize, usize)>,
+        (xmax, ymax): (usize, usize),
     ) -> [[f64; TILE_ROWS]; NC] {
+        let y_span = (NC - 1).saturating_mul(ys).saturating_add(1);
+        let in_bounds =
+            xmax.saturating_add(TILE_ROWS) <= x.len() && ymax.saturating_add(y_span) <= y.len();
         // SAFETY (every intrinsic): the caller guarantees AVX2 and FMA; each pointer
         // comes from a reference to an array of 4 f64, valid for the 4 lanes read or
-        // written.
+        // written, or (checked path) from offsets clamped to `xmax`, `ymax`, whose
+        // whole column and row were checked to lie inside `x` and `y` above. A wrong
+        // bound from the caller gives wrong sums (caught by the tests' comparisons with
+        // the portable loop), never an access outside the slices.
         unsafe {
             let mut t = load_tile(&acc);
+            if in_bounds {
+                let (xp, yp) = (x.as_ptr(), y.as_ptr());
+                for (xo, yo) in cols {
+                    let (xo, yo) = (xo.min(xmax), yo.min(ymax));
+                    let xv = (_mm256_loadu_pd(xp.add(xo)), _mm256_loadu_pd(xp.add(xo + 4)));
+                    madd_columns(&mut t, xv, |c| *yp.add(yo + c * ys));
+                }
+                return store_tile(&t);
+            }
             for (xo, yo) in cols {
                 let (x0, x1) = halves(column::<TILE_ROWS>(x, xo));
                 let xv = (_mm256_loadu_pd(x0.as_ptr()), _mm256_loadu_pd(x1.as_ptr()));
@@ -2591,6 +2626,50 @@ mod avx2 {
                 } else {
                     madd_columns(&mut t, xv, |c| y[yo + c * ys]);
                 }
+            }
+            store_tile(&t)
+        }
+    }
+
+    /// [`whole_tile`] on columns `sx` apart in `x` from `r0` and `sy` apart in `y` from
+    /// `c0` (Y's entries contiguous), k < `kdim`: the bounds of the last column checked
+    /// once, then pointers advanced by the strides (no index arithmetic or range check
+    /// per column: the loop is its loads and fused multiply-adds). The same products in
+    /// the same order, so the same bits.
+    ///
+    /// # Safety
+    /// The CPU must support AVX2 and FMA.
+    #[inline(always)]
+    pub(super) unsafe fn strided_tile<const NC: usize>(
+        acc: [[f64; TILE_ROWS]; NC],
+        (x, sx, r0): (&[f64], usize, usize),
+        (y, sy, c0): (&[f64], usize, usize),
+        kdim: usize,
+    ) -> [[f64; TILE_ROWS]; NC] {
+        let last = kdim.saturating_sub(1);
+        let end = |stride: usize, first: usize, width: usize| {
+            last.checked_mul(stride)
+                .and_then(|o| o.checked_add(first))
+                .and_then(|o| o.checked_add(width))
+        };
+        let fits = end(sx, r0, TILE_ROWS).is_some_and(|e| e <= x.len())
+            && end(sy, c0, NC).is_some_and(|e| e <= y.len());
+        if kdim == 0 || !fits {
+            let cols = (0..kdim).map(|k| (k * sx + r0, k * sy + c0));
+            // SAFETY: AVX2 and FMA by the caller.
+            return unsafe { whole_tile::<NC>(acc, x, (y, 1), cols, (usize::MAX, usize::MAX)) };
+        }
+        // SAFETY (every intrinsic and pointer): AVX2 and FMA by the caller; column k of
+        // X is x[k·sx + r0..][..TILE_ROWS] and of Y y[k·sy + c0..][..NC], for k ≤ last
+        // inside the slices by the check above.
+        unsafe {
+            let mut t = load_tile(&acc);
+            let (mut xp, mut yp) = (x.as_ptr().add(r0), y.as_ptr().add(c0));
+            for _ in 0..kdim {
+                let xv = (_mm256_loadu_pd(xp), _mm256_loadu_pd(xp.add(4)));
+                madd_columns(&mut t, xv, |c| *yp.add(c));
+                // Wrapping: past the last column the pointers are never read.
+                (xp, yp) = (xp.wrapping_add(sx), yp.wrapping_add(sy));
             }
             store_tile(&t)
         }
@@ -3336,12 +3415,34 @@ mod tests {
                 .map(|j| ((j * 7) % k, (j * 5) % k))
                 .map(|(a, b)| (a * s + (a % (s - TILE_ROWS)), b * s + (b % 9)))
                 .collect();
+            let exact = cols
+                .iter()
+                .fold((0, 0), |(a, b), &(xo, yo)| (a.max(xo), b.max(yo)));
             for ys in [1, s] {
                 let want = whole_tile_portable::<true, NC>(acc, &x, (&y, ys), cols.iter().copied());
+                // The bound checked once (exact), and a bound past the slices, which
+                // takes the loop that checks every column.
+                for bound in [exact, (x.len(), y.len())] {
+                    // SAFETY: the CPU has AVX2 and FMA (checked above).
+                    let got = unsafe {
+                        avx2::whole_tile::<NC>(acc, &x, (&y, ys), cols.iter().copied(), bound)
+                    };
+                    assert_eq!(
+                        got, want,
+                        "NC {NC}, Y's entries {ys} apart, bound {bound:?}"
+                    );
+                }
+            }
+            // Columns at fixed strides (P·Aᵀ, the Joseph factors), the last ending at the
+            // end of X and of Y; none.
+            for (sx, r0, sy, c0, kdim) in [(s, s - TILE_ROWS, s, s - NC, k), (1, 3, 2, 1, 0)] {
+                let cols = (0..kdim).map(|j| (j * sx + r0, j * sy + c0));
+                let want = whole_tile_portable::<true, NC>(acc, &x, (&y, 1), cols);
+                let (xs, ys) = (&x[..s * k], &y[..s * k]);
                 // SAFETY: the CPU has AVX2 and FMA (checked above).
                 let got =
-                    unsafe { avx2::whole_tile::<NC>(acc, &x, (&y, ys), cols.iter().copied()) };
-                assert_eq!(got, want, "NC {NC}, Y's entries {ys} apart");
+                    unsafe { avx2::strided_tile::<NC>(acc, (xs, sx, r0), (ys, sy, c0), kdim) };
+                assert_eq!(got, want, "NC {NC}, strides {sx}, {sy}, {kdim} columns");
             }
             // Columns of 1 to 8 entries, the last one ending at the end of X (a load of
             // the whole 8 rows would run past it).
