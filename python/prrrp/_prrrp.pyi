@@ -1277,7 +1277,8 @@ def identify(
     the standard parameters, `standard_parameters`, and writes a URDF, `to_urdf()`; no σ).
 
     Settings (keywords; an unknown one is a TypeError naming the valid ones): all methods
-    `rank_tolerance`; rls `forgetting`, `initial_covariance`, `scale_columns`; adaline
+    `rank_tolerance`; rls `forgetting`, `initial_covariance` (at most 1e9 with
+    `scale_columns`, the default), `scale_columns`; adaline
     `rule`, `step_size` (0, 2), `learning_rate` (delta rule; unstable → error),
     `max_epochs`, `halvings`, `parameter_tolerance`, `error_tolerance`, `scale_columns`,
     `whiten` (default True: the network runs on parameters whose regressor columns are

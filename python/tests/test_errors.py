@@ -52,6 +52,18 @@ def test_python_api_refusals_are_prrrp_errors():
         prrrp.simulate(robot, traj, noise=1e300)
 
 
+def test_batch_rls_initial_covariance_is_bounded():
+    # 1e300 diverged at sample 7 ("the covariance is no longer positive definite");
+    # refused up front, naming the setting, as the online identifier does.
+    robot = prrrp.load_robot(str(UR5_LIKE))
+    traj = prrrp.excite(robot, 10.0, max_evaluations=20)
+    rec = prrrp.simulate(robot, traj, seed=1)
+    with pytest.raises(prrrp.InvalidParameterError, match="initial_covariance"):
+        prrrp.identify_measurements(robot, rec, "rls", initial_covariance=1e12)
+    model = prrrp.identify_measurements(robot, rec, "rls", initial_covariance=1e9).model
+    assert np.all(np.isfinite(model.beta))
+
+
 @pytest.mark.parametrize(
     "bad",
     [

@@ -176,7 +176,7 @@ pub struct RlsSettings {
     /// Initial covariance δ of P₀ = δ·I in the units of the scaled parameters γ (N²·m²
     /// per N²·m² of torque: dimensionless with equilibrated columns; default `1e6`, a
     /// prior standard deviation of 1000 N·m on each γ_j, the RMS torque parameter j
-    /// explains).
+    /// explains; at most [`crate::MAX_INITIAL_COVARIANCE`] with `scale_columns`).
     pub initial_covariance: f64,
     /// Equilibrate the columns (default `true`); without, δ is in the units of β².
     pub scale_columns: bool,
@@ -1128,6 +1128,17 @@ fn scaled(
 }
 
 fn rls(model: &DynChainBaseModel, samples: &DynSamples<'_>, s: &RlsSettings) -> Result<Fit> {
+    // On unscaled columns δ is in β² units, whose scale is the robot's: not bounded.
+    if s.scale_columns && s.initial_covariance > crate::bounds::MAX_INITIAL_COVARIANCE {
+        return Err(PrrrpError::InvalidParameter {
+            field: "initial_covariance".into(),
+            value: s.initial_covariance,
+            reason: "must be at most MAX_INITIAL_COVARIANCE (1e9) on equilibrated columns \
+                     (a prior σ of 3·10⁴ N·m on the torque each parameter explains): larger \
+                     values leave the first updates' covariance without a correct digit, \
+                     and the estimate diverges",
+        });
+    }
     let sm = scaled(model, samples, s.scale_columns, false)?;
     let cfg = RlsConfig {
         forgetting: s.forgetting,

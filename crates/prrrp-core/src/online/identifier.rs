@@ -12,7 +12,7 @@ use super::payload::{project, summary_json, PAYLOAD_PARAMS};
 use super::payload_ekf::PayloadEkf;
 use super::tip::{Look, TipOpening};
 use super::tracked::{TrackedModel, TrackedWorkspace};
-use crate::bounds::{is_factor, MAX_MAGNITUDE};
+use crate::bounds::{is_factor, MAX_INITIAL_COVARIANCE, MAX_MAGNITUDE};
 use crate::error::{invalid, PrrrpError, Result};
 use crate::estimators::{
     base_feasibility, AdalineConfig, AdalineRule, Discretisation, DynAdaline, DynEkf, DynHopfield,
@@ -119,7 +119,8 @@ pub struct OnlineConfig {
     pub open_factor: f64,
     /// RLS initial covariance δ of the equilibrated parameters (N²·m² per unit weighted
     /// error², default `1e6`: a prior σ of 1000 N·m on the torque each parameter
-    /// explains) when no prior covariance is given.
+    /// explains; at most [`crate::MAX_INITIAL_COVARIANCE`]) when no prior covariance is
+    /// given.
     pub initial_covariance: f64,
     /// Width of the prior from a prior model's covariance (default `3.0`: P₀ = 3²·Σ_prior;
     /// [`crate::MIN_FACTOR`] to [`crate::MAX_FACTOR`]).
@@ -153,11 +154,6 @@ pub struct OnlineConfig {
 /// Rows in a row, each a step longer than half a cut-off period, from which `update`
 /// refuses the next: the rows' rate is below twice the cut-off.
 const GAPS_REFUSED: usize = 100;
-
-/// Largest [`OnlineConfig::initial_covariance`]. On the 100 Hz UR3, UR5 and UR10 stand-in
-/// logs (1e-4 rad noise, no prior) the RLS diverged in its first 60 rows from 3e10–3e11 on:
-/// P − P·φ·φᵀ·P/(1 + φᵀ·P·φ) cancels δ to the round-off of δ·φᵀφ. 1e9 keeps a 30× margin.
-const MAX_INITIAL_COVARIANCE: f64 = 1e9;
 
 impl Default for OnlineConfig {
     fn default() -> Self {
@@ -220,7 +216,7 @@ impl OnlineConfig {
             return Err(invalid(
                 "initial_covariance",
                 self.initial_covariance,
-                "must be at most 1e9 (a prior σ of 3·10⁴ N·m on the torque each parameter \
+                "must be at most MAX_INITIAL_COVARIANCE (1e9; a prior σ of 3·10⁴ N·m on the torque each parameter \
                  explains, already no prior for any arm): larger values leave the first \
                  updates' covariance without a correct digit, and the estimate diverges",
             ));
