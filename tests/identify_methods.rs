@@ -361,4 +361,15 @@ fn bad_input_is_a_typed_error() {
     assert!(matches!(e, PrrrpError::ShapeMismatch { .. }), "{e}");
     let e = ekf_from(f.truth.iter().map(|b| -b).collect());
     assert!(matches!(e, PrrrpError::Diverged { .. }), "{e}");
+    // Prior widths squared to inf or to a zero variance; NaN.
+    for w in [1e300, 1e-300, -1.0, f64::NAN] {
+        let e = exact_error(&Method::Ekf(EkfSettings {
+            least_squares_prior_width: w,
+            ..EkfSettings::default()
+        }));
+        assert!(
+            matches!(&e, PrrrpError::InvalidParameter { field, .. } if field == "least_squares_prior_width"),
+            "{w}: {e}"
+        );
+    }
 }

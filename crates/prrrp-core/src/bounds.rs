@@ -29,7 +29,31 @@ pub const MAX_FACTOR: f64 = 1e6;
 /// UR5 stand-in (30 s), the fit moved at 1e12 and diverged at 1e14.
 pub const MAX_INITIAL_COVARIANCE: f64 = 1e9;
 
-/// Whether `v` lies in [[`MIN_FACTOR`], [`MAX_FACTOR`]] (false for NaN).
-pub(crate) fn is_factor(v: f64) -> bool {
-    (MIN_FACTOR..=MAX_FACTOR).contains(&v)
+/// Refuses an initial covariance `delta` (field `initial_covariance`) above
+/// [`MAX_INITIAL_COVARIANCE`]; NaN and the lower end are the callers' own checks.
+pub(crate) fn check_initial_covariance(delta: f64) -> crate::error::Result<()> {
+    if delta > MAX_INITIAL_COVARIANCE {
+        return Err(crate::error::invalid(
+            "initial_covariance",
+            delta,
+            "must be at most MAX_INITIAL_COVARIANCE (1e9 on equilibrated columns: a prior \
+             σ of 3·10⁴ N·m on the torque each parameter explains, already no prior for any \
+             arm): larger values leave the first updates' covariance without a correct \
+             digit, and the estimate diverges",
+        ));
+    }
+    Ok(())
+}
+
+/// Refuses a factor `v` (named `field`) outside [[`MIN_FACTOR`], [`MAX_FACTOR`]] (and NaN).
+pub(crate) fn check_factor(field: &str, v: f64) -> crate::error::Result<()> {
+    if !(MIN_FACTOR..=MAX_FACTOR).contains(&v) {
+        return Err(crate::error::invalid(
+            field,
+            v,
+            "must be between MIN_FACTOR (1e-6) and MAX_FACTOR (1e6): it is squared into a \
+             covariance",
+        ));
+    }
+    Ok(())
 }

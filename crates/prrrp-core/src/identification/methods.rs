@@ -1129,15 +1129,8 @@ fn scaled(
 
 fn rls(model: &DynChainBaseModel, samples: &DynSamples<'_>, s: &RlsSettings) -> Result<Fit> {
     // On unscaled columns δ is in β² units, whose scale is the robot's: not bounded.
-    if s.scale_columns && s.initial_covariance > crate::bounds::MAX_INITIAL_COVARIANCE {
-        return Err(PrrrpError::InvalidParameter {
-            field: "initial_covariance".into(),
-            value: s.initial_covariance,
-            reason: "must be at most MAX_INITIAL_COVARIANCE (1e9) on equilibrated columns \
-                     (a prior σ of 3·10⁴ N·m on the torque each parameter explains): larger \
-                     values leave the first updates' covariance without a correct digit, \
-                     and the estimate diverges",
-        });
+    if s.scale_columns {
+        crate::bounds::check_initial_covariance(s.initial_covariance)?;
     }
     let sm = scaled(model, samples, s.scale_columns, false)?;
     let cfg = RlsConfig {
@@ -1687,13 +1680,9 @@ fn ekf(
     let w = s.least_squares_prior_width;
     // Squared into P₀: a width of 1e300 made it infinite, and the filter started from the
     // diagonal prior without a word.
-    if !(w == 0.0 || crate::bounds::is_factor(w)) {
-        return Err(PrrrpError::InvalidParameter {
-            field: "least_squares_prior_width".into(),
-            value: w,
-            reason:
-                "must be 0 (the diagonal prior) or between MIN_FACTOR (1e-6) and MAX_FACTOR (1e6)",
-        });
+    // 0 asks for the diagonal prior.
+    if w != 0.0 {
+        crate::bounds::check_factor("least_squares_prior_width", w)?;
     }
     let mut prior = "diagonal";
     if w > 0.0 && matches!(s.initial, EkfStart::LeastSquares | EkfStart::Physical) {

@@ -12,7 +12,7 @@ use super::payload::{project, summary_json, PAYLOAD_PARAMS};
 use super::payload_ekf::PayloadEkf;
 use super::tip::{Look, TipOpening};
 use super::tracked::{TrackedModel, TrackedWorkspace};
-use crate::bounds::{is_factor, MAX_INITIAL_COVARIANCE, MAX_MAGNITUDE};
+use crate::bounds::{check_factor, check_initial_covariance, MAX_MAGNITUDE};
 use crate::error::{invalid, PrrrpError, Result};
 use crate::estimators::{
     base_feasibility, AdalineConfig, AdalineRule, Discretisation, DynAdaline, DynEkf, DynHopfield,
@@ -203,24 +203,9 @@ impl OnlineConfig {
             ("payload_mass_std", self.payload_mass_std),
             ("payload_size", self.payload_size),
         ] {
-            if !is_factor(v) {
-                return Err(invalid(
-                    name,
-                    v,
-                    "must be between MIN_FACTOR (1e-6) and MAX_FACTOR (1e6): it is squared \
-                     into a covariance",
-                ));
-            }
+            check_factor(name, v)?;
         }
-        if self.initial_covariance > MAX_INITIAL_COVARIANCE {
-            return Err(invalid(
-                "initial_covariance",
-                self.initial_covariance,
-                "must be at most MAX_INITIAL_COVARIANCE (1e9; a prior σ of 3·10⁴ N·m on the torque each parameter \
-                 explains, already no prior for any arm): larger values leave the first \
-                 updates' covariance without a correct digit, and the estimate diverges",
-            ));
-        }
+        check_initial_covariance(self.initial_covariance)?;
         if !(self.ekf_warmup.is_finite() && self.ekf_warmup >= 0.0) {
             return Err(invalid(
                 "ekf_warmup",
