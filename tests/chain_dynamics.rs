@@ -484,14 +484,27 @@ fn bad_input_is_a_typed_error() {
         c.with_gravity([0.0, f64::INFINITY, 0.0]),
         Err(PrrrpError::InvalidParameter { .. })
     ));
-    let smooth = FrictionModel {
-        coulomb_smoothing: -1.0,
-        ..FrictionModel::all()
-    };
-    assert!(matches!(
-        c.with_friction(smooth, [[0.0; 3]; 2]),
-        Err(PrrrpError::InvalidParameter { .. })
-    ));
+    // Negative; past the factor range the term vanishes or its slope at rest overflows.
+    for v in [-1.0, 1e300, 1e-300, f64::NAN] {
+        let smooth = FrictionModel {
+            coulomb_smoothing: v,
+            ..FrictionModel::all()
+        };
+        assert!(
+            matches!(
+                c.with_friction(smooth, [[0.0; 3]; 2]),
+                Err(PrrrpError::InvalidParameter { .. })
+            ),
+            "{v}"
+        );
+    }
+    for v in [0.0, 1e-6, 0.02, 1e6] {
+        let smooth = FrictionModel {
+            coulomb_smoothing: v,
+            ..FrictionModel::all()
+        };
+        assert!(c.with_friction(smooth, [[0.0; 3]; 2]).is_ok(), "{v}");
+    }
     // Massless links: M(q) is singular, forward dynamics says so.
     let q = SVector::<f64, 2>::zeros();
     assert!(matches!(

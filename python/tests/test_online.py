@@ -296,7 +296,7 @@ def test_absurd_options_are_usage_errors(setup, tmp_path, capsys):
     prior width of 1e300 (squared to inf, the prior dropped silently), an ekf noise of
     1e-300 (a variance of 0), a cut-off whose transient outlasts the log (it read "need at
     least 18446744073709551615 samples"), a noise factor whose log prrrp cannot read, a
-    rate of 1e-300 Hz."""
+    rate of 1e-300 Hz, a Coulomb speed scale of 1e300 or 1e-300 rad/s."""
     _chain, _prior, run, _ = setup
     rel, _tip = ARMS["ur5"]
     data = tmp_path / "ur5.csv"
@@ -315,6 +315,9 @@ def test_absurd_options_are_usage_errors(setup, tmp_path, capsys):
         # One sample over 10 s was written; the log resampled to one row.
         (["excite", "--robot", robot, "--rate", "1e-300"], "twice the highest harmonic"),
         (["identify", str(data), "--robot", robot, "--rate", "1e-300"], "rate_hz"),
+        # tanh(q̇/1e300) is 0: the Coulomb term was gone without a word.
+        (["track", str(data), "--robot", robot, "--coulomb-scale", "1e300"], "--coulomb-scale"),
+        (["identify", str(data), "--robot", robot, "--coulomb-scale", "1e-300"], "--coulomb-scale"),
     ]
     for argv, needle in cases:
         capsys.readouterr()

@@ -286,8 +286,11 @@ def coulomb_scale(text: str | None) -> str | float | None:
         v = float(text)
     except ValueError:
         raise CliError(f"--coulomb-scale must be auto or a number (rad/s), got {text!r}") from None
-    if not (math.isfinite(v) and v >= 0):
-        raise CliError(f"--coulomb-scale must be finite and >= 0 rad/s, got {text}")
+    if not (v == 0 or MIN_FACTOR <= v <= MAX_FACTOR):
+        raise CliError(
+            f"--coulomb-scale must be auto, 0 (exact sign) or between {MIN_FACTOR:g} and "
+            f"{MAX_FACTOR:g} rad/s, got {text}"
+        )
     return v
 
 

@@ -29,6 +29,8 @@ pub struct FrictionModel {
     pub offset: bool,
     /// Velocity scale v_s (rad/s or m/s) of a smoothed sign sgn(q̇) ≈ tanh(q̇/v_s), which
     /// keeps forward simulation smooth; 0 (default) uses the exact sign with sgn(0) = 0.
+    /// Otherwise between [`crate::MIN_FACTOR`] and [`crate::MAX_FACTOR`] (checked where a
+    /// chain takes it).
     pub coulomb_smoothing: f64,
 }
 

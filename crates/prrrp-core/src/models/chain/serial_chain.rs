@@ -212,12 +212,15 @@ fn validate_gravity(g: [f64; 3]) -> Result<Vector3<f64>> {
 }
 
 fn validate_friction(model: &FrictionModel, p: &[[f64; 3]]) -> Result<()> {
+    // Past the factor range the term is gone (tanh(q̇/1e300) = 0) or its slope at rest,
+    // fc/v_s, overflows the EKF's Jacobian: 0 asks for the exact sign instead.
     let s = model.coulomb_smoothing;
-    if !(s.is_finite() && s >= 0.0) {
+    if !(s == 0.0 || (crate::MIN_FACTOR..=crate::MAX_FACTOR).contains(&s)) {
         return Err(invalid(
             "friction.coulomb_smoothing",
             s,
-            "must be finite and >= 0 (rad/s or m/s; 0 = exact sign)",
+            "must be 0 (exact sign) or between MIN_FACTOR (1e-6) and MAX_FACTOR (1e6) rad/s \
+             or m/s",
         ));
     }
     let reason = "friction parameters must be finite";
