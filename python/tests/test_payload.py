@@ -122,8 +122,10 @@ def test_a_short_run_says_the_inertia_is_not_identifiable(arm):
 
 def test_bad_payload_input_is_a_typed_error(arm):
     loaded = _dataset(ur.run(2, ur.MOUNTINGS["A"], 20, duration=4.0))
-    with pytest.raises(prrrp.InvalidParameterError):
-        arm.identify_payload(loaded, -1.0)
+    # 1e-300 kg was taken, and the inertia came out at hundreds of kg·m².
+    for mass in [-1.0, 1e-300, 1e300, float("nan")]:
+        with pytest.raises(prrrp.InvalidParameterError, match="payload mass"):
+            arm.identify_payload(loaded, mass)
     with pytest.raises(prrrp.InvalidParameterError, match="tip"):
         arm.identify_payload(loaded, tip="no_such_link")
     with pytest.raises(prrrp.ShapeMismatchError):
@@ -231,8 +233,11 @@ def test_payload_and_drive_gains_through_the_command_line(tmp_path, capsys):
     assert np.all(rms < 1.2 * ur.TAU_NOISE), rms / ur.TAU_NOISE
     # A wrong mass and a missing model are one-line errors (exit 2), nothing written.
     bad = ["payload", str(tmp_path / "loaded.csv"), "--model", str(arm_dir / "model.json")]
-    assert main([*bad, "--mass", "-2", "--out", str(tmp_path / "bad")]) == 2
-    assert not (tmp_path / "bad").exists()
+    # 1e-300 kg was taken (217 kg·m² of inertia), 1e300 read as a non-finite input.
+    for mass in ["-2", "1e-300", "1e300", "nan"]:
+        assert main([*bad, "--mass", mass, "--out", str(tmp_path / "bad")]) == 2
+        assert "--mass" in capsys.readouterr().err
+        assert not (tmp_path / "bad").exists()
     assert main([*bad, "--tip", "no_such_link", "--out", str(tmp_path / "bad")]) == 2
     assert "no_such_link" in capsys.readouterr().err
     assert not (tmp_path / "bad").exists()

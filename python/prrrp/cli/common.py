@@ -152,14 +152,16 @@ def nonempty_path(text: str) -> str:
     return text
 
 
-def check_factor(flag: str, v: float | None, low: float = MIN_FACTOR) -> None:
-    """Refuses a factor outside [low, MAX_FACTOR], naming its flag (None: not given).
+def check_factor(flag: str, v: float | None, low: float = MIN_FACTOR, unit: str = "") -> None:
+    """Refuses a factor outside [low, MAX_FACTOR] (in ``unit``), naming its flag (None:
+    not given).
 
     Widths and noise factors are squared into covariances: 1e300 made them infinite and
-    1e-300 zero. The library refuses them too, but by its field's name, not the flag's.
+    1e-300 zero (a payload mass of 1e-300 kg gave 217 kg·m² of inertia). The library
+    refuses them too, but by its field's name, not the flag's.
     """
     if v is not None and not (math.isfinite(v) and low <= v <= MAX_FACTOR):
-        raise CliError(f"{flag} must be between {low:g} and {MAX_FACTOR:g}, got {v:g}")
+        raise CliError(f"{flag} must be between {low:g} and {MAX_FACTOR:g}{unit}, got {v:g}")
 
 
 def first_line(e: BaseException) -> str:

@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -335,8 +334,7 @@ def _run_drive_gains(
     if not args.payload_run or args.payload_mass is None:
         raise common.CliError("--payload-run LOADED and --payload-mass KG go together")
     mass = args.payload_mass
-    if not (math.isfinite(mass) and mass > 0):
-        raise common.CliError(f"--payload-mass must be a positive number of kg, got {mass}")
+    common.check_factor("--payload-mass", mass, unit=" kg")
     if args.drive_gains is not None:
         raise common.CliError("--payload-run identifies the drive gains: drop --drive-gains")
     if args.method not in (workflow.DEFAULT_METHOD, "wls"):

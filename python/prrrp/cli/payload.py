@@ -5,7 +5,6 @@ for ``prrrp predict``), ``DIR/report.md`` and ``DIR/explained_torque.png``."""
 from __future__ import annotations
 
 import argparse
-import math
 from pathlib import Path
 from typing import Any
 
@@ -51,8 +50,7 @@ def add_parser(sub: Any) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    if args.mass is not None and not (math.isfinite(args.mass) and args.mass > 0):
-        raise common.CliError(f"--mass must be a positive number of kg, got {args.mass}")
+    common.check_factor("--mass", args.mass, unit=" kg")
     try:
         arm = prrrp.IdentifiedModel.load(args.model)
     except prrrp.PrrrpError as e:

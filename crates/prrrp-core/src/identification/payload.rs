@@ -59,7 +59,8 @@ impl Default for PayloadSettings {
 /// Settings of [`identify_drive_gains`].
 #[derive(Debug, Clone, PartialEq)]
 pub struct DriveGainSettings {
-    /// The payload's link (0-based; `None`: the tip) and the payload's mass (kg, > 0).
+    /// The payload's link (0-based; `None`: the tip) and the payload's mass (kg,
+    /// [`crate::MIN_FACTOR`] to [`crate::MAX_FACTOR`]).
     pub link: Option<usize>,
     /// The payload's known mass (kg).
     pub mass: f64,
@@ -305,12 +306,13 @@ fn check_link(link: Option<usize>, n: usize) -> Result<usize> {
     Ok(l)
 }
 
+/// A mass of 1e-300 kg was taken, and the fitted inertia came out at hundreds of kg·m².
 fn check_mass(m: f64) -> Result<()> {
-    if !(m.is_finite() && m > 0.0) {
+    if !(crate::MIN_FACTOR..=crate::MAX_FACTOR).contains(&m) {
         return Err(PrrrpError::InvalidParameter {
             field: "payload mass".into(),
             value: m,
-            reason: "a payload mass is finite and > 0 kg",
+            reason: "a payload mass is between MIN_FACTOR (1e-6) and MAX_FACTOR (1e6) kg",
         });
     }
     Ok(())
@@ -704,7 +706,7 @@ fn residual_rms(model: &IdentifiedModel, data: &DynDataset) -> Result<Vec<f64>> 
 /// trusted), the payload, and the naive least-squares gains.
 ///
 /// # Errors
-/// As [`identify_payload`]; [`PrrrpError::InvalidParameter`] for a mass ≤ 0;
+/// As [`identify_payload`]; [`PrrrpError::InvalidParameter`] for a mass outside 1e-6..1e6 kg;
 /// [`PrrrpError::RankDeficient`] when the runs determine no gain at all.
 pub fn identify_drive_gains(
     model: &IdentifiedModel,
