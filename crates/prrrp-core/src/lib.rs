@@ -63,6 +63,7 @@ pub mod estimators;
 pub mod identification;
 pub mod interrupt;
 mod json;
+mod linalg;
 pub mod models;
 pub mod motion;
 pub mod online;

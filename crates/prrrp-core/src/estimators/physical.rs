@@ -477,12 +477,12 @@ impl PhysicalProblem {
         for (c, &s) in norms.iter().enumerate() {
             scaled.column_mut(c).scale_mut(1.0 / s);
         }
-        let svd = scaled.svd(true, true);
-        let smax = svd.singular_values.max();
-        let eps = 1e-12 * smax;
-        let y = svd
-            .solve(&self.z, eps)
-            .unwrap_or_else(|_| DVector::zeros(ind.len()));
+        let y = crate::linalg::svd(scaled)
+            .and_then(|svd| {
+                let eps = 1e-12 * svd.singular_values.max();
+                svd.solve(&self.z, eps).ok()
+            })
+            .unwrap_or_else(|| DVector::zeros(ind.len()));
         let beta: Vec<f64> = y.iter().zip(&norms).map(|(v, s)| v / s).collect();
         let r = &ab * DVector::from_column_slice(&beta) - &self.z;
         (beta, (r.norm_squared() + self.r0sq).sqrt())
@@ -910,7 +910,9 @@ fn thickened_link(params: &[f64; LINK_PARAMS]) -> [f64; LINK_PARAMS] {
     }
     let h = j.fixed_view::<3, 1>(0, 3).into_owned();
     let sigma_c = j.fixed_view::<3, 3>(0, 0) - h * h.transpose() / m;
-    let eig = sigma_c.symmetric_eigen();
+    let Some(eig) = crate::linalg::symmetric_eigen(sigma_c) else {
+        return *params;
+    };
     let top = eig.eigenvalues.max();
     if !(top > 0.0 && top.is_finite()) {
         return *params;
@@ -930,7 +932,9 @@ fn thickened_link(params: &[f64; LINK_PARAMS]) -> [f64; LINK_PARAMS] {
 /// A link's parameters with the pseudo-inertia's eigenvalues raised to [`EIGEN_FLOOR`] of
 /// the largest (the default body if none is positive).
 fn interior_link(params: &[f64; LINK_PARAMS]) -> [f64; LINK_PARAMS] {
-    let eig = pseudo_inertia(params).symmetric_eigen();
+    let Some(eig) = crate::linalg::symmetric_eigen(pseudo_inertia(params)) else {
+        return default_body();
+    };
     let top = eig.eigenvalues.max();
     if !(top > 0.0 && top.is_finite()) {
         return default_body();

@@ -1313,7 +1313,8 @@ fn anneal<E: Estimator<Dyn, Dyn>>(
         let mut next = gx.clone();
         if !dfs.is_empty() {
             let df = DMatrix::from_columns(&dfs);
-            if let Ok(c) = df.svd(true, true).solve(&f, 1e-12 * f.amax().max(1e-300)) {
+            let tol = 1e-12 * f.amax().max(1e-300);
+            if let Some(c) = crate::linalg::svd(df).and_then(|s| s.solve(&f, tol).ok()) {
                 next -= DMatrix::from_columns(&dgs) * c;
             }
         }

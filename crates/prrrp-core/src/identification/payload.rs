@@ -156,7 +156,7 @@ impl Normal {
     /// column-equilibrated coordinates with directions below `tol` of the largest
     /// singular value dropped (held at the prior). Returns x, the inverse used, and the
     /// dropped directions (unit vectors in x's coordinates).
-    fn solve(&self, w: &[f64], prior: &DVector<f64>, tol: f64) -> Solved {
+    fn solve(&self, w: &[f64], prior: &DVector<f64>, tol: f64) -> Result<Solved> {
         let k = prior.len();
         let mut m = DMatrix::zeros(k, k);
         let mut rhs = DVector::zeros(k);
@@ -175,7 +175,12 @@ impl Normal {
             })
             .collect();
         let ms = DMatrix::from_fn(k, k, |r, c| m[(r, c)] / (d[r] * d[c]));
-        let svd = ms.clone().svd(true, true);
+        let svd = crate::linalg::svd(ms.clone()).ok_or_else(|| PrrrpError::NonFinite {
+            what: "normal equations of the payload fit (overflowed or did not converge: check \
+                   the logs' units)"
+                .into(),
+            row: None,
+        })?;
         let top = svd.singular_values.max();
         let (u, vt) = (svd.u.unwrap(), svd.v_t.unwrap());
         let mut pinv = DMatrix::zeros(k, k);
@@ -199,13 +204,13 @@ impl Normal {
             .iter()
             .filter(|s| **s > tol * top)
             .fold(f64::INFINITY, |a, b| a.min(*b));
-        Solved {
+        Ok(Solved {
             x,
             inv,
             dropped,
             null_scaled,
             cond: top / cond,
-        }
+        })
     }
 
     /// Sandwich covariance M⁻¹·(Σ w_j²·κ_j·s_j²·Z_jᵀZ_j)·M⁻ᵀ.
@@ -467,9 +472,9 @@ pub fn identify_payload(
     }
     let acc = accumulate(n, k, data.len(), &mut fill)?;
     let ones = vec![1.0; n];
-    let ols = acc.solve(&ones, &prior, RANK_TOLERANCE);
+    let ols = acc.solve(&ones, &prior, RANK_TOLERANCE)?;
     let w = inverse_variances(&acc.variances(&ols.x));
-    let fit = acc.solve(&w, &prior, RANK_TOLERANCE);
+    let fit = acc.solve(&w, &prior, RANK_TOLERANCE)?;
     let var = acc.variances(&fit.x);
     let kap = kappas(n, k, data.len(), &fit.x, &mut fill)?;
     let mut cov = acc.covariance(&w, &fit.inv, &var, &kap);
@@ -525,9 +530,9 @@ pub fn identify_payload(
         info.view((np, np), (k - np, k - np)).into_owned(),
     );
     let iff_inv = if k > np {
-        iff.clone()
-            .pseudo_inverse(1e-14 * iff.norm().max(1e-300))
-            .unwrap_or_else(|_| DMatrix::zeros(k - np, k - np))
+        crate::linalg::svd(iff.clone())
+            .and_then(|s| s.pseudo_inverse(1e-14 * iff.norm().max(1e-300)).ok())
+            .unwrap_or_else(|| DMatrix::zeros(k - np, k - np))
     } else {
         DMatrix::zeros(0, 0)
     };
@@ -786,9 +791,9 @@ pub fn identify_drive_gains(
         prior[m] = 1.0;
     }
     let acc = accumulate(n, k, total, &mut |s, a, z, y| rows(s, a, z, y, None))?;
-    let ols = acc.solve(&ones, &prior, RANK_TOLERANCE);
+    let ols = acc.solve(&ones, &prior, RANK_TOLERANCE)?;
     let mut w = inverse_variances(&acc.variances(&ols.x));
-    let mut fit = acc.solve(&w, &prior, RANK_TOLERANCE);
+    let mut fit = acc.solve(&w, &prior, RANK_TOLERANCE)?;
     let naive: Vec<f64> = fit.x.rows(0, n).iter().copied().collect();
     let mut acc = acc;
     for _ in 0..settings.iterations {
@@ -796,7 +801,7 @@ pub fn identify_drive_gains(
         acc = accumulate(n, k, total, &mut |s, a, z, y| {
             rows(s, a, z, y, Some(&x_prev))
         })?;
-        fit = acc.solve(&w, &x_prev, RANK_TOLERANCE);
+        fit = acc.solve(&w, &x_prev, RANK_TOLERANCE)?;
         w = inverse_variances(&acc.variances(&fit.x));
     }
     let var = acc.variances(&fit.x);

@@ -53,7 +53,10 @@ pub(crate) fn tip_columns(names: &[String], n: usize) -> Result<[usize; PAYLOAD_
 /// pseudo-inertia J(π) set to zero (the Frobenius-nearest J ⪰ 0; Wensing, Kim & Slotine
 /// 2017). Returns whether π changed. Allocation-free (4×4 stack matrices).
 pub(crate) fn project(pi: &mut [f64; PAYLOAD_PARAMS]) -> bool {
-    let eig = pseudo_inertia(pi).symmetric_eigen();
+    // A non-finite π has no eigenvalues to clip: left as it is.
+    let Some(eig) = crate::linalg::symmetric_eigen(pseudo_inertia(pi)) else {
+        return false;
+    };
     if eig.eigenvalues.iter().all(|&e| e >= 0.0) {
         return false;
     }

@@ -134,7 +134,9 @@ impl TipOpening {
         let h = (h + h.transpose()) * 0.5;
         // G = H⁺: a payload direction K·v = 0 moves no base parameter and has no
         // information (eigenvalue 0); it is left out.
-        let eig = h.symmetric_eigen();
+        let Some(eig) = crate::linalg::symmetric_eigen(h) else {
+            return false;
+        };
         let top = eig.eigenvalues.amax();
         if !(top.is_finite() && top > 0.0) {
             return false;
