@@ -840,8 +840,16 @@ fn bad_input_is_refused() {
         }
         other => panic!("{other:?}"),
     }
-    // Only the first row counted.
-    assert_eq!(id.counts().0, 1);
+    // A time stamp of 1e300 s was taken, and every later row was "before" it.
+    match id.update(1e300, &q, &tau, None) {
+        Err(e @ PrrrpError::InvalidParameter { .. }) => {
+            assert!(e.to_string().contains("`t at row 1`"), "{e}");
+        }
+        other => panic!("{other:?}"),
+    }
+    id.update(0.001, &q, &tau, None).unwrap();
+    // Only the first row and that one counted.
+    assert_eq!(id.counts().0, 2);
     // A memory that forgets everything between two rows 1 ms apart (ν = exp(−1000)):
     // refused at the row, before it changes anything; a gap that restarts the filters
     // (no regression across it) is not refused.

@@ -453,6 +453,9 @@ def atomic_path(path: str | os.PathLike[str]) -> Iterator[Path]:
     path = Path(path)
     if path.is_symlink():
         path = Path(os.path.realpath(path))
+    if path.exists() and not path.is_file():
+        # os.replace would swap a device node or a FIFO for a regular file.
+        raise InputError(f"{path}: a directory, device, pipe or socket; give a file name")
     parent = path.parent if str(path.parent) else Path(".")
     tmp = None
     try:

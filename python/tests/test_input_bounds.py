@@ -128,6 +128,27 @@ def test_a_string_setting_in_model_json_is_a_clear_error(
         prediction.recorded_settings(model)
 
 
+def test_predict_does_not_replace_a_fifo_or_a_device(
+    model_file: Path, tmp_path: Path, capsys
+) -> None:
+    """`predict --out` took a FIFO (or, run as root, /dev/null) and replaced it with a
+    regular file; it is a one-line usage error, the node left as it was."""
+    fifo = tmp_path / "tau.csv"
+    os.mkfifo(fifo)
+    for out in [fifo, tmp_path / "link.csv"]:
+        if out.name == "link.csv":
+            out.symlink_to(fifo)
+        argv = ["predict", str(model_file), str(model_file.parent / "log.csv"), "--out", str(out)]
+        assert cli.main(argv) == cli.EXIT_USAGE
+        err = capsys.readouterr().err
+        assert "device, pipe or socket" in err, err
+        assert len(err.strip().splitlines()) == 1
+        assert fifo.is_fifo()
+    with pytest.raises(csvio.InputError, match="pipe"):
+        csvio.write_table_atomic(fifo, ["t"], np.zeros((1, 1)))
+    assert fifo.is_fifo()
+
+
 # ------------------------------------------------------------------- excitation size
 
 

@@ -1098,6 +1098,35 @@ fn endless_file_is_refused() {
     assert!(e.to_string().contains("larger than"), "{e}");
 }
 
+/// A FIFO is refused without opening it: the open blocked until a writer came, and
+/// neither Ctrl-C nor SIGTERM ended the wait.
+#[cfg(unix)]
+#[test]
+fn fifo_is_refused_without_blocking() {
+    let dir = std::env::temp_dir().join(format!("prrrp-fifo-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let fifo = dir.join("robot.urdf");
+    let made = std::process::Command::new("mkfifo").arg(&fifo).status();
+    if !made.is_ok_and(|s| s.success()) {
+        eprintln!("no mkfifo here: skipped");
+        return;
+    }
+    let (tx, rx) = std::sync::mpsc::channel();
+    let path = fifo.clone();
+    // A thread, so that a regression fails the test instead of hanging it.
+    std::thread::spawn(move || {
+        let urdf = DynChain::from_urdf_file(&path, &UrdfOptions::default()).map(|_| ());
+        let toml = DynChain::from_toml_file(&path).map(|_| ());
+        let _ = tx.send((urdf, toml));
+    });
+    let got = rx.recv_timeout(std::time::Duration::from_secs(20));
+    let _ = std::fs::remove_dir_all(&dir);
+    let (urdf, toml) = got.expect("reading a FIFO blocked");
+    for e in [urdf.unwrap_err(), toml.unwrap_err()] {
+        assert!(e.to_string().contains("pipe or socket"), "{e}");
+    }
+}
+
 // ---------------------------------------------------------------------------------------
 // Hostile files (issue 25, item 6): each ends in a typed error or the right chain.
 

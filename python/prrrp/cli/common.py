@@ -116,6 +116,9 @@ def dump_json(data: Any, path: Path) -> None:
 def check_output_file(path: Path) -> None:
     if path.is_dir():
         raise CliError(f"output {path} is a directory; give a file name")
+    if path.exists() and not path.is_file():
+        # Replaced by a regular file before: /dev/null run as root would be gone.
+        raise CliError(f"output {path} is a device, pipe or socket; give a file name")
     parent = path.parent if str(path.parent) else Path(".")
     if not parent.is_dir():
         raise CliError(f"output directory {parent} does not exist")

@@ -398,6 +398,33 @@ impl IdentifiedModel {
                 });
             }
         }
+        // A β of 1e299 predicted torques whose squares overflowed: errors printed as inf.
+        if let Some((row, &v)) = self
+            .beta
+            .iter()
+            .enumerate()
+            .find(|(_, v)| v.abs() >= crate::MAX_MAGNITUDE)
+        {
+            return Err(PrrrpError::InvalidParameter {
+                field: format!("beta[{row}]"),
+                value: v,
+                reason: "no base parameter reaches MAX_MAGNITUDE (1e100); the file is damaged",
+            });
+        }
+        // A repeated index read one standard parameter twice and predicted wrong torques.
+        let mut seen = vec![false; p];
+        if let Some(&j) = self
+            .base
+            .independent
+            .iter()
+            .find(|&&j| std::mem::replace(&mut seen[j], true))
+        {
+            return Err(PrrrpError::ShapeMismatch {
+                what: "base.independent".into(),
+                expected: "distinct standard-parameter indices".into(),
+                got: format!("index {j} twice"),
+            });
+        }
         Ok(())
     }
 

@@ -1078,6 +1078,14 @@ impl OnlineIdentifier {
                 });
             }
         }
+        // A time stamp of 1e300 s was taken, and every later row was then "before" it.
+        if t.abs() >= MAX_MAGNITUDE {
+            return Err(PrrrpError::InvalidParameter {
+                field: format!("t at row {}", self.rows),
+                value: t,
+                reason: "no clock reads 1e100 s or more; check the log's units",
+            });
+        }
         let dt = match self.t_prev {
             Some(tp) if t < tp => return Err(PrrrpError::NonIncreasingTime { row: self.rows }),
             Some(tp) => t - tp,

@@ -200,11 +200,12 @@ fn validate_inertial(p: &[[f64; 10]]) -> Result<()> {
 
 fn validate_gravity(g: [f64; 3]) -> Result<Vector3<f64>> {
     for (k, &v) in g.iter().enumerate() {
-        if !v.is_finite() {
+        // 1e299 m/s² predicted torques near 1e300 N·m, printed as errors of inf.
+        if !(v.is_finite() && v.abs() < crate::MAX_MAGNITUDE) {
             return Err(invalid(
                 format!("gravity[{k}]"),
                 v,
-                "gravity must be finite (m/s², world frame)",
+                "gravity must be finite and below MAX_MAGNITUDE (1e100) (m/s², world frame)",
             ));
         }
     }

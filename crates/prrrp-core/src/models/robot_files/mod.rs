@@ -68,6 +68,23 @@ pub const MAX_ROBOT_FILE_BYTES: u64 = 64 << 20;
 fn read_text(path: &Path) -> Result<(String, String)> {
     use std::io::Read;
     let file = path.display().to_string();
+    // Opening a FIFO blocks until a writer comes, in a system call that Ctrl-C and
+    // SIGTERM do not end; its kind is known without opening it.
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::FileTypeExt;
+        if let Ok(m) = std::fs::metadata(path) {
+            let t = m.file_type();
+            if t.is_fifo() || t.is_socket() {
+                return Err(file_error(
+                    &file,
+                    "file",
+                    "a pipe or socket, not a robot file: give the path of a URDF or TOML \
+                     file",
+                ));
+            }
+        }
+    }
     let read = std::fs::File::open(path).and_then(|f| {
         let mut text = String::new();
         // One byte past the bound tells a file that is too large from one that fits.
