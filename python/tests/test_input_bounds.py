@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import subprocess
 import sys
 import time
@@ -94,6 +95,45 @@ def test_a_malformed_model_names_what_is_wrong(model_file: Path, tmp_path: Path)
         prrrp.IdentifiedModel.load(bad)
     assert 'invalid type: string "ten", expected usize' in str(info.value)
     assert str(info.value).startswith(f"{bad}: not a prrrp model file")
+
+
+def _damaged(doc: dict, what: str) -> dict:
+    if what == "beta":
+        doc["beta"][0] = 1e299
+    elif what == "gravity":
+        doc["robot"]["gravity"][2] = -1e299
+    else:
+        doc["base"]["independent"][1] = doc["base"]["independent"][0]
+    return doc
+
+
+@pytest.mark.parametrize(
+    ("what", "error", "needle"),
+    [
+        ("beta", prrrp.InvalidParameterError, "beta[0]"),
+        ("gravity", prrrp.InvalidParameterError, "gravity[2]"),
+        ("independent", prrrp.ShapeMismatchError, "twice"),
+    ],
+)
+def test_a_damaged_model_is_refused_at_load(
+    model_file: Path, tmp_path: Path, capsys, what: str, error: type, needle: str
+) -> None:
+    """A β or a gravity of 1e299 predicted torques whose squares overflowed (errors printed
+    as inf, numpy's warnings on stderr, exit 0); a repeated base index read one parameter
+    twice and predicted wrong torques without a word."""
+    bad = tmp_path / "m.json"
+    bad.write_text(json.dumps(_damaged(json.loads(model_file.read_text()), what)))
+    with pytest.raises(error, match=re.escape(needle)):
+        prrrp.IdentifiedModel.load(bad).predict(
+            np.zeros((3, 2)), np.zeros((3, 2)), np.zeros((3, 2))
+        )
+    out = tmp_path / "tau.csv"
+    argv = ["predict", str(bad), str(model_file.parent / "log.csv"), "--out", str(out)]
+    assert cli.main(argv) == cli.EXIT_USAGE
+    err = capsys.readouterr().err
+    assert needle in err, err
+    assert "Warning" not in err, err
+    assert not out.exists()
 
 
 @pytest.mark.parametrize(
