@@ -107,7 +107,7 @@ def test_identify_any_robot_bad_input(tmp_path: Path, truth, capsys):
     assert "--out DIR is required" in capsys.readouterr().err
     out = ["--out", str(tmp_path / "o")]
     assert cli.main([*base, *out, "--coulomb-scale", "-1"]) == cli.EXIT_USAGE
-    assert ">= 0" in capsys.readouterr().err
+    assert "0 (exact sign) or between" in capsys.readouterr().err
     assert cli.main([*base, *out, "--friction", "sticky"]) == cli.EXIT_USAGE
     assert "unknown term 'sticky'" in capsys.readouterr().err
     puma = tmp_path / "five.csv"
