@@ -45,9 +45,14 @@ pub(crate) fn check_initial_covariance(delta: f64) -> crate::error::Result<()> {
     Ok(())
 }
 
+/// Whether `v` lies in [[`MIN_FACTOR`], [`MAX_FACTOR`]] (false for NaN).
+pub(crate) fn is_factor(v: f64) -> bool {
+    (MIN_FACTOR..=MAX_FACTOR).contains(&v)
+}
+
 /// Refuses a factor `v` (named `field`) outside [[`MIN_FACTOR`], [`MAX_FACTOR`]] (and NaN).
 pub(crate) fn check_factor(field: &str, v: f64) -> crate::error::Result<()> {
-    if !(MIN_FACTOR..=MAX_FACTOR).contains(&v) {
+    if !is_factor(v) {
         return Err(crate::error::invalid(
             field,
             v,

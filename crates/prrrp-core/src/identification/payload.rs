@@ -313,7 +313,7 @@ fn check_link(link: Option<usize>, n: usize) -> Result<usize> {
 
 /// A mass of 1e-300 kg was taken, and the fitted inertia came out at hundreds of kg·m².
 fn check_mass(m: f64) -> Result<()> {
-    if !(crate::MIN_FACTOR..=crate::MAX_FACTOR).contains(&m) {
+    if !crate::bounds::is_factor(m) {
         return Err(PrrrpError::InvalidParameter {
             field: "payload mass".into(),
             value: m,

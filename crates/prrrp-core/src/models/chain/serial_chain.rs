@@ -216,7 +216,7 @@ fn validate_friction(model: &FrictionModel, p: &[[f64; 3]]) -> Result<()> {
     // Past the factor range the term is gone (tanh(q̇/1e300) = 0) or its slope at rest,
     // fc/v_s, overflows the EKF's Jacobian: 0 asks for the exact sign instead.
     let s = model.coulomb_smoothing;
-    if !(s == 0.0 || (crate::MIN_FACTOR..=crate::MAX_FACTOR).contains(&s)) {
+    if !(s == 0.0 || crate::bounds::is_factor(s)) {
         return Err(invalid(
             "friction.coulomb_smoothing",
             s,
