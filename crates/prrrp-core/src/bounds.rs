@@ -19,6 +19,12 @@ pub const MIN_FACTOR: f64 = 1e-6;
 /// without a word). Also the largest factor on simulated noise.
 pub const MAX_FACTOR: f64 = 1e6;
 
+/// Largest magnitude of a robot description's lengths (m: joint placements, DH `a` and
+/// `d`) and inertial parameters (kg, kg·m, kg·m²): 1e6, beyond any arm (a 1e299 kg link
+/// simulated torques of 1e299 N·m, and a DH length of 1e300 m overflowed the base
+/// parameters' derivation into an empty basis).
+pub const MAX_ROBOT_SIZE: f64 = 1e6;
+
 /// Largest initial covariance δ of an RLS on equilibrated columns (P₀ = δ·I; the online
 /// identifier's [`crate::OnlineConfig::initial_covariance`] and the batch RLS's
 /// [`crate::RlsSettings::initial_covariance`] with `scale_columns`): 1e9, a prior σ of

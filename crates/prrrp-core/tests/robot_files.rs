@@ -597,6 +597,29 @@ fn urdf_errors_name_file_and_element() {
         "ixx=\"inf\"",
         &["link[link2]/inertial/inertia"],
     );
+    // Swapped or negative limits (a TOML file's are refused alike); 0 is URDF 1.0's
+    // "not given" and reads.
+    edited(
+        "lower=\"-0.1\" upper=\"0.3\"",
+        "lower=\"0.3\" upper=\"-0.1\"",
+        &["joint[slide]/limit/lower", "swap them"],
+    );
+    for (from, to, at) in [
+        ("velocity=\"0.5\"", "velocity=\"-0.5\"", "limit/velocity"),
+        ("effort=\"200\"", "effort=\"-200\"", "limit/effort"),
+    ] {
+        edited(from, to, &["joint[slide]", at, "negative"]);
+    }
+    let unlimited = text.replace("velocity=\"0.5\"", "velocity=\"0\"");
+    assert!(DynChain::from_urdf_str(&unlimited, &tip("link3")).is_ok());
+    // A root other than <robot>: urdf-rs would read it as a robot without links.
+    let sdf = text
+        .replacen("<robot", "<sdf", 1)
+        .replace("</robot>", "</sdf>");
+    assert_error_names(
+        DynChain::from_urdf_str(&sdf, &tip("link3")),
+        &["<string>", "robot", "root element is <sdf>"],
+    );
     // Tip equal to base, duplicate names.
     assert_error_names(DynChain::from_urdf_str(&text, &tip("base_link")), &["tip"]);
     edited(
@@ -1321,7 +1344,8 @@ fn nan_or_zero_quaternions_are_refused() {
 
 #[test]
 fn to_urdf_refuses_what_it_cannot_write() {
-    // A placement that overflows when composed with the previous link frame.
+    // A placement that would overflow when composed with the previous link frame is
+    // refused when the chain is built (MAX_ROBOT_SIZE), before there is a file to write.
     let mut a = Joint::new(JointType::Revolute, Isometry3::identity(), Vector3::z());
     a.link_frame = Isometry3::translation(1.5e308, 0.0, 0.0);
     let b = Joint::new(
@@ -1329,13 +1353,9 @@ fn to_urdf_refuses_what_it_cannot_write() {
         Isometry3::translation(1.5e308, 0.0, 0.0),
         Vector3::z(),
     );
-    let chain = DynChain::from_joints(vec![a, b])
-        .unwrap()
-        .with_inertial(vec![[1.0, 0.0, 0.0, 0.0, 0.1, 0.0, 0.1, 0.0, 0.0, 0.1]; 2])
-        .unwrap();
-    let err = chain.to_urdf(None).unwrap_err();
+    let err = DynChain::from_joints(vec![a, b]).unwrap_err();
     assert!(matches!(err, PrrrpError::InvalidParameter { .. }), "{err}");
-    assert!(err.to_string().contains("NaN or infinite"), "{err}");
+    assert!(err.to_string().contains("MAX_ROBOT_SIZE"), "{err}");
 
     // A centre of mass at infinity: a subnormal mass with a first moment.
     let puma = SerialChain::puma560().to_dyn();
@@ -1431,7 +1451,14 @@ mod properties {
             joints[4].placement.translation.vector.x = reach;
             let mut inertial = puma.inertial().to_vec();
             inertial[5] = [mass, 0.01, 0.0, 0.0, 0.1, 0.0, 0.1, 0.0, 0.0, 0.1];
-            let chain = DynChain::from_joints(joints)
+            // Reaches past MAX_ROBOT_SIZE are refused when the chain is built.
+            let built = DynChain::from_joints(joints);
+            if reach.abs() > prrrp_core::bounds::MAX_ROBOT_SIZE {
+                let e = built.expect_err("a 1e154 m reach is refused");
+                prop_assert!(e.to_string().contains("MAX_ROBOT_SIZE"), "{e}");
+                return Ok(());
+            }
+            let chain = built
                 .unwrap()
                 .with_inertial(inertial)
                 .unwrap()
@@ -1489,4 +1516,50 @@ mod properties {
             }
         }
     }
+}
+
+/// Lengths and inertias beyond any arm (a unit slip, or a damaged file) are refused with
+/// the value's name, at MAX_ROBOT_SIZE (1e6 m, kg, kg·m²): a 1e299 kg link simulated
+/// torques of 1e299 N·m, and a DH length of 1e300 m gave "'base parameters' has shape 0".
+#[test]
+fn sizes_beyond_any_arm_are_refused() {
+    let shown = |r: Result<DynChain, PrrrpError>| match r {
+        Err(e) => e.to_string(),
+        Ok(_) => panic!("expected an error, got a chain"),
+    };
+    let toml = panda_toml();
+    for (from, to, needle) in [
+        ("a = 0.0825", "a = 1e300", "dh[3].a"),
+        ("d = 0.316", "d = -2e6", "dh[2].d"),
+        ("inertial = [7, ", "inertial = [1e299, ", "inertial[0][0]"),
+    ] {
+        let bad = toml.replacen(from, to, 1);
+        assert_ne!(bad, toml, "`{from}` not in the file");
+        let text = shown(DynChain::from_toml_str(&bad));
+        for n in [needle, "MAX_ROBOT_SIZE"] {
+            assert!(text.contains(n), "`{n}` not in: {text}");
+        }
+    }
+    let urdf = three_joint_text();
+    for (from, to) in [
+        ("<mass value=\"1.8\"/>", "<mass value=\"1e299\"/>"),
+        (
+            "<origin xyz=\"0.4 0.02 -0.01\"",
+            "<origin xyz=\"0.4 0.02 -3e6\"",
+        ),
+    ] {
+        let bad = urdf.replacen(from, to, 1);
+        assert_ne!(bad, urdf, "`{from}` not in the fixture");
+        let text = shown(DynChain::from_urdf_str(&bad, &tip("link3")));
+        assert!(text.contains("MAX_ROBOT_SIZE"), "{text}");
+    }
+    // A large but real arm (a 2 t gantry link 40 m out) still loads.
+    let big = urdf
+        .replacen("<mass value=\"1.8\"/>", "<mass value=\"2000\"/>", 1)
+        .replacen(
+            "<origin xyz=\"0.4 0.02 -0.01\"",
+            "<origin xyz=\"40 0.02 -0.01\"",
+            1,
+        );
+    assert!(DynChain::from_urdf_str(&big, &tip("link3")).is_ok());
 }

@@ -149,6 +149,16 @@ impl Joint {
                 reason: "joint placements must be finite (m, rad)",
             });
         }
+        let size = |iso: &Isometry3<f64>| iso.translation.vector.amax();
+        let far = size(&self.placement).max(size(&self.link_frame));
+        if far > crate::bounds::MAX_ROBOT_SIZE {
+            return Err(PrrrpError::InvalidParameter {
+                field: format!("{what}: placement"),
+                value: far,
+                reason: "joint offsets must be at most MAX_ROBOT_SIZE (1e6 m): check the \
+                         file's units (m)",
+            });
+        }
         let norm = self.axis.norm();
         if !norm.is_finite() || (norm - 1.0).abs() > AXIS_UNIT_TOLERANCE {
             return Err(PrrrpError::InvalidParameter {

@@ -188,6 +188,14 @@ fn validate_dh(dh: &[DhRow]) -> Result<()> {
                     "DH constants must be finite (m, rad)",
                 ));
             }
+            if matches!(name, "d" | "a") && v.abs() > crate::bounds::MAX_ROBOT_SIZE {
+                return Err(invalid(
+                    format!("dh[{i}].{name}"),
+                    v,
+                    "DH lengths must be at most MAX_ROBOT_SIZE (1e6 m) in magnitude: check \
+                     the file's units (m)",
+                ));
+            }
         }
     }
     Ok(())
@@ -195,7 +203,25 @@ fn validate_dh(dh: &[DhRow]) -> Result<()> {
 
 fn validate_inertial(p: &[[f64; 10]]) -> Result<()> {
     let reason = "inertial parameters must be finite";
-    check_rows_finite("inertial", p, &INERTIAL_PARAMETER_NAMES, reason)
+    check_rows_finite("inertial", p, &INERTIAL_PARAMETER_NAMES, reason)?;
+    for (i, row) in p.iter().enumerate() {
+        for (k, &v) in row.iter().enumerate() {
+            if v.abs() > crate::bounds::MAX_ROBOT_SIZE {
+                let name = format!(
+                    "inertial[{i}][{k}] ({}{})",
+                    INERTIAL_PARAMETER_NAMES[k],
+                    i + 1
+                );
+                return Err(invalid(
+                    name,
+                    v,
+                    "inertial parameters must be at most MAX_ROBOT_SIZE (1e6 kg, kg·m, \
+                     kg·m²) in magnitude: check the file's units (kg, m)",
+                ));
+            }
+        }
+    }
+    Ok(())
 }
 
 fn validate_gravity(g: [f64; 3]) -> Result<Vector3<f64>> {
@@ -508,7 +534,8 @@ impl<const N: usize> SerialChain<N> {
     /// Sets the inertial parameters of every link (see the type docs for the frame).
     ///
     /// # Errors
-    /// [`PrrrpError::InvalidParameter`] for a non-finite entry. Parameters no rigid body
+    /// [`PrrrpError::InvalidParameter`] for a non-finite entry or one above
+    /// [`crate::bounds::MAX_ROBOT_SIZE`] in magnitude. Parameters no rigid body
     /// has (a negative mass, an inertia breaking the triangle inequality) are accepted, as
     /// a robot file's inertials are only a prior: see
     /// [`SerialChain::non_physical_links`].
@@ -863,7 +890,8 @@ impl DynChain {
     ///
     /// # Errors
     /// [`PrrrpError::ShapeMismatch`] for a wrong count, [`PrrrpError::InvalidParameter`]
-    /// for a non-finite entry. Non-physical parameters are accepted: see
+    /// for a non-finite entry or one above [`crate::bounds::MAX_ROBOT_SIZE`] in magnitude.
+    /// Non-physical parameters are accepted: see
     /// [`DynChain::non_physical_links`].
     pub fn with_inertial(mut self, inertial: Vec<[f64; 10]>) -> Result<Self> {
         check_joints("inertial", inertial.len(), self.dof())?;

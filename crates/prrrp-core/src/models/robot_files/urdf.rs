@@ -425,6 +425,31 @@ fn joint_info(joint: &urdf_rs::Joint, file: &str) -> Result<JointInfo> {
     } else {
         (finite(l.lower), finite(l.upper))
     };
+    // As a TOML file's: a swapped pair or a negative bound on |q̇|, |q̈|, |τ| is a typo
+    // that would make every excitation infeasible (0 stays URDF 1.0's "not given").
+    if lower > upper {
+        return Err(file_error(
+            file,
+            joint_el(&joint.name, "limit/lower"),
+            format!(
+                "lower = {} is above upper = {}; swap them",
+                l.lower, l.upper
+            ),
+        ));
+    }
+    for (name, v) in [
+        ("velocity", l.velocity),
+        ("acceleration", l.acceleration),
+        ("effort", l.effort),
+    ] {
+        if v < 0.0 {
+            return Err(file_error(
+                file,
+                joint_el(&joint.name, &format!("limit/{name}")),
+                format!("{v} is negative; a limit on |·| must be > 0 (or 0 for none)"),
+            ));
+        }
+    }
     let (damping, friction) = match &joint.dynamics {
         Some(d) => {
             check_finite(&[d.damping, d.friction], file, || {

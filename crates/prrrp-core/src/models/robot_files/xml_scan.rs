@@ -177,7 +177,20 @@ pub(super) fn prescan(xml: &str, file: &str) -> Result<String> {
                 write(&mut writer, event.borrow(), file)?;
             }
         }
-        if tag.as_ref() == b"robot" && elements == 1 {
+        if elements == 1 {
+            // urdf-rs reads any root as the robot: a `<sdf>` or `<launch>` file would be a
+            // robot of no links, refused later with a message about links.
+            if tag.as_ref() != b"robot" {
+                return Err(file_error(
+                    file,
+                    "robot",
+                    format!(
+                        "the root element is <{}>, not <robot>: not a URDF (run xacro \
+                         first for a .xacro file; an SDF file is not read)",
+                        String::from_utf8_lossy(tag.as_ref())
+                    ),
+                ));
+            }
             quaternions = reads_quaternions(start);
         } else if let Some((t, n)) = owner_name(start) {
             if owner.is_none() && !empty {
