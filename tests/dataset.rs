@@ -92,6 +92,29 @@ fn non_finite_values_name_column_joint_and_first_row() {
 }
 
 #[test]
+fn values_beyond_any_log_name_column_joint_and_row() {
+    // Finite but past MAX_MAGNITUDE: W overflowed and the fit read "'QR factor of W' has
+    // a NaN". The value just below the bound is taken.
+    let (t, mut q, qd, qdd, tau) = columns(20);
+    q[4][1] = -1e300;
+    match Dataset::new(t, q, qd, qdd, tau) {
+        Err(PrrrpError::InvalidParameter { field, value, .. }) => {
+            assert_eq!(field, "q[1] (joint 2) at row 4");
+            assert_eq!(value, -1e300);
+        }
+        other => panic!("expected InvalidParameter, got {other:?}"),
+    }
+    let (mut t, q, qd, qdd, tau) = columns(20);
+    t[19] = 1e100;
+    assert!(
+        matches!(Dataset::new(t, q, qd, qdd, tau), Err(PrrrpError::InvalidParameter { field, .. }) if field == "t at row 19")
+    );
+    let (t, q, qd, qdd, mut tau) = columns(20);
+    tau[0][0] = 9.9e99;
+    assert!(Dataset::new(t, q, qd, qdd, tau).is_ok());
+}
+
+#[test]
 fn time_must_strictly_increase() {
     let (mut t, q, qd, qdd, tau) = columns(20);
     t[5] = t[4];

@@ -336,6 +336,22 @@ fn bad_input_is_a_typed_error() {
         assert!(matches!(e, PrrrpError::InvalidParameter { .. }), "{e}");
         println!("{e}");
     }
+    // Steps too small to move the weights: 1e-300 reported "converged" on its unchanged
+    // start.
+    for m in [
+        Method::Adaline(GradientSettings {
+            rule: prrrp_core::AdalineRule::Delta,
+            learning_rate: Some(1e-300),
+            ..GradientSettings::adaline()
+        }),
+        Method::Hopfield(GradientSettings {
+            step_size: 1e-300,
+            ..GradientSettings::hopfield()
+        }),
+    ] {
+        let e = exact_error(&m);
+        assert!(e.to_string().contains("MIN_FACTOR"), "{e}");
+    }
     // Data at rest excite no inertia: rank deficient for every method.
     let z = vec![0.0; f.exact.q().len()];
     let rest = DynDataset::new(

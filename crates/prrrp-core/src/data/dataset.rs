@@ -7,6 +7,7 @@ use std::ops::Range;
 
 use nalgebra::{Const, Dim, Dyn, SVector};
 
+use crate::bounds::MAX_MAGNITUDE;
 use crate::error::{PrrrpError, Result};
 use crate::estimators::Samples;
 use crate::models::chain::{FRICTION_PARAMETER_NAMES, LINK_PARAMS};
@@ -106,6 +107,8 @@ impl<N: Dim> DatasetOf<N> {
     /// - [`PrrrpError::NonFinite`] naming the column and joint (e.g. `"qdd[2] (joint 3)"`)
     ///   and the first row holding NaN or ±∞ (columns checked in the order t, q, qd, qdd,
     ///   tau);
+    /// - [`PrrrpError::InvalidParameter`] naming the first value at or above
+    ///   [`MAX_MAGNITUDE`] (1e100) in magnitude, with its column, joint and row;
     /// - [`PrrrpError::NonIncreasingTime`] with the first row whose time stamp is not
     ///   larger than the previous one.
     pub fn from_columns(
@@ -156,6 +159,19 @@ impl<N: Dim> DatasetOf<N> {
         }
         for (name, col) in self.joint_columns() {
             check_finite_flat(name, col, self.dof())?;
+        }
+        // As the log readers and the online identifier refuse them: a q of 1e300 overflowed
+        // W and read as "'QR factor of W' has a NaN".
+        if let Some(row) = self.cols.t.iter().position(|x| x.abs() >= MAX_MAGNITUDE) {
+            return Err(too_large(format!("t at row {row}"), self.cols.t[row]));
+        }
+        for (name, col) in self.joint_columns() {
+            if let Some(i) = col.iter().position(|x| x.abs() >= MAX_MAGNITUDE) {
+                let n = self.dof().max(1);
+                let (row, joint) = (i / n, i % n);
+                let what = format!("{name}[{joint}] (joint {}) at row {row}", joint + 1);
+                return Err(too_large(what, col[i]));
+            }
         }
         if let Some(k) = self.cols.t.windows(2).position(|w| w[1] <= w[0]) {
             return Err(PrrrpError::NonIncreasingTime { row: k + 1 });
@@ -554,6 +570,16 @@ pub(crate) fn check_flat_len<N: Dim>(name: &str, len: usize, n: N, rows: usize) 
         });
     }
     Ok(())
+}
+
+/// The error of a value at or above [`MAX_MAGNITUDE`] in a data set's column `what`.
+fn too_large(what: String, v: f64) -> PrrrpError {
+    PrrrpError::InvalidParameter {
+        field: what,
+        value: v,
+        reason: "is at or above MAX_MAGNITUDE (1e100) in magnitude: no robot log holds it; \
+                 check the data's units (s, rad, m, N·m, N)",
+    }
 }
 
 /// First non-finite value of a flat row-major column of `n` values per row, named

@@ -1469,6 +1469,16 @@ fn gradient(
             "must be in (0, 2): larger steps make the gradient update unstable",
         ));
     }
+    // A step of 1e-300 moved nothing, and the unchanged weights met the stopping rule
+    // ("converged").
+    if mu0 < crate::bounds::MIN_FACTOR {
+        return Err(invalid(
+            "step_size",
+            mu0,
+            "is below MIN_FACTOR (1e-6) (learning_rate·max‖x_i‖² over the scaled regressor \
+             rows, or step_size): the weights would not move; raise it",
+        ));
+    }
     let s = GradientSettings {
         step_size: mu0,
         ..*s
