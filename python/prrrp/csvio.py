@@ -457,6 +457,8 @@ def atomic_path(path: str | os.PathLike[str]) -> Iterator[Path]:
         # os.replace would swap a device node or a FIFO for a regular file.
         raise InputError(f"{path}: a directory, device, pipe or socket; give a file name")
     parent = path.parent if str(path.parent) else Path(".")
+    if not parent.is_dir():
+        raise InputError(f"{path}: the folder {parent} does not exist; create it first")
     tmp = None
     try:
         with signals.deferred():  # a Ctrl-C inside mkstemp would leave a file we cannot name

@@ -557,8 +557,8 @@ def test_a_failed_figure_on_the_server_loses_only_itself(
         ]
         failures = drawing.draw_all(jobs)
     assert [i for i, _ in failures] == [1]
-    assert "FileNotFoundError" in failures[0][1]
-    assert "figure 'broken' was not drawn: FileNotFoundError" in capfd.readouterr().err
+    assert "no-such-folder does not exist" in failures[0][1]
+    assert "figure 'broken' was not drawn: InputError" in capfd.readouterr().err
     assert sorted(p.name for p in tmp_path.glob("*.png")) == ["a.png", "c.png"]
     assert children() <= before
 

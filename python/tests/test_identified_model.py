@@ -66,3 +66,16 @@ def test_bad_parts_and_files_are_typed_errors(puma, tmp_path):
     model = exact(puma)
     with pytest.raises(prrrp.ShapeMismatchError):
         model.predict(np.zeros(5), np.zeros(5), np.zeros(5))
+
+
+def test_saving_to_a_folder_or_a_missing_folder_is_a_typed_error(puma, tmp_path):
+    """Both were OSErrors (IsADirectoryError, FileNotFoundError from the temporary file's
+    creation); they are prrrp errors that name the path, and nothing is written."""
+    model = exact(puma)
+    with pytest.raises(prrrp.PrrrpError, match="give a file name"):
+        model.save(tmp_path)
+    missing = tmp_path / "no" / "such" / "model.json"
+    with pytest.raises(prrrp.PrrrpError, match=r"folder .*no/such does not exist"):
+        model.save(missing)
+    assert not (tmp_path / "no").exists()
+    assert list(tmp_path.iterdir()) == []

@@ -848,8 +848,28 @@ fn link_index(
             )),
         };
     }
-    let i: usize = tip.extract()?;
-    Ok(Some(i))
+    // An i64, so that -1 (Python's "last") is named as out of range, not an OverflowError.
+    let i: i64 = tip.extract()?;
+    match usize::try_from(i).ok().filter(|&i| i < links.len()) {
+        Some(i) => Ok(Some(i)),
+        None => Err(to_pyerr(
+            py,
+            &prrrp_core::PrrrpError::InvalidParameter {
+                field: format!(
+                    "tip {i} (links: {})",
+                    links
+                        .iter()
+                        .enumerate()
+                        .map(|(k, l)| format!("{k} = {l}"))
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                ),
+                value: i as f64,
+                reason: "is not a link index of the model's chain; give one of its \
+                         indices (0-based) or the link's name",
+            },
+        )),
+    }
 }
 
 /// Drive gains, the arm and the payload from current logs of an unloaded and a loaded
