@@ -13,14 +13,13 @@ angles and torques through the robot's gear ratios and coupling (``SerialChain.a
 from __future__ import annotations
 
 import json
-import math
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from prrrp._prrrp import SerialChain
+from prrrp._prrrp import MAX_FACTOR, MIN_FACTOR, SerialChain
 from prrrp.csvio import InputError
 
 
@@ -30,8 +29,9 @@ def parse_gains(text: str, n: int) -> list[float]:
     --payload-run``), an object ``{"drive_gains": [...]}`` or a list."""
     if text.strip().endswith(".json") or Path(text).is_file():
         return _gains_from_file(text, n)
-    parts = [p.strip() for p in text.split(",") if p.strip()]
+    parts = [p.strip() for p in text.split(",")]
     try:
+        # An empty part ("1,,1") is a missing gain, not a separator to skip.
         gains = [float(p) for p in parts]
     except ValueError:
         raise InputError(
@@ -42,9 +42,12 @@ def parse_gains(text: str, n: int) -> list[float]:
             f"--drive-gains has {len(gains)} values; the robot has {n} actuators (one gain each, "
             "N·m/A on the joint side)"
         )
-    bad = [g for g in gains if not (math.isfinite(g) and g != 0)]
+    bad = [g for g in gains if not (MIN_FACTOR <= abs(g) <= MAX_FACTOR)]
     if bad:
-        raise InputError(f"--drive-gains: {bad[0]} is not a finite, non-zero gain (N·m/A)")
+        raise InputError(
+            f"--drive-gains: {bad[0]} is not a gain (N·m/A): each must be between "
+            f"{MIN_FACTOR:g} and {MAX_FACTOR:g} in magnitude (negative for a reversed motor)"
+        )
     return gains
 
 

@@ -25,7 +25,7 @@ from typing import Any
 
 import numpy as np
 
-from prrrp import canvas, drawing
+from prrrp import canvas, drawing, measurements
 from prrrp._prrrp import Dataset, IdentifiedModel, InvalidInputError
 from prrrp.prediction import LogGrid, _at_rows, prepare, recorded_settings
 
@@ -708,8 +708,11 @@ def render(
         f"{_g(robot.coulomb_smoothing)} rad/s (0 = exact sign)",
         f"- identification samples: {len(d)} over {d.duration:.3g} s (after preprocessing)",
         f"- base parameters: {len(model.beta)}; cond(W_b) = {_g(model.cond)}",
-        "",
     ]
+    still = measurements.barely_moving(robot, d.q)
+    if still:
+        lines.append(f"- **warning**: {measurements.barely_moving_warning(still)}")
+    lines.append("")
     if comparison:
         lines += list(comparison)
         lines += [f"## The {model.method} model (`model.json`)", ""]

@@ -567,8 +567,13 @@ def test_current_columns_are_checked(tmp_path):
         prrrp.read_measurements(torques, robot, drive_gains=[1.0] * 6)
     with pytest.raises(ValueError, match="6 actuators"):
         prrrp.drives.parse_gains("1,2,3", 6)
-    with pytest.raises(ValueError, match="non-zero"):
-        prrrp.drives.parse_gains("1,2,3,4,5,0", 6)
+    # 0, a gain past any drive (1e99 N·m/A), and an empty one ("1,,3" was read as two).
+    for text in ["1,2,3,4,5,0", "1e99,2,3,4,5,6", "nan,2,3,4,5,6"]:
+        with pytest.raises(ValueError, match=r"not a gain .* between 1e-06 and 1e\+06"):
+            prrrp.drives.parse_gains(text, 6)
+    with pytest.raises(ValueError, match="must be 3 comma-separated numbers"):
+        prrrp.drives.parse_gains("1,,3", 3)
+    assert prrrp.drives.parse_gains("1, -2.5 ,3", 3) == [1.0, -2.5, 3.0]
     # The paper's fixed format has no current columns.
     five = tmp_path / "five.csv"
     _write_csv(five, t, np.zeros((40, 5)), {"i": np.zeros((40, 5))})

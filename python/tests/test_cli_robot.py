@@ -141,6 +141,54 @@ def test_identify_gives_no_percentage_for_a_dead_torque_channel(tmp_path: Path, 
     assert "reads 0 over the scored rows" in out
 
 
+def test_identify_names_the_joints_that_barely_move(tmp_path: Path, truth, capsys):
+    """Joints 5–7 held still but for encoder noise (1e-4 rad): the fit runs (noise excites
+    them a little) but does not determine their parameters; the terminal and report.md
+    name exactly those joints. It used to give their 70–80 % errors without a word."""
+    rng = np.random.default_rng(6)
+    t = np.arange(0.0, 12.0, 0.005)
+    q, qd, qdd = sine_motion(rng, t)
+    q[:, 4:] = 0.2 + rng.normal(0, 1e-4, q[:, 4:].shape)
+    qd[:, 4:] = qdd[:, 4:] = 0.0
+    tau = truth.inverse_dynamics(q, qd, qdd) + rng.normal(0, 0.02, q.shape)
+    (tmp_path / "still.csv").write_text(csvio.format_measurements(t, q, tau))
+    argv = ["identify", str(tmp_path / "still.csv"), "--robot", str(URDF), "--tip", "panda_link8"]
+    assert cli.main([*argv, "--out", str(tmp_path / "o")]) == 0
+    line = next(s for s in capsys.readouterr().out.splitlines() if "barely move" in s)
+    names = truth.joint_names
+    report = (tmp_path / "o" / "report.md").read_text()
+    for j, name in enumerate(names):
+        assert (f"{name} (spans " in line) == (j >= 4), line
+        assert (f"{name} (spans " in report) == (j >= 4)
+
+
+def test_simulate_warns_of_a_trajectory_past_the_limits(tmp_path: Path, truth, capsys):
+    """A given trajectory that leaves the Panda's position or speed limits is simulated
+    (it is a simulation) with a warning that names each joint and bound it passes, and
+    none for a trajectory within them."""
+    t = np.arange(0.0, 4.0, 0.01)
+    w = 2 * np.pi * 0.5
+    mid = (truth.limits["lower"] + truth.limits["upper"]) / 2
+    q = mid + 0.2 * np.sin(w * t)[:, None]
+    qd = 0.2 * w * np.cos(w * t)[:, None] * np.ones(7)
+    qdd = -0.2 * w**2 * np.sin(w * t)[:, None] * np.ones(7)
+    names = truth.joint_names
+    for k, (shift, pace) in enumerate([(0.0, 1.0), (5.0, 1.0), (0.0, 30.0)]):
+        qq, vv = q.copy(), qd.copy()
+        qq[:, 3] += shift  # past panda_joint4's upper bound (-0.07 rad)
+        vv[:, 5] *= pace  # past panda_joint6's 2.61 rad/s
+        path = tmp_path / f"traj{k}.csv"
+        path.write_text(csvio.format_measurements(t, qq, np.zeros_like(qq), vv, qdd))
+        argv = ["simulate", "--robot", str(URDF), "--tip", "panda_link8"]
+        argv += ["--trajectory", str(path), "--max-tracking-error", "100"]
+        assert cli.main([*argv, "--out", str(tmp_path / f"sim{k}")]) == 0
+        out = capsys.readouterr().out
+        line = next((s for s in out.splitlines() if s.startswith("warning: the traj")), "")
+        assert (f"{names[3]} q up to" in line) == (shift > 0), line
+        assert (f"{names[5]} |q̇| up to" in line) == (pace > 1), line
+        assert sum(f"{n} " in line for n in names) == (shift > 0) + (pace > 1), line
+
+
 def test_excite_simulate_identify_tour(tmp_path: Path, capsys, monkeypatch):
     """The README's "your robot" tour, as a user runs it, on the Panda URDF."""
     monkeypatch.chdir(tmp_path)
@@ -191,6 +239,10 @@ def test_excite_bad_input(tmp_path: Path, capsys):
     assert "whole number of periods" in capsys.readouterr().err
     assert cli.main(["excite", *robot, "--limits", "speed=3"]) == 2
     assert "KEY=VALUE" in capsys.readouterr().err
+    # 1e-300 rad/s designed a trajectory of cond(W) = 6e299 without a word.
+    for bad in ["velocity=1e-300", "acceleration=0", "velocity=-2", "acceleration=1e300"]:
+        assert cli.main(["excite", *robot, "--limits", bad]) == 2
+        assert "must be between 1e-06 and 1e+06" in capsys.readouterr().err
     assert not (tmp_path / "t.csv").exists()
     puma = tmp_path / "puma.toml"
     # A DH robot file without limits: the error names the joint and what is missing.

@@ -83,6 +83,11 @@ def test_time_in_milliseconds_is_an_error_that_says_so(tmp_path: Path, panda):
     poses = tmp_path / "poses.csv"
     poses.write_text(csvio.format_measurements(np.arange(len(t)), q, tau, qd, qdd))
     assert prrrp.read_measurements(poses, panda)["qdd"].shape == q.shape
+    # Seconds divided by 1e6 (rows 5 ns apart): `identify` blamed the cut-off ("more than
+    # 1e7 samples"), and `track` learned nothing and exited 0.
+    path.write_text(csvio.format_measurements(1e-6 * t, q, tau))
+    with pytest.raises(csvio.InputError, match=r"median 5e-09 s apart .* faster than any"):
+        prrrp.read_measurements(path, panda)
 
 
 def write_bag(path: Path, t, names, q, qd, tau, topic="/joint_states"):

@@ -318,10 +318,24 @@ def test_absurd_options_are_usage_errors(setup, tmp_path, capsys):
         # tanh(q̇/1e300) is 0: the Coulomb term was gone without a word.
         (["track", str(data), "--robot", robot, "--coulomb-scale", "1e300"], "--coulomb-scale"),
         (["identify", str(data), "--robot", robot, "--coulomb-scale", "1e-300"], "--coulomb-scale"),
+        # nan reached the model's record and read "must be a JSON-serialisable dict".
+        (["identify", str(data), "--robot", robot, "--cutoff", "nan"], "finite number"),
+        (["track", str(data), "--robot", robot, "--forgetting", "inf"], "finite number"),
+        # An empty or repeated friction term was taken as none or as one.
+        (["identify", str(data), "--robot", robot, "--friction", ""], "an empty term"),
+        (["track", str(data), "--robot", robot, "--friction", "viscous,viscous"], "twice"),
+        # EKF settings given to another method were ignored without a word.
+        (["identify", str(data), "--robot", robot, "--ekf-noise", "2"], "--method ekf"),
+        (["identify", str(data), "--robot", robot, "--ekf-prior-width", "2"], "--method ekf"),
+        (["track", str(data), "--robot", robot, "--ekf-noise", "2"], "--method ekf"),
     ]
     for argv, needle in cases:
         capsys.readouterr()
-        assert main([*argv, "--out", str(out)]) == 2, argv
+        try:
+            code = main([*argv, "--out", str(out)])
+        except SystemExit as e:  # argparse's own usage errors
+            code = e.code
+        assert code == 2, argv
         err = capsys.readouterr().err
         assert needle in err, err
         assert "Traceback" not in err, err
@@ -371,7 +385,8 @@ def test_track_figure_draws_the_best_determined_parameters():
     late[40:] = final + spread * np.abs(final) * rng.choice([-1, 1], (rows - 40, p))
     late[-1] = final
     est = np.column_stack([np.arange(rows), late, np.full((rows, p), np.nan)])
-    rel_spread = np.std(late[40:], axis=0) / np.abs(final)
+    with np.errstate(invalid="ignore"):  # 0/0 for the zero value, left out below
+        rel_spread = np.std(late[40:], axis=0) / np.abs(final)
     want = [k for k in np.argsort(rel_spread) if k != 4][:8]
     assert shown_parameters(est, p) == want
 
@@ -523,3 +538,70 @@ def test_track_refuses_a_cutoff_or_memory_the_rows_cannot_carry(setup, tmp_path,
     assert main([*base, "--forgetting", "1e-6"]) == 2
     assert "forgets everything between two rows (a row every 0.004 s)" in capsys.readouterr().err
     assert not out.exists()
+    # A cut-off that cannot settle within the 20 s log: 1e-300 Hz ran to the end.
+    for cutoff in ["1e-300", "0.1"]:
+        assert main([*base, "--cutoff", cutoff]) == 2
+        assert "longer than the log (20 s)" in capsys.readouterr().err
+    assert not out.exists()
+    # The Nyquist frequency itself: the median step of k/100 s stamps is a hair under
+    # 0.01 s, and a --cutoff of exactly 50 Hz passed.
+    slow = {**run, "t": np.arange(len(run["t"])) / 100.0}
+    base, out = _files(tmp_path, slow, prior, name="100hz.csv")
+    assert main([*base, "--cutoff", "50"]) == 2
+    assert "Nyquist frequency of the log's rows (50 Hz" in capsys.readouterr().err
+    assert not out.exists()
+
+
+def test_track_ekf_says_when_its_model_is_the_warm_ups(setup, tmp_path, capsys):
+    """A 2 s log from no knowledge ends inside the ekf's warm-up (2 s of updates after the
+    causal filtering settles): model.json is the warm-up's least-squares estimate, and the
+    terminal and report.md say so instead of passing it for the filter's. An 8 s log
+    (before the grip) starts the filter and says nothing of the kind."""
+    _chain, _prior, run, _ = setup
+    rel, _tip = ARMS["ur5"]
+    for seconds, warm in [(2.0, True), (8.0, False)]:
+        data = tmp_path / f"ur5_{seconds:g}.csv"
+        _write_csv(data, {k: v[: int(seconds * RATE)] for k, v in run.items()})
+        out = tmp_path / f"ekf_{seconds:g}"
+        argv = ["track", str(data), "--robot", str(ROBOTS / rel), "--method", "ekf"]
+        capsys.readouterr()
+        assert main([*argv, "--out", str(out)]) == 0
+        printed = capsys.readouterr().out
+        running = prrrp.IdentifiedModel.load(out / "model.json").settings["ekf_running"]
+        assert running is not warm
+        said = "the ekf was not running at the end of the log"
+        assert (said in printed) is warm
+        assert (said in (out / "report.md").read_text()) is warm
+
+
+def test_track_refuses_a_log_whose_rows_share_one_time_stamp(setup, tmp_path, capsys):
+    """Every row at t = 0 (a clock that was not logged): `identify` refuses it; `track`
+    treated every row as a repeat, learned nothing and exited 0 with the starting model."""
+    _chain, prior, run, _ = setup
+    log = {k: v[:500].copy() for k, v in run.items()}
+    log["t"][:] = 0.0
+    argv, out = _files(tmp_path, log, prior)
+    capsys.readouterr()
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert "every one of the log's 500 rows has the time stamp 0 s" in err
+    assert not out.exists()
+
+
+def test_track_names_the_joints_that_barely_move(setup, tmp_path, capsys):
+    """The wrist held still but for encoder noise (1e-5 rad): its parameters are not
+    determined, and the terminal and report.md say which joints to move; the others,
+    which move by radians, are not named."""
+    chain, prior, run, _ = setup
+    log = {k: v.copy() for k, v in run.items()}
+    still = chain.dof - 1
+    log["q"][:, still] = 0.3 + np.random.default_rng(5).normal(0, 1e-5, len(log["t"]))
+    argv, out = _files(tmp_path, log, prior)
+    capsys.readouterr()
+    assert main(argv) == 0
+    printed = capsys.readouterr().out
+    line = next(s for s in printed.splitlines() if "barely move" in s)
+    names = chain.joint_names
+    assert f"{names[still]} (spans " in line
+    assert not any(f"{n} (spans" in line for n in names[:still])
+    assert f"{names[still]} (spans " in (out / "report.md").read_text()

@@ -91,7 +91,10 @@ def add_parser(sub: Any) -> None:
         help="number of seeds per noise and rate (default: 10)",
     )
     p.add_argument(
-        "--duration", type=float, default=10.0, help="excitation length per case, s (default: 10)"
+        "--duration",
+        type=common.number,
+        default=10.0,
+        help="excitation length per case, s (default: 10)",
     )
     p.add_argument(
         "--excitation-evaluations",

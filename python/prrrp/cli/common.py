@@ -141,6 +141,18 @@ def seed(text: str) -> int:
     return value
 
 
+def number(text: str) -> float:
+    """An option's finite number (argparse's ``float`` takes nan and inf, which reached
+    the library as "must be a JSON-serialisable dict")."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+    if not math.isfinite(value):
+        raise argparse.ArgumentTypeError(f"must be a finite number, got {text!r}")
+    return value
+
+
 class Parser(argparse.ArgumentParser):
     """Usage errors in one line on stderr (argparse prints the whole usage first)."""
 
@@ -302,15 +314,19 @@ def coulomb_scale(text: str | None) -> str | float | None:
 def friction_terms(text: str) -> str | None:
     """``--friction viscous,coulomb,offset`` (or ``none``) as the bindings' "a+b" form.
     The Python API's spelling ``viscous+coulomb+offset`` is accepted too."""
-    terms = [t.strip() for t in text.replace("+", ",").split(",") if t.strip()]
-    if terms in ([], ["none"]):
+    terms = [t.strip() for t in text.replace("+", ",").split(",")]
+    if terms == ["none"]:
         return None
     bad = [t for t in terms if t not in ("viscous", "coulomb", "offset")]
     if bad:
+        what = f"unknown term '{bad[0]}'" if bad[0] else "an empty term"
         raise CliError(
-            f"--friction: unknown term '{bad[0]}' (comma-separated from viscous, coulomb, "
-            "offset, or none)"
+            f"--friction: {what} in {text!r} (comma-separated from viscous, coulomb, offset, "
+            "or none)"
         )
+    twice = sorted({t for t in terms if terms.count(t) > 1})
+    if twice:
+        raise CliError(f"--friction: '{twice[0]}' is given twice in {text!r}")
     return "+".join(terms)
 
 

@@ -12,6 +12,7 @@ from typing import Any
 import numpy as np
 
 from prrrp import csvio, outdir, workflow
+from prrrp._prrrp import MAX_FACTOR, MIN_FACTOR
 from prrrp.cli import common, deprecated
 
 #: ``prrrp excite --help``.
@@ -49,7 +50,7 @@ def add_parser(sub: Any) -> None:
     common.add_robot_arguments(p)
     common.add_out_argument(p, help="the output folder (built aside and swapped in whole)")
     p.add_argument(
-        "--duration", type=float, default=10.0, metavar="S", help="seconds (default: 10)"
+        "--duration", type=common.number, default=10.0, metavar="S", help="seconds (default: 10)"
     )
     p.add_argument(
         "--seed", type=common.seed, default=0, help="seed of the random shapes (default: 0)"
@@ -57,14 +58,14 @@ def add_parser(sub: Any) -> None:
     p.add_argument("--harmonics", type=int, default=5, metavar="K", help="per joint (default: 5)")
     p.add_argument(
         "--base-freq",
-        type=float,
+        type=common.number,
         default=None,
         metavar="HZ",
         help="base frequency; the duration must be a whole number of its periods "
         "(default: 1/duration)",
     )
     p.add_argument(
-        "--rate", type=float, default=100.0, metavar="HZ", help="samples/s (default: 100)"
+        "--rate", type=common.number, default=100.0, metavar="HZ", help="samples/s (default: 100)"
     )
     p.add_argument(
         "--friction",
@@ -112,6 +113,13 @@ def limits(text: str | None, n: int) -> dict[str, np.ndarray] | None:
             raise common.CliError(f"--limits: {key}={value!r} is not a number") from None
         if not math.isfinite(v):
             raise common.CliError(f"--limits: {key} must be finite")
+        # A bound on |q̇| or |q̈| of 1e-300 designed a trajectory with cond(W) = 6e299.
+        if key in ("velocity", "acceleration") and not MIN_FACTOR <= v <= MAX_FACTOR:
+            raise common.CliError(
+                f"--limits: {key} must be between {MIN_FACTOR:g} and {MAX_FACTOR:g} "
+                f"(rad/s{'²' if key == 'acceleration' else ''} or m/s"
+                f"{'²' if key == 'acceleration' else ''}), got {value.strip()}"
+            )
         out[key] = np.full(n, v)
     return out
 

@@ -15,7 +15,17 @@ from typing import Any
 import numpy as np
 
 import prrrp
-from prrrp import bags, drawing, drives, lambda_view, model_report, outdir, prediction, workflow
+from prrrp import (
+    bags,
+    drawing,
+    drives,
+    lambda_view,
+    measurements,
+    model_report,
+    outdir,
+    prediction,
+    workflow,
+)
 from prrrp import payload as payloads
 from prrrp.cli import common, deprecated
 from prrrp.measurements import measurements_to_dataset, read_measurements
@@ -101,7 +111,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     )
     g.add_argument(
         "--payload-mass",
-        type=float,
+        type=common.number,
         metavar="KG",
         help="the known mass of the payload of --payload-run (kg) (default: none; required "
         "with --payload-run)",
@@ -109,7 +119,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     common.add_motor_side_argument(g, "joint side")
     g.add_argument(
         "--cutoff",
-        type=float,
+        type=common.number,
         metavar="HZ",
         help="low-pass cut-off of the log, Hz; shapes the signals identification fits, "
         "never the torque errors (scored against the measured torque) (default: "
@@ -117,14 +127,14 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     )
     g.add_argument(
         "--rate",
-        type=float,
+        type=common.number,
         metavar="HZ",
         help="resampling rate of the log, Hz (default: the log's median rate, or the "
         "smallest whole multiple of --decimate at or above it)",
     )
     g.add_argument(
         "--decimate",
-        type=float,
+        type=common.number,
         metavar="HZ",
         help="output rate after filtering, Hz (default: none, every resampled sample kept)",
     )
@@ -135,14 +145,14 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     )
     g.add_argument(
         "--ekf-prior-width",
-        type=float,
+        type=common.number,
         metavar="W",
         help="ekf: the filter starts from the weighted least-squares fit with covariance "
         "W²·(its covariance); smaller W keeps the filter closer to the fit (default 3)",
     )
     g.add_argument(
         "--ekf-noise",
-        type=float,
+        type=common.number,
         metavar="F",
         help="ekf: factor on the measurement noise of positions (1e-3 rad) and velocities "
         "(1e-2 rad/s); raise it when the filter diverges on noisy data (default 1)",
@@ -154,6 +164,13 @@ def _ekf_settings(args: argparse.Namespace) -> dict[str, float]:
     out: dict[str, float] = {}
     common.check_factor("--ekf-prior-width", args.ekf_prior_width)
     common.check_factor("--ekf-noise", args.ekf_noise)
+    given = [
+        f
+        for f, v in [("--ekf-prior-width", args.ekf_prior_width), ("--ekf-noise", args.ekf_noise)]
+        if v is not None
+    ]
+    if given and args.method not in ("ekf", "all"):
+        raise common.CliError(f"{given[0]} is an ekf setting: it needs --method ekf (or all)")
     if args.ekf_prior_width is not None:
         out["least_squares_prior_width"] = args.ekf_prior_width
     if args.ekf_noise is not None:
@@ -491,6 +508,9 @@ def _summary(
             "there"
         )
     _say_noise_floor(robot.joint_names, robot.joint_types, ok)
+    still = measurements.barely_moving(robot, d.q)
+    if still:
+        print(f"warning: {measurements.barely_moving_warning(still)}")
     for r in table:
         if r["status"] == "ok" and not r["converged"]:
             print(

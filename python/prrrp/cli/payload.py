@@ -33,7 +33,7 @@ def add_parser(sub: Any) -> None:
     p.add_argument("--model", required=True, metavar="ARM.json", help="the arm's identified model")
     p.add_argument(
         "--mass",
-        type=float,
+        type=common.number,
         metavar="KG",
         help="the payload's known mass (kg): only fit the centre of mass and the inertia "
         "(default: none, the mass is fitted too)",

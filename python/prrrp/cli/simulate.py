@@ -59,7 +59,7 @@ def add_parser(sub: Any) -> None:
     )
     p.add_argument(
         "--duration",
-        type=float,
+        type=common.number,
         default=None,
         metavar="S",
         help="seconds of the designed trajectory; not with --trajectory, whose file sets it "
@@ -71,7 +71,7 @@ def add_parser(sub: Any) -> None:
     )
     p.add_argument(
         "--noise",
-        type=float,
+        type=common.number,
         default=1.0,
         metavar="SCALE",
         help=f"multiplies the sensor noise (std {workflow.DEFAULT_Q_NOISE:g} rad or m on "
@@ -80,7 +80,7 @@ def add_parser(sub: Any) -> None:
     )
     p.add_argument(
         "--max-tracking-error",
-        type=float,
+        type=common.number,
         default=MAX_TRACKING_ERROR,
         metavar="E",
         help="largest |q - q_ref| allowed anywhere in the run, rad or m; a run that strays "
@@ -103,6 +103,7 @@ def _trajectory(args: argparse.Namespace, robot: Any) -> tuple[dict[str, np.ndar
             raise common.CliError(
                 f"{args.trajectory}: a trajectory needs qd1..qdN and qdd1..qddN columns"
             )
+        _say_outside_limits(robot, traj)
         return traj, False
     limits = excite.limits(args.limits, robot.dof)
     duration = DEFAULT_DURATION_S if args.duration is None else args.duration
@@ -128,6 +129,30 @@ def _trajectory(args: argparse.Namespace, robot: Any) -> tuple[dict[str, np.ndar
     finally:
         progress.close()
     return {k: design[k] for k in ("t", "q", "qd", "qdd")}, True
+
+
+def _say_outside_limits(robot: Any, traj: dict[str, np.ndarray]) -> None:
+    """Warns of the joints a given trajectory takes past the robot file's limits (a designed
+    one stays within them): the simulation runs, but the same trajectory on the arm would
+    hit its stops or its drives' limits."""
+    lim = robot.limits
+    past = []
+    for j, name in enumerate(robot.joint_names):
+        q, qd = traj["q"][:, j], np.abs(traj["qd"][:, j])
+        unit = "m" if robot.joint_types[j] == "P" else "rad"
+        lo, hi, v = lim["lower"][j], lim["upper"][j], lim["velocity"][j]
+        if np.isfinite(lo) and q.min() < lo:
+            past.append(f"{name} q down to {q.min():.3g} {unit} (lower {lo:.3g})")
+        if np.isfinite(hi) and q.max() > hi:
+            past.append(f"{name} q up to {q.max():.3g} {unit} (upper {hi:.3g})")
+        if np.isfinite(v) and qd.max() > v:
+            past.append(f"{name} |q̇| up to {qd.max():.3g} {unit}/s (limit {v:.3g})")
+    if past:
+        print(
+            f"warning: the trajectory leaves the robot file's limits: {'; '.join(past)}; "
+            "simulated all the same, but do not run it on the arm (`prrrp excite` designs "
+            "within them)"
+        )
 
 
 def run(args: argparse.Namespace) -> int:

@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 
 import prrrp
-from prrrp import csvio, drives, outdir, workflow
+from prrrp import csvio, drives, measurements, outdir, workflow
 from prrrp import payload as payloads
 from prrrp.cli import common
 from prrrp.cli.predict import load_model
@@ -78,7 +78,7 @@ def add_parser(sub: Any) -> None:
     )
     p.add_argument(
         "--forgetting",
-        type=float,
+        type=common.number,
         metavar="SECONDS",
         help="memory: data older than this weigh less than 1/e (rls: directional, ekf: a "
         "random walk of the parameters; default: none, changes are followed through the "
@@ -91,7 +91,7 @@ def add_parser(sub: Any) -> None:
     )
     p.add_argument(
         "--cutoff",
-        type=float,
+        type=common.number,
         metavar="HZ",
         help="bandwidth of the causal filtering, below the Nyquist frequency of the rows "
         "(default: 10 Hz, lowered once after the first second of filtered rows to where "
@@ -102,15 +102,15 @@ def add_parser(sub: Any) -> None:
     )
     p.add_argument(
         "--prior-width",
-        type=float,
+        type=common.number,
         default=3.0,
         metavar="W",
         help="the prior's covariance times W² (default 3)",
     )
     p.add_argument(
         "--ekf-noise",
-        type=float,
-        default=1.0,
+        type=common.number,
+        default=None,
         metavar="F",
         help="ekf: factor on the measurement noise of positions (1e-3 rad) and velocities "
         "(1e-2 rad/s) (default 1; not used with --payload, whose filter measures the "
@@ -165,8 +165,14 @@ def _check_rate(t: np.ndarray, cutoff: float, forgetting: float | None) -> None:
     or a memory that forgets everything between two rows."""
     dt = median_step(t)
     if dt is None:
-        return
-    if cutoff >= 0.5 / dt:
+        # `identify` refuses it alike: rows that share a time stamp are one sample.
+        raise common.CliError(
+            f"every one of the log's {len(t)} rows has the time stamp {t[0]:g} s: rows that "
+            "share a time stamp are one sample; give each sample its own time, in s"
+        )
+    # A relative margin: 100 Hz time stamps of 0.01·k s have a median step 2e-16 under
+    # 0.01 s, and a --cutoff of exactly 50 Hz passed.
+    if cutoff >= 0.5 / dt * (1 - 1e-9):
         raise common.CliError(
             f"--cutoff {cutoff:g} Hz is not below the Nyquist frequency of the log's rows "
             f"({0.5 / dt:.3g} Hz: a row every {dt:.3g} s); give a lower --cutoff"
@@ -175,6 +181,26 @@ def _check_rate(t: np.ndarray, cutoff: float, forgetting: float | None) -> None:
         raise common.CliError(
             f"--forgetting {forgetting:g} s forgets everything between two rows (a row every "
             f"{dt:.3g} s); give a memory that spans many rows"
+        )
+
+
+#: Time constants of the causal low-pass counted as its start-up transient (as the batch
+#: preprocessing's trim, 3/cutoff s).
+SETTLING_PERIODS = 3.0
+
+
+def _check_settling(t: np.ndarray, cutoff: float | None) -> None:
+    """CliError for a --cutoff whose start-up transient (3/cutoff s) outlasts the whole log:
+    no row could update the estimate (1e-300 Hz ran to the end and wrote the starting
+    model). The default cut-off on a log that short is only warned of, after the run."""
+    if cutoff is None:
+        return
+    span = float(t[-1] - t[0])
+    if SETTLING_PERIODS / cutoff > span:
+        raise common.CliError(
+            f"--cutoff {cutoff:g} Hz settles in {SETTLING_PERIODS / cutoff:.3g} s "
+            f"({SETTLING_PERIODS:g}/cutoff), longer than the log ({span:.3g} s): no row would "
+            "update the estimate; give a higher --cutoff"
         )
 
 
@@ -188,6 +214,11 @@ def run(args: argparse.Namespace) -> int:
     _positive("--cutoff", args.cutoff)
     common.check_factor("--prior-width", args.prior_width)
     common.check_factor("--ekf-noise", args.ekf_noise)
+    if args.ekf_noise is not None and (args.method != "ekf" or args.payload):
+        raise common.CliError(
+            "--ekf-noise sets the whole-arm ekf's measurement noise: it needs --method ekf "
+            "without --payload"
+        )
     if args.payload and not args.model:
         raise common.CliError("--payload tracks a load on a known arm: give its model with --model")
     coulomb_scale = common.coulomb_scale(args.coulomb_scale)
@@ -221,10 +252,11 @@ def run(args: argparse.Namespace) -> int:
         change_detection=not args.no_change_detection,
         cutoff_hz=args.cutoff,
         prior_width=args.prior_width,
-        ekf_noise=args.ekf_noise,
+        ekf_noise=1.0 if args.ekf_noise is None else args.ekf_noise,
         coulomb_scale=None if prior is not None or fixed else "auto",
     )
     _check_rate(raw["t"], online.settings["cutoff_hz"], args.forgetting)
+    _check_settling(raw["t"], args.cutoff)
     run_ = track(online, raw, common.Progress())
     model = online.estimate()
     payload = online.payload()
@@ -267,6 +299,9 @@ def run(args: argparse.Namespace) -> int:
     common.say_noise_floor(
         robot.joint_names, robot.joint_types, run_["late_noise"], run_["late_error_rms"], errs
     )
+    still = measurements.barely_moving(robot, raw["q"])
+    if still:
+        print(f"warning: {measurements.barely_moving_warning(still)}")
     if online.counts[1] == 0:
         span = float(raw["t"][-1] - raw["t"][0])
         print(
@@ -274,6 +309,9 @@ def run(args: argparse.Namespace) -> int:
             f"causal filtering ({online.settings['cutoff_hz']:.3g} Hz) settled, or no joint's "
             "torque was measured; model.json is the starting model, unchanged"
         )
+    note = _ekf_not_started(online.settings)
+    if note:
+        print(f"note: {note}")
     if online.settings.get("coulomb_search") is not None:
         print(f"Coulomb speed scale v_s = {_coulomb_line(online.settings, scores=False)}")
     choice = online.settings.get("cutoff_choice")
@@ -504,6 +542,20 @@ def _coulomb_line(settings: dict[str, Any], scores: bool = True) -> str:
     return f"{how} (score Σ ln mean e², lower is better; {listed})"
 
 
+def _ekf_not_started(settings: dict[str, Any]) -> str:
+    """What a whole-arm ekf run that ended in its warm-up must say: its model is the
+    warm-up's (recursive least squares), not the filter's (empty otherwise)."""
+    if settings.get("ekf_running") is not False:
+        return ""
+    return (
+        "the ekf was not running at the end of the log: it was in its warm-up (recursive "
+        "least squares on the torques, for "
+        f"{settings.get('ekf_warmup_s', 0):g} s of updates with a positive definite mass "
+        "matrix, from the start and after a detected change or a restart), so model.json is "
+        "the warm-up's estimate; give a longer log, or a prior with --model"
+    )
+
+
 def _noise_unit(choice: dict[str, Any]) -> str:
     """Unit of the sample noise the cut-off was chosen from."""
     return "rad or m" if choice["noise_of"] == "positions" else "rad/s or m/s"
@@ -564,6 +616,14 @@ def report(
         f"- Coulomb speed scale v_s: {_coulomb_line(online.settings)}",
         "- causal low-pass of the regression: "
         + _cutoff_line(online.settings, args.cutoff is not None),
+    ]
+    still = measurements.barely_moving(model.robot, raw["q"])
+    if still:
+        lines.append(f"- **warning**: {measurements.barely_moving_warning(still)}")
+    note = _ekf_not_started(online.settings)
+    if note:
+        lines.append(f"- **note**: {note}")
+    lines += [
         "",
         "## One-step-ahead prediction",
         "",
