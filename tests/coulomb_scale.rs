@@ -249,6 +249,32 @@ fn data_without_reversals_keep_the_default_and_say_so() {
     );
 }
 
+/// Torques that read 0 throughout: every candidate's error is 0, and the note says so
+/// (it read "changes by only NaN %").
+#[test]
+fn torques_that_read_zero_keep_the_default_and_say_why() {
+    let truth = chain(0.02);
+    let d = data(&truth, 8, 10.0, NOISE);
+    let zero = vec![0.0; d.tau().len()];
+    let d = DynDataset::new(
+        N,
+        d.t().to_vec(),
+        d.q().to_vec(),
+        d.qd().to_vec(),
+        d.qdd().to_vec(),
+        zero,
+    )
+    .unwrap();
+    let est = chain(0.03);
+    let base = est.base_parameters(&BaseOptions::default()).unwrap();
+    let r = select_coulomb_scale(&est, &base, &d, &CoulombScaleConfig::default()).unwrap();
+    assert_eq!(r.chosen, 0.03);
+    assert!(!r.identifiable);
+    let note = r.note.as_deref().unwrap();
+    assert!(note.contains("(0) for every candidate"), "{note}");
+    assert!(!note.contains("NaN"), "{note}");
+}
+
 #[test]
 fn bad_settings_are_typed_errors() {
     let truth = chain(0.02);

@@ -262,6 +262,14 @@ fn run(
              identified; kept the default"
                 .to_string(),
         )
+    } else if spread.is_nan() {
+        // 0/0: every candidate's error is 0 (torques that read 0 throughout).
+        Some(
+            "the cross-validated torque error is the same (0) for every candidate: the \
+             torques do not depend on the Coulomb speed scale (do they read 0?); kept the \
+             default"
+                .to_string(),
+        )
     } else if spread <= COULOMB_SCALE_FLAT || z.is_nan() || z <= COULOMB_SCALE_MIN_Z {
         Some(format!(
             "the cross-validated torque error changes by only {} % over v_s = 0 and \
