@@ -160,6 +160,19 @@ def _check(out: Path) -> None:
                 f"--out {out} holds files prrrp did not write ({', '.join(sorted(entries)[:3])}"
                 f"{', ...' if len(entries) > 3 else ''}); give a new or empty folder"
             )
+    # The folder is built beside `out` and renamed into place: its nearest existing
+    # ancestor must be a folder this process can write in, known before the work (it was
+    # found at the end, in an error naming the hidden staging folder).
+    where = out.parent
+    while not where.exists() and where != where.parent:
+        where = where.parent
+    if not where.is_dir():
+        raise OutputDirError(f"--out {out}: {where} is a file, not a folder")
+    if not os.access(where, os.W_OK | os.X_OK):
+        raise OutputDirError(
+            f"--out {out}: cannot write in {where} (no permission, or a read-only file "
+            "system); give a folder you can write in"
+        )
 
 
 def check(out: str | os.PathLike[str]) -> None:
@@ -189,14 +202,23 @@ def write_dir(out: str | os.PathLike[str], build: Callable[[Path], _T]) -> _T:
     `out`. Returns what `build` returns. Raises OutputDirError for an unusable `out`, and
     whatever `build` raises (the old `out` is then untouched)."""
     out = resolve(out)
-    out.parent.mkdir(parents=True, exist_ok=True)
+    _check(out)
+    try:
+        out.parent.mkdir(parents=True, exist_ok=True)
+    except OSError as e:
+        raise OutputDirError(f"--out {out}: cannot create {out.parent} ({e.strerror})") from None
     _cleanup(out)
     _check(out)
     tmp_prefix, old_prefix = _prefixes(out)
     tmp, lock = None, None
     try:
         with signals.deferred():  # interrupted in here, the cleanup would miss the folder
-            tmp = Path(tempfile.mkdtemp(prefix=_new_prefix(out), dir=out.parent))
+            try:
+                tmp = Path(tempfile.mkdtemp(prefix=_new_prefix(out), dir=out.parent))
+            except OSError as e:
+                raise OutputDirError(
+                    f"--out {out}: cannot write in {out.parent} ({e.strerror})"
+                ) from None
             lock = _lock(tmp)
             locked = tmp.with_name(tmp_prefix + tmp.name[len(_new_prefix(out)) :])
             tmp.rename(locked)

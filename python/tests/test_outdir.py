@@ -79,6 +79,29 @@ def test_foreign_or_file_output_is_refused(tmp_path: Path) -> None:
         outdir.write_dir(afile, fill({"a.txt": "1"}))
 
 
+def test_an_unwritable_place_is_refused_before_the_work(tmp_path: Path) -> None:
+    """`check` (called before the computation) refuses an --out below a file, or in a
+    folder this process cannot write in, naming --out and the place, not the hidden
+    staging folder the failure at the end used to name."""
+    afile = tmp_path / "file"
+    afile.write_text("x")
+    with pytest.raises(outdir.OutputDirError, match=r"file is a file, not a folder"):
+        outdir.check(afile / "sub" / "out")
+    with pytest.raises(outdir.OutputDirError, match=r"file is a file, not a folder"):
+        outdir.write_dir(afile / "out", fill({"a.txt": "1"}))
+    assert afile.read_text() == "x"
+    outdir.check(tmp_path / "new" / "deeper" / "out")  # missing folders are made
+    if os.geteuid() == 0:
+        return  # root writes in any folder: the permission case cannot be set up
+    locked = tmp_path / "locked"
+    locked.mkdir(mode=0o500)
+    try:
+        with pytest.raises(outdir.OutputDirError, match="cannot write in .*locked"):
+            outdir.check(locked / "out")
+    finally:
+        locked.chmod(0o700)
+
+
 def test_leftovers_of_a_killed_run_are_cleaned_and_repaired(tmp_path: Path) -> None:
     out = earlier_run(tmp_path, {"a.txt": "1"})
     # A run killed between the two renames of the fallback swap: `out` moved aside.
