@@ -96,7 +96,7 @@ def test_an_unwritable_place_is_refused_before_the_work(tmp_path: Path) -> None:
     locked = tmp_path / "locked"
     locked.mkdir(mode=0o500)
     try:
-        with pytest.raises(outdir.OutputDirError, match="cannot write in .*locked"):
+        with pytest.raises(outdir.OutputDirError, match=r"cannot write in .*locked"):
             outdir.check(locked / "out")
     finally:
         locked.chmod(0o700)

@@ -248,6 +248,9 @@ def test_payload_and_drive_gains_through_the_command_line(tmp_path, capsys):
         assert not (tmp_path / "bad").exists()
     assert main([*bad, "--tip", "no_such_link", "--out", str(tmp_path / "bad")]) == 2
     assert "no_such_link" in capsys.readouterr().err
+    # An --out below a file: refused before the fit, not after it.
+    assert main([*bad, "--out", str(tmp_path / "loaded.csv" / "out")]) == 2
+    assert "is a file, not a folder" in capsys.readouterr().err
     assert not (tmp_path / "bad").exists()
     # --tip naming the last link is the default.
     assert main([*bad, "--tip", "wrist_3_link", "--out", str(tmp_path / "tip")]) == 0

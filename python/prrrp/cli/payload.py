@@ -51,6 +51,7 @@ def add_parser(sub: Any) -> None:
 
 def run(args: argparse.Namespace) -> int:
     common.check_factor("--mass", args.mass, unit=" kg")
+    outdir.check(args.out)
     try:
         arm = prrrp.IdentifiedModel.load(args.model)
     except prrrp.PrrrpError as e:
