@@ -38,7 +38,7 @@ from prrrp._prrrp import (
     request_stop,
     simulate_chain,
 )
-from prrrp.measurements import PREPROCESS_KEYS, measurements_to_dataset
+from prrrp.measurements import PREPROCESS_KEYS, barely_moving, measurements_to_dataset
 
 #: Methods of :func:`identify_measurements`, in the order ``--method all`` runs them.
 METHODS = ("ls", "wls", "rls", "adaline", "hopfield", "ekf", "physical")
@@ -213,13 +213,7 @@ def explain_rank(
     except (PrrrpError, ValueError):
         names = []
     parts = []
-    q = np.asarray(data.q, dtype=float)
-    span = q.max(axis=0) - q.min(axis=0) if len(q) else np.zeros(robot.dof)
-    still = [
-        f"{name} (spans {span[j]:.2g} {'m' if robot.joint_types[j] == 'P' else 'rad'})"
-        for j, name in enumerate(robot.joint_names)
-        if span[j] < STILL_SPAN
-    ]
+    still = barely_moving(robot, data.q, STILL_SPAN)
     if still:
         parts.append(f"joints that do not move in the data: {', '.join(still)}")
     named = []

@@ -184,8 +184,8 @@ def _check_rate(t: np.ndarray, cutoff: float, forgetting: float | None) -> None:
         )
 
 
-#: Time constants of the causal low-pass counted as its start-up transient (as the batch
-#: preprocessing's trim, 3/cutoff s).
+#: Periods of the cut-off frequency counted as the causal low-pass's start-up transient
+#: (as the batch preprocessing trims 3/cutoff s).
 SETTLING_PERIODS = 3.0
 
 
