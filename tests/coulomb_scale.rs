@@ -81,6 +81,19 @@ fn data(truth: &DynChain, seed: u64, seconds: f64, noise: f64) -> DynDataset {
     DynDataset::new(N, t, q, qd, qdd, tau).expect("valid data")
 }
 
+/// `d` with its velocities or torques replaced (flat, row-major).
+fn replaced(d: &DynDataset, qd: Option<Vec<f64>>, tau: Option<Vec<f64>>) -> DynDataset {
+    DynDataset::new(
+        N,
+        d.t().to_vec(),
+        d.q().to_vec(),
+        qd.unwrap_or_else(|| d.qd().to_vec()),
+        d.qdd().to_vec(),
+        tau.unwrap_or_else(|| d.tau().to_vec()),
+    )
+    .unwrap()
+}
+
 /// Held-out torque RMS / RMS torque per joint of least squares with speed scale `v_s`.
 fn held_out_relative(v_s: f64, train: &DynDataset, test: &DynDataset) -> Vec<f64> {
     let est = chain(v_s);
@@ -229,15 +242,7 @@ fn data_without_reversals_keep_the_default_and_say_so() {
     // Every joint moving one way: q̇ → |q̇| + 0.1 (the torques no longer match, which does
     // not matter: the scale cannot be seen either way).
     let qd: Vec<f64> = d.qd().iter().map(|v| v.abs() + 0.1).collect();
-    let d = DynDataset::new(
-        N,
-        d.t().to_vec(),
-        d.q().to_vec(),
-        qd,
-        d.qdd().to_vec(),
-        d.tau().to_vec(),
-    )
-    .unwrap();
+    let d = replaced(&d, Some(qd), None);
     let est = chain(0.03);
     let base = est.base_parameters(&BaseOptions::default()).unwrap();
     let r = select_coulomb_scale(&est, &base, &d, &CoulombScaleConfig::default()).unwrap();
@@ -255,16 +260,7 @@ fn data_without_reversals_keep_the_default_and_say_so() {
 fn torques_that_read_zero_keep_the_default_and_say_why() {
     let truth = chain(0.02);
     let d = data(&truth, 8, 10.0, NOISE);
-    let zero = vec![0.0; d.tau().len()];
-    let d = DynDataset::new(
-        N,
-        d.t().to_vec(),
-        d.q().to_vec(),
-        d.qd().to_vec(),
-        d.qdd().to_vec(),
-        zero,
-    )
-    .unwrap();
+    let d = replaced(&d, None, Some(vec![0.0; d.tau().len()]));
     let est = chain(0.03);
     let base = est.base_parameters(&BaseOptions::default()).unwrap();
     let r = select_coulomb_scale(&est, &base, &d, &CoulombScaleConfig::default()).unwrap();

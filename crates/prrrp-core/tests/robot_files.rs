@@ -608,7 +608,7 @@ fn urdf_errors_name_file_and_element() {
         ("velocity=\"0.5\"", "velocity=\"-0.5\"", "limit/velocity"),
         ("effort=\"200\"", "effort=\"-200\"", "limit/effort"),
     ] {
-        edited(from, to, &["joint[slide]", at, "negative"]);
+        edited(from, to, &["joint[slide]", at, "not positive"]);
     }
     let unlimited = text.replace("velocity=\"0.5\"", "velocity=\"0\"");
     assert!(DynChain::from_urdf_str(&unlimited, &tip("link3")).is_ok());

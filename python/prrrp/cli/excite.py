@@ -108,11 +108,9 @@ def limits(text: str | None, n: int) -> dict[str, np.ndarray] | None:
                 f"--limits: '{item}' is not KEY=VALUE with KEY {common.options(LIMIT_KEYS)}"
             )
         try:
-            v = float(value)
-        except ValueError:
-            raise common.CliError(f"--limits: {key}={value!r} is not a number") from None
-        if not math.isfinite(v):
-            raise common.CliError(f"--limits: {key} must be finite")
+            v = common.number(value)
+        except argparse.ArgumentTypeError as e:
+            raise common.CliError(f"--limits: {key}: {e}") from None
         # A bound on |q̇| or |q̈| of 1e-300 designed a trajectory with cond(W) = 6e299.
         if key in ("velocity", "acceleration") and not MIN_FACTOR <= v <= MAX_FACTOR:
             raise common.CliError(

@@ -59,6 +59,33 @@ pub(crate) fn file_error(
     }
 }
 
+/// The first problem of a joint's limits, as (key, message): `lower` above `upper`, or a
+/// bound on |q̇|, |q̈|, |τ| (`velocity`, `acceleration`, `effort`) below 0, or at 0 too
+/// unless `zero_is_none` (URDF 1.0 writes an absent limit as 0). NaN is "not given".
+pub(crate) fn limit_problem(
+    lower: f64,
+    upper: f64,
+    bounds: [(&'static str, f64); 3],
+    zero_is_none: bool,
+) -> Option<(&'static str, String)> {
+    if lower > upper {
+        return Some((
+            "lower",
+            format!("lower = {lower} is above upper = {upper}; swap them"),
+        ));
+    }
+    bounds.into_iter().find_map(|(key, v)| {
+        let bad = if zero_is_none { v < 0.0 } else { v <= 0.0 };
+        bad.then(|| {
+            let allowed = if zero_is_none { " (or 0 for none)" } else { "" };
+            (
+                key,
+                format!("{v} is not positive; a limit on |·| must be > 0{allowed}"),
+            )
+        })
+    })
+}
+
 /// Reads a whole text file, with the path in every error.
 /// Largest robot file read, bytes (64 MiB). Real descriptions are kilobytes (the Panda's
 /// URDF is 15 kB); the bound keeps `/dev/zero` or a mistaken log file from exhausting

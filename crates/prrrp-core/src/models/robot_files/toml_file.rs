@@ -209,26 +209,13 @@ fn joint_spec(ctx: &Ctx<'_>, t: &Table, i: usize) -> Result<JointSpec> {
              type = \"revolute\"",
         ));
     }
-    if limit.lower > limit.upper {
-        return Err(ctx.err(
-            format!("{path}lower"),
-            format!(
-                "lower = {} is above upper = {}; swap them",
-                limit.lower, limit.upper
-            ),
-        ));
-    }
-    for (key, v) in [
+    let bounds = [
         ("velocity", limit.velocity),
         ("acceleration", limit.acceleration),
         ("effort", limit.effort),
-    ] {
-        if v <= 0.0 {
-            return Err(ctx.err(
-                format!("{path}{key}"),
-                format!("{v} is not positive; a limit on |·| must be > 0"),
-            ));
-        }
+    ];
+    if let Some((key, message)) = super::limit_problem(limit.lower, limit.upper, bounds, false) {
+        return Err(ctx.err(format!("{path}{key}"), message));
     }
     let inertial = t
         .get("inertial")

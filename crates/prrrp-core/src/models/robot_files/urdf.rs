@@ -427,28 +427,17 @@ fn joint_info(joint: &urdf_rs::Joint, file: &str) -> Result<JointInfo> {
     };
     // As a TOML file's: a swapped pair or a negative bound on |q̇|, |q̈|, |τ| is a typo
     // that would make every excitation infeasible (0 stays URDF 1.0's "not given").
-    if lower > upper {
-        return Err(file_error(
-            file,
-            joint_el(&joint.name, "limit/lower"),
-            format!(
-                "lower = {} is above upper = {}; swap them",
-                l.lower, l.upper
-            ),
-        ));
-    }
-    for (name, v) in [
+    let bounds = [
         ("velocity", l.velocity),
         ("acceleration", l.acceleration),
         ("effort", l.effort),
-    ] {
-        if v < 0.0 {
-            return Err(file_error(
-                file,
-                joint_el(&joint.name, &format!("limit/{name}")),
-                format!("{v} is negative; a limit on |·| must be > 0 (or 0 for none)"),
-            ));
-        }
+    ];
+    if let Some((key, message)) = super::limit_problem(lower, upper, bounds, true) {
+        return Err(file_error(
+            file,
+            joint_el(&joint.name, &format!("limit/{key}")),
+            message,
+        ));
     }
     let (damping, friction) = match &joint.dynamics {
         Some(d) => {
