@@ -391,13 +391,16 @@ def test_track_figure_draws_the_best_determined_parameters():
     assert shown_parameters(est, p) == want
 
 
-def test_track_report_numbers_are_those_of_its_files(setup, tmp_path):
+def test_track_report_numbers_are_those_of_its_files(setup, tmp_path, capsys):
     """report.md's table, recomputed from the data and prediction.csv: each joint's RMS
     torque and the raw rows' error over the last 20 %; the level on the low-passed rows is
     below the raw rows' error (the log's torque noise, 0.02 N·m, is what the low-pass
-    removes and no model predicts) and its % is the level over that RMS torque."""
+    removes and no model predicts) and its % is the level over that RMS torque. The
+    terminal prints both percentages of the table."""
     chain, _prior, run, _ = setup
+    capsys.readouterr()
     _data, out = _track_loaded_log(setup, tmp_path)
+    printed = capsys.readouterr().out.splitlines()
     text = (out / "report.md").read_text()
     rows = [
         line.split("|")[2:6]
@@ -415,6 +418,10 @@ def test_track_report_numbers_are_those_of_its_files(setup, tmp_path):
     np.testing.assert_allclose(table[:, 1], err, rtol=5e-3)
     assert np.all(table[:, 2] < table[:, 1] / 100 * rms)
     np.testing.assert_allclose(table[:, 3], 100 * table[:, 2] / table[:, 0], rtol=1e-2)
+    for start, column in [("one-step-ahead error", 1), ("  running level", 3)]:
+        line = next(s for s in printed if s.startswith(start))
+        shown = [float(c) for c in line.rsplit(":", 1)[1].split(",")]
+        np.testing.assert_array_equal(shown, table[:, column])
 
 
 def test_track_says_where_a_joint_had_no_torque(setup, tmp_path, capsys):
