@@ -20,10 +20,15 @@ pub const MIN_FACTOR: f64 = 1e-6;
 pub const MAX_FACTOR: f64 = 1e6;
 
 /// Largest magnitude of a robot description's lengths (m: joint placements, DH `a` and
-/// `d`) and inertial parameters (kg, kg·m, kg·m²): 1e6, beyond any arm (a 1e299 kg link
-/// simulated torques of 1e299 N·m, and a DH length of 1e300 m overflowed the base
-/// parameters' derivation into an empty basis).
+/// `d`): 1e6, beyond any arm, and a thousand times a file written in millimetres (a DH
+/// length of 1e300 m overflowed the base parameters' derivation into an empty basis).
 pub const MAX_ROBOT_SIZE: f64 = 1e6;
+
+/// Largest magnitude of a robot description's inertial parameters (kg, kg·m, kg·m²):
+/// 1e12. Far beyond any arm (a 1e299 kg link simulated torques of 1e299 N·m), yet a file
+/// written in grams and millimetres still reads (a 5 kg link 0.2 m out is 2e8 g·mm²):
+/// its inertials are only a prior, and identification needs its kinematics.
+pub const MAX_INERTIAL: f64 = 1e12;
 
 /// Largest initial covariance δ of an RLS on equilibrated columns (P₀ = δ·I; the online
 /// identifier's [`crate::OnlineConfig::initial_covariance`] and the batch RLS's

@@ -1518,9 +1518,10 @@ mod properties {
     }
 }
 
-/// Lengths and inertias beyond any arm (a unit slip, or a damaged file) are refused with
-/// the value's name, at MAX_ROBOT_SIZE (1e6 m, kg, kg·m²): a 1e299 kg link simulated
-/// torques of 1e299 N·m, and a DH length of 1e300 m gave "'base parameters' has shape 0".
+/// Lengths and inertias beyond any arm (a damaged file) are refused with the value's
+/// name, at MAX_ROBOT_SIZE (1e6 m) and MAX_INERTIAL (1e12 kg, kg·m²): a 1e299 kg link
+/// simulated torques of 1e299 N·m, and a DH length of 1e300 m gave "'base parameters' has
+/// shape 0". A file in grams and millimetres still reads.
 #[test]
 fn sizes_beyond_any_arm_are_refused() {
     let shown = |r: Result<DynChain, PrrrpError>| match r {
@@ -1528,30 +1529,39 @@ fn sizes_beyond_any_arm_are_refused() {
         Ok(_) => panic!("expected an error, got a chain"),
     };
     let toml = panda_toml();
-    for (from, to, needle) in [
-        ("a = 0.0825", "a = 1e300", "dh[3].a"),
-        ("d = 0.316", "d = -2e6", "dh[2].d"),
-        ("inertial = [7, ", "inertial = [1e299, ", "inertial[0][0]"),
+    for (from, to, needles) in [
+        ("a = 0.0825", "a = 1e300", ["dh[3].a", "MAX_ROBOT_SIZE"]),
+        ("d = 0.316", "d = -2e6", ["dh[2].d", "MAX_ROBOT_SIZE"]),
+        (
+            "inertial = [7, ",
+            "inertial = [1e299, ",
+            ["inertial[0][0]", "MAX_INERTIAL"],
+        ),
     ] {
         let bad = toml.replacen(from, to, 1);
         assert_ne!(bad, toml, "`{from}` not in the file");
         let text = shown(DynChain::from_toml_str(&bad));
-        for n in [needle, "MAX_ROBOT_SIZE"] {
+        for n in needles {
             assert!(text.contains(n), "`{n}` not in: {text}");
         }
     }
     let urdf = three_joint_text();
-    for (from, to) in [
-        ("<mass value=\"1.8\"/>", "<mass value=\"1e299\"/>"),
+    for (from, to, bound) in [
+        (
+            "<mass value=\"1.8\"/>",
+            "<mass value=\"1e299\"/>",
+            "MAX_INERTIAL",
+        ),
         (
             "<origin xyz=\"0.4 0.02 -0.01\"",
             "<origin xyz=\"0.4 0.02 -3e6\"",
+            "MAX_ROBOT_SIZE",
         ),
     ] {
         let bad = urdf.replacen(from, to, 1);
         assert_ne!(bad, urdf, "`{from}` not in the fixture");
         let text = shown(DynChain::from_urdf_str(&bad, &tip("link3")));
-        assert!(text.contains("MAX_ROBOT_SIZE"), "{text}");
+        assert!(text.contains(bound), "{text}");
     }
     // A large but real arm (a 2 t gantry link 40 m out) still loads.
     let big = urdf
@@ -1562,4 +1572,18 @@ fn sizes_beyond_any_arm_are_refused() {
             1,
         );
     assert!(DynChain::from_urdf_str(&big, &tip("link3")).is_ok());
+    // So do its inertials in grams and millimetres (m ×1e3, m·c ×1e6, inertias ×1e9).
+    let chain = DynChain::from_urdf_str(&urdf, &tip("link3")).unwrap();
+    let grams: Vec<[f64; 10]> = chain
+        .inertial()
+        .iter()
+        .map(|p| {
+            let mut p = *p;
+            p[0] *= 1e3;
+            p[1..4].iter_mut().for_each(|v| *v *= 1e6);
+            p[4..].iter_mut().for_each(|v| *v *= 1e9);
+            p
+        })
+        .collect();
+    assert!(chain.with_inertial(grams).is_ok());
 }

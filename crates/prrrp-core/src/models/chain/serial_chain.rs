@@ -206,7 +206,7 @@ fn validate_inertial(p: &[[f64; 10]]) -> Result<()> {
     check_rows_finite("inertial", p, &INERTIAL_PARAMETER_NAMES, reason)?;
     for (i, row) in p.iter().enumerate() {
         for (k, &v) in row.iter().enumerate() {
-            if v.abs() > crate::bounds::MAX_ROBOT_SIZE {
+            if v.abs() > crate::bounds::MAX_INERTIAL {
                 let name = format!(
                     "inertial[{i}][{k}] ({}{})",
                     INERTIAL_PARAMETER_NAMES[k],
@@ -215,7 +215,7 @@ fn validate_inertial(p: &[[f64; 10]]) -> Result<()> {
                 return Err(invalid(
                     name,
                     v,
-                    "inertial parameters must be at most MAX_ROBOT_SIZE (1e6 kg, kg·m, \
+                    "inertial parameters must be at most MAX_INERTIAL (1e12 kg, kg·m, \
                      kg·m²) in magnitude: check the file's units (kg, m)",
                 ));
             }
@@ -535,7 +535,7 @@ impl<const N: usize> SerialChain<N> {
     ///
     /// # Errors
     /// [`PrrrpError::InvalidParameter`] for a non-finite entry or one above
-    /// [`crate::bounds::MAX_ROBOT_SIZE`] in magnitude. Parameters no rigid body
+    /// [`crate::bounds::MAX_INERTIAL`] in magnitude. Parameters no rigid body
     /// has (a negative mass, an inertia breaking the triangle inequality) are accepted, as
     /// a robot file's inertials are only a prior: see
     /// [`SerialChain::non_physical_links`].
@@ -890,7 +890,7 @@ impl DynChain {
     ///
     /// # Errors
     /// [`PrrrpError::ShapeMismatch`] for a wrong count, [`PrrrpError::InvalidParameter`]
-    /// for a non-finite entry or one above [`crate::bounds::MAX_ROBOT_SIZE`] in magnitude.
+    /// for a non-finite entry or one above [`crate::bounds::MAX_INERTIAL`] in magnitude.
     /// Non-physical parameters are accepted: see
     /// [`DynChain::non_physical_links`].
     pub fn with_inertial(mut self, inertial: Vec<[f64; 10]>) -> Result<Self> {
