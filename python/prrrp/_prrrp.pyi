@@ -983,7 +983,7 @@ class OnlineIdentifier:
     after the current one is used), any clock (irregular time stamps, repeated rows).
 
     Built from a robot (a `SerialChain`, starting from no knowledge) or from a `prior`
-    model (`IdentifiedModel`: its robot, β̂ and covariance). `method`: "rls" (joint-
+    model (`IdentifiedModel`: its robot, β̂ and covariance), not both. `method`: "rls" (joint-
     weighted recursive least squares), "ekf" (the paper's filter on [q, q̇, β], started
     inside the physical region: from the prior, or after `ekf_warmup` s of RLS), "adaline"
     or "hopfield". `payload=True` (needs `prior`) tracks only the 10 inertial parameters
@@ -1058,7 +1058,8 @@ class OnlineIdentifier:
         as it was."""
     def estimate(self) -> IdentifiedModel:
         """The current estimate as a model (in payload mode: the prior's arm carrying the
-        payload)."""
+        payload). InvalidParameterError from no knowledge before any row has updated it
+        (its zeros are not a model)."""
     def payload(self) -> dict[str, Any] | None:
         """Payload mode: mass (kg), com (m, tip frame), inertia about the com (kg·m²),
         each with σ; None otherwise."""

@@ -174,6 +174,18 @@ def test_bad_input_is_a_typed_error(setup):
         prrrp.OnlineIdentifier(chain, method="kalman")
     with pytest.raises(prrrp.InvalidParameterError):
         prrrp.OnlineIdentifier()
+    # A robot beside a prior was dropped without a word (the prior's robot was tracked).
+    with pytest.raises(prrrp.InvalidParameterError, match="carries its robot"):
+        prrrp.OnlineIdentifier(chain, prior=_prior)
+    # From no knowledge, before any row has updated it, the estimate is zeros, not a model:
+    # it was returned, "converged", predicting 0 everywhere.
+    fresh = prrrp.OnlineIdentifier(chain)
+    with pytest.raises(prrrp.InvalidParameterError, match="estimate after 0 rows"):
+        fresh.estimate()
+    fresh.update(0.0, np.zeros(6), np.ones(6))
+    with pytest.raises(prrrp.InvalidParameterError, match="estimate after 1 rows"):
+        fresh.estimate()
+    assert prrrp.OnlineIdentifier(prior=_prior).estimate().robot.dof == 6
 
 
 @pytest.mark.parametrize("method", ["rls", "ekf"])
@@ -446,22 +458,27 @@ def test_track_says_where_a_joint_had_no_torque(setup, tmp_path, capsys):
 
 
 def test_track_of_torques_that_all_read_zero_warns_nothing_but_its_own(tmp_path, setup, capsys):
-    """Every torque 0 (no channel logged), from no knowledge: the prediction is 0 too, and
-    the figure's error panel, all zeros, is drawn without a log scale instead of
-    matplotlib's warning on stderr; the run says why nothing was learned."""
-    _chain, _prior, run, _ = setup
+    """Every torque 0 (no channel logged): from the prior, the prediction is the prior's
+    and the figure's error panel is drawn without matplotlib's warnings on stderr, and the
+    run says why nothing was learned; from no knowledge there is no model to write (it
+    wrote zeros with exit 0), and nothing is written."""
+    _chain, prior, run, _ = setup
     log = {k: v[:1000].copy() for k, v in run.items()}
     log["tau"][:] = 0.0
-    data = tmp_path / "zero.csv"
-    _write_csv(data, log)
-    rel, _tip = ARMS["ur5"]
-    out = tmp_path / "track"
+    argv, out = _files(tmp_path, log, prior, name="zero.csv")
     capsys.readouterr()
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        assert main(["track", str(data), "--robot", str(ROBOTS / rel), "--out", str(out)]) == 0
-    assert "reads 0" in capsys.readouterr().out
+        assert main(argv) == 0
+    printed = capsys.readouterr().out
+    assert "reads 0" in printed
+    assert "warning: no row updated the estimate" in printed
     assert (out / "track.png").stat().st_size > 0
+    rel, _tip = ARMS["ur5"]
+    bare = tmp_path / "bare"
+    assert main(["track", argv[1], "--robot", str(ROBOTS / rel), "--out", str(bare)]) == 2
+    assert "no joint's torque was measured" in capsys.readouterr().err
+    assert not bare.exists()
 
 
 def test_track_names_the_joints_at_the_noise_floor(setup, tmp_path, capsys):
@@ -495,22 +512,27 @@ def test_track_of_a_log_shorter_than_the_filtering_says_nothing_was_learned(
 ):
     """20 rows (0.08 s at 250 Hz): shorter than the causal filtering's settling and than
     the figure's 0.1 s error window (whose kernel used to outgrow the log and crash the
-    figure). The command completes, writes every file and says that no row updated the
-    estimate; model.json is the robot's starting model."""
-    chain, _prior, run, _ = setup
+    figure). From the prior, the command completes, writes every file and says that no
+    row updated the estimate (model.json predicts as the prior); from no knowledge it
+    refuses, saying why, and writes nothing (it wrote a model of zeros with exit 0)."""
+    _chain, prior, run, _ = setup
     short = {k: v[:20] for k, v in run.items()}
-    data = tmp_path / "short.csv"
-    _write_csv(data, short)
-    rel, _tip = ARMS["ur5"]
-    out = tmp_path / "track"
+    argv, out = _files(tmp_path, short, prior, name="short.csv")
     capsys.readouterr()
-    argv = ["track", str(data), "--robot", str(ROBOTS / rel), "--out", str(out)]
     assert main(argv) == 0
     printed = capsys.readouterr().out
     assert "warning: no row updated the estimate" in printed
     assert (out / "track.png").is_file()
     model = prrrp.IdentifiedModel.load(out / "model.json")
-    assert model.robot.dof == chain.dof
+    q, qd, qdd = run["q"][:50], run["qd"][:50], run["qdd"][:50]
+    np.testing.assert_allclose(model.predict(q, qd, qdd), prior.predict(q, qd, qdd), atol=1e-9)
+    rel, _tip = ARMS["ur5"]
+    bare = tmp_path / "bare"
+    assert main(["track", argv[1], "--robot", str(ROBOTS / rel), "--out", str(bare)]) == 2
+    err = capsys.readouterr().err
+    assert "no row updated the estimate: the log (0.076 s) ended before" in err
+    assert "--model" in err
+    assert not bare.exists()
 
 
 def test_track_payload_of_a_run_without_one_says_so(setup, tmp_path, capsys):

@@ -88,7 +88,15 @@ impl PyOnlineIdentifier {
             ..defaults
         };
         let inner = match (prior, robot) {
-            (Some(p), _) => OnlineIdentifier::with_prior(&p.inner, config),
+            // The prior carries its robot: a second one was dropped without a word (a
+            // Panda given with a UR5 prior tracked the UR5).
+            (Some(_), Some(_)) => Err(PrrrpError::InvalidParameter {
+                field: "robot".into(),
+                value: f64::NAN,
+                reason: "is not needed with a prior: the prior model carries its robot; \
+                         give one of robot and prior",
+            }),
+            (Some(p), None) => OnlineIdentifier::with_prior(&p.inner, config),
             (None, Some(r)) => {
                 let base = r.default_base(py)?.clone();
                 OnlineIdentifier::new(r.chain(), &base, config)

@@ -258,6 +258,15 @@ def run(args: argparse.Namespace) -> int:
     _check_rate(raw["t"], online.settings["cutoff_hz"], args.forgetting)
     _check_settling(raw["t"], args.cutoff)
     run_ = track(online, raw, common.Progress())
+    if online.counts[1] == 0 and prior is None:
+        # The starting parameters are zeros, not a model: it was written, with every
+        # torque predicted 0 and exit 0, and `prrrp payload` went on to read a 4.6 kg load
+        # off it.
+        raise common.CliError(
+            f"no row updated the estimate: {_nothing_learned(online, raw)}; with no prior "
+            "(--model) there is no model to write. Give a longer log with the torques, or a "
+            "prior with --model"
+        )
     model = online.estimate()
     payload = online.payload()
 
@@ -310,11 +319,9 @@ def run(args: argparse.Namespace) -> int:
     if still:
         print(f"warning: {measurements.barely_moving_warning(still)}")
     if online.counts[1] == 0:
-        span = float(raw["t"][-1] - raw["t"][0])
         print(
-            f"warning: no row updated the estimate: the log ({span:.3g} s) ended before the "
-            f"causal filtering ({online.settings['cutoff_hz']:.3g} Hz) settled, or no joint's "
-            "torque was measured; model.json is the starting model, unchanged"
+            f"warning: no row updated the estimate: {_nothing_learned(online, raw)}; "
+            "model.json is the starting model (--model), unchanged"
         )
     note = _ekf_not_started(online.settings)
     if note:
@@ -396,6 +403,15 @@ NO_TORQUE = (
     "the joint's torque reads 0 over those rows (a dead or unlogged channel): no percentage "
     "of it to give"
 )
+
+
+def _nothing_learned(online: prrrp.OnlineIdentifier, raw: dict[str, np.ndarray]) -> str:
+    """Why no row updated the estimate."""
+    span = float(raw["t"][-1] - raw["t"][0])
+    return (
+        f"the log ({span:.3g} s) ended before the causal filtering "
+        f"({online.settings['cutoff_hz']:.3g} Hz) settled, or no joint's torque was measured"
+    )
 
 
 def _level_percent(online: prrrp.OnlineIdentifier, run_: dict[str, Any]) -> list[float]:

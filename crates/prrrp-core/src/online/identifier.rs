@@ -1851,8 +1851,20 @@ impl OnlineIdentifier {
     /// [`OnlineIdentifier::payload_summary`] under `preprocessing.payload`.
     ///
     /// # Errors
-    /// As [`IdentifiedModel::new`] (e.g. a non-finite estimate).
+    /// [`PrrrpError::InvalidParameter`] (field `estimate after N rows`) when no row has
+    /// updated the estimate and there is no prior: the starting parameters are zeros, not
+    /// a model (it was returned, with every torque predicted 0); as [`IdentifiedModel::new`]
+    /// otherwise (e.g. a non-finite estimate).
     pub fn estimate(&self) -> Result<IdentifiedModel> {
+        if self.updates == 0 && self.prior.is_none() {
+            return Err(PrrrpError::InvalidParameter {
+                field: format!("estimate after {} rows", self.rows),
+                value: 0.0,
+                reason: "no row has updated it yet (the causal filtering settles first, and \
+                         rows without torque teach nothing); with no prior there is no model \
+                         to give: feed more rows, or start from a prior",
+            });
+        }
         let cov_theta = self.covariance_theta();
         if let (TrackedModel::Payload { arm, k_tip, .. }, Some(prior)) = (&self.model, &self.prior)
         {
