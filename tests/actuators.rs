@@ -305,6 +305,34 @@ fn bad_couplings_are_clear_errors() {
         let e = DynChain::from_toml_str(&toml(bad)).unwrap_err().to_string();
         assert!(e.contains(want), "{bad}: {e}");
     }
+    // Armatures and gear ratios beyond any drive: an armature of 1e200 kg·m² was taken,
+    // and `prrrp simulate` wrote torques of 1e201 N·m.
+    let act = |armature: Option<Vec<f64>>, ratios: Option<Vec<f64>>| {
+        chain().with_actuators(Actuators {
+            armature: armature.is_some(),
+            armature_values: armature,
+            gear_ratios: ratios,
+            ..Actuators::default()
+        })
+    };
+    let mut ok = vec![0.0, 0.1, 0.1, 0.01, 0.01, 1e6];
+    assert!(act(Some(ok.clone()), None).is_ok());
+    ok[0] = 1e200;
+    let e = act(Some(ok), None).unwrap_err().to_string();
+    assert!(
+        e.contains("armature_values[0]") && e.contains("MAX_INERTIAL"),
+        "{e}"
+    );
+    assert!(act(None, Some(vec![100.0, -50.0, 1e-6, 1e6, 1.0, 2.0])).is_ok());
+    for bad in [1e300, 1e-300, 0.0, f64::NAN] {
+        let e = act(None, Some(vec![100.0, 50.0, 20.0, bad, 1.0, 1.0]))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("gear_ratios[3]") && e.contains("MAX_FACTOR"),
+            "{bad}: {e}"
+        );
+    }
 }
 
 #[test]

@@ -98,6 +98,14 @@ fn inconsistent_parts_are_typed_errors() {
     let mut v: serde_json::Value = serde_json::from_str(&model.to_json().unwrap()).unwrap();
     v["schema_version"] = 7.into();
     assert!(IdentifiedModel::from_json(&v.to_string()).is_err());
+    // A finite negative σ read as "has a NaN or infinite value".
+    let mut v: serde_json::Value = serde_json::from_str(&model.to_json().unwrap()).unwrap();
+    v["sigma"][2] = (-1.0).into();
+    let e = IdentifiedModel::from_json(&v.to_string()).unwrap_err();
+    assert!(
+        matches!(&e, PrrrpError::InvalidParameter { field, .. } if field == "sigma[2]"),
+        "{e}"
+    );
     let [q, qd, qdd] = states(6, 2);
     assert!(model.predict(&q[..7], &qd[..7], &qdd[..7]).is_err());
 }

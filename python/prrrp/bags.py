@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 
 from prrrp._prrrp import MAX_MAGNITUDE
-from prrrp.csvio import TOO_LARGE, InputError
+from prrrp.csvio import MIN_SAMPLES, TOO_LARGE, InputError
 
 #: The default topic of ``sensor_msgs/JointState`` (ros2_control's joint_state_broadcaster).
 DEFAULT_TOPIC = "/joint_states"
@@ -86,6 +86,7 @@ def read_joint_states(
         q: list[np.ndarray] = []
         qd: list[np.ndarray | None] = []
         tau: list[np.ndarray] = []
+        received: list[bool] = []  # the receive time stood in for a zero header stamp
         index: dict[tuple[str, ...], np.ndarray] = {}
         for k, (conn, stamp_ns, raw) in enumerate(reader.messages(connections=conns)):
             if k >= MAX_MESSAGES:
@@ -113,6 +114,7 @@ def read_joint_states(
                 )
             sec = msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec
             t.append(sec if sec > 0 else 1e-9 * stamp_ns)
+            received.append(sec <= 0)
             q.append(np.asarray(msg.position, dtype=float)[cols])
             tau.append(np.asarray(msg.effort, dtype=float)[cols])
             vel = np.asarray(msg.velocity, dtype=float)
@@ -121,6 +123,12 @@ def read_joint_states(
         reader.close()
     if not t:
         raise InputError(f"{p}: no messages on '{topic}'")
+    if len(t) < MIN_SAMPLES:
+        # As a CSV file's: 5 messages ran `prrrp track` to a model of zeros.
+        raise InputError(
+            f"{p}: too few messages on '{topic}' ({len(t)}); at least {MIN_SAMPLES} are needed"
+        )
+    _check_stamps(p, topic, t, received)
     out = {"t": np.asarray(t), "q": np.vstack(q), "tau": np.vstack(tau)}
     if all(v is not None for v in qd):
         out["qd"] = np.vstack(qd)
@@ -132,6 +140,28 @@ def read_joint_states(
         if big.size:
             raise InputError(f"{p}: message {int(big[0][0])} on '{topic}': {key} {TOO_LARGE}")
     return out
+
+
+def _check_stamps(path: Path, topic: str, t: list[float], received: list[bool]) -> None:
+    """InputError naming the message whose time runs backwards, or the first that mixes
+    the receive time (standing in for a zero header stamp) with header stamps: two clocks.
+    The data set's own check said only "row 501 is not", without the file."""
+    if any(received) and not all(received):
+        k = received.index(not received[0])
+        which = "a zero header stamp" if received[k] else "a header stamp"
+        raise InputError(
+            f"{path}: message {k} on '{topic}' has {which} where message 0 has "
+            f"{'none' if received[0] else 'one'}: a zero stamp is read as the receive time, "
+            "another clock; log every message with its header stamp (or none)"
+        )
+    back = np.flatnonzero(np.diff(np.asarray(t)) < 0)
+    if back.size:
+        k = int(back[0]) + 1
+        kind = "receive time" if received[k] else "header stamp"
+        raise InputError(
+            f"{path}: message {k} on '{topic}': time runs backwards ({kind} {t[k]:.9g} s "
+            f"after {t[k - 1]:.9g} s)"
+        )
 
 
 def _match(path: Path, topic: str, names: tuple[str, ...], joints: list[str], k: int) -> np.ndarray:

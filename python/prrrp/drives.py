@@ -99,9 +99,11 @@ def to_joint_side(
     n = robot.dof
     if motor_side:
         if robot.actuators["gear_ratios"] is None:
+            # Also reached from a model file's recorded conversion, where no option exists.
             raise InputError(
-                "--motor-side needs the robot's gear ratios: add gear_ratios = [...] (motor "
-                "angle per joint angle, one per actuator) under [actuators] in the robot file"
+                "motor-side data (--motor-side, or as the model's log was) need the robot's "
+                "gear ratios: add gear_ratios = [...] (motor angle per joint angle, one per "
+                "actuator) under [actuators] in the robot file"
             )
         for key in ("q", "qd", "qdd"):
             if key in out:
@@ -126,8 +128,9 @@ def to_joint_side(
         out["tau"] = np.asarray(robot.joint_torques_from_currents(out.pop("current"), gains))
     elif strict and drive_gains is not None and "tau" in raw:
         raise InputError(
-            f"drive gains were given but {source} has torques tau1..tau{n}, not motor currents "
-            f"i1..i{n}; drop --drive-gains"
+            f"drive gains were given (--drive-gains, or the model's log was of currents) but "
+            f"{source} has torques tau1..tau{n}, not motor currents i1..i{n}; give a log of "
+            "currents, or drop --drive-gains"
         )
     return out
 

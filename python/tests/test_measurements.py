@@ -124,8 +124,9 @@ def test_bag_joints_matched_by_name(tmp_path: Path, panda):
         prrrp.read_measurements(bag, puma)
 
 
-def write_messages(path: Path, messages, topic="/joint_states"):
-    """A bag of JointState messages given as (t, names, position, velocity, effort)."""
+def write_messages(path: Path, messages, topic="/joint_states", receive=None):
+    """A bag of JointState messages given as (t, names, position, velocity, effort): t is
+    the header stamp (0: none) and, unless ``receive`` gives them, the receive time."""
     from rosbags.rosbag2 import Writer
     from rosbags.typesys import Stores, get_typestore
 
@@ -135,7 +136,7 @@ def write_messages(path: Path, messages, topic="/joint_states"):
     stamp = store.types["builtin_interfaces/msg/Time"]
     with Writer(path, version=8) as writer:
         conn = writer.add_connection(topic, js.__msgtype__, typestore=store)
-        for tk, names, position, velocity, effort in messages:
+        for k, (tk, names, position, velocity, effort) in enumerate(messages):
             sec = int(tk)
             msg = js(
                 header=header(stamp=stamp(sec=sec, nanosec=round((tk - sec) * 1e9)), frame_id=""),
@@ -144,7 +145,51 @@ def write_messages(path: Path, messages, topic="/joint_states"):
                 velocity=np.asarray(velocity, dtype=float),
                 effort=np.asarray(effort, dtype=float),
             )
-            writer.write(conn, round(tk * 1e9), store.serialize_cdr(msg, js.__msgtype__))
+            at = tk if receive is None else receive[k]
+            writer.write(conn, round(at * 1e9), store.serialize_cdr(msg, js.__msgtype__))
+
+
+def test_bag_time_that_runs_backwards_or_mixes_clocks_names_the_message(tmp_path: Path, panda):
+    """Header stamps of messages 10 and 11 swapped while the receive times increase: the
+    error names the bag, the message and both stamps (it said only "time stamps must be
+    strictly increasing; row 11 is not", without the file). Messages without a header
+    stamp among stamped ones read their receive time, another clock: refused by name."""
+    pytest.importorskip("rosbags")
+    names = list(panda.joint_names)
+    receive = [500.0 + 0.01 * k for k in range(30)]
+    header = [100.0 + 0.01 * k for k in range(30)]
+    header[10], header[11] = header[11], header[10]
+    rows = [(h, names, np.full(7, 0.01 * k), np.zeros(7), np.ones(7)) for k, h in enumerate(header)]
+    bag = tmp_path / "back"
+    write_messages(bag, rows, receive=receive)
+    with pytest.raises(
+        csvio.InputError,
+        match=r"back: message 11 on '/joint_states': time runs "
+        r"backwards \(header stamp 100\.1 s after 100\.11 s\)",
+    ):
+        prrrp.read_measurements(bag, panda)
+    header = [100.0 + 0.01 * k for k in range(30)]
+    header[5] = 0.0
+    rows = [(h, names, np.full(7, 0.01 * k), np.zeros(7), np.ones(7)) for k, h in enumerate(header)]
+    mixed = tmp_path / "mixed"
+    write_messages(mixed, rows, receive=receive)
+    with pytest.raises(
+        csvio.InputError,
+        match=r"mixed: message 5 on '/joint_states' has a zero "
+        "header stamp",
+    ):
+        prrrp.read_measurements(mixed, panda)
+    # No header stamps at all: the receive times are one clock, and read.
+    rows = [(0.0, names, np.full(7, 0.01 * k), np.zeros(7), np.ones(7)) for k in range(30)]
+    plain = tmp_path / "plain"
+    write_messages(plain, rows, receive=receive)
+    np.testing.assert_allclose(prrrp.read_measurements(plain, panda)["t"], receive)
+    # Five messages: refused as a five-row CSV file is (they ran `prrrp track` to a model
+    # of zeros).
+    few = tmp_path / "few"
+    write_messages(few, rows[:5], receive=receive[:5])
+    with pytest.raises(csvio.InputError, match=r"few: too few messages on '/joint_states' \(5\)"):
+        prrrp.read_measurements(few, panda)
 
 
 @pytest.mark.parametrize(

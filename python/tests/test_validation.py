@@ -40,6 +40,9 @@ def test_dataset_round_trip(columns):
     np.testing.assert_array_equal(part.t, t[5:25])
     np.testing.assert_array_equal(d[-10:].tau, tau[-10:])
     np.testing.assert_array_equal(d.slice(0, 8).qd, qd[:8])
+    # A negative index was an OverflowError of the conversion.
+    with pytest.raises(prrrp.InvalidParameterError, match="start"):
+        d.slice(-5, 30)
     back = prrrp.Dataset.from_dict(d.to_dict())
     np.testing.assert_array_equal(back.qdd, qdd)
     assert "samples=40" in repr(d)

@@ -258,7 +258,8 @@ def add_drive_gains_argument(p: Any, default: str) -> None:
         metavar="K1,...,KN|FILE.json",
         help="the log has motor currents i1..iN (A): joint-side drive gains, N·m/A per actuator "
         "(torque constant × gear ratio), or a JSON file with them (a model.json of `prrrp "
-        f"identify --payload-run`); torques are Cᵀ·(K∘i) (default: {default})",
+        f"identify --payload-run`); torques are Cᵀ·(K∘i); a list that starts with a "
+        f"negative gain needs the = form, --drive-gains=-9,9,… (default: {default})",
     )
 
 

@@ -336,10 +336,18 @@ impl IdentifiedModel {
         shape("residual_rms (one per joint)", n, self.residual_rms.len())?;
         if let Some(s) = &self.sigma {
             shape("sigma (one per base parameter)", b, s.len())?;
-            if let Some(row) = s.iter().position(|x| !(x.is_finite() && *x >= 0.0)) {
+            if let Some(row) = s.iter().position(|x| !x.is_finite()) {
                 return Err(PrrrpError::NonFinite {
                     what: "sigma (must be finite and >= 0)".into(),
                     row: Some(row),
+                });
+            }
+            // A finite negative σ read as "has a NaN or infinite value".
+            if let Some(row) = s.iter().position(|x| *x < 0.0) {
+                return Err(PrrrpError::InvalidParameter {
+                    field: format!("sigma[{row}]"),
+                    value: s[row],
+                    reason: "a standard deviation must be >= 0",
                 });
             }
         }

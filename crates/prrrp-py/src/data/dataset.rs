@@ -105,8 +105,22 @@ pymethods_with_getters!(PyDataset {
 
     /// Samples start..stop (step 1) as a new validated data set; raises
     /// TooFewSamplesError if fewer than 8 remain.
-    fn slice(&self, py: Python<'_>, start: usize, stop: usize) -> PyResult<Self> {
-        let inner = self.inner.slice(start..stop).to_py(py)?;
+    fn slice(&self, py: Python<'_>, start: i64, stop: i64) -> PyResult<Self> {
+        // i64, so that a negative index is named, not an OverflowError of the conversion.
+        let index = |name: &str, v: i64| {
+            usize::try_from(v).map_err(|_| {
+                to_pyerr(
+                    py,
+                    &PrrrpError::InvalidParameter {
+                        field: name.into(),
+                        value: v as f64,
+                        reason: "must be >= 0 (a sample index; data[a:b] takes negative ones)",
+                    },
+                )
+            })
+        };
+        let range = index("start", start)?..index("stop", stop)?;
+        let inner = self.inner.slice(range).to_py(py)?;
         Ok(Self { inner })
     }
 
@@ -148,7 +162,7 @@ pymethods_with_getters!(PyDataset {
                 },
             ));
         }
-        let (start, stop) = (ind.start as usize, (ind.stop.max(ind.start)) as usize);
+        let (start, stop) = (ind.start as i64, ind.stop.max(ind.start) as i64);
         self.slice(py, start, stop)
     }
 

@@ -106,8 +106,9 @@ impl Actuators {
     /// # Errors
     /// [`PrrrpError::ShapeMismatch`] for a coupling that is not n×n or a list without one
     /// entry per actuator; [`PrrrpError::InvalidParameter`] for a non-finite entry, a
-    /// singular coupling (the error gives cond(C)), a negative armature or a zero gear
-    /// ratio.
+    /// singular coupling (the error gives cond(C)), an armature outside
+    /// [0, [`crate::bounds::MAX_INERTIAL`]] or a gear ratio outside ±[[`crate::bounds::MIN_FACTOR`],
+    /// [`crate::bounds::MAX_FACTOR`]].
     pub fn validate(&self, n: usize) -> Result<()> {
         if let Some(c) = &self.coupling {
             coupling_matrix(c, n)?;
@@ -115,11 +116,13 @@ impl Actuators {
         if let Some(v) = &self.armature_values {
             check_count("actuators.armature_values", v.len(), n)?;
             for (m, &x) in v.iter().enumerate() {
-                if !(x.is_finite() && x >= 0.0) {
+                // 1e200 was taken, and `prrrp simulate` wrote torques of 1e201 N·m.
+                if !(x.is_finite() && (0.0..=crate::bounds::MAX_INERTIAL).contains(&x)) {
                     return Err(invalid(
                         format!("actuators.armature_values[{m}]"),
                         x,
-                        "a reflected rotor inertia must be finite and >= 0 (kg·m², joint side)",
+                        "a reflected rotor inertia must be between 0 and MAX_INERTIAL (1e12) \
+                         (kg·m², joint side)",
                     ));
                 }
             }
@@ -127,12 +130,13 @@ impl Actuators {
         if let Some(r) = &self.gear_ratios {
             check_count("actuators.gear_ratios", r.len(), n)?;
             for (m, &x) in r.iter().enumerate() {
-                if !(x.is_finite() && x != 0.0) {
+                if !crate::bounds::is_factor(x.abs()) {
                     return Err(invalid(
                         format!("actuators.gear_ratios[{m}]"),
                         x,
-                        "a gear ratio (motor angle per joint-side angle) must be finite and \
-                         non-zero",
+                        "a gear ratio (motor angle per joint-side angle) must be between \
+                         MIN_FACTOR (1e-6) and MAX_FACTOR (1e6) in magnitude (negative for a \
+                         reversed motor)",
                     ));
                 }
             }
