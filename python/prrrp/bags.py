@@ -4,10 +4,10 @@ needed).
 
 A bag is a folder (rosbag2, sqlite3 or mcap storage) or a single ``.mcap`` file. Each message
 on the topic gives one sample: the time is the message header's stamp (the bag's receive
-time when the stamp is zero), ``position`` → q (rad, m), ``velocity`` → measured q̇ (used
-when every message carries it) and ``effort`` → τ (N·m, N). Joints are matched to the
-robot's joints by name, so the message may list them in any order and carry more joints
-(grippers, other arms) than the robot has.
+times of all messages when any stamp is zero: one clock), ``position`` → q (rad, m),
+``velocity`` → measured q̇ (used when every message carries it) and ``effort`` → τ (N·m,
+N). Joints are matched to the robot's joints by name, so the message may list them in any
+order and carry more joints (grippers, other arms) than the robot has.
 """
 
 from __future__ import annotations
@@ -86,7 +86,7 @@ def read_joint_states(
         q: list[np.ndarray] = []
         qd: list[np.ndarray | None] = []
         tau: list[np.ndarray] = []
-        received: list[bool] = []  # the receive time stood in for a zero header stamp
+        receive: list[float] = []  # the bag's receive times, s
         index: dict[tuple[str, ...], np.ndarray] = {}
         for k, (conn, stamp_ns, raw) in enumerate(reader.messages(connections=conns)):
             if k >= MAX_MESSAGES:
@@ -113,8 +113,8 @@ def read_joint_states(
                     "names; a JointState message gives one per name or none"
                 )
             sec = msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec
-            t.append(sec if sec > 0 else 1e-9 * stamp_ns)
-            received.append(sec <= 0)
+            t.append(sec)
+            receive.append(1e-9 * stamp_ns)
             q.append(np.asarray(msg.position, dtype=float)[cols])
             tau.append(np.asarray(msg.effort, dtype=float)[cols])
             vel = np.asarray(msg.velocity, dtype=float)
@@ -128,7 +128,7 @@ def read_joint_states(
         raise InputError(
             f"{p}: too few messages on '{topic}' ({len(t)}); at least {MIN_SAMPLES} are needed"
         )
-    _check_stamps(p, topic, t, received)
+    t = _time(p, topic, t, receive)
     out = {"t": np.asarray(t), "q": np.vstack(q), "tau": np.vstack(tau)}
     if all(v is not None for v in qd):
         out["qd"] = np.vstack(qd)
@@ -142,26 +142,21 @@ def read_joint_states(
     return out
 
 
-def _check_stamps(path: Path, topic: str, t: list[float], received: list[bool]) -> None:
-    """InputError naming the message whose time runs backwards, or the first that mixes
-    the receive time (standing in for a zero header stamp) with header stamps: two clocks.
-    The data set's own check said only "row 501 is not", without the file."""
-    if any(received) and not all(received):
-        k = received.index(not received[0])
-        which = "a zero header stamp" if received[k] else "a header stamp"
-        raise InputError(
-            f"{path}: message {k} on '{topic}' has {which} where message 0 has "
-            f"{'none' if received[0] else 'one'}: a zero stamp is read as the receive time, "
-            "another clock; log every message with its header stamp (or none)"
-        )
+def _time(path: Path, topic: str, header: list[float], receive: list[float]) -> list[float]:
+    """The messages' times: their header stamps, or the bag's receive times for all of
+    them when any header stamp is 0 (a driver that stamps nothing, or not its first
+    messages): one clock either way, where a zero stamp's receive time among header stamps
+    mixed two. InputError naming the message whose time runs backwards (the data set's own
+    check said only "row 501 is not", without the file)."""
+    t, kind = (header, "header stamp") if min(header) > 0 else (receive, "receive time")
     back = np.flatnonzero(np.diff(np.asarray(t)) < 0)
     if back.size:
         k = int(back[0]) + 1
-        kind = "receive time" if received[k] else "header stamp"
         raise InputError(
             f"{path}: message {k} on '{topic}': time runs backwards ({kind} {t[k]:.9g} s "
             f"after {t[k - 1]:.9g} s)"
         )
+    return t
 
 
 def _match(path: Path, topic: str, names: tuple[str, ...], joints: list[str], k: int) -> np.ndarray:
