@@ -1377,6 +1377,7 @@ __all__ += [
     "read_numeric_csv",
     "request_stop",
     "sensitivity",
+    "stop_requested",
     "torque_prediction",
     "validate",
 ]
@@ -1448,6 +1449,9 @@ def request_stop() -> None:
 
 def clear_stop() -> None:
     """Lowers the flag of :func:`request_stop`, so that new computations run."""
+
+def stop_requested() -> bool:
+    """Whether the flag of :func:`request_stop` is raised."""
 
 def read_numeric_csv(data: bytes) -> tuple[str, int, int, int, bytes] | None:
     """(header line, its 1-based line number, rows, cells per row, the values as native

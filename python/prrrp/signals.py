@@ -44,6 +44,15 @@ def install() -> None:
         signal.signal(signal.SIGTERM, _on_signal)
 
 
+def ignore() -> None:
+    """Ignores further SIGINT and SIGTERM (main thread only): for a run that is already
+    ending for one, whose exit handlers (multiprocessing's joins) a second Ctrl-C turned
+    into a traceback on stderr."""
+    with contextlib.suppress(ValueError):  # not the main thread
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+        signal.signal(signal.SIGTERM, signal.SIG_IGN)
+
+
 def received() -> int | None:
     """The signal the run received, if any."""
     return _received

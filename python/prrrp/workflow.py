@@ -37,6 +37,7 @@ from prrrp._prrrp import (
     identify,
     request_stop,
     simulate_chain,
+    stop_requested,
 )
 from prrrp.measurements import PREPROCESS_KEYS, barely_moving, measurements_to_dataset
 
@@ -441,13 +442,16 @@ def _run_concurrently(
             if progress is not None:
                 progress(done, len(methods))
     except BaseException:
+        # A host's own request_stop() stays raised: lowering it let its next call run.
+        raised_before = stop_requested()
         request_stop()
         try:
             for f in futures:
                 f.cancel()
             pool.shutdown(wait=True)
         finally:
-            clear_stop()
+            if not raised_before:
+                clear_stop()
         raise
     pool.shutdown(wait=True)
     return [r for r in out if r is not None]

@@ -89,6 +89,35 @@ def test_ctrl_c_stops_every_method_running_on_a_thread() -> None:
     assert float(took) < 1.0, f"took {took} s to stop"
 
 
+def test_a_hosts_stop_request_is_honoured_and_kept() -> None:
+    """A host's prrrp.request_stop() stops every method, also the one-pass ls and wls
+    (which never polled and ran), and the threaded runner leaves the host's flag raised
+    (it lowered it on the way out, so the host's next call ran); clear_stop() lowers it."""
+    robot = workflow.load_robot(str(UR5_LIKE))
+    data = _data(robot, 2000)
+    prrrp.request_stop()
+    try:
+        assert prrrp.stop_requested()
+        for method in ("ls", "wls"):
+            try:
+                prrrp.identify(robot, data, method)
+            except KeyboardInterrupt:
+                pass
+            else:
+                raise AssertionError(f"{method} ran with the stop flag raised")
+        try:
+            workflow.identify_methods(robot, data, ["ls", "wls"], coulomb_scale=0.03, workers=2)
+        except KeyboardInterrupt:
+            pass
+        else:
+            raise AssertionError("identify_methods ran with the stop flag raised")
+        assert prrrp.stop_requested()
+    finally:
+        prrrp.clear_stop()
+    assert not prrrp.stop_requested()
+    assert len(prrrp.identify(robot, data, "ls").beta) > 0
+
+
 def test_one_method_at_a_time_when_two_copies_of_the_regressors_would_not_fit(
     monkeypatch,
 ) -> None:

@@ -124,3 +124,41 @@ def test_a_ctrl_c_while_a_temporary_is_created_leaves_nothing(
     finally:
         signal.signal(signal.SIGINT, restore)
     assert list(tmp_path.iterdir()) == []
+
+
+def test_a_second_ctrl_c_while_exiting_prints_no_traceback() -> None:
+    """A run ending for Ctrl-C whose exit handlers meet a second one (multiprocessing's
+    joins under `prrrp benchmark`, or `timeout` signalling the process group): exit 130
+    with the one error line, not "Exception ignored in atexit callback" and a traceback."""
+    script = """
+        import atexit, os, signal, time
+        from prrrp import cli, signals
+
+        def main(argv=None):
+            signals.install()
+            try:
+                os.kill(os.getpid(), signal.SIGINT)
+                time.sleep(5)
+            except KeyboardInterrupt:
+                cli.error("interrupted")
+                return cli.EXIT_INTERRUPTED
+            return 0
+
+        def second_signal():
+            os.kill(os.getpid(), signal.SIGINT)
+            time.sleep(0.2)
+            print("exit handler done", flush=True)
+
+        atexit.register(second_signal)
+        cli.main = main
+        cli.console()
+    """
+    child = subprocess.run(
+        [sys.executable, "-c", textwrap.dedent(script)],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert child.returncode == 130, (child.stdout, child.stderr)
+    assert "exit handler done" in child.stdout, child.stdout
+    assert child.stderr.strip() == "prrrp: error: interrupted", child.stderr

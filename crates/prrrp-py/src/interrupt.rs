@@ -182,8 +182,15 @@ fn clear_stop() {
     prrrp_core::interrupt::clear_stop();
 }
 
+/// Whether the flag of `request_stop` is raised (see `_prrrp.pyi`).
+#[pyfunction]
+fn stop_requested() -> bool {
+    prrrp_core::interrupt::stop_requested()
+}
+
 pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(request_stop, m)?)?;
     m.add_function(wrap_pyfunction!(clear_stop, m)?)?;
+    m.add_function(wrap_pyfunction!(stop_requested, m)?)?;
     Ok(())
 }

@@ -153,8 +153,16 @@ def console() -> NoReturn:
         if signals.received() is None:
             raise  # argparse's --help, --version and usage errors
         code = e.code if isinstance(e.code, int) else EXIT_INTERRUPTED
+    except KeyboardInterrupt:
+        # A second Ctrl-C during the first one's cleanup, in main's own handler (which
+        # has said "interrupted", or was about to).
+        code = EXIT_INTERRUPTED
     if signals.received() is None:
         sys.exit(code)
+    # The run is ending for a signal: another one (a second Ctrl-C, or `timeout`'s to the
+    # process group) would raise inside multiprocessing's exit handler and print its
+    # traceback.
+    signals.ignore()
     atexit._run_exitfuncs()
     for stream in (sys.stdout, sys.stderr):
         with contextlib.suppress(Exception):

@@ -451,6 +451,8 @@ pub fn identify_cached(
     preprocessing: serde_json::Value,
     cache: &FitCache,
 ) -> Result<IdentifiedModel> {
+    // The one-pass methods (ls, wls) never polled: a raised stop flag let them run.
+    crate::interrupt::check("identification")?;
     let n = chain.dof();
     data.check_dof(n, "the robot's")?;
     let model = chain.base_model(base)?;
