@@ -108,6 +108,12 @@ def load_robot(
                 "one chain already"
             )
         robot = BUILT_IN_ROBOTS[name]()
+    elif not os.path.splitext(name)[1] and not os.path.exists(name):
+        # "PAPER" or "puma560" read as a file without an extension.
+        raise InvalidInputError(
+            f"{name!r} is neither a built-in robot ({', '.join(map(repr, BUILT_IN_ROBOTS))}) "
+            "nor a robot file (.urdf or .toml)"
+        )
     else:
         robot = SerialChain.from_file(path, base=base, tip=tip)
     if friction is not None:
@@ -598,8 +604,14 @@ def simulate(
     if t.ndim != 1 or len(t) < 2:
         raise InvalidInputError("the trajectory needs at least two time stamps")
     dt = np.diff(t)
-    if not (np.all(dt > 0) and np.ptp(dt) <= 1e-6 * dt.mean()):
-        raise InvalidInputError("the trajectory's time stamps must be uniformly spaced")
+    # Round-off of the stamps themselves counts as uniform: epoch-sized stamps (t + 1e9 s)
+    # carry 1e-7 s of it, above 1e-6 of a 10 ms step.
+    spread = 1e-6 * dt.mean() + 8 * np.finfo(float).eps * np.abs(t).max()
+    if not (np.all(dt > 0) and np.ptp(dt) <= spread):
+        raise InvalidInputError(
+            f"the trajectory's time stamps must be uniformly spaced (steps from "
+            f"{dt.min():.6g} to {dt.max():.6g} s)"
+        )
     rate = 1.0 / dt.mean()
     ref = (t - t[0], trajectory["q"], trajectory["qd"], trajectory["qdd"])
     rec = simulate_chain(

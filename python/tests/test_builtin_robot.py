@@ -31,6 +31,10 @@ def test_the_built_in_paper_robot_is_the_closed_form_arm() -> None:
         assert np.array_equal(lim[mine], np.asarray(ref[theirs])), mine
     with pytest.raises(ValueError, match="built-in robot 'paper'"):
         prrrp.load_robot("paper", tip="link5")
+    # A misspelt name read as a file without an extension ("use .urdf or .toml").
+    for name in ("PAPER", "puma560"):
+        with pytest.raises(prrrp.InvalidInputError, match=r"neither a built-in robot \('paper'\)"):
+            prrrp.load_robot(name)
 
 
 def test_the_commands_take_the_paper_robot_by_name(tmp_path: Path, monkeypatch, capsys) -> None:

@@ -50,6 +50,19 @@ def test_python_api_refusals_are_prrrp_errors():
     traj = prrrp.excite(robot, 10.0, max_evaluations=20)
     with pytest.raises(prrrp.InvalidInputError, match="noise"):
         prrrp.simulate(robot, traj, noise=1e300)
+    # Epoch-sized time stamps (t + 1e9 s) were "not uniformly spaced": their own round-off
+    # (1e-7 s) exceeded the 1e-6·dt tolerance. The run is the one from t = 0 but for that
+    # round-off: the rate taken from the stamps is off by ~1e-5 of itself, and so is τ.
+    late = {**traj, "t": np.asarray(traj["t"]) + 1e9}
+    a = prrrp.simulate(robot, traj, seed=2, noise=0.0)
+    b = prrrp.simulate(robot, late, seed=2, noise=0.0)
+    scale = np.abs(a["tau"]).max()
+    # (The last row is at rest, where the exact-sign Coulomb term flips with the sign of a
+    # round-off velocity.)
+    np.testing.assert_allclose(b["tau"][:-1], a["tau"][:-1], rtol=0, atol=1e-4 * scale)
+    uneven = {**traj, "t": np.asarray(traj["t"]) * np.linspace(1, 1.01, len(traj["t"]))}
+    with pytest.raises(prrrp.InvalidInputError, match="uniformly spaced"):
+        prrrp.simulate(robot, uneven)
 
 
 def test_batch_rls_initial_covariance_is_bounded():

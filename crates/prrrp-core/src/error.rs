@@ -184,7 +184,10 @@ impl fmt::Display for PrrrpError {
                 signal,
             } => write!(
                 f,
-                "simulation diverged: {signal}[{joint}] (joint {}) is NaN/∞ at t = {time} s                  (sample {sample}); check the torques, gains and parameters (a non-physical                  model), or increase substeps",
+                "simulation diverged: {signal}[{joint}] (joint {}) is NaN/∞ at t = {time:.6} s \
+                 (sample {sample}); check the torques, gains and parameters (a non-physical \
+                 model, or links without mass whose mass matrix turns singular along the \
+                 path), or increase substeps",
                 joint + 1
             ),
             Self::Infeasible { what } => write!(f, "infeasible: {what}"),
@@ -308,5 +311,25 @@ mod tests {
         assert_eq!(invalid(f64::INFINITY), "invalid value inf for `x`: why");
         // NaN also stands for a field that is not a number (a name, a key).
         assert_eq!(invalid(f64::NAN), "invalid `x`: why");
+    }
+
+    #[test]
+    fn a_diverged_simulation_is_one_readable_line() {
+        // It carried two runs of 18 spaces (a broken line continuation) and t's every digit.
+        let shown = PrrrpError::SimulationDiverged {
+            sample: 119,
+            time: 1.1829999999999998,
+            joint: 0,
+            signal: "qd",
+        }
+        .to_string();
+        assert!(
+            shown.starts_with(
+                "simulation diverged: qd[0] (joint 1) is NaN/∞ at t = 1.183000 s (sample 119); "
+            ),
+            "{shown}"
+        );
+        assert!(!shown.contains("  ") && !shown.contains('\n'), "{shown}");
+        assert!(shown.contains("mass matrix turns singular"), "{shown}");
     }
 }

@@ -612,6 +612,11 @@ fn urdf_errors_name_file_and_element() {
     }
     let unlimited = text.replace("velocity=\"0.5\"", "velocity=\"0\"");
     assert!(DynChain::from_urdf_str(&unlimited, &tip("link3")).is_ok());
+    // An empty <robot> (example-robot-data's ur3.urdf): it said "the joints form a cycle".
+    assert_error_names(
+        DynChain::from_urdf_str("<robot name=\"ur3\"><!-- nothing --></robot>", &default),
+        &["<string>", "robot", "has no links"],
+    );
     // A root other than <robot>: urdf-rs would read it as a robot without links.
     let sdf = text
         .replacen("<robot", "<sdf", 1)

@@ -158,6 +158,13 @@ impl<'r> Tree<'r> {
             .collect();
         match roots.as_slice() {
             [r] => Ok(*r),
+            // An empty <robot> (example-robot-data's ur3.urdf) has no link at all.
+            [] if self.parent_joint.is_empty() => Err(file_error(
+                file,
+                "robot",
+                "the robot has no links: the file describes nothing (is it a stub, or the \
+                 wrong file?)",
+            )),
             [] => Err(file_error(
                 file,
                 "robot",
