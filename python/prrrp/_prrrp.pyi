@@ -32,8 +32,10 @@ __all__ = [
     "MIN_FACTOR",
     "NDOF",
     "NPARAM",
+    "SETTLING_PERIODS",
     "STANDARD_GRAVITY",
     "__version__",
+    "is_factor",
 ]
 
 __version__: Final[str]
@@ -55,6 +57,13 @@ MAX_FACTOR: Final[float]
 """Largest such factor (1e6), also the largest factor on simulated noise."""
 MAX_HARMONICS: Final[int]
 """Most harmonics per joint of an excitation design (100)."""
+SETTLING_PERIODS: Final[float]
+"""Cut-off periods after which a low-pass's start or edge transient counts as decayed (3,
+i.e. 3/cutoff s): the batch preprocessing trims that much at each end, and the online
+identifier updates no estimate before it."""
+
+def is_factor(v: float) -> bool:
+    """Whether ``v`` lies in [MIN_FACTOR, MAX_FACTOR] (False for NaN and infinities)."""
 
 __all__ += [
     "DivergedError",

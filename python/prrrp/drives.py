@@ -19,7 +19,7 @@ from typing import Any
 
 import numpy as np
 
-from prrrp._prrrp import MAX_FACTOR, MIN_FACTOR, SerialChain
+from prrrp._prrrp import MAX_FACTOR, MIN_FACTOR, SerialChain, is_factor
 from prrrp.csvio import InputError
 
 
@@ -42,7 +42,7 @@ def parse_gains(text: str, n: int) -> list[float]:
             f"--drive-gains has {len(gains)} values; the robot has {n} actuators (one gain each, "
             "N·m/A on the joint side)"
         )
-    bad = [g for g in gains if not (MIN_FACTOR <= abs(g) <= MAX_FACTOR)]
+    bad = [g for g in gains if not is_factor(abs(g))]
     if bad:
         raise InputError(
             f"--drive-gains: {bad[0]} is not a gain (N·m/A): each must be between "

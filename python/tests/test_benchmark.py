@@ -140,6 +140,13 @@ def small_grid(**kwargs):
     return bc.grid("ls", [1.0], [50.0], 4, excitation_evaluations=100, **kwargs)
 
 
+def test_the_pool_is_no_larger_than_the_grid() -> None:
+    # `--workers 100000` on a 4-case grid was recorded as 100000 workers in results.json.
+    cases = small_grid()
+    _, stats = runner.run_cases(cases, workers=100_000, progress=False)
+    assert stats.parallelism == len(cases) == 4
+
+
 def test_a_killed_worker_loses_only_its_case() -> None:
     cases = small_grid()
     cases[1] = dataclasses.replace(cases[1], fault="exit")  # dies on every attempt

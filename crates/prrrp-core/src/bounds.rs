@@ -56,8 +56,10 @@ pub(crate) fn check_initial_covariance(delta: f64) -> crate::error::Result<()> {
     Ok(())
 }
 
-/// Whether `v` lies in [[`MIN_FACTOR`], [`MAX_FACTOR`]] (false for NaN).
-pub(crate) fn is_factor(v: f64) -> bool {
+/// Whether `v` lies in [[`MIN_FACTOR`], [`MAX_FACTOR`]] (false for NaN and infinities).
+/// The Python package checks its factor options with the same function
+/// (`prrrp.is_factor`).
+pub fn is_factor(v: f64) -> bool {
     (MIN_FACTOR..=MAX_FACTOR).contains(&v)
 }
 

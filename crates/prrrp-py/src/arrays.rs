@@ -654,6 +654,29 @@ pub(crate) fn reject_complex(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<()>
     Ok(())
 }
 
+/// A 0-based index argument, taken as an i64 so that a negative one (Python's "from the
+/// end") is an `InvalidParameterError` naming it (`field`, built only on failure) instead of
+/// the conversion's `OverflowError`. `len`, where known, bounds it (exclusive).
+pub(crate) fn index_arg(
+    py: Python<'_>,
+    v: i64,
+    len: Option<usize>,
+    field: impl FnOnce() -> String,
+    reason: &'static str,
+) -> PyResult<usize> {
+    match usize::try_from(v).ok().filter(|&i| len.is_none_or(|n| i < n)) {
+        Some(i) => Ok(i),
+        None => Err(to_pyerr(
+            py,
+            &PrrrpError::InvalidParameter {
+                field: field(),
+                value: v as f64,
+                reason,
+            },
+        )),
+    }
+}
+
 /// A non-negative integer argument (a seed, a count). Out of range (negative, too large)
 /// is an `InvalidParameterError` — a `ValueError`, like every bad value — instead of
 /// Python's `OverflowError`; pyo3 adds a note naming the argument.

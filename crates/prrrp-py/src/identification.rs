@@ -7,7 +7,7 @@ use prrrp_core::{IdentifiedModel, PrrrpError};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
-use crate::arrays::{dyn_samples_of, map_samples_with, to_array, Out};
+use crate::arrays::{dyn_samples_of, index_arg, map_samples_with, to_array, Out};
 use crate::errors::{to_pyerr, Exc, ToPyResult};
 use crate::models::chain::PySerialChain;
 
@@ -848,28 +848,18 @@ fn link_index(
             )),
         };
     }
-    // An i64, so that -1 (Python's "last") is named as out of range, not an OverflowError.
     let i: i64 = tip.extract()?;
-    match usize::try_from(i).ok().filter(|&i| i < links.len()) {
-        Some(i) => Ok(Some(i)),
-        None => Err(to_pyerr(
-            py,
-            &prrrp_core::PrrrpError::InvalidParameter {
-                field: format!(
-                    "tip {i} (links: {})",
-                    links
-                        .iter()
-                        .enumerate()
-                        .map(|(k, l)| format!("{k} = {l}"))
-                        .collect::<Vec<_>>()
-                        .join(", ")
-                ),
-                value: i as f64,
-                reason: "is not a link index of the model's chain; give one of its \
-                         indices (0-based) or the link's name",
-            },
-        )),
-    }
+    let field = || {
+        let listed: Vec<String> = links
+            .iter()
+            .enumerate()
+            .map(|(k, l)| format!("{k} = {l}"))
+            .collect();
+        format!("tip {i} (links: {})", listed.join(", "))
+    };
+    let reason = "is not a link index of the model's chain; give one of its indices \
+                  (0-based) or the link's name";
+    index_arg(py, i, Some(links.len()), field, reason).map(Some)
 }
 
 /// Drive gains, the arm and the payload from current logs of an unloaded and a loaded

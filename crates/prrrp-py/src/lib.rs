@@ -27,6 +27,13 @@ mod validation;
 
 use pyo3::prelude::*;
 
+/// Whether `v` lies in [MIN_FACTOR, MAX_FACTOR] (false for NaN and infinities): the
+/// core's own check, so that Python's options are bounded as the library's fields are.
+#[pyfunction]
+fn is_factor(v: f64) -> bool {
+    prrrp_core::is_factor(v)
+}
+
 /// The native part of prrrp; import `prrrp` instead.
 #[pymodule]
 fn _prrrp(m: &Bound<'_, PyModule>) -> PyResult<()> {
@@ -38,6 +45,8 @@ fn _prrrp(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("MIN_FACTOR", prrrp_core::MIN_FACTOR)?;
     m.add("MAX_FACTOR", prrrp_core::MAX_FACTOR)?;
     m.add("MAX_HARMONICS", prrrp_core::MAX_HARMONICS)?;
+    m.add("SETTLING_PERIODS", prrrp_core::SETTLING_PERIODS)?;
+    m.add_function(wrap_pyfunction!(is_factor, m)?)?;
     errors::register(m)?;
     models::robot::register(m)?;
     models::chain::register(m)?;

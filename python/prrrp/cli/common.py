@@ -175,7 +175,8 @@ def check_factor(flag: str, v: float | None, low: float = MIN_FACTOR, unit: str 
     1e-300 zero (a payload mass of 1e-300 kg gave 217 kg·m² of inertia). The library
     refuses them too, but by its field's name, not the flag's.
     """
-    if v is not None and not (math.isfinite(v) and low <= v <= MAX_FACTOR):
+    # NaN fails both comparisons; `is_factor` is this range with low = MIN_FACTOR.
+    if v is not None and not low <= v <= MAX_FACTOR:
         raise CliError(f"{flag} must be between {low:g} and {MAX_FACTOR:g}{unit}, got {v:g}")
 
 

@@ -12,7 +12,7 @@ from typing import Any
 import numpy as np
 
 from prrrp import csvio, outdir, workflow
-from prrrp._prrrp import MAX_FACTOR, MIN_FACTOR
+from prrrp._prrrp import MAX_FACTOR, MIN_FACTOR, is_factor
 from prrrp.cli import common, deprecated
 
 #: ``prrrp excite --help``.
@@ -112,7 +112,7 @@ def limits(text: str | None, n: int) -> dict[str, np.ndarray] | None:
         except argparse.ArgumentTypeError as e:
             raise common.CliError(f"--limits: {key}: {e}") from None
         # A bound on |q̇| or |q̈| of 1e-300 designed a trajectory with cond(W) = 6e299.
-        if key in ("velocity", "acceleration") and not MIN_FACTOR <= v <= MAX_FACTOR:
+        if key in ("velocity", "acceleration") and not is_factor(v):
             raise common.CliError(
                 f"--limits: {key} must be between {MIN_FACTOR:g} and {MAX_FACTOR:g} "
                 f"(rad/s{'²' if key == 'acceleration' else ''} or m/s"

@@ -184,29 +184,27 @@ def _check_rate(t: np.ndarray, cutoff: float, forgetting: float | None) -> None:
         )
 
 
-#: Periods of the cut-off frequency counted as the causal low-pass's start-up transient
-#: (as the batch preprocessing trims 3/cutoff s).
-SETTLING_PERIODS = 3.0
-
-
 def _check_settling(t: np.ndarray, cutoff: float | None) -> None:
-    """CliError for a --cutoff whose start-up transient (3/cutoff s) outlasts the whole log:
-    no row could update the estimate (1e-300 Hz ran to the end and wrote the starting
-    model). The default cut-off on a log that short is only warned of, after the run."""
+    """CliError for a --cutoff whose start-up transient (SETTLING_PERIODS/cutoff s, the
+    online identifier's own rule) outlasts the whole log: no row could update the estimate
+    (1e-300 Hz ran to the end and wrote the starting model). The default cut-off on a log
+    that short is only warned of, after the run."""
     if cutoff is None:
         return
     span = float(t[-1] - t[0])
-    if SETTLING_PERIODS / cutoff > span:
+    settling = prrrp.SETTLING_PERIODS / cutoff
+    if settling > span:
         raise common.CliError(
-            f"--cutoff {cutoff:g} Hz settles in {SETTLING_PERIODS / cutoff:.3g} s "
-            f"({SETTLING_PERIODS:g}/cutoff), longer than the log ({span:.3g} s): no row would "
-            "update the estimate; give a higher --cutoff"
+            f"--cutoff {cutoff:g} Hz settles in {settling:.3g} s "
+            f"({prrrp.SETTLING_PERIODS:g}/cutoff), longer than the log ({span:.3g} s): no row "
+            "would update the estimate; give a higher --cutoff"
         )
 
 
 def _positive(name: str, v: float | None) -> None:
-    if v is not None and not (math.isfinite(v) and v > 0):
-        raise common.CliError(f"{name} must be finite and > 0, got {v}")
+    # `common.number` has made it finite.
+    if v is not None and not v > 0:
+        raise common.CliError(f"{name} must be > 0, got {v}")
 
 
 def run(args: argparse.Namespace) -> int:

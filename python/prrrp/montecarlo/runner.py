@@ -74,12 +74,15 @@ def _invalid(message: str) -> Exception:
 class _Engine:
     """The executor, and for the runner's own pool the means to kill and restart it."""
 
-    def __init__(self, executor: Any, workers: int | None) -> None:
+    def __init__(self, executor: Any, workers: int | None, cases: int) -> None:
         self.owned = executor is None
         if self.owned:
             count = (os.cpu_count() or 1) if workers is None else workers
             if not (isinstance(count, int) and count >= 1):
                 raise _invalid(f"workers must be a positive integer, got {workers!r}")
+            # No more cases than workers are in flight: a larger pool would only be recorded
+            # (100000 workers read in results.json for a 12-case grid).
+            count = min(count, cases)
             self.workers = count
             self.executor: Any = self._new_pool()
             self.name = f"process pool ({count} workers)"
@@ -232,7 +235,7 @@ def run_cases(
     if not (isinstance(retries, int) and retries >= 0):
         raise _invalid(f"retries must be an integer >= 0, got {retries!r}")
     t0 = time.perf_counter()
-    engine = _Engine(executor, workers)
+    engine = _Engine(executor, workers, len(cases))
     bar: _Bar | None = None
     inflight: dict[cf.Future, tuple[Case, float]] = {}
     try:

@@ -13,6 +13,13 @@ pub use log::{
     preprocess_log, LogConfig, LogReport, DEFAULT_LOG_CUTOFF_HZ, LOG_MAX_UPSAMPLING,
     LOG_UNIFORM_TOLERANCE,
 };
+/// Cut-off periods after which a Butterworth low-pass's start or edge transient counts as
+/// decayed: 3, i.e. 3/f_c s (its slowest pole decays as exp(−2π·f_c·sin(π/(2·order))·t),
+/// below 1 % for order 4). The batch preprocessing trims that much at each end by default;
+/// the online identifier's causal filter updates no estimate before it (and `prrrp track`
+/// refuses a `--cutoff` whose settling outlasts the log).
+pub const SETTLING_PERIODS: f64 = 3.0;
+
 // Kept at its old path too (it was defined here).
 pub use crate::bounds::MAX_MAGNITUDE;
 

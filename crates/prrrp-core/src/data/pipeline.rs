@@ -4,6 +4,7 @@
 use crate::data::dataset::DynDataset;
 use crate::data::preprocess::ButterworthLowPass;
 use crate::error::{PrrrpError, Result};
+use crate::data::SETTLING_PERIODS;
 
 /// Where grid sample i comes from: rows `a` and `b` of the (row-major) inputs mixed as
 /// (1 − w)·x_a + w·x_b. w = 0 takes x_a exactly, so a grid that is the input's own rows
@@ -95,7 +96,7 @@ pub(crate) fn filter_and_differentiate(
     // A user trim can be anything: compare sizes without overflow before allocating.
     let trim = cfg
         .trim
-        .unwrap_or_else(|| (3.0 * fs / cfg.cutoff_hz).ceil() as usize)
+        .unwrap_or_else(|| (SETTLING_PERIODS * fs / cfg.cutoff_hz).ceil() as usize)
         .max(1);
     let needed = trim
         .checked_mul(2)

@@ -85,10 +85,12 @@ impl CausalLowPass {
         std::f64::consts::PI / self.omega
     }
 
-    /// Whether the start transient has decayed: 3 cut-off periods (as the batch
-    /// preprocessing trims) since the last (re)start.
+    /// Whether the start transient has decayed: [`crate::SETTLING_PERIODS`] cut-off
+    /// periods (as the batch preprocessing trims) since the last (re)start.
     pub fn ready(&self) -> bool {
-        self.started && self.age * self.omega >= 6.0 * std::f64::consts::PI
+        // 2π·3 rounds as 6π did: 2π is exact times a power of two.
+        self.started
+            && self.age * self.omega >= 2.0 * std::f64::consts::PI * crate::SETTLING_PERIODS
     }
 
     /// Forgets everything; the next sample restarts the filter.

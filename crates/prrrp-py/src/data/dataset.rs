@@ -7,7 +7,7 @@ use prrrp_core::{preprocess_log, Dataset, DatasetOf, DynDataset, LogConfig, Prrr
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PySlice};
 
-use crate::arrays::{any_array, to_array, vector, Out, UInt};
+use crate::arrays::{any_array, index_arg, to_array, vector, Out, UInt};
 use crate::errors::{to_pyerr, ToPyResult};
 
 /// Time stamps t (N,) s and q, qd, qdd, tau (N, n), checked on creation: equal lengths,
@@ -106,19 +106,8 @@ pymethods_with_getters!(PyDataset {
     /// Samples start..stop (step 1) as a new validated data set; raises
     /// TooFewSamplesError if fewer than 8 remain.
     fn slice(&self, py: Python<'_>, start: i64, stop: i64) -> PyResult<Self> {
-        // i64, so that a negative index is named, not an OverflowError of the conversion.
-        let index = |name: &str, v: i64| {
-            usize::try_from(v).map_err(|_| {
-                to_pyerr(
-                    py,
-                    &PrrrpError::InvalidParameter {
-                        field: name.into(),
-                        value: v as f64,
-                        reason: "must be >= 0 (a sample index; data[a:b] takes negative ones)",
-                    },
-                )
-            })
-        };
+        let reason = "must be >= 0 (a sample index; data[a:b] takes negative ones)";
+        let index = |name: &str, v: i64| index_arg(py, v, None, || name.into(), reason);
         let range = index("start", start)?..index("stop", stop)?;
         let inner = self.inner.slice(range).to_py(py)?;
         Ok(Self { inner })
