@@ -600,6 +600,13 @@ def simulate(
         raise InvalidInputError(
             f"max_tracking_error must be a positive number or None, got {max_tracking_error}"
         )
+    missing = [k for k in ("t", "q", "qd", "qdd") if k not in trajectory]
+    if missing:
+        # A plain KeyError named neither the argument nor what it should hold.
+        raise InvalidInputError(
+            f"the trajectory has no {', '.join(missing)}: give a dict of t, q, qd and qdd "
+            "(as prrrp.excite returns)"
+        )
     t = np.asarray(trajectory["t"], dtype=float)
     if t.ndim != 1 or len(t) < 2:
         raise InvalidInputError("the trajectory needs at least two time stamps")

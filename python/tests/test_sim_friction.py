@@ -147,3 +147,6 @@ def test_simulate_function_holds_the_same_bound():
     assert prrrp.simulate(robot, traj, noise=0.0, max_tracking_error=None)["t"].shape == t.shape
     with pytest.raises(ValueError, match="max_tracking_error"):
         prrrp.simulate(robot, traj, max_tracking_error=float("nan"))
+    # A trajectory without its velocities was a bare KeyError('qd').
+    with pytest.raises(prrrp.InvalidInputError, match="no qd, qdd"):
+        prrrp.simulate(robot, {"t": t, "q": q})

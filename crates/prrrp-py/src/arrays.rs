@@ -664,7 +664,10 @@ pub(crate) fn index_arg(
     field: impl FnOnce() -> String,
     reason: &'static str,
 ) -> PyResult<usize> {
-    match usize::try_from(v).ok().filter(|&i| len.is_none_or(|n| i < n)) {
+    match usize::try_from(v)
+        .ok()
+        .filter(|&i| len.is_none_or(|n| i < n))
+    {
         Some(i) => Ok(i),
         None => Err(to_pyerr(
             py,

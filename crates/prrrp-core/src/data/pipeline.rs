@@ -3,8 +3,8 @@
 
 use crate::data::dataset::DynDataset;
 use crate::data::preprocess::ButterworthLowPass;
-use crate::error::{PrrrpError, Result};
 use crate::data::SETTLING_PERIODS;
+use crate::error::{PrrrpError, Result};
 
 /// Where grid sample i comes from: rows `a` and `b` of the (row-major) inputs mixed as
 /// (1 − w)·x_a + w·x_b. w = 0 takes x_a exactly, so a grid that is the input's own rows

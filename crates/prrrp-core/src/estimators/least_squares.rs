@@ -40,6 +40,9 @@ pub type DynLeastSquaresReport = LeastSquaresReportOf<Dyn, Dyn>;
 /// usually reached, to 0.1 %, in two to five).
 const MAX_VARIANCE_PASSES: usize = 20;
 
+/// Samples between two polls of the stop flag while W is stacked (one atomic load each).
+const POLL_SAMPLES: usize = 1024;
+
 /// Largest condition number for which the normal equations are trusted (dimensionless).
 /// Their relative error is ≈ cond²·ε: at cond ≤ 1e4 that is ≤ 1e4²·2.2e-16 ≈ 2e-8 before
 /// the refinement step (which takes it to ≈ cond·ε), far below the parameters' statistical
@@ -290,6 +293,7 @@ impl LeastSquares {
                     // it; the fixed point is reached in a few passes.
                     let dof = data.len() as f64 - pd.value() as f64 / nd.value() as f64;
                     for _ in 0..MAX_VARIANCE_PASSES {
+                        crate::interrupt::check("least squares")?;
                         let scale = var.map(|s| 1.0 / s.sqrt());
                         let (_, weighted_ss) = self.solve_scaled(model, data, &scale)?;
                         // The weighted residuals are ρ_j/σ_j.
@@ -333,7 +337,7 @@ impl LeastSquares {
         if !self.unscaled {
             let ones = OVector::<f64, N>::repeat_generic(nd, U1, 1.0);
             self.masks = self.build(model, data, &ones)?;
-            self.joint_moments_of_w(n);
+            self.joint_moments_of_w(n)?;
             self.unscaled = true;
         }
         if let Some(done) = self.normal_equations(nd, pd, n, row_scale.as_slice()) {
@@ -346,12 +350,14 @@ impl LeastSquares {
     }
 
     /// W_iᵀW_i and W_iᵀy_i of every joint i of the stacked (unscaled) W.
-    fn joint_moments_of_w(&mut self, n: usize) {
+    fn joint_moments_of_w(&mut self, n: usize) -> Result<()> {
         let (nj, p) = (self.masks.len(), self.w.ncols());
         self.joint_grams.resize_with(nj, Mat::new);
         self.joint_wty.resize_with(nj, Mat::new);
         let mut runs: Vec<(usize, usize)> = Vec::with_capacity(8);
         for i in 0..nj {
+            // Each joint's product is a fraction of a second on a 200k-row log.
+            crate::interrupt::check("least squares")?;
             let g = &mut self.joint_grams[i];
             g.resize_with(p, p, |_, _| 0.0);
             g.fill(0.0);
@@ -360,6 +366,7 @@ impl LeastSquares {
             wty.fill(0.0);
             gram_and_wty_of_joint(&self.w, &self.y, i, self.masks[i], n, &mut runs, g, wty);
         }
+        Ok(())
     }
 
     /// Each joint's W_iᵀW_i (full, symmetric) of the last solve's unscaled W, or `None`
@@ -442,6 +449,12 @@ impl LeastSquares {
         let mut masks = OVector::<u64, N>::zeros_generic(nd, U1);
         let w = &mut self.w;
         for (k, s) in data.iter().enumerate() {
+            // A regressor per sample is the expensive part of a solve (seconds on a 200k-row
+            // log, several times over for the QR path of weighted least squares): Ctrl-C
+            // took up to 9 s to stop `identify --method wls` there.
+            if k % POLL_SAMPLES == 0 {
+                crate::interrupt::check("least squares")?;
+            }
             model.with_regressor(&mut ws, s.q, s.qd, s.qdd, &mut phi, |phi| {
                 for j in 0..np {
                     // More than 64 parameters: one block (every bit set).
@@ -637,6 +650,7 @@ impl LeastSquares {
             }
         }
         for (joints, params) in &blocks {
+            crate::interrupt::check("least squares")?;
             let (rows, pc) = (joints.len() * n, params.len());
             if !whole {
                 self.block.resize_with(rows, pc, |_, _| 0.0);
