@@ -65,17 +65,25 @@ class TrackingError(PrrrpError, RuntimeError):
     def __init__(
         self, error: float, joint: int, joint_name: str, t: float, bound: float, robot: str
     ) -> None:
-        self.error, self.joint, self.joint_name, self.t, self.bound = (
+        self.error, self.joint, self.joint_name, self.t, self.bound, self.robot = (
             error,
             joint,
             joint_name,
             t,
             bound,
+            robot,
         )
-        super().__init__(
-            f"the simulated {robot} strays {error:.3g} rad or m from the trajectory (joint "
-            f"{joint + 1}, {joint_name}, at t = {t:g} s), more than the bound {bound:g}. "
-            "Check the trajectory against the robot's limits and its inertials and friction"
+        super().__init__(self.describe("the bound", "max_tracking_error"))
+
+    def describe(self, bound_name: str, option: str) -> str:
+        """The message, naming the bound as ``bound_name`` and its setting as ``option``
+        (the command line names its flag)."""
+        return (
+            f"the simulated {self.robot} strays {self.error:.3g} rad or m from the trajectory "
+            f"(joint {self.joint + 1}, {self.joint_name}, at t = {self.t:g} s), more than "
+            f"{bound_name} {self.bound:g}. Check the trajectory against the robot's limits, "
+            "inertials and friction; a slower trajectory (longer, or lower velocity limits) "
+            f"is followed more closely, or allow more with {option}"
         )
 
 

@@ -175,10 +175,7 @@ def run(args: argparse.Namespace) -> int:
         )
     except workflow.TrackingError as e:
         raise common.CliError(
-            f"the simulated {robot.name} strays {e.error:.3g} rad or m from the trajectory "
-            f"(joint {e.joint + 1}, {e.joint_name}, at t = {e.t:g} s), more than "
-            f"--max-tracking-error {bound:g}; no data written. Check the trajectory against "
-            "the robot's limits and its inertials and friction",
+            e.describe("--max-tracking-error", "--max-tracking-error") + " (no data written)",
             common.EXIT_FAILED,
         ) from None
     except ValueError as e:
