@@ -56,9 +56,19 @@ def test_the_commands_take_the_paper_robot_by_name(tmp_path: Path, monkeypatch, 
     assert cli.main(argv) == 0, capsys.readouterr()
     model = prrrp.IdentifiedModel.load(tmp_path / "fit" / "model.json")
     assert model.robot.dof == 5
+    capsys.readouterr()
     assert cli.main(["predict", "fit/model.json", "val.csv", "--out", "tau.csv"]) == 0
+    assert "no better than predicting zero torque" not in capsys.readouterr().out
     table = np.loadtxt(tmp_path / "tau.csv", delimiter=",", skiprows=1)
     raw = csvio.read_table(tmp_path / "val.csv", 5, real_log=True)
+    # The same log with its torques' signs flipped (a sensor wired the other way): the
+    # errors read about 200 % and nothing else said the log was at fault.
+    header = (tmp_path / "val.csv").read_text().splitlines()[0]
+    flipped = np.loadtxt(tmp_path / "val.csv", delimiter=",", skiprows=1)
+    flipped[:, 6:] *= -1
+    np.savetxt("flipped.csv", flipped, delimiter=",", header=header, comments="")
+    assert cli.main(["predict", "fit/model.json", "flipped.csv", "--out", "f.csv"]) == 0
+    assert "no better than predicting zero torque" in capsys.readouterr().out
     inner = table[:, -1] == 0
     # Noise-free: the measured torque is the arm's own (the closed form's, test above).
     measured = np.asarray(raw["tau"])[inner]

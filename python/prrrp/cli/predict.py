@@ -92,5 +92,27 @@ def run(args: argparse.Namespace) -> int:
         for j, r, p in zip(joints, errors["rms"], errors["percent"], strict=True)
     ]
     common.print_table(["joint", "RMS (N·m, N)", "% of measured RMS"], rows)
+    say_mismatch(errors["percent"])
     print(f"torques in {out}")
     return common.EXIT_OK
+
+
+#: Error (% of the measured RMS torque) from which a joint's prediction is no better than
+#: predicting zero torque (100 %) would be, give or take the noise.
+MISMATCH_PERCENT = 90.0
+
+
+def say_mismatch(percent: np.ndarray) -> None:
+    """Prints a note when every joint with a measured torque is predicted no better than
+    zero torque would be: a model identified on another kind of log (a motor-side model
+    read joint-side positions as motor angles and printed 98-100 % with nothing else),
+    another joint order, other units or torque signs, not a poor model."""
+    scored = percent[np.isfinite(percent)]
+    if scored.size and np.all(scored >= MISMATCH_PERCENT):
+        print(
+            f"every joint's error is {MISMATCH_PERCENT:g} % or more, no better than predicting "
+            "zero torque: the log is likely not the kind the model was identified from. "
+            "Check the joint order, units and torque signs, and whether positions and "
+            "torques are logged on the side (motor or joint) and in the quantity (torque or "
+            "current) the model expects"
+        )
