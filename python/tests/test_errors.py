@@ -73,6 +73,9 @@ def test_batch_rls_initial_covariance_is_bounded():
     rec = prrrp.simulate(robot, traj, seed=1)
     with pytest.raises(prrrp.InvalidParameterError, match="initial_covariance"):
         prrrp.identify_measurements(robot, rec, "rls", initial_covariance=1e12)
+    # 1e-300 returned the zero start with σ ≈ 1e-150 as "converged".
+    with pytest.raises(prrrp.InvalidParameterError, match="MIN_INITIAL_COVARIANCE"):
+        prrrp.identify_measurements(robot, rec, "rls", initial_covariance=1e-300)
     model = prrrp.identify_measurements(robot, rec, "rls", initial_covariance=1e9).model
     assert np.all(np.isfinite(model.beta))
 

@@ -159,6 +159,7 @@ def test_bad_input_is_a_typed_error(setup):
         {"seed": -1},
         {"initial_covariance": 1e12},
         {"method": "ekf", "initial_covariance": 1e12},
+        {"initial_covariance": 1e-300},
     ):
         with pytest.raises(prrrp.InvalidParameterError):
             prrrp.OnlineIdentifier(chain, **bad)

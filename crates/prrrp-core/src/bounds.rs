@@ -40,9 +40,24 @@ pub const MAX_INERTIAL: f64 = 1e12;
 /// UR5 stand-in (30 s), the fit moved at 1e12 and diverged at 1e14.
 pub const MAX_INITIAL_COVARIANCE: f64 = 1e9;
 
-/// Refuses an initial covariance `delta` (field `initial_covariance`) above
-/// [`MAX_INITIAL_COVARIANCE`]; NaN and the lower end are the callers' own checks.
+/// Smallest initial covariance δ on equilibrated columns: [`MIN_FACTOR`]², 1e-12 (δ is a
+/// variance, the square of a width). It already holds the estimate at λ₀ (a prior σ of
+/// 1e-6 N·m on the torque each parameter explains); 1e-300 reported λ₀ with σ ≈ 1e-150 as
+/// "converged", a certainty no data gave.
+pub const MIN_INITIAL_COVARIANCE: f64 = MIN_FACTOR * MIN_FACTOR;
+
+/// Refuses an initial covariance `delta` (field `initial_covariance`) outside
+/// [[`MIN_INITIAL_COVARIANCE`], [`MAX_INITIAL_COVARIANCE`]]; NaN is the callers' own check.
 pub(crate) fn check_initial_covariance(delta: f64) -> crate::error::Result<()> {
+    if delta < MIN_INITIAL_COVARIANCE {
+        return Err(crate::error::invalid(
+            "initial_covariance",
+            delta,
+            "must be at least MIN_INITIAL_COVARIANCE (1e-12 on equilibrated columns, a prior \
+             σ of 1e-6 N·m on the torque each parameter explains, already a prior the data \
+             cannot move): smaller values claim a certainty no data gave",
+        ));
+    }
     if delta > MAX_INITIAL_COVARIANCE {
         return Err(crate::error::invalid(
             "initial_covariance",

@@ -176,7 +176,8 @@ pub struct RlsSettings {
     /// Initial covariance δ of P₀ = δ·I in the units of the scaled parameters γ (N²·m²
     /// per N²·m² of torque: dimensionless with equilibrated columns; default `1e6`, a
     /// prior standard deviation of 1000 N·m on each γ_j, the RMS torque parameter j
-    /// explains; at most [`crate::MAX_INITIAL_COVARIANCE`] with `scale_columns`).
+    /// explains; within [`crate::MIN_INITIAL_COVARIANCE`]..[`crate::MAX_INITIAL_COVARIANCE`]
+    /// with `scale_columns`).
     pub initial_covariance: f64,
     /// Equilibrate the columns (default `true`); without, δ is in the units of β².
     pub scale_columns: bool,

@@ -119,8 +119,8 @@ pub struct OnlineConfig {
     pub open_factor: f64,
     /// RLS initial covariance δ of the equilibrated parameters (N²·m² per unit weighted
     /// error², default `1e6`: a prior σ of 1000 N·m on the torque each parameter
-    /// explains; at most [`crate::MAX_INITIAL_COVARIANCE`]) when no prior covariance is
-    /// given.
+    /// explains; within [`crate::MIN_INITIAL_COVARIANCE`]..[`crate::MAX_INITIAL_COVARIANCE`])
+    /// when no prior covariance is given.
     pub initial_covariance: f64,
     /// Width of the prior from a prior model's covariance (default `3.0`: P₀ = 3²·Σ_prior;
     /// [`crate::MIN_FACTOR`] to [`crate::MAX_FACTOR`]).
