@@ -273,6 +273,8 @@ def test_non_physical_inertials_load_and_are_flagged(mass, ixx):
         ("<robot name='x'><link name='a'/>", "XML"),
         (BAD_INERTIA.replace('xyz="0 0 1"', 'xyz="0 0 0"'), "j1"),
         (BAD_INERTIA.replace('xyz="0 0 1"', 'xyz="0 0 2"'), "j1"),
+        # Spelt with all 309 digits of each number, a 756-character message.
+        (BAD_INERTIA.replace('xyz="0 0 1"', 'xyz="1e308 1e308 0"'), '"1e308 1e308 0"'),
         (BAD_INERTIA.replace('type="revolute"', 'type="floating"'), "j1"),
         (BAD_INERTIA.replace('type="revolute"', 'type="planar"'), "j1"),
     ],

@@ -326,9 +326,16 @@ fn names<'a>(it: impl Iterator<Item = &'a str>) -> String {
 
 /// Numbers as a URDF attribute writes them: `"0 nan 1.5"`.
 fn xml_numbers(values: &[f64]) -> String {
+    // Exponent form far from 1: `to_string` spelt 1e308 with all its 309 digits.
     let v: Vec<String> = values
         .iter()
-        .map(|v| v.to_string().to_lowercase())
+        .map(|&v| {
+            if v != 0.0 && v.is_finite() && !(1e-4..1e15).contains(&v.abs()) {
+                format!("{v:e}")
+            } else {
+                v.to_string().to_lowercase()
+            }
+        })
         .collect();
     format!("\"{}\"", v.join(" "))
 }
