@@ -17,6 +17,11 @@ use super::file_error;
 use crate::error::Result;
 use crate::models::chain::{Actuators, DynChain};
 
+/// A reduction of 0 says the motor does not move its joint: no transmission.
+const ZERO_REDUCTION: &str = "a mechanical reduction of 0 (the motor would not move the joint): \
+     give the gear ratio, motor turns per joint turn, e.g. \
+     <mechanicalReduction>100</mechanicalReduction>, or leave it out for 1";
+
 /// An XML element: name as written (with its prefix), attributes, text, children.
 #[derive(Debug, Default)]
 struct Element {
@@ -260,7 +265,7 @@ pub(super) fn actuators_from_urdf(xml: &str, file: &str, chain: &DynChain) -> Re
                     * j.reduction.unwrap_or(1.0)
                     * outer.unwrap_or(1.0);
                 if r == 0.0 {
-                    return Err(file_error(file, at, "a mechanical reduction of 0"));
+                    return Err(file_error(file, at, ZERO_REDUCTION));
                 }
                 g[k * n + k] = r;
                 covered[k] = a.is_some_and(|a| a.reduction.or(a.gear_ratio).is_some())
@@ -293,7 +298,7 @@ pub(super) fn actuators_from_urdf(xml: &str, file: &str, chain: &DynChain) -> Re
                         .unwrap_or(1.0)
                 });
                 if nj.contains(&0.0) || na.contains(&0.0) {
-                    return Err(file_error(file, at, "a mechanical reduction of 0"));
+                    return Err(file_error(file, at, ZERO_REDUCTION));
                 }
                 let rows = if kind == Kind::Differential {
                     [
