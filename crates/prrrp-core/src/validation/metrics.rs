@@ -115,6 +115,14 @@ pub fn rsd(observed: &[f64], predicted: &[f64]) -> Result<f64> {
     let s = scale(observed, predicted);
     let num = sse(observed, predicted, s);
     let den: f64 = observed.iter().map(|o| (o / s) * (o / s)).sum();
+    // Σ(o/s)² also underflows to 0 when the prediction dwarfs a non-zero observation by
+    // more than ~1e160 (the scale s is the larger of both): that is no zero series.
+    if den == 0.0 && observed.iter().any(|&o| o != 0.0) {
+        return finite(
+            f64::INFINITY,
+            "rsd (the residual dwarfs the observed series beyond the f64 range)",
+        );
+    }
     if den == 0.0 {
         return if num == 0.0 {
             Ok(0.0)
@@ -218,6 +226,12 @@ mod tests {
         assert_eq!(agreement_index(&c, &[3.0; 5]).unwrap(), 0.0);
         let z = [0.0; 5];
         assert_eq!(rsd(&z, &z).unwrap(), 0.0);
+        // Σ(o/s)² underflows with a prediction 1e195 times the observation: that was
+        // reported as an observed series of zeros.
+        assert!(matches!(
+            rsd(&[6.67, -3.0], &[1e195, 2e195]),
+            Err(PrrrpError::NonFinite { .. })
+        ));
         assert!(matches!(
             rsd(&z, &[1.0; 5]),
             Err(PrrrpError::InvalidParameter { .. })
