@@ -16,6 +16,7 @@ pub(crate) use methods::Rows;
 mod payload;
 pub use payload::{
     identify_drive_gains, identify_payload, DriveGainSettings, DriveGainsFit, PayloadSettings,
+    MAX_DRIVE_GAIN_ITERATIONS,
 };
 
 pub use methods::{

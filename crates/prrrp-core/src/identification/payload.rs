@@ -56,6 +56,12 @@ impl Default for PayloadSettings {
     }
 }
 
+/// Largest [`DriveGainSettings::iterations`]: 1000. The instrumental-variable estimate
+/// settles within a few iterations (the default is 3), and each one re-reads both runs, so
+/// more than 300 times the default only burns time (1000 took 30 s on two 400-sample UR5
+/// runs in a debug build; `usize::MAX` never returned).
+pub const MAX_DRIVE_GAIN_ITERATIONS: usize = 1000;
+
 /// Settings of [`identify_drive_gains`].
 #[derive(Debug, Clone, PartialEq)]
 pub struct DriveGainSettings {
@@ -67,7 +73,7 @@ pub struct DriveGainSettings {
     /// Separate friction terms for the loaded run (default true).
     pub refit_friction: bool,
     /// Instrumental-variable iterations after the least-squares start (default 3; 0 gives
-    /// the naive least-squares estimate).
+    /// the naive least-squares estimate; at most [`MAX_DRIVE_GAIN_ITERATIONS`]).
     pub iterations: usize,
     /// A gain counts as determined when σ is at most this fraction of it (default 0.05).
     pub max_relative_sigma: f64,
@@ -711,8 +717,9 @@ fn residual_rms(model: &IdentifiedModel, data: &DynDataset) -> Result<Vec<f64>> 
 /// trusted), the payload, and the naive least-squares gains.
 ///
 /// # Errors
-/// As [`identify_payload`]; [`PrrrpError::InvalidParameter`] for a mass outside 1e-6..1e6 kg;
-/// [`PrrrpError::RankDeficient`] when the runs determine no gain at all.
+/// As [`identify_payload`]; [`PrrrpError::InvalidParameter`] for a mass outside 1e-6..1e6 kg
+/// or more than [`MAX_DRIVE_GAIN_ITERATIONS`] iterations; [`PrrrpError::RankDeficient`] when
+/// the runs determine no gain at all; [`PrrrpError::Interrupted`] on a stop request.
 pub fn identify_drive_gains(
     model: &IdentifiedModel,
     unloaded: &DynDataset,
@@ -721,6 +728,14 @@ pub fn identify_drive_gains(
 ) -> Result<DriveGainsFit> {
     let (chain, n, p) = checked_chain(model, &[unloaded, loaded])?;
     check_mass(settings.mass)?;
+    if settings.iterations > MAX_DRIVE_GAIN_ITERATIONS {
+        return Err(PrrrpError::InvalidParameter {
+            field: "iterations".into(),
+            value: settings.iterations as f64,
+            reason: "more than MAX_DRIVE_GAIN_ITERATIONS (1000) instrumental-variable \
+                     iterations: the estimate settles within a few (default 3)",
+        });
+    }
     let l = check_link(settings.link, n)?;
     let coupling = chain.actuators().coupling_row_major(n);
     let indep = model.base.independent.clone();
@@ -797,6 +812,7 @@ pub fn identify_drive_gains(
     let naive: Vec<f64> = fit.x.rows(0, n).iter().copied().collect();
     let mut acc = acc;
     for _ in 0..settings.iterations {
+        crate::interrupt::check("drive-gain identification")?;
         let x_prev = fit.x.clone();
         acc = accumulate(n, k, total, &mut |s, a, z, y| {
             rows(s, a, z, y, Some(&x_prev))
@@ -940,4 +956,30 @@ fn to_torques(data: &DynDataset, coupling: &[f64], gains: &[f64]) -> Result<DynD
         }
     }
     data.with_tau(tau)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::identification::{identify, LsSettings, Method};
+    use crate::test_support::{puma, random_data};
+    use crate::BaseOptions;
+
+    #[test]
+    fn drive_gain_iterations_beyond_the_bound_are_refused() {
+        let chain = puma(false);
+        let data = random_data(200, 7, |_| 2.0);
+        let base = chain.base_parameters(&BaseOptions::default()).unwrap();
+        let ls = Method::Ls(LsSettings::default());
+        let model = identify(&chain, &base, &data, &ls, serde_json::Value::Null).unwrap();
+        let settings = DriveGainSettings {
+            iterations: MAX_DRIVE_GAIN_ITERATIONS + 1,
+            ..DriveGainSettings::new(1.0)
+        };
+        let got = identify_drive_gains(&model, &data, &data, &settings);
+        assert!(
+            matches!(&got, Err(PrrrpError::InvalidParameter { field, .. }) if field == "iterations"),
+            "{got:?}"
+        );
+    }
 }
