@@ -131,11 +131,11 @@ impl LimitUsage {
 }
 
 /// How much of `limits` the trajectory uses on t ∈ [t0, t1], evaluated at `points`
-/// (≥ 2) equally spaced instants including both ends.
+/// (2 to [`crate::MAX_SAMPLES`]) equally spaced instants including both ends.
 ///
 /// # Errors
-/// [`PrrrpError::InvalidParameter`] if the interval is empty or not finite or `points < 2`;
-/// errors of [`JointLimits::validate`].
+/// [`PrrrpError::InvalidParameter`] if the interval is empty or not finite, `points < 2` or
+/// `points` exceeds [`crate::MAX_SAMPLES`] (10⁷); errors of [`JointLimits::validate`].
 pub fn limit_usage<T: JointTrajectory + ?Sized>(
     traj: &T,
     limits: &JointLimits,
@@ -158,6 +158,12 @@ pub fn limit_usage<T: JointTrajectory + ?Sized>(
             reason: "at least 2 evaluation points are needed",
         });
     }
+    // 1e7 points take about a second; usize::MAX never returned.
+    crate::interrupt::check_count(
+        "points",
+        points as f64,
+        "more than MAX_SAMPLES (1e7) evaluation points: use fewer",
+    )?;
     let (c, h) = (limits.q_center(), limits.q_half_range());
     let mut u = LimitUsage {
         q: Vec5::zeros(),
@@ -176,4 +182,23 @@ pub fn limit_usage<T: JointTrajectory + ?Sized>(
         }
     }
     Ok(u)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::validation::default_validation_reference;
+
+    #[test]
+    fn more_points_than_max_samples_are_refused() {
+        let traj = default_validation_reference();
+        let limits = JointLimits::default();
+        let points = crate::MAX_SAMPLES + 1;
+        let got = limit_usage(&traj, &limits, 0.0, 1.0, points);
+        assert!(
+            matches!(&got, Err(PrrrpError::InvalidParameter { field, .. }) if field == "points"),
+            "{got:?}"
+        );
+        assert!(limit_usage(&traj, &limits, 0.0, 1.0, usize::MAX).is_err());
+    }
 }
