@@ -44,10 +44,21 @@ pub struct HopfieldConfig {
     /// Largest allowed h·(c/β)·‖Φ‖_F² of one Euler sub-step (dimensionless, default
     /// `1.0`, in (0, 2)): below 1 the error decays without oscillation in every direction.
     pub stability_limit: f64,
-    /// Most sub-steps one sample may take (default `64`); a sample that needs more fails
-    /// with [`PrrrpError::InvalidParameter`] (raise β or this limit).
+    /// Most sub-steps one sample may take (default `64`, at most [`MAX_HOPFIELD_SUBSTEPS`]);
+    /// a sample that needs more fails with [`PrrrpError::InvalidParameter`] (raise β or
+    /// this limit).
     pub max_substeps: u32,
 }
+
+/// Largest [`HopfieldConfig::max_substeps`]: 10⁶ Euler sub-steps per sample, about 0.1 s
+/// of one sample of a 5×8 model, so a training of a few thousand samples still ends in
+/// minutes. A sample that needs more has a step so long (dt) or a gain so high (c/β) that
+/// Euler is the wrong tool; `u32::MAX` let one sample run for hours.
+pub const MAX_HOPFIELD_SUBSTEPS: u32 = 1_000_000;
+
+/// The sub-steps of one sample between polls of the stop flag: a sample may take
+/// [`MAX_HOPFIELD_SUBSTEPS`], and training polls only every 1024 samples.
+const SUBSTEPS_PER_CHECK: u32 = 1 << 16;
 
 impl Default for HopfieldConfig {
     fn default() -> Self {
@@ -96,7 +107,8 @@ where
     ///
     /// # Errors
     /// [`PrrrpError::InvalidParameter`] for a non-positive or non-finite c, β or dt, a
-    /// stability limit outside (0, 2), zero sub-steps, or a λ₀ outside (−c, c);
+    /// stability limit outside (0, 2), zero sub-steps or more than
+    /// [`MAX_HOPFIELD_SUBSTEPS`], or a λ₀ outside (−c, c);
     /// [`PrrrpError::ShapeMismatch`] if λ₀ does not have one entry per model parameter.
     pub fn new(model: M, lambda0: OVector<f64, P>, config: HopfieldConfig) -> Result<Self> {
         let c = &config;
@@ -114,6 +126,14 @@ where
         }
         if c.max_substeps == 0 {
             return Err(invalid("max_substeps", 0.0, "must be at least 1"));
+        }
+        if c.max_substeps > MAX_HOPFIELD_SUBSTEPS {
+            return Err(invalid(
+                "max_substeps",
+                f64::from(c.max_substeps),
+                "more than MAX_HOPFIELD_SUBSTEPS (1e6) Euler sub-steps per sample: shorten \
+                 dt or raise beta instead",
+            ));
         }
         let fit = ModelFit::new(model, lambda0)?;
         for (i, &l) in fit.lambda0.iter().enumerate() {
@@ -215,7 +235,8 @@ where
     /// [`PrrrpError::ShapeMismatch`] for a sample whose vectors do not have one entry per
     /// joint; [`PrrrpError::NonFinite`] for NaN/∞ in the sample; [`PrrrpError::InvalidParameter`]
     /// (field `beta`) if the sample needs more than `max_substeps` sub-steps for a stable
-    /// integration.
+    /// integration; [`PrrrpError::Interrupted`] on a stop request during a sample of many
+    /// sub-steps.
     fn step(&mut self, sample: SampleOf<'_, N>) -> Result<&OVector<f64, P>> {
         sample.check(self.fit.phi.nrows())?;
         let Self {
@@ -340,6 +361,9 @@ impl Net<'_> {
         };
         let lambda = lambda.as_mut_slice();
         for s in 0..n {
+            if s % SUBSTEPS_PER_CHECK == SUBSTEPS_PER_CHECK - 1 {
+                crate::interrupt::check("Hopfield sample")?;
+            }
             let e2 = residual(ps, tau, lambda, r);
             if s == 0 {
                 *sse += e2;
@@ -367,4 +391,59 @@ fn residual(phi: &[f64], tau: &[f64], lambda: &[f64], r: &mut [f64]) -> f64 {
         }
     }
     r.iter().map(|v| v * v).sum()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::estimators::Sample;
+    use crate::models::prrrp::types::Vec5;
+    use crate::{Robot, StopFlag};
+
+    #[test]
+    fn max_substeps_beyond_the_bound_are_refused() {
+        let config = HopfieldConfig {
+            dt: 1e6,
+            max_substeps: MAX_HOPFIELD_SUBSTEPS + 1,
+            ..HopfieldConfig::default()
+        };
+        let got =
+            Hopfield::<_, 5, 8>::new(Robot::paper().model(), nalgebra::SVector::zeros(), config);
+        assert!(
+            matches!(&got, Err(PrrrpError::InvalidParameter { field, .. }) if field == "max_substeps"),
+            "{:?}",
+            got.map(|_| ())
+        );
+    }
+
+    #[test]
+    fn a_sample_of_many_substeps_polls_the_stop_flag() {
+        let model = Robot::paper().model();
+        let z = Vec5::zeros();
+        let tau = Vec5::repeat(1.0);
+        // At rest Φ holds only gravity; dt such that the sample needs about 2e5 sub-steps.
+        let phi2 = model.regressor(&z, &z, &z).norm_squared();
+        let base = HopfieldConfig::default();
+        let config = HopfieldConfig {
+            dt: 2e5 * base.stability_limit * base.beta / (base.bound * phi2),
+            max_substeps: MAX_HOPFIELD_SUBSTEPS,
+            ..base
+        };
+        let net = || Hopfield::<_, 5, 8>::new(model, nalgebra::SVector::zeros(), config).unwrap();
+        let mut free = net();
+        free.step(Sample::new(&z, &z, &z, &tau)).unwrap();
+        assert!(
+            free.substeps() > u64::from(SUBSTEPS_PER_CHECK),
+            "{}",
+            free.substeps()
+        );
+        let flag = StopFlag::new();
+        flag.raise();
+        let mut stopped = net();
+        let got = flag.run(|| stopped.step(Sample::new(&z, &z, &z, &tau)).map(|_| ()));
+        assert!(
+            matches!(got, Err(PrrrpError::Interrupted { .. })),
+            "{got:?}"
+        );
+    }
 }

@@ -35,7 +35,7 @@ pub use ekf::{
 };
 pub(crate) use estimator::with_row;
 pub use estimator::{Estimator, TrainingReport};
-pub use hopfield::{DynHopfield, Hopfield, HopfieldConfig, HopfieldOf};
+pub use hopfield::{DynHopfield, Hopfield, HopfieldConfig, HopfieldOf, MAX_HOPFIELD_SUBSTEPS};
 pub use least_squares::{
     least_squares, weighted_least_squares, DynJointNoise, DynLeastSquaresReport, JointNoise,
     JointNoiseOf, LeastSquares, LeastSquaresConfig, LeastSquaresReport, LeastSquaresReportOf,
