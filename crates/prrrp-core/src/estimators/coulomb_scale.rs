@@ -54,7 +54,8 @@ pub struct CoulombScaleConfig {
     /// (default): 0 and [`COULOMB_SCALE_GRID`] log-spaced values over
     /// [`COULOMB_SCALE_RANGE`].
     pub candidates: Option<Vec<f64>>,
-    /// Number of contiguous cross-validation folds, ≥ 2 (default 4).
+    /// Number of contiguous cross-validation folds, ≥ 2 and at most the number of samples
+    /// (default 4).
     pub folds: usize,
     /// Refine the best grid point by a parabola in log v_s (default `true`).
     pub refine: bool,
@@ -132,7 +133,8 @@ enum Edge {
 /// # Errors
 /// [`PrrrpError::InvalidParameter`] if the chain has no Coulomb term, for a negative or
 /// non-finite candidate, an empty candidate list or one longer than
-/// [`MAX_COULOMB_CANDIDATES`], fewer than 2 folds; [`PrrrpError::ShapeMismatch`] for data
+/// [`MAX_COULOMB_CANDIDATES`], fewer than 2 folds or more folds than samples;
+/// [`PrrrpError::ShapeMismatch`] for data
 /// of another joint count or a `base` of another chain layout;
 /// [`PrrrpError::TooFewSamples`] if a fold has fewer samples than base parameters; an
 /// interrupt. When no candidate can be fitted in every fold, the default is kept (with
@@ -180,10 +182,18 @@ pub fn select_coulomb_scale(
         ));
     }
     let samples = data.len();
+    if config.folds > samples {
+        return Err(invalid(
+            "folds",
+            config.folds as f64,
+            "more folds than samples leaves folds empty: use a few (default 4)",
+        ));
+    }
     let b = base.count();
     if samples / config.folds < b.div_ceil(n) + 1 {
         return Err(PrrrpError::TooFewSamples {
-            needed: config.folds * (b.div_ceil(n) + 1),
+            // Saturating: the bound above keeps it small, but the error must never panic.
+            needed: config.folds.saturating_mul(b.div_ceil(n) + 1),
             got: samples,
         });
     }
@@ -1239,6 +1249,25 @@ mod tests {
             println!(
                 "v_s = {v_s}: chose {} ({} widenings)",
                 got.chosen, got.widenings
+            );
+        }
+    }
+
+    #[test]
+    fn more_folds_than_samples_are_refused() {
+        let chain = puma(false);
+        let base = chain.base_parameters(&BaseOptions::default()).unwrap();
+        let data = random_data(50, 3);
+        // usize::MAX / 2 overflowed the TooFewSamples message's product.
+        for folds in [usize::MAX / 2, usize::MAX, 51] {
+            let config = CoulombScaleConfig {
+                folds,
+                ..Default::default()
+            };
+            let got = select_coulomb_scale(&chain, &base, &data, &config);
+            assert!(
+                matches!(&got, Err(PrrrpError::InvalidParameter { field, .. }) if field == "folds"),
+                "{folds}: {got:?}"
             );
         }
     }
