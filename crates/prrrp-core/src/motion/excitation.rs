@@ -39,7 +39,9 @@ pub struct ExcitationConfig {
     /// Joint limits (default [`JointLimits::default`]).
     pub limits: JointLimits,
     /// Whole periods of the sinusoids of joints 1 and 5 over the horizon (default [2, 3];
-    /// different counts keep d̈1 and d̈5 from being proportional).
+    /// different counts keep d̈1 and d̈5 from being proportional). Each must be at least 1
+    /// and below half the number of sampling intervals, duration/(2·dt) (Nyquist: W's
+    /// samples must resolve the sinusoid).
     pub prismatic_periods: [u32; 2],
     /// Maximum number of cost evaluations over all restarts (default 6000).
     pub max_evaluations: usize,
@@ -151,7 +153,8 @@ pub const fn excitation_variables(k: usize) -> usize {
 ///
 /// # Errors
 /// - [`PrrrpError::InvalidParameter`] for a non-positive or non-finite duration, dt,
-///   margin outside [0, 0.5), zero periods, K < 3, or a duration shorter than 8 samples;
+///   margin outside [0, 0.5), zero periods or periods at or above the Nyquist limit
+///   duration/(2·dt), K < 3, or a duration shorter than 8 samples;
 /// - [`PrrrpError::Infeasible`] if a joint's limits leave it no room to move, if no
 ///   candidate with finite cond(W) is found, or if the result violates a limit on the
 ///   verification grid.
@@ -304,6 +307,19 @@ impl<const K: usize> Shaper<K> {
                 c.duration,
                 "must span at least 8 samples of dt (one per parameter)",
             ));
+        }
+        // At or above Nyquist W sees an alias or nothing, and the limit scaling shrinks the
+        // amplitude to ~1e-19 (u32::MAX periods gave ω ≈ 2.7e9 rad/s and an Ok).
+        let intervals = (samples - 1) as u64;
+        for (i, &p) in c.prismatic_periods.iter().enumerate() {
+            if 2 * u64::from(p) >= intervals {
+                return Err(invalid(
+                    format!("prismatic_periods[{i}]"),
+                    f64::from(p),
+                    "must be below duration/(2·dt), the Nyquist limit of W's sampling: use \
+                     fewer periods, a longer duration or a smaller dt",
+                ));
+            }
         }
         let mut times = [0.0; K];
         for (k, t) in times.iter_mut().enumerate() {
@@ -553,4 +569,38 @@ where
         .configure(|st| st.max_iters(u64::MAX))
         .run();
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn periods(p: [u32; 2]) -> ExcitationConfig {
+        ExcitationConfig {
+            prismatic_periods: p,
+            ..ExcitationConfig::default()
+        }
+    }
+
+    #[test]
+    fn periods_at_or_above_nyquist_are_refused() {
+        // The default 10 s at 0.02 s: 500 intervals, so at most 249 periods.
+        assert!(Shaper::<6>::new(&periods([249, 3])).is_ok());
+        for (p, field) in [
+            ([250, 3], "prismatic_periods[0]"),
+            ([2, u32::MAX], "prismatic_periods[1]"),
+        ] {
+            let got = Shaper::<6>::new(&periods(p)).map(|_| ());
+            assert!(
+                matches!(&got, Err(PrrrpError::InvalidParameter { field: f, .. }) if f == field),
+                "{p:?}: {got:?}"
+            );
+        }
+        let got = optimise_excitation::<6>(
+            &crate::Robot::paper().model(),
+            &periods([u32::MAX; 2]),
+            |_| {},
+        );
+        assert!(matches!(got, Err(PrrrpError::InvalidParameter { .. })));
+    }
 }
