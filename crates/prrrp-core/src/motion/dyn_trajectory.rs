@@ -48,7 +48,9 @@ impl FourierTrajectory {
     ///
     /// # Errors
     /// [`PrrrpError::InvalidParameter`] for a non-positive or non-finite ω, no joints or
-    /// no harmonics; [`PrrrpError::ShapeMismatch`] if `a` and `b` are not n·H long (H is
+    /// no harmonics, or (naming the joint's coefficients) a joint whose position, velocity
+    /// or acceleration amplitude, Σ(|a|+|b|)/(l·ω), Σ(|a|+|b|) or Σ l·ω·(|a|+|b|), overflows
+    /// a double; [`PrrrpError::ShapeMismatch`] if `a` and `b` are not n·H long (H is
     /// `a.len() / n`); [`PrrrpError::NonFinite`] naming the first NaN/∞ coefficient.
     pub fn new(omega: f64, offsets: Vec<f64>, a: Vec<f64>, b: Vec<f64>) -> Result<Self> {
         if !(omega.is_finite() && omega > 0.0) {
@@ -86,6 +88,25 @@ impl FourierTrajectory {
                 return Err(PrrrpError::NonFinite {
                     what: format!("{name}[{i}]"),
                     row: None,
+                });
+            }
+        }
+        // Finite coefficients still overflow q̈ = Σ l·ω·(…) (ω = a = b = 1e300 gave q̈ = ∞)
+        // or q = Σ (…)/(l·ω) for a tiny ω; these bounds on |q|, |q̇|, |q̈| keep every
+        // evaluation finite.
+        for j in 0..n {
+            let (mut q, mut qd, mut qdd) = (offsets[j].abs(), 0.0, 0.0);
+            for l in 0..harmonics {
+                let w = omega * (l + 1) as f64;
+                let c = a[j * harmonics + l].abs() + b[j * harmonics + l].abs();
+                (q, qd, qdd) = (q + c / w, qd + c, qdd + c * w);
+            }
+            if !(q.is_finite() && qd.is_finite() && qdd.is_finite()) {
+                return Err(PrrrpError::InvalidParameter {
+                    field: format!("a, b of joint {j} (with omega)"),
+                    value: omega,
+                    reason: "the series' position, velocity or acceleration overflows a \
+                             double: use smaller coefficients or an omega nearer 1 rad/s",
                 });
             }
         }
@@ -260,5 +281,23 @@ impl DynTrajectory for DynSampledTrajectory {
 
     fn end_time(&self) -> Option<f64> {
         self.t.last().copied()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn fourier_series_that_overflow_are_refused() {
+        for (omega, c) in [(1e300, 1e300), (1e-300, 1e10)] {
+            let got = FourierTrajectory::new(omega, vec![0.0], vec![c], vec![c]);
+            assert!(
+                matches!(&got, Err(PrrrpError::InvalidParameter { field, .. })
+                    if field == "a, b of joint 0 (with omega)"),
+                "ω {omega}, a = b = {c}: {got:?}"
+            );
+        }
+        assert!(FourierTrajectory::new(1e3, vec![0.0; 2], vec![1e3; 6], vec![1e3; 6]).is_ok());
     }
 }

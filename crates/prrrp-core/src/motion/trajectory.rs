@@ -164,7 +164,9 @@ impl Quintic {
     /// `end` at `t1` (each a tuple (q, q̇, q̈)).
     ///
     /// # Errors
-    /// [`PrrrpError::InvalidParameter`] unless t1 > t0 and every input is finite.
+    /// [`PrrrpError::InvalidParameter`] unless t1 > t0 and every input is finite, or (field
+    /// `t1 - t0`) if the interval is so short for the change in (q, q̇, q̈) that the
+    /// coefficients or the end values overflow a double.
     pub fn from_boundary(
         t0: f64,
         t1: f64,
@@ -186,11 +188,28 @@ impl Quintic {
                 reason: "the end time must be later than the start time t0",
             });
         }
-        Ok(Self {
-            t0,
-            coeffs: hermite_quintic(t1 - t0, start, end),
-        })
+        let h = t1 - t0;
+        let coeffs = hermite_quintic(h, start, end);
+        check_segment(|| "t1 - t0".into(), h, &coeffs)?;
+        Ok(Self { t0, coeffs })
     }
+}
+
+/// [`PrrrpError::InvalidParameter`] naming the interval `field()` of length `h` (s) unless
+/// the quintic `coeffs` on [0, h] and its values at h are finite: finite boundary values
+/// still overflow over an interval of 1e-200 s (h⁵ underflows to 0 at 1e-320 s). The name
+/// is formatted only on the error.
+fn check_segment(field: impl FnOnce() -> String, h: f64, coeffs: &[f64; 6]) -> Result<()> {
+    let (q, qd, qdd) = Quintic::new(*coeffs).eval(h);
+    if coeffs.iter().chain(&[q, qd, qdd]).all(|c| c.is_finite()) {
+        return Ok(());
+    }
+    Err(PrrrpError::InvalidParameter {
+        field: field(),
+        value: h,
+        reason: "too short for the change in (q, q̇, q̈) between its ends: the quintic's \
+                 coefficients overflow; lengthen the interval (s) or shrink the change",
+    })
 }
 
 /// Coefficients of the quintic on [0, h] matching (q, q̇, q̈) at both ends.
@@ -256,9 +275,10 @@ impl<const K: usize> PiecewiseQuintic<K> {
     /// positions, velocities and accelerations.
     ///
     /// # Errors
-    /// [`PrrrpError::InvalidParameter`] if K < 2 or a value is not finite;
-    /// [`PrrrpError::NonIncreasingTime`] with the first knot whose time is not larger
-    /// than the previous one.
+    /// [`PrrrpError::InvalidParameter`] if K < 2 or a value is not finite, or (field
+    /// `times[k+1] - times[k]`) if a segment is so short for its change in (q, q̇, q̈) that
+    /// its coefficients overflow; [`PrrrpError::NonIncreasingTime`] with the first knot
+    /// whose time is not larger than the previous one.
     pub fn new(times: [f64; K], q: [f64; K], qd: [f64; K], qdd: [f64; K]) -> Result<Self> {
         if K < 2 {
             return Err(PrrrpError::InvalidParameter {
@@ -281,11 +301,10 @@ impl<const K: usize> PiecewiseQuintic<K> {
         }
         let mut segments = [[0.0; 6]; K];
         for k in 0..K - 1 {
-            segments[k] = hermite_quintic(
-                times[k + 1] - times[k],
-                (q[k], qd[k], qdd[k]),
-                (q[k + 1], qd[k + 1], qdd[k + 1]),
-            );
+            let h = times[k + 1] - times[k];
+            segments[k] =
+                hermite_quintic(h, (q[k], qd[k], qdd[k]), (q[k + 1], qd[k + 1], qdd[k + 1]));
+            check_segment(|| format!("times[{}] - times[{k}]", k + 1), h, &segments[k])?;
         }
         segments[K - 1] = segments[K - 2];
         Ok(Self { times, segments })
@@ -523,7 +542,8 @@ pub struct SampledTrajectory {
 /// Samples `traj` at t = t0 + k·dt for k = 0..n.
 ///
 /// # Errors
-/// [`PrrrpError::InvalidParameter`] if `dt` is not finite and positive or `t0` is not finite;
+/// [`PrrrpError::InvalidParameter`] if `dt` is not finite and positive, `t0` is not finite
+/// or `n` exceeds [`crate::MAX_SAMPLES`] (10⁷; checked before anything is allocated);
 /// [`PrrrpError::NonFinite`] naming the first sample where the trajectory is NaN/∞.
 pub fn sample_trajectory<T: JointTrajectory + ?Sized>(
     traj: &T,
@@ -545,6 +565,12 @@ pub fn sample_trajectory<T: JointTrajectory + ?Sized>(
             reason: "the start time must be finite",
         });
     }
+    // The four buffers are reserved up front: 1e8 samples aborted on allocation.
+    crate::interrupt::check_count(
+        "n",
+        n as f64,
+        "asks for more than MAX_SAMPLES (1e7) samples: sample fewer points or split the span",
+    )?;
     let mut out = SampledTrajectory {
         t: Vec::with_capacity(n),
         q: Vec::with_capacity(n),
@@ -567,4 +593,44 @@ pub fn sample_trajectory<T: JointTrajectory + ?Sized>(
         out.qdd.push(p.qdd);
     }
     Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::validation::default_validation_reference;
+
+    #[test]
+    fn more_samples_than_max_samples_are_refused_before_allocating() {
+        let traj = default_validation_reference();
+        // Unbounded, usize::MAX panicked on reserving (first, so that the test fails fast).
+        for n in [usize::MAX, crate::MAX_SAMPLES + 1] {
+            let got = sample_trajectory(&traj, 0.0, 0.01, n);
+            assert!(
+                matches!(&got, Err(PrrrpError::InvalidParameter { field, .. }) if field == "n"),
+                "{n}: {got:?}"
+            );
+        }
+    }
+
+    #[test]
+    fn quintics_whose_coefficients_overflow_are_refused() {
+        let got = Quintic::from_boundary(0.0, 1e-200, (0.0, 0.0, 0.0), (1.0, 0.0, 0.0));
+        assert!(
+            matches!(&got, Err(PrrrpError::InvalidParameter { field, .. }) if field == "t1 - t0"),
+            "{got:?}"
+        );
+        assert!(Quintic::from_boundary(0.0, 1e-3, (0.0, 0.0, 0.0), (1e-3, 0.0, 0.0)).is_ok());
+        let got =
+            PiecewiseQuintic::<3>::new([-1.0, 0.0, 1e-320], [0.0, 1.0, 0.0], [0.0; 3], [0.0; 3]);
+        assert!(
+            matches!(&got, Err(PrrrpError::InvalidParameter { field, .. }) if field == "times[2] - times[1]"),
+            "{got:?}"
+        );
+        let got = PiecewiseQuintic::<2>::new([0.0, 1e-320], [0.0, 1.0], [0.0; 2], [0.0; 2]);
+        assert!(
+            matches!(got, Err(PrrrpError::InvalidParameter { .. })),
+            "{got:?}"
+        );
+    }
 }
