@@ -664,9 +664,10 @@ pub(crate) fn index_arg(
     field: impl FnOnce() -> String,
     reason: &'static str,
 ) -> PyResult<usize> {
+    // Not `Option::is_none_or`: it needs Rust 1.82, the MSRV is 1.80.
     match usize::try_from(v)
         .ok()
-        .filter(|&i| len.is_none_or(|n| i < n))
+        .filter(|&i| !matches!(len, Some(n) if i >= n))
     {
         Some(i) => Ok(i),
         None => Err(to_pyerr(
