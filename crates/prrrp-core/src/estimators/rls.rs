@@ -247,23 +247,63 @@ where
         self.samples = other.samples;
     }
 
-    /// P ← D·P·D with D = diag(`d`), d ≥ 0 (a congruence: P stays positive
+    /// P ← D·P·D with D = diag(`d`), d ≥ 0 (dimensionless; a congruence: P stays positive
     /// semidefinite). Opens the covariance after a detected change of the dynamics (d > 1
     /// on the parameters that may have changed), allocation-free.
-    pub fn scale_covariance(&mut self, d: &OVector<f64, P>) {
+    ///
+    /// # Errors
+    /// [`PrrrpError::ShapeMismatch`] unless `d` has one entry per parameter;
+    /// [`PrrrpError::InvalidParameter`] for a negative, NaN or infinite entry (P is left
+    /// unchanged).
+    pub fn scale_covariance(&mut self, d: &OVector<f64, P>) -> Result<()> {
         let p = self.fit.lambda.nrows();
+        crate::error::check_len(
+            "scale_covariance d",
+            d.nrows(),
+            p,
+            "entries",
+            " (one factor per parameter)",
+        )?;
+        // A negative factor would still be a congruence, but NaN or ∞ would poison P for
+        // good: refuse before touching it.
+        if let Some((i, &v)) = d
+            .iter()
+            .enumerate()
+            .find(|(_, v)| !(v.is_finite() && **v >= 0.0))
+        {
+            return Err(crate::error::invalid(
+                format!("scale_covariance d[{i}]"),
+                v,
+                "each covariance scale factor must be finite and >= 0 (dimensionless)",
+            ));
+        }
         for j in 0..p {
             for i in 0..p {
                 self.cov[(i, j)] *= d[i] * d[j];
             }
         }
+        Ok(())
     }
 
     /// P ← P + `m` (units of P), `m` symmetric: opens the covariance along chosen
     /// directions after a detected change. The caller keeps P positive definite (e.g. `m`
     /// from a congruence, T·P·Tᵀ − P). Allocation-free.
-    pub fn add_covariance(&mut self, m: &OMatrix<f64, P, P>) {
+    ///
+    /// # Errors
+    /// [`PrrrpError::ShapeMismatch`] unless `m` is P×P; [`PrrrpError::NonFinite`] for a NaN
+    /// or infinite entry (P is left unchanged). `m` may be indefinite, so its sign is the
+    /// caller's to keep.
+    pub fn add_covariance(&mut self, m: &OMatrix<f64, P, P>) -> Result<()> {
+        let p = self.fit.lambda.nrows();
+        crate::error::check_shape("add_covariance m", m.shape(), (p, p))?;
+        if let Some(i) = m.iter().position(|v| !v.is_finite()) {
+            return Err(PrrrpError::NonFinite {
+                what: format!("add_covariance m[({}, {})]", i % p, i / p),
+                row: None,
+            });
+        }
         self.cov += m;
+        Ok(())
     }
 
     /// One sample with joint weights and forgetting: each joint's equation is weighted by
@@ -893,5 +933,49 @@ mod tests {
         }
         let mut short = vec![0.0; n - 1];
         assert!(rls.row_variances(&phi, &mut short).is_err());
+    }
+
+    /// A covariance opening of the wrong size, or with NaN, is refused and leaves P as it
+    /// was (a short `d` panicked indexing it, a wrong-size `m` failed nalgebra's assertion,
+    /// and NaN went into P).
+    #[test]
+    fn covariance_openings_refuse_wrong_sizes_and_non_finite_values() {
+        use crate::{BaseOptions, SerialChain};
+        let chain = SerialChain::puma560().to_dyn();
+        let base = chain.base_parameters(&BaseOptions::default()).unwrap();
+        let model = chain.base_model(&base).unwrap();
+        let p = base.count();
+        let mut rls = RlsOf::new(model, DVector::zeros(p), RlsConfig::default()).unwrap();
+        let before = rls.covariance().clone();
+        let short = rls.scale_covariance(&DVector::from_element(2, 1.0));
+        assert!(
+            matches!(short, Err(PrrrpError::ShapeMismatch { .. })),
+            "{short:?}"
+        );
+        for bad in [f64::NAN, f64::INFINITY, -1.0] {
+            let mut d = DVector::from_element(p, 2.0);
+            d[p - 1] = bad;
+            let err = rls.scale_covariance(&d);
+            assert!(
+                matches!(&err, Err(PrrrpError::InvalidParameter { field, .. })
+                    if *field == format!("scale_covariance d[{}]", p - 1)),
+                "{bad}: {err:?}"
+            );
+        }
+        let wrong = rls.add_covariance(&DMatrix::identity(2, 2));
+        assert!(
+            matches!(wrong, Err(PrrrpError::ShapeMismatch { .. })),
+            "{wrong:?}"
+        );
+        let mut m = DMatrix::identity(p, p);
+        m[(1, 0)] = f64::NAN;
+        let nan = rls.add_covariance(&m);
+        assert!(matches!(nan, Err(PrrrpError::NonFinite { .. })), "{nan:?}");
+        assert_eq!(rls.covariance(), &before);
+        // Valid openings still apply.
+        rls.scale_covariance(&DVector::from_element(p, 2.0))
+            .unwrap();
+        rls.add_covariance(&DMatrix::identity(p, p)).unwrap();
+        assert_eq!(rls.covariance()[(0, 0)], 4.0 * before[(0, 0)] + 1.0);
     }
 }

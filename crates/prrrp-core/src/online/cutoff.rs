@@ -260,7 +260,7 @@ mod tests {
         let (h, rows) = (0.01, 200_000);
         for (order, hz) in [(3, 10.0), (3, 5.0), (2, 10.0), (2, 4.0)] {
             let velocity = order == 2;
-            let mut lp = CausalLowPass::new(1, hz, velocity);
+            let mut lp = CausalLowPass::new(1, hz, velocity).unwrap();
             let (mut qf, mut vf, mut af, mut tf) = ([0.0], [0.0], [0.0], [0.0]);
             let mut sum = 0.0;
             let mut count = 0usize;
@@ -271,7 +271,8 @@ mod tests {
                 } else {
                     (x, None)
                 };
-                lp.update(h, &q, &[0.0], qd, &mut qf, &mut vf, &mut af, &mut tf);
+                lp.update(h, &q, &[0.0], qd, &mut qf, &mut vf, &mut af, &mut tf)
+                    .unwrap();
                 if k > 1000 {
                     sum += af[0] * af[0];
                     count += 1;

@@ -15,6 +15,8 @@
 //! for `holdoff` seconds while the estimate re-converges. The statistic is scale-free
 //! (each joint in its own noise units), so one threshold serves N·m and N alike.
 
+use crate::error::{invalid, PrrrpError, Result};
+
 /// Settings of [`ChangeDetector`] (SI units).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ChangeDetection {
@@ -65,12 +67,32 @@ pub struct ChangeDetector {
 impl ChangeDetector {
     /// A detector for `n` joints; `initial_sd`: noise standard deviations to start from
     /// (e.g. a prior model's residual RMS), or `None` to start from the first errors.
-    pub fn new(n: usize, config: ChangeDetection, initial_sd: Option<&[f64]>) -> Self {
+    ///
+    /// # Errors
+    /// [`PrrrpError::ShapeMismatch`] unless `initial_sd` has `n` entries (a longer or
+    /// shorter one set the detector's joint count instead of `n`);
+    /// [`PrrrpError::InvalidParameter`] for an entry that is not finite and >= 0 (units
+    /// of τ).
+    pub fn new(n: usize, config: ChangeDetection, initial_sd: Option<&[f64]>) -> Result<Self> {
+        if let Some(s) = initial_sd {
+            crate::error::check_joints("initial_sd", s.len(), n)?;
+            if let Some((j, &v)) = s
+                .iter()
+                .enumerate()
+                .find(|(_, v)| !(v.is_finite() && **v >= 0.0))
+            {
+                return Err(invalid(
+                    format!("initial_sd[{j}]"),
+                    v,
+                    "a noise standard deviation must be finite and >= 0 (units of τ)",
+                ));
+            }
+        }
         let var = match initial_sd {
             Some(s) => s.iter().map(|v| v * v).collect(),
             None => vec![0.0; n],
         };
-        Self {
+        Ok(Self {
             config,
             started: initial_sd.is_some(),
             var,
@@ -80,7 +102,7 @@ impl ChangeDetector {
             alarms: 0,
             last: 1.0,
             held: false,
-        }
+        })
     }
 
     /// While `held`, samples update the statistic and the noise levels but raise no
@@ -124,15 +146,34 @@ impl ChangeDetector {
     /// returns whether a change is detected (an alarm). `floor`: smallest variance per
     /// joint (units of τ²), so that exact data do not divide by zero; `model_var`: the
     /// variance the estimate's uncertainty adds to each joint's error (units of τ², ≥ 0;
-    /// zeros for a method without a covariance).
-    pub fn update(&mut self, dt: f64, e: &[f64], floor: &[f64], model_var: &[f64]) -> bool {
+    /// zeros for a method without a covariance). Allocation-free.
+    ///
+    /// # Errors
+    /// [`PrrrpError::ShapeMismatch`] unless `e`, `floor` and `model_var` have one entry per
+    /// joint (the shortest set the joints tested, silently);
+    /// [`PrrrpError::InvalidParameter`] for a `dt` that is not finite and >= 0 (s). The
+    /// detector is left as it was.
+    pub fn update(&mut self, dt: f64, e: &[f64], floor: &[f64], model_var: &[f64]) -> Result<bool> {
+        let n = self.var.len();
+        for (what, v) in [("e", e), ("floor", floor), ("model_var", model_var)] {
+            if v.len() != n {
+                return Err(crate::estimators::len_mismatch(what, n, v.len()));
+            }
+        }
+        if !(dt.is_finite() && dt >= 0.0) {
+            return Err(invalid(
+                "dt",
+                dt,
+                "the time since the previous sample must be finite and >= 0 (s)",
+            ));
+        }
         let c = &self.config;
         if !self.started {
             for (v, (x, f)) in self.var.iter_mut().zip(e.iter().zip(floor)) {
                 *v = (x * x).max(*f);
             }
             self.started = true;
-            return false;
+            return Ok(false);
         }
         self.age += dt;
         self.since_alarm += dt;
@@ -168,7 +209,7 @@ impl ChangeDetector {
             self.since_alarm = 0.0;
             self.fast = 1.0;
         }
-        alarm
+        Ok(alarm)
     }
 }
 
@@ -269,11 +310,11 @@ mod tests {
     /// A two-joint detector that has learned white errors of 0.1 over 5 s at 1 kHz (no
     /// alarm on the way), with the noise source that continues them.
     fn settled_on_white_errors(seed: u64) -> (ChangeDetector, impl FnMut() -> f64) {
-        let mut d = ChangeDetector::new(2, ChangeDetection::default(), Some(&[0.1, 0.1]));
+        let mut d = ChangeDetector::new(2, ChangeDetection::default(), Some(&[0.1, 0.1])).unwrap();
         let mut noise = uniform_noise(seed);
         for _ in 0..5000 {
             let e = [0.1 * noise(), 0.1 * noise()];
-            assert!(!d.update(1e-3, &e, &[1e-12; 2], &[0.0; 2]));
+            assert!(!d.update(1e-3, &e, &[1e-12; 2], &[0.0; 2]).unwrap());
         }
         (d, noise)
     }
@@ -282,19 +323,19 @@ mod tests {
     /// within a few windows, and the noise level has not absorbed the jump by then.
     #[test]
     fn alarms_on_a_jump_only() {
-        let mut d = ChangeDetector::new(3, ChangeDetection::default(), None);
+        let mut d = ChangeDetector::new(3, ChangeDetection::default(), None).unwrap();
         let mut noise = uniform_noise(7);
         let floor = [1e-12; 3];
         let dt = 1e-3;
         for _ in 0..20000 {
             let e = [0.1 * noise(), 0.01 * noise(), 2.0 * noise()];
-            assert!(!d.update(dt, &e, &floor, &[0.0; 3]));
+            assert!(!d.update(dt, &e, &floor, &[0.0; 3]).unwrap());
         }
         assert!((d.variances()[0] / 0.01 - 1.0).abs() < 0.3);
         let mut first = None;
         for k in 0..2000 {
             let e = [1.0 * noise() + 0.5, 0.01 * noise(), 2.0 * noise()];
-            if d.update(dt, &e, &floor, &[0.0; 3]) && first.is_none() {
+            if d.update(dt, &e, &floor, &[0.0; 3]).unwrap() && first.is_none() {
                 first = Some((k, d.variances()[0]));
             }
         }
@@ -315,11 +356,11 @@ mod tests {
             let floor = [1e-12; 2];
             let dt = 1e-3;
             d.hold(held);
-            let during = (0..300).any(|_| d.update(dt, &[2.0, -2.0], &floor, &[0.0; 2]));
+            let during = (0..300).any(|_| d.update(dt, &[2.0, -2.0], &floor, &[0.0; 2]).unwrap());
             assert_eq!(during, !held);
             if held {
                 d.hold(false);
-                assert!(d.update(dt, &[2.0, -2.0], &floor, &[0.0; 2]));
+                assert!(d.update(dt, &[2.0, -2.0], &floor, &[0.0; 2]).unwrap());
                 assert_eq!(d.alarms(), 1);
             }
         }
@@ -337,7 +378,7 @@ mod tests {
             let dt = 1e-3;
             let alarmed = (0..2000).any(|_| {
                 let e = [1.0 * noise(), 1.0 * noise()];
-                d.update(dt, &e, &floor, &[v; 2])
+                d.update(dt, &e, &floor, &[v; 2]).unwrap()
             });
             assert_eq!(alarmed, want, "v = {v}");
         }
@@ -377,5 +418,42 @@ mod tests {
                 "ρ = {rho}: κ = {k}, want {want}"
             );
         }
+    }
+
+    /// Mismatched lengths are refused: a short initial σ set the joint count, and short
+    /// errors, floors or model variances made `update` test only the joints they covered.
+    #[test]
+    fn mismatched_lengths_are_refused() {
+        let cfg = ChangeDetection::default();
+        let short = ChangeDetector::new(3, cfg, Some(&[0.1, 0.1]));
+        assert!(
+            matches!(&short, Err(PrrrpError::ShapeMismatch { what, .. }) if what == "initial_sd"),
+            "{short:?}"
+        );
+        let nan = ChangeDetector::new(2, cfg, Some(&[0.1, f64::NAN]));
+        assert!(
+            matches!(&nan, Err(PrrrpError::InvalidParameter { field, .. }) if field == "initial_sd[1]"),
+            "{nan:?}"
+        );
+        let mut d = ChangeDetector::new(3, cfg, None).unwrap();
+        let f = [1e-12; 3];
+        for (e, floor, m, what) in [
+            (&[1.0; 2][..], &f[..], &[0.0; 3][..], "e"),
+            (&[1.0; 3][..], &f[..2], &[0.0; 3][..], "floor"),
+            (&[1.0; 3][..], &f[..], &[0.0; 4][..], "model_var"),
+        ] {
+            let got = d.update(1e-3, e, floor, m);
+            assert!(
+                matches!(&got, Err(PrrrpError::ShapeMismatch { what: w, .. }) if w == what),
+                "{what}: {got:?}"
+            );
+        }
+        let back = d.update(-1.0, &[1.0; 3], &f, &[0.0; 3]);
+        assert!(
+            matches!(back, Err(PrrrpError::InvalidParameter { .. })),
+            "{back:?}"
+        );
+        assert!(!d.update(1e-3, &[1.0; 3], &f, &[0.0; 3]).unwrap());
+        assert_eq!(d.variances(), &[1.0; 3]);
     }
 }

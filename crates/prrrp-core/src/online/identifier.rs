@@ -714,8 +714,8 @@ impl OnlineIdentifier {
             model,
             scale,
             engine,
-            kin: CausalKinematics::new(n, config.cutoff_hz, false),
-            lp: CausalLowPass::new(n, config.cutoff_hz, false),
+            kin: CausalKinematics::new(n, config.cutoff_hz, false)?,
+            lp: CausalLowPass::new(n, config.cutoff_hz, false)?,
             cutoff: config
                 .auto_cutoff
                 .then(|| CutoffChoice::new(n, config.cutoff_hz)),
@@ -725,8 +725,10 @@ impl OnlineIdentifier {
             tf: DVector::zeros(n),
             predf: DVector::zeros(n),
             tr: DVector::zeros(n),
-            detector: detection.map(|d| ChangeDetector::new(n, d, init_sd.as_deref())),
-            noise: ChangeDetector::new(n, noise_cfg, init_sd.as_deref()),
+            detector: detection
+                .map(|d| ChangeDetector::new(n, d, init_sd.as_deref()))
+                .transpose()?,
+            noise: ChangeDetector::new(n, noise_cfg, init_sd.as_deref())?,
             correlation: {
                 let w = detection.unwrap_or_default().noise_window;
                 ErrorCorrelation::new(n, CORRELATION_BLOCK, CORRELATION_MEMORY.max(w))
@@ -1033,8 +1035,8 @@ impl OnlineIdentifier {
             }
         }
         if self.rows == 0 {
-            self.kin = CausalKinematics::new(n, self.config.cutoff_hz, qd.is_some());
-            self.lp = CausalLowPass::new(n, self.config.cutoff_hz, qd.is_some());
+            self.kin = CausalKinematics::new(n, self.config.cutoff_hz, qd.is_some())?;
+            self.lp = CausalLowPass::new(n, self.config.cutoff_hz, qd.is_some())?;
             if let Some(c) = &mut self.cutoff {
                 c.measured_velocity(qd.is_some());
             }
@@ -1131,7 +1133,7 @@ impl OnlineIdentifier {
             self.repeated += 1;
         } else {
             self.kin
-                .update(dt, q, qd, self.qd.as_mut_slice(), self.qdd.as_mut_slice());
+                .update(dt, q, qd, self.qd.as_mut_slice(), self.qdd.as_mut_slice())?;
             // Rows before any torque channel delivers (all exactly 0: a sensor not yet
             // streaming, or zeroed) are not regression data, and the first torques restart
             // the low-pass: filtered through the step from 0, they were fitted by the
@@ -1156,7 +1158,7 @@ impl OnlineIdentifier {
                 self.vf.as_mut_slice(),
                 self.af.as_mut_slice(),
                 self.tf.as_mut_slice(),
-            );
+            )?;
             self.t_prev = Some(t);
         }
         // The prediction with the estimate before this row.
@@ -1189,10 +1191,10 @@ impl OnlineIdentifier {
             }
             if let Some(d) = &mut self.detector {
                 d.hold(self.guard.active());
-                change = d.update(dt, &self.resid, &self.floor, &self.model_var);
+                change = d.update(dt, &self.resid, &self.floor, &self.model_var)?;
             } else {
                 self.noise
-                    .update(dt, &self.resid, &self.floor, &self.model_var);
+                    .update(dt, &self.resid, &self.floor, &self.model_var)?;
             }
             let (var, settled) = match &self.detector {
                 Some(d) => (d.variances(), d.settled()),
@@ -1217,7 +1219,7 @@ impl OnlineIdentifier {
             }
             updated = true;
             self.updates += 1;
-            self.choose_cutoff(dt);
+            self.choose_cutoff(dt)?;
         } else if !repeat {
             // No regression across a restart of the derivatives: the EKF must not step
             // over the gap either.
@@ -1257,9 +1259,9 @@ impl OnlineIdentifier {
     /// Takes the filtered row's accelerations into the cut-off's choice and, when it is
     /// made and lower, restarts the low-pass and the prediction's tracker there: no
     /// regression until they have settled, as after a gap. Allocation-free.
-    fn choose_cutoff(&mut self, dt: f64) {
+    fn choose_cutoff(&mut self, dt: f64) -> Result<()> {
         let Some(c) = &mut self.cutoff else {
-            return;
+            return Ok(());
         };
         c.filtered(dt, self.af.as_slice());
         if let Some(hz) = c.decide() {
@@ -1267,15 +1269,16 @@ impl OnlineIdentifier {
                 // All but the whole-arm EKF (see `build`).
                 if self.config.method != OnlineMethod::Ekf || self.config.payload {
                     self.config.cutoff_hz = hz;
-                    self.lp.set_cutoff(hz);
+                    self.lp.set_cutoff(hz)?;
                 }
                 // The one-step-ahead prediction's tracker too, whose q̈ noise grows with
                 // ω_c alike: on the Z1 of `cutoff`'s docs the predictions of the last 20 %
                 // of the rows went from 134 / 4.5 / 14 / 12 % off on joints 1–4 to 31 /
                 // 1.0 / 4.2 / 5.8 % (the model itself 0.9–2 % off on joints 2–4).
-                self.kin.set_cutoff(hz);
+                self.kin.set_cutoff(hz)?;
             }
         }
+        Ok(())
     }
 
     /// `model_var`: per joint κ·φ_jᵀ·P·φ_j at the filtered row, the variance of the
@@ -1600,7 +1603,7 @@ impl OnlineIdentifier {
                 };
                 kept.copy_state_from(r);
                 o.copy_state_from(r);
-                self.tip_look = open_rls(o, tip, fresh, var, k, scaled, &mut self.open);
+                self.tip_look = open_rls(o, tip, fresh, var, k, scaled, &mut self.open)?;
             }
             Engine::Ekf(e) if !e.running => {
                 let Some([o, kept]) = self.opened_rls.as_deref_mut() else {
@@ -1608,14 +1611,14 @@ impl OnlineIdentifier {
                 };
                 kept.copy_state_from(&e.rls);
                 o.copy_state_from(&e.rls);
-                self.tip_look = open_rls(o, tip, fresh, var, k, scaled, &mut self.open);
+                self.tip_look = open_rls(o, tip, fresh, var, k, scaled, &mut self.open)?;
             }
             Engine::Ekf(e) => {
                 e.warmup_from_filter(self.n, &self.theta, &self.scale, &mut self.gamma)?;
                 if let Some([_, kept]) = self.opened_rls.as_deref_mut() {
                     kept.copy_state_from(&e.rls);
                 }
-                self.tip_look = open_rls(&mut e.rls, tip, fresh, var, k, scaled, &mut self.open);
+                self.tip_look = open_rls(&mut e.rls, tip, fresh, var, k, scaled, &mut self.open)?;
             }
             Engine::PayloadEkf(e) => {
                 let Some([o, kept]) = self.opened_payload.as_deref_mut() else {
@@ -1812,7 +1815,7 @@ impl OnlineIdentifier {
                     let cap = self.cap[i] / (self.scale[i] * self.scale[i]);
                     self.open[i] = opening(k, cap, c[(i, i)]);
                 }
-                r.scale_covariance(&self.open);
+                r.scale_covariance(&self.open)?;
             }
             Engine::Ekf(e) if e.running => {
                 let p = e.ekf.covariance();
@@ -1836,7 +1839,7 @@ impl OnlineIdentifier {
                     let cap = self.cap[i] / (self.scale[i] * self.scale[i]);
                     self.open[i] = opening(k, cap, c[(i, i)]);
                 }
-                e.rls.scale_covariance(&self.open);
+                e.rls.scale_covariance(&self.open)?;
             }
             Engine::Adaline(_) | Engine::Hopfield(_) => {}
         }
@@ -2073,12 +2076,12 @@ fn open_rls_tip(
     tip: &mut TipOpening,
     k: f64,
     var: &[f64],
-) -> bool {
+) -> Result<bool> {
     if tip.prepare(rls.covariance(), k, var) {
-        rls.add_covariance(tip.increment());
-        true
+        rls.add_covariance(tip.increment())?;
+        Ok(true)
     } else {
-        false
+        Ok(false)
     }
 }
 
@@ -2105,20 +2108,20 @@ fn open_rls(
     k: f64,
     (cap, scale): (&DVector<f64>, &DVector<f64>),
     open: &mut DVector<f64>,
-) -> bool {
+) -> Result<bool> {
     if let Some(tip) = tip {
         if tip.looking() && !fresh {
             tip.cancel();
-        } else if open_rls_tip(rls, tip, k, var) {
-            return true;
+        } else if open_rls_tip(rls, tip, k, var)? {
+            return Ok(true);
         }
     }
     let c = rls.covariance();
     for i in 0..open.len() {
         open[i] = opening(k, cap[i] / (scale[i] * scale[i]), c[(i, i)]);
     }
-    rls.scale_covariance(open);
-    false
+    rls.scale_covariance(open)?;
+    Ok(false)
 }
 
 /// Prior variances of a payload's 10 parameters (kg², (kg·m)², (kg·m²)²): mass σ
@@ -2263,7 +2266,7 @@ impl EkfEngine {
                 self.handover[(i, j)] = v - c[(i, j)];
             }
         }
-        self.rls.add_covariance(&self.handover);
+        self.rls.add_covariance(&self.handover)?;
         Ok(())
     }
 
@@ -2600,7 +2603,8 @@ mod tests {
         e.hand_to_warmup();
         let p = mark.len();
         e.rls
-            .add_covariance(&DMatrix::from_diagonal_element(p, p, -1e9));
+            .add_covariance(&DMatrix::from_diagonal_element(p, p, -1e9))
+            .unwrap();
         let (t, q, tau) = row(k);
         id.update(t, &q, &tau, None).unwrap();
         assert_eq!(id.settings_json()["ekf_restarts"], 1);

@@ -13,6 +13,57 @@
 
 use nalgebra::{SMatrix, SVector};
 
+use crate::error::{invalid, PrrrpError, Result};
+
+/// Refuses a cut-off (Hz) that is not finite and > 0: NaN gave NaN outputs at every
+/// sample without a word.
+fn check_cutoff(cutoff_hz: f64) -> Result<()> {
+    if !(cutoff_hz.is_finite() && cutoff_hz > 0.0) {
+        return Err(invalid(
+            "cutoff_hz",
+            cutoff_hz,
+            "the filter's cut-off must be finite and > 0 (Hz)",
+        ));
+    }
+    Ok(())
+}
+
+/// Refuses a time step (s) that is NaN, infinite or negative: a negative step ran the
+/// filters backwards in time and returned garbage.
+fn check_step(dt: f64) -> Result<()> {
+    if !(dt.is_finite() && dt >= 0.0) {
+        return Err(invalid(
+            "dt",
+            dt,
+            "the time since the previous sample must be finite and >= 0 (s)",
+        ));
+    }
+    Ok(())
+}
+
+/// Refuses a sample `v` (named `what`) without exactly `n` entries (a short one panicked
+/// indexing it), or with a NaN or infinite one. One pass, allocation-free unless it fails.
+fn check_sample(what: &str, v: &[f64], n: usize) -> Result<()> {
+    if v.len() != n {
+        return Err(crate::estimators::len_mismatch(what, n, v.len()));
+    }
+    if let Some(j) = v.iter().position(|x| !x.is_finite()) {
+        return Err(PrrrpError::NonFinite {
+            what: format!("{what}[{j}]"),
+            row: None,
+        });
+    }
+    Ok(())
+}
+
+/// Refuses an output slice `v` (named `what`) without exactly `n` entries.
+fn check_output(what: &str, v: &[f64], n: usize) -> Result<()> {
+    if v.len() != n {
+        return Err(crate::estimators::len_mismatch(what, n, v.len()));
+    }
+    Ok(())
+}
+
 /// Butterworth polynomial of order 4, s⁴ + c3·s³ + c2·s² + c1·s + 1 (ω_c = 1).
 const BUTTER4: [f64; 3] = [
     2.613_125_929_752_753,
@@ -60,8 +111,12 @@ pub struct CausalLowPass {
 
 impl CausalLowPass {
     /// Filters for `n` joints with cut-off `cutoff_hz` (> 0).
-    pub fn new(n: usize, cutoff_hz: f64, measured_velocity: bool) -> Self {
-        Self {
+    ///
+    /// # Errors
+    /// [`PrrrpError::InvalidParameter`] for a `cutoff_hz` that is not finite and > 0.
+    pub fn new(n: usize, cutoff_hz: f64, measured_velocity: bool) -> Result<Self> {
+        check_cutoff(cutoff_hz)?;
+        Ok(Self {
             n,
             omega: 2.0 * std::f64::consts::PI * cutoff_hz,
             measured_velocity,
@@ -77,7 +132,7 @@ impl CausalLowPass {
             g1: SVector::zeros(),
             started: false,
             age: 0.0,
-        }
+        })
     }
 
     /// Longest step (s) that does not restart the filter: half a cut-off period.
@@ -100,10 +155,16 @@ impl CausalLowPass {
     }
 
     /// Moves the cut-off to `cutoff_hz` (> 0) and restarts the filter at the next sample.
-    pub fn set_cutoff(&mut self, cutoff_hz: f64) {
+    ///
+    /// # Errors
+    /// [`PrrrpError::InvalidParameter`] for a `cutoff_hz` that is not finite and > 0 (the
+    /// filter is left as it was).
+    pub fn set_cutoff(&mut self, cutoff_hz: f64) -> Result<()> {
+        check_cutoff(cutoff_hz)?;
         self.omega = 2.0 * std::f64::consts::PI * cutoff_hz;
         self.h = f64::NAN;
         self.reset();
+        Ok(())
     }
 
     /// The exact discretisation over `h` (recomputed only when h changes).
@@ -134,7 +195,15 @@ impl CausalLowPass {
     }
 
     /// Consumes one sample taken `dt` s after the previous one (a `dt` above
-    /// [`CausalLowPass::max_gap`] restarts) and writes the filtered q, q̇, q̈ and τ.
+    /// [`CausalLowPass::max_gap`] restarts; ignored for the first sample after a reset)
+    /// and writes the filtered q, q̇, q̈ and τ. Allocation-free.
+    ///
+    /// # Errors
+    /// [`PrrrpError::ShapeMismatch`] unless `q`, `tau`, `qd` (when given) and the four
+    /// outputs have n entries; [`PrrrpError::NonFinite`] for a NaN or infinite input;
+    /// [`PrrrpError::InvalidParameter`] for a `dt` that is not finite and >= 0, or 0 after
+    /// the first sample (a repeated time stamp: the first-order hold divides by it). The
+    /// filter is left as it was.
     #[allow(clippy::too_many_arguments)]
     pub fn update(
         &mut self,
@@ -146,7 +215,25 @@ impl CausalLowPass {
         vf: &mut [f64],
         af: &mut [f64],
         tf: &mut [f64],
-    ) {
+    ) -> Result<()> {
+        let n = self.n;
+        check_step(dt)?;
+        if self.started && dt == 0.0 {
+            return Err(invalid(
+                "dt",
+                dt,
+                "must be > 0 s after the first sample: a repeated time stamp is not a new \
+                 sample (skip it)",
+            ));
+        }
+        check_sample("q", q, n)?;
+        check_sample("tau", tau, n)?;
+        if let Some(d) = qd {
+            check_sample("qd", d, n)?;
+        }
+        for (what, v) in [("qf", &*qf), ("vf", &*vf), ("af", &*af), ("tf", &*tf)] {
+            check_output(what, v, n)?;
+        }
         if self.started && dt > self.max_gap() {
             self.started = false;
         }
@@ -189,6 +276,7 @@ impl CausalLowPass {
                 af[j] = w * w * self.xq[j][2];
             }
         }
+        Ok(())
     }
 }
 
@@ -215,8 +303,12 @@ const READY_AFTER: f64 = 6.0;
 impl CausalKinematics {
     /// Filters for `n` joints with bandwidth `cutoff_hz` (> 0); `measured_velocity`: the
     /// samples carry measured q̇ (then q̇ is used as measured and q̈ estimated from it).
-    pub fn new(n: usize, cutoff_hz: f64, measured_velocity: bool) -> Self {
-        Self {
+    ///
+    /// # Errors
+    /// [`PrrrpError::InvalidParameter`] for a `cutoff_hz` that is not finite and > 0.
+    pub fn new(n: usize, cutoff_hz: f64, measured_velocity: bool) -> Result<Self> {
+        check_cutoff(cutoff_hz)?;
+        Ok(Self {
             n,
             omega: 2.0 * std::f64::consts::PI * cutoff_hz,
             measured_velocity,
@@ -224,7 +316,7 @@ impl CausalKinematics {
             p: vec![[0.0; 6]; n],
             started: false,
             age: 0.0,
-        }
+        })
     }
 
     /// Whether the samples are expected to carry measured velocities.
@@ -255,16 +347,43 @@ impl CausalKinematics {
 
     /// Moves the bandwidth to `cutoff_hz` (> 0) and restarts the filters at the next
     /// sample.
-    pub fn set_cutoff(&mut self, cutoff_hz: f64) {
+    ///
+    /// # Errors
+    /// [`PrrrpError::InvalidParameter`] for a `cutoff_hz` that is not finite and > 0 (the
+    /// filters are left as they were).
+    pub fn set_cutoff(&mut self, cutoff_hz: f64) -> Result<()> {
+        check_cutoff(cutoff_hz)?;
         self.omega = 2.0 * std::f64::consts::PI * cutoff_hz;
         self.reset();
+        Ok(())
     }
 
     /// Consumes one sample taken `dt` s after the previous one (ignored for the first
     /// sample after a reset; a `dt` above [`CausalKinematics::max_gap`] restarts) and
-    /// writes q̇ and q̈ estimates at its time. `q` and `qd` (measured velocities, when the
-    /// filter was built for them) must have n finite entries (checked by the caller).
-    pub fn update(&mut self, dt: f64, q: &[f64], qd: Option<&[f64]>, v: &mut [f64], a: &mut [f64]) {
+    /// writes q̇ and q̈ estimates at its time (rad/s, rad/s², or m/s, m/s²).
+    /// Allocation-free.
+    ///
+    /// # Errors
+    /// [`PrrrpError::ShapeMismatch`] unless `q`, `qd` (measured velocities, when given)
+    /// and the outputs `v`, `a` have n entries; [`PrrrpError::NonFinite`] for a NaN or
+    /// infinite input; [`PrrrpError::InvalidParameter`] for a `dt` that is not finite and
+    /// >= 0. The filters are left as they were.
+    pub fn update(
+        &mut self,
+        dt: f64,
+        q: &[f64],
+        qd: Option<&[f64]>,
+        v: &mut [f64],
+        a: &mut [f64],
+    ) -> Result<()> {
+        let n = self.n;
+        check_step(dt)?;
+        check_sample("q", q, n)?;
+        if let Some(d) = qd {
+            check_sample("qd", d, n)?;
+        }
+        check_output("v", v, n)?;
+        check_output("a", a, n)?;
         if self.started && dt > self.max_gap() {
             self.started = false;
         }
@@ -311,6 +430,7 @@ impl CausalKinematics {
                 a[j] = self.x[j][2];
             }
         }
+        Ok(())
     }
 }
 
@@ -387,7 +507,7 @@ mod tests {
     /// q̈ with the small lag of a tracker whose bandwidth is far above the motion.
     #[test]
     fn tracks_a_sinusoid_on_an_irregular_clock() {
-        let mut k = CausalKinematics::new(1, 10.0, false);
+        let mut k = CausalKinematics::new(1, 10.0, false).unwrap();
         let w = 2.0 * std::f64::consts::PI * 0.5;
         let (mut t, mut v, mut a) = (0.0, [0.0], [0.0]);
         let mut s: u64 = 1;
@@ -396,7 +516,8 @@ mod tests {
             s = s.wrapping_mul(6364136223846793005).wrapping_add(1);
             let dt = 5e-4 + 1e-3 * ((s >> 11) as f64 / (1u64 << 53) as f64);
             t += dt;
-            k.update(dt, &[(w * t).sin()], None, &mut v, &mut a);
+            k.update(dt, &[(w * t).sin()], None, &mut v, &mut a)
+                .unwrap();
             if i > 500 {
                 worst.0 = worst.0.max((v[0] - w * (w * t).cos()).abs() / w);
                 worst.1 = worst.1.max((a[0] + w * w * (w * t).sin()).abs() / (w * w));
@@ -411,13 +532,14 @@ mod tests {
     /// With measured velocities, q̇ passes through and q̈ is its derivative.
     #[test]
     fn measured_velocity_passes_through() {
-        let mut k = CausalKinematics::new(2, 10.0, true);
+        let mut k = CausalKinematics::new(2, 10.0, true).unwrap();
         let (mut v, mut a) = ([0.0; 2], [0.0; 2]);
         let mut worst: f64 = 0.0;
         for i in 0..2000 {
             let t = i as f64 * 1e-3;
             let qd = [3.0 * t, -1.0 + 0.5 * t];
-            k.update(1e-3, &[0.0, 0.0], Some(&qd), &mut v, &mut a);
+            k.update(1e-3, &[0.0, 0.0], Some(&qd), &mut v, &mut a)
+                .unwrap();
             assert_eq!(v, qd);
             if i > 300 {
                 worst = worst.max((a[0] - 3.0).abs()).max((a[1] - 0.5).abs());
@@ -431,7 +553,7 @@ mod tests {
     #[test]
     fn low_pass_is_a_consistent_delay() {
         let fc = 10.0;
-        let mut f = CausalLowPass::new(1, fc, false);
+        let mut f = CausalLowPass::new(1, fc, false).unwrap();
         let w = 2.0 * std::f64::consts::PI * 0.5;
         // Group delay of the 4th-order Butterworth at DC: c3/ω_c.
         let td = BUTTER4[0] / (2.0 * std::f64::consts::PI * fc);
@@ -453,7 +575,8 @@ mod tests {
                 &mut vf,
                 &mut af,
                 &mut tf,
-            );
+            )
+            .unwrap();
             if i > 2000 {
                 let d = t - td;
                 worst[0] = worst[0].max((qf[0] - (w * d).sin()).abs());
@@ -470,13 +593,87 @@ mod tests {
     /// A gap restarts the filter (not ready right after it).
     #[test]
     fn a_gap_restarts() {
-        let mut k = CausalKinematics::new(1, 10.0, false);
+        let mut k = CausalKinematics::new(1, 10.0, false).unwrap();
         let (mut v, mut a) = ([0.0], [0.0]);
         for _ in 0..500 {
-            k.update(1e-3, &[0.0], None, &mut v, &mut a);
+            k.update(1e-3, &[0.0], None, &mut v, &mut a).unwrap();
         }
         assert!(k.ready());
-        k.update(1.0, &[0.0], None, &mut v, &mut a);
+        k.update(1.0, &[0.0], None, &mut v, &mut a).unwrap();
         assert!(!k.ready());
+    }
+
+    /// Bad settings and samples are refused with the field to fix, and leave the filters
+    /// as they were: a short `q` panicked indexing it, a NaN cut-off gave NaN outputs, a
+    /// negative step ran the tracker backwards.
+    #[test]
+    fn bad_cutoffs_steps_and_samples_are_refused() {
+        for hz in [f64::NAN, f64::INFINITY, 0.0, -1.0] {
+            let lp = CausalLowPass::new(2, hz, false);
+            assert!(
+                matches!(&lp, Err(PrrrpError::InvalidParameter { field, .. }) if field == "cutoff_hz"),
+                "{hz}: {lp:?}"
+            );
+            let k = CausalKinematics::new(2, hz, false);
+            assert!(
+                matches!(k, Err(PrrrpError::InvalidParameter { .. })),
+                "{hz}"
+            );
+        }
+        let mut k = CausalKinematics::new(2, 10.0, false).unwrap();
+        assert!(k.set_cutoff(f64::NAN).is_err());
+        assert_eq!(k.cutoff_hz(), 10.0);
+        let (mut v, mut a) = ([0.0; 2], [0.0; 2]);
+        let short = k.update(1e-3, &[0.0], None, &mut v, &mut a);
+        assert!(matches!(&short, Err(PrrrpError::ShapeMismatch { what, .. }) if what == "q"));
+        let nan = k.update(1e-3, &[0.0, f64::NAN], None, &mut v, &mut a);
+        assert!(matches!(&nan, Err(PrrrpError::NonFinite { what, .. }) if what == "q[1]"));
+        for _ in 0..100 {
+            k.update(1e-3, &[0.1, 0.2], None, &mut v, &mut a).unwrap();
+        }
+        let before = (k.x.clone(), k.age);
+        for dt in [-1e-3, f64::NAN] {
+            let back = k.update(dt, &[0.1, 0.2], None, &mut v, &mut a);
+            assert!(
+                matches!(&back, Err(PrrrpError::InvalidParameter { field, .. }) if field == "dt"),
+                "{dt}: {back:?}"
+            );
+        }
+        assert_eq!((k.x.clone(), k.age), before);
+        let mut short_out = [0.0; 1];
+        assert!(k
+            .update(1e-3, &[0.1, 0.2], None, &mut short_out, &mut a)
+            .is_err());
+
+        let mut lp = CausalLowPass::new(2, 10.0, false).unwrap();
+        assert!(lp.set_cutoff(-1.0).is_err());
+        let mut o = [[0.0; 2]; 4];
+        let [qf, vf, af, tf] = &mut o;
+        let short = lp.update(1e-3, &[0.0], &[0.0, 0.0], None, qf, vf, af, tf);
+        assert!(matches!(&short, Err(PrrrpError::ShapeMismatch { what, .. }) if what == "q"));
+        let short = lp.update(1e-3, &[0.0, 0.0], &[0.0], None, qf, vf, af, tf);
+        assert!(matches!(&short, Err(PrrrpError::ShapeMismatch { what, .. }) if what == "tau"));
+        let nan = lp.update(
+            1e-3,
+            &[0.0, 0.0],
+            &[f64::INFINITY, 0.0],
+            None,
+            qf,
+            vf,
+            af,
+            tf,
+        );
+        assert!(matches!(&nan, Err(PrrrpError::NonFinite { what, .. }) if what == "tau[0]"));
+        lp.update(1e-3, &[0.1, 0.2], &[1.0, 2.0], None, qf, vf, af, tf)
+            .unwrap();
+        // A repeated time stamp divided the hold's slope by 0 (NaN outputs).
+        let again = lp.update(0.0, &[0.1, 0.2], &[1.0, 2.0], None, qf, vf, af, tf);
+        assert!(
+            matches!(again, Err(PrrrpError::InvalidParameter { .. })),
+            "{again:?}"
+        );
+        lp.update(1e-3, &[0.1, 0.2], &[1.0, 2.0], None, qf, vf, af, tf)
+            .unwrap();
+        assert!(o.iter().flatten().all(|x| x.is_finite()));
     }
 }
