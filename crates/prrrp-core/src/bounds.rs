@@ -71,6 +71,31 @@ pub(crate) fn check_initial_covariance(delta: f64) -> crate::error::Result<()> {
     Ok(())
 }
 
+/// Refuses a per-sample input `v` (named `what`, e.g. `"qd"`) with an entry that is NaN or
+/// infinite ([`crate::PrrrpError::NonFinite`]) or at or above [`MAX_MAGNITUDE`] in
+/// magnitude ([`crate::PrrrpError::InvalidParameter`]): such inputs made the dynamics
+/// return `Ok` with NaN (1e200² overflows). One comparison per entry; allocates only on
+/// the error.
+pub(crate) fn check_sample(what: &str, v: &[f64]) -> crate::error::Result<()> {
+    // `!(|x| < MAX)` also catches NaN, so the good path is a single test per entry.
+    if let Some(j) = v.iter().position(|x| !(x.abs() < MAX_MAGNITUDE)) {
+        let x = v[j];
+        if !x.is_finite() {
+            return Err(crate::PrrrpError::NonFinite {
+                what: format!("{what}[{j}]"),
+                row: None,
+            });
+        }
+        return Err(crate::error::invalid(
+            format!("{what}[{j}]"),
+            x,
+            "is at or above MAX_MAGNITUDE (1e100) in magnitude: no joint turns, moves or \
+             pushes that much, and the dynamics overflow; check the units (rad, m, N·m, N)",
+        ));
+    }
+    Ok(())
+}
+
 /// Whether `v` lies in [[`MIN_FACTOR`], [`MAX_FACTOR`]] (false for NaN and infinities).
 /// The Python package checks its factor options with the same function
 /// (`prrrp.is_factor`).

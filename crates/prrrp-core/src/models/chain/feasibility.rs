@@ -214,7 +214,8 @@ impl FeasibilityReport {
 /// unidentifiable combinations come from π₀).
 ///
 /// # Errors
-/// [`PrrrpError::ShapeMismatch`] for wrong lengths.
+/// [`PrrrpError::ShapeMismatch`] for wrong lengths, [`PrrrpError::NonFinite`] for a NaN or
+/// infinite entry of β or π₀.
 pub fn standard_from_base(
     base: &super::BaseParameters,
     beta: &[f64],
@@ -229,6 +230,15 @@ pub fn standard_from_base(
         });
     }
     let k0 = base.base_values(anchor)?;
+    // A NaN in either spreads through the solve into every returned standard value.
+    for (what, v) in [("base parameters β", beta), ("anchor π₀", anchor)] {
+        if let Some(i) = v.iter().position(|x| !x.is_finite()) {
+            return Err(PrrrpError::NonFinite {
+                what: format!("{what}[{i}]"),
+                row: None,
+            });
+        }
+    }
     let k = nalgebra::DMatrix::from_fn(b, p, |r, j| base.map[(r, j)]);
     let kkt = &k * k.transpose();
     let rhs = nalgebra::DVector::from_iterator(b, beta.iter().zip(&k0).map(|(x, y)| x - y));

@@ -991,18 +991,30 @@ impl DynChain {
         }
     }
 
-    fn check3(&self, q: &[f64], qd: &[f64], qdd: &[f64]) -> Result<()> {
+    /// Lengths, then values: NaN, ∞ or values past [`crate::MAX_MAGNITUDE`] gave `Ok`
+    /// with NaN torques. `names` are the three inputs' names (the third is q̈ or τ).
+    fn check3_named(&self, names: [&str; 3], q: &[f64], qd: &[f64], third: &[f64]) -> Result<()> {
         let n = self.dof();
-        check_joints("q", q.len(), n)?;
-        check_joints("qd", qd.len(), n)?;
-        check_joints("qdd", qdd.len(), n)
+        for (what, v) in names.into_iter().zip([q, qd, third]) {
+            check_joints(what, v.len(), n)?;
+        }
+        for (what, v) in names.into_iter().zip([q, qd, third]) {
+            crate::bounds::check_sample(what, v)?;
+        }
+        Ok(())
+    }
+
+    fn check3(&self, q: &[f64], qd: &[f64], qdd: &[f64]) -> Result<()> {
+        self.check3_named(["q", "qd", "qdd"], q, qd, qdd)
     }
 
     /// Inverse dynamics τ (actuator terms included, see [`SerialChain::inverse_dynamics`])
     /// by recursive Newton–Euler.
     ///
     /// # Errors
-    /// [`PrrrpError::ShapeMismatch`] if an input does not have n entries.
+    /// [`PrrrpError::ShapeMismatch`] if an input does not have n entries,
+    /// [`PrrrpError::NonFinite`] for a NaN or infinite entry,
+    /// [`PrrrpError::InvalidParameter`] for one at or above [`crate::MAX_MAGNITUDE`].
     pub fn inverse_dynamics(&self, q: &[f64], qd: &[f64], qdd: &[f64]) -> Result<Vec<f64>> {
         self.check3(q, qd, qdd)?;
         let mut st = vec![LinkState::default(); self.dof()];
@@ -1014,10 +1026,13 @@ impl DynChain {
     /// Mass matrix M(q) (n×n) by the composite-rigid-body algorithm.
     ///
     /// # Errors
-    /// [`PrrrpError::ShapeMismatch`] if `q` does not have n entries.
+    /// [`PrrrpError::ShapeMismatch`] if `q` does not have n entries,
+    /// [`PrrrpError::NonFinite`] / [`PrrrpError::InvalidParameter`] for an entry that is
+    /// NaN, infinite or at or above [`crate::MAX_MAGNITUDE`].
     pub fn mass_matrix(&self, q: &[f64]) -> Result<DMatrix<f64>> {
         let n = self.dof();
         check_joints("q", q.len(), n)?;
+        crate::bounds::check_sample("q", q)?;
         let mut st = vec![LinkState::default(); n];
         let mut comp = vec![[0.0; 10]; n];
         let mut m = DMatrix::zeros(n, n);
@@ -1029,11 +1044,13 @@ impl DynChain {
     /// Forward dynamics q̈ = M⁻¹·(τ − C·q̇ − G − τ_friction).
     ///
     /// # Errors
-    /// [`PrrrpError::ShapeMismatch`] for wrong lengths, [`PrrrpError::InvalidParameter`]
-    /// naming the link if a link is not physical ([`DynChain::non_physical_links`]),
+    /// [`PrrrpError::ShapeMismatch`] for wrong lengths, [`PrrrpError::NonFinite`] /
+    /// [`PrrrpError::InvalidParameter`] for an input entry that is NaN, infinite or at or
+    /// above [`crate::MAX_MAGNITUDE`], [`PrrrpError::InvalidParameter`] naming the link if
+    /// a link is not physical ([`DynChain::non_physical_links`]),
     /// [`PrrrpError::NotPositiveDefinite`] if M(q) is singular.
     pub fn forward_dynamics(&self, q: &[f64], qd: &[f64], tau: &[f64]) -> Result<Vec<f64>> {
-        self.check3(q, qd, tau)?;
+        self.check3_named(["q", "qd", "tau"], q, qd, tau)?;
         self.require_physical()?;
         let n = self.dof();
         let mut m = self.mass_matrix(q)?;
@@ -1049,7 +1066,7 @@ impl DynChain {
     /// π = [`DynChain::parameters`].
     ///
     /// # Errors
-    /// [`PrrrpError::ShapeMismatch`] if an input does not have n entries.
+    /// As [`DynChain::inverse_dynamics`].
     pub fn regressor(&self, q: &[f64], qd: &[f64], qdd: &[f64]) -> Result<DMatrix<f64>> {
         self.check3(q, qd, qdd)?;
         let n = self.dof();
@@ -1116,4 +1133,67 @@ fn is_identity_rows(rows: &[Vec<f64>]) -> bool {
             .enumerate()
             .all(|(j, &x)| x == if i == j { 1.0 } else { 0.0 })
     })
+}
+
+#[cfg(test)]
+mod input_tests {
+    use crate::{BaseOptions, PrrrpError};
+
+    /// NaN, ∞ and values past MAX_MAGNITUDE are refused by the per-sample calls (they
+    /// returned `Ok` with NaN: a NaN q, or q̇ = 1e200 whose square overflows), naming the
+    /// input and joint.
+    #[test]
+    fn per_sample_dynamics_refuse_non_finite_and_huge_inputs() {
+        let chain = crate::test_support::puma(false);
+        let ok = [0.1; 6];
+        let mut nan = ok;
+        nan[3] = f64::NAN;
+        let mut huge = ok;
+        huge[3] = 1e200;
+        let non_finite = |r: Result<(), PrrrpError>, what: &str| {
+            assert!(
+                matches!(&r, Err(PrrrpError::NonFinite { what: w, .. }) if w == what),
+                "{what}: {r:?}"
+            );
+        };
+        let too_large = |r: Result<(), PrrrpError>, what: &str| {
+            assert!(
+                matches!(&r, Err(PrrrpError::InvalidParameter { field, .. }) if field == what),
+                "{what}: {r:?}"
+            );
+        };
+        non_finite(chain.inverse_dynamics(&nan, &ok, &ok).map(drop), "q[3]");
+        too_large(chain.inverse_dynamics(&ok, &huge, &ok).map(drop), "qd[3]");
+        non_finite(chain.inverse_dynamics(&ok, &ok, &nan).map(drop), "qdd[3]");
+        non_finite(chain.forward_dynamics(&ok, &ok, &nan).map(drop), "tau[3]");
+        too_large(chain.forward_dynamics(&huge, &ok, &ok).map(drop), "q[3]");
+        non_finite(chain.mass_matrix(&nan).map(drop), "q[3]");
+        too_large(chain.mass_matrix(&huge).map(drop), "q[3]");
+        non_finite(chain.regressor(&nan, &ok, &ok).map(drop), "q[3]");
+        too_large(chain.regressor(&ok, &ok, &huge).map(drop), "qdd[3]");
+        // Valid inputs still give finite results.
+        let tau = chain.inverse_dynamics(&ok, &ok, &ok).unwrap();
+        assert!(tau.iter().all(|t| t.is_finite()));
+        let qdd = chain.forward_dynamics(&ok, &ok, &tau).unwrap();
+        assert!(qdd.iter().all(|x| (x - 0.1).abs() < 1e-8), "{qdd:?}");
+    }
+
+    /// A NaN β (or anchor) is refused: it spread through the solve into every standard
+    /// value, returned as `Ok`.
+    #[test]
+    fn standard_from_base_refuses_nan() {
+        let chain = crate::test_support::puma(false);
+        let base = chain.base_parameters(&BaseOptions::default()).unwrap();
+        let pi = chain.parameters();
+        let mut beta = base.base_values(&pi).unwrap();
+        assert!(crate::standard_from_base(&base, &beta, &pi).is_ok());
+        beta[1] = f64::NAN;
+        let err = crate::standard_from_base(&base, &beta, &pi);
+        assert!(matches!(err, Err(PrrrpError::NonFinite { .. })), "{err:?}");
+        beta[1] = 0.0;
+        let mut anchor = pi.clone();
+        anchor[0] = f64::INFINITY;
+        let err = crate::standard_from_base(&base, &beta, &anchor);
+        assert!(matches!(err, Err(PrrrpError::NonFinite { .. })), "{err:?}");
+    }
 }
