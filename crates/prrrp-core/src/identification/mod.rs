@@ -180,7 +180,8 @@ impl IdentifiedModel {
     ///
     /// # Errors
     /// [`PrrrpError::ShapeMismatch`] when β, σ, the covariance, the residuals or the base
-    /// analysis do not fit the robot; [`PrrrpError::NonFinite`] for a NaN/∞ in β or σ.
+    /// analysis do not fit the robot (among them a `base` analysed for another chain, as
+    /// [`identify`] refuses it); [`PrrrpError::NonFinite`] for a NaN/∞ in β or σ.
     #[allow(clippy::too_many_arguments)]
     pub fn new(
         chain: &DynChain,
@@ -194,6 +195,9 @@ impl IdentifiedModel {
         settings: serde_json::Value,
         preprocessing: serde_json::Value,
     ) -> Result<Self> {
+        // Identify's own check: another chain's analysis was accepted here, saved and read
+        // back, and failed only at `predict`.
+        base.check_layout(chain.dof(), &chain.layout())?;
         let rsd_percent = sigma.as_ref().map(|s| {
             s.iter()
                 .zip(&beta)
@@ -453,13 +457,7 @@ impl IdentifiedModel {
     /// parameter count does not match the base analysis.
     pub fn predictor(&self) -> Result<Predictor<'_>> {
         let chain = self.chain()?;
-        if chain.num_params() != self.base.standard_names.len() {
-            return Err(PrrrpError::ShapeMismatch {
-                what: "base.standard_names".into(),
-                expected: format!("{} (the robot's standard parameters)", chain.num_params()),
-                got: format!("{}", self.base.standard_names.len()),
-            });
-        }
+        self.check_base_fits(&chain)?;
         let ws = chain.workspace();
         let y = vec![0.0; chain.dof() * chain.num_params()];
         if let Some(pl) = &self.payload {
@@ -479,12 +477,27 @@ impl IdentifiedModel {
         })
     }
 
+    /// Refuses a base analysis whose standard parameters are not the robot's (another
+    /// chain's analysis, or one with other actuator terms).
+    fn check_base_fits(&self, chain: &DynChain) -> Result<()> {
+        if chain.num_params() != self.base.standard_names.len() {
+            return Err(PrrrpError::ShapeMismatch {
+                what: "base.standard_names".into(),
+                expected: format!("{} (the robot's standard parameters)", chain.num_params()),
+                got: format!("{}", self.base.standard_names.len()),
+            });
+        }
+        Ok(())
+    }
+
     /// Joint torques τ = Y_b(q, q̇, q̈)·β̂ for many samples: flat row-major (samples × n)
     /// inputs and output.
     ///
     /// # Errors
     /// [`PrrrpError::ShapeMismatch`] for lengths that are not multiples of n or differ,
-    /// [`PrrrpError::NonFinite`] naming the first bad sample.
+    /// [`PrrrpError::NonFinite`] naming the first bad sample (a NaN/∞ input, or a torque
+    /// the inputs overflow), [`PrrrpError::InvalidParameter`] naming the sample of an
+    /// input at or above [`crate::MAX_MAGNITUDE`].
     pub fn predict(&self, q: &[f64], qd: &[f64], qdd: &[f64]) -> Result<Vec<f64>> {
         let mut p = self.predictor()?;
         let n = p.chain.dof();
@@ -497,6 +510,15 @@ impl IdentifiedModel {
                     PrrrpError::NonFinite { what, .. } => {
                         PrrrpError::NonFinite { what, row: Some(k) }
                     }
+                    PrrrpError::InvalidParameter {
+                        field,
+                        value,
+                        reason,
+                    } => PrrrpError::InvalidParameter {
+                        field: format!("{field} at sample {k}"),
+                        value,
+                        reason,
+                    },
                     other => other,
                 })?;
         }
@@ -536,7 +558,9 @@ impl IdentifiedModel {
             "not a prrrp model file; write it with IdentifiedModel::to_json",
         )?;
         m.validate()?;
-        m.chain()?;
+        // A file cannot carry a `BaseParameters`, so `new`'s check is the analysis's size
+        // against the robot's: a mismatch read fine and failed only at `predict`.
+        m.check_base_fits(&m.chain()?)?;
         // A file of any version this prrrp reads is held in this version's layout (as a
         // model built here is); `to_json` decides the version it writes.
         m.schema_version = MODEL_SCHEMA_VERSION;
@@ -564,11 +588,13 @@ impl Predictor<'_> {
         &self.chain
     }
 
-    /// τ = Y_b·β̂ of one sample into `tau` (n entries).
+    /// τ = Y_b·β̂ of one sample into `tau` (n entries, N·m or N).
     ///
     /// # Errors
     /// [`PrrrpError::ShapeMismatch`] for slices that do not have n entries,
-    /// [`PrrrpError::NonFinite`] for NaN/∞ inputs.
+    /// [`PrrrpError::NonFinite`] for NaN/∞ inputs or a predicted torque that is not finite
+    /// (the inputs overflow the model), [`PrrrpError::InvalidParameter`] for an input at
+    /// or above [`crate::MAX_MAGNITUDE`].
     pub fn predict_into(
         &mut self,
         q: &[f64],
@@ -576,13 +602,9 @@ impl Predictor<'_> {
         qdd: &[f64],
         tau: &mut [f64],
     ) -> Result<()> {
+        // Finite was not enough: q̇ = 1e160 squared overflows, and `Ok([NaN; n])` came back.
         for (name, v) in [("q", q), ("qd", qd), ("qdd", qdd)] {
-            if !v.iter().all(|x| x.is_finite()) {
-                return Err(PrrrpError::NonFinite {
-                    what: name.into(),
-                    row: None,
-                });
-            }
+            crate::bounds::check_sample(name, v)?;
         }
         self.chain
             .regressor_row_major_into(&mut self.ws, q, qd, qdd, &mut self.y)?;
@@ -601,6 +623,16 @@ impl Predictor<'_> {
                 // The link index was checked against the chain when the predictor was built.
                 *t += pl.torque_from_regressor_row(row).unwrap_or(0.0);
             }
+        }
+        // A backstop for inputs below MAX_MAGNITUDE whose products with β̂ still overflow.
+        if let Some(j) = tau.iter().position(|t| !t.is_finite()) {
+            return Err(PrrrpError::NonFinite {
+                what: format!(
+                    "predicted torque tau[{j}] (the inputs q, qd, qdd overflow the model: \
+                     check their units, rad, m, per s)"
+                ),
+                row: None,
+            });
         }
         Ok(())
     }
@@ -630,4 +662,96 @@ pub fn identify_least_squares(
         Method::Ls(s)
     };
     identify(chain, base, data, &method, preprocessing)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::BaseOptions;
+
+    fn model(chain: &DynChain, base: &BaseParameters) -> Result<IdentifiedModel> {
+        let beta = base.base_values(&chain.parameters())?;
+        let n = chain.dof();
+        IdentifiedModel::new(
+            chain,
+            base,
+            beta,
+            None,
+            None,
+            None,
+            vec![0.0; n],
+            "ls",
+            serde_json::Value::Null,
+            serde_json::Value::Null,
+        )
+    }
+
+    /// q̇ = 1e160 returned `Ok([NaN; n])` (finite inputs whose products overflow): inputs
+    /// at or above MAX_MAGNITUDE are refused with their sample, and a torque that still
+    /// overflows is refused as such.
+    #[test]
+    fn predict_refuses_inputs_that_overflow_the_model() {
+        let chain = crate::test_support::puma(false);
+        let base = chain.base_parameters(&BaseOptions::default()).unwrap();
+        let mut m = model(&chain, &base).unwrap();
+        let ok = vec![0.1; 12];
+        let mut huge = ok.clone();
+        huge[7] = 1e160;
+        let err = m.predict(&ok, &huge, &ok).unwrap_err();
+        assert!(
+            matches!(&err, PrrrpError::InvalidParameter { field, .. } if field == "qd[1] at sample 1"),
+            "{err}"
+        );
+        assert!(m
+            .predict(&ok, &ok, &ok)
+            .unwrap()
+            .iter()
+            .all(|t| t.is_finite()));
+        // The backstop: inputs below the bound, but a β̂ (not checked by `predict`) that
+        // takes the products past f64::MAX.
+        m.beta.iter_mut().for_each(|b| *b = 1e300);
+        let mut big = ok.clone();
+        big[8] = 1e50;
+        let err = m.predict(&ok, &big, &ok).unwrap_err();
+        assert!(
+            matches!(&err, PrrrpError::NonFinite { what, row: Some(1) }
+                if what.starts_with("predicted torque") && what.contains("overflow")),
+            "{err}"
+        );
+    }
+
+    /// Another chain's base analysis is refused when the model is made, as `identify`
+    /// refuses it, and when a file carrying one is read (it failed only at `predict`).
+    #[test]
+    fn a_base_analysis_of_another_chain_is_refused() {
+        let chain = crate::test_support::puma(false);
+        let paper = DynChain::paper();
+        let other = paper.base_parameters(&BaseOptions::default()).unwrap();
+        let err = IdentifiedModel::new(
+            &chain,
+            &other,
+            vec![1.0; other.count()],
+            None,
+            None,
+            None,
+            vec![0.0; 6],
+            "ls",
+            serde_json::Value::Null,
+            serde_json::Value::Null,
+        )
+        .unwrap_err();
+        assert!(matches!(err, PrrrpError::ShapeMismatch { .. }), "{err}");
+        // A file with the paper arm's analysis on the PUMA's robot.
+        let base = chain.base_parameters(&BaseOptions::default()).unwrap();
+        let mut m = model(&chain, &base).unwrap();
+        m.base = BaseDescription::from(&other);
+        m.beta = vec![1.0; other.count()];
+        m.residual_rms = vec![0.0; 6];
+        let text = crate::json::to_pretty(&m, "identified model").unwrap();
+        let err = IdentifiedModel::from_json(&text).unwrap_err();
+        assert!(
+            matches!(&err, PrrrpError::ShapeMismatch { what, .. } if what == "base.standard_names"),
+            "{err}"
+        );
+    }
 }
