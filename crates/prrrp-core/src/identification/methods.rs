@@ -458,6 +458,9 @@ pub fn identify_cached(
     data.check_dof(n, "the robot's")?;
     let model = chain.base_model(base)?;
     let b = model.count();
+    if let Method::Ekf(s) = method {
+        check_given_start(&s.initial, b)?;
+    }
     // One equation more than unknowns, so that the residual variance is defined.
     let needed = (b + 1).div_ceil(n);
     if data.len() < needed {
@@ -1624,6 +1627,36 @@ fn physical_start(
     Ok(DVector::from_vec(base.base_values(&est.parameters)?))
 }
 
+/// Refuses a given EKF start β₀ ([`EkfStart::Given`]) without one entry per base
+/// parameter, or with an entry that is NaN, infinite or at or above
+/// [`crate::MAX_MAGNITUDE`]; other starts pass. Checked before any fit: such a β₀ was
+/// reported as a bad `initial_parameter_min_std` (derived from it), which it never named.
+fn check_given_start(start: &EkfStart, b: usize) -> Result<()> {
+    let EkfStart::Given(v) = start else {
+        return Ok(());
+    };
+    if v.len() != b {
+        return Err(PrrrpError::ShapeMismatch {
+            what: "EkfStart::Given (the EKF's initial β0)".into(),
+            expected: format!("{b} entries (one per base parameter)"),
+            got: format!("{} entries", v.len()),
+        });
+    }
+    if let Some((k, &x)) = v
+        .iter()
+        .enumerate()
+        .find(|(_, x)| !(x.abs() < crate::MAX_MAGNITUDE))
+    {
+        return Err(PrrrpError::InvalidParameter {
+            field: format!("EkfStart::Given[{k}]"),
+            value: x,
+            reason: "the EKF's initial β0 must be finite and below MAX_MAGNITUDE (1e100) in \
+                     magnitude (units of each base parameter's combination)",
+        });
+    }
+    Ok(())
+}
+
 #[allow(clippy::too_many_arguments)]
 fn ekf(
     model: &DynChainBaseModel,
@@ -1648,13 +1681,7 @@ fn ekf(
         EkfStart::Physical => (physical_start(model, base, data)?, "physical"),
         EkfStart::Prior => (model.chain_base_values().clone(), "prior"),
         EkfStart::Given(v) => {
-            if v.len() != b {
-                return Err(PrrrpError::ShapeMismatch {
-                    what: "EKF initial β0".into(),
-                    expected: format!("{b} entries (one per base parameter)"),
-                    got: format!("{} entries", v.len()),
-                });
-            }
+            check_given_start(&s.initial, b)?;
             (DVector::from_column_slice(v), "given")
         }
     };
@@ -2011,5 +2038,38 @@ mod tests {
                 .unwrap();
             assert!(close(&fast, &slow, 1e-9));
         }
+    }
+
+    /// A bad given EKF start is named as such, before any fit: NaN was reported as an
+    /// `initial_parameter_min_std` of 2.2e-308 and 1e200 as one of 1e197.
+    #[test]
+    fn a_bad_given_ekf_start_is_named() {
+        let chain = puma(false);
+        let base = chain.base_parameters(&BaseOptions::default()).unwrap();
+        let b = base.count();
+        let data = random_data(60, 4);
+        for bad in [f64::NAN, 1e200, f64::NEG_INFINITY] {
+            let mut start = vec![1.0; b];
+            start[b - 1] = bad;
+            let method = Method::Ekf(EkfSettings {
+                initial: EkfStart::Given(start),
+                ..EkfSettings::default()
+            });
+            let err = identify(&chain, &base, &data, &method, json!(null)).unwrap_err();
+            let want = format!("EkfStart::Given[{}]", b - 1);
+            assert!(
+                matches!(&err, PrrrpError::InvalidParameter { field, .. } if *field == want),
+                "{bad}: {err}"
+            );
+        }
+        let short = Method::Ekf(EkfSettings {
+            initial: EkfStart::Given(vec![1.0; b - 1]),
+            ..EkfSettings::default()
+        });
+        let err = identify(&chain, &base, &data, &short, json!(null)).unwrap_err();
+        assert!(
+            matches!(&err, PrrrpError::ShapeMismatch { what, .. } if what.starts_with("EkfStart::Given")),
+            "{err}"
+        );
     }
 }
