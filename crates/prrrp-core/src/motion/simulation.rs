@@ -497,6 +497,8 @@ fn rk4_core(
 /// closed-form model with stack buffers).
 ///
 /// # Errors
+/// [`PrrrpError::NonFinite`] naming a NaN or infinite entry of q, q̇ or τ;
+/// [`PrrrpError::InvalidParameter`] for a step `h` that is not finite;
 /// [`PrrrpError::NotPositiveDefinite`] if M(q, λ) is not positive definite at a stage.
 #[inline]
 pub fn rk4_step(
@@ -507,6 +509,16 @@ pub fn rk4_step(
     tau: &Vec5,
     h: f64,
 ) -> Result<(Vec5, Vec5)> {
+    // Bad inputs, not a blow-up: a NaN q read as a non-physical mass matrix, a NaN step
+    // as a diverged simulation.
+    crate::models::prrrp::dynamics::check_finite_state(q, qd, tau)?;
+    if !h.is_finite() {
+        return Err(PrrrpError::InvalidParameter {
+            field: "h".into(),
+            value: h,
+            reason: "the RK4 step must be finite (s)",
+        });
+    }
     let plant = ParameterisedModel::new(*model, *lambda)?;
     let mut ws = plant.workspace();
     let mut scratch = [0.0; RK4_SCRATCH_PER_JOINT * NDOF];

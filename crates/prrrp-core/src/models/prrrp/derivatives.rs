@@ -113,7 +113,7 @@ impl LinearDynamics<NDOF, NPARAM> for PrrrpModel {
 
     #[inline]
     fn forward_dynamics(&self, q: &Vec5, qd: &Vec5, tau: &Vec5, lambda: &Lambda) -> Result<Vec5> {
-        PrrrpModel::forward_dynamics(self, q, qd, tau, lambda)
+        PrrrpModel::forward_dynamics_unchecked(self, q, qd, tau, lambda)
     }
 
     #[inline]

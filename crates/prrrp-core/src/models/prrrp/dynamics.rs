@@ -233,10 +233,26 @@ impl PrrrpModel {
     /// factorisation of M.
     ///
     /// # Errors
+    /// [`PrrrpError::NonFinite`] naming the first NaN or infinite entry of q, q̇ or τ;
     /// [`PrrrpError::NotPositiveDefinite`] if M(q, λ) is not positive definite (a
     /// non-physical λ).
     #[inline]
     pub fn forward_dynamics(
+        &self,
+        q: &Vec5,
+        qd: &Vec5,
+        tau: &Vec5,
+        lambda: &Lambda,
+    ) -> Result<Vec5> {
+        // A NaN q reached the Cholesky factorisation and was reported as a non-physical λ.
+        check_finite_state(q, qd, tau)?;
+        self.forward_dynamics_unchecked(q, qd, tau, lambda)
+    }
+
+    /// [`Self::forward_dynamics`] without the input check, for the estimators and
+    /// integrators, which check their own states (a diverging one reports that).
+    #[inline]
+    pub(crate) fn forward_dynamics_unchecked(
         &self,
         q: &Vec5,
         qd: &Vec5,
@@ -271,6 +287,21 @@ pub(crate) fn mass_matrix_trig(t: &Trig, l: &Lambda) -> Mat5 {
     super::extended::mass_matrix(t, &ext)
 }
 
+/// The [`PrrrpError::NonFinite`] of the first NaN or infinite entry of q, q̇ or τ (named
+/// e.g. `q[2]`), checked before anything is computed from them. Allocates only on the
+/// error.
+pub(crate) fn check_finite_state(q: &Vec5, qd: &Vec5, tau: &Vec5) -> Result<()> {
+    for (what, v) in [("q", q), ("qd", qd), ("tau", tau)] {
+        if let Some(j) = v.iter().position(|x| !x.is_finite()) {
+            return Err(PrrrpError::NonFinite {
+                what: format!("{what}[{j}]"),
+                row: None,
+            });
+        }
+    }
+    Ok(())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -300,5 +331,37 @@ mod tests {
                 assert!((m * xs - col).amax() < 1e-12 * m.amax());
             }
         }
+    }
+
+    /// A NaN state is refused as such: it reached the Cholesky factorisation and read
+    /// "mass matrix … not positive definite; check that the parameters are physical".
+    #[test]
+    fn non_finite_states_are_refused_before_the_mass_matrix() {
+        let model = PrrrpModel::default();
+        let lambda = Robot::paper().base_parameters();
+        let ok = Vec5::repeat(0.1);
+        let mut bad = ok;
+        bad[2] = f64::NAN;
+        for (q, qd, tau, what) in [
+            (bad, ok, ok, "q[2]"),
+            (ok, bad, ok, "qd[2]"),
+            (ok, ok, bad, "tau[2]"),
+        ] {
+            for err in [
+                model.forward_dynamics(&q, &qd, &tau, &lambda).unwrap_err(),
+                crate::rk4_step(&model, &lambda, &q, &qd, &tau, 1e-3).unwrap_err(),
+            ] {
+                assert!(
+                    matches!(&err, PrrrpError::NonFinite { what: w, .. } if w == what),
+                    "{what}: {err}"
+                );
+            }
+        }
+        let step = crate::rk4_step(&model, &lambda, &ok, &ok, &ok, f64::NAN).unwrap_err();
+        assert!(
+            matches!(step, PrrrpError::InvalidParameter { .. }),
+            "{step}"
+        );
+        assert!(model.forward_dynamics(&ok, &ok, &ok, &lambda).is_ok());
     }
 }
