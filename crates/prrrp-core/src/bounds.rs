@@ -77,8 +77,10 @@ pub(crate) fn check_initial_covariance(delta: f64) -> crate::error::Result<()> {
 /// return `Ok` with NaN (1e200² overflows). One comparison per entry; allocates only on
 /// the error.
 pub(crate) fn check_sample(what: &str, v: &[f64]) -> crate::error::Result<()> {
-    // `!(|x| < MAX)` also catches NaN, so the good path is a single test per entry.
-    if let Some(j) = v.iter().position(|x| !(x.abs() < MAX_MAGNITUDE)) {
+    if let Some(j) = v
+        .iter()
+        .position(|x| x.abs() >= MAX_MAGNITUDE || x.is_nan())
+    {
         let x = v[j];
         if !x.is_finite() {
             return Err(crate::PrrrpError::NonFinite {

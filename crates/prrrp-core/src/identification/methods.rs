@@ -1645,7 +1645,7 @@ fn check_given_start(start: &EkfStart, b: usize) -> Result<()> {
     if let Some((k, &x)) = v
         .iter()
         .enumerate()
-        .find(|(_, x)| !(x.abs() < crate::MAX_MAGNITUDE))
+        .find(|(_, x)| x.abs() >= crate::MAX_MAGNITUDE || x.is_nan())
     {
         return Err(PrrrpError::InvalidParameter {
             field: format!("EkfStart::Given[{k}]"),
@@ -2067,9 +2067,8 @@ mod tests {
             ..EkfSettings::default()
         });
         let err = identify(&chain, &base, &data, &short, json!(null)).unwrap_err();
-        assert!(
-            matches!(&err, PrrrpError::ShapeMismatch { what, .. } if what.starts_with("EkfStart::Given")),
-            "{err}"
-        );
+        let named = matches!(&err, PrrrpError::ShapeMismatch { what, .. }
+            if what.starts_with("EkfStart::Given"));
+        assert!(named, "{err}");
     }
 }

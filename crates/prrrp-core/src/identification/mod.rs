@@ -698,10 +698,9 @@ mod tests {
         let mut huge = ok.clone();
         huge[7] = 1e160;
         let err = m.predict(&ok, &huge, &ok).unwrap_err();
-        assert!(
-            matches!(&err, PrrrpError::InvalidParameter { field, .. } if field == "qd[1] at sample 1"),
-            "{err}"
-        );
+        let named = matches!(&err, PrrrpError::InvalidParameter { field, .. }
+            if field == "qd[1] at sample 1");
+        assert!(named, "{err}");
         assert!(m
             .predict(&ok, &ok, &ok)
             .unwrap()

@@ -15,7 +15,7 @@
 //! for `holdoff` seconds while the estimate re-converges. The statistic is scale-free
 //! (each joint in its own noise units), so one threshold serves N·m and N alike.
 
-use crate::error::{invalid, PrrrpError, Result};
+use crate::error::{invalid, Result};
 
 /// Settings of [`ChangeDetector`] (SI units).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -69,10 +69,10 @@ impl ChangeDetector {
     /// (e.g. a prior model's residual RMS), or `None` to start from the first errors.
     ///
     /// # Errors
-    /// [`PrrrpError::ShapeMismatch`] unless `initial_sd` has `n` entries (a longer or
-    /// shorter one set the detector's joint count instead of `n`);
-    /// [`PrrrpError::InvalidParameter`] for an entry that is not finite and >= 0 (units
-    /// of τ).
+    /// [`crate::PrrrpError::ShapeMismatch`] unless `initial_sd` has `n` entries (a
+    /// longer or shorter one set the detector's joint count instead of `n`);
+    /// [`crate::PrrrpError::InvalidParameter`] for an entry that is not finite and >= 0
+    /// (units of τ).
     pub fn new(n: usize, config: ChangeDetection, initial_sd: Option<&[f64]>) -> Result<Self> {
         if let Some(s) = initial_sd {
             crate::error::check_joints("initial_sd", s.len(), n)?;
@@ -149,10 +149,10 @@ impl ChangeDetector {
     /// zeros for a method without a covariance). Allocation-free.
     ///
     /// # Errors
-    /// [`PrrrpError::ShapeMismatch`] unless `e`, `floor` and `model_var` have one entry per
-    /// joint (the shortest set the joints tested, silently);
-    /// [`PrrrpError::InvalidParameter`] for a `dt` that is not finite and >= 0 (s). The
-    /// detector is left as it was.
+    /// [`crate::PrrrpError::ShapeMismatch`] unless `e`, `floor` and `model_var` have one
+    /// entry per joint (the shortest set the joints tested, silently);
+    /// [`crate::PrrrpError::InvalidParameter`] for a `dt` that is not finite and >= 0
+    /// (s). The detector is left as it was.
     pub fn update(&mut self, dt: f64, e: &[f64], floor: &[f64], model_var: &[f64]) -> Result<bool> {
         let n = self.var.len();
         for (what, v) in [("e", e), ("floor", floor), ("model_var", model_var)] {
@@ -296,6 +296,7 @@ impl ErrorCorrelation {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::PrrrpError;
 
     /// Seeded zero-mean, unit-variance uniform noise (an LCG).
     fn uniform_noise(mut s: u64) -> impl FnMut() -> f64 {
@@ -431,10 +432,9 @@ mod tests {
             "{short:?}"
         );
         let nan = ChangeDetector::new(2, cfg, Some(&[0.1, f64::NAN]));
-        assert!(
-            matches!(&nan, Err(PrrrpError::InvalidParameter { field, .. }) if field == "initial_sd[1]"),
-            "{nan:?}"
-        );
+        let named = matches!(&nan, Err(PrrrpError::InvalidParameter { field, .. })
+            if field == "initial_sd[1]");
+        assert!(named, "{nan:?}");
         let mut d = ChangeDetector::new(3, cfg, None).unwrap();
         let f = [1e-12; 3];
         for (e, floor, m, what) in [

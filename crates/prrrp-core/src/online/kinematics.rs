@@ -610,10 +610,9 @@ mod tests {
     fn bad_cutoffs_steps_and_samples_are_refused() {
         for hz in [f64::NAN, f64::INFINITY, 0.0, -1.0] {
             let lp = CausalLowPass::new(2, hz, false);
-            assert!(
-                matches!(&lp, Err(PrrrpError::InvalidParameter { field, .. }) if field == "cutoff_hz"),
-                "{hz}: {lp:?}"
-            );
+            let named = matches!(&lp, Err(PrrrpError::InvalidParameter { field, .. })
+                if field == "cutoff_hz");
+            assert!(named, "{hz}: {lp:?}");
             let k = CausalKinematics::new(2, hz, false);
             assert!(
                 matches!(k, Err(PrrrpError::InvalidParameter { .. })),
