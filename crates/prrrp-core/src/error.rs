@@ -284,6 +284,15 @@ pub(crate) fn check_shape(what: &str, got: (usize, usize), want: (usize, usize))
     Ok(())
 }
 
+/// An [`PrrrpError::InvalidParameter`] naming `what[i]` for the first entry of `v` that is
+/// not finite and >= 0 (`reason` says what the entries are and their units).
+pub(crate) fn check_non_negative(what: &str, v: &[f64], reason: &'static str) -> Result<()> {
+    match v.iter().position(|x| !(x.is_finite() && *x >= 0.0)) {
+        Some(i) => Err(invalid(format!("{what}[{i}]"), v[i], reason)),
+        None => Ok(()),
+    }
+}
+
 /// A [`PrrrpError::ShapeMismatch`] naming `what` unless its length `len` is the joint
 /// count `n`.
 pub(crate) fn check_joints(what: &str, len: usize, n: usize) -> Result<()> {

@@ -764,13 +764,11 @@ where
                 format!("{} entries", d.nrows()),
             ));
         }
-        if let Some(&v) = d.iter().find(|v| !(v.is_finite() && **v >= 0.0)) {
-            return Err(PrrrpError::InvalidParameter {
-                field: "parameter scale".into(),
-                value: v,
-                reason: "must be finite and >= 0",
-            });
-        }
+        crate::error::check_non_negative(
+            "parameter scale",
+            d.as_slice(),
+            "must be finite and >= 0",
+        )?;
         let f = |i: usize| if i < o { 1.0 } else { d[i - o] };
         for j in 0..s {
             let fj = f(j);

@@ -264,19 +264,12 @@ where
             "entries",
             " (one factor per parameter)",
         )?;
-        // A negative factor would still be a congruence, but NaN or ∞ would poison P for
-        // good: refuse before touching it.
-        if let Some((i, &v)) = d
-            .iter()
-            .enumerate()
-            .find(|(_, v)| !(v.is_finite() && **v >= 0.0))
-        {
-            return Err(crate::error::invalid(
-                format!("scale_covariance d[{i}]"),
-                v,
-                "each covariance scale factor must be finite and >= 0 (dimensionless)",
-            ));
-        }
+        // NaN or ∞ would poison P for good: refuse before touching it.
+        crate::error::check_non_negative(
+            "scale_covariance d",
+            d.as_slice(),
+            "each covariance scale factor must be finite and >= 0 (dimensionless)",
+        )?;
         for j in 0..p {
             for i in 0..p {
                 self.cov[(i, j)] *= d[i] * d[j];

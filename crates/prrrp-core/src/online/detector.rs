@@ -15,7 +15,7 @@
 //! for `holdoff` seconds while the estimate re-converges. The statistic is scale-free
 //! (each joint in its own noise units), so one threshold serves N·m and N alike.
 
-use crate::error::{invalid, Result};
+use crate::error::Result;
 
 /// Settings of [`ChangeDetector`] (SI units).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -76,17 +76,11 @@ impl ChangeDetector {
     pub fn new(n: usize, config: ChangeDetection, initial_sd: Option<&[f64]>) -> Result<Self> {
         if let Some(s) = initial_sd {
             crate::error::check_joints("initial_sd", s.len(), n)?;
-            if let Some((j, &v)) = s
-                .iter()
-                .enumerate()
-                .find(|(_, v)| !(v.is_finite() && **v >= 0.0))
-            {
-                return Err(invalid(
-                    format!("initial_sd[{j}]"),
-                    v,
-                    "a noise standard deviation must be finite and >= 0 (units of τ)",
-                ));
-            }
+            crate::error::check_non_negative(
+                "initial_sd",
+                s,
+                "a noise standard deviation must be finite and >= 0 (units of τ)",
+            )?;
         }
         let var = match initial_sd {
             Some(s) => s.iter().map(|v| v * v).collect(),
@@ -156,17 +150,9 @@ impl ChangeDetector {
     pub fn update(&mut self, dt: f64, e: &[f64], floor: &[f64], model_var: &[f64]) -> Result<bool> {
         let n = self.var.len();
         for (what, v) in [("e", e), ("floor", floor), ("model_var", model_var)] {
-            if v.len() != n {
-                return Err(crate::estimators::len_mismatch(what, n, v.len()));
-            }
+            crate::error::check_joints(what, v.len(), n)?;
         }
-        if !(dt.is_finite() && dt >= 0.0) {
-            return Err(invalid(
-                "dt",
-                dt,
-                "the time since the previous sample must be finite and >= 0 (s)",
-            ));
-        }
+        super::kinematics::check_step(dt)?;
         let c = &self.config;
         if !self.started {
             for (v, (x, f)) in self.var.iter_mut().zip(e.iter().zip(floor)) {

@@ -13,7 +13,7 @@
 
 use nalgebra::{SMatrix, SVector};
 
-use crate::error::{invalid, PrrrpError, Result};
+use crate::error::{check_joints, invalid, PrrrpError, Result};
 
 /// Refuses a cut-off (Hz) that is not finite and > 0: NaN gave NaN outputs at every
 /// sample without a word.
@@ -30,7 +30,7 @@ fn check_cutoff(cutoff_hz: f64) -> Result<()> {
 
 /// Refuses a time step (s) that is NaN, infinite or negative: a negative step ran the
 /// filters backwards in time and returned garbage.
-fn check_step(dt: f64) -> Result<()> {
+pub(super) fn check_step(dt: f64) -> Result<()> {
     if !(dt.is_finite() && dt >= 0.0) {
         return Err(invalid(
             "dt",
@@ -43,23 +43,13 @@ fn check_step(dt: f64) -> Result<()> {
 
 /// Refuses a sample `v` (named `what`) without exactly `n` entries (a short one panicked
 /// indexing it), or with a NaN or infinite one. One pass, allocation-free unless it fails.
-fn check_sample(what: &str, v: &[f64], n: usize) -> Result<()> {
-    if v.len() != n {
-        return Err(crate::estimators::len_mismatch(what, n, v.len()));
-    }
+fn check_input(what: &str, v: &[f64], n: usize) -> Result<()> {
+    check_joints(what, v.len(), n)?;
     if let Some(j) = v.iter().position(|x| !x.is_finite()) {
         return Err(PrrrpError::NonFinite {
             what: format!("{what}[{j}]"),
             row: None,
         });
-    }
-    Ok(())
-}
-
-/// Refuses an output slice `v` (named `what`) without exactly `n` entries.
-fn check_output(what: &str, v: &[f64], n: usize) -> Result<()> {
-    if v.len() != n {
-        return Err(crate::estimators::len_mismatch(what, n, v.len()));
     }
     Ok(())
 }
@@ -226,13 +216,13 @@ impl CausalLowPass {
                  sample (skip it)",
             ));
         }
-        check_sample("q", q, n)?;
-        check_sample("tau", tau, n)?;
+        check_input("q", q, n)?;
+        check_input("tau", tau, n)?;
         if let Some(d) = qd {
-            check_sample("qd", d, n)?;
+            check_input("qd", d, n)?;
         }
         for (what, v) in [("qf", &*qf), ("vf", &*vf), ("af", &*af), ("tf", &*tf)] {
-            check_output(what, v, n)?;
+            check_joints(what, v.len(), n)?;
         }
         if self.started && dt > self.max_gap() {
             self.started = false;
@@ -378,12 +368,12 @@ impl CausalKinematics {
     ) -> Result<()> {
         let n = self.n;
         check_step(dt)?;
-        check_sample("q", q, n)?;
+        check_input("q", q, n)?;
         if let Some(d) = qd {
-            check_sample("qd", d, n)?;
+            check_input("qd", d, n)?;
         }
-        check_output("v", v, n)?;
-        check_output("a", a, n)?;
+        check_joints("v", v.len(), n)?;
+        check_joints("a", a.len(), n)?;
         if self.started && dt > self.max_gap() {
             self.started = false;
         }
